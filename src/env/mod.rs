@@ -1,0 +1,1 @@
+//! Environments: ReacherDelivery (MuJoCo) and OfficeWorld, with their labelling functions.

@@ -1,0 +1,1 @@
+//! Inverse RL: apprenticeship learning, MaxEnt IRL, f-IRL, kernel density estimation and SMIRL.

@@ -1,0 +1,34 @@
+//! smirl — reward learning with structural motifs.
+//!
+//! Learns a reward machine (a finite automaton over labelled events) from demonstrations and
+//! runs inverse RL on the product of that machine with the environment (SMIRL), next to the
+//! baselines the paper compares against. Module layering (a lower layer never imports a
+//! higher one):
+//!
+//! ```text
+//! mujoco (safe MuJoCo wrapper)     rm (reward machines: type, formats, product, learning)
+//!            \                      /
+//!             env (ReacherDelivery, OfficeWorld, labelling functions)
+//!                        |
+//!  nn (MLP, Adam)  ->  rl (SAC, tabular solvers, replay buffer)
+//!                        |
+//!                  irl (apprenticeship, maxent, f-IRL, kde, smirl)
+//!                        |
+//!     log (MCAP)  ->  pipeline  ->  report (plots, tables)
+//! ```
+
+pub mod env;
+pub mod irl;
+pub mod log;
+pub mod mujoco;
+pub mod nn;
+pub mod pipeline;
+pub mod report;
+pub mod rl;
+pub mod rm;
+
+/// Directory of the shipped assets (`assets/`), fixed at build time.
+pub const ASSETS_DIR: &str = env!("SMIRL_ASSETS_DIR");
+
+/// Git commit the crate was built from, empty when unknown.
+pub const GIT_COMMIT: &str = env!("SMIRL_GIT_COMMIT");

@@ -1,0 +1,1 @@
+//! MCAP logging of rollouts: schema, writer, reader.

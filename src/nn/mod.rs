@@ -1,0 +1,1 @@
+//! Small hand-written neural networks: dense layers, MLPs, Gaussian heads, Adam.

@@ -1,0 +1,1 @@
+//! Reports: CSV metrics, SVG plots, result tables.

@@ -1,0 +1,1 @@
+//! Reinforcement learning: SAC, replay buffer, tabular solvers.

@@ -1,0 +1,10 @@
+//! Reward machines: labels and formulas, the machine type, and (in submodules) text/DOT
+//! formats, the product with an environment, LRM learning and equivalence checking.
+
+pub mod formula;
+pub mod labels;
+pub mod machine;
+
+pub use formula::{Formula, FormulaError};
+pub use labels::{LabelSet, UnknownProposition, Vocabulary, MAX_PROPS};
+pub use machine::{RewardMachine, RmError, Transition};
