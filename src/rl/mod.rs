@@ -1,1 +1,5 @@
 //! Reinforcement learning: SAC, replay buffer, tabular solvers.
+
+pub mod replay;
+pub mod sac;
+pub mod tabular;

@@ -1,0 +1,1 @@
+//! Uniform replay buffer for off-policy learning.

@@ -1,0 +1,1 @@
+//! Tabular solvers on finite MDPs: value iteration, soft value iteration, visitation frequencies, Q-learning.
