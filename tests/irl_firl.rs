@@ -64,9 +64,9 @@ fn firl_coefficients_match_the_covariance_formula() {
             assert!((x - y).abs() < 1e-12);
         }
         let a_mean = a.iter().sum::<f64>() / n as f64;
-        for i in 0..n {
+        for (i, a_i) in a.iter().enumerate() {
+            let c = (a_i - a_mean) / (n * t) as f64;
             for k in 0..t {
-                let c = (a[i] - a_mean) / (n * t) as f64;
                 assert!((s.coefficients[i * t + k] - c).abs() < 1e-14);
             }
         }

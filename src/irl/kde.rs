@@ -107,7 +107,7 @@ impl Kde {
         for j in 0..dim {
             let span = ((upper[j] - origin[j]) / bandwidth).floor() + 1.0;
             // Cell coordinates of queries go one cell beyond each side: keep head-room.
-            if !(span < (1u64 << 52) as f64) {
+            if span.is_nan() || span >= (1u64 << 52) as f64 {
                 return Err(KdeError::TooManyCells(format!(
                     "{span} along dimension {j}"
                 )));
@@ -243,13 +243,13 @@ impl Kde {
         'rows: for r in 0..rows {
             let mut rest = r;
             let mut base = 0u64;
-            for j in 0..last {
-                let c = centre[j] + (rest % 3) as i64 - 1;
+            for ((&cj, &nj), &sj) in centre[..last].iter().zip(&self.cells).zip(&self.strides) {
+                let c = cj + (rest % 3) as i64 - 1;
                 rest /= 3;
-                if c < 0 || c >= self.cells[j] as i64 {
+                if c < 0 || c >= nj as i64 {
                     continue 'rows;
                 }
-                base += c as u64 * self.strides[j];
+                base += c as u64 * sj;
             }
             let (start, end) = self.range(base + lo_last, base + hi_last);
             for p in self.points[start * d..end * d].chunks_exact(d) {

@@ -273,7 +273,7 @@ impl MlpReward {
         if let Some(&column) = config.input_columns.iter().find(|&&c| c >= obs_dim) {
             return Err(RewardError::ColumnOutOfRange { column, obs_dim });
         }
-        if config.hidden.iter().any(|&h| h == 0) {
+        if config.hidden.contains(&0) {
             return Err(RewardError::Config("a hidden layer has size 0".into()));
         }
         if !(config.clamp.is_finite() && config.clamp > 0.0) {

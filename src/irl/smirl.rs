@@ -160,7 +160,9 @@ impl FeatureMap {
 
     /// The label set of a row by the labelling rule: bit k for ball k, bit `balls` (the
     /// number of balls; 4 = `env::reacher::CANCEL_BIT` for Reacher) for the cancel flag —
-    /// the same rule as the environment's labelling function.
+    /// the same rule as the environment's labelling function. The environment decides on the
+    /// `f64` positions and the observation carries `f32` offsets, so the two can disagree
+    /// only for a fingertip within ~1e-9 m of a touch circle.
     pub fn labels_of(&self, row: &[f32]) -> crate::rm::LabelSet {
         let r = self.layout.touch_radius;
         let mut labels = crate::rm::LabelSet::EMPTY;
