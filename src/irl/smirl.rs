@@ -5,8 +5,8 @@
 //!
 //! - [`FeatureKind::Labels`] — the paper's choice, φ(o) = L(o) ∈ {0, 1}^{|P|}: bit k is 1 when
 //!   ball k is touched (fingertip strictly within the touch radius), the last bit is the
-//!   cancel flag. In a continuous space these bits are almost always 0 (a ball's touch disc
-//!   is ~0.5 % of the reachable area), so the reward is flat nearly everywhere and gives
+//!   cancel flag. In a continuous space these bits are almost always 0 (a ball's touch disc,
+//!   radius 0.02 m, is 0.9 % of the reachable disc of radius 0.21 m), so the reward is flat nearly everywhere and gives
 //!   SAC almost no signal on how to reach a ball.
 //! - [`FeatureKind::Smooth`] — a documented variant: φ_k(o) = exp(−d_k² / (2σ²)) for the
 //!   fingertip–ball distance d_k, plus the same cancel flag. It keeps the paper's structure
