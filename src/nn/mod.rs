@@ -1,1 +1,46 @@
 //! Small hand-written neural networks: dense layers, MLPs, Gaussian heads, Adam.
+//!
+//! Conventions shared by every type here:
+//! - `f32` throughout; parameters, gradients and activations live in `DMatrix<f32>`.
+//! - A batch is a matrix with one **column per sample** (features × batch, column-major), so a
+//!   sample's features are contiguous and copying observations in and out is a slice copy.
+//! - Matrix products go through [`gemm::gemm`] (matrixmultiply's `sgemm` with explicit
+//!   strides), never nalgebra's own `gemm` on views (dimforge/nalgebra#1616).
+//! - Forward and backward passes write into caller-owned workspaces sized for the batch, so
+//!   the training hot path does not allocate.
+//! - Backward passes overwrite gradients (they do not accumulate).
+
+pub mod adam;
+pub mod codec;
+pub mod dense;
+pub mod gaussian;
+pub mod gemm;
+pub mod mlp;
+
+pub use adam::{Adam, AdamConfig};
+pub use codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+pub use dense::Dense;
+pub use mlp::{BackwardMode, Mlp, MlpArch, MlpWorkspace};
+
+/// Errors of the neural-network layer (loading parameters, mismatched shapes).
+#[derive(Debug, thiserror::Error)]
+pub enum NnError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Codec {
+        path: String,
+        #[source]
+        source: CodecError,
+    },
+    #[error("{path}: network architecture {found} does not match the expected {expected}")]
+    ArchitectureMismatch {
+        path: String,
+        found: String,
+        expected: String,
+    },
+}

@@ -1,0 +1,502 @@
+//! Continuous SMIRL: MaxEnt IRL on the product U × O with a linear reward per RM state.
+//!
+//! The reward is `δ_r(u, o) = w_uᵀ φ(o)`, one weight vector per reward-machine state u
+//! (paper section 3, eq. 5). Two feature maps, chosen explicitly and never swapped silently:
+//!
+//! - [`FeatureKind::Labels`] — the paper's choice, φ(o) = L(o) ∈ {0, 1}^{|P|}: bit k is 1 when
+//!   ball k is touched (fingertip strictly within the touch radius), the last bit is the
+//!   cancel flag. In a continuous space these bits are almost always 0 (a ball's touch disc,
+//!   radius 0.02 m, is 0.9 % of the reachable disc of radius 0.21 m), so the reward is flat nearly everywhere and gives
+//!   SAC almost no signal on how to reach a ball.
+//! - [`FeatureKind::Smooth`] — a documented variant: φ_k(o) = exp(−d_k² / (2σ²)) for the
+//!   fingertip–ball distance d_k, plus the same cancel flag. It keeps the paper's structure
+//!   (linear in per-ball features, one weight vector per RM state) but has a gradient
+//!   everywhere.
+//!
+//! Both are computed from the observation (the labelling function is a function of o, see
+//! `env::reacher`), so a replay buffer only needs (o, u).
+//!
+//! # MaxEnt gradient
+//!
+//! With P_w(τ) ∝ exp(Σ_t δ_r(u_t, o_t)), the average log-likelihood of N_D expert
+//! trajectories has gradient (Ziebart 2008; paper eq. 4)
+//!
+//! ```text
+//! ∂ℓ/∂w_u = μ_D(u) − μ_π(u),   μ_X(u) = 1/N_X Σ_{τ∈X} Σ_t 1[u_t = u] φ(o_t),
+//! ```
+//!
+//! feature counts summed along each trajectory and averaged over trajectories (*per-trajectory
+//! normalisation*, so trajectories of different lengths weigh by what they visit), with μ_π
+//! estimated from fresh agent rollouts of the policy that is soft-optimal for the current
+//! reward. The sample surrogate whose gradient this is:
+//!
+//! ```text
+//! ℓ̂(w) = 1/N_D Σ_{τ∈D} R_w(τ) − 1/N_A Σ_{τ∈A} R_w(τ) − λ/2 ‖w‖²,   R_w(τ) = Σ_t w_{u_t}ᵀ φ(o_t)
+//! ```
+//!
+//! (the agent term stands in for log Z, whose gradient is the agent's feature expectation).
+//! As a loss to minimise, L = −ℓ̂ has per-state coefficients c = +1/N_A at agent states and
+//! −1/N_D at expert states ([`maxent_coefficients`]), the same form as the continuous MaxEnt
+//! baseline (see [`super::firl::MaxEntCoefficients`]).
+//!
+//! **Which RM state goes with an observation.** Pair each observation o_t with the RM state
+//! u the labels L(o_t) are *read in* (the state before the transition), i.e. the reward of a
+//! step is δ_r(u_{t−1}, o_t), as `RewardMachine::step(u, labels)` pays rewards. The functions
+//! here take whatever pairing the caller passes; expert and agent batches must use the same.
+
+use super::reward::{
+    check_batch, check_coefficients, save_bytes, RewardError, RewardModel, RewardOptimConfig,
+    TensorOptimizer,
+};
+use crate::env::reacher::{OBS_CANCEL, OBS_DIM, TOUCH_RADIUS};
+use std::path::Path;
+
+/// Which features φ(o) the linear reward reads.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum FeatureKind {
+    /// φ = L(o), the label bits (the paper's choice).
+    Labels,
+    /// φ_k = exp(−d_k²/(2σ²)) per ball, plus the cancel flag (documented variant).
+    Smooth { sigma: f64 },
+}
+
+/// Where a feature map finds things in an observation row.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ObsLayout {
+    pub obs_dim: usize,
+    /// Columns of (fingertip − ball) x and y, one pair per ball, in label-bit order.
+    pub ball_deltas: Vec<[usize; 2]>,
+    /// Column of the cancel flag (1 on the step the event fires).
+    pub cancel: usize,
+    /// A ball's label is true when the fingertip is strictly closer than this.
+    pub touch_radius: f64,
+}
+
+impl ObsLayout {
+    /// ReacherDelivery's observation layout (see `env::reacher`).
+    pub fn reacher() -> ObsLayout {
+        ObsLayout {
+            obs_dim: OBS_DIM,
+            ball_deltas: (0..4).map(|k| [8 + 2 * k, 9 + 2 * k]).collect(),
+            cancel: OBS_CANCEL,
+            touch_radius: TOUCH_RADIUS,
+        }
+    }
+}
+
+/// φ(o): one feature per ball plus the cancel flag.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FeatureMap {
+    pub kind: FeatureKind,
+    pub layout: ObsLayout,
+}
+
+impl FeatureMap {
+    pub fn new(kind: FeatureKind, layout: ObsLayout) -> Result<FeatureMap, RewardError> {
+        if let FeatureKind::Smooth { sigma } = kind {
+            if !(sigma.is_finite() && sigma > 0.0) {
+                return Err(RewardError::Config(format!(
+                    "smooth feature width sigma must be positive, got {sigma}"
+                )));
+            }
+        }
+        let bad = (layout.ball_deltas.iter().flatten())
+            .chain([&layout.cancel])
+            .find(|&&c| c >= layout.obs_dim)
+            .copied();
+        if let Some(column) = bad {
+            return Err(RewardError::ColumnOutOfRange {
+                column,
+                obs_dim: layout.obs_dim,
+            });
+        }
+        Ok(FeatureMap { kind, layout })
+    }
+
+    /// The paper's label features on ReacherDelivery.
+    pub fn reacher_labels() -> FeatureMap {
+        FeatureMap {
+            kind: FeatureKind::Labels,
+            layout: ObsLayout::reacher(),
+        }
+    }
+
+    /// The smooth variant on ReacherDelivery.
+    pub fn reacher_smooth(sigma: f64) -> Result<FeatureMap, RewardError> {
+        FeatureMap::new(FeatureKind::Smooth { sigma }, ObsLayout::reacher())
+    }
+
+    /// Number of features: balls + 1 (cancel). For Reacher, bit k of the label set is
+    /// feature k (the cancel proposition's bit, `CANCEL_BIT`, is the last feature).
+    pub fn len(&self) -> usize {
+        self.layout.ball_deltas.len() + 1
+    }
+
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    pub fn obs_dim(&self) -> usize {
+        self.layout.obs_dim
+    }
+
+    /// Writes φ(o) for one observation row into `out` (length [`FeatureMap::len`]).
+    pub fn features(&self, row: &[f32], out: &mut [f64]) {
+        let nb = self.layout.ball_deltas.len();
+        for (k, [cx, cy]) in self.layout.ball_deltas.iter().enumerate() {
+            let (dx, dy) = (f64::from(row[*cx]), f64::from(row[*cy]));
+            let d2 = dx * dx + dy * dy;
+            out[k] = match self.kind {
+                FeatureKind::Labels => {
+                    let r = self.layout.touch_radius;
+                    f64::from(u8::from(d2 < r * r))
+                }
+                FeatureKind::Smooth { sigma } => (-d2 / (2.0 * sigma * sigma)).exp(),
+            };
+        }
+        out[nb] = f64::from(u8::from(row[self.layout.cancel] > 0.5));
+    }
+
+    /// The label set of a row by the labelling rule: bit k for ball k, bit `balls` (the
+    /// number of balls; 4 = `env::reacher::CANCEL_BIT` for Reacher) for the cancel flag —
+    /// the same rule as the environment's labelling function. The environment decides on the
+    /// `f64` positions and the observation carries `f32` offsets, so the two can disagree
+    /// only for a fingertip within ~1e-9 m of a touch circle.
+    pub fn labels_of(&self, row: &[f32]) -> crate::rm::LabelSet {
+        let r = self.layout.touch_radius;
+        let mut labels = crate::rm::LabelSet::EMPTY;
+        for (k, [cx, cy]) in self.layout.ball_deltas.iter().enumerate() {
+            let (dx, dy) = (f64::from(row[*cx]), f64::from(row[*cy]));
+            if dx * dx + dy * dy < r * r {
+                labels = labels.with(k);
+            }
+        }
+        if row[self.layout.cancel] > 0.5 {
+            labels = labels.with(self.layout.ball_deltas.len());
+        }
+        labels
+    }
+}
+
+/// Trajectories of (observation, RM state) pairs, concatenated.
+#[derive(Clone, Copy, Debug)]
+pub struct AnnotatedTrajectories<'a> {
+    /// Row-major observations of every step of every trajectory (Σ lengths rows).
+    pub obs: &'a [f32],
+    /// RM state paired with each observation row.
+    pub rm_state: &'a [u32],
+    /// Length of each trajectory, in order.
+    pub lengths: &'a [usize],
+}
+
+impl AnnotatedTrajectories<'_> {
+    fn check(&self, obs_dim: usize) -> Result<(), RewardError> {
+        let total: usize = self.lengths.iter().sum();
+        if self.lengths.is_empty() {
+            return Err(RewardError::Config("no trajectories".into()));
+        }
+        check_batch(self.obs, obs_dim, self.rm_state, true, ("Σ lengths", total))?;
+        Ok(())
+    }
+}
+
+/// μ(u) = 1/N Σ_τ Σ_t 1[u_t = u] φ(o_t), as an `n_states × n_features` row-major matrix.
+pub fn feature_expectations(
+    features: &FeatureMap,
+    n_states: usize,
+    trajs: &AnnotatedTrajectories<'_>,
+) -> Result<Vec<f64>, RewardError> {
+    trajs.check(features.obs_dim())?;
+    let k = features.len();
+    let mut mu = vec![0.0; n_states * k];
+    let mut phi = vec![0.0; k];
+    for (row, &u) in trajs
+        .obs
+        .chunks_exact(features.obs_dim())
+        .zip(trajs.rm_state)
+    {
+        let u = check_state(u, n_states)?;
+        features.features(row, &mut phi);
+        for (m, p) in mu[u * k..(u + 1) * k].iter_mut().zip(&phi) {
+            *m += p;
+        }
+    }
+    let n = trajs.lengths.len() as f64;
+    mu.iter_mut().for_each(|m| *m /= n);
+    Ok(mu)
+}
+
+/// The log-likelihood ascent direction μ_D − μ_π (without the L2 term), `n_states ×
+/// n_features` row-major.
+pub fn maxent_gradient(
+    features: &FeatureMap,
+    n_states: usize,
+    expert: &AnnotatedTrajectories<'_>,
+    agent: &AnnotatedTrajectories<'_>,
+) -> Result<Vec<f64>, RewardError> {
+    let mu_d = feature_expectations(features, n_states, expert)?;
+    let mu_pi = feature_expectations(features, n_states, agent)?;
+    Ok(mu_d.iter().zip(&mu_pi).map(|(d, p)| d - p).collect())
+}
+
+/// Per-state coefficients of the loss −ℓ̂: (+1/N_A at every agent row, −1/N_D at every
+/// expert row).
+pub fn maxent_coefficients(
+    expert: &AnnotatedTrajectories<'_>,
+    agent: &AnnotatedTrajectories<'_>,
+) -> (Vec<f64>, Vec<f64>) {
+    let per = |t: &AnnotatedTrajectories<'_>, sign: f64| {
+        let total: usize = t.lengths.iter().sum();
+        vec![sign / t.lengths.len() as f64; total]
+    };
+    (per(agent, 1.0), per(expert, -1.0))
+}
+
+/// The sample log-likelihood surrogate ℓ̂(w) of the module docs, for weights `w`
+/// (`n_states × n_features` row-major) and L2 coefficient `l2`.
+pub fn log_likelihood_surrogate(
+    features: &FeatureMap,
+    n_states: usize,
+    weights: &[f64],
+    l2: f64,
+    expert: &AnnotatedTrajectories<'_>,
+    agent: &AnnotatedTrajectories<'_>,
+) -> Result<f64, RewardError> {
+    let k = features.len();
+    if weights.len() != n_states * k {
+        return Err(RewardError::Length {
+            what: "weights",
+            got: weights.len(),
+            expected: n_states * k,
+        });
+    }
+    let mean_return = |t: &AnnotatedTrajectories<'_>| -> Result<f64, RewardError> {
+        t.check(features.obs_dim())?;
+        let mut phi = vec![0.0; k];
+        let mut sum = 0.0;
+        for (row, &u) in t.obs.chunks_exact(features.obs_dim()).zip(t.rm_state) {
+            let u = check_state(u, n_states)?;
+            features.features(row, &mut phi);
+            sum += weights[u * k..(u + 1) * k]
+                .iter()
+                .zip(&phi)
+                .map(|(w, p)| w * p)
+                .sum::<f64>();
+        }
+        Ok(sum / t.lengths.len() as f64)
+    };
+    let norm2: f64 = weights.iter().map(|w| w * w).sum();
+    Ok(mean_return(expert)? - mean_return(agent)? - 0.5 * l2 * norm2)
+}
+
+fn check_state(u: u32, n_states: usize) -> Result<usize, RewardError> {
+    if (u as usize) < n_states {
+        Ok(u as usize)
+    } else {
+        Err(RewardError::RmStateOutOfRange { state: u, n_states })
+    }
+}
+
+/// δ_r(u, o) = w_uᵀ φ(o): the SMIRL reward as a [`RewardModel`].
+pub struct LinearRmReward {
+    features: FeatureMap,
+    n_states: usize,
+    /// `n_states × n_features` row-major.
+    weights: Vec<f32>,
+    grad: Vec<f32>,
+    optim: TensorOptimizer,
+    phi: Vec<f64>,
+}
+
+/// The saved form of a [`LinearRmReward`].
+#[derive(serde::Serialize, serde::Deserialize)]
+struct LinearRmRewardFile {
+    format: String,
+    features: FeatureMap,
+    n_states: usize,
+    /// One weight vector per RM state.
+    weights: Vec<Vec<f32>>,
+}
+
+const LINEAR_FORMAT: &str = "smirl-linear-rm-reward/1";
+
+impl LinearRmReward {
+    /// Zero weights (a flat reward) for `n_states` RM states.
+    pub fn new(
+        features: FeatureMap,
+        n_states: usize,
+        optim: RewardOptimConfig,
+    ) -> Result<LinearRmReward, RewardError> {
+        if n_states == 0 {
+            return Err(RewardError::Config(
+                "the reward machine has no state".into(),
+            ));
+        }
+        let n = n_states * features.len();
+        Ok(LinearRmReward {
+            optim: TensorOptimizer::new(optim, &[n])?,
+            phi: vec![0.0; features.len()],
+            weights: vec![0.0; n],
+            grad: vec![0.0; n],
+            features,
+            n_states,
+        })
+    }
+
+    pub fn features(&self) -> &FeatureMap {
+        &self.features
+    }
+
+    pub fn n_states(&self) -> usize {
+        self.n_states
+    }
+
+    /// Weight vector w_u.
+    pub fn weights(&self, u: usize) -> &[f32] {
+        let k = self.features.len();
+        &self.weights[u * k..(u + 1) * k]
+    }
+
+    /// One MaxEnt step from expert and agent trajectories: the stored gradient becomes
+    /// μ_π − μ_D (the gradient of −ℓ̂ without L2) and the optimiser steps on it.
+    pub fn maxent_step(
+        &mut self,
+        expert: &AnnotatedTrajectories<'_>,
+        agent: &AnnotatedTrajectories<'_>,
+    ) -> Result<(), RewardError> {
+        let g = maxent_gradient(&self.features, self.n_states, expert, agent)?;
+        for (dst, g) in self.grad.iter_mut().zip(&g) {
+            *dst = -*g as f32;
+        }
+        self.step();
+        Ok(())
+    }
+
+    /// Loads a reward saved by [`RewardModel::save`].
+    pub fn load(path: &Path, optim: RewardOptimConfig) -> Result<LinearRmReward, RewardError> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| RewardError::Io {
+            path: name.clone(),
+            source,
+        })?;
+        let file: LinearRmRewardFile =
+            serde_json::from_str(&text).map_err(|e| RewardError::Config(format!("{name}: {e}")))?;
+        if file.format != LINEAR_FORMAT {
+            return Err(RewardError::Config(format!(
+                "{name}: format {:?}, expected {LINEAR_FORMAT:?}",
+                file.format
+            )));
+        }
+        let features = FeatureMap::new(file.features.kind, file.features.layout)
+            .map_err(|e| RewardError::Config(format!("{name}: {e}")))?;
+        let mut model = LinearRmReward::new(features, file.n_states, optim)?;
+        let k = model.features.len();
+        if file.weights.len() != file.n_states || file.weights.iter().any(|w| w.len() != k) {
+            return Err(RewardError::Config(format!(
+                "{name}: expected {} weight vectors of length {k}",
+                file.n_states
+            )));
+        }
+        model.weights = file.weights.concat();
+        Ok(model)
+    }
+}
+
+impl RewardModel for LinearRmReward {
+    fn obs_dim(&self) -> usize {
+        self.features.obs_dim()
+    }
+
+    fn reward_batch(
+        &mut self,
+        obs: &[f32],
+        rm_state: &[u32],
+        out: &mut [f32],
+    ) -> Result<(), RewardError> {
+        check_batch(obs, self.obs_dim(), rm_state, true, ("out", out.len()))?;
+        let k = self.features.len();
+        for ((row, &u), o) in obs.chunks_exact(self.obs_dim()).zip(rm_state).zip(out) {
+            let u = check_state(u, self.n_states)?;
+            self.features.features(row, &mut self.phi);
+            let w = &self.weights[u * k..(u + 1) * k];
+            *o = w
+                .iter()
+                .zip(&self.phi)
+                .map(|(&w, p)| f64::from(w) * p)
+                .sum::<f64>() as f32;
+        }
+        Ok(())
+    }
+
+    fn backward(
+        &mut self,
+        obs: &[f32],
+        rm_state: &[u32],
+        coeffs: &[f64],
+    ) -> Result<(), RewardError> {
+        check_batch(
+            obs,
+            self.obs_dim(),
+            rm_state,
+            true,
+            ("coeffs", coeffs.len()),
+        )?;
+        check_coefficients(coeffs)?;
+        let k = self.features.len();
+        let mut grad = vec![0.0f64; self.weights.len()];
+        for ((row, &u), &c) in obs.chunks_exact(self.obs_dim()).zip(rm_state).zip(coeffs) {
+            let u = check_state(u, self.n_states)?;
+            self.features.features(row, &mut self.phi);
+            for (g, p) in grad[u * k..(u + 1) * k].iter_mut().zip(&self.phi) {
+                *g += c * p;
+            }
+        }
+        for (dst, g) in self.grad.iter_mut().zip(&grad) {
+            *dst = *g as f32;
+        }
+        Ok(())
+    }
+
+    fn step(&mut self) {
+        self.optim
+            .step(&mut [(self.weights.as_mut_slice(), self.grad.as_mut_slice())]);
+    }
+
+    fn num_params(&self) -> usize {
+        self.weights.len()
+    }
+
+    fn params(&self) -> Vec<f32> {
+        self.weights.clone()
+    }
+
+    fn set_params(&mut self, params: &[f32]) -> Result<(), RewardError> {
+        if params.len() != self.weights.len() {
+            return Err(RewardError::Length {
+                what: "params",
+                got: params.len(),
+                expected: self.weights.len(),
+            });
+        }
+        self.weights.copy_from_slice(params);
+        Ok(())
+    }
+
+    fn grad(&self) -> Vec<f32> {
+        self.grad.clone()
+    }
+
+    fn save(&self, path: &Path) -> Result<(), RewardError> {
+        let k = self.features.len();
+        let file = LinearRmRewardFile {
+            format: LINEAR_FORMAT.to_string(),
+            features: self.features.clone(),
+            n_states: self.n_states,
+            weights: self.weights.chunks(k).map(|w| w.to_vec()).collect(),
+        };
+        let text = serde_json::to_string_pretty(&file)
+            .map_err(|e| RewardError::Config(format!("serialising the reward: {e}")))?;
+        save_bytes(path, text.as_bytes())
+    }
+}
