@@ -28,7 +28,10 @@ fn median(mut xs: Vec<f64>) -> f64 {
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    anyhow::ensure!(args.reps > 0 && args.steps > 0, "--reps and --steps must be positive");
+    anyhow::ensure!(
+        args.reps > 0 && args.steps > 0,
+        "--reps and --steps must be positive"
+    );
     let mut env = ReacherDelivery::new(ReacherConfig::default())?;
     let mut raw = Data::new(Arc::clone(env.model()))?;
     let action = [0.3f32, -0.2];
@@ -53,13 +56,34 @@ fn main() -> anyhow::Result<()> {
             }
         }
         env_rates.push(args.steps as f64 / t.elapsed().as_secs_f64());
-        eprintln!("rep {rep}: raw {:.0} steps/s, env {:.0} steps/s", raw_rates[rep], env_rates[rep]);
+        eprintln!(
+            "rep {rep}: raw {:.0} steps/s, env {:.0} steps/s",
+            raw_rates[rep], env_rates[rep]
+        );
     }
-    let ratios: Vec<f64> = env_rates.iter().zip(&raw_rates).map(|(e, r)| e / r).collect();
+    let ratios: Vec<f64> = env_rates
+        .iter()
+        .zip(&raw_rates)
+        .map(|(e, r)| e / r)
+        .collect();
     let (raw_med, env_med) = (median(raw_rates), median(env_rates));
-    println!("MuJoCo {} ({} steps x {} reps, {FRAME_SKIP} mj_step per env step)", mujoco::version_string(), args.steps, args.reps);
-    println!("raw FFI loop      : {raw_med:>9.0} steps/s ({:.1} us/step)", 1e6 / raw_med);
-    println!("ReacherDelivery   : {env_med:>9.0} steps/s ({:.1} us/step)", 1e6 / env_med);
-    println!("ratio env/raw     : {:.3} (median of per-rep ratios; target >= 0.9)", median(ratios));
+    println!(
+        "MuJoCo {} ({} steps x {} reps, {FRAME_SKIP} mj_step per env step)",
+        mujoco::version_string(),
+        args.steps,
+        args.reps
+    );
+    println!(
+        "raw FFI loop      : {raw_med:>9.0} steps/s ({:.1} us/step)",
+        1e6 / raw_med
+    );
+    println!(
+        "ReacherDelivery   : {env_med:>9.0} steps/s ({:.1} us/step)",
+        1e6 / env_med
+    );
+    println!(
+        "ratio env/raw     : {:.3} (median of per-rep ratios; target >= 0.9)",
+        median(ratios)
+    );
     Ok(())
 }
