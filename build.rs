@@ -3,19 +3,33 @@
 
 use std::process::Command;
 
-fn main() {
-    let manifest = std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR");
-    println!("cargo:rustc-env=SMIRL_ASSETS_DIR={manifest}/assets");
-    let commit = Command::new("git")
-        .args(["rev-parse", "HEAD"])
-        .current_dir(&manifest)
+fn git(manifest: &str, args: &[&str]) -> Option<String> {
+    Command::new("git")
+        .args(args)
+        .current_dir(manifest)
         .output()
         .ok()
         .filter(|o| o.status.success())
         .and_then(|o| String::from_utf8(o.stdout).ok())
         .map(|s| s.trim().to_string())
-        .unwrap_or_default();
+}
+
+fn main() {
+    let manifest = std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR");
+    println!("cargo:rustc-env=SMIRL_ASSETS_DIR={manifest}/assets");
+    let commit = git(&manifest, &["rev-parse", "HEAD"]).unwrap_or_default();
     println!("cargo:rustc-env=SMIRL_GIT_COMMIT={commit}");
     println!("cargo:rerun-if-changed=build.rs");
-    println!("cargo:rerun-if-changed=.git/HEAD");
+    // Rebuild when HEAD moves: watch HEAD itself (a branch switch) and the branch's ref file
+    // (a commit). Ask git for their paths: in a worktree `.git` is a file, not a folder.
+    for path in ["HEAD", "refs/heads"] {
+        if let Some(p) = git(&manifest, &["rev-parse", "--path-format=absolute", "--git-path", path]) {
+            println!("cargo:rerun-if-changed={p}");
+        }
+    }
+    if let Some(branch) = git(&manifest, &["symbolic-ref", "-q", "HEAD"]) {
+        if let Some(p) = git(&manifest, &["rev-parse", "--path-format=absolute", "--git-path", &branch]) {
+            println!("cargo:rerun-if-changed={p}");
+        }
+    }
 }
