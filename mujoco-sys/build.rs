@@ -51,6 +51,10 @@ fn main() {
         .allowlist_var("mj(NREF|NEQDATA|NDYN|NGAIN|NBIAS|NIMP|NSOLVER|MINVAL|MINIMP|MAXIMP|MAXCONPAIR|MAXVFS|MAXVFSNAME)")
         .allowlist_type("mjModel|mjData|mjOption|mjContact|mjWarningStat|mjTimerStat|mjSolverStat|mjVFS|mjLROpt|mjStatistic|mjtObj|mjtWarning|mjtJoint|mjtGeom|mjtIntegrator|mjtState|mjtNum")
         .blocklist_function("mjr_.*|mjv_.*|mjui_.*")
+        // Any of these may reach mju_error, whose handler (installed by the safe wrapper)
+        // unwinds. With the plain "C" ABI Rust assumes no unwinding and drops the landing
+        // pads that would catch it, so the calls must be declared "C-unwind".
+        .override_abi(bindgen::Abi::CUnwind, "mj_.*|mju_.*")
         .default_enum_style(bindgen::EnumVariation::Rust { non_exhaustive: false })
         .derive_default(true)
         .layout_tests(false)

@@ -60,3 +60,5 @@ pub fn check_action(action: &[f32], expected: usize) -> Result<(), EnvError> {
         None => Ok(()),
     }
 }
+
+pub mod reacher;

@@ -260,7 +260,8 @@ mod tests {
     #[test]
     fn truth_tables() {
         let v = v();
-        let cases: &[(&str, fn(bool, bool) -> bool)] = &[
+        type Truth = fn(bool, bool) -> bool;
+        let cases: &[(&str, Truth)] = &[
             ("r&g", |a, b| a && b),
             ("r|g", |a, b| a || b),
             ("!r", |a, _| !a),

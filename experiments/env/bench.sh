@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# ReacherDelivery steps/s vs the raw mj_step loop; writes experiments/env/bench.txt.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+cargo build --release --bin env_bench
+{
+    echo "# command: cargo run --release --bin env_bench -- --reps 7 --steps 20000"
+    echo "# machine: $(nproc) cores, $(date -u +%Y-%m-%d)"
+    ./target/release/env_bench --reps 7 --steps 20000
+} > experiments/env/bench.txt
+cat experiments/env/bench.txt

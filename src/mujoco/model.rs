@@ -1,0 +1,300 @@
+//! A compiled MuJoCo model.
+
+use super::{check_version, guard, MjError};
+use mujoco_sys as sys;
+use std::ffi::{c_char, CStr, CString};
+use std::path::Path;
+use std::ptr::NonNull;
+
+/// Kinds of named objects that [`Model::id`] can look up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ObjectKind {
+    Body,
+    Joint,
+    Geom,
+    Site,
+    Actuator,
+}
+
+impl ObjectKind {
+    fn raw(self) -> sys::mjtObj {
+        match self {
+            ObjectKind::Body => sys::mjtObj::mjOBJ_BODY,
+            ObjectKind::Joint => sys::mjtObj::mjOBJ_JOINT,
+            ObjectKind::Geom => sys::mjtObj::mjOBJ_GEOM,
+            ObjectKind::Site => sys::mjtObj::mjOBJ_SITE,
+            ObjectKind::Actuator => sys::mjtObj::mjOBJ_ACTUATOR,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            ObjectKind::Body => "body",
+            ObjectKind::Joint => "joint",
+            ObjectKind::Geom => "geom",
+            ObjectKind::Site => "site",
+            ObjectKind::Actuator => "actuator",
+        }
+    }
+}
+
+/// A compiled model (`mjModel`), freed on drop. Read-only after loading, so it can be shared
+/// between threads; each thread steps its own [`super::Data`].
+pub struct Model {
+    ptr: NonNull<sys::mjModel>,
+    source_name: String,
+}
+
+// SAFETY: mjModel is plain heap memory owned by this handle; MuJoCo never mutates a model
+// through `const mjModel*` (the only way the wrapper passes it after loading).
+unsafe impl Send for Model {}
+unsafe impl Sync for Model {}
+
+const ERROR_BUF: usize = 1000;
+
+impl Model {
+    /// Loads and compiles an MJCF file.
+    pub fn from_xml_path(path: &Path) -> Result<Model, MjError> {
+        let source_name = path.display().to_string();
+        check_version()?;
+        if !path.is_file() {
+            return Err(MjError::Load {
+                source_name,
+                message: "no such file".into(),
+            });
+        }
+        let c_path =
+            CString::new(path.as_os_str().as_encoded_bytes()).map_err(|_| MjError::Load {
+                source_name: source_name.clone(),
+                message: "path contains a NUL byte".into(),
+            })?;
+        Self::load(&c_path, std::ptr::null(), source_name)
+    }
+
+    /// Compiles MJCF text. `source_name` names it in error messages (e.g. the file the text
+    /// came from, or "embedded XML"). Relative `file=` references are not resolvable here.
+    pub fn from_xml_str(xml: &str, source_name: &str) -> Result<Model, MjError> {
+        check_version()?;
+        // mjVFS is about 2 MB in 2.2: allocate it on the heap, never on the stack.
+        let vfs = VfsBox::new();
+        let file_name = CString::new("model.xml").expect("literal has no NUL");
+        let bytes = xml.as_bytes();
+        let size = i32::try_from(bytes.len()).map_err(|_| MjError::Load {
+            source_name: source_name.into(),
+            message: "XML text larger than 2 GiB".into(),
+        })?;
+        // SAFETY: vfs points to an initialised mjVFS; the file slot is created with exactly
+        // `size` bytes and filled with as many.
+        let status = guard(|| unsafe {
+            let code = sys::mj_makeEmptyFileVFS(vfs.ptr, file_name.as_ptr(), size);
+            if code != 0 {
+                return code;
+            }
+            let index = sys::mj_findFileVFS(vfs.ptr, file_name.as_ptr());
+            let slot = (*vfs.ptr).filedata[index as usize] as *mut u8;
+            std::ptr::copy_nonoverlapping(bytes.as_ptr(), slot, bytes.len());
+            0
+        })?;
+        if status != 0 {
+            return Err(MjError::Load {
+                source_name: source_name.into(),
+                message: format!("MuJoCo's virtual file system refused the text (code {status})"),
+            });
+        }
+        Self::load(&file_name, vfs.ptr, source_name.into())
+    }
+
+    fn load(file: &CStr, vfs: *const sys::mjVFS, source_name: String) -> Result<Model, MjError> {
+        let mut error = [0 as c_char; ERROR_BUF];
+        // SAFETY: file is NUL-terminated, vfs is null or valid, the error buffer has the size
+        // passed.
+        let raw = guard(|| unsafe {
+            sys::mj_loadXML(file.as_ptr(), vfs, error.as_mut_ptr(), ERROR_BUF as i32)
+        })?;
+        match NonNull::new(raw) {
+            Some(ptr) => Ok(Model { ptr, source_name }),
+            None => {
+                // SAFETY: MuJoCo writes a NUL-terminated message into the buffer on failure.
+                let message = unsafe { CStr::from_ptr(error.as_ptr()) }
+                    .to_string_lossy()
+                    .trim()
+                    .to_string();
+                Err(MjError::Load {
+                    source_name,
+                    message: if message.is_empty() {
+                        "unknown error".into()
+                    } else {
+                        message
+                    },
+                })
+            }
+        }
+    }
+
+    /// Where the model came from (path or the name given to [`Model::from_xml_str`]).
+    pub fn source_name(&self) -> &str {
+        &self.source_name
+    }
+
+    pub(crate) fn as_ptr(&self) -> *const sys::mjModel {
+        self.ptr.as_ptr()
+    }
+
+    fn raw(&self) -> &sys::mjModel {
+        // SAFETY: the pointer is valid for the lifetime of self.
+        unsafe { self.ptr.as_ref() }
+    }
+
+    /// Id of a named object, or an error naming the object and the model.
+    pub fn id(&self, kind: ObjectKind, name: &str) -> Result<usize, MjError> {
+        let unknown = || MjError::UnknownName {
+            kind: kind.name(),
+            name: name.into(),
+            model: self.source_name.clone(),
+        };
+        let c_name = CString::new(name).map_err(|_| unknown())?;
+        // SAFETY: valid model and NUL-terminated name.
+        let id = unsafe { sys::mj_name2id(self.as_ptr(), kind.raw() as i32, c_name.as_ptr()) };
+        usize::try_from(id).map_err(|_| unknown())
+    }
+
+    pub fn nq(&self) -> usize {
+        self.raw().nq as usize
+    }
+    pub fn nv(&self) -> usize {
+        self.raw().nv as usize
+    }
+    pub fn nu(&self) -> usize {
+        self.raw().nu as usize
+    }
+    pub fn nbody(&self) -> usize {
+        self.raw().nbody as usize
+    }
+    pub fn njnt(&self) -> usize {
+        self.raw().njnt as usize
+    }
+    pub fn ngeom(&self) -> usize {
+        self.raw().ngeom as usize
+    }
+
+    /// Integration time step in seconds.
+    pub fn timestep(&self) -> f64 {
+        self.raw().opt.timestep
+    }
+
+    /// True when the integrator is 4th-order Runge–Kutta.
+    pub fn uses_rk4(&self) -> bool {
+        self.raw().opt.integrator == sys::mjtIntegrator::mjINT_RK4 as i32
+    }
+
+    fn slice<T>(&self, ptr: *const T, len: usize) -> &[T] {
+        // SAFETY: every model array the wrapper exposes has the length MuJoCo documents for
+        // it, and lives as long as the model.
+        unsafe { std::slice::from_raw_parts(ptr, len) }
+    }
+
+    /// Index of a joint's first value in `qpos`.
+    pub fn joint_qpos_addr(&self, joint: usize) -> usize {
+        self.slice(self.raw().jnt_qposadr, self.njnt())[joint] as usize
+    }
+
+    /// Index of a joint's first value in `qvel`.
+    pub fn joint_dof_addr(&self, joint: usize) -> usize {
+        self.slice(self.raw().jnt_dofadr, self.njnt())[joint] as usize
+    }
+
+    /// `Some((lo, hi))` when the joint is limited.
+    pub fn joint_range(&self, joint: usize) -> Option<(f64, f64)> {
+        let limited = self.slice(self.raw().jnt_limited, self.njnt())[joint] != 0;
+        let range = self.slice(self.raw().jnt_range, 2 * self.njnt());
+        limited.then(|| (range[2 * joint], range[2 * joint + 1]))
+    }
+
+    pub fn dof_armature(&self, dof: usize) -> f64 {
+        self.slice(self.raw().dof_armature, self.nv())[dof]
+    }
+
+    pub fn dof_damping(&self, dof: usize) -> f64 {
+        self.slice(self.raw().dof_damping, self.nv())[dof]
+    }
+
+    /// `Some((lo, hi))` when the actuator's control is limited.
+    pub fn actuator_ctrl_range(&self, actuator: usize) -> Option<(f64, f64)> {
+        let limited = self.slice(self.raw().actuator_ctrllimited, self.nu())[actuator] != 0;
+        let range = self.slice(self.raw().actuator_ctrlrange, 2 * self.nu());
+        limited.then(|| (range[2 * actuator], range[2 * actuator + 1]))
+    }
+
+    /// First gear coefficient of an actuator (the torque scale of a motor on a hinge).
+    pub fn actuator_gear(&self, actuator: usize) -> f64 {
+        self.slice(self.raw().actuator_gear, 6 * self.nu())[6 * actuator]
+    }
+
+    /// Joint driven by an actuator (for joint transmissions).
+    pub fn actuator_joint(&self, actuator: usize) -> usize {
+        self.slice(self.raw().actuator_trnid, 2 * self.nu())[2 * actuator] as usize
+    }
+
+    /// Collision bit masks `(contype, conaffinity)` of a geom.
+    pub fn geom_collision_masks(&self, geom: usize) -> (i32, i32) {
+        let n = self.ngeom();
+        (
+            self.slice(self.raw().geom_contype, n)[geom],
+            self.slice(self.raw().geom_conaffinity, n)[geom],
+        )
+    }
+
+    /// First size parameter of a geom (the radius of a sphere or capsule).
+    pub fn geom_radius(&self, geom: usize) -> f64 {
+        self.slice(self.raw().geom_size, 3 * self.ngeom())[3 * geom]
+    }
+}
+
+impl Drop for Model {
+    fn drop(&mut self) {
+        // SAFETY: the model was allocated by mj_loadXML and is freed once.
+        unsafe { sys::mj_deleteModel(self.ptr.as_ptr()) };
+    }
+}
+
+impl std::fmt::Debug for Model {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Model")
+            .field("source", &self.source_name)
+            .field("nq", &self.nq())
+            .field("nv", &self.nv())
+            .field("nu", &self.nu())
+            .finish()
+    }
+}
+
+/// A heap-allocated, initialised `mjVFS`, deleted on drop.
+struct VfsBox {
+    ptr: *mut sys::mjVFS,
+}
+
+impl VfsBox {
+    fn new() -> VfsBox {
+        let layout = std::alloc::Layout::new::<sys::mjVFS>();
+        // SAFETY: layout is non-zero-sized; mj_defaultVFS initialises every field.
+        unsafe {
+            let ptr = std::alloc::alloc_zeroed(layout) as *mut sys::mjVFS;
+            if ptr.is_null() {
+                std::alloc::handle_alloc_error(layout);
+            }
+            sys::mj_defaultVFS(ptr);
+            VfsBox { ptr }
+        }
+    }
+}
+
+impl Drop for VfsBox {
+    fn drop(&mut self) {
+        // SAFETY: ptr came from alloc_zeroed with this layout and was initialised; the VFS
+        // frees its file buffers before the block itself is freed.
+        unsafe {
+            sys::mj_deleteVFS(self.ptr);
+            std::alloc::dealloc(self.ptr as *mut u8, std::alloc::Layout::new::<sys::mjVFS>());
+        }
+    }
+}

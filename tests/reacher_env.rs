@@ -1,0 +1,349 @@
+//! ReacherDelivery and the MuJoCo wrapper against known values.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use smirl::env::reacher::*;
+use smirl::env::{ContinuousEnv, EnvError};
+use smirl::mujoco::{Data, MjError, Model, ObjectKind};
+use std::sync::Arc;
+
+const L1: f64 = 0.1;
+const L2: f64 = 0.11;
+
+/// Joint angles that put the fingertip at (x, y) (elbow-down solution of the 2-link arm).
+fn inverse_kinematics(x: f64, y: f64) -> [f64; 2] {
+    let c = (x * x + y * y - L1 * L1 - L2 * L2) / (2.0 * L1 * L2);
+    let q1 = c.clamp(-1.0, 1.0).acos();
+    let q0 = y.atan2(x) - (L2 * q1.sin()).atan2(L1 + L2 * q1.cos());
+    [q0, q1]
+}
+
+fn env(config: ReacherConfig) -> ReacherDelivery {
+    ReacherDelivery::new(config).unwrap()
+}
+
+fn rollout(seed: u64, steps: usize) -> Vec<(Vec<f32>, u32, f64, Vec<f64>)> {
+    let mut e = env(ReacherConfig::default());
+    let mut obs = vec![0.0; OBS_DIM];
+    e.reset(seed, &mut obs);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xabc);
+    (0..steps)
+        .map(|_| {
+            let a = [rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)];
+            let s = e.step(&a, &mut obs).unwrap();
+            (obs.clone(), s.labels.0, s.reward, e.qpos().to_vec())
+        })
+        .collect()
+}
+
+#[test]
+fn same_seed_gives_identical_trajectories() {
+    let a = rollout(7, 100);
+    let b = rollout(7, 100);
+    assert_eq!(a.len(), 100);
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(
+            x.0.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            y.0.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        );
+        assert_eq!(x.1, y.1);
+        assert_eq!(x.2.to_bits(), y.2.to_bits());
+        assert_eq!(
+            x.3.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            y.3.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        );
+    }
+    assert_ne!(
+        rollout(8, 5)[4].3,
+        a[4].3,
+        "another seed gives another trajectory"
+    );
+}
+
+#[test]
+fn fingertip_follows_the_arm_geometry() {
+    let mut e = env(ReacherConfig::default());
+    let mut obs = vec![0.0; OBS_DIM];
+    e.reset(0, &mut obs);
+    for &(q0, q1) in &[(0.0, 0.0), (0.5, -1.0), (-2.0, 2.5), (3.0, 0.3)] {
+        e.set_arm([q0, q1], [0.0, 0.0]).unwrap();
+        let tip = e.fingertip();
+        let expect = [
+            L1 * q0.cos() + L2 * (q0 + q1).cos(),
+            L1 * q0.sin() + L2 * (q0 + q1).sin(),
+        ];
+        assert!(
+            (tip[0] - expect[0]).abs() < 1e-12 && (tip[1] - expect[1]).abs() < 1e-12,
+            "{tip:?} vs {expect:?}"
+        );
+    }
+}
+
+#[test]
+fn each_ball_label_fires_exactly_within_touch_radius() {
+    let mut e = env(ReacherConfig {
+        cancel: CancelConfig {
+            probability: 0.0,
+            ..Default::default()
+        },
+        ..Default::default()
+    });
+    let mut obs = vec![0.0; OBS_DIM];
+    e.reset(1, &mut obs);
+    for (bit, ball) in e.balls().iter().enumerate() {
+        for &(d, inside) in &[(0.0, true), (0.0199, true), (0.0201, false), (0.05, false)] {
+            for k in 0..4 {
+                let phi = k as f64 * std::f64::consts::FRAC_PI_2 + 0.3;
+                let target = [ball[0] + d * phi.cos(), ball[1] + d * phi.sin()];
+                e.set_arm(inverse_kinematics(target[0], target[1]), [0.0, 0.0])
+                    .unwrap();
+                let tip = e.fingertip();
+                assert!((tip[0] - target[0]).hypot(tip[1] - target[1]) < 1e-9);
+                assert_eq!(
+                    e.labels().contains(bit),
+                    inside,
+                    "ball {} at distance {d}",
+                    BALLS[bit]
+                );
+                // Only that ball: the default layout keeps balls far apart.
+                assert_eq!(e.labels().0 & !(1 << bit), 0);
+            }
+        }
+    }
+}
+
+#[test]
+fn labels_after_a_step_match_the_distances() {
+    let mut e = env(ReacherConfig::default());
+    let mut obs = vec![0.0; OBS_DIM];
+    e.reset(3, &mut obs);
+    let ball = e.balls()[2];
+    // Start resting on the blue ball; a zero action keeps it there for a step.
+    e.set_arm(inverse_kinematics(ball[0], ball[1]), [0.0, 0.0])
+        .unwrap();
+    let s = e.step(&[0.0, 0.0], &mut obs).unwrap();
+    assert!(s.labels.contains(2));
+    assert!((obs[8 + 4] as f64).hypot(obs[9 + 4] as f64) < TOUCH_RADIUS);
+}
+
+#[test]
+fn cancel_event_is_reproducible_and_fires_once() {
+    let config = ReacherConfig::default();
+    let mut e = env(config.clone());
+    let mut obs = vec![0.0; OBS_DIM];
+    let mut with_cancel = 0;
+    for seed in 0..200u64 {
+        e.reset(seed, &mut obs);
+        let scheduled = e.cancel_step();
+        let mut fired = vec![];
+        for t in 1..=config.max_steps {
+            let s = e.step(&[0.1, -0.1], &mut obs).unwrap();
+            if s.labels.contains(CANCEL_BIT) {
+                fired.push(t);
+                assert_eq!(obs[OBS_CANCEL], 1.0);
+            } else {
+                assert_eq!(obs[OBS_CANCEL], 0.0);
+            }
+            assert_eq!(s.truncated, t == config.max_steps);
+        }
+        assert_eq!(fired, scheduled.into_iter().collect::<Vec<_>>());
+        if let Some(t) = scheduled {
+            assert!((config.cancel.earliest_step..=config.cancel.latest_step).contains(&t));
+            with_cancel += 1;
+        }
+        e.reset(seed, &mut obs);
+        assert_eq!(e.cancel_step(), scheduled, "same seed, same schedule");
+    }
+    // Binomial(200, 0.5): 100 ± 5σ.
+    assert!((65..=135).contains(&with_cancel), "{with_cancel}");
+    let mut never = env(ReacherConfig {
+        cancel: CancelConfig {
+            probability: 0.0,
+            ..Default::default()
+        },
+        ..Default::default()
+    });
+    for seed in 0..50 {
+        never.reset(seed, &mut obs);
+        assert_eq!(never.cancel_step(), None);
+    }
+}
+
+#[test]
+fn arm_matches_gymnasium_reacher() {
+    let m = Model::from_xml_path(&default_xml_path()).unwrap();
+    assert_eq!(m.timestep(), 0.01);
+    assert!(m.uses_rk4());
+    let j0 = m.id(ObjectKind::Joint, "joint0").unwrap();
+    let j1 = m.id(ObjectKind::Joint, "joint1").unwrap();
+    assert_eq!(m.joint_range(j0), None, "joint0 is unlimited");
+    assert_eq!(m.joint_range(j1), Some((-3.0, 3.0)));
+    for j in [j0, j1] {
+        let dof = m.joint_dof_addr(j);
+        assert_eq!(m.dof_armature(dof), 1.0);
+        assert_eq!(m.dof_damping(dof), 1.0);
+    }
+    assert_eq!(m.nu(), 2);
+    for (a, j) in [(0, j0), (1, j1)] {
+        assert_eq!(m.actuator_ctrl_range(a), Some((-1.0, 1.0)));
+        assert_eq!(m.actuator_gear(a), 200.0);
+        assert_eq!(m.actuator_joint(a), j);
+    }
+    for g in 0..m.ngeom() {
+        assert_eq!(m.geom_collision_masks(g).0, 0, "geom {g} must not collide");
+    }
+    for ball in BALLS {
+        let g = m.id(ObjectKind::Geom, ball).unwrap();
+        assert_eq!(m.geom_radius(g), 0.02);
+    }
+    // One env step is 0.02 s.
+    let mut e = env(ReacherConfig::default());
+    let mut obs = vec![0.0; OBS_DIM];
+    e.reset(0, &mut obs);
+    for _ in 0..10 {
+        e.step(&[0.0, 0.0], &mut obs).unwrap();
+    }
+    let data_time = {
+        let mut d = Data::new(Arc::clone(e.model())).unwrap();
+        for _ in 0..20 {
+            d.step().unwrap();
+        }
+        d.time()
+    };
+    assert!((data_time - 0.2).abs() < 1e-12);
+}
+
+#[test]
+fn actions_are_clipped_and_bad_actions_rejected() {
+    let mut a = env(ReacherConfig::default());
+    let mut b = env(ReacherConfig::default());
+    let (mut oa, mut ob) = (vec![0.0; OBS_DIM], vec![0.0; OBS_DIM]);
+    a.reset(5, &mut oa);
+    b.reset(5, &mut ob);
+    let sa = a.step(&[5.0, -7.0], &mut oa).unwrap();
+    let sb = b.step(&[1.0, -1.0], &mut ob).unwrap();
+    assert_eq!(oa, ob);
+    assert_eq!(sa.reward, sb.reward);
+    assert_eq!(
+        a.step(&[0.0], &mut oa),
+        Err(EnvError::ActionLength {
+            expected: 2,
+            got: 1
+        })
+    );
+    assert!(matches!(
+        a.step(&[0.0, f32::NAN], &mut oa),
+        Err(EnvError::ActionNotFinite { index: 1, .. })
+    ));
+    let mut fresh = env(ReacherConfig::default());
+    assert_eq!(fresh.step(&[0.0, 0.0], &mut oa), Err(EnvError::NotReset));
+}
+
+#[test]
+fn randomised_layouts_are_reachable_and_seeded() {
+    let mut e = env(ReacherConfig {
+        randomize_balls: true,
+        ..Default::default()
+    });
+    let mut obs = vec![0.0; OBS_DIM];
+    e.reset(11, &mut obs);
+    let first = e.balls();
+    e.reset(12, &mut obs);
+    assert_ne!(first, e.balls());
+    e.reset(11, &mut obs);
+    assert_eq!(first, e.balls());
+    for seed in 0..100 {
+        e.reset(seed, &mut obs);
+        let balls = e.balls();
+        for (i, b) in balls.iter().enumerate() {
+            let r = b[0].hypot(b[1]);
+            assert!((0.06..0.19).contains(&r));
+            // The ball slide joints carry the layout.
+            let q = e.qpos();
+            assert_eq!([q[2 + 2 * i], q[3 + 2 * i]], *b);
+            for c in &balls[..i] {
+                assert!((b[0] - c[0]).hypot(b[1] - c[1]) >= 0.08);
+            }
+        }
+    }
+}
+
+#[test]
+fn malformed_xml_reports_mujocos_message_and_the_file() {
+    let err = Model::from_xml_str(
+        "<mujoco><worldbody><body></worldbody></mujoco>",
+        "broken.xml",
+    )
+    .unwrap_err();
+    let text = err.to_string();
+    assert!(matches!(err, MjError::Load { .. }));
+    assert!(text.contains("broken.xml"), "{text}");
+    assert!(
+        text.to_lowercase().contains("xml"),
+        "MuJoCo's parser message is kept: {text}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.xml");
+    std::fs::write(
+        &path,
+        "<mujoco><worldbody><geom type='sphere'/></worldbody></mujoco>",
+    )
+    .unwrap();
+    let text = Model::from_xml_path(&path).unwrap_err().to_string();
+    assert!(text.contains("bad.xml") && text.contains("size"), "{text}");
+    let text = Model::from_xml_path(&dir.path().join("missing.xml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        text.contains("missing.xml") && text.contains("no such file"),
+        "{text}"
+    );
+}
+
+#[test]
+fn unknown_names_and_wrong_models_are_errors() {
+    let m = Arc::new(Model::from_xml_path(&default_xml_path()).unwrap());
+    let e = m.id(ObjectKind::Body, "purple").unwrap_err();
+    assert!(e.to_string().contains("no body named 'purple'"), "{e}");
+    assert!(m.id(ObjectKind::Joint, "red_x").is_ok());
+    assert!(m.id(ObjectKind::Site, "red_x").is_err());
+    let plain = Arc::new(Model::from_xml_str("<mujoco><worldbody><body name='b'><joint name='joint0' type='hinge'/><geom size='0.1'/></body></worldbody></mujoco>", "plain").unwrap());
+    let err = ReacherDelivery::with_model(plain, ReacherConfig::default())
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("joint1"), "{err}");
+}
+
+#[test]
+fn invalid_configs_are_rejected() {
+    let bad = ReacherConfig {
+        cancel: CancelConfig {
+            probability: 1.5,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    assert!(ReacherDelivery::new(bad)
+        .err()
+        .unwrap()
+        .to_string()
+        .contains("probability"));
+    let bad = ReacherConfig {
+        max_steps: 0,
+        ..Default::default()
+    };
+    assert!(ReacherDelivery::new(bad).is_err());
+    let bad: Result<ReacherConfig, _> = toml::from_str("max_step = 10");
+    assert!(bad.unwrap_err().to_string().contains("max_step"));
+}
+
+#[test]
+fn data_state_setters_check_lengths() {
+    let m = Arc::new(Model::from_xml_path(&default_xml_path()).unwrap());
+    let mut d = Data::new(m).unwrap();
+    assert_eq!(d.qpos().len(), 10);
+    assert!(d.set_qpos(&[0.0; 3]).is_err());
+    d.set_qpos(&[0.1; 10]).unwrap();
+    d.forward().unwrap();
+    assert_eq!(d.qpos(), &[0.1; 10]);
+}
