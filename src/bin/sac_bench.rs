@@ -10,6 +10,7 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::{check_action, ContinuousEnv, EnvError, EnvStep};
 use smirl::nn::gemm::{self, GemmShape};
 use smirl::rl::sac::{EnvReward, SacConfig, SacTrainer};
@@ -21,7 +22,9 @@ use std::time::Instant;
 #[derive(Parser, Debug)]
 #[command(about = "SAC steps+updates per second vs the matrix-multiply bound")]
 struct Args {
-    /// Environment: `synthetic` (cheap stand-in with the product env's sizes).
+    /// Environments, comma-separated: `synthetic` (cheap stand-in with the product env's sizes, obs
+    /// `--obs-dim`), `reacher` (ReacherDelivery, obs 17) or `reacher-onehot` (ReacherDelivery
+    /// with a 7-wide one-hot block appended, obs 24: the product environment's size).
     #[arg(long, default_value = "synthetic")]
     env: String,
     /// SAC config TOML (defaults: the paper's IRL config, (64, 64), batch 256).
@@ -109,6 +112,47 @@ impl ContinuousEnv for SyntheticEnv {
     }
 }
 
+/// Appends a one-hot block to an environment's observation (slot chosen by the labels seen
+/// so far, advancing on each new label): the size and cost profile of the product with a
+/// reward machine, for benchmarking until the RM product lands.
+struct OneHotAppended<E> {
+    inner: E,
+    width: usize,
+    slot: usize,
+}
+
+impl<E: ContinuousEnv> OneHotAppended<E> {
+    fn write_onehot(&self, obs: &mut [f32]) {
+        let n = self.inner.obs_dim();
+        obs[n..].fill(0.0);
+        obs[n + self.slot] = 1.0;
+    }
+}
+
+impl<E: ContinuousEnv> ContinuousEnv for OneHotAppended<E> {
+    fn obs_dim(&self) -> usize {
+        self.inner.obs_dim() + self.width
+    }
+    fn act_dim(&self) -> usize {
+        self.inner.act_dim()
+    }
+    fn reset(&mut self, seed: u64, obs: &mut [f32]) {
+        let n = self.inner.obs_dim();
+        self.inner.reset(seed, &mut obs[..n]);
+        self.slot = 0;
+        self.write_onehot(obs);
+    }
+    fn step(&mut self, action: &[f32], obs: &mut [f32]) -> Result<EnvStep, EnvError> {
+        let n = self.inner.obs_dim();
+        let s = self.inner.step(action, &mut obs[..n])?;
+        if !s.labels.is_empty() {
+            self.slot = (self.slot + 1) % self.width;
+        }
+        self.write_onehot(obs);
+        Ok(s)
+    }
+}
+
 struct Measurement {
     iters_per_s: Vec<f64>,
     gemm_bound_per_s: Vec<f64>,
@@ -149,7 +193,8 @@ fn measure<E: ContinuousEnv>(env: &mut E, config: &SacConfig, args: &Args) -> Re
     for _ in 0..args.reps {
         let t = Instant::now();
         trainer.train(env, &mut EnvReward, args.iters, |_| {})?;
-        m.iters_per_s.push(args.iters as f64 / t.elapsed().as_secs_f64());
+        m.iters_per_s
+            .push(args.iters as f64 / t.elapsed().as_secs_f64());
 
         let t = Instant::now();
         for _ in 0..args.iters {
@@ -166,7 +211,8 @@ fn measure<E: ContinuousEnv>(env: &mut E, config: &SacConfig, args: &Args) -> Re
             for a in &mut env_act {
                 *a = rng.gen_range(-1.0..1.0);
             }
-            if env.step(&env_act, &mut env_obs)?.truncated {
+            let s = env.step(&env_act, &mut env_obs)?;
+            if s.terminated || s.truncated {
                 env.reset(args.seed, &mut env_obs);
             }
         }
@@ -177,7 +223,13 @@ fn measure<E: ContinuousEnv>(env: &mut E, config: &SacConfig, args: &Args) -> Re
     Ok(m)
 }
 
-fn report(name: &str, config: &SacConfig, obs_dim: usize, act_dim: usize, m: &Measurement) -> String {
+fn report(
+    name: &str,
+    config: &SacConfig,
+    obs_dim: usize,
+    act_dim: usize,
+    m: &Measurement,
+) -> String {
     let mut s = String::new();
     let flops: usize = m.shapes.iter().map(|s| 2 * s.m * s.k * s.n).sum();
     let it = median(&m.iters_per_s);
@@ -194,18 +246,31 @@ fn report(name: &str, config: &SacConfig, obs_dim: usize, act_dim: usize, m: &Me
         m.shapes.len(),
         flops as f64 / 1e6
     );
-    let fmt = |v: &[f64]| v.iter().map(|x| format!("{x:.0}")).collect::<Vec<_>>().join(" ");
+    let fmt = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:.0}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
     let _ = writeln!(s, "steps+updates/s per rep: {}", fmt(&m.iters_per_s));
     let _ = writeln!(s, "matmul-only/s per rep:   {}", fmt(&m.gemm_bound_per_s));
     let _ = writeln!(s, "env-only steps/s per rep: {}", fmt(&m.env_only_per_s));
-    let _ = writeln!(s, "median steps+updates/s: {it:.0} ({:.0} µs each; target >= 1000)", 1e6 / it);
+    let _ = writeln!(
+        s,
+        "median steps+updates/s: {it:.0} ({:.0} µs each; target >= 1000)",
+        1e6 / it
+    );
     let _ = writeln!(
         s,
         "median matmul bound:    {gb:.0}/s ({:.0} µs, {:.1} GFLOP/s)",
         1e6 / gb,
         flops as f64 * gb / 1e9
     );
-    let _ = writeln!(s, "ratio (time per step+update / matmul time): {:.2} (target <= 2.5)", gb / it);
+    let _ = writeln!(
+        s,
+        "ratio (time per step+update / matmul time): {:.2} (target <= 2.5)",
+        gb / it
+    );
     s
 }
 
@@ -224,15 +289,34 @@ fn main() -> Result<()> {
         command[1..].join(" ")
     );
     let _ = writeln!(out, "commit: {}", smirl::GIT_COMMIT);
-    let (name, obs_dim, act_dim, m) = match args.env.as_str() {
-        "synthetic" => {
-            let mut env = SyntheticEnv::new(args.obs_dim, args.act_dim);
-            let m = measure(&mut env, &config, &args)?;
-            ("synthetic", args.obs_dim, args.act_dim, m)
-        }
-        other => bail!("unknown --env {other:?} (expected \"synthetic\")"),
-    };
-    out.push_str(&report(name, &config, obs_dim, act_dim, &m));
+    for env_name in args.env.split(',') {
+        let (name, obs_dim, act_dim, m) = match env_name {
+            "synthetic" => {
+                let mut env = SyntheticEnv::new(args.obs_dim, args.act_dim);
+                let m = measure(&mut env, &config, &args)?;
+                ("synthetic", args.obs_dim, args.act_dim, m)
+            }
+            "reacher" => {
+                let mut env = ReacherDelivery::new(ReacherConfig::default())?;
+                let (o, a) = (env.obs_dim(), env.act_dim());
+                ("ReacherDelivery", o, a, measure(&mut env, &config, &args)?)
+            }
+            "reacher-onehot" => {
+                let mut env = OneHotAppended {
+                    inner: ReacherDelivery::new(ReacherConfig::default())?,
+                    width: 7,
+                    slot: 0,
+                };
+                let (o, a) = (env.obs_dim(), env.act_dim());
+                let m = measure(&mut env, &config, &args)?;
+                ("ReacherDelivery + 7-wide one-hot", o, a, m)
+            }
+            other => bail!(
+            "unknown --env {other:?} (expected \"synthetic\", \"reacher\" or \"reacher-onehot\")"
+        ),
+        };
+        out.push_str(&report(name, &config, obs_dim, act_dim, &m));
+    }
     print!("{out}");
     if let Some(path) = &args.out {
         smirl::nn::write_atomic(path, out.as_bytes())
