@@ -17,7 +17,7 @@ mod agent;
 mod config;
 mod trainer;
 
-pub use agent::{ActMode, SacAgent, UpdateStats};
+pub use agent::{ActMode, RolloutStep, SacAgent, UpdateStats};
 pub use config::{ConfigError, SacConfig};
 pub use trainer::{
     episode_seed, CheckpointError, EnvReward, EpisodeSummary, RewardFn, SacTrainer, StepOutcome,

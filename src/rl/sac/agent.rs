@@ -1,6 +1,8 @@
 //! The SAC learner: networks, optimisers, temperature, and one gradient update.
 
+use super::trainer::EpisodeSummary;
 use super::{SacConfig, SacError};
+use crate::env::{ContinuousEnv, EnvStep};
 use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
 use crate::nn::{gaussian, Adam, AdamConfig, BackwardMode, Mlp, MlpArch, MlpWorkspace};
 use crate::rl::replay::ReplayBatch;
@@ -26,6 +28,17 @@ pub struct UpdateStats {
     pub alpha: f32,
     /// Mean log π of the batch's fresh actions (−entropy estimate).
     pub mean_log_prob: f32,
+}
+
+/// One step of [`SacAgent::rollout`].
+#[derive(Clone, Copy, Debug)]
+pub struct RolloutStep<'a> {
+    /// 0-based step index within the episode.
+    pub t: u64,
+    pub obs: &'a [f32],
+    pub action: &'a [f32],
+    pub next_obs: &'a [f32],
+    pub env_step: EnvStep,
 }
 
 /// Buffers of one update, sized for the batch once so updates do not allocate.
@@ -186,6 +199,63 @@ impl SacAgent {
             }
         }
         action.copy_from_slice(w.actions.as_slice());
+    }
+
+    /// Plays one episode from `env.reset(reset_seed)` for at most `max_steps` steps, calling
+    /// `on_step` after every step (for recording trajectories, state densities, labels).
+    /// The returned summary has index 0.
+    pub fn rollout<E: ContinuousEnv + ?Sized>(
+        &mut self,
+        env: &mut E,
+        mode: ActMode,
+        reset_seed: u64,
+        max_steps: u64,
+        rng: &mut impl Rng,
+        mut on_step: impl FnMut(&RolloutStep),
+    ) -> Result<EpisodeSummary, SacError> {
+        for (what, expected, got) in [
+            ("observation size", self.obs_dim, env.obs_dim()),
+            ("action size", self.act_dim, env.act_dim()),
+        ] {
+            if expected != got {
+                return Err(SacError::Dimension {
+                    what,
+                    expected,
+                    got,
+                });
+            }
+        }
+        let mut obs = vec![0.0; self.obs_dim];
+        let mut next_obs = vec![0.0; self.obs_dim];
+        let mut action = vec![0.0; self.act_dim];
+        env.reset(reset_seed, &mut obs);
+        let mut summary = EpisodeSummary {
+            index: 0,
+            env_return: 0.0,
+            length: 0,
+            terminated: false,
+        };
+        for step in 0..max_steps {
+            self.act(&obs, mode, rng, &mut action);
+            let s = env
+                .step(&action, &mut next_obs)
+                .map_err(|source| SacError::Env { step, source })?;
+            on_step(&RolloutStep {
+                t: step,
+                obs: &obs,
+                action: &action,
+                next_obs: &next_obs,
+                env_step: s,
+            });
+            summary.env_return += s.reward;
+            summary.length += 1;
+            std::mem::swap(&mut obs, &mut next_obs);
+            if s.terminated || s.truncated {
+                summary.terminated = s.terminated;
+                break;
+            }
+        }
+        Ok(summary)
     }
 
     /// Writes observations into the critic input's observation rows.

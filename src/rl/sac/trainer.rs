@@ -280,9 +280,10 @@ impl SacTrainer {
         Ok(())
     }
 
-    /// Mean environment return of `episodes` evaluation episodes with the given action mode,
-    /// on resets seeded from `seed` (independent of the training episodes). Leaves the training
-    /// state untouched apart from the environment, so call it between episodes.
+    /// Runs `episodes` evaluation episodes (at most `max_steps` steps each) with the given
+    /// action mode, on resets seeded from `seed` (independent of the training episodes).
+    /// Leaves the training state untouched apart from the environment, so call it between
+    /// episodes.
     pub fn evaluate<E: ContinuousEnv + ?Sized>(
         &mut self,
         env: &mut E,
@@ -291,34 +292,21 @@ impl SacTrainer {
         seed: u64,
         max_steps: u64,
     ) -> Result<Vec<EpisodeSummary>, SacError> {
-        self.check_env(env)?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let mut obs = vec![0.0; self.agent.obs_dim()];
-        let mut action = vec![0.0; self.agent.act_dim()];
-        let mut out = Vec::with_capacity(episodes as usize);
-        for index in 0..episodes {
-            env.reset(episode_seed(seed, index), &mut obs);
-            let mut summary = EpisodeSummary {
-                index,
-                env_return: 0.0,
-                length: 0,
-                terminated: false,
-            };
-            for step in 0..max_steps {
-                self.agent.act(&obs, mode, &mut rng, &mut action);
-                let s = env
-                    .step(&action, &mut obs)
-                    .map_err(|source| SacError::Env { step, source })?;
-                summary.env_return += s.reward;
-                summary.length += 1;
-                if s.terminated || s.truncated {
-                    summary.terminated = s.terminated;
-                    break;
-                }
-            }
-            out.push(summary);
-        }
-        Ok(out)
+        (0..episodes)
+            .map(|index| {
+                let mut summary = self.agent.rollout(
+                    env,
+                    mode,
+                    episode_seed(seed, index),
+                    max_steps,
+                    &mut rng,
+                    |_| {},
+                )?;
+                summary.index = index;
+                Ok(summary)
+            })
+            .collect()
     }
 
     /// Saves the whole run state to `path` atomically (temp file + rename). Only between
