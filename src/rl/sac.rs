@@ -18,6 +18,7 @@ mod config;
 mod trainer;
 
 pub use agent::{ActMode, RolloutStep, SacAgent, UpdateStats};
+pub(crate) use config::deserialize_table;
 pub use config::{ConfigError, SacConfig};
 pub use trainer::{
     episode_seed, CheckpointError, EnvReward, EpisodeSummary, RewardFn, SacTrainer, StepOutcome,

@@ -232,6 +232,7 @@ impl SacAgent {
         let mut summary = EpisodeSummary {
             index: 0,
             env_return: 0.0,
+            final_reward: 0.0,
             length: 0,
             terminated: false,
         };
@@ -248,6 +249,7 @@ impl SacAgent {
                 env_step: s,
             });
             summary.env_return += s.reward;
+            summary.final_reward = s.reward;
             summary.length += 1;
             std::mem::swap(&mut obs, &mut next_obs);
             if s.terminated || s.truncated {

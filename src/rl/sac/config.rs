@@ -116,16 +116,7 @@ impl SacConfig {
         for (k, v) in user {
             merged.insert(k, v);
         }
-        // Deserialising the merged table from text (not from the table) keeps spans, so a
-        // type error can name its key.
-        let merged_text = toml::to_string(&merged).map_err(|e| parse(e.to_string()))?;
-        let config: Self = toml::from_str(&merged_text).map_err(|e: toml::de::Error| {
-            let message = e.message().trim().to_string();
-            match e.span().and_then(|s| key_at(&merged_text, s.start)) {
-                Some(key) if !message.contains(&key) => parse(format!("field `{key}`: {message}")),
-                _ => parse(message),
-            }
-        })?;
+        let config: Self = deserialize_table(merged, source_name)?;
         config.validate()?;
         Ok(config)
     }
@@ -198,4 +189,24 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
     let line = text[start..].lines().next()?;
     let (key, _) = line.split_once('=')?;
     Some(key.trim().trim_matches('"').to_string())
+}
+
+/// Deserialises a TOML table into `T`, with errors naming the offending key. Going through
+/// text (not `Table::try_into`) keeps spans, so a type error can name its key.
+pub(crate) fn deserialize_table<T: serde::de::DeserializeOwned>(
+    table: toml::Table,
+    source_name: &str,
+) -> Result<T, ConfigError> {
+    let parse = |message: String| ConfigError::Parse {
+        source_name: source_name.to_string(),
+        message,
+    };
+    let text = toml::to_string(&table).map_err(|e| parse(e.to_string()))?;
+    toml::from_str(&text).map_err(|e: toml::de::Error| {
+        let message = e.message().trim().to_string();
+        match e.span().and_then(|s| key_at(&text, s.start)) {
+            Some(key) if !message.contains(&key) => parse(format!("field `{key}`: {message}")),
+            _ => parse(message),
+        }
+    })
 }

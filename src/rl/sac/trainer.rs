@@ -41,6 +41,8 @@ pub struct EpisodeSummary {
     pub index: u64,
     /// Sum of the environment's rewards.
     pub env_return: f64,
+    /// The environment's reward of the last step.
+    pub final_reward: f64,
     pub length: u64,
     /// Ended by the environment (else by the time limit).
     pub terminated: bool,
@@ -240,6 +242,7 @@ impl SacTrainer {
             episode = Some(EpisodeSummary {
                 index: self.episodes,
                 env_return: self.episode_return,
+                final_reward: env_step.reward,
                 length: self.episode_len,
                 terminated: env_step.terminated,
             });
