@@ -289,6 +289,17 @@ fn main() -> Result<()> {
         command[1..].join(" ")
     );
     let _ = writeln!(out, "commit: {}", smirl::GIT_COMMIT);
+    // Other processes share the cores: record how busy the machine was.
+    if let Ok(load) = std::fs::read_to_string("/proc/loadavg") {
+        let _ = writeln!(
+            out,
+            "load average at start (1/5/15 min): {}",
+            load.split_whitespace()
+                .take(3)
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+    }
     for env_name in args.env.split(',') {
         let (name, obs_dim, act_dim, m) = match env_name {
             "synthetic" => {
