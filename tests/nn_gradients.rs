@@ -98,7 +98,10 @@ fn mlp_gradients_match_finite_differences() {
     };
     let mut checked = 0;
     for l in 0..net.layers.len() {
-        for (is_bias, len) in [(false, net.layers[l].w.len()), (true, net.layers[l].b.len())] {
+        for (is_bias, len) in [
+            (false, net.layers[l].w.len()),
+            (true, net.layers[l].b.len()),
+        ] {
             for i in 0..len {
                 let bump = |d: f32| {
                     let mut n = net.clone();
@@ -239,11 +242,17 @@ fn adam_matches_hand_computed_steps() {
     let mut p = [1.0f32, -2.0];
     adam.step_tensors(&mut [(&mut p[..], &[0.5f32, -0.1][..])]);
     // Step 1: m̂ = g, v̂ = g², so the step is lr·g/(|g| + ε) ≈ lr·sign(g).
-    assert!((p[0] - 0.9).abs() < 1e-6 && (p[1] + 1.9).abs() < 1e-6, "{p:?}");
+    assert!(
+        (p[0] - 0.9).abs() < 1e-6 && (p[1] + 1.9).abs() < 1e-6,
+        "{p:?}"
+    );
     adam.step_tensors(&mut [(&mut p[..], &[0.2f32, 0.3][..])]);
     // Step 2 by hand: m = 0.9·0.1·g1 + 0.1·g2, v = 0.999·0.001·g1² + 0.001·g2²,
     // p -= lr/(1−0.9²) · m / (√v/√(1−0.999²) + ε).
-    for (i, (g1, g2, p1)) in [(0.5f64, 0.2f64, 0.9f64), (-0.1, 0.3, -1.9)].iter().enumerate() {
+    for (i, (g1, g2, p1)) in [(0.5f64, 0.2f64, 0.9f64), (-0.1, 0.3, -1.9)]
+        .iter()
+        .enumerate()
+    {
         let m = 0.9 * 0.1 * g1 + 0.1 * g2;
         let v = 0.999 * 0.001 * g1 * g1 + 0.001 * g2 * g2;
         let want = p1 - 0.1 / (1.0 - 0.81) * m / (v.sqrt() / (1.0 - 0.998001f64).sqrt() + 1e-8);

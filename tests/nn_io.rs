@@ -31,7 +31,10 @@ fn loading_another_architecture_is_refused_naming_both() {
     let err = other.load(&path).unwrap_err();
     assert!(matches!(err, NnError::ArchitectureMismatch { .. }));
     let msg = err.to_string();
-    assert!(msg.contains("24-64-64-4") && msg.contains("24-32-4"), "{msg}");
+    assert!(
+        msg.contains("24-64-64-4") && msg.contains("24-32-4"),
+        "{msg}"
+    );
     assert!(msg.contains("net.bin"), "{msg}");
     let after: Vec<Vec<f32>> = other.params().map(|p| p.to_vec()).collect();
     assert_eq!(before, after, "a refused load must not modify the network");
@@ -56,4 +59,22 @@ fn corrupt_and_truncated_files_are_refused() {
     std::fs::write(&path, &wrong_version).unwrap();
     let msg = net.load(&path).unwrap_err().to_string();
     assert!(msg.contains("version 99"), "{msg}");
+}
+
+#[test]
+fn finiteness_check_catches_nan_and_infinities_only() {
+    use smirl::nn::mlp::all_finite;
+    assert!(all_finite(&[
+        0.0,
+        -0.0,
+        f32::MAX,
+        f32::MIN,
+        f32::MIN_POSITIVE,
+        1e-45
+    ]));
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -f32::NAN] {
+        let mut v = vec![1.0f32; 37];
+        v[29] = bad;
+        assert!(!all_finite(&v), "{bad} not caught");
+    }
 }

@@ -18,7 +18,9 @@ pub enum CodecError {
     },
     #[error("not a {expected} file (magic bytes differ)")]
     BadMagic { expected: &'static str },
-    #[error("{what} format version {found} is not supported (this build reads version {supported})")]
+    #[error(
+        "{what} format version {found} is not supported (this build reads version {supported})"
+    )]
     Version {
         what: &'static str,
         found: u32,
@@ -127,7 +129,9 @@ impl<'a> ByteReader<'a> {
         Ok(u64::from_le_bytes(self.take(8, what)?.try_into().unwrap()))
     }
     pub fn u128(&mut self, what: &'static str) -> Result<u128, CodecError> {
-        Ok(u128::from_le_bytes(self.take(16, what)?.try_into().unwrap()))
+        Ok(u128::from_le_bytes(
+            self.take(16, what)?.try_into().unwrap(),
+        ))
     }
     pub fn f32(&mut self, what: &'static str) -> Result<f32, CodecError> {
         Ok(f32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))

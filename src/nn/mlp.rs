@@ -144,7 +144,11 @@ impl Mlp {
 
     /// Forward pass of a batch `x` (`in × B`); the output is `ws.output()`.
     pub fn forward<'w>(&self, x: &DMatrix<f32>, ws: &'w mut MlpWorkspace) -> &'w DMatrix<f32> {
-        assert_eq!(x.ncols(), ws.batch, "batch size differs from the workspace's");
+        assert_eq!(
+            x.ncols(),
+            ws.batch,
+            "batch size differs from the workspace's"
+        );
         let last = self.layers.len() - 1;
         for (l, layer) in self.layers.iter().enumerate() {
             let (done, rest) = ws.acts.split_at_mut(l);

@@ -1,1 +1,2 @@
 //! End-to-end pipelines behind the binaries (experts, demonstrations, IRL, evaluation).
+pub mod expert;

@@ -1,0 +1,522 @@
+//! The SAC learner: networks, optimisers, temperature, and one gradient update.
+
+use super::trainer::EpisodeSummary;
+use super::{SacConfig, SacError};
+use crate::env::{ContinuousEnv, EnvStep};
+use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
+use crate::nn::{gaussian, Adam, AdamConfig, BackwardMode, Mlp, MlpArch, MlpWorkspace};
+use crate::rl::replay::ReplayBatch;
+use nalgebra::DMatrix;
+use rand::Rng;
+use rand_distr::StandardNormal;
+
+/// How [`SacAgent::act`] picks an action.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ActMode {
+    /// Sample from the squashed Gaussian (training, stochastic evaluation).
+    Sample,
+    /// tanh of the mean (deterministic evaluation).
+    Mean,
+}
+
+/// Losses and temperature of one update.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct UpdateStats {
+    pub q1_loss: f32,
+    pub q2_loss: f32,
+    pub actor_loss: f32,
+    pub alpha: f32,
+    /// Mean log π of the batch's fresh actions (−entropy estimate).
+    pub mean_log_prob: f32,
+}
+
+/// One step of [`SacAgent::rollout`].
+#[derive(Clone, Copy, Debug)]
+pub struct RolloutStep<'a> {
+    /// 0-based step index within the episode.
+    pub t: u64,
+    pub obs: &'a [f32],
+    pub action: &'a [f32],
+    pub next_obs: &'a [f32],
+    pub env_step: EnvStep,
+}
+
+/// Buffers of one update, sized for the batch once so updates do not allocate.
+#[derive(Clone, Debug)]
+struct UpdateWorkspace {
+    actor: MlpWorkspace,
+    q1: MlpWorkspace,
+    q2: MlpWorkspace,
+    /// Critic input: observation rows then action rows.
+    q_in: DMatrix<f32>,
+    eps: DMatrix<f32>,
+    pre: DMatrix<f32>,
+    actions: DMatrix<f32>,
+    log_prob: Vec<f32>,
+    targets: Vec<f32>,
+    dq: DMatrix<f32>,
+    dq_in: DMatrix<f32>,
+    d_actions: DMatrix<f32>,
+    d_log_prob: Vec<f32>,
+    d_head: DMatrix<f32>,
+}
+
+/// Buffers of a single-observation forward pass.
+#[derive(Clone, Debug)]
+struct ActWorkspace {
+    actor: MlpWorkspace,
+    obs: DMatrix<f32>,
+    eps: DMatrix<f32>,
+    pre: DMatrix<f32>,
+    actions: DMatrix<f32>,
+    log_prob: [f32; 1],
+}
+
+/// Soft Actor-Critic with a tanh-squashed Gaussian actor and twin critics with Polyak targets.
+#[derive(Clone, Debug)]
+pub struct SacAgent {
+    config: SacConfig,
+    obs_dim: usize,
+    act_dim: usize,
+    pub actor: Mlp,
+    pub q1: Mlp,
+    pub q2: Mlp,
+    pub q1_target: Mlp,
+    pub q2_target: Mlp,
+    actor_opt: Adam,
+    q1_opt: Adam,
+    q2_opt: Adam,
+    alpha_opt: Adam,
+    log_alpha: f32,
+    target_entropy: f32,
+    updates: u64,
+    ws: UpdateWorkspace,
+    act_ws: ActWorkspace,
+}
+
+fn check_finite(
+    ok: bool,
+    network: &'static str,
+    what: &'static str,
+    update: u64,
+) -> Result<(), SacError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(SacError::NonFinite {
+            network,
+            what,
+            update,
+        })
+    }
+}
+
+impl SacAgent {
+    /// Fresh networks initialised from `rng`. The config must be valid.
+    pub fn new(config: &SacConfig, obs_dim: usize, act_dim: usize, rng: &mut impl Rng) -> Self {
+        let actor_arch = MlpArch::new(obs_dim, &config.hidden, 2 * act_dim);
+        let q_arch = MlpArch::new(obs_dim + act_dim, &config.hidden, 1);
+        let actor = Mlp::new(&actor_arch, rng);
+        let q1 = Mlp::new(&q_arch, rng);
+        let q2 = Mlp::new(&q_arch, rng);
+        let adam = AdamConfig::with_lr(config.lr);
+        let b = config.batch_size;
+        let ws = UpdateWorkspace {
+            actor: actor.workspace(b),
+            q1: q1.workspace(b),
+            q2: q2.workspace(b),
+            q_in: DMatrix::zeros(obs_dim + act_dim, b),
+            eps: DMatrix::zeros(act_dim, b),
+            pre: DMatrix::zeros(act_dim, b),
+            actions: DMatrix::zeros(act_dim, b),
+            log_prob: vec![0.0; b],
+            targets: vec![0.0; b],
+            dq: DMatrix::zeros(1, b),
+            dq_in: DMatrix::zeros(obs_dim + act_dim, b),
+            d_actions: DMatrix::zeros(act_dim, b),
+            d_log_prob: vec![0.0; b],
+            d_head: DMatrix::zeros(2 * act_dim, b),
+        };
+        let act_ws = ActWorkspace {
+            actor: actor.workspace(1),
+            obs: DMatrix::zeros(obs_dim, 1),
+            eps: DMatrix::zeros(act_dim, 1),
+            pre: DMatrix::zeros(act_dim, 1),
+            actions: DMatrix::zeros(act_dim, 1),
+            log_prob: [0.0],
+        };
+        Self {
+            config: config.clone(),
+            obs_dim,
+            act_dim,
+            actor_opt: Adam::for_mlp(adam, &actor),
+            q1_opt: Adam::for_mlp(adam, &q1),
+            q2_opt: Adam::for_mlp(adam, &q2),
+            alpha_opt: Adam::new(adam, &[1]),
+            q1_target: q1.clone(),
+            q2_target: q2.clone(),
+            actor,
+            q1,
+            q2,
+            log_alpha: config.alpha.ln(),
+            target_entropy: config.target_entropy_for(act_dim),
+            updates: 0,
+            ws,
+            act_ws,
+        }
+    }
+
+    pub fn config(&self) -> &SacConfig {
+        &self.config
+    }
+    pub fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+    pub fn act_dim(&self) -> usize {
+        self.act_dim
+    }
+    /// Current entropy temperature α.
+    pub fn alpha(&self) -> f32 {
+        self.log_alpha.exp()
+    }
+    /// Gradient updates done so far.
+    pub fn updates(&self) -> u64 {
+        self.updates
+    }
+
+    /// Chooses an action for one observation.
+    pub fn act(&mut self, obs: &[f32], mode: ActMode, rng: &mut impl Rng, action: &mut [f32]) {
+        let w = &mut self.act_ws;
+        w.obs.as_mut_slice().copy_from_slice(obs);
+        let head = self.actor.forward(&w.obs, &mut w.actor);
+        match mode {
+            ActMode::Mean => gaussian::mean_action(head, &mut w.actions),
+            ActMode::Sample => {
+                for e in w.eps.as_mut_slice() {
+                    *e = rng.sample(StandardNormal);
+                }
+                gaussian::sample(head, &w.eps, &mut w.pre, &mut w.actions, &mut w.log_prob);
+            }
+        }
+        action.copy_from_slice(w.actions.as_slice());
+    }
+
+    /// Plays one episode from `env.reset(reset_seed)` for at most `max_steps` steps, calling
+    /// `on_step` after every step (for recording trajectories, state densities, labels).
+    /// The returned summary has index 0.
+    pub fn rollout<E: ContinuousEnv + ?Sized>(
+        &mut self,
+        env: &mut E,
+        mode: ActMode,
+        reset_seed: u64,
+        max_steps: u64,
+        rng: &mut impl Rng,
+        mut on_step: impl FnMut(&RolloutStep),
+    ) -> Result<EpisodeSummary, SacError> {
+        for (what, expected, got) in [
+            ("observation size", self.obs_dim, env.obs_dim()),
+            ("action size", self.act_dim, env.act_dim()),
+        ] {
+            if expected != got {
+                return Err(SacError::Dimension {
+                    what,
+                    expected,
+                    got,
+                });
+            }
+        }
+        let mut obs = vec![0.0; self.obs_dim];
+        let mut next_obs = vec![0.0; self.obs_dim];
+        let mut action = vec![0.0; self.act_dim];
+        env.reset(reset_seed, &mut obs);
+        let mut summary = EpisodeSummary {
+            index: 0,
+            env_return: 0.0,
+            final_reward: 0.0,
+            length: 0,
+            terminated: false,
+        };
+        for step in 0..max_steps {
+            self.act(&obs, mode, rng, &mut action);
+            let s = env
+                .step(&action, &mut next_obs)
+                .map_err(|source| SacError::Env { step, source })?;
+            on_step(&RolloutStep {
+                t: step,
+                obs: &obs,
+                action: &action,
+                next_obs: &next_obs,
+                env_step: s,
+            });
+            summary.env_return += s.reward;
+            summary.final_reward = s.reward;
+            summary.length += 1;
+            std::mem::swap(&mut obs, &mut next_obs);
+            if s.terminated || s.truncated {
+                summary.terminated = s.terminated;
+                break;
+            }
+        }
+        Ok(summary)
+    }
+
+    /// Writes observations into the critic input's observation rows.
+    fn fill_q_obs(q_in: &mut DMatrix<f32>, obs: &DMatrix<f32>, obs_dim: usize) {
+        let rows = q_in.nrows();
+        for (dst, src) in q_in
+            .as_mut_slice()
+            .chunks_exact_mut(rows)
+            .zip(obs.as_slice().chunks_exact(obs_dim))
+        {
+            dst[..obs_dim].copy_from_slice(src);
+        }
+    }
+
+    /// Writes actions into the critic input's action rows.
+    fn fill_q_actions(q_in: &mut DMatrix<f32>, actions: &DMatrix<f32>, obs_dim: usize) {
+        let rows = q_in.nrows();
+        let a = rows - obs_dim;
+        for (dst, src) in q_in
+            .as_mut_slice()
+            .chunks_exact_mut(rows)
+            .zip(actions.as_slice().chunks_exact(a))
+        {
+            dst[obs_dim..].copy_from_slice(src);
+        }
+    }
+
+    /// One SAC update on `batch` with per-transition `rewards` (from whatever reward function
+    /// the caller uses). Bootstraps unless the transition's `terminated` flag is set.
+    ///
+    /// Order: critics (targets from the current actor and target critics), then the actor
+    /// against the updated critics, then α (when tuned), then Polyak averaging of the targets.
+    /// Stops with [`SacError::NonFinite`] naming the network if a loss or parameter is NaN/inf.
+    pub fn update(
+        &mut self,
+        batch: &ReplayBatch,
+        rewards: &[f32],
+        rng: &mut impl Rng,
+    ) -> Result<UpdateStats, SacError> {
+        let b = self.config.batch_size;
+        assert_eq!(batch.len(), b, "batch size differs from the config's");
+        assert_eq!(rewards.len(), b, "one reward per transition");
+        let update = self.updates + 1;
+        let inv_b = 1.0 / b as f32;
+        let alpha = self.log_alpha.exp();
+        let gamma = self.config.gamma;
+        let obs_dim = self.obs_dim;
+        let ws = &mut self.ws;
+
+        // Critic targets: y = r + γ (1 − terminated) (min Q_targ(s', a') − α log π(a'|s')).
+        let head = self.actor.forward(&batch.next_obs, &mut ws.actor);
+        for e in ws.eps.as_mut_slice() {
+            *e = rng.sample(StandardNormal);
+        }
+        gaussian::sample(
+            head,
+            &ws.eps,
+            &mut ws.pre,
+            &mut ws.actions,
+            &mut ws.log_prob,
+        );
+        Self::fill_q_obs(&mut ws.q_in, &batch.next_obs, obs_dim);
+        Self::fill_q_actions(&mut ws.q_in, &ws.actions, obs_dim);
+        let qt1 = self.q1_target.forward(&ws.q_in, &mut ws.q1);
+        let qt2 = self.q2_target.forward(&ws.q_in, &mut ws.q2);
+        for j in 0..b {
+            let soft_v = qt1[j].min(qt2[j]) - alpha * ws.log_prob[j];
+            ws.targets[j] = rewards[j] + gamma * (1.0 - batch.terminated[j]) * soft_v;
+        }
+
+        // Critics: L = ½ mean (Q − y)².
+        Self::fill_q_obs(&mut ws.q_in, &batch.obs, obs_dim);
+        Self::fill_q_actions(&mut ws.q_in, &batch.actions, obs_dim);
+        let mut q_losses = [0.0f32; 2];
+        for (i, (q, opt, qws)) in [
+            (&mut self.q1, &mut self.q1_opt, &mut ws.q1),
+            (&mut self.q2, &mut self.q2_opt, &mut ws.q2),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let values = q.forward(&ws.q_in, qws);
+            let mut loss = 0.0;
+            for ((d, &v), &y) in ws
+                .dq
+                .as_mut_slice()
+                .iter_mut()
+                .zip(values.as_slice())
+                .zip(&ws.targets)
+            {
+                let err = v - y;
+                loss += err * err;
+                *d = err * inv_b;
+            }
+            q_losses[i] = 0.5 * loss * inv_b;
+            let name = ["critic q1", "critic q2"][i];
+            check_finite(q_losses[i].is_finite(), name, "loss", update)?;
+            q.backward(&ws.q_in, qws, &ws.dq, None, BackwardMode::Params);
+            opt.step_mlp(q);
+            check_finite(q.params_finite(), name, "parameter", update)?;
+        }
+
+        // Actor: L = mean(α log π(a|s) − min Q(s, a)), a reparameterised.
+        let head = self.actor.forward(&batch.obs, &mut ws.actor);
+        for e in ws.eps.as_mut_slice() {
+            *e = rng.sample(StandardNormal);
+        }
+        gaussian::sample(
+            head,
+            &ws.eps,
+            &mut ws.pre,
+            &mut ws.actions,
+            &mut ws.log_prob,
+        );
+        Self::fill_q_actions(&mut ws.q_in, &ws.actions, obs_dim);
+        self.q1.forward(&ws.q_in, &mut ws.q1);
+        self.q2.forward(&ws.q_in, &mut ws.q2);
+        let mut actor_loss = 0.0;
+        let mut sum_log_prob = 0.0;
+        {
+            let (v1, v2) = (ws.q1.output().as_slice(), ws.q2.output().as_slice());
+            for j in 0..b {
+                actor_loss += alpha * ws.log_prob[j] - v1[j].min(v2[j]);
+                sum_log_prob += ws.log_prob[j];
+                ws.d_log_prob[j] = alpha * inv_b;
+            }
+        }
+        actor_loss *= inv_b;
+        check_finite(actor_loss.is_finite(), "actor", "loss", update)?;
+        // ∂L/∂a through whichever critic is the minimum for each sample.
+        for first in [true, false] {
+            let (v1, v2) = (ws.q1.output(), ws.q2.output());
+            for j in 0..b {
+                let q1_is_min = v1[j] <= v2[j];
+                ws.dq[j] = if q1_is_min == first { -inv_b } else { 0.0 };
+            }
+            let (q, qws) = if first {
+                (&mut self.q1, &mut ws.q1)
+            } else {
+                (&mut self.q2, &mut ws.q2)
+            };
+            q.backward(
+                &ws.q_in,
+                qws,
+                &ws.dq,
+                Some(&mut ws.dq_in),
+                BackwardMode::InputOnly,
+            );
+            let rows = ws.dq_in.nrows();
+            for (da, dqi) in ws
+                .d_actions
+                .as_mut_slice()
+                .chunks_exact_mut(self.act_dim)
+                .zip(ws.dq_in.as_slice().chunks_exact(rows))
+            {
+                for (d, g) in da.iter_mut().zip(&dqi[obs_dim..]) {
+                    *d = if first { *g } else { *d + g };
+                }
+            }
+        }
+        gaussian::backward(
+            ws.actor.output(),
+            &ws.eps,
+            &ws.actions,
+            &ws.d_actions,
+            &ws.d_log_prob,
+            &mut ws.d_head,
+        );
+        self.actor.backward(
+            &batch.obs,
+            &mut ws.actor,
+            &ws.d_head,
+            None,
+            BackwardMode::Params,
+        );
+        self.actor_opt.step_mlp(&mut self.actor);
+        check_finite(self.actor.params_finite(), "actor", "parameter", update)?;
+
+        // Temperature: L(log α) = −log α · mean(log π + H_target).
+        let mean_log_prob = sum_log_prob * inv_b;
+        if self.config.auto_alpha {
+            let grad = -(mean_log_prob + self.target_entropy);
+            let mut p = [self.log_alpha];
+            self.alpha_opt
+                .step_tensors(&mut [(&mut p[..], &[grad][..])]);
+            self.log_alpha = p[0];
+            check_finite(
+                self.log_alpha.is_finite(),
+                "temperature",
+                "parameter",
+                update,
+            )?;
+        }
+
+        self.q1_target.polyak_from(&self.q1, self.config.tau);
+        self.q2_target.polyak_from(&self.q2, self.config.tau);
+        self.updates = update;
+        Ok(UpdateStats {
+            q1_loss: q_losses[0],
+            q2_loss: q_losses[1],
+            actor_loss,
+            alpha,
+            mean_log_prob,
+        })
+    }
+
+    /// The five networks in checkpoint order, with names for messages.
+    fn networks(&self) -> [(&'static str, &Mlp); 5] {
+        [
+            ("actor", &self.actor),
+            ("critic q1", &self.q1),
+            ("critic q2", &self.q2),
+            ("target critic q1", &self.q1_target),
+            ("target critic q2", &self.q2_target),
+        ]
+    }
+
+    /// Appends networks, optimiser states, temperature and the update counter.
+    pub fn write(&self, w: &mut ByteWriter) {
+        for (_, net) in self.networks() {
+            net.write(w);
+        }
+        for opt in [&self.actor_opt, &self.q1_opt, &self.q2_opt, &self.alpha_opt] {
+            opt.write(w);
+        }
+        w.f32(self.log_alpha);
+        w.u64(self.updates);
+    }
+
+    /// Reads state written by [`SacAgent::write`]. A network of another architecture gives
+    /// `Ok(Err((name, found, expected)))`.
+    #[allow(clippy::type_complexity)]
+    pub fn read_into(
+        &mut self,
+        r: &mut ByteReader,
+    ) -> Result<Result<(), (&'static str, MlpArch, MlpArch)>, CodecError> {
+        let names = self.networks().map(|(n, _)| n);
+        let nets = [
+            &mut self.actor,
+            &mut self.q1,
+            &mut self.q2,
+            &mut self.q1_target,
+            &mut self.q2_target,
+        ];
+        for (name, net) in names.into_iter().zip(nets) {
+            if let Err(found) = net.read_into(r)? {
+                return Ok(Err((name, found, net.arch())));
+            }
+        }
+        for opt in [
+            &mut self.actor_opt,
+            &mut self.q1_opt,
+            &mut self.q2_opt,
+            &mut self.alpha_opt,
+        ] {
+            opt.read_into(r)?;
+        }
+        self.log_alpha = r.f32("log alpha")?;
+        self.updates = r.u64("update count")?;
+        Ok(Ok(()))
+    }
+}

@@ -1,0 +1,66 @@
+//! The training hot path does not allocate: over many environment steps with updates, the
+//! only heap allocations are the packing buffers matrixmultiply's `sgemm` takes per call.
+
+mod sac_common;
+
+use sac_common::PointReach;
+use smirl::nn::gemm;
+use smirl::rl::sac::{EnvReward, SacConfig, SacTrainer};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct CountingAllocator;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: forwards to the system allocator unchanged; only counts calls.
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        System.alloc(layout)
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAllocator = CountingAllocator;
+
+#[test]
+fn steps_with_updates_allocate_only_inside_sgemm() {
+    let config = SacConfig {
+        hidden: vec![32, 32],
+        batch_size: 64,
+        warmup_steps: 100,
+        update_after: 100,
+        ..SacConfig::default()
+    };
+    let mut env = PointReach::new(20);
+    let mut trainer = SacTrainer::new(&config, 2, 1, 1).unwrap();
+    trainer
+        .train(&mut env, &mut EnvReward, 150, |_| {})
+        .unwrap();
+    let (_, shapes) = gemm::trace(|| trainer.step(&mut env, &mut EnvReward).unwrap());
+    let gemms_per_step = shapes.len();
+    assert!(gemms_per_step > 30, "{gemms_per_step} products per step");
+
+    let steps = 200; // crosses ten episode boundaries
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    trainer
+        .train(&mut env, &mut EnvReward, steps, |_| {})
+        .unwrap();
+    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    eprintln!(
+        "{allocations} allocations, {} sgemm calls",
+        steps as usize * gemms_per_step
+    );
+    assert!(
+        allocations <= steps as usize * gemms_per_step,
+        "{allocations} allocations in {steps} steps with {gemms_per_step} sgemm calls each"
+    );
+}
