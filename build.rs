@@ -23,12 +23,18 @@ fn main() {
     // Rebuild when HEAD moves: watch HEAD itself (a branch switch) and the branch's ref file
     // (a commit). Ask git for their paths: in a worktree `.git` is a file, not a folder.
     for path in ["HEAD", "refs/heads"] {
-        if let Some(p) = git(&manifest, &["rev-parse", "--path-format=absolute", "--git-path", path]) {
+        if let Some(p) = git(
+            &manifest,
+            &["rev-parse", "--path-format=absolute", "--git-path", path],
+        ) {
             println!("cargo:rerun-if-changed={p}");
         }
     }
     if let Some(branch) = git(&manifest, &["symbolic-ref", "-q", "HEAD"]) {
-        if let Some(p) = git(&manifest, &["rev-parse", "--path-format=absolute", "--git-path", &branch]) {
+        if let Some(p) = git(
+            &manifest,
+            &["rev-parse", "--path-format=absolute", "--git-path", &branch],
+        ) {
             println!("cargo:rerun-if-changed={p}");
         }
     }
