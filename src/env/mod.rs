@@ -62,3 +62,4 @@ pub fn check_action(action: &[f32], expected: usize) -> Result<(), EnvError> {
 }
 
 pub mod reacher;
+pub mod reacher_controller;

@@ -1,1 +1,4 @@
 //! End-to-end pipelines behind the binaries (experts, demonstrations, IRL, evaluation).
+
+pub mod offline_rm;
+pub mod replay;

@@ -1,0 +1,1 @@
+//! Learning a reward machine offline from the label traces of rollout logs.
