@@ -16,6 +16,7 @@
 //! so a run killed mid-write leaves a `.part` file that [`read_log`] reads up to its last
 //! complete chunk, with a warning saying how much it recovered.
 
+pub mod demo;
 pub mod proto;
 pub mod reader;
 pub mod schema;

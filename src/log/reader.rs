@@ -2,12 +2,16 @@
 
 use super::schema::{self, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHEMA_VERSION};
 use super::LogError;
-use mcap::read::{ChunkReader, LinearReader, Options};
-use mcap::records::Record;
+use mcap::records::{op, Record};
+use mcap::sans_io::{LinearReadEvent, LinearReader as SansReader, LinearReaderOptions};
 use mcap::McapError;
 use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
+
+/// Largest uncompressed chunk the reader accepts (the writer's chunks are ~1 MiB; see
+/// [`super::LogOptions::chunk_size`]).
+pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
 /// One logged episode.
 #[derive(Clone, Debug, PartialEq)]
@@ -277,43 +281,46 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
     let mut chunks = 0;
     let mut footer = false;
     let mut stopped_by = None;
-    let reader = LinearReader::new_with_options(bytes, Options::IgnoreEndMagic.into()).map_err(
-        |source| LogError::Mcap {
+    // Top level: whole records, chunks undecoded (their bodies are decoded below, all or
+    // nothing). The length limit keeps a damaged length field from becoming an allocation.
+    let mut top = SansReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_skip_end_magic(true)
+            .with_emit_chunks(true)
+            .with_validate_data_section_crc(true)
+            .with_validate_summary_section_crc(true)
+            .with_record_length_limit(MAX_CHUNK_BYTES as usize),
+    );
+    let mut input = bytes;
+    let outcome = drive(&mut top, &mut input, |opcode, data| {
+        if opcode == op::CHUNK {
+            read_chunk(&mut r, opcode, data, chunks + 1)?;
+            chunks += 1;
+            return Ok(());
+        }
+        if opcode == op::FOOTER {
+            footer = true;
+        }
+        let record = mcap::parse_record(opcode, data).map_err(|e| LogError::Corrupt {
             path: path.into(),
-            source,
-        },
-    )?;
-    for record in reader {
-        let record = match record {
-            Ok(r) => r,
-            Err(e) if is_truncation(&e) => {
-                stopped_by = Some(format!("it ends inside a record: {e}"));
-                break;
-            }
-            Err(source) => {
-                return Err(LogError::Mcap {
-                    path: path.into(),
-                    source,
-                })
-            }
-        };
-        match record {
-            Record::Chunk { header, data } => {
-                // Decode the whole chunk before using any of it, so a chunk is taken
-                // entirely or not at all.
-                let inner: Result<Vec<Record>, McapError> =
-                    ChunkReader::new(header, &data).and_then(|c| c.collect());
-                let inner = inner.map_err(|e| LogError::Corrupt {
-                    path: path.into(),
-                    problem: format!("chunk {} cannot be read: {e}", chunks + 1),
-                })?;
-                for rec in inner {
-                    r.record(rec)?;
-                }
-                chunks += 1;
-            }
-            Record::Footer(_) => footer = true,
-            other => r.record(other)?,
+            problem: format!("record (opcode {opcode:#04x}) cannot be parsed: {e}"),
+        })?;
+        r.record(record)
+    })?;
+    match outcome {
+        None => {}
+        Some(e) if is_truncation(&e) => stopped_by = Some(format!("it ends inside a record: {e}")),
+        Some(McapError::BadMagic) => {
+            return Err(LogError::NotMcap {
+                path: path.into(),
+                problem: "bad magic bytes".into(),
+            })
+        }
+        Some(source) => {
+            return Err(LogError::Mcap {
+                path: path.into(),
+                source,
+            })
         }
     }
     if r.messages == 0 && r.run.is_none() && r.schemas.is_empty() && stopped_by.is_some() {
@@ -356,4 +363,73 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
         messages: r.messages,
         recovery,
     })
+}
+
+/// Feeds `input` to a sans-io reader, handing each record to `f`. Returns the reader's error
+/// (the caller decides whether it means truncation or damage), `None` at a clean end.
+fn drive(
+    reader: &mut SansReader,
+    input: &mut &[u8],
+    mut f: impl FnMut(u8, &[u8]) -> Result<(), LogError>,
+) -> Result<Option<McapError>, LogError> {
+    while let Some(event) = reader.next_event() {
+        match event {
+            Ok(LinearReadEvent::ReadRequest(need)) => {
+                let n = need.min(input.len());
+                reader.insert(n).copy_from_slice(&input[..n]);
+                reader.notify_read(n);
+                *input = &input[n..];
+            }
+            Ok(LinearReadEvent::Record { data, opcode }) => f(opcode, data)?,
+            Err(e) => return Ok(Some(e)),
+        }
+    }
+    Ok(None)
+}
+
+/// Decodes one chunk record (its body `data`) completely, checking its CRC before any of its
+/// records is used, so a chunk is taken entirely or not at all.
+fn read_chunk(r: &mut Reading, opcode: u8, data: &[u8], number: usize) -> Result<(), LogError> {
+    let path = r.path;
+    let corrupt = |problem: String| LogError::Corrupt {
+        path: path.into(),
+        problem: format!("chunk {number}: {problem}"),
+    };
+    if let Ok(Record::Chunk { header, .. }) = mcap::parse_record(opcode, data) {
+        // The mcap crate allocates the declared uncompressed size up front: a damaged header
+        // must not turn into a huge allocation.
+        if header.uncompressed_size > MAX_CHUNK_BYTES {
+            return Err(corrupt(format!(
+                "declares {} uncompressed bytes (limit {MAX_CHUNK_BYTES})",
+                header.uncompressed_size
+            )));
+        }
+    }
+    let mut framed = Vec::with_capacity(9 + data.len());
+    framed.push(opcode);
+    framed.extend_from_slice(&(data.len() as u64).to_le_bytes());
+    framed.extend_from_slice(data);
+    let mut inner = SansReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_skip_start_magic(true)
+            .with_skip_end_magic(true)
+            .with_emit_chunks(false)
+            .with_prevalidate_chunk_crcs(true)
+            .with_record_length_limit(MAX_CHUNK_BYTES as usize),
+    );
+    let mut records = Vec::new();
+    let mut input = &framed[..];
+    let outcome = drive(&mut inner, &mut input, |op, body| {
+        let rec = mcap::parse_record(op, body)
+            .map_err(|e| corrupt(format!("record cannot be parsed: {e}")))?;
+        records.push(rec.into_owned());
+        Ok(())
+    })?;
+    if let Some(e) = outcome {
+        return Err(corrupt(e.to_string()));
+    }
+    for rec in records {
+        r.record(rec)?;
+    }
+    Ok(())
 }

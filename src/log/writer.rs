@@ -200,6 +200,16 @@ impl RolloutLogger {
                 problem: "every_nth_episode must be at least 1".into(),
             });
         }
+        if options.chunk_size == 0 || options.chunk_size > super::reader::MAX_CHUNK_BYTES / 2 {
+            return Err(LogError::Usage {
+                path: path.into(),
+                problem: format!(
+                    "chunk_size {} must be between 1 and {} bytes",
+                    options.chunk_size,
+                    super::reader::MAX_CHUNK_BYTES / 2
+                ),
+            });
+        }
         let part = part_path(path);
         let mcap_err = |source| LogError::Mcap {
             path: part.clone(),
