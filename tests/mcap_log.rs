@@ -207,6 +207,7 @@ fn demo(path: &Path, episodes: u64, options: LogOptions) {
             seed: 100,
             stop_when_done: false,
             env: ReacherConfig::default(),
+            reward_machine: None,
         },
         options,
     )

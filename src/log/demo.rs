@@ -6,6 +6,8 @@ use super::{LogError, LogOptions, LogSummary, RolloutLogger, RunHeader};
 use crate::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, OBS_DIM};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::ContinuousEnv;
+use crate::rm::format::write_rm;
+use crate::rm::RewardMachine;
 
 /// What to demonstrate.
 #[derive(Clone, Debug, PartialEq)]
@@ -21,6 +23,9 @@ pub struct DemoSpec {
     /// the time limit.
     pub stop_when_done: bool,
     pub env: ReacherConfig,
+    /// The task's reward machine, tracked along the episode and logged (state, reward);
+    /// with it, an episode also ends when the machine reaches a terminal state.
+    pub reward_machine: Option<RewardMachine>,
 }
 
 /// Runs the demonstrations and logs them to `path`.
@@ -39,7 +44,9 @@ pub fn log_scripted_demos(
         "demo": {"sequence": spec.sequence, "episodes": spec.episodes,
                  "stop_when_done": spec.stop_when_done},
     });
-    let header = RunHeader::reacher(&spec.task, spec.seed, config, &default_xml_path())?;
+    let mut header = RunHeader::reacher(&spec.task, spec.seed, config, &default_xml_path())?;
+    let rm = spec.reward_machine.as_ref();
+    header.reward_machine = rm.map(write_rm);
     let mut logger = RolloutLogger::create(path, header, options)?;
     let mut ctl = ScriptedController::from_letters(&spec.sequence, ControllerGains::default())
         .map_err(usage)?;
@@ -48,20 +55,28 @@ pub fn log_scripted_demos(
         let seed = spec.seed.wrapping_add(i);
         env.reset(seed, &mut obs);
         ctl.restart();
-        logger.begin_reacher_episode(&env, seed, "demo", None, &obs)?;
+        let mut u = rm.map(|m| m.initial());
+        logger.begin_reacher_episode(&env, seed, "demo", u, &obs)?;
         let mut labels = env.labels();
         loop {
-            let action = ctl.act(&obs, labels, None);
+            let action = ctl.act(&obs, labels, u);
             let step = env
                 .step(&action, &mut obs)
                 .map_err(|e| usage(format!("episode {i}: {e}")))?;
             labels = step.labels;
-            logger.reacher_step(&env, &action, &step, None, &obs)?;
-            if step.truncated || (spec.stop_when_done && ctl.done()) {
+            let rm_step = rm.zip(u).map(|(m, state)| m.step(state, labels));
+            u = rm_step.map(|(next, _)| next);
+            logger.reacher_step(&env, &action, &step, rm_step, &obs)?;
+            let rm_done = rm.zip(u).is_some_and(|(m, s)| m.is_terminal(s));
+            if step.truncated || (spec.stop_when_done && (ctl.done() || rm_done)) {
                 break;
             }
         }
-        logger.end_episode(ctl.done())?;
+        let success = match rm.zip(u) {
+            Some((m, s)) => m.is_terminal(s) && !m.is_failure(s),
+            None => ctl.done(),
+        };
+        logger.end_episode(success)?;
     }
     logger.finish()
 }
