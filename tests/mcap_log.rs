@@ -62,7 +62,9 @@ fn every_message_type_round_trips() {
             obs: &obs,
         })
         .unwrap());
-    let steps: Vec<(Vec<f32>, f64, u32, Option<(usize, f64)>)> = vec![
+    // (action, env reward, label bits, RM state and reward)
+    type Row = (Vec<f32>, f64, u32, Option<(usize, f64)>);
+    let steps: Vec<Row> = vec![
         (vec![1.0, -1.0], -0.25, 0, Some((0, 0.0))),
         (vec![-0.0, 0.5], -1e-17, 0b10001, Some((3, 1.0))),
         (

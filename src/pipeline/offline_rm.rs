@@ -131,6 +131,9 @@ pub struct Comparison {
     pub counterexample_until_done: Option<String>,
 }
 
+/// A state of each machine.
+type Pair = (usize, usize);
+
 /// Shortest label sequence (over `alphabet`) on which `a` and `b` pay different rewards,
 /// exploring only while `b` has not reached a terminal state: breadth-first search on the
 /// product of the two machines.
@@ -141,10 +144,9 @@ pub fn counterexample_until_done(
 ) -> Option<Vec<LabelSet>> {
     use std::collections::{HashMap, VecDeque};
     let start = (a.initial(), b.initial());
-    let mut parent: HashMap<(usize, usize), Option<((usize, usize), LabelSet)>> =
-        HashMap::from([(start, None)]);
+    let mut parent: HashMap<Pair, Option<(Pair, LabelSet)>> = HashMap::from([(start, None)]);
     let mut queue = VecDeque::from([start]);
-    let path_to = |parent: &HashMap<_, Option<((usize, usize), LabelSet)>>, mut at, last| {
+    let path_to = |parent: &HashMap<Pair, Option<(Pair, LabelSet)>>, mut at, last| {
         let mut seq = vec![last];
         while let Some(Some((prev, l))) = parent.get(&at) {
             seq.push(*l);
