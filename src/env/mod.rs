@@ -63,4 +63,5 @@ pub fn check_action(action: &[f32], expected: usize) -> Result<(), EnvError> {
 
 pub mod product;
 pub mod reacher;
+pub mod reacher_controller;
 pub mod reacher_task;

@@ -307,6 +307,35 @@ impl ReacherDelivery {
         Ok(())
     }
 
+    /// Restores the start of a logged episode instead of drawing one from a seed: the full
+    /// `qpos`/`qvel`, the ball layout and the cancel step, through the same sequence as
+    /// [`ContinuousEnv::reset`] (MuJoCo data reset, state written, forward), so stepping the
+    /// same actions afterwards reproduces the logged run bit for bit. Writes the observation.
+    pub fn restore_start(
+        &mut self,
+        qpos: &[f64],
+        qvel: &[f64],
+        balls: [[f64; 2]; 4],
+        cancel_step: Option<usize>,
+        obs: &mut [f32],
+    ) -> Result<(), EnvError> {
+        self.data.reset();
+        self.data
+            .set_qpos(qpos)
+            .and_then(|()| self.data.set_qvel(qvel))
+            .map_err(|e| EnvError::Simulation(e.to_string()))?;
+        self.balls = balls;
+        self.cancel_step = cancel_step;
+        self.steps = 0;
+        self.data
+            .forward()
+            .map_err(|e| EnvError::Simulation(e.to_string()))?;
+        self.last_labels = self.ball_labels();
+        self.ready = true;
+        self.write_obs(obs);
+        Ok(())
+    }
+
     /// Labels of the balls the fingertip touches now (no cancel).
     fn ball_labels(&self) -> LabelSet {
         let tip = self.fingertip();

@@ -1,2 +1,5 @@
 //! End-to-end pipelines behind the binaries (experts, demonstrations, IRL, evaluation).
+
 pub mod expert;
+pub mod offline_rm;
+pub mod replay;

@@ -1,0 +1,147 @@
+//! Benchmark: rollout-logging overhead against the same environment loop without a logger
+//! (same run, interleaved repetitions, medians), bytes per step on disk, and replay speed.
+//!
+//! `cargo run --release --bin mcap_bench -- --reps 7 --episodes 200`
+
+use anyhow::Result;
+use clap::Parser;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use smirl::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, OBS_DIM};
+use smirl::env::ContinuousEnv;
+use smirl::log::{read_log, LogOptions, RolloutLogger, RunHeader};
+use smirl::pipeline::replay::replay;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(about = "MCAP logging overhead, bytes/step and replay speed")]
+struct Args {
+    #[arg(long, default_value_t = 7)]
+    reps: usize,
+    /// Episodes (of 100 steps) per repetition.
+    #[arg(long, default_value_t = 200)]
+    episodes: u64,
+}
+
+fn median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    xs[xs.len() / 2]
+}
+
+/// Runs the episodes with a smooth random policy (precomputed), optionally logging.
+fn run(
+    env: &mut ReacherDelivery,
+    actions: &[[f32; 2]],
+    episodes: u64,
+    logger: Option<&mut RolloutLogger>,
+) -> Result<f64> {
+    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut logger = logger;
+    let t = Instant::now();
+    let mut k = 0;
+    for ep in 0..episodes {
+        env.reset(ep, &mut obs);
+        if let Some(l) = logger.as_deref_mut() {
+            l.begin_reacher_episode(env, ep, "bench", None, &obs)?;
+        }
+        loop {
+            let a = &actions[k % actions.len()];
+            k += 1;
+            let step = env.step(a, &mut obs)?;
+            if let Some(l) = logger.as_deref_mut() {
+                l.reacher_step(env, a, &step, None, &obs)?;
+            }
+            if step.truncated {
+                break;
+            }
+        }
+        if let Some(l) = logger.as_deref_mut() {
+            l.end_episode(false)?;
+        }
+    }
+    Ok(t.elapsed().as_secs_f64())
+}
+
+fn main() -> Result<()> {
+    let args = Args::parse();
+    anyhow::ensure!(
+        args.reps > 0 && args.episodes > 0,
+        "--reps and --episodes must be positive"
+    );
+    let mut env = ReacherDelivery::new(ReacherConfig::default())?;
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let mut a = [0.0f32; 2];
+    let actions: Vec<[f32; 2]> = (0..10_000)
+        .map(|_| {
+            for x in &mut a {
+                *x = (0.8 * *x + 0.5 * rng.gen_range(-1.0f32..1.0)).clamp(-1.0, 1.0);
+            }
+            a
+        })
+        .collect();
+    let steps = args.episodes as f64 * 100.0;
+    let dir = tempfile_dir()?;
+    let (mut plain, mut logged, mut overheads, mut bytes) = (vec![], vec![], vec![], vec![]);
+    let mut last_file = None;
+    for rep in 0..args.reps {
+        let t_plain = run(&mut env, &actions, args.episodes, None)?;
+        let path = dir.join(format!("bench{rep}.mcap"));
+        let header = RunHeader::reacher(
+            "bench",
+            rep as u64,
+            serde_json::json!({"env": ReacherConfig::default()}),
+            &default_xml_path(),
+        )?;
+        let t = Instant::now();
+        let mut logger = RolloutLogger::create(&path, header, LogOptions::default())?;
+        run(&mut env, &actions, args.episodes, Some(&mut logger))?;
+        let summary = logger.finish()?;
+        // Everything the logger costs, including creating and finishing the file.
+        let t_logged = t.elapsed().as_secs_f64();
+        eprintln!(
+            "rep {rep}: plain {:.2} us/step, logged {:.2} us/step",
+            1e6 * t_plain / steps,
+            1e6 * t_logged / steps
+        );
+        overheads.push(t_logged / t_plain - 1.0);
+        plain.push(t_plain);
+        logged.push(t_logged);
+        bytes.push(summary.bytes as f64 / summary.steps_logged as f64);
+        last_file = Some(path);
+    }
+    let path = last_file.expect("at least one repetition");
+    let log = read_log(&path)?;
+    let mut replay_rates = vec![];
+    let mut all_match = true;
+    for _ in 0..args.reps.min(3) {
+        let r = replay(&log)?;
+        all_match &= r.all_match();
+        replay_rates.push(r.steps as f64 / r.elapsed_secs);
+    }
+    let (p, l) = (median(plain), median(logged));
+    println!(
+        "MuJoCo {}, {} reps x {} episodes x 100 steps, default LogOptions (zstd, no observations)",
+        smirl::mujoco::version_string(),
+        args.reps,
+        args.episodes
+    );
+    println!("env alone        : {:>7.2} us/step", 1e6 * p / steps);
+    println!("env + logger     : {:>7.2} us/step", 1e6 * l / steps);
+    println!("logging overhead : {:>7.2} % of the env step time (median of per-rep ratios; target <= 5 %)", 100.0 * median(overheads));
+    println!(
+        "bytes per step   : {:>7.1} B on disk (target <= 100)",
+        median(bytes)
+    );
+    println!(
+        "replay           : {:>7.0} steps/s, bit-exact: {all_match} (target >= 10000)",
+        median(replay_rates)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+    Ok(())
+}
+
+fn tempfile_dir() -> Result<std::path::PathBuf> {
+    let dir = std::env::temp_dir().join(format!("smirl_mcap_bench_{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    Ok(dir)
+}

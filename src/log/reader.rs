@@ -1,0 +1,435 @@
+//! Reading rollout logs, including files cut short by a crash.
+
+use super::schema::{self, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHEMA_VERSION};
+use super::LogError;
+use mcap::records::{op, Record};
+use mcap::sans_io::{LinearReadEvent, LinearReader as SansReader, LinearReaderOptions};
+use mcap::McapError;
+use std::collections::HashMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Largest uncompressed chunk the reader accepts (the writer's chunks are ~1 MiB; see
+/// [`super::LogOptions::chunk_size`]).
+pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
+
+/// One logged episode.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoggedEpisode {
+    pub start: EpisodeStartMsg,
+    pub steps: Vec<StepMsg>,
+    /// `None` when the file ends before the episode did.
+    pub end: Option<EpisodeEndMsg>,
+}
+
+impl LoggedEpisode {
+    pub fn is_complete(&self) -> bool {
+        self.end.is_some()
+    }
+}
+
+/// How much of a file cut short was read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Recovery {
+    pub file_bytes: u64,
+    /// Complete chunks read.
+    pub chunks: usize,
+    pub messages: u64,
+    pub complete_episodes: usize,
+    /// Steps of a last, unfinished episode (0 if none).
+    pub partial_steps: usize,
+    /// Why reading stopped.
+    pub stopped_by: String,
+}
+
+impl fmt::Display for Recovery {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "file is incomplete ({}); recovered {} messages from {} complete chunks of {} bytes: \
+             {} complete episodes",
+            self.stopped_by, self.messages, self.chunks, self.file_bytes, self.complete_episodes
+        )?;
+        if self.partial_steps > 0 {
+            write!(f, " and {} steps of an unfinished one", self.partial_steps)?;
+        }
+        Ok(())
+    }
+}
+
+/// A rollout log read into memory.
+#[derive(Clone, Debug)]
+pub struct RolloutLog {
+    pub path: PathBuf,
+    pub run: RunInfo,
+    /// The attached model XML (`None` if the attachment is missing).
+    pub model_xml: Option<String>,
+    /// The attached run config text.
+    pub config_json: Option<String>,
+    /// The `smirl.run` metadata record.
+    pub metadata: HashMap<String, String>,
+    pub episodes: Vec<LoggedEpisode>,
+    pub chunks: usize,
+    pub messages: u64,
+    /// Set when the file was cut short (no footer): what was recovered.
+    pub recovery: Option<Recovery>,
+}
+
+impl RolloutLog {
+    pub fn steps(&self) -> usize {
+        self.episodes.iter().map(|e| e.steps.len()).sum()
+    }
+}
+
+/// Reads a rollout log. A truncated file is read up to its last complete chunk (see
+/// [`RolloutLog::recovery`]); a non-MCAP, corrupt or foreign file, or one with another
+/// schema version, is an error naming the file.
+pub fn read_log(path: &Path) -> Result<RolloutLog, LogError> {
+    let bytes = std::fs::read(path).map_err(|source| LogError::Io {
+        path: path.into(),
+        source,
+    })?;
+    read_log_bytes(&bytes, path)
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Run,
+    Start,
+    Step,
+    End,
+    Other,
+}
+
+/// Errors that mean "the file stops here" rather than "the file is damaged".
+fn is_truncation(e: &McapError) -> bool {
+    matches!(
+        e,
+        McapError::UnexpectedEof
+            | McapError::RecordTooLarge { .. }
+            | McapError::BadChunkLength { .. }
+            | McapError::BadAttachmentLength { .. }
+    )
+}
+
+struct Reading<'p> {
+    path: &'p Path,
+    schemas: HashMap<u16, (String, String)>,
+    channels: HashMap<u16, Kind>,
+    run: Option<RunInfo>,
+    model_xml: Option<String>,
+    config_json: Option<String>,
+    metadata: HashMap<String, String>,
+    episodes: Vec<LoggedEpisode>,
+    messages: u64,
+}
+
+impl Reading<'_> {
+    fn corrupt(&self, problem: String) -> LogError {
+        LogError::Corrupt {
+            path: self.path.into(),
+            problem,
+        }
+    }
+
+    fn record(&mut self, record: Record) -> Result<(), LogError> {
+        match record {
+            Record::Schema { header, data } => {
+                if header.name.starts_with("smirl.") && !header.name.starts_with("smirl.v1.") {
+                    let found = header.name.split('.').nth(1).unwrap_or("?").to_string();
+                    return Err(LogError::UnknownSchemaVersion {
+                        path: self.path.into(),
+                        found: format!("{found} (schema {})", header.name),
+                        supported: SCHEMA_VERSION,
+                    });
+                }
+                let _ = data;
+                self.schemas
+                    .insert(header.id, (header.name, header.encoding));
+            }
+            Record::Channel(ch) => {
+                if let Some(v) = ch.metadata.get(schema::CHANNEL_VERSION_KEY) {
+                    if v != &SCHEMA_VERSION.to_string() {
+                        return Err(LogError::UnknownSchemaVersion {
+                            path: self.path.into(),
+                            found: v.clone(),
+                            supported: SCHEMA_VERSION,
+                        });
+                    }
+                }
+                let schema_name = self.schemas.get(&ch.schema_id).map(|s| s.0.as_str());
+                let kind = match (ch.topic.as_str(), schema_name) {
+                    (schema::TOPIC_RUN, Some(schema::RUN_SCHEMA_NAME)) => Kind::Run,
+                    (schema::TOPIC_EPISODE_START, Some(schema::EPISODE_START_SCHEMA_NAME)) => {
+                        Kind::Start
+                    }
+                    (schema::TOPIC_STEP, Some(schema::STEP_SCHEMA_NAME)) => Kind::Step,
+                    (schema::TOPIC_EPISODE_END, Some(schema::EPISODE_END_SCHEMA_NAME)) => Kind::End,
+                    _ => Kind::Other,
+                };
+                self.channels.insert(ch.id, kind);
+            }
+            Record::Message { header, data } => {
+                self.messages += 1;
+                let kind = *self.channels.get(&header.channel_id).ok_or_else(|| {
+                    self.corrupt(format!(
+                        "message on channel {} before its channel record",
+                        header.channel_id
+                    ))
+                })?;
+                self.message(kind, &data)?;
+            }
+            Record::Attachment { header, data, .. } => {
+                let text = || String::from_utf8_lossy(&data).into_owned();
+                match header.name.as_str() {
+                    schema::ATTACHMENT_MODEL_XML => self.model_xml = Some(text()),
+                    schema::ATTACHMENT_CONFIG => self.config_json = Some(text()),
+                    _ => {}
+                }
+            }
+            Record::Metadata(m) if m.name == schema::METADATA_RUN => {
+                if let Some(v) = m.metadata.get("schema_version") {
+                    if v != &SCHEMA_VERSION.to_string() {
+                        return Err(LogError::UnknownSchemaVersion {
+                            path: self.path.into(),
+                            found: v.clone(),
+                            supported: SCHEMA_VERSION,
+                        });
+                    }
+                }
+                self.metadata = m.metadata.into_iter().collect();
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn message(&mut self, kind: Kind, data: &[u8]) -> Result<(), LogError> {
+        match kind {
+            Kind::Run => {
+                let value: serde_json::Value = serde_json::from_slice(data)
+                    .map_err(|e| self.corrupt(format!("/run record is not JSON: {e}")))?;
+                let version = value.get("schema_version").cloned();
+                if version != Some(serde_json::json!(SCHEMA_VERSION)) {
+                    return Err(LogError::UnknownSchemaVersion {
+                        path: self.path.into(),
+                        found: version.map_or("none".into(), |v| v.to_string()),
+                        supported: SCHEMA_VERSION,
+                    });
+                }
+                let run: RunInfo = serde_json::from_value(value)
+                    .map_err(|e| self.corrupt(format!("/run record: {e}")))?;
+                self.run = Some(run);
+            }
+            Kind::Start => {
+                let m = EpisodeStartMsg::decode(data)
+                    .map_err(|e| self.corrupt(format!("/episode/start message: {e}")))?;
+                self.episodes.push(LoggedEpisode {
+                    start: m,
+                    steps: Vec::new(),
+                    end: None,
+                });
+            }
+            Kind::Step => {
+                let m = StepMsg::decode(data)
+                    .map_err(|e| self.corrupt(format!("/step message: {e}")))?;
+                let ep = self.open_episode(m.episode, "/step")?;
+                ep.steps.push(m);
+            }
+            Kind::End => {
+                let m = EpisodeEndMsg::decode(data)
+                    .map_err(|e| self.corrupt(format!("/episode/end message: {e}")))?;
+                let ep = self.open_episode(m.episode, "/episode/end")?;
+                ep.end = Some(m);
+            }
+            Kind::Other => {}
+        }
+        Ok(())
+    }
+
+    fn open_episode(&mut self, id: u64, topic: &str) -> Result<&mut LoggedEpisode, LogError> {
+        let path = self.path;
+        match self.episodes.last_mut() {
+            Some(ep) if ep.start.episode == id && ep.end.is_none() => Ok(ep),
+            _ => Err(LogError::Corrupt {
+                path: path.into(),
+                problem: format!("{topic} message of episode {id} outside that episode"),
+            }),
+        }
+    }
+}
+
+/// [`read_log`] on bytes already in memory; `path` names them in messages.
+pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError> {
+    if bytes.len() < mcap::MAGIC.len() || &bytes[..mcap::MAGIC.len()] != mcap::MAGIC {
+        return Err(LogError::NotMcap {
+            path: path.into(),
+            problem: "it does not start with the MCAP magic bytes".into(),
+        });
+    }
+    let mut r = Reading {
+        path,
+        schemas: HashMap::new(),
+        channels: HashMap::new(),
+        run: None,
+        model_xml: None,
+        config_json: None,
+        metadata: HashMap::new(),
+        episodes: Vec::new(),
+        messages: 0,
+    };
+    let mut chunks = 0;
+    let mut footer = false;
+    let mut stopped_by = None;
+    // Top level: whole records, chunks undecoded (their bodies are decoded below, all or
+    // nothing). The length limit keeps a damaged length field from becoming an allocation.
+    let mut top = SansReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_skip_end_magic(true)
+            .with_emit_chunks(true)
+            .with_validate_data_section_crc(true)
+            .with_validate_summary_section_crc(true)
+            .with_record_length_limit(MAX_CHUNK_BYTES as usize),
+    );
+    let mut input = bytes;
+    let outcome = drive(&mut top, &mut input, |opcode, data| {
+        if opcode == op::CHUNK {
+            read_chunk(&mut r, opcode, data, chunks + 1)?;
+            chunks += 1;
+            return Ok(());
+        }
+        if opcode == op::FOOTER {
+            footer = true;
+        }
+        let record = mcap::parse_record(opcode, data).map_err(|e| LogError::Corrupt {
+            path: path.into(),
+            problem: format!("record (opcode {opcode:#04x}) cannot be parsed: {e}"),
+        })?;
+        r.record(record)
+    })?;
+    match outcome {
+        None => {}
+        Some(e) if is_truncation(&e) => stopped_by = Some(format!("it ends inside a record: {e}")),
+        Some(McapError::BadMagic) => {
+            return Err(LogError::NotMcap {
+                path: path.into(),
+                problem: "bad magic bytes".into(),
+            })
+        }
+        Some(source) => {
+            return Err(LogError::Mcap {
+                path: path.into(),
+                source,
+            })
+        }
+    }
+    if r.messages == 0 && r.run.is_none() && r.schemas.is_empty() && stopped_by.is_some() {
+        return Err(LogError::NotRolloutLog {
+            path: path.into(),
+            problem: "nothing readable before the file ends".into(),
+        });
+    }
+    let Some(run) = r.run.take() else {
+        return Err(LogError::NotRolloutLog {
+            path: path.into(),
+            problem: "no /run record".into(),
+        });
+    };
+    let recovery = if footer && stopped_by.is_none() {
+        None
+    } else {
+        let partial_steps = r
+            .episodes
+            .last()
+            .filter(|e| !e.is_complete())
+            .map_or(0, |e| e.steps.len());
+        Some(Recovery {
+            file_bytes: bytes.len() as u64,
+            chunks,
+            messages: r.messages,
+            complete_episodes: r.episodes.iter().filter(|e| e.is_complete()).count(),
+            partial_steps,
+            stopped_by: stopped_by.unwrap_or_else(|| "no footer".into()),
+        })
+    };
+    Ok(RolloutLog {
+        path: path.into(),
+        run,
+        model_xml: r.model_xml,
+        config_json: r.config_json,
+        metadata: r.metadata,
+        episodes: r.episodes,
+        chunks,
+        messages: r.messages,
+        recovery,
+    })
+}
+
+/// Feeds `input` to a sans-io reader, handing each record to `f`. Returns the reader's error
+/// (the caller decides whether it means truncation or damage), `None` at a clean end.
+fn drive(
+    reader: &mut SansReader,
+    input: &mut &[u8],
+    mut f: impl FnMut(u8, &[u8]) -> Result<(), LogError>,
+) -> Result<Option<McapError>, LogError> {
+    while let Some(event) = reader.next_event() {
+        match event {
+            Ok(LinearReadEvent::ReadRequest(need)) => {
+                let n = need.min(input.len());
+                reader.insert(n).copy_from_slice(&input[..n]);
+                reader.notify_read(n);
+                *input = &input[n..];
+            }
+            Ok(LinearReadEvent::Record { data, opcode }) => f(opcode, data)?,
+            Err(e) => return Ok(Some(e)),
+        }
+    }
+    Ok(None)
+}
+
+/// Decodes one chunk record (its body `data`) completely, checking its CRC before any of its
+/// records is used, so a chunk is taken entirely or not at all.
+fn read_chunk(r: &mut Reading, opcode: u8, data: &[u8], number: usize) -> Result<(), LogError> {
+    let path = r.path;
+    let corrupt = |problem: String| LogError::Corrupt {
+        path: path.into(),
+        problem: format!("chunk {number}: {problem}"),
+    };
+    if let Ok(Record::Chunk { header, .. }) = mcap::parse_record(opcode, data) {
+        // The mcap crate allocates the declared uncompressed size up front: a damaged header
+        // must not turn into a huge allocation.
+        if header.uncompressed_size > MAX_CHUNK_BYTES {
+            return Err(corrupt(format!(
+                "declares {} uncompressed bytes (limit {MAX_CHUNK_BYTES})",
+                header.uncompressed_size
+            )));
+        }
+    }
+    let mut framed = Vec::with_capacity(9 + data.len());
+    framed.push(opcode);
+    framed.extend_from_slice(&(data.len() as u64).to_le_bytes());
+    framed.extend_from_slice(data);
+    let mut inner = SansReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_skip_start_magic(true)
+            .with_skip_end_magic(true)
+            .with_emit_chunks(false)
+            .with_prevalidate_chunk_crcs(true)
+            .with_record_length_limit(MAX_CHUNK_BYTES as usize),
+    );
+    let mut records = Vec::new();
+    let mut input = &framed[..];
+    let outcome = drive(&mut inner, &mut input, |op, body| {
+        let rec = mcap::parse_record(op, body)
+            .map_err(|e| corrupt(format!("record cannot be parsed: {e}")))?;
+        records.push(rec.into_owned());
+        Ok(())
+    })?;
+    if let Some(e) = outcome {
+        return Err(corrupt(e.to_string()));
+    }
+    for rec in records {
+        r.record(rec)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,391 @@
+//! Replay of a rollout log: re-simulate every logged episode from its recorded initial state
+//! with the recorded actions, on the model XML stored in the file, and compare the state,
+//! labels, reward (and observation when logged) with the log bit for bit.
+//!
+//! Differences in the setting are reported as such before any step is compared: a log from
+//! another MuJoCo version (bit-exact agreement is then not expected), a stored XML whose hash
+//! is not the one recorded (a damaged file), or an XML that differs from the shipped model
+//! (replay still uses the stored one, which is what the run used).
+
+use crate::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
+use crate::env::ContinuousEnv;
+use crate::log::schema::sha256_hex;
+use crate::log::{LoggedEpisode, RolloutLog};
+use crate::mujoco::Model;
+use std::fmt;
+use std::sync::Arc;
+
+/// Errors that stop a replay before it compares anything.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    #[error("{path}: cannot replay: {problem}")]
+    Cannot { path: String, problem: String },
+}
+
+/// The first difference found in an episode.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mismatch {
+    /// 1-based step (0 = the initial state).
+    pub step: usize,
+    /// What differs, e.g. `qpos[1]`.
+    pub what: String,
+    pub logged: String,
+    pub replayed: String,
+}
+
+impl fmt::Display for Mismatch {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "step {}: {} logged {} but replayed {}",
+            self.step, self.what, self.logged, self.replayed
+        )
+    }
+}
+
+/// The outcome of one episode's replay.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EpisodeReplay {
+    pub episode: u64,
+    pub seed: u64,
+    pub phase: String,
+    pub steps: usize,
+    /// The log has the episode's end record.
+    pub complete: bool,
+    pub env_return: f64,
+    /// Labels seen along the episode, as text per step where non-empty (e.g. `r@12 g@40`).
+    pub label_events: String,
+    pub mismatch: Option<Mismatch>,
+    /// `reset(seed)` reproduces the logged initial state (when false, the state was still
+    /// restored from the log; this only flags a seed/env-code change).
+    pub seed_reproduces_start: bool,
+}
+
+/// The outcome of a whole replay.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReplayReport {
+    /// Notes about the setting (MuJoCo version, XML hash) that explain mismatches.
+    pub setting_notes: Vec<String>,
+    /// The MuJoCo versions differ, so bit-exact agreement is not expected.
+    pub version_differs: bool,
+    pub episodes: Vec<EpisodeReplay>,
+    pub steps: usize,
+    pub elapsed_secs: f64,
+}
+
+impl ReplayReport {
+    pub fn mismatches(&self) -> usize {
+        self.episodes
+            .iter()
+            .filter(|e| e.mismatch.is_some())
+            .count()
+    }
+
+    pub fn all_match(&self) -> bool {
+        self.mismatches() == 0
+    }
+}
+
+fn bits_f64(xs: &[f64]) -> impl Iterator<Item = u64> + '_ {
+    xs.iter().map(|x| x.to_bits())
+}
+
+fn first_diff_f64(
+    what: &str,
+    logged: &[f64],
+    replayed: &[f64],
+) -> Option<(String, String, String)> {
+    if logged.len() != replayed.len() {
+        return Some((
+            format!("{what} length"),
+            logged.len().to_string(),
+            replayed.len().to_string(),
+        ));
+    }
+    bits_f64(logged)
+        .zip(bits_f64(replayed))
+        .position(|(a, b)| a != b)
+        .map(|i| {
+            (
+                format!("{what}[{i}]"),
+                format!("{:e}", logged[i]),
+                format!("{:e}", replayed[i]),
+            )
+        })
+}
+
+fn first_diff_f32(
+    what: &str,
+    logged: &[f32],
+    replayed: &[f32],
+) -> Option<(String, String, String)> {
+    if logged.len() != replayed.len() {
+        return Some((
+            format!("{what} length"),
+            logged.len().to_string(),
+            replayed.len().to_string(),
+        ));
+    }
+    logged
+        .iter()
+        .zip(replayed)
+        .position(|(a, b)| a.to_bits() != b.to_bits())
+        .map(|i| {
+            (
+                format!("{what}[{i}]"),
+                format!("{:e}", logged[i]),
+                format!("{:e}", replayed[i]),
+            )
+        })
+}
+
+/// Replays every episode of `log` (ReacherDelivery logs only).
+pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
+    let path = log.path.display().to_string();
+    let cannot = |problem: String| ReplayError::Cannot {
+        path: path.clone(),
+        problem,
+    };
+    if log.run.env != "ReacherDelivery" {
+        return Err(cannot(format!(
+            "environment {} is not ReacherDelivery",
+            log.run.env
+        )));
+    }
+    let xml = log
+        .model_xml
+        .as_deref()
+        .ok_or_else(|| cannot("the file has no model.xml attachment".into()))?;
+    let stored_hash = sha256_hex(xml);
+    if stored_hash != log.run.model_xml_sha256 {
+        return Err(cannot(format!(
+            "the attached model XML hashes to {stored_hash}, the run record says {} (damaged file)",
+            log.run.model_xml_sha256
+        )));
+    }
+    let mut notes = Vec::new();
+    let here = crate::mujoco::version_string();
+    let version_differs = log.run.mujoco_version != here;
+    if version_differs {
+        notes.push(format!(
+            "logged with MuJoCo {}, replaying with MuJoCo {here}: bit-exact agreement is not \
+             expected, mismatches below may come from the version change",
+            log.run.mujoco_version
+        ));
+    }
+    match std::fs::read_to_string(default_xml_path()) {
+        Ok(shipped) if sha256_hex(&shipped) != stored_hash => notes.push(format!(
+            "the run used a model XML ({}, sha256 {}) that differs from the shipped {} \
+             (sha256 {}); replaying with the XML stored in the log",
+            log.run.model_xml_name,
+            &stored_hash[..12],
+            default_xml_path().display(),
+            &sha256_hex(&shipped)[..12]
+        )),
+        Ok(_) => {}
+        Err(e) => notes.push(format!(
+            "cannot read the shipped model {} to compare ({e})",
+            default_xml_path().display()
+        )),
+    }
+    let model = Model::from_xml_str(xml, &format!("{path}:model.xml"))
+        .map_err(|e| cannot(e.to_string()))?;
+    // The config matters for reset(seed) only (ball randomisation, cancel schedule); the
+    // replayed episodes restore their logged start state.
+    let config: ReacherConfig = log
+        .run
+        .config
+        .get("env")
+        .and_then(|v| serde_json::from_value(v.clone()).ok())
+        .unwrap_or_default();
+    let mut env =
+        ReacherDelivery::with_model(Arc::new(model), config).map_err(|e| cannot(e.to_string()))?;
+    let started = std::time::Instant::now();
+    let mut episodes = Vec::with_capacity(log.episodes.len());
+    let mut steps = 0;
+    for ep in &log.episodes {
+        let r = replay_episode(&mut env, ep)
+            .map_err(|problem| cannot(format!("episode {}: {problem}", ep.start.episode)))?;
+        steps += r.steps;
+        episodes.push(r);
+    }
+    Ok(ReplayReport {
+        setting_notes: notes,
+        version_differs,
+        episodes,
+        steps,
+        elapsed_secs: started.elapsed().as_secs_f64(),
+    })
+}
+
+fn replay_episode(env: &mut ReacherDelivery, ep: &LoggedEpisode) -> Result<EpisodeReplay, String> {
+    let start = &ep.start;
+    if start.balls.len() != 8 {
+        return Err(format!(
+            "{} ball coordinates, expected 8",
+            start.balls.len()
+        ));
+    }
+    let mut balls = [[0.0; 2]; 4];
+    for (i, b) in balls.iter_mut().enumerate() {
+        *b = [start.balls[2 * i], start.balls[2 * i + 1]];
+    }
+    let cancel = (start.cancel_step > 0).then_some(start.cancel_step as usize);
+    let mut obs = vec![0.0f32; OBS_DIM];
+
+    // Does the seed still produce this start? (Informative only.)
+    env.reset(start.seed, &mut obs);
+    let seed_reproduces_start = env.qpos() == start.qpos.as_slice()
+        && env.qvel() == start.qvel.as_slice()
+        && env.balls() == balls
+        && env.cancel_step() == cancel;
+
+    env.restore_start(&start.qpos, &start.qvel, balls, cancel, &mut obs)
+        .map_err(|e| e.to_string())?;
+    let mut result = EpisodeReplay {
+        episode: start.episode,
+        seed: start.seed,
+        phase: start.phase.clone(),
+        steps: ep.steps.len(),
+        complete: ep.is_complete(),
+        env_return: 0.0,
+        label_events: String::new(),
+        mismatch: None,
+        seed_reproduces_start,
+    };
+    let mismatch = |step: usize, (what, logged, replayed): (String, String, String)| Mismatch {
+        step,
+        what,
+        logged,
+        replayed,
+    };
+    if env.labels().0 != start.labels {
+        result.mismatch = Some(mismatch(
+            0,
+            (
+                "labels".into(),
+                format!("{:#x}", start.labels),
+                format!("{:#x}", env.labels().0),
+            ),
+        ));
+        return Ok(result);
+    }
+    if let Some(d) = (!start.obs.is_empty())
+        .then(|| first_diff_f32("obs", &start.obs, &obs))
+        .flatten()
+    {
+        result.mismatch = Some(mismatch(0, d));
+        return Ok(result);
+    }
+    let vocab = env.vocabulary().clone();
+    for (k, s) in ep.steps.iter().enumerate() {
+        let n = k + 1;
+        if s.step as usize != n {
+            result.mismatch = Some(mismatch(
+                n,
+                ("step index".into(), s.step.to_string(), n.to_string()),
+            ));
+            break;
+        }
+        if s.action.len() != ACT_DIM {
+            result.mismatch = Some(mismatch(
+                n,
+                (
+                    "action length".into(),
+                    s.action.len().to_string(),
+                    ACT_DIM.to_string(),
+                ),
+            ));
+            break;
+        }
+        let out = match env.step(&s.action, &mut obs) {
+            Ok(out) => out,
+            Err(e) => {
+                result.mismatch = Some(mismatch(
+                    n,
+                    ("simulation".into(), "a step".into(), format!("error: {e}")),
+                ));
+                break;
+            }
+        };
+        result.env_return += out.reward;
+        if !out.labels.is_empty() {
+            if !result.label_events.is_empty() {
+                result.label_events.push(' ');
+            }
+            result.label_events += &format!("{}@{n}", vocab.format_labels(out.labels));
+        }
+        let diff = first_diff_f64("qpos", &s.qpos, env.qpos())
+            .or_else(|| first_diff_f64("qvel", &s.qvel, env.qvel()))
+            .or_else(|| {
+                (s.labels != out.labels.0).then(|| {
+                    (
+                        "labels".into(),
+                        format!("{:#x}", s.labels),
+                        format!("{:#x}", out.labels.0),
+                    )
+                })
+            })
+            .or_else(|| first_diff_f64("reward", &[s.reward], &[out.reward]))
+            .or_else(|| {
+                (!s.obs.is_empty())
+                    .then(|| first_diff_f32("obs", &s.obs, &obs))
+                    .flatten()
+            })
+            .or_else(|| {
+                (s.truncated != out.truncated).then(|| {
+                    (
+                        "truncated".into(),
+                        s.truncated.to_string(),
+                        out.truncated.to_string(),
+                    )
+                })
+            });
+        if let Some(d) = diff {
+            result.mismatch = Some(mismatch(n, d));
+            break;
+        }
+    }
+    Ok(result)
+}
+
+impl fmt::Display for ReplayReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for note in &self.setting_notes {
+            writeln!(f, "NOTE: {note}")?;
+        }
+        for e in &self.episodes {
+            let status = match &e.mismatch {
+                None => "ok (bit-exact)".to_string(),
+                Some(m) => format!("MISMATCH at {m}"),
+            };
+            writeln!(
+                f,
+                "episode {:>5} [{}] seed {:>6}: {:>4} steps{}, return {:>9.3}, labels [{}]: {status}{}",
+                e.episode,
+                e.phase,
+                e.seed,
+                e.steps,
+                if e.complete { "" } else { " (unfinished)" },
+                e.env_return,
+                e.label_events,
+                if e.seed_reproduces_start {
+                    ""
+                } else {
+                    " (note: reset(seed) no longer gives the logged start state)"
+                },
+            )?;
+        }
+        let rate = self.steps as f64 / self.elapsed_secs.max(1e-9);
+        write!(
+            f,
+            "{} episodes, {} steps replayed in {:.3} s ({:.0} steps/s): {} match bit for bit, {} mismatch",
+            self.episodes.len(),
+            self.steps,
+            self.elapsed_secs,
+            rate,
+            self.episodes.len() - self.mismatches(),
+            self.mismatches()
+        )
+    }
+}
