@@ -35,7 +35,13 @@ fn touch<P: Potential>(
 
 #[test]
 fn subgoals_follow_the_machines() {
-    let cases: &[(ReacherTask, &[&[usize]], &[Option<usize>])] = &[
+    /// (task, progress balls per state, touches to goal per state)
+    type Case = (
+        ReacherTask,
+        &'static [&'static [usize]],
+        &'static [Option<usize>],
+    );
+    let cases: &[Case] = &[
         (
             ReacherTask::Or,
             &[&[0, 1], &[2], &[]],

@@ -96,11 +96,14 @@ impl SubgoalPotential {
         let mut queue: VecDeque<usize> = (0..n).filter(|&u| rm.is_terminal(u)).collect();
         while let Some(v) = queue.pop_front() {
             let d = distance[v].expect("queued states have a distance");
-            for u in 0..n {
-                if distance[u].is_none() && (0..BALLS.len()).any(|b| touch(u, b) == Some(v)) {
-                    distance[u] = Some(d + 1);
-                    queue.push_back(u);
-                }
+            let reached: Vec<usize> = (0..n)
+                .filter(|&u| {
+                    distance[u].is_none() && (0..BALLS.len()).any(|b| touch(u, b) == Some(v))
+                })
+                .collect();
+            for u in reached {
+                distance[u] = Some(d + 1);
+                queue.push_back(u);
             }
         }
         let progress = (0..n)
