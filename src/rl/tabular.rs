@@ -300,6 +300,10 @@ pub fn optimal_action_masks(q: &[f64], n_actions: usize, tol: f64) -> Vec<u32> {
 /// Backward pass: `V_T = 0`, `Q_t(s, a) = r(s, a) + γ V_{t+1}(s')`, `V_t = logsumexp_a Q_t`,
 /// `π_t = exp(Q_t − V_t)`. With γ = 1 this is exactly Ziebart's MaxEnt distribution over
 /// action sequences of length T: `P(a_0..a_{T−1} | s_0) = exp(Σ_t r(s_t, a_t) − V_0(s_0))`.
+///
+/// The recursion only depends on the time to go, so the pass for horizon T also holds every
+/// shorter horizon T' ≤ T: its policy and values are those from `t = T − T'` on
+/// ([`FiniteSoftPolicy::suffix_policy`], [`FiniteSoftPolicy::values_at`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FiniteSoftPolicy {
     pub horizon: usize,
@@ -307,10 +311,27 @@ pub struct FiniteSoftPolicy {
     pub n_actions: usize,
     /// `π_t(a|s)` at `t * S * A + s * A + a`.
     pub pi: Vec<f64>,
-    /// `Q_t(s, a)`, same layout.
-    pub q: Vec<f64>,
-    /// `V_0(s)`: the log partition function of trajectories starting in `s`.
-    pub v0: Vec<f64>,
+    /// `V_t(s)` at `t * S + s`, for `t = 0..=T` (`V_T = 0`).
+    pub v: Vec<f64>,
+}
+
+impl FiniteSoftPolicy {
+    /// `V_0`: the log partition function of trajectories of the full horizon from each state.
+    pub fn v0(&self) -> &[f64] {
+        &self.v[..self.n_states]
+    }
+
+    /// `V_0` of the horizon-`h` problem (`h ≤ horizon`).
+    pub fn values_at(&self, h: usize) -> &[f64] {
+        let t = self.horizon - h;
+        &self.v[t * self.n_states..(t + 1) * self.n_states]
+    }
+
+    /// The time-indexed policy of the horizon-`h` problem (`h ≤ horizon`).
+    pub fn suffix_policy(&self, h: usize) -> &[f64] {
+        let n_sa = self.n_states * self.n_actions;
+        &self.pi[(self.horizon - h) * n_sa..]
+    }
 }
 
 /// Finite-horizon soft backward pass into `out` (its buffers are reused across calls).
@@ -333,31 +354,31 @@ pub fn soft_backward(
     out.n_states = n_s;
     out.n_actions = n_a;
     out.pi.resize(horizon * n_sa, 0.0);
-    out.q.resize(horizon * n_sa, 0.0);
-    out.v0.clear();
-    out.v0.resize(n_s, 0.0);
-    // `v` holds V_{t+1} while step t is computed, then V_t.
-    let v = &mut out.v0;
+    out.v.resize((horizon + 1) * n_s, 0.0);
+    out.v[horizon * n_s..].fill(0.0);
     for t in (0..horizon).rev() {
-        let q_t = &mut out.q[t * n_sa..(t + 1) * n_sa];
-        for k in 0..n_sa {
-            q_t[k] = reward[k] + gamma * v[mdp.next[k] as usize];
-        }
+        let (v_t, v_next) = out.v[t * n_s..(t + 2) * n_s].split_at_mut(n_s);
         let pi_t = &mut out.pi[t * n_sa..(t + 1) * n_sa];
         for s in 0..n_s {
-            let row = &q_t[s * n_a..(s + 1) * n_a];
             let pi_s = &mut pi_t[s * n_a..(s + 1) * n_a];
-            // One exp per action: π = e / Σe with e = exp(Q − max Q), V = max + ln Σe.
-            let m = row.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let mut z = 0.0;
+            // Q into π's slot; one exp per action: π = e / Σe with e = exp(Q − max Q),
+            // V = max + ln Σe.
+            let mut m = f64::NEG_INFINITY;
             for a in 0..n_a {
-                let e = (row[a] - m).exp();
-                pi_s[a] = e;
+                let k = s * n_a + a;
+                let q = reward[k] + gamma * v_next[mdp.next[k] as usize];
+                pi_s[a] = q;
+                m = m.max(q);
+            }
+            let mut z = 0.0;
+            for p in pi_s.iter_mut() {
+                let e = (*p - m).exp();
+                *p = e;
                 z += e;
             }
             let inv = 1.0 / z;
             pi_s.iter_mut().for_each(|p| *p *= inv);
-            v[s] = m + z.ln();
+            v_t[s] = m + z.ln();
         }
     }
     Ok(())

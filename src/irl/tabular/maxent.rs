@@ -282,22 +282,25 @@ impl<'a> MaxEntIrl<'a> {
         self.features.reward_into(theta, &mut self.reward);
         self.sa_visits.fill(0.0);
         let mut log_z = 0.0;
+        // One backward pass for the longest demonstrations serves every shorter length.
+        let longest = self.groups.last().map_or(0, |g| g.horizon);
+        soft_backward(
+            self.mdp,
+            &self.reward,
+            self.cfg.gamma,
+            longest,
+            &mut self.policy,
+        )?;
         for g in &self.groups {
-            soft_backward(
-                self.mdp,
-                &self.reward,
-                self.cfg.gamma,
-                g.horizon,
-                &mut self.policy,
-            )?;
+            let v0 = self.policy.values_at(g.horizon);
             for (s, &c) in g.starts.iter().enumerate() {
                 if c != 0.0 {
-                    log_z += c * self.policy.v0[s];
+                    log_z += c * v0[s];
                 }
             }
             expected_visitation(
                 self.mdp,
-                &self.policy.pi,
+                self.policy.suffix_policy(g.horizon),
                 &g.starts,
                 g.horizon,
                 self.cfg.gamma,
