@@ -33,7 +33,7 @@ pub enum PolicySolver {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct ApprenticeshipConfig {
     /// Discount of feature expectations and of the policy's objective.
     pub gamma: f64,

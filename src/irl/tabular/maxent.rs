@@ -67,7 +67,7 @@ pub enum MaxEntError {
 
 /// Optimiser settings.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct MaxEntConfig {
     /// Adam step size.
     pub lr: f64,
