@@ -27,14 +27,11 @@ fn tiny() -> (DetMdp, FeatureMap) {
     )
 }
 
-/// All action sequences of length `T` from `s0`: (states, actions, return, feature counts).
-fn enumerate(
-    mdp: &DetMdp,
-    f: &FeatureMap,
-    r: &[f64],
-    s0: usize,
-    horizon: usize,
-) -> Vec<(Vec<usize>, Vec<usize>, f64, Vec<f64>)> {
+/// One enumerated trajectory: states, actions, return, feature counts.
+type Traj = (Vec<usize>, Vec<usize>, f64, Vec<f64>);
+
+/// All action sequences of length `horizon` from `s0`.
+fn enumerate(mdp: &DetMdp, f: &FeatureMap, r: &[f64], s0: usize, horizon: usize) -> Vec<Traj> {
     let mut out = Vec::new();
     for code in 0..A.pow(horizon as u32) {
         let mut c = code;
@@ -89,7 +86,7 @@ fn soft_backward_pass_and_visitation_match_enumeration() {
         let mut visits = vec![0.0; S * A];
         let mut work = Vec::new();
         expected_visitation(&mdp, &pol.pi, &p0, T, 1.0, &mut visits, &mut work).unwrap();
-        let mut brute = vec![0.0; S * A];
+        let mut brute = [0.0; S * A];
         for (states, actions, ret, _) in &trajs {
             let p = (ret - log_z).exp();
             for t in 0..T {

@@ -165,7 +165,7 @@ impl Iteration {
                 self.gamma
             )));
         }
-        if !(self.tol > 0.0) {
+        if self.tol.is_nan() || self.tol <= 0.0 {
             return Err(TabularError::Parameter(format!(
                 "tolerance {} must be positive",
                 self.tol
@@ -364,10 +364,10 @@ pub fn soft_backward(
             // Q into π's slot; one exp per action: π = e / Σe with e = exp(Q − max Q),
             // V = max + ln Σe.
             let mut m = f64::NEG_INFINITY;
-            for a in 0..n_a {
+            for (a, slot) in pi_s.iter_mut().enumerate() {
                 let k = s * n_a + a;
                 let q = reward[k] + gamma * v_next[mdp.next[k] as usize];
-                pi_s[a] = q;
+                *slot = q;
                 m = m.max(q);
             }
             let mut z = 0.0;
@@ -421,8 +421,7 @@ pub fn expected_visitation(
             &policy[t * n_sa..(t + 1) * n_sa]
         };
         d_next.fill(0.0);
-        for s in 0..n_s {
-            let ds = d[s];
+        for (s, &ds) in d.iter().enumerate() {
             if ds == 0.0 {
                 continue;
             }

@@ -59,7 +59,7 @@ impl ApprenticeshipConfig {
         if !(self.gamma > 0.0 && self.gamma < 1.0) {
             return Err(format!("gamma = {} must be in (0, 1)", self.gamma));
         }
-        if !(self.epsilon >= 0.0) {
+        if self.epsilon.is_nan() || self.epsilon < 0.0 {
             return Err(format!("epsilon = {} must be ≥ 0", self.epsilon));
         }
         if let PolicySolver::QLearning { steps: 0 } = self.solver {

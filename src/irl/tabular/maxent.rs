@@ -98,7 +98,7 @@ impl MaxEntConfig {
         if !(self.lr > 0.0 && self.lr.is_finite()) {
             return Err(MaxEntError::Config(format!("lr = {} must be > 0", self.lr)));
         }
-        if !(self.grad_tol > 0.0) {
+        if self.grad_tol.is_nan() || self.grad_tol <= 0.0 {
             return Err(MaxEntError::Config(format!(
                 "grad_tol = {} must be > 0",
                 self.grad_tol

@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Reproduces the Office Gridworld results (paper figures 4 and 5): every task, every
+# algorithm, several seeds. Writes experiments/office/runs/t<N>/ (metrics, learned RMs and
+# weights, success.svg), copies the plots to experiments/office/fig_t<N>.svg, and writes the
+# results table experiments/office/results.md.
+#
+# Usage: experiments/office/run.sh [SEEDS] [BASE_SEED]
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+SEEDS="${1:-5}"
+BASE="${2:-0}"
+HERE=experiments/office
+CONFIG="$HERE/config.toml"
+cargo build --release --bin office
+BIN=target/release/office
+mkdir -p "$HERE/runs"
+for t in 0 1 2 3 4; do
+  "$BIN" --task "$t" --algo all --seeds "$SEEDS" --seed "$BASE" --config "$CONFIG" \
+    --out "$HERE/runs/t$t" --force
+  cp "$HERE/runs/t$t/success.svg" "$HERE/fig_t$t.svg"
+done
+
+CMD="experiments/office/run.sh $SEEDS $BASE"
+{
+  echo "# Office Gridworld results"
+  echo
+  echo "Made by \`$CMD\` (config \`$CONFIG\`) at commit \`$(git rev-parse --short HEAD)\`"
+  echo "on $(nproc) cores; $SEEDS seeds (base seed $BASE) per task and algorithm."
+  echo "Final success = ground-truth success of the policy after the last IRL step"
+  echo "(mean ± std over seeds). Time = wall-clock seconds of one complete run (demonstrations,"
+  echo "RM learning, IRL to convergence or step limit, evaluation after every step): median over"
+  echo "seeds [min, max]; \`ratio\` = median / the 10 s target for SMIRL."
+  echo
+  echo "| task | algorithm | final success | IRL steps (mean) | time s median [min, max] | ratio to 10 s | RM states | refines perfect RM |"
+  echo "|---|---|---|---|---|---|---|---|"
+  for t in 0 1 2 3 4; do
+    for a in smirl maxent apprenticeship; do
+      awk -F, -v a="$a" -v t="$t" '
+        NR > 1 && $2 == a {
+          n++; s += $4; ss += $4 * $4; steps += $5; times[n] = $12
+          if ($7 != "") { states = states (states == "" ? "" : " ") $7 }
+          if ($8 != "") { ref += ($8 == "true") }
+        }
+        END {
+          if (n == 0) exit
+          mean = s / n; var = ss / n - mean * mean; if (var < 0) var = 0
+          # median of times (insertion sort; n is small)
+          for (i = 2; i <= n; i++) { v = times[i]; j = i - 1
+            while (j > 0 && times[j] > v) { times[j + 1] = times[j]; j-- } times[j + 1] = v }
+          med = (n % 2) ? times[(n + 1) / 2] : (times[n / 2] + times[n / 2 + 1]) / 2
+          ratio = (a == "smirl") ? sprintf("%.3f", med / 10) : "-"
+          refs = (a == "smirl") ? sprintf("%d/%d", ref, n) : "-"
+          if (states == "") states = "-"
+          printf "| %s | %s | %.2f ± %.2f | %.1f | %.2f [%.2f, %.2f] | %s | %s | %s |\n", \
+            t, a, mean, sqrt(var), steps / n, med, times[1], times[n], ratio, states, refs
+        }' "$HERE/runs/t$t/summary.csv"
+    done
+  done
+  echo
+  echo "Plots: \`fig_t0.svg\` … \`fig_t4.svg\` (ground-truth return per IRL step, mean ± std)."
+} > "$HERE/results.md"
+cat "$HERE/results.md"

@@ -1,0 +1,64 @@
+//! Office pipeline: SMIRL end to end on the patrol task (test-sized), reproducibility, the
+//! MaxEnt baseline on task 0, and the shipped experiment configuration.
+
+use smirl::env::office::OfficeTask;
+use smirl::pipeline::office::{run, Algo, OfficeConfig};
+
+fn small() -> OfficeConfig {
+    let mut cfg = OfficeConfig::default();
+    cfg.demos.n_demos = 20;
+    cfg.maxent.max_steps = 150;
+    cfg
+}
+
+#[test]
+fn smirl_learns_the_patrol_task() {
+    let cfg = small();
+    let r = run(OfficeTask::Patrol, Algo::Smirl, 11, &cfg, &mut |_| {}).unwrap();
+    let rm = r.rm.as_ref().expect("SMIRL returns its machine");
+    assert!(
+        rm.n_states() >= 5,
+        "patrol needs at least 5 states, got {}",
+        rm.n_states()
+    );
+    assert!(r.final_success(), "steps: {:?}", r.steps.last());
+    // The initial (zero) reward does not solve the task: learning did.
+    assert!(!r.steps[0].success);
+}
+
+#[test]
+fn runs_are_reproducible() {
+    let cfg = small();
+    let a = run(OfficeTask::Coffee, Algo::Smirl, 3, &cfg, &mut |_| {}).unwrap();
+    let b = run(OfficeTask::Coffee, Algo::Smirl, 3, &cfg, &mut |_| {}).unwrap();
+    assert_eq!(a.weights, b.weights);
+    assert_eq!(a.rm, b.rm);
+    let curve = |r: &smirl::pipeline::office::OfficeRun| {
+        r.steps
+            .iter()
+            .map(|s| (s.step, s.gt_return, s.objective.to_bits()))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(curve(&a), curve(&b));
+}
+
+#[test]
+fn maxent_baseline_solves_the_single_step_task() {
+    let cfg = small();
+    let r = run(OfficeTask::ReachD, Algo::MaxEnt, 0, &cfg, &mut |_| {}).unwrap();
+    assert!(r.final_success());
+    assert_eq!(r.weights.len(), 1, "no reward machine: one weight row");
+}
+
+#[test]
+fn shipped_config_is_the_default() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/office/config.toml"
+    ))
+    .unwrap();
+    assert_eq!(
+        OfficeConfig::from_toml(&text).unwrap(),
+        OfficeConfig::default()
+    );
+}
