@@ -1,0 +1,158 @@
+//! Label traces turned into compact integer arrays for the LRM cost.
+//!
+//! Traces are compressed (runs of one label set become one entry, since the objective is
+//! about which *different* label comes next), identical compressed traces are stored once
+//! with a multiplicity, label sets are renumbered `0..L` in the order of their bit masks, and
+//! everything is concatenated into flat arrays so that running a machine is a tight loop over
+//! `u16`s.
+
+use super::{LabelTrace, LrmError};
+use crate::rm::labels::{LabelSet, Vocabulary};
+use std::collections::BTreeMap;
+
+/// Most distinct label sets the learner accepts (the count tables are states × L × L).
+pub const MAX_OBSERVED_LABEL_SETS: usize = 256;
+
+pub(crate) struct Data {
+    /// Compact label id -> label set, sorted by bit mask.
+    pub labels: Vec<LabelSet>,
+    /// Label set index (`LabelSet::index`) -> compact id, `u16::MAX` when never observed.
+    pub id_of: Vec<u16>,
+    /// Concatenated compressed traces.
+    pub lab: Vec<u16>,
+    /// Weight of the prediction made at each position: the multiplicity of its trace, or 0 at
+    /// the last position of a trace (nothing comes next).
+    pub w: Vec<u32>,
+    /// First position of each distinct compressed trace, plus the total length at the end.
+    pub starts: Vec<usize>,
+    /// Index of the trace each position belongs to.
+    pub trace_of: Vec<u32>,
+    /// Transitions in the raw traces.
+    pub raw_len: usize,
+}
+
+impl Data {
+    pub fn new(vocab: &Vocabulary, traces: &[LabelTrace]) -> Result<Data, LrmError> {
+        let n_sets = vocab.n_label_sets();
+        let mut raw_len = 0;
+        let mut seen = vec![false; n_sets];
+        for (k, t) in traces.iter().enumerate() {
+            for (step, l) in t.labels.iter().enumerate() {
+                if l.index() >= n_sets {
+                    return Err(LrmError::LabelOutOfRange {
+                        trace: k,
+                        step,
+                        labels: l.0,
+                        vocabulary: vocab.to_string(),
+                    });
+                }
+                seen[l.index()] = true;
+            }
+            if let Some(r) = &t.rewards {
+                if r.len() != t.labels.len() {
+                    return Err(LrmError::RewardLength {
+                        trace: k,
+                        labels: t.labels.len(),
+                        rewards: r.len(),
+                    });
+                }
+                if let Some(step) = r.iter().position(|x| !x.is_finite()) {
+                    return Err(LrmError::NonFiniteReward { trace: k, step });
+                }
+            }
+            raw_len += t.labels.len();
+        }
+        let labels: Vec<LabelSet> = (0..n_sets as u32)
+            .map(LabelSet)
+            .filter(|l| seen[l.index()])
+            .collect();
+        if labels.len() > MAX_OBSERVED_LABEL_SETS {
+            return Err(LrmError::TooManyLabelSets {
+                observed: labels.len(),
+                max: MAX_OBSERVED_LABEL_SETS,
+            });
+        }
+        let mut id_of = vec![u16::MAX; n_sets];
+        for (k, l) in labels.iter().enumerate() {
+            id_of[l.index()] = k as u16;
+        }
+        // Compress and deduplicate (BTreeMap: a deterministic order).
+        let mut distinct: BTreeMap<Vec<u16>, u64> = BTreeMap::new();
+        for t in traces {
+            let mut c: Vec<u16> = Vec::new();
+            for l in &t.labels {
+                let id = id_of[l.index()];
+                if c.last() != Some(&id) {
+                    c.push(id);
+                }
+            }
+            if !c.is_empty() {
+                *distinct.entry(c).or_default() += 1;
+            }
+        }
+        let total: usize = distinct.keys().map(Vec::len).sum();
+        let mut lab = Vec::with_capacity(total);
+        let mut w = Vec::with_capacity(total);
+        let mut starts = Vec::with_capacity(distinct.len() + 1);
+        let mut trace_of = Vec::with_capacity(total);
+        for (k, (c, &mult)) in distinct.iter().enumerate() {
+            let mult = u32::try_from(mult).unwrap_or(u32::MAX);
+            starts.push(lab.len());
+            lab.extend_from_slice(c);
+            w.extend(std::iter::repeat(mult).take(c.len() - 1));
+            w.push(0);
+            trace_of.extend(std::iter::repeat(k as u32).take(c.len()));
+        }
+        starts.push(lab.len());
+        Ok(Data {
+            labels,
+            id_of,
+            lab,
+            w,
+            starts,
+            trace_of,
+            raw_len,
+        })
+    }
+
+    pub fn n_labels(&self) -> usize {
+        self.labels.len()
+    }
+
+    pub fn n_traces(&self) -> usize {
+        self.starts.len() - 1
+    }
+
+    pub fn len(&self) -> usize {
+        self.lab.len()
+    }
+
+    /// End (exclusive) of the trace that position `t` belongs to.
+    #[inline]
+    pub fn trace_end(&self, t: usize) -> usize {
+        self.starts[self.trace_of[t] as usize + 1]
+    }
+
+    #[inline]
+    pub fn is_start(&self, t: usize) -> bool {
+        self.starts[self.trace_of[t] as usize] == t
+    }
+}
+
+/// Natural logarithms of 0..=n (ln 0 is never used: empty cells have weight 0).
+pub(crate) fn ln_table(n: usize) -> Vec<f64> {
+    (0..=n)
+        .map(|k| if k == 0 { 0.0 } else { (k as f64).ln() })
+        .collect()
+}
+
+/// The objective from a histogram `hist[k]` = total weight of predictions made in cells
+/// with `k` distinct successors: `Σ_k hist[k] · ln k`, summed in a fixed order so that the
+/// same histogram always gives the same bits.
+pub(crate) fn cost_of_hist(hist: &[i64], ln: &[f64]) -> f64 {
+    hist.iter()
+        .enumerate()
+        .skip(2)
+        .map(|(k, &h)| h as f64 * ln[k])
+        .sum()
+}

@@ -1,0 +1,124 @@
+//! Post-processing of a learned machine: merging states that the rewards cannot tell apart.
+//!
+//! The LRM objective rewards predicting the next label, so the search splits states of the
+//! task into sub-states that predict, e.g., which letter the expert's path crosses next
+//! (the paper's learned Office task-3 machine had 6 states for 4). Those extra states pay the
+//! same rewards as the state they split. We merge them back, RPNI-style, with the observed
+//! rewards as the outputs:
+//!
+//! - A cell `(u, l)` is *defined* when the traces read `l` in `u` (its target and mean reward
+//!   are then observed), or when `u = delta(v, l) != v` for some defined `(v, l)` (then
+//!   `u` stays on `l` with reward 0: the stutter invariance the search keeps). All other
+//!   cells are "don't care": no trace says what they do.
+//! - Merging two states merges their defined cells; two defined cells on the same label
+//!   must have the same mean reward (else the merge is refused) and their targets are merged
+//!   in turn (so the quotient stays deterministic), recursively.
+//! - States are tried in pairs `(p, q)`, `p < q`, in the search's breadth-first numbering,
+//!   and passes repeat until no merge succeeds.
+//!
+//! By construction the quotient pays exactly the observed rewards on every trace (every step
+//! of a trace reads a defined cell, and the quotient's state is the block of the learned
+//! state), keeps the stutter invariance, and is never larger than the learned machine. What
+//! it generalises is only what no trace contradicts: a distinction of states that no reward
+//! in the data depends on is dropped.
+
+use crate::rm::equiv::REWARD_TOL;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Cell {
+    /// Target state (an original state id; compare blocks with `find`).
+    pub target: usize,
+    pub reward: f64,
+    /// Number of observations behind `reward` (0 for an implied stay).
+    pub weight: f64,
+}
+
+#[derive(Clone)]
+struct Partition {
+    parent: Vec<usize>,
+    /// Merged cells of each block, at the block's root: `cells[root * L + l]`.
+    cells: Vec<Option<Cell>>,
+}
+
+impl Partition {
+    fn find(&self, mut u: usize) -> usize {
+        while self.parent[u] != u {
+            u = self.parent[u];
+        }
+        u
+    }
+}
+
+/// Merges reward-compatible states of a machine with `n` states over `l_n` labels whose
+/// defined cells are `cells[u * l_n + l]`. Returns the block of each state (block ids are
+/// the smallest state of each block) and the merged cells indexed by block root.
+pub(crate) fn merge_states(
+    n: usize,
+    l_n: usize,
+    cells: Vec<Option<Cell>>,
+) -> (Vec<usize>, Vec<Option<Cell>>) {
+    let mut part = Partition {
+        parent: (0..n).collect(),
+        cells,
+    };
+    loop {
+        let mut merged_any = false;
+        for q in 1..n {
+            for p in 0..q {
+                if part.find(p) == part.find(q) {
+                    continue;
+                }
+                if let Some(next) = try_merge(&part, l_n, p, q) {
+                    part = next;
+                    merged_any = true;
+                }
+            }
+        }
+        if !merged_any {
+            break;
+        }
+    }
+    let blocks = (0..n).map(|u| part.find(u)).collect();
+    (blocks, part.cells)
+}
+
+fn try_merge(part: &Partition, l_n: usize, p: usize, q: usize) -> Option<Partition> {
+    let mut part = part.clone();
+    let mut pending = vec![(p, q)];
+    while let Some((a, b)) = pending.pop() {
+        let (ra, rb) = (part.find(a), part.find(b));
+        if ra == rb {
+            continue;
+        }
+        let (root, other) = (ra.min(rb), ra.max(rb));
+        for l in 0..l_n {
+            let x = part.cells[root * l_n + l];
+            let y = part.cells[other * l_n + l];
+            let merged = match (x, y) {
+                (Some(x), Some(y)) => {
+                    if (x.reward - y.reward).abs() > REWARD_TOL {
+                        return None;
+                    }
+                    pending.push((x.target, y.target));
+                    let w = x.weight + y.weight;
+                    let reward = if w > 0.0 {
+                        (x.reward * x.weight + y.reward * y.weight) / w
+                    } else {
+                        x.reward
+                    };
+                    Some(Cell {
+                        target: x.target,
+                        reward,
+                        weight: w,
+                    })
+                }
+                (x, None) => x,
+                (None, y) => y,
+            };
+            part.cells[root * l_n + l] = merged;
+            part.cells[other * l_n + l] = None;
+        }
+        part.parent[other] = root;
+    }
+    Some(part)
+}

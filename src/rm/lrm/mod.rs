@@ -1,0 +1,440 @@
+//! Learning reward machines from label traces: the Tabu search of LRM (Toro Icarte et al.,
+//! NeurIPS 2019), as used by SMIRL's first step.
+//!
+//! **Objective.** For a machine with transition function `delta`, run every trace from the
+//! initial state; `x_t` is the state after reading the trace's label set `l_t`. The cost is
+//! `Σ_traces Σ_t log |N(x_t, l_t)|`, where `N(u, l)` is the set of label sets seen right after
+//! `l` while in state `u` (the state after reading `l`, as in the reference code). Traces are
+//! compressed first (a run of one label set counts once). A missing transition means "stay".
+//!
+//! **Search.** Tabu search over machines with at most `max_states` states, starting from the
+//! one-state machine: at each step every single-transition neighbour (for each used state
+//! `i`, observed label set `l` and target `j != i`: add, redirect or remove `(i, l) -> j`) is
+//! evaluated in parallel, the best one that is not on the tabu list (a FIFO of the last
+//! `tabu_len` visited machines) becomes current, and when every neighbour is tabu the search
+//! restarts from a random machine. The best machine seen in `max_steps` steps is returned.
+//! Ties are broken by a seeded shuffle, so the result depends on the seed, never on the
+//! thread count. See [`search`] for the incremental cost evaluation and the canonical form
+//! that makes the tabu list effective.
+//!
+//! **Rewards.** Not searched: after the search, the machine is run along the raw traces and
+//! each transition gets the mean reward observed on it (0 without rewards). Transitions are
+//! guarded by exact label-set formulas ([`Formula::exactly`], or an OR of them), so the
+//! machine says nothing about label sets never observed (they stay, reward 0).
+//!
+//! **Beyond the reference: merging.** The objective adds states that predict the next label
+//! but pay the same rewards. With [`LrmConfig::merge`] (the default) states the observed
+//! rewards cannot distinguish are merged afterwards (see [`merge`]); [`LearnedRm::raw`] keeps
+//! the machine before merging.
+
+mod data;
+mod merge;
+mod search;
+pub mod synthetic;
+
+pub use data::MAX_OBSERVED_LABEL_SETS;
+
+use crate::rm::formula::Formula;
+use crate::rm::labels::{LabelSet, Vocabulary};
+use crate::rm::machine::{RewardMachine, Transition};
+use data::Data;
+use merge::{merge_states, Cell};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::time::Instant;
+
+/// One demonstration's labels (one label set per environment step) and, optionally, the
+/// task reward of each step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LabelTrace {
+    pub labels: Vec<LabelSet>,
+    pub rewards: Option<Vec<f64>>,
+}
+
+/// Parameters of the search.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LrmConfig {
+    /// `u_max`: most states the learned machine may have (before merging).
+    pub max_states: usize,
+    /// Length of the FIFO tabu list of visited machines.
+    pub tabu_len: usize,
+    /// Search steps (one move each).
+    pub max_steps: usize,
+    pub seed: u64,
+    /// Threads evaluating neighbours (does not change the result).
+    pub threads: usize,
+    /// Merge reward-indistinguishable states after the search.
+    pub merge: bool,
+}
+
+impl Default for LrmConfig {
+    /// The reference implementation's values: at most 10 states, a tabu list of 10 000
+    /// (its code; the paper says 100), 100 steps; threads = available cores.
+    fn default() -> LrmConfig {
+        LrmConfig {
+            max_states: 10,
+            tabu_len: 10_000,
+            max_steps: 100,
+            seed: 0,
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            merge: true,
+        }
+    }
+}
+
+/// What the search did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LrmStats {
+    /// Transitions in the input traces.
+    pub raw_transitions: usize,
+    /// Positions after compression and deduplication.
+    pub compressed_positions: usize,
+    pub distinct_traces: usize,
+    /// Label sets observed in the traces (the learned machine's alphabet).
+    pub observed_label_sets: Vec<LabelSet>,
+    pub steps: usize,
+    pub restarts: usize,
+    pub neighbours_evaluated: u64,
+    /// States of the machine the search found (before merging).
+    pub search_states: usize,
+    /// Cost of the final (merged) machine.
+    pub final_cost: f64,
+    /// Wall time of the whole call (not part of the deterministic result).
+    pub elapsed_secs: f64,
+}
+
+/// A learned machine: `rm` (merged when configured), `raw` (the search's machine with mean
+/// rewards), `cost` = the objective of `raw`.
+#[derive(Clone, Debug)]
+pub struct LearnedRm {
+    pub rm: RewardMachine,
+    pub raw: RewardMachine,
+    pub cost: f64,
+    pub stats: LrmStats,
+}
+
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum LrmError {
+    #[error("trace {trace}, step {step}: label set {labels:#x} is not a label set of the vocabulary \"{vocabulary}\"")]
+    LabelOutOfRange {
+        trace: usize,
+        step: usize,
+        labels: u32,
+        vocabulary: String,
+    },
+    #[error("trace {trace} has {labels} label sets but {rewards} rewards")]
+    RewardLength {
+        trace: usize,
+        labels: usize,
+        rewards: usize,
+    },
+    #[error("trace {trace}, step {step}: the reward is not a finite number")]
+    NonFiniteReward { trace: usize, step: usize },
+    #[error(
+        "the traces contain {observed} distinct label sets; the learner handles at most {max}"
+    )]
+    TooManyLabelSets { observed: usize, max: usize },
+    #[error("invalid configuration: {0}")]
+    Config(String),
+}
+
+/// Learns a reward machine from label traces with LRM's Tabu search (see the module docs).
+pub fn learn_rm(
+    vocab: &Vocabulary,
+    traces: &[LabelTrace],
+    cfg: &LrmConfig,
+) -> Result<LearnedRm, LrmError> {
+    let started = Instant::now();
+    if cfg.max_states == 0 || cfg.max_states > u16::MAX as usize {
+        return Err(LrmError::Config(format!(
+            "max_states must be in 1..={}, got {}",
+            u16::MAX,
+            cfg.max_states
+        )));
+    }
+    let data = Data::new(vocab, traces)?;
+    let searcher = search::Searcher::new(&data, cfg.max_states);
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    let outcome = searcher.search(cfg.tabu_len, cfg.max_steps, cfg.threads.max(1), &mut rng);
+    let table = &outcome.best;
+    let l_n = data.n_labels().max(1);
+    let n = table.n_used;
+
+    // Observed targets and mean rewards along the raw traces.
+    let mut count = vec![0u64; n * l_n];
+    let mut reward_sum = vec![0.0f64; n * l_n];
+    for t in traces {
+        let mut s = 0usize;
+        for (k, l) in t.labels.iter().enumerate() {
+            let cell = s * l_n + data.id_of[l.index()] as usize;
+            count[cell] += 1;
+            if let Some(r) = &t.rewards {
+                reward_sum[cell] += r[k];
+            }
+            s = table.delta[cell] as usize;
+        }
+    }
+    let mean = |cell: usize| {
+        if count[cell] > 0 {
+            reward_sum[cell] / count[cell] as f64
+        } else {
+            0.0
+        }
+    };
+    let raw_cells: Vec<Option<Cell>> = (0..n * l_n)
+        .map(|cell| {
+            Some(Cell {
+                target: table.delta[cell] as usize,
+                reward: mean(cell),
+                weight: count[cell] as f64,
+            })
+        })
+        .collect();
+    let raw = machine_from_cells(vocab, &data.labels, n, &raw_cells);
+
+    let (rm, final_cost) = if cfg.merge {
+        // Defined cells: observed ones, and the stays implied by stutter invariance.
+        let mut cells: Vec<Option<Cell>> = (0..n * l_n)
+            .map(|cell| (count[cell] > 0).then(|| raw_cells[cell].unwrap()))
+            .collect();
+        for (cell, &seen) in count.iter().enumerate() {
+            let (u, l) = (cell / l_n, cell % l_n);
+            let v = table.delta[cell] as usize;
+            if seen > 0 && v != u && cells[v * l_n + l].is_none() {
+                cells[v * l_n + l] = Some(Cell {
+                    target: v,
+                    reward: 0.0,
+                    weight: 0.0,
+                });
+            }
+        }
+        let (blocks, merged) = merge_states(n, l_n, cells);
+        let (quotient_cells, q_n) = renumber_blocks(&blocks, &merged, l_n);
+        let rm = machine_from_cells(vocab, &data.labels, q_n, &quotient_cells);
+        let delta: Vec<u16> = (0..cfg.max_states * l_n)
+            .map(|cell| {
+                let u = cell / l_n;
+                match quotient_cells.get(cell).copied().flatten() {
+                    Some(c) if u < q_n => c.target as u16,
+                    _ => u as u16,
+                }
+            })
+            .collect();
+        let cost = searcher.cost(&delta);
+        (rm, cost)
+    } else {
+        (raw.clone(), outcome.best_cost)
+    };
+
+    Ok(LearnedRm {
+        rm,
+        raw,
+        cost: outcome.best_cost,
+        stats: LrmStats {
+            raw_transitions: data.raw_len,
+            compressed_positions: data.len(),
+            distinct_traces: data.n_traces(),
+            observed_label_sets: data.labels.clone(),
+            steps: outcome.steps,
+            restarts: outcome.restarts,
+            neighbours_evaluated: outcome.neighbours_evaluated,
+            search_states: n,
+            final_cost,
+            elapsed_secs: started.elapsed().as_secs_f64(),
+        },
+    })
+}
+
+/// Result of [`learn_rm_auto`]: the chosen machine and the cost found for each `u_max`
+/// tried.
+#[derive(Clone, Debug)]
+pub struct AutoLearned {
+    pub learned: LearnedRm,
+    pub chosen_max_states: usize,
+    pub costs: Vec<(usize, f64)>,
+}
+
+/// A cost counts as improved when it drops by more than this fraction (and by more than
+/// [`AUTO_ABS_TOL`]).
+pub const AUTO_REL_TOL: f64 = 0.01;
+pub const AUTO_ABS_TOL: f64 = 1e-6;
+
+/// Chooses `u_max` automatically: learns with `u_max = 1, 2, …, cfg.max_states` and keeps the
+/// smallest `u_max` whose cost the next one does not improve (by more than [`AUTO_REL_TOL`]
+/// of it).
+pub fn learn_rm_auto(
+    vocab: &Vocabulary,
+    traces: &[LabelTrace],
+    cfg: &LrmConfig,
+) -> Result<AutoLearned, LrmError> {
+    let mut costs = Vec::new();
+    let mut previous: Option<LearnedRm> = None;
+    for u in 1..=cfg.max_states.max(1) {
+        let learned = learn_rm(
+            vocab,
+            traces,
+            &LrmConfig {
+                max_states: u,
+                ..cfg.clone()
+            },
+        )?;
+        costs.push((u, learned.cost));
+        if let Some(prev) = previous.take() {
+            let improved = learned.cost < prev.cost - (AUTO_REL_TOL * prev.cost).max(AUTO_ABS_TOL);
+            if !improved {
+                return Ok(AutoLearned {
+                    learned: prev,
+                    chosen_max_states: u - 1,
+                    costs,
+                });
+            }
+        }
+        if learned.cost <= AUTO_ABS_TOL {
+            return Ok(AutoLearned {
+                learned,
+                chosen_max_states: u,
+                costs,
+            });
+        }
+        previous = Some(learned);
+    }
+    let learned = previous.expect("at least one u_max is tried");
+    Ok(AutoLearned {
+        chosen_max_states: cfg.max_states.max(1),
+        learned,
+        costs,
+    })
+}
+
+/// The LRM objective of any machine on `traces` (e.g. of a perfect machine, to compare with
+/// a learned one's cost).
+pub fn trace_cost(rm: &RewardMachine, traces: &[LabelTrace]) -> Result<f64, LrmError> {
+    let data = Data::new(rm.vocab(), traces)?;
+    let l_n = data.n_labels().max(1);
+    let searcher = search::Searcher::new(&data, rm.n_states().min(u16::MAX as usize));
+    let delta: Vec<u16> = (0..rm.n_states() * l_n)
+        .map(|cell| {
+            let (u, l) = (cell / l_n, cell % l_n);
+            match data.labels.get(l) {
+                Some(&ls) => rm.next_state(u, ls) as u16,
+                None => u as u16,
+            }
+        })
+        .collect();
+    // The searcher starts runs in state 0: renumber so that the initial state is 0.
+    let init = rm.initial();
+    let swap = |u: u16| -> u16 {
+        if u as usize == init {
+            0
+        } else if u == 0 {
+            init as u16
+        } else {
+            u
+        }
+    };
+    let mut swapped = delta.clone();
+    for u in 0..rm.n_states() {
+        for l in 0..l_n {
+            swapped[swap(u as u16) as usize * l_n + l] = swap(delta[u * l_n + l]);
+        }
+    }
+    Ok(searcher.cost(&swapped))
+}
+
+/// The label sets that occur in `traces`, sorted.
+pub fn observed_label_sets(traces: &[LabelTrace]) -> Vec<LabelSet> {
+    let mut v: Vec<LabelSet> = traces
+        .iter()
+        .flat_map(|t| t.labels.iter().copied())
+        .collect();
+    v.sort();
+    v.dedup();
+    v
+}
+
+/// Renumbers merged blocks breadth-first from the block of state 0; returns the quotient's
+/// cells (targets renumbered) and its state count.
+fn renumber_blocks(
+    blocks: &[usize],
+    merged: &[Option<Cell>],
+    l_n: usize,
+) -> (Vec<Option<Cell>>, usize) {
+    let n = blocks.len();
+    let mut id = vec![usize::MAX; n];
+    let mut order = vec![blocks[0]];
+    id[blocks[0]] = 0;
+    let mut head = 0;
+    while head < order.len() {
+        let b = order[head];
+        head += 1;
+        for l in 0..l_n {
+            if let Some(c) = merged[b * l_n + l] {
+                let t = blocks[c.target];
+                if id[t] == usize::MAX {
+                    id[t] = order.len();
+                    order.push(t);
+                }
+            }
+        }
+    }
+    let q_n = order.len();
+    let mut cells = vec![None; q_n * l_n];
+    for (new_b, &b) in order.iter().enumerate() {
+        for l in 0..l_n {
+            cells[new_b * l_n + l] = merged[b * l_n + l].map(|c| Cell {
+                target: id[blocks[c.target]],
+                ..c
+            });
+        }
+    }
+    (cells, q_n)
+}
+
+/// A machine over `n` states from per-cell targets and rewards on the observed label sets:
+/// one transition per (source, target, reward), guarded by the OR of the exact label sets.
+fn machine_from_cells(
+    vocab: &Vocabulary,
+    labels: &[LabelSet],
+    n: usize,
+    cells: &[Option<Cell>],
+) -> RewardMachine {
+    let l_n = labels.len();
+    let mut groups: Vec<(usize, usize, f64, Vec<LabelSet>)> = Vec::new();
+    for u in 0..n {
+        let first = groups.len();
+        for (l, &ls) in labels.iter().enumerate() {
+            let Some(c) = cells[u * l_n + l] else {
+                continue;
+            };
+            if c.target == u && c.reward == 0.0 {
+                continue;
+            }
+            match groups[first..]
+                .iter_mut()
+                .find(|g| g.1 == c.target && g.2.to_bits() == c.reward.to_bits())
+            {
+                Some(g) => g.3.push(ls),
+                None => groups.push((u, c.target, c.reward, vec![ls])),
+            }
+        }
+    }
+    let transitions = groups
+        .into_iter()
+        .map(|(from, to, reward, sets)| {
+            let mut fs: Vec<Formula> = sets.iter().map(|&l| Formula::exactly(l, vocab)).collect();
+            let formula = if fs.len() == 1 {
+                fs.pop().unwrap()
+            } else {
+                Formula::Or(fs)
+            };
+            Transition {
+                from,
+                to,
+                formula,
+                reward,
+            }
+        })
+        .collect();
+    RewardMachine::new(vocab.clone(), n.max(1), 0, &[], &[], transitions)
+        .expect("exact label-set guards from one table are deterministic and in range")
+}
