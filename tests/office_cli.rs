@@ -32,14 +32,22 @@ fn bad_arguments_exit_2_and_write_nothing() {
     let out = dir.path().join("run");
     let o = out.to_str().unwrap();
     assert_rejected(&["--task", "7", "--out", o], &out, "unknown Office task 7");
-    assert_rejected(&["--task", "-1", "--out", o], &out, "unknown Office task -1");
+    assert_rejected(
+        &["--task", "-1", "--out", o],
+        &out,
+        "unknown Office task -1",
+    );
     assert_rejected(&["--task", "x", "--out", o], &out, "invalid value");
     assert_rejected(
         &["--task", "3", "--algo", "qlearn", "--out", o],
         &out,
         "unknown algorithm \"qlearn\"",
     );
-    assert_rejected(&["--task", "3", "--seeds", "0", "--out", o], &out, "--seeds");
+    assert_rejected(
+        &["--task", "3", "--seeds", "0", "--out", o],
+        &out,
+        "--seeds",
+    );
     assert_rejected(&["--task", "3"], &out, "--out");
 
     let bad = dir.path().join("bad.toml");
@@ -52,13 +60,27 @@ fn bad_arguments_exit_2_and_write_nothing() {
     let typo = dir.path().join("typo.toml");
     std::fs::write(&typo, "[demos]\nn_demo = 3\n").unwrap();
     assert_rejected(
-        &["--task", "3", "--config", typo.to_str().unwrap(), "--out", o],
+        &[
+            "--task",
+            "3",
+            "--config",
+            typo.to_str().unwrap(),
+            "--out",
+            o,
+        ],
         &out,
         "n_demo",
     );
     let missing = dir.path().join("missing.toml");
     assert_rejected(
-        &["--task", "3", "--config", missing.to_str().unwrap(), "--out", o],
+        &[
+            "--task",
+            "3",
+            "--config",
+            missing.to_str().unwrap(),
+            "--out",
+            o,
+        ],
         &out,
         "missing.toml",
     );
@@ -69,7 +91,10 @@ fn bad_arguments_exit_2_and_write_nothing() {
     std::fs::write(existing.join("keep.txt"), "mine").unwrap();
     let r = office(&["--task", "0", "--out", existing.to_str().unwrap()]);
     assert_eq!(r.status.code(), Some(2));
-    assert_eq!(std::fs::read_to_string(existing.join("keep.txt")).unwrap(), "mine");
+    assert_eq!(
+        std::fs::read_to_string(existing.join("keep.txt")).unwrap(),
+        "mine"
+    );
 }
 
 #[test]
@@ -101,7 +126,11 @@ fn a_small_run_writes_complete_results() {
     let lines: Vec<&str> = metrics.lines().collect();
     assert!(lines[0].starts_with("task,algo,seed,step,env_interactions,gt_return,success"));
     // Two seeds × (initial + up to 20 steps).
-    assert!(lines.len() > 2 * 2 && lines.len() <= 1 + 2 * 21, "{}", lines.len());
+    assert!(
+        lines.len() > 2 * 2 && lines.len() <= 1 + 2 * 21,
+        "{}",
+        lines.len()
+    );
     assert!(lines.iter().any(|l| l.starts_with("0,maxent,6,")));
     let svg = std::fs::read_to_string(out.join("success.svg")).unwrap();
     assert!(svg.contains("MaxEnt IRL") && svg.contains("IRL step"));

@@ -83,7 +83,7 @@ fn labels_on_hand_picked_cells() {
 #[test]
 fn episodes_pay_on_completion_and_can_continue_or_reset() {
     let w = OfficeWorld::new();
-    let rm = OfficeTask::ReachD.perfect_rm();
+    let rm = OfficeTask::ReachD.perfect_rm().unwrap();
     // From the start (2,1), around the plants at (4,1) and (7,1), to D (10,1).
     let path = [
         RIGHT, UP, RIGHT, RIGHT, DOWN, RIGHT, UP, RIGHT, RIGHT, DOWN, RIGHT, RIGHT,
@@ -121,7 +121,7 @@ fn episodes_pay_on_completion_and_can_continue_or_reset() {
 /// Shortest number of steps from `(cell, u)` to a goal state of the task's machine in the
 /// product graph, never entering a failure state.
 fn bfs_distance(w: &OfficeWorld, task: OfficeTask, cell0: usize, u0: usize) -> Option<usize> {
-    let rm = task.perfect_rm();
+    let rm = task.perfect_rm().unwrap();
     let n = rm.n_states() * N_CELLS;
     let mut dist = vec![usize::MAX; n];
     let mut queue = VecDeque::new();
@@ -149,7 +149,7 @@ fn bfs_distance(w: &OfficeWorld, task: OfficeTask, cell0: usize, u0: usize) -> O
 fn expert_trips_are_shortest_paths_for_every_task() {
     let w = OfficeWorld::new();
     for task in OfficeTask::ALL {
-        let expert = OfficeExpert::new(&w, task);
+        let expert = OfficeExpert::new(&w, task).unwrap();
         let cfg = DemoConfig {
             n_demos: 12,
             horizon: 100,
@@ -193,7 +193,7 @@ fn expert_trips_are_shortest_paths_for_every_task() {
 #[test]
 fn demonstrations_are_reproducible_and_seed_dependent() {
     let w = OfficeWorld::new();
-    let expert = OfficeExpert::new(&w, OfficeTask::CoffeeAndMail);
+    let expert = OfficeExpert::new(&w, OfficeTask::CoffeeAndMail).unwrap();
     let cfg = DemoConfig {
         n_demos: 5,
         horizon: 80,

@@ -10,6 +10,7 @@
 //!
 //! The transition table (108 cells × 4 actions) is computed once in [`OfficeWorld::new`].
 
+use crate::rm::format::RmFileError;
 use crate::rm::{LabelSet, RewardMachine, Vocabulary};
 
 pub const WIDTH: usize = 12;
@@ -219,67 +220,10 @@ impl OfficeTask {
         }
     }
 
-    /// The task's perfect reward machine (reward 1 on completion; a plant leads to the
-    /// failure sink).
-    pub fn perfect_rm(self) -> RewardMachine {
-        perfect::machine(self)
-    }
-}
-
-/// Provisional in-code perfect machines, used until `rm::perfect` (the shipped
-/// `assets/rm/office_t*.txt`) is merged; they are then replaced by the asset files.
-mod perfect {
-    use super::{OfficeTask, VOCABULARY};
-    use crate::rm::{Formula, RewardMachine, Transition, Vocabulary};
-
-    pub fn machine(task: OfficeTask) -> RewardMachine {
-        let v = Vocabulary::new(VOCABULARY);
-        // (from, to, formula, reward); the last two states are goal and failure.
-        let (n, edges): (usize, Vec<(usize, usize, &str, f64)>) = match task {
-            OfficeTask::ReachD => (1, vec![(0, 1, "D&!*", 1.0)]),
-            OfficeTask::Coffee => (2, vec![(0, 1, "c&!*", 0.0), (1, 2, "o&!*", 1.0)]),
-            OfficeTask::Mail => (2, vec![(0, 1, "m&!*", 0.0), (1, 2, "o&!*", 1.0)]),
-            OfficeTask::CoffeeAndMail => (
-                4,
-                vec![
-                    (0, 1, "c&!m&!*", 0.0),
-                    (0, 2, "m&!c&!*", 0.0),
-                    (0, 3, "c&m&!*", 0.0),
-                    (1, 3, "m&!*", 0.0),
-                    (2, 3, "c&!*", 0.0),
-                    (3, 4, "o&!*", 1.0),
-                ],
-            ),
-            OfficeTask::Patrol => (
-                4,
-                vec![
-                    (0, 1, "A&!*", 0.0),
-                    (1, 2, "B&!*", 0.0),
-                    (2, 3, "C&!*", 0.0),
-                    (3, 4, "D&!*", 1.0),
-                ],
-            ),
-        };
-        let goal = n;
-        let fail = n + 1;
-        let mut ts: Vec<Transition> = edges
-            .into_iter()
-            .map(|(from, to, f, reward)| Transition {
-                from,
-                to,
-                formula: Formula::parse(f, &v).expect("fixed formula"),
-                reward,
-            })
-            .collect();
-        for u in 0..n {
-            ts.push(Transition {
-                from: u,
-                to: fail,
-                formula: Formula::parse("*", &v).expect("fixed formula"),
-                reward: 0.0,
-            });
-        }
-        RewardMachine::new(v, n + 2, 0, &[goal], &[fail], ts).expect("fixed machine")
+    /// The task's perfect reward machine, `assets/rm/office_t<N>.txt` (reward 1 on
+    /// completion; a plant leads to the failure sink).
+    pub fn perfect_rm(self) -> Result<RewardMachine, RmFileError> {
+        crate::rm::perfect::load(&self.rm_name())
     }
 }
 

@@ -199,7 +199,6 @@ fn iterate(
         }
         None => vec![0.0; n_s],
     };
-    let mut v_new = vec![0.0; n_s];
     let mut q_s = vec![0.0; n_a];
     let mut sweeps = 0;
     let mut converged = false;
@@ -216,9 +215,10 @@ fn iterate(
                 Backup::LogSumExp => log_sum_exp(&q_s),
             };
             delta = delta.max((x - v[s]).abs());
-            v_new[s] = x;
+            // In place (Gauss–Seidel): later states of the sweep already see the new value,
+            // which converges to the same fixed point in fewer sweeps.
+            v[s] = x;
         }
-        std::mem::swap(&mut v, &mut v_new);
         if delta <= it.tol {
             converged = true;
             break;

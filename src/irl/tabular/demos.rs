@@ -11,6 +11,7 @@
 
 use crate::env::office::{OfficeTask, OfficeWorld, N_ACTIONS};
 use crate::rl::tabular::{optimal_action_masks, value_iteration, DetMdp, Iteration};
+use crate::rm::format::RmFileError;
 use crate::rm::{LabelSet, RewardMachine};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -29,8 +30,9 @@ pub struct OfficeExpert {
 }
 
 impl OfficeExpert {
-    pub fn new(world: &OfficeWorld, task: OfficeTask) -> OfficeExpert {
-        let rm = task.perfect_rm();
+    /// The expert of `task`; fails only when the task's machine file cannot be read.
+    pub fn new(world: &OfficeWorld, task: OfficeTask) -> Result<OfficeExpert, RmFileError> {
+        let rm = task.perfect_rm()?;
         let n_cells = world.labels().len();
         let product = DetMdp::product(world.transition_table(), N_ACTIONS, world.labels(), &rm)
             .expect("the Office tables have consistent shapes");
@@ -52,12 +54,12 @@ impl OfficeExpert {
             .expect("the Office tables have consistent shapes");
         // Q-values of shortest and longer paths differ by ≥ γ^d (1 − γ) ≫ 1e-9 for d < 150.
         let masks = optimal_action_masks(&values.q, N_ACTIONS, 1e-9);
-        OfficeExpert {
+        Ok(OfficeExpert {
             world: world.clone(),
             task,
             rm,
             masks,
-        }
+        })
     }
 
     pub fn task(&self) -> OfficeTask {

@@ -72,7 +72,7 @@ pub fn greedy_policy(
     let it = Iteration {
         gamma,
         // Only the argmax matters; warm starts make most calls a few sweeps.
-        tol: 1e-8,
+        tol: 1e-7,
         max_sweeps: 20_000,
     };
     let init = (warm.len() == mdp.n_states()).then_some(warm.as_slice());
