@@ -1,7 +1,7 @@
 //! Soft value iteration and the MaxEnt gradient against brute force on a tiny MDP: every
 //! action sequence of the horizon is enumerated.
 
-use smirl::irl::tabular::{FeatureMap, MaxEntConfig, MaxEntIrl, NO_FEATURE};
+use smirl::irl::tabular::{FeatureMap, MaxEntConfig, MaxEntIrl, Optimizer, NO_FEATURE};
 use smirl::rl::tabular::{
     expected_visitation, soft_backward, soft_value_iteration, DetMdp, FiniteSoftPolicy, Iteration,
 };
@@ -200,5 +200,52 @@ fn long_discounted_backward_pass_reaches_the_soft_value_iteration_fixed_point() 
     soft_backward(&mdp, &r, gamma, 300, &mut pol).unwrap();
     for s in 0..S {
         assert!((pol.v0()[s] - vals.v[s]).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn lbfgs_and_adam_reach_the_same_maximum_likelihood() {
+    let (mdp, f) = tiny();
+    let demos: Vec<Vec<(u32, u8)>> = [(0usize, [0usize, 1, 1, 2, 0]), (2, [2, 0, 1, 1, 1])]
+        .iter()
+        .map(|(s0, acts)| {
+            let mut s = *s0;
+            acts.iter()
+                .map(|&a| {
+                    let pair = (s as u32, a as u8);
+                    s = mdp.next(s, a);
+                    pair
+                })
+                .collect()
+        })
+        .collect();
+    // A little L2 makes the optimum unique and finite whatever the demonstrations.
+    let base = MaxEntConfig {
+        l2: 0.1,
+        ..MaxEntConfig::default()
+    };
+    let mut lbfgs = MaxEntIrl::new(&mdp, &f, &demos, base).unwrap();
+    let mut steps = 0;
+    while lbfgs.current_info().unwrap().grad_max > 1e-9 && steps < 100 {
+        lbfgs.step().unwrap();
+        steps += 1;
+    }
+    assert!(steps < 30, "L-BFGS took {steps} steps");
+    let adam_cfg = MaxEntConfig {
+        optimizer: Optimizer::Adam,
+        lr: 0.05,
+        ..base
+    };
+    let mut adam = MaxEntIrl::new(&mdp, &f, &demos, adam_cfg).unwrap();
+    for _ in 0..5000 {
+        adam.step().unwrap();
+    }
+    for k in 0..3 {
+        assert!(
+            (lbfgs.theta[k] - adam.theta[k]).abs() < 1e-3,
+            "{:?} vs {:?}",
+            lbfgs.theta,
+            adam.theta
+        );
     }
 }

@@ -31,13 +31,13 @@ CMD="experiments/office/run.sh $SEEDS $BASE"
   echo "RM learning, IRL to convergence or step limit, evaluation after every step): median over"
   echo "seeds [min, max]; \`ratio\` = median / the 10 s target for SMIRL."
   echo
-  echo "| task | algorithm | final success | IRL steps (mean) | time s median [min, max] | ratio to 10 s | RM states | refines perfect RM |"
-  echo "|---|---|---|---|---|---|---|---|"
+  echo "| task | algorithm | final success | IRL steps (mean) | converged | time s median [min, max] | ratio to 10 s | RM states | refines perfect RM |"
+  echo "|---|---|---|---|---|---|---|---|---|"
   for t in 0 1 2 3 4; do
     for a in smirl maxent apprenticeship; do
       awk -F, -v a="$a" -v t="$t" '
         NR > 1 && $2 == a {
-          n++; s += $4; ss += $4 * $4; steps += $5; times[n] = $12
+          n++; s += $4; ss += $4 * $4; steps += $5; times[n] = $12; conv += ($6 == "true")
           if ($7 != "") { states = states (states == "" ? "" : " ") $7 }
           if ($8 != "") { ref += ($8 == "true") }
         }
@@ -51,8 +51,8 @@ CMD="experiments/office/run.sh $SEEDS $BASE"
           ratio = (a == "smirl") ? sprintf("%.3f", med / 10) : "-"
           refs = (a == "smirl") ? sprintf("%d/%d", ref, n) : "-"
           if (states == "") states = "-"
-          printf "| %s | %s | %.2f ± %.2f | %.1f | %.2f [%.2f, %.2f] | %s | %s | %s |\n", \
-            t, a, mean, sqrt(var), steps / n, med, times[1], times[n], ratio, states, refs
+          printf "| %s | %s | %.2f ± %.2f | %.1f | %d/%d | %.2f [%.2f, %.2f] | %s | %s | %s |\n", \
+            t, a, mean, sqrt(var), steps / n, conv, n, med, times[1], times[n], ratio, states, refs
         }' "$HERE/runs/t$t/summary.csv"
     done
   done

@@ -399,12 +399,12 @@ pub fn run(
                 elapsed_s: t0.elapsed().as_secs_f64(),
             });
             for m in 1..=cfg.maxent.max_steps {
-                let info = irl.step().map_err(|e| OfficeError::Run(e.to_string()))?;
-                if irl.converged(&info) {
-                    // The step was taken from converged parameters: keep the curve honest by
-                    // recording it, then stop.
-                    run.converged = true;
-                }
+                irl.step().map_err(|e| OfficeError::Run(e.to_string()))?;
+                // Likelihood and gradient at the new parameters (cached by L-BFGS).
+                let info = irl
+                    .current_info()
+                    .map_err(|e| OfficeError::Run(e.to_string()))?;
+                run.converged = irl.converged(&info);
                 let e = evaluate(&irl.theta, &mut warm)?;
                 run.steps.push(StepMetrics {
                     step: m,

@@ -65,11 +65,24 @@ pub enum MaxEntError {
     Tabular(#[from] crate::rl::tabular::TabularError),
 }
 
+/// How θ is updated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Optimizer {
+    /// L-BFGS (memory 10) with a backtracking (Armijo) line search: the log-likelihood is
+    /// smooth and concave, so this reaches the convergence test in few steps.
+    #[default]
+    Lbfgs,
+    /// Adam with step size `lr` (first-order, as most MaxEnt implementations).
+    Adam,
+}
+
 /// Optimiser settings.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MaxEntConfig {
-    /// Adam step size.
+    pub optimizer: Optimizer,
+    /// Adam step size (unused by L-BFGS).
     pub lr: f64,
     /// Maximum number of IRL (gradient) steps.
     pub max_steps: usize,
@@ -84,6 +97,7 @@ pub struct MaxEntConfig {
 impl Default for MaxEntConfig {
     fn default() -> Self {
         MaxEntConfig {
+            optimizer: Optimizer::Lbfgs,
             lr: 0.2,
             max_steps: 300,
             grad_tol: 1e-3,
@@ -152,6 +166,10 @@ pub struct MaxEntIrl<'a> {
     pub theta: Vec<f64>,
     adam_m: Vec<f64>,
     adam_v: Vec<f64>,
+    /// L-BFGS curvature pairs (s, y) of the loss −log-likelihood, oldest first.
+    lbfgs_pairs: std::collections::VecDeque<(Vec<f64>, Vec<f64>)>,
+    /// Log-likelihood information and gradient at the current θ, when known.
+    current: Option<(GradientInfo, Vec<f64>)>,
     steps: usize,
     // Buffers.
     reward: Vec<f64>,
@@ -246,6 +264,8 @@ impl<'a> MaxEntIrl<'a> {
             theta: vec![0.0; nf],
             adam_m: vec![0.0; nf],
             adam_v: vec![0.0; nf],
+            lbfgs_pairs: std::collections::VecDeque::new(),
+            current: None,
             steps: 0,
             reward: vec![0.0; n_sa],
             policy: FiniteSoftPolicy::default(),
@@ -335,15 +355,30 @@ impl<'a> MaxEntIrl<'a> {
         self.sa_visits.iter().map(|v| v / self.n_demos).collect()
     }
 
-    /// One Adam ascent step on the log-likelihood; returns the gradient information at the
+    /// One optimiser step on the log-likelihood; returns the gradient information at the
     /// parameters before the step.
     pub fn step(&mut self) -> Result<GradientInfo, MaxEntError> {
-        let theta = std::mem::take(&mut self.theta);
-        let mut grad = std::mem::take(&mut self.grad);
-        let info = self.gradient_at(&theta, &mut grad);
-        self.theta = theta;
-        self.grad = grad;
-        let info = info?;
+        match self.cfg.optimizer {
+            Optimizer::Adam => self.adam_step(),
+            Optimizer::Lbfgs => self.lbfgs_step(),
+        }
+    }
+
+    fn adam_step(&mut self) -> Result<GradientInfo, MaxEntError> {
+        let info = match self.current.take() {
+            Some((info, g)) => {
+                self.grad.copy_from_slice(&g);
+                info
+            }
+            None => {
+                let theta = std::mem::take(&mut self.theta);
+                let mut grad = std::mem::take(&mut self.grad);
+                let info = self.gradient_at(&theta, &mut grad);
+                self.theta = theta;
+                self.grad = grad;
+                info?
+            }
+        };
         self.steps += 1;
         let (b1, b2, eps) = (0.9, 0.999, 1e-8);
         let t = self.steps as i32;
@@ -356,6 +391,98 @@ impl<'a> MaxEntIrl<'a> {
             let v_hat = self.adam_v[i] / c2;
             self.theta[i] += self.cfg.lr * m_hat / (v_hat.sqrt() + eps);
         }
+        Ok(info)
+    }
+
+    /// L-BFGS on the loss f = −log-likelihood (gradient −g): two-loop recursion for the
+    /// direction, backtracking until the Armijo condition holds.
+    fn lbfgs_step(&mut self) -> Result<GradientInfo, MaxEntError> {
+        const MEMORY: usize = 10;
+        let n = self.theta.len();
+        let (info, g) = match self.current.take() {
+            Some(c) => c,
+            None => {
+                let theta = self.theta.clone();
+                let mut g = vec![0.0; n];
+                let info = self.gradient_at(&theta, &mut g)?;
+                (info, g)
+            }
+        };
+        self.steps += 1;
+        let loss = -info.log_likelihood;
+        let grad_f: Vec<f64> = g.iter().map(|x| -x).collect();
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        // Two-loop recursion: r ≈ H ∇f.
+        let mut q = grad_f.clone();
+        let mut alphas = Vec::with_capacity(self.lbfgs_pairs.len());
+        for (s, y) in self.lbfgs_pairs.iter().rev() {
+            let rho = 1.0 / dot(y, s);
+            let a = rho * dot(s, &q);
+            q.iter_mut().zip(y).for_each(|(qi, yi)| *qi -= a * yi);
+            alphas.push((a, rho));
+        }
+        let scale = match self.lbfgs_pairs.back() {
+            Some((s, y)) => dot(s, y) / dot(y, y),
+            None => 1.0 / grad_f.iter().fold(1e-12f64, |m, x| m.max(x.abs())),
+        };
+        q.iter_mut().for_each(|x| *x *= scale);
+        for ((s, y), (a, rho)) in self.lbfgs_pairs.iter().zip(alphas.into_iter().rev()) {
+            let b = rho * dot(y, &q);
+            q.iter_mut().zip(s).for_each(|(qi, si)| *qi += (a - b) * si);
+        }
+        let mut dir: Vec<f64> = q.iter().map(|x| -x).collect();
+        let mut slope = dot(&dir, &grad_f);
+        if slope.is_nan() || slope >= 0.0 {
+            // Not a descent direction (stale curvature): fall back to steepest descent.
+            self.lbfgs_pairs.clear();
+            let s = 1.0 / grad_f.iter().fold(1e-12f64, |m, x| m.max(x.abs()));
+            dir = grad_f.iter().map(|x| -x * s).collect();
+            slope = dot(&dir, &grad_f);
+        }
+        if slope == 0.0 {
+            // Zero gradient: already optimal.
+            self.current = Some((info.clone(), g));
+            return Ok(info);
+        }
+        let mut step = 1.0;
+        let mut trial = vec![0.0; n];
+        let mut g_trial = vec![0.0; n];
+        for _ in 0..40 {
+            for i in 0..n {
+                trial[i] = self.theta[i] + step * dir[i];
+            }
+            let t_info = self.gradient_at(&trial, &mut g_trial)?;
+            let t_loss = -t_info.log_likelihood;
+            if t_loss.is_finite() && t_loss <= loss + 1e-4 * step * slope {
+                let s: Vec<f64> = dir.iter().map(|d| step * d).collect();
+                let y: Vec<f64> = g_trial.iter().zip(&g).map(|(gt, g0)| -(gt - g0)).collect();
+                if dot(&s, &y) > 1e-12 {
+                    if self.lbfgs_pairs.len() == MEMORY {
+                        self.lbfgs_pairs.pop_front();
+                    }
+                    self.lbfgs_pairs.push_back((s, y));
+                }
+                std::mem::swap(&mut self.theta, &mut trial);
+                self.current = Some((t_info, g_trial));
+                return Ok(info);
+            }
+            step *= 0.5;
+        }
+        // No decrease found along the direction (flat to rounding): stay, forget curvature.
+        self.lbfgs_pairs.clear();
+        self.current = Some((info.clone(), g));
+        Ok(info)
+    }
+
+    /// Gradient information at the current θ (computed if the optimiser does not know it).
+    pub fn current_info(&mut self) -> Result<GradientInfo, MaxEntError> {
+        if let Some((info, _)) = &self.current {
+            return Ok(info.clone());
+        }
+        let theta = self.theta.clone();
+        let mut g = vec![0.0; theta.len()];
+        let info = self.gradient_at(&theta, &mut g)?;
+        self.current = Some((info.clone(), g));
         Ok(info)
     }
 
