@@ -3,7 +3,8 @@
 
 use smirl::irl::tabular::{FeatureMap, MaxEntConfig, MaxEntIrl, Optimizer, NO_FEATURE};
 use smirl::rl::tabular::{
-    expected_visitation, soft_backward, soft_value_iteration, DetMdp, FiniteSoftPolicy, Iteration,
+    expected_visitation, finite_horizon_greedy, soft_backward, soft_value_iteration, DetMdp,
+    FiniteSoftPolicy, Iteration,
 };
 
 const S: usize = 4;
@@ -247,5 +248,28 @@ fn lbfgs_and_adam_reach_the_same_maximum_likelihood() {
             lbfgs.theta,
             adam.theta
         );
+    }
+}
+
+#[test]
+fn finite_horizon_greedy_attains_the_best_enumerated_return() {
+    let (mdp, f) = tiny();
+    let r = f.reward(&[0.7, -1.3, 0.4]);
+    let mut actions = Vec::new();
+    let v0 = finite_horizon_greedy(&mdp, &r, 1.0, T, &mut actions).unwrap();
+    for s0 in 0..S {
+        let best = enumerate(&mdp, &f, &r, s0, T)
+            .iter()
+            .map(|t| t.2)
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!((v0[s0] - best).abs() < 1e-12);
+        // Following the time-indexed policy collects exactly that return.
+        let (mut s, mut ret) = (s0, 0.0);
+        for t in 0..T {
+            let a = actions[t * S + s] as usize;
+            ret += r[s * A + a];
+            s = mdp.next(s, a);
+        }
+        assert!((ret - best).abs() < 1e-12);
     }
 }

@@ -59,3 +59,33 @@ fn shipped_config_is_the_default() {
         OfficeConfig::default()
     );
 }
+
+#[test]
+fn apprenticeship_mixture_is_a_distribution_over_its_policies() {
+    use smirl::env::office::OfficeWorld;
+    use smirl::irl::tabular::{Apprenticeship, ApprenticeshipConfig, DemoConfig, OfficeExpert};
+    let world = OfficeWorld::new();
+    let demos = OfficeExpert::new(&world, OfficeTask::ReachD)
+        .unwrap()
+        .demonstrations(&DemoConfig {
+            n_demos: 10,
+            horizon: 80,
+            random_steps: 5,
+            seed: 4,
+        });
+    let mut app = Apprenticeship::new(&world, &demos, ApprenticeshipConfig::default(), 4).unwrap();
+    let mut margins = Vec::new();
+    for i in 1..=10 {
+        let s = app.step().unwrap();
+        margins.push(s.margin);
+        let w = app.mixture_weights();
+        assert_eq!(w.len(), i);
+        assert!(w.iter().all(|&l| (0.0..=1.0).contains(&l)));
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    }
+    // The projection method's margin never increases.
+    assert!(
+        margins[1..].windows(2).all(|m| m[1] <= m[0] + 1e-12),
+        "{margins:?}"
+    );
+}

@@ -187,6 +187,7 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
         "gt_return",
         "success",
         "objective",
+        "mixture_return",
         "elapsed_s",
     ]);
     for r in runs {
@@ -200,6 +201,7 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
                 s.gt_return.to_string(),
                 (s.success as u8).to_string(),
                 s.objective.to_string(),
+                s.mixture_return.to_string(),
                 format!("{:.4}", s.elapsed_s),
             ]);
         }
@@ -219,6 +221,7 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
         "rm_learning_s",
         "irl_s",
         "total_s",
+        "final_mixture_return",
     ]);
     for r in runs {
         summary.push([
@@ -235,6 +238,10 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
             format!("{:.4}", r.timings.rm_learning_s),
             format!("{:.4}", r.timings.irl_s),
             format!("{:.4}", r.timings.total_s),
+            r.steps
+                .last()
+                .map_or(f64::NAN, |s| s.mixture_return)
+                .to_string(),
         ]);
         let mut w = CsvTable::new(
             std::iter::once("rm_state".to_string()).chain(r.weight_columns.iter().cloned()),

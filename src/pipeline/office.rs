@@ -18,6 +18,7 @@ use crate::irl::tabular::{
     evaluate_policy, greedy_policy, trivial_rm, Apprenticeship, ApprenticeshipConfig, DemoConfig,
     Demonstration, MaxEntConfig, OfficeExpert, ProductIrl,
 };
+use crate::rl::tabular::finite_horizon_greedy;
 use crate::rm::RewardMachine;
 use std::time::Instant;
 
@@ -105,11 +106,24 @@ impl Default for LrmSettings {
     }
 }
 
+/// How a MaxEnt-learned reward (SMIRL, MaxEnt baseline) becomes the evaluated policy.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EvalPolicy {
+    /// Optimal for the criterion MaxEnt fitted the reward under: finite horizon (the
+    /// evaluation horizon) with the MaxEnt discount (1 by default), time-indexed.
+    #[default]
+    FiniteHorizon,
+    /// Greedy policy of infinite-horizon value iteration with discount `eval.gamma`.
+    Discounted,
+}
+
 /// Evaluation settings.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EvalSettings {
-    /// Discount of the value iteration that turns a learned reward into a policy.
+    pub policy: EvalPolicy,
+    /// Discount of the infinite-horizon value iteration (`policy = "discounted"`).
     pub gamma: f64,
     /// Rollout length; 0 = the demonstration horizon.
     pub horizon: usize,
@@ -118,6 +132,7 @@ pub struct EvalSettings {
 impl Default for EvalSettings {
     fn default() -> Self {
         EvalSettings {
+            policy: EvalPolicy::FiniteHorizon,
             gamma: 0.95,
             horizon: 0,
         }
@@ -207,6 +222,9 @@ pub struct StepMetrics {
     pub success: bool,
     /// MaxEnt: mean demonstration log-likelihood; apprenticeship: the margin ‖μ_E − μ̄‖.
     pub objective: f64,
+    /// Apprenticeship: the expected ground-truth return of the projection method's mixture
+    /// policy (whose feature expectation is μ̄); NaN for the other algorithms.
+    pub mixture_return: f64,
     /// Seconds since the start of the run.
     pub elapsed_s: f64,
 }
@@ -385,9 +403,30 @@ pub fn run(
             let mut warm = Vec::new();
             let evaluate = |theta: &[f64], warm: &mut Vec<f64>| {
                 let reward = product.features.reward(theta);
-                greedy_policy(&product.mdp, &reward, cfg.eval.gamma, warm)
-                    .map(|policy| evaluate_policy(&world, &product.model_rm, &policy, &gt, horizon))
-                    .map_err(|e| OfficeError::Run(e.to_string()))
+                let policy = match cfg.eval.policy {
+                    EvalPolicy::Discounted => {
+                        greedy_policy(&product.mdp, &reward, cfg.eval.gamma, warm)
+                    }
+                    EvalPolicy::FiniteHorizon => {
+                        let mut actions = Vec::new();
+                        finite_horizon_greedy(
+                            &product.mdp,
+                            &reward,
+                            cfg.maxent.gamma,
+                            horizon,
+                            &mut actions,
+                        )
+                        .map(|_| actions)
+                    }
+                }
+                .map_err(|e| OfficeError::Run(e.to_string()))?;
+                Ok::<_, OfficeError>(evaluate_policy(
+                    &world,
+                    &product.model_rm,
+                    &policy,
+                    &gt,
+                    horizon,
+                ))
             };
             let e0 = evaluate(&irl.theta, &mut warm)?;
             run.steps.push(StepMetrics {
@@ -396,6 +435,7 @@ pub fn run(
                 gt_return: e0.gt_return,
                 success: e0.success,
                 objective: f64::NAN,
+                mixture_return: f64::NAN,
                 elapsed_s: t0.elapsed().as_secs_f64(),
             });
             for m in 1..=cfg.maxent.max_steps {
@@ -412,6 +452,7 @@ pub fn run(
                     gt_return: e.gt_return,
                     success: e.success,
                     objective: info.log_likelihood,
+                    mixture_return: f64::NAN,
                     elapsed_s: t0.elapsed().as_secs_f64(),
                 });
                 if m % 25 == 0 || run.converged {
@@ -447,10 +488,18 @@ pub fn run(
             let mut interactions = 0;
             let mut step = 0;
             let mut weights = Vec::new();
+            let mut returns = Vec::new();
             while !app.done() {
                 let s = app.step().map_err(|e| OfficeError::Run(e.to_string()))?;
                 interactions += s.interactions;
                 let e = evaluate_policy(&world, &one_state, &s.policy, &gt, horizon);
+                returns.push(e.gt_return);
+                let mixture_return: f64 = app
+                    .mixture_weights()
+                    .iter()
+                    .zip(&returns)
+                    .map(|(l, r)| l * r)
+                    .sum();
                 // Step 0 is the random initial policy π₀, as in the projection method.
                 run.steps.push(StepMetrics {
                     step,
@@ -458,6 +507,7 @@ pub fn run(
                     gt_return: e.gt_return,
                     success: e.success,
                     objective: if step == 0 { f64::NAN } else { s.margin },
+                    mixture_return,
                     elapsed_s: t0.elapsed().as_secs_f64(),
                 });
                 if step % 5 == 0 {

@@ -282,6 +282,48 @@ pub fn greedy_actions(q: &[f64], n_actions: usize) -> Vec<u8> {
         .collect()
 }
 
+/// Optimal time-indexed policy for a finite horizon: `V_T = 0`, `Q_t = r + γ V_{t+1}(s')`,
+/// `V_t = max_a Q_t`; writes the first best action of each `(t, s)` into `actions`
+/// (`t * S + s`) and returns `V_0`.
+pub fn finite_horizon_greedy(
+    mdp: &DetMdp,
+    reward: &[f64],
+    gamma: f64,
+    horizon: usize,
+    actions: &mut Vec<u8>,
+) -> Result<Vec<f64>, TabularError> {
+    let (n_s, n_a) = (mdp.n_states, mdp.n_actions);
+    check_len("reward table", reward.len(), n_s * n_a)?;
+    if n_a > u8::MAX as usize + 1 {
+        return Err(TabularError::Parameter(format!(
+            "{n_a} actions do not fit a u8 policy"
+        )));
+    }
+    actions.clear();
+    actions.resize(horizon * n_s, 0);
+    let mut v_next = vec![0.0; n_s];
+    let mut v = vec![0.0; n_s];
+    for t in (0..horizon).rev() {
+        let act_t = &mut actions[t * n_s..(t + 1) * n_s];
+        for s in 0..n_s {
+            let row = s * n_a;
+            let mut best = 0;
+            let mut best_q = f64::NEG_INFINITY;
+            for a in 0..n_a {
+                let q = reward[row + a] + gamma * v_next[mdp.next[row + a] as usize];
+                if q > best_q {
+                    best_q = q;
+                    best = a;
+                }
+            }
+            v[s] = best_q;
+            act_t[s] = best as u8;
+        }
+        std::mem::swap(&mut v, &mut v_next);
+    }
+    Ok(v_next)
+}
+
 /// For each state, the bit mask of actions whose value is within `tol` of the best.
 pub fn optimal_action_masks(q: &[f64], n_actions: usize, tol: f64) -> Vec<u32> {
     assert!(n_actions <= 32, "action masks hold at most 32 actions");

@@ -99,6 +99,8 @@ pub struct Apprenticeship {
     n_props: usize,
     mu_expert: Vec<f64>,
     mu_bar: Option<Vec<f64>>,
+    /// Weights of the policies π₀..π_i in the mixture whose feature expectation is μ̄.
+    mixture: Vec<f64>,
     rng: ChaCha8Rng,
     steps: usize,
     value_warm: Vec<f64>,
@@ -142,6 +144,7 @@ impl Apprenticeship {
             n_props,
             mu_expert,
             mu_bar: None,
+            mixture: Vec::new(),
             rng: ChaCha8Rng::seed_from_u64(seed),
             steps: 0,
             value_warm: Vec::new(),
@@ -158,6 +161,13 @@ impl Apprenticeship {
             None => f64::INFINITY,
             Some(mb) => dist(&self.mu_expert, mb),
         }
+    }
+
+    /// Mixture weights λ of the policies returned so far (one per step, summing to 1): the
+    /// mixture "pick π_j with probability λ_j" has feature expectations μ̄ — the projection
+    /// method's output policy.
+    pub fn mixture_weights(&self) -> &[f64] {
+        &self.mixture
     }
 
     /// Whether the projection method has converged (margin ≤ ε) or used its steps.
@@ -221,21 +231,28 @@ impl Apprenticeship {
         let mu = self.feature_expectations(&policy);
         interactions += self.horizon;
         self.mu_bar = Some(match self.mu_bar.take() {
-            None => mu,
+            None => {
+                self.mixture = vec![1.0];
+                mu
+            }
             Some(mb) => {
                 let d: Vec<f64> = mu.iter().zip(&mb).map(|(m, b)| m - b).collect();
                 let dd: f64 = d.iter().map(|x| x * x).sum();
-                if dd == 0.0 {
-                    mb
+                // Clipped to [0, 1] so that μ̄ stays the feature expectation of a mixture of
+                // the policies so far (it is in [0, 1] whenever π_i is optimal for w_i).
+                let k = if dd == 0.0 {
+                    0.0
                 } else {
                     let e: f64 = d
                         .iter()
                         .zip(self.mu_expert.iter().zip(&mb))
                         .map(|(di, (ei, bi))| di * (ei - bi))
                         .sum();
-                    let k = e / dd;
-                    mb.iter().zip(&d).map(|(b, di)| b + k * di).collect()
-                }
+                    (e / dd).clamp(0.0, 1.0)
+                };
+                self.mixture.iter_mut().for_each(|l| *l *= 1.0 - k);
+                self.mixture.push(k);
+                mb.iter().zip(&d).map(|(b, di)| b + k * di).collect()
             }
         });
         self.steps += 1;

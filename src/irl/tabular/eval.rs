@@ -23,7 +23,8 @@ pub struct Evaluation {
     pub steps_to_success: Option<usize>,
 }
 
-/// Rolls out `policy` (indexed by model product state) for `horizon` steps.
+/// Rolls out `policy` for `horizon` steps: indexed by model product state (stationary, length
+/// `|U|·108`) or by time and state (length `horizon·|U|·108`, `t`-major).
 pub fn evaluate_policy(
     world: &OfficeWorld,
     model_rm: &RewardMachine,
@@ -32,10 +33,11 @@ pub fn evaluate_policy(
     horizon: usize,
 ) -> Evaluation {
     let n_cells = world.labels().len();
-    assert_eq!(
-        policy.len(),
-        model_rm.n_states() * n_cells,
-        "policy must cover the model product"
+    let n_prod = model_rm.n_states() * n_cells;
+    let stationary = policy.len() == n_prod;
+    assert!(
+        stationary || policy.len() == horizon * n_prod,
+        "policy must cover the model product (per time step or not)"
     );
     let mut episode = OfficeEpisode::new(world, gt_rm, false);
     let mut u = model_rm.initial();
@@ -46,7 +48,8 @@ pub fn evaluate_policy(
         steps_to_success: None,
     };
     for t in 0..horizon {
-        let a = policy[u * n_cells + episode.cell()] as usize;
+        let offset = if stationary { 0 } else { t * n_prod };
+        let a = policy[offset + u * n_cells + episode.cell()] as usize;
         let step = episode.step(a);
         u = model_rm.next_state(u, step.labels);
         out.gt_return += step.reward;
