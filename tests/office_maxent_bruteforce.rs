@@ -257,12 +257,12 @@ fn finite_horizon_greedy_attains_the_best_enumerated_return() {
     let r = f.reward(&[0.7, -1.3, 0.4]);
     let mut actions = Vec::new();
     let v0 = finite_horizon_greedy(&mdp, &r, 1.0, T, &mut actions).unwrap();
-    for s0 in 0..S {
+    for (s0, &v) in v0.iter().enumerate() {
         let best = enumerate(&mdp, &f, &r, s0, T)
             .iter()
             .map(|t| t.2)
             .fold(f64::NEG_INFINITY, f64::max);
-        assert!((v0[s0] - best).abs() < 1e-12);
+        assert!((v - best).abs() < 1e-12);
         // Following the time-indexed policy collects exactly that return.
         let (mut s, mut ret) = (s0, 0.0);
         for t in 0..T {
