@@ -282,6 +282,127 @@ pub fn greedy_actions(q: &[f64], n_actions: usize) -> Vec<u8> {
         .collect()
 }
 
+/// Exact discounted value of a deterministic stationary policy on a deterministic MDP:
+/// every state's path ends in a cycle, whose value is closed-form
+/// (`Σ_k γ^k r_k / (1 − γ^L)`); the states leading into it follow by `V = r + γ V(next)`.
+/// O(S); `v` and `status` are reused buffers.
+fn evaluate_deterministic(
+    mdp: &DetMdp,
+    reward: &[f64],
+    gamma: f64,
+    policy: &[u8],
+    v: &mut [f64],
+    status: &mut [u8],
+    path: &mut Vec<usize>,
+) {
+    const NEW: u8 = 0;
+    const ON_PATH: u8 = 1;
+    const DONE: u8 = 2;
+    let n_a = mdp.n_actions;
+    let step = |s: usize| {
+        let k = s * n_a + policy[s] as usize;
+        (mdp.next[k] as usize, reward[k])
+    };
+    status.fill(NEW);
+    for s0 in 0..mdp.n_states {
+        if status[s0] != NEW {
+            continue;
+        }
+        path.clear();
+        let mut x = s0;
+        while status[x] == NEW {
+            status[x] = ON_PATH;
+            path.push(x);
+            x = step(x).0;
+        }
+        if status[x] == ON_PATH {
+            // The walk closed a cycle at x: value it in closed form.
+            let start = path.iter().position(|&p| p == x).expect("x is on the path");
+            let cycle = &path[start..];
+            let (mut g, mut disc) = (0.0, 1.0);
+            for &c in cycle {
+                g += disc * step(c).1;
+                disc *= gamma;
+            }
+            v[x] = g / (1.0 - disc);
+            status[x] = DONE;
+            for &c in cycle[1..].iter().rev() {
+                let (n, r) = step(c);
+                v[c] = r + gamma * v[n];
+                status[c] = DONE;
+            }
+            path.truncate(start);
+        }
+        for &p in path.iter().rev() {
+            let (n, r) = step(p);
+            v[p] = r + gamma * v[n];
+            status[p] = DONE;
+        }
+    }
+}
+
+/// Policy iteration with exact evaluation of deterministic policies (see
+/// `evaluate_deterministic`) for a discounted deterministic MDP. `policy` is the starting
+/// policy (warm start; any valid actions) and receives the optimal one; returns the optimal
+/// values and the number of improvement rounds. An action replaces the current one only when
+/// it is better by more than a relative 1e-12, so ties keep the current action and the
+/// iteration terminates.
+pub fn policy_iteration(
+    mdp: &DetMdp,
+    reward: &[f64],
+    gamma: f64,
+    policy: &mut [u8],
+    max_rounds: usize,
+) -> Result<(Vec<f64>, usize), TabularError> {
+    let (n_s, n_a) = (mdp.n_states, mdp.n_actions);
+    check_len("reward table", reward.len(), n_s * n_a)?;
+    check_len("policy", policy.len(), n_s)?;
+    if !(0.0..1.0).contains(&gamma) {
+        return Err(TabularError::Parameter(format!(
+            "discount {gamma} must be in [0, 1)"
+        )));
+    }
+    if let Some(s) = policy.iter().position(|&a| a as usize >= n_a) {
+        return Err(TabularError::Parameter(format!(
+            "policy action {} in state {s} out of range",
+            policy[s]
+        )));
+    }
+    let scale = reward.iter().fold(0.0f64, |m, r| m.max(r.abs())) / (1.0 - gamma);
+    let eps = 1e-12 * scale.max(1e-300);
+    let mut v = vec![0.0; n_s];
+    let mut status = vec![0u8; n_s];
+    let mut path = Vec::new();
+    let mut rounds = 0;
+    while rounds < max_rounds {
+        rounds += 1;
+        evaluate_deterministic(mdp, reward, gamma, policy, &mut v, &mut status, &mut path);
+        let mut changed = false;
+        for (s, slot) in policy.iter_mut().enumerate() {
+            let row = s * n_a;
+            let q = |a: usize| reward[row + a] + gamma * v[mdp.next[row + a] as usize];
+            let cur = *slot as usize;
+            let mut best = cur;
+            let mut best_q = q(cur) + eps;
+            for a in 0..n_a {
+                let qa = q(a);
+                if qa > best_q {
+                    best = a;
+                    best_q = qa;
+                }
+            }
+            if best != cur {
+                *slot = best as u8;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    Ok((v, rounds))
+}
+
 /// Optimal time-indexed policy for a finite horizon: `V_T = 0`, `Q_t = r + γ V_{t+1}(s')`,
 /// `V_t = max_a Q_t`; writes the first best action of each `(t, s)` into `actions`
 /// (`t * S + s`) and returns `V_0`.
@@ -630,6 +751,37 @@ mod tests {
         };
         let vals = value_iteration(&mdp, &r, it, None).unwrap();
         assert!((q[3 * 2 + 1] - vals.q[3 * 2 + 1]).abs() < 0.05, "{q:?}");
+    }
+
+    #[test]
+    fn policy_iteration_matches_value_iteration_on_random_mdps() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        for _ in 0..20 {
+            let (n_s, n_a) = (30, 4);
+            let next: Vec<u32> = (0..n_s * n_a)
+                .map(|_| rng.gen_range(0..n_s as u32))
+                .collect();
+            let mdp = DetMdp::new(n_s, n_a, next).unwrap();
+            let r: Vec<f64> = (0..n_s * n_a).map(|_| rng.gen_range(-1.0..1.0)).collect();
+            let it = Iteration {
+                gamma: 0.97,
+                tol: 1e-13,
+                max_sweeps: 100_000,
+            };
+            let vals = value_iteration(&mdp, &r, it, None).unwrap();
+            let mut policy = vec![0u8; n_s];
+            let (v, rounds) = policy_iteration(&mdp, &r, 0.97, &mut policy, 1000).unwrap();
+            assert!(rounds < 1000);
+            for s in 0..n_s {
+                assert!((v[s] - vals.v[s]).abs() < 1e-9, "state {s}");
+                // The returned policy attains the optimal Q in every state.
+                let best = vals.q[s * n_a..(s + 1) * n_a]
+                    .iter()
+                    .copied()
+                    .fold(f64::NEG_INFINITY, f64::max);
+                assert!((vals.q[s * n_a + policy[s] as usize] - best).abs() < 1e-9);
+            }
+        }
     }
 
     #[test]

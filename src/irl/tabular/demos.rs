@@ -88,6 +88,7 @@ impl OfficeExpert {
         let rm = &self.rm;
         let mut demo = Demonstration {
             start_cell: self.world.start(),
+            start_labels: self.world.label(self.world.start()),
             ..Demonstration::default()
         };
         let mut cell = self.world.start();
@@ -184,12 +185,14 @@ impl Trip {
     }
 }
 
-/// One expert episode: the start cell and, per step t, the action taken, the cell landed on,
+/// One expert episode: the start cell and its labels and, per step t, the action taken, the cell landed on,
 /// its labels, the perfect machine's state after the step (before its restart after a
 /// completed trip) and the task reward.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Demonstration {
     pub start_cell: usize,
+    /// Labels of the start cell, `L(o_0)`.
+    pub start_labels: LabelSet,
     pub actions: Vec<u8>,
     pub cells: Vec<u16>,
     pub labels: Vec<LabelSet>,
@@ -206,6 +209,13 @@ impl Demonstration {
 
     pub fn is_empty(&self) -> bool {
         self.actions.is_empty()
+    }
+
+    /// The label trace `L(o_0), L(o_1), …, L(o_T)` (the start cell's labels first).
+    pub fn label_trace(&self) -> Vec<LabelSet> {
+        std::iter::once(self.start_labels)
+            .chain(self.labels.iter().copied())
+            .collect()
     }
 
     /// Cell before step t (`o_t`; `o_0` is the start cell).

@@ -7,7 +7,7 @@
 //! policy are deterministic, so one rollout is the exact expected return.
 
 use crate::env::office::{OfficeEpisode, OfficeWorld};
-use crate::rl::tabular::{greedy_actions, value_iteration, DetMdp, Iteration, TabularError};
+use crate::rl::tabular::{policy_iteration, DetMdp, TabularError};
 use crate::rm::RewardMachine;
 
 /// Outcome of one ground-truth rollout.
@@ -40,7 +40,8 @@ pub fn evaluate_policy(
         "policy must cover the model product (per time step or not)"
     );
     let mut episode = OfficeEpisode::new(world, gt_rm, false);
-    let mut u = model_rm.initial();
+    // The model machine reads the start cell's labels first, as along its training traces.
+    let mut u = model_rm.next_state(model_rm.initial(), world.label(world.start()));
     let mut out = Evaluation {
         gt_return: 0.0,
         success: false,
@@ -64,23 +65,19 @@ pub fn evaluate_policy(
     out
 }
 
-/// Greedy policy of discounted value iteration for `reward` (first best action on ties).
-/// `warm` carries the values between calls (warm start); pass an empty vector first.
+/// The optimal stationary policy of the discounted MDP with `reward` (exact policy
+/// iteration). `warm` carries the policy between calls (warm start); pass an empty vector
+/// first.
 pub fn greedy_policy(
     mdp: &DetMdp,
     reward: &[f64],
     gamma: f64,
-    warm: &mut Vec<f64>,
+    warm: &mut Vec<u8>,
 ) -> Result<Vec<u8>, TabularError> {
-    let it = Iteration {
-        gamma,
-        // Only the argmax matters; warm starts make most calls a few sweeps.
-        tol: 1e-7,
-        max_sweeps: 20_000,
-    };
-    let init = (warm.len() == mdp.n_states()).then_some(warm.as_slice());
-    let values = value_iteration(mdp, reward, it, init)?;
-    let policy = greedy_actions(&values.q, mdp.n_actions());
-    *warm = values.v;
-    Ok(policy)
+    if warm.len() != mdp.n_states() {
+        warm.clear();
+        warm.resize(mdp.n_states(), 0);
+    }
+    policy_iteration(mdp, reward, gamma, warm, 10_000)?;
+    Ok(warm.clone())
 }

@@ -73,18 +73,24 @@ impl ProductIrl {
         u * self.n_cells + cell
     }
 
-    /// The product start state: the model's initial state on `start_cell`.
-    pub fn start_state(&self, start_cell: usize) -> usize {
-        self.state(self.model_rm.initial(), start_cell)
+    /// The product start state on `start_cell`: the model machine has read the start
+    /// cell's labels `L(o_0)` (as in the label traces it was learned from).
+    pub fn start_state(&self, world: &OfficeWorld, start_cell: usize) -> usize {
+        let u = self
+            .model_rm
+            .next_state(self.model_rm.initial(), world.label(start_cell));
+        self.state(u, start_cell)
     }
 
-    /// Annotates demonstrations with the model machine's states (run along their labels):
-    /// the `(u_t, o_t)` product state and action of every step.
+    /// Annotates demonstrations with the model machine's states (run along their label
+    /// traces from `L(o_0)`): the `(u_t, o_t)` product state and action of every step.
     pub fn annotate(&self, demos: &[Demonstration]) -> Vec<StateActionDemo> {
         demos
             .iter()
             .map(|d| {
-                let mut u = self.model_rm.initial();
+                let mut u = self
+                    .model_rm
+                    .next_state(self.model_rm.initial(), d.start_labels);
                 (0..d.len())
                     .map(|t| {
                         let s = self.state(u, d.cell_before(t));
