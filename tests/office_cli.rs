@@ -120,8 +120,13 @@ fn a_small_run_writes_complete_results() {
         cfg.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
+        "--write-demos",
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let demos = std::fs::read_to_string(out.join("demos_seed6.csv")).unwrap();
+    assert!(demos.starts_with("demo,step,x,y,action,next_x,next_y,labels,rm_state,reward\n"));
+    // 8 demonstrations, each a start row and up to 60 steps.
+    assert!(demos.lines().filter(|l| l.contains(",-1,")).count() == 8);
     let metrics = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
     let lines: Vec<&str> = metrics.lines().collect();
     assert!(lines[0].starts_with("task,algo,seed,step,env_interactions,gt_return,success"));

@@ -12,8 +12,10 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
-use smirl::env::office::OfficeTask;
-use smirl::pipeline::office::{run, Algo, OfficeConfig, OfficeRun};
+use smirl::env::office::{OfficeTask, OfficeWorld};
+use smirl::pipeline::office::{
+    demonstrations, demonstrations_table, run, Algo, OfficeConfig, OfficeRun,
+};
 use smirl::report::{aggregate_over_seeds, write_atomic, CsvTable, LinePlot, Series};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -45,6 +47,9 @@ struct Args {
     /// Replace an existing output directory.
     #[arg(long)]
     force: bool,
+    /// Also write each seed's demonstrations (`demos_seed<S>.csv`).
+    #[arg(long)]
+    write_demos: bool,
 }
 
 /// Everything checked before the run starts.
@@ -54,6 +59,7 @@ struct Plan {
     seeds: Vec<u64>,
     cfg: OfficeConfig,
     out: PathBuf,
+    write_demos: bool,
 }
 
 fn plan(args: &Args) -> Result<Plan> {
@@ -99,6 +105,7 @@ fn plan(args: &Args) -> Result<Plan> {
         seeds,
         cfg,
         out: args.out.clone(),
+        write_demos: args.write_demos,
     })
 }
 
@@ -296,5 +303,54 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
         });
     }
     write_file(dir, "success.svg", &plot.to_svg())?;
+
+    // Figure 5's x-axis: environment interactions, for the algorithms that sample them.
+    let mut by_interactions = LinePlot::new(
+        &format!(
+            "Office task {}: {} (sampling algorithms)",
+            plan.task.index(),
+            plan.task.description()
+        ),
+        "environment interactions",
+        "ground-truth return (success rate)",
+    );
+    by_interactions.y_range = Some((-0.05, 1.05));
+    for &algo in &plan.algos {
+        let curves: Vec<Vec<(f64, f64)>> = runs
+            .iter()
+            .filter(|r| r.algo == algo && r.steps.iter().any(|s| s.env_interactions > 0))
+            .map(|r| {
+                r.steps
+                    .iter()
+                    .map(|s| (s.env_interactions as f64, s.gt_return))
+                    .collect()
+            })
+            .collect();
+        if !curves.is_empty() {
+            by_interactions.series.push(Series {
+                name: algo.label().to_string(),
+                points: aggregate_over_seeds(&curves),
+            });
+        }
+    }
+    if !by_interactions.series.is_empty() {
+        write_file(
+            dir,
+            "success_vs_interactions.svg",
+            &by_interactions.to_svg(),
+        )?;
+    }
+
+    if plan.write_demos {
+        let world = OfficeWorld::new();
+        for &seed in &plan.seeds {
+            let demos = demonstrations(&world, plan.task, &plan.cfg.demos, seed)?;
+            write_file(
+                dir,
+                &format!("demos_seed{seed}.csv"),
+                &demonstrations_table(&demos, &world).to_csv(),
+            )?;
+        }
+    }
     Ok(())
 }

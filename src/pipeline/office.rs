@@ -13,11 +13,12 @@
 //! rolled out for the evaluation horizon from the start cell without reset; its return under
 //! the task's perfect machine is 1 when the task is completed, else 0 (success = return).
 
-use crate::env::office::{OfficeTask, OfficeWorld};
+use crate::env::office::{xy, OfficeTask, OfficeWorld};
 use crate::irl::tabular::{
     evaluate_policy, greedy_policy, trivial_rm, Apprenticeship, ApprenticeshipConfig, DemoConfig,
     Demonstration, MaxEntConfig, OfficeExpert, ProductIrl,
 };
+use crate::report::CsvTable;
 use crate::rl::tabular::finite_horizon_greedy;
 use crate::rm::RewardMachine;
 use std::time::Instant;
@@ -282,6 +283,48 @@ pub fn demonstrations(
         random_steps: settings.random_steps,
         seed,
     }))
+}
+
+/// Demonstrations as a table: one row per step with the cell before and after it, the
+/// labels of the cell landed on, the action, the expert's perfect-machine state after the
+/// step and the task reward (step −1 rows give the start cell and its labels).
+pub fn demonstrations_table(demos: &[Demonstration], world: &OfficeWorld) -> CsvTable {
+    let v = world.vocab();
+    let mut t = CsvTable::new([
+        "demo", "step", "x", "y", "action", "next_x", "next_y", "labels", "rm_state", "reward",
+    ]);
+    for (i, d) in demos.iter().enumerate() {
+        let (x0, y0) = xy(d.start_cell);
+        t.push([
+            i.to_string(),
+            "-1".into(),
+            String::new(),
+            String::new(),
+            String::new(),
+            x0.to_string(),
+            y0.to_string(),
+            v.format_labels(d.start_labels),
+            String::new(),
+            String::new(),
+        ]);
+        for s in 0..d.len() {
+            let (x, y) = xy(d.cell_before(s));
+            let (nx, ny) = xy(d.cells[s] as usize);
+            t.push([
+                i.to_string(),
+                s.to_string(),
+                x.to_string(),
+                y.to_string(),
+                d.actions[s].to_string(),
+                nx.to_string(),
+                ny.to_string(),
+                v.format_labels(d.labels[s]),
+                d.rm_states[s].to_string(),
+                d.rewards[s].to_string(),
+            ]);
+        }
+    }
+    t
 }
 
 /// Whether the perfect machine's state before each step is a function of `model`'s state
