@@ -21,6 +21,8 @@ struct Args {
     reps: usize,
     threads: usize,
     seed: u64,
+    search_steps: usize,
+    max_states: usize,
 }
 
 fn parse_args() -> Result<Args> {
@@ -29,6 +31,8 @@ fn parse_args() -> Result<Args> {
         reps: 5,
         threads: 2,
         seed: 1,
+        search_steps: LrmConfig::default().max_steps,
+        max_states: LrmConfig::default().max_states,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -42,8 +46,10 @@ fn parse_args() -> Result<Args> {
             "--reps" => a.reps = value("--reps")?.max(1),
             "--threads" => a.threads = value("--threads")?.max(1),
             "--seed" => a.seed = value("--seed")? as u64,
+            "--search-steps" => a.search_steps = value("--search-steps")?,
+            "--max-states" => a.max_states = value("--max-states")?.max(1),
             other => {
-                bail!("unknown argument {other:?} (expected --steps, --reps, --threads, --seed)")
+                bail!("unknown argument {other:?} (expected --steps, --reps, --threads, --seed, --search-steps, --max-states)")
             }
         }
     }
@@ -98,6 +104,8 @@ fn main() -> Result<()> {
         let cfg = LrmConfig {
             threads: args.threads,
             seed: args.seed,
+            max_steps: args.search_steps,
+            max_states: args.max_states,
             ..LrmConfig::default()
         };
         let mut times = Vec::new();

@@ -20,6 +20,12 @@ pub(crate) struct Data {
     pub id_of: Vec<u16>,
     /// Concatenated compressed traces.
     pub lab: Vec<u16>,
+    /// Reward id (index into `reward_values`) of the step that starts each position.
+    pub rid: Vec<u8>,
+    /// Multiplicity of the trace of each position.
+    pub mult: Vec<u32>,
+    /// Distinct rewards observed (sorted); empty when the traces carry none.
+    pub reward_values: Vec<f64>,
     /// Weight of the prediction made at each position: the multiplicity of its trace, or 0 at
     /// the last position of a trace (nothing comes next).
     pub w: Vec<u32>,
@@ -76,29 +82,56 @@ impl Data {
         for (k, l) in labels.iter().enumerate() {
             id_of[l.index()] = k as u16;
         }
-        // Compress and deduplicate (BTreeMap: a deterministic order).
-        let mut distinct: BTreeMap<Vec<u16>, u64> = BTreeMap::new();
+        // Distinct rewards (at most 256 ids are kept apart; more is not a reward machine's
+        // output anyway, and the reward term is then dropped).
+        let mut reward_values: Vec<f64> = traces
+            .iter()
+            .filter_map(|t| t.rewards.as_ref())
+            .flatten()
+            .copied()
+            .collect();
+        reward_values.sort_by(f64::total_cmp);
+        reward_values.dedup();
+        if reward_values.len() > 256 {
+            reward_values.clear();
+        }
+        let reward_id = |r: f64| -> u8 {
+            reward_values
+                .binary_search_by(|x| x.total_cmp(&r))
+                .map_or(0, |k| k as u8)
+        };
+        // Compress and deduplicate (BTreeMap: a deterministic order). A run of one label set
+        // is one position, whose reward is that of the run's first step; a repeated step with
+        // a nonzero reward starts a new position so that no reward is lost.
+        let mut distinct: BTreeMap<(Vec<u16>, Vec<u8>), u64> = BTreeMap::new();
         for t in traces {
             let mut c: Vec<u16> = Vec::new();
-            for l in &t.labels {
+            let mut r: Vec<u8> = Vec::new();
+            for (k, l) in t.labels.iter().enumerate() {
                 let id = id_of[l.index()];
-                if c.last() != Some(&id) {
+                let reward = t.rewards.as_ref().map_or(0.0, |rs| rs[k]);
+                if c.last() != Some(&id) || reward != 0.0 {
                     c.push(id);
+                    r.push(reward_id(reward));
                 }
             }
             if !c.is_empty() {
-                *distinct.entry(c).or_default() += 1;
+                *distinct.entry((c, r)).or_default() += 1;
             }
         }
-        let total: usize = distinct.keys().map(Vec::len).sum();
+        let total: usize = distinct.keys().map(|k| k.0.len()).sum();
         let mut lab = Vec::with_capacity(total);
         let mut w = Vec::with_capacity(total);
         let mut starts = Vec::with_capacity(distinct.len() + 1);
         let mut trace_of = Vec::with_capacity(total);
-        for (k, (c, &mult)) in distinct.iter().enumerate() {
+        let mut rid = Vec::with_capacity(total);
+        let mut mults = Vec::with_capacity(total);
+        for (k, ((c, r), &mult)) in distinct.iter().enumerate() {
             let mult = u32::try_from(mult).unwrap_or(u32::MAX);
             starts.push(lab.len());
             lab.extend_from_slice(c);
+            rid.extend_from_slice(r);
+            mults.extend(std::iter::repeat(mult).take(c.len()));
             w.extend(std::iter::repeat(mult).take(c.len() - 1));
             w.push(0);
             trace_of.extend(std::iter::repeat(k as u32).take(c.len()));
@@ -108,6 +141,9 @@ impl Data {
             labels,
             id_of,
             lab,
+            rid,
+            mult: mults,
+            reward_values,
             w,
             starts,
             trace_of,

@@ -13,6 +13,14 @@
 //! - Merging two states merges their defined cells; two defined cells on the same label
 //!   must have the same mean reward (else the merge is refused) and their targets are merged
 //!   in turn (so the quotient stays deterministic), recursively.
+//! - With `fill_unobserved` off (the default of the learner) a cell without observations
+//!   counts as what the machine does there, stay with reward 0, so only states with the same
+//!   reward behaviour merge and the quotient is equivalent to the learned machine (Mealy
+//!   minimisation, with "don't care" only for the implied stays). With it on, an unobserved
+//!   cell takes whatever the other state does: fewer states, but a sub-goal never seen in a
+//!   state may start paying there (over-generalisation when the traces lack
+//!   counter-examples: measured on Reacher Sequential, where the state after red never sees
+//!   yellow).
 //! - States are tried in pairs `(p, q)`, `p < q`, in the search's breadth-first numbering,
 //!   and passes repeat until no merge succeeds.
 //!
@@ -56,6 +64,7 @@ pub(crate) fn merge_states(
     n: usize,
     l_n: usize,
     cells: Vec<Option<Cell>>,
+    fill_unobserved: bool,
 ) -> (Vec<usize>, Vec<Option<Cell>>) {
     let mut part = Partition {
         parent: (0..n).collect(),
@@ -68,7 +77,7 @@ pub(crate) fn merge_states(
                 if part.find(p) == part.find(q) {
                     continue;
                 }
-                if let Some(next) = try_merge(&part, l_n, p, q) {
+                if let Some(next) = try_merge(&part, l_n, p, q, fill_unobserved) {
                     part = next;
                     merged_any = true;
                 }
@@ -82,7 +91,13 @@ pub(crate) fn merge_states(
     (blocks, part.cells)
 }
 
-fn try_merge(part: &Partition, l_n: usize, p: usize, q: usize) -> Option<Partition> {
+fn try_merge(
+    part: &Partition,
+    l_n: usize,
+    p: usize,
+    q: usize,
+    fill_unobserved: bool,
+) -> Option<Partition> {
     let mut part = part.clone();
     let mut pending = vec![(p, q)];
     while let Some((a, b)) = pending.pop() {
@@ -112,8 +127,21 @@ fn try_merge(part: &Partition, l_n: usize, p: usize, q: usize) -> Option<Partiti
                         weight: w,
                     })
                 }
-                (x, None) => x,
-                (None, y) => y,
+                // One side has no observation: without `fill_unobserved` it does what a
+                // missing transition does (stay, reward 0), so the other must do the same.
+                (Some(x), None) => {
+                    if !fill_unobserved && (x.reward != 0.0 || part.find(x.target) != root) {
+                        return None;
+                    }
+                    Some(x)
+                }
+                (None, Some(y)) => {
+                    if !fill_unobserved && (y.reward != 0.0 || part.find(y.target) != other) {
+                        return None;
+                    }
+                    Some(y)
+                }
+                (None, None) => None,
             };
             part.cells[root * l_n + l] = merged;
             part.cells[other * l_n + l] = None;

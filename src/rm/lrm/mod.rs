@@ -22,10 +22,17 @@
 //! guarded by exact label-set formulas ([`Formula::exactly`], or an OR of them), so the
 //! machine says nothing about label sets never observed (they stay, reward 0).
 //!
+//! **Beyond the reference: a reward term.** When the traces carry rewards, the cost adds
+//! `reward_weight · Σ_steps log |R(u, l)|`, where `R(u, l)` is the set of rewards observed on
+//! the transition cell (state before the step, label set): the same "how unpredictable"
+//! measure applied to the rewards, weighted high so that machines that explain the rewards
+//! come first. With `reward_weight = 0` (or no rewards) the objective is the reference one.
+//!
 //! **Beyond the reference: merging.** The objective adds states that predict the next label
-//! but pay the same rewards. With [`LrmConfig::merge`] (the default) states the observed
-//! rewards cannot distinguish are merged afterwards (see [`merge`]); [`LearnedRm::raw`] keeps
-//! the machine before merging.
+//! but pay the same rewards. With [`LrmConfig::merge`] (the default) states with the same
+//! reward behaviour are merged afterwards (Mealy minimisation over the observed label sets;
+//! optionally also filling unobserved cells, see `merge.rs`); [`LearnedRm::raw`] keeps the
+//! machine before merging.
 
 mod data;
 mod merge;
@@ -51,6 +58,10 @@ pub struct LabelTrace {
     pub rewards: Option<Vec<f64>>,
 }
 
+/// Default weight of the reward term: large, so that explaining the observed rewards comes
+/// first and predicting the next label second.
+pub const DEFAULT_REWARD_WEIGHT: f64 = 100.0;
+
 /// Parameters of the search.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LrmConfig {
@@ -65,6 +76,12 @@ pub struct LrmConfig {
     pub threads: usize,
     /// Merge reward-indistinguishable states after the search.
     pub merge: bool,
+    /// When merging, let an unobserved cell take the behaviour of the state it merges with
+    /// (more merging, may over-generalise; see [`merge`]).
+    pub fill_unobserved: bool,
+    /// Weight of the reward term of the cost (see the module docs); 0 gives the reference
+    /// objective. Ignored when the traces carry no rewards.
+    pub reward_weight: f64,
 }
 
 impl Default for LrmConfig {
@@ -78,6 +95,8 @@ impl Default for LrmConfig {
             seed: 0,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             merge: true,
+            fill_unobserved: false,
+            reward_weight: DEFAULT_REWARD_WEIGHT,
         }
     }
 }
@@ -153,7 +172,13 @@ pub fn learn_rm(
         )));
     }
     let data = Data::new(vocab, traces)?;
-    let searcher = search::Searcher::new(&data, cfg.max_states);
+    if !(cfg.reward_weight >= 0.0 && cfg.reward_weight.is_finite()) {
+        return Err(LrmError::Config(format!(
+            "reward_weight must be a finite number >= 0, got {}",
+            cfg.reward_weight
+        )));
+    }
+    let searcher = search::Searcher::new(&data, cfg.max_states, cfg.reward_weight);
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let outcome = searcher.search(cfg.tabu_len, cfg.max_steps, cfg.threads.max(1), &mut rng);
     let table = &outcome.best;
@@ -208,7 +233,7 @@ pub fn learn_rm(
                 });
             }
         }
-        let (blocks, merged) = merge_states(n, l_n, cells);
+        let (blocks, merged) = merge_states(n, l_n, cells, cfg.fill_unobserved);
         let (quotient_cells, q_n) = renumber_blocks(&blocks, &merged, l_n);
         let rm = machine_from_cells(vocab, &data.labels, q_n, &quotient_cells);
         let delta: Vec<u16> = (0..cfg.max_states * l_n)
@@ -311,7 +336,7 @@ pub fn learn_rm_auto(
 pub fn trace_cost(rm: &RewardMachine, traces: &[LabelTrace]) -> Result<f64, LrmError> {
     let data = Data::new(rm.vocab(), traces)?;
     let l_n = data.n_labels().max(1);
-    let searcher = search::Searcher::new(&data, rm.n_states().min(u16::MAX as usize));
+    let searcher = search::Searcher::new(&data, rm.n_states().min(u16::MAX as usize), 0.0);
     let delta: Vec<u16> = (0..rm.n_states() * l_n)
         .map(|cell| {
             let (u, l) = (cell / l_n, cell % l_n);

@@ -43,6 +43,12 @@ struct Current {
     cell_c: Vec<i64>,
     cell_k: Vec<u32>,
     hist: Vec<i64>,
+    /// Reward counts per transition cell `rcnt[(u * L + l) * R + r]` (`u` = state before
+    /// the step), their per-cell totals, distinct counts and histogram, as for labels.
+    rcnt: Vec<u64>,
+    rcell_c: Vec<i64>,
+    rcell_k: Vec<u32>,
+    rhist: Vec<i64>,
     cost: f64,
     /// Positions read in state `u` (before the step) with label `l`, per cell `u * L + l`.
     pos: Vec<Vec<u32>>,
@@ -68,17 +74,32 @@ pub(crate) struct Searcher<'a> {
     data: &'a Data,
     u_max: usize,
     l_n: usize,
+    r_n: usize,
+    reward_weight: f64,
     ln: Vec<f64>,
 }
 
 impl<'a> Searcher<'a> {
-    pub fn new(data: &'a Data, u_max: usize) -> Searcher<'a> {
+    /// `reward_weight` scales the reward term of the cost (0 = the reference objective).
+    pub fn new(data: &'a Data, u_max: usize, reward_weight: f64) -> Searcher<'a> {
         let l_n = data.n_labels().max(1);
+        let r_n = data.reward_values.len().max(1);
         Searcher {
             data,
             u_max,
             l_n,
-            ln: ln_table(l_n),
+            r_n,
+            reward_weight,
+            ln: ln_table(l_n.max(r_n)),
+        }
+    }
+
+    fn total_cost(&self, hist: &[i64], rhist: &[i64]) -> f64 {
+        let c = cost_of_hist(hist, &self.ln);
+        if self.reward_weight > 0.0 {
+            c + self.reward_weight * cost_of_hist(rhist, &self.ln)
+        } else {
+            c
         }
     }
 
@@ -98,11 +119,14 @@ impl<'a> Searcher<'a> {
         let mut after = vec![0u16; d.len()];
         let mut cnt = vec![0u64; u_max * l_n * l_n];
         let mut pos = vec![Vec::new(); u_max * l_n];
+        let r_n = self.r_n;
+        let mut rcnt = vec![0u64; u_max * l_n * r_n];
         for k in 0..d.n_traces() {
             let mut s = 0u16;
             for t in d.starts[k]..d.starts[k + 1] {
                 let l = d.lab[t] as usize;
                 pos[s as usize * l_n + l].push(t as u32);
+                rcnt[(s as usize * l_n + l) * r_n + d.rid[t] as usize] += d.mult[t] as u64;
                 s = delta[s as usize * l_n + l];
                 after[t] = s;
                 if d.w[t] > 0 {
@@ -119,7 +143,16 @@ impl<'a> Searcher<'a> {
             cell_k[cell] = row.iter().filter(|&&v| v > 0).count() as u32;
             hist[cell_k[cell] as usize] += cell_c[cell];
         }
-        let cost = cost_of_hist(&hist, &self.ln);
+        let mut rcell_c = vec![0i64; u_max * l_n];
+        let mut rcell_k = vec![0u32; u_max * l_n];
+        let mut rhist = vec![0i64; r_n.max(l_n) + 1];
+        for cell in 0..u_max * l_n {
+            let row = &rcnt[cell * r_n..(cell + 1) * r_n];
+            rcell_c[cell] = row.iter().sum::<u64>() as i64;
+            rcell_k[cell] = row.iter().filter(|&&v| v > 0).count() as u32;
+            rhist[rcell_k[cell] as usize] += rcell_c[cell];
+        }
+        let cost = self.total_cost(&hist, &rhist);
         Current {
             table: Table {
                 delta: delta.to_vec(),
@@ -130,6 +163,10 @@ impl<'a> Searcher<'a> {
             cell_c,
             cell_k,
             hist,
+            rcnt,
+            rcell_c,
+            rcell_k,
+            rhist,
             cost,
             pos,
         }
@@ -275,6 +312,24 @@ impl<'a> Searcher<'a> {
             cur_end = end;
             while t < end {
                 let lt = d.lab[t] as usize;
+                // The reward of step t is counted in the cell of the state before it: from
+                // the second position of a window on, that state differs.
+                if t > p {
+                    let ob = cur.after[t - 1] as usize;
+                    if ob != s {
+                        let m = d.mult[t] as i64;
+                        let r = d.rid[t] as usize;
+                        let (co, cn) = (ob * l_n + lt, s * l_n + lt);
+                        sc.rdiff[co * self.r_n + r] -= m;
+                        sc.rdiff[cn * self.r_n + r] += m;
+                        for c in [co, cn] {
+                            if !sc.rmark[c] {
+                                sc.rmark[c] = true;
+                                sc.rtouched.push(c as u32);
+                            }
+                        }
+                    }
+                }
                 let sn = if lt == l {
                     sc.col[s] as usize
                 } else {
@@ -321,7 +376,27 @@ impl<'a> Searcher<'a> {
             sc.mark[c] = false;
         }
         sc.touched.clear();
-        Some(cost_of_hist(&sc.hist, &self.ln))
+        sc.rhist.clear();
+        sc.rhist.extend_from_slice(&cur.rhist);
+        let r_n = self.r_n;
+        for &c in &sc.rtouched {
+            let c = c as usize;
+            let (mut total, mut k) = (0i64, 0usize);
+            for r in 0..r_n {
+                let idx = c * r_n + r;
+                let v = cur.rcnt[idx] as i64 + sc.rdiff[idx];
+                sc.rdiff[idx] = 0;
+                if v > 0 {
+                    total += v;
+                    k += 1;
+                }
+            }
+            sc.rhist[cur.rcell_k[c] as usize] -= cur.rcell_c[c];
+            sc.rhist[k] += total;
+            sc.rmark[c] = false;
+        }
+        sc.rtouched.clear();
+        Some(self.total_cost(&sc.hist, &sc.rhist))
     }
 
     fn scratch(&self) -> Scratch {
@@ -329,6 +404,10 @@ impl<'a> Searcher<'a> {
             diff: vec![0; self.u_max * self.l_n * self.l_n],
             mark: vec![false; self.u_max * self.l_n],
             touched: Vec::new(),
+            rdiff: vec![0; self.u_max * self.l_n * self.r_n],
+            rmark: vec![false; self.u_max * self.l_n],
+            rtouched: Vec::new(),
+            rhist: Vec::new(),
             positions: Vec::new(),
             col: Vec::new(),
             hist: Vec::new(),
@@ -493,7 +572,48 @@ struct Scratch {
     diff: Vec<i64>,
     mark: Vec<bool>,
     touched: Vec<u32>,
+    rdiff: Vec<i64>,
+    rmark: Vec<bool>,
+    rtouched: Vec<u32>,
+    rhist: Vec<i64>,
     positions: Vec<u32>,
     col: Vec<u16>,
     hist: Vec<i64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rm::lrm::synthetic::office_traces;
+    use crate::rm::Vocabulary;
+    use rand::SeedableRng;
+
+    /// The incremental neighbour cost equals a full run of the neighbour, for every move
+    /// from a sequence of machines visited by the search.
+    #[test]
+    fn incremental_cost_matches_full_run() {
+        let traces = office_traces(3, 3000, 5).unwrap();
+        let data = Data::new(&Vocabulary::new("ABCDcmo*"), &traces).unwrap();
+        for weight in [0.0, 100.0] {
+            let s = Searcher::new(&data, 5, weight);
+            let mut rng = ChaCha8Rng::seed_from_u64(3);
+            let mut table = s.canonical(&s.identity());
+            for round in 0..6 {
+                let cur = s.load(table.clone());
+                let moves = s.moves(&cur);
+                let costs = s.evaluate_all(&cur, &moves, 2);
+                for (m, c) in moves.iter().zip(&costs) {
+                    let full = s.cost(&s.apply(&cur.table.delta, *m));
+                    match c {
+                        Some(c) => assert!(
+                            (c - full).abs() < 1e-6 * full.max(1.0),
+                            "round {round} move {m:?}: incremental {c} vs full {full}"
+                        ),
+                        None => assert!((full - cur.cost).abs() < 1e-6 * full.max(1.0)),
+                    }
+                }
+                table = s.random_table(&mut rng);
+            }
+        }
+    }
 }

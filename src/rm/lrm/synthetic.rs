@@ -212,6 +212,12 @@ pub fn expert_like_traces(
                 }
             }
         }
+        // A machine with no way to a goal from its state gives no trip: the expert idles,
+        // so that every episode makes progress.
+        let rest = ep.budget - ep.labels.len();
+        if ep.labels.is_empty() {
+            ep.empties(rest, &mut rng);
+        }
         produced += ep.labels.len();
         traces.push(LabelTrace {
             labels: ep.labels,
