@@ -385,6 +385,9 @@ pub fn learn_structure(
         // Merging joins states the observed rewards cannot tell apart; SMIRL has no rewards
         // (they are what IRL learns), so it would collapse the machine to one state.
         merge: false,
+        // The reward term and the other options stay at the learner's defaults (without
+        // rewards the reward term is ignored).
+        ..LrmConfig::default()
     };
     learn_rm(world.vocab(), &traces, &cfg)
         .map(|learned| learned.rm)
