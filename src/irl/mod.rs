@@ -1,5 +1,10 @@
 //! Inverse RL: apprenticeship learning, MaxEnt IRL, f-IRL, kernel density estimation and SMIRL.
 //!
+//! # Tabular IRL (Office Gridworld)
+//!
+//! - [`tabular`]: experts and demonstrations, MaxEnt IRL, SMIRL on the product, apprenticeship
+//!   learning and ground-truth evaluation.
+//!
 //! # Continuous IRL (ReacherDelivery)
 //!
 //! - [`kde`]: exact Epanechnikov KDE on a bandwidth-sized cell grid (state marginals).
@@ -54,3 +59,4 @@ pub mod firl;
 pub mod kde;
 pub mod reward;
 pub mod smirl;
+pub mod tabular;
