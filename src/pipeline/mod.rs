@@ -2,4 +2,5 @@
 
 pub mod expert;
 pub mod offline_rm;
+pub mod reacher_expert;
 pub mod replay;
