@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Trains the SAC experts of the four ReacherDelivery tasks with the default ExpertConfig
-# (see src/pipeline/expert.rs), evaluates each on 100 episodes (stochastic and mean action),
+# (see src/pipeline/expert.rs) or, when experiments/experts/config_<task>.toml exists, that
+# config (documented in results.md), evaluates each on 100 episodes (stochastic and mean action),
 # copies the actor-only policy files into experiments/experts/cache/, copies the training
 # curves (SVG + CSV) next to this script and writes results.md from the runs' summary.json.
 #
@@ -8,6 +9,7 @@
 #   SEED  training seed of every task (default 0)
 #   JOBS  tasks trained at once (default 2: the machine has 2 cores; 4 also works and is
 #         faster overall when nothing else runs)
+# TASKS="if composite" restricts the training to those tasks (the table covers all four).
 # Runs go to target/expert-runs/<task>/ (checkpoints, demos.mcap); rerunning resumes them.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -20,7 +22,9 @@ BIN=target/release/reacher
 train() {
     local task=$1
     local run=target/expert-runs/$task
-    "$BIN" expert --task "$task" --seed "$SEED" --out "$run" --cache "$OUT/cache" --resume --quiet \
+    local config=()
+    if [ -f "$OUT/config_$task.toml" ]; then config=(--config "$OUT/config_$task.toml"); fi
+    "$BIN" expert --task "$task" "${config[@]}" --seed "$SEED" --out "$run" --cache "$OUT/cache" --resume --quiet \
         > "$run.log" 2>&1 || { echo "expert $task failed:"; cat "$run.log"; return 1; }
     python3 /work/shared/tools/check_mcap.py "$run/demos.mcap" >> "$run.log"
     "$BIN" replay "$run/demos.mcap" --verify | tail -1 >> "$run.log"
@@ -33,7 +37,8 @@ train() {
 export -f train
 export BIN SEED OUT
 mkdir -p target/expert-runs "$OUT/cache"
-printf '%s\n' or sequential if composite | xargs -P "$JOBS" -I{} bash -c 'train {}'
+TASKS=${TASKS:-or sequential if composite}
+printf '%s\n' $TASKS | xargs -P "$JOBS" -I{} bash -c 'train {}'
 
 python3 - "$OUT" "$SEED" "$JOBS" <<'PY'
 import json, sys, os

@@ -381,6 +381,10 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         task_return_mean: mean.mean_task_return,
         length_stochastic: stochastic.mean_length,
         length_mean: mean.mean_length,
+        cancel_episodes_stochastic: stochastic.cancel_episodes,
+        cancel_successes_stochastic: stochastic.cancel_successes,
+        cancel_episodes_mean: mean.cancel_episodes,
+        cancel_successes_mean: mean.cancel_successes,
         demos: demos.len(),
         demo_successes,
         git_commit: smirl::GIT_COMMIT.into(),
@@ -396,6 +400,13 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         mean.mean_task_return,
         demo_successes,
         demos.len()
+    );
+    println!(
+        "episodes with a cancel event: stochastic {}/{} successful, mean action {}/{}",
+        stochastic.cancel_successes,
+        stochastic.cancel_episodes,
+        mean.cancel_successes,
+        mean.cancel_episodes
     );
     println!(
         "wrote {} (checkpoint), {}, {}, {}, {} and {}",

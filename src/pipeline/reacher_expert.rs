@@ -19,7 +19,7 @@
 use super::expert::{train_expert, ExpertConfig, ExpertError, ExpertOutcome, ExpertProgress};
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{
-    default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM, VOCABULARY,
+    default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, CANCEL_BIT, OBS_DIM, VOCABULARY,
 };
 use crate::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
@@ -384,6 +384,16 @@ pub struct EvalSummary {
     /// Mean return of the environment's own reward.
     pub mean_env_return: f64,
     pub mean_length: f64,
+    /// Episodes in which the cancel event fired, and how many of them succeeded.
+    pub cancel_episodes: u64,
+    pub cancel_successes: u64,
+}
+
+impl Demo {
+    /// The cancel event fired during the episode.
+    pub fn cancelled(&self) -> bool {
+        self.steps.iter().any(|s| s.labels.contains(CANCEL_BIT))
+    }
 }
 
 /// Plays `episodes` episodes of `policy` on its task (no shaping), resets seeded by
@@ -406,6 +416,8 @@ pub fn evaluate_policy(
         mean_task_return: demos.iter().map(|d| d.task_return).sum::<f64>() / n,
         mean_env_return: demos.iter().map(|d| d.env_return).sum::<f64>() / n,
         mean_length: demos.iter().map(|d| d.steps.len() as f64).sum::<f64>() / n,
+        cancel_episodes: demos.iter().filter(|d| d.cancelled()).count() as u64,
+        cancel_successes: demos.iter().filter(|d| d.cancelled() && d.success).count() as u64,
     })
 }
 
@@ -640,6 +652,11 @@ pub struct ExpertRunSummary {
     pub task_return_mean: f64,
     pub length_stochastic: f64,
     pub length_mean: f64,
+    /// Stochastic-policy evaluation episodes with a cancel event, and their successes.
+    pub cancel_episodes_stochastic: u64,
+    pub cancel_successes_stochastic: u64,
+    pub cancel_episodes_mean: u64,
+    pub cancel_successes_mean: u64,
     pub demos: usize,
     pub demo_successes: usize,
     pub git_commit: String,
