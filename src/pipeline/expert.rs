@@ -113,7 +113,12 @@ impl ExpertConfig {
     /// Checks value ranges (SAC settings, environment, shaping, run lengths).
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.sac.validate()?;
-        let bad = |field, problem: String| Err(ConfigError::Invalid { field, problem });
+        let bad = |field: &str, problem: String| {
+            Err(ConfigError::Parse {
+                source_name: "expert config".into(),
+                message: format!("field `{field}`: {problem}"),
+            })
+        };
         if let Err(e) = self.env.validate() {
             return bad("env", e.to_string());
         }
