@@ -56,7 +56,7 @@ struct ExpertArgs {
     /// Continue a killed run from its last checkpoint in --out.
     #[arg(long)]
     resume: bool,
-    /// Run directory (checkpoint, curve, evaluation, demos).
+    /// Run directory (checkpoint, curve, evaluation, demos); default target/expert-runs/TASK.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Policy cache the trained actor is copied to (default experiments/experts/cache).
@@ -287,7 +287,7 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         .map_err(|e| UsageError(format!("expert config: {e}")))?;
     let out = args
         .out
-        .unwrap_or_else(|| PathBuf::from(format!("runs/experts/{task}")));
+        .unwrap_or_else(|| PathBuf::from(format!("target/expert-runs/{task}")));
     let cache = args.cache.unwrap_or_else(rx::default_cache_dir);
     let checkpoint = out.join("expert.ckpt");
     if checkpoint.exists() && !args.resume {
