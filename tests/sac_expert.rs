@@ -5,7 +5,9 @@ mod sac_common;
 
 use sac_common::PointReach;
 use smirl::env::{ContinuousEnv, EnvError, EnvStep};
-use smirl::pipeline::expert::{curve_path, read_curve, train_expert, ExpertConfig, ExpertError};
+use smirl::pipeline::expert::{
+    curve_path, expert_sac, read_curve, train_expert, ExpertConfig, ExpertError,
+};
 use smirl::rl::sac::{EpisodeSummary, SacConfig, SacTrainer};
 
 fn config(total_steps: u64) -> ExpertConfig {
@@ -22,6 +24,7 @@ fn config(total_steps: u64) -> ExpertConfig {
         eval_episodes: 20,
         eval_max_steps: 100,
         progress_window: 20,
+        ..ExpertConfig::default()
     }
 }
 
@@ -162,15 +165,19 @@ fn nan_stops_the_run_and_keeps_the_last_good_checkpoint() {
 
 #[test]
 fn expert_config_uses_the_expert_preset_and_names_bad_keys() {
-    let c = ExpertConfig::from_toml("total_steps = 5000\n[sac]\nlr = 1e-3\n", "e.toml").unwrap();
+    let c = ExpertConfig::from_toml("total_steps = 5000\n[sac]\nlr = 5e-4\n", "e.toml").unwrap();
     assert_eq!(c.total_steps, 5000);
     assert_eq!(
         c.sac,
         SacConfig {
-            lr: 1e-3,
-            ..SacConfig::expert()
+            lr: 5e-4,
+            ..expert_sac()
         }
     );
+    // Naming a preset takes that preset's values (the paper's fixed α = 0.2, lr 3e-3).
+    let c = ExpertConfig::from_toml("[sac]\npreset = \"expert\"\n", "e.toml").unwrap();
+    assert_eq!(c.sac, SacConfig::expert());
+    assert!(!c.sac.auto_alpha);
     assert_eq!(
         ExpertConfig::from_toml("", "e.toml").unwrap(),
         ExpertConfig::default()
