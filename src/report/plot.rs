@@ -253,7 +253,12 @@ fn nice_ticks(lo: f64, hi: f64, n: usize) -> Vec<f64> {
 
 fn fmt_tick(t: f64) -> String {
     if t.abs() >= 1e4 {
-        format!("{t:.0e}")
+        // Enough mantissa digits to tell neighbouring ticks apart (1.5e5, not 2e5), none
+        // trailing: "1e5", "1.5e5", "1.25e5".
+        let s = format!("{t:.3e}");
+        let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
+        let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+        format!("{mantissa}e{exponent}")
     } else if t.fract().abs() < 1e-9 {
         format!("{t:.0}")
     } else {
@@ -271,6 +276,16 @@ fn esc(text: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn large_ticks_keep_the_digits_that_tell_them_apart() {
+        assert_eq!(fmt_tick(100_000.0), "1e5");
+        assert_eq!(fmt_tick(150_000.0), "1.5e5");
+        assert_eq!(fmt_tick(125_000.0), "1.25e5");
+        assert_eq!(fmt_tick(20_000.0), "2e4");
+        assert_eq!(fmt_tick(2500.0), "2500");
+        assert_eq!(fmt_tick(0.25), "0.25");
+    }
 
     #[test]
     fn aggregates_with_carry_forward() {
