@@ -46,8 +46,6 @@ use crate::rm::labels::{LabelSet, Vocabulary};
 use crate::rm::machine::{RewardMachine, Transition};
 use data::Data;
 use merge::{merge_states, Cell};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
 
 /// One demonstration's labels (one label set per environment step) and, optionally, the
@@ -61,6 +59,11 @@ pub struct LabelTrace {
 /// Default weight of the reward term: large, so that explaining the observed rewards comes
 /// first and predicting the next label second.
 pub const DEFAULT_REWARD_WEIGHT: f64 = 100.0;
+
+/// Default number of independent starts of the search.
+pub const DEFAULT_STARTS: usize = 4;
+/// Default number of steps without improvement after which a start ends.
+pub const DEFAULT_PATIENCE: usize = 5;
 
 /// Parameters of the search.
 #[derive(Clone, Debug, PartialEq)]
@@ -82,6 +85,15 @@ pub struct LrmConfig {
     /// Weight of the reward term of the cost (see the module docs); 0 gives the reference
     /// objective. Ignored when the traces carry no rewards.
     pub reward_weight: f64,
+    /// Independent Tabu searches (start 0 from the one-state machine like the reference,
+    /// the others from seeded random machines); the best result is kept. 1 = the reference.
+    pub starts: usize,
+    /// A start ends after this many steps without improving its best cost (0 = run all
+    /// `max_steps`, as the reference does).
+    pub patience: usize,
+    /// Add the split move to the neighbourhood (see `search.rs`); off = the reference's
+    /// single-transition neighbourhood.
+    pub split_moves: bool,
 }
 
 impl Default for LrmConfig {
@@ -97,6 +109,9 @@ impl Default for LrmConfig {
             merge: true,
             fill_unobserved: false,
             reward_weight: DEFAULT_REWARD_WEIGHT,
+            starts: DEFAULT_STARTS,
+            patience: DEFAULT_PATIENCE,
+            split_moves: true,
         }
     }
 }
@@ -114,6 +129,9 @@ pub struct LrmStats {
     pub steps: usize,
     pub restarts: usize,
     pub neighbours_evaluated: u64,
+    /// The start whose machine was kept, and the best cost each start reached.
+    pub best_start: usize,
+    pub start_costs: Vec<f64>,
     /// States of the machine the search found (before merging).
     pub search_states: usize,
     /// Cost of the final (merged) machine.
@@ -178,9 +196,16 @@ pub fn learn_rm(
             cfg.reward_weight
         )));
     }
-    let searcher = search::Searcher::new(&data, cfg.max_states, cfg.reward_weight);
-    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let outcome = searcher.search(cfg.tabu_len, cfg.max_steps, cfg.threads.max(1), &mut rng);
+    let searcher = search::Searcher::new(&data, cfg.max_states, cfg.reward_weight)
+        .with_split_moves(cfg.split_moves);
+    let outcome = searcher.search(&search::SearchParams {
+        tabu_len: cfg.tabu_len,
+        max_steps: cfg.max_steps,
+        patience: cfg.patience,
+        starts: cfg.starts,
+        threads: cfg.threads.max(1),
+        seed: cfg.seed,
+    });
     let table = &outcome.best;
     let l_n = data.n_labels().max(1);
     let n = table.n_used;
@@ -263,6 +288,8 @@ pub fn learn_rm(
             steps: outcome.steps,
             restarts: outcome.restarts,
             neighbours_evaluated: outcome.neighbours_evaluated,
+            best_start: outcome.best_start,
+            start_costs: outcome.start_costs.clone(),
             search_states: n,
             final_cost,
             elapsed_secs: started.elapsed().as_secs_f64(),
