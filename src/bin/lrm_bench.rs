@@ -46,6 +46,7 @@ struct Args {
     max_states: usize,
     starts: usize,
     patience: usize,
+    split_moves: bool,
     only: Option<String>,
 }
 
@@ -60,6 +61,7 @@ fn parse_args() -> Result<Args> {
         max_states: d.max_states,
         starts: d.starts,
         patience: d.patience,
+        split_moves: true,
         only: None,
     };
     let mut it = std::env::args().skip(1);
@@ -78,9 +80,11 @@ fn parse_args() -> Result<Args> {
             "--max-states" => a.max_states = value("--max-states")?.max(1),
             "--starts" => a.starts = value("--starts")?.max(1),
             "--patience" => a.patience = value("--patience")?,
+            // `--starts 1 --patience 0 --no-split` is the reference search.
+            "--no-split" => a.split_moves = false,
             "--only" => a.only = Some(it.next().context("--only needs a task name prefix")?),
             other => {
-                bail!("unknown argument {other:?} (expected --steps, --reps, --threads, --seed, --search-steps, --max-states, --starts, --patience, --only)")
+                bail!("unknown argument {other:?} (expected --steps, --reps, --threads, --seed, --search-steps, --max-states, --starts, --patience, --no-split, --only)")
             }
         }
     }
@@ -114,12 +118,14 @@ fn yn(b: bool) -> &'static str {
 fn main() -> Result<()> {
     let args = parse_args()?;
     println!(
-        "lrm_bench: {} transitions per task, median of {} runs, {} threads, seed {}, {} starts, git {}",
+        "lrm_bench: {} transitions per task, median of {} runs, {} threads, seed {}, {} starts, patience {}, split moves {}, git {}",
         args.steps,
         args.reps,
         args.threads,
         args.seed,
         args.starts,
+        args.patience,
+        args.split_moves,
         if smirl::GIT_COMMIT.is_empty() {
             "unknown"
         } else {
@@ -199,6 +205,7 @@ fn main() -> Result<()> {
                 max_states: args.max_states,
                 starts: args.starts,
                 patience: args.patience,
+                split_moves: args.split_moves,
                 // Without rewards merging has nothing to go by (it would merge everything).
                 merge: with_rewards,
                 ..LrmConfig::default()
