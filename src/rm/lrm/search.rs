@@ -92,7 +92,7 @@ pub(crate) struct Searcher<'a> {
 }
 
 /// Parameters of [`Searcher::search`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub(crate) struct SearchParams {
     pub tabu_len: usize,
     /// Steps of each start at most.
@@ -103,6 +103,8 @@ pub(crate) struct SearchParams {
     pub starts: usize,
     pub threads: usize,
     pub seed: u64,
+    /// An extra start (after the others): e.g. the best machine of a smaller `u_max`.
+    pub warm: Option<Table>,
 }
 
 impl<'a> Searcher<'a> {
@@ -119,6 +121,72 @@ impl<'a> Searcher<'a> {
             ln: ln_table(l_n.max(r_n)),
             split_moves: true,
         }
+    }
+
+    /// `t` (a canonical table of a search with fewer states) as a table of this search: the
+    /// extra states are unused (stay everywhere), so it stays canonical.
+    pub fn widen(&self, t: &Table) -> Table {
+        let mut delta = self.identity();
+        let n = (t.delta.len() / self.l_n).min(self.u_max);
+        delta[..n * self.l_n].copy_from_slice(&t.delta[..n * self.l_n]);
+        Table {
+            delta,
+            n_used: t.n_used.min(self.u_max),
+        }
+    }
+
+    /// The initial-state split of `t` (a table of a search with fewer states than this
+    /// searcher's `u_max`), or `None` when no transition re-enters the initial state.
+    ///
+    /// The objective never sees the initial state as such: a prediction is made in the state
+    /// *after* each label, so when the traces start with the label that also leads back to
+    /// state 0 (Office task 4: every demonstration starts on A, and A after D re-enters the
+    /// state "seeking B"), the search has no reason to keep "before the first label" apart
+    /// from that state, and the learned machine refines the perfect one everywhere except at
+    /// the first position of each trace. The split adds a fresh initial state `f` that does
+    /// what state 0 does, except where state 0 stays on `l` only because some `(k, l)`
+    /// enters it (a stutter stay): there `f` goes to 0. Genuine stays of 0 stay in `f`. Runs
+    /// are unchanged except that the prefix before leaving `f` is read in `f`: prediction
+    /// cells are only partitioned, so the cost cannot rise.
+    pub fn split_initial(&self, t: &Table) -> Option<Table> {
+        let (l_n, n) = (self.l_n, t.n_used);
+        if n + 1 > self.u_max {
+            return None;
+        }
+        let delta = self.widen(t).delta;
+        let reentered: Vec<bool> = (0..l_n)
+            .map(|l| (1..n).any(|k| delta[k * l_n + l] == 0))
+            .collect();
+        if !reentered.iter().any(|&r| r) {
+            return None;
+        }
+        let f = n;
+        let mut split = delta.clone();
+        for l in 0..l_n {
+            let d0 = delta[l] as usize;
+            split[f * l_n + l] = if d0 != 0 || reentered[l] {
+                d0 as u16
+            } else {
+                f as u16
+            };
+        }
+        // Make `f` the initial state (state 0) by swapping it with 0.
+        let swap = |u: usize| -> usize {
+            if u == 0 {
+                f
+            } else if u == f {
+                0
+            } else {
+                u
+            }
+        };
+        let mut swapped = self.identity();
+        for u in 0..=n {
+            for l in 0..l_n {
+                swapped[swap(u) * l_n + l] = swap(split[u * l_n + l] as usize) as u16;
+            }
+        }
+        Some(self.canonical(&swapped))
     }
 
     /// Whether the neighbourhood includes the split move (default: yes).
@@ -564,11 +632,15 @@ impl<'a> Searcher<'a> {
     /// index) is returned. Starts run in parallel (`min(threads, starts)` workers; the rest
     /// of the threads evaluate neighbours within a start).
     pub fn search(&self, p: &SearchParams) -> SearchOutcome {
-        let starts = p.starts.max(1);
+        let starts = p.starts.max(1) + usize::from(p.warm.is_some());
         let run_start = |k: usize, threads: usize| -> SearchOutcome {
             let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
             rng.set_stream(k as u64);
-            let table = if k == 0 || self.u_max < 2 {
+            let table = if k >= p.starts.max(1) {
+                p.warm
+                    .clone()
+                    .expect("only the warm start is past cfg.starts")
+            } else if k == 0 || self.u_max < 2 {
                 self.canonical(&self.identity())
             } else {
                 self.random_table(2 + (k - 1) % (self.u_max - 1), &mut rng)
