@@ -80,7 +80,8 @@ fn parse_args() -> Result<Args> {
             "--max-states" => a.max_states = value("--max-states")?.max(1),
             "--starts" => a.starts = value("--starts")?.max(1),
             "--patience" => a.patience = value("--patience")?,
-            // `--starts 1 --patience 0 --no-split` is the reference search.
+            // `--starts 1 --patience 0 --no-split` is the reference search (no split move,
+            // no initial-state split).
             "--no-split" => a.split_moves = false,
             "--only" => a.only = Some(it.next().context("--only needs a task name prefix")?),
             other => {
@@ -206,6 +207,7 @@ fn main() -> Result<()> {
                 starts: args.starts,
                 patience: args.patience,
                 split_moves: args.split_moves,
+                split_initial: args.split_moves,
                 // Without rewards merging has nothing to go by (it would merge everything).
                 merge: with_rewards,
                 ..LrmConfig::default()
