@@ -47,6 +47,7 @@ struct Args {
     starts: usize,
     patience: usize,
     split_moves: bool,
+    fill_unobserved: bool,
     only: Option<String>,
 }
 
@@ -62,6 +63,7 @@ fn parse_args() -> Result<Args> {
         starts: d.starts,
         patience: d.patience,
         split_moves: true,
+        fill_unobserved: false,
         only: None,
     };
     let mut it = std::env::args().skip(1);
@@ -83,9 +85,10 @@ fn parse_args() -> Result<Args> {
             // `--starts 1 --patience 0 --no-split` is the reference search (no split move,
             // no initial-state split).
             "--no-split" => a.split_moves = false,
+            "--fill-unobserved" => a.fill_unobserved = true,
             "--only" => a.only = Some(it.next().context("--only needs a task name prefix")?),
             other => {
-                bail!("unknown argument {other:?} (expected --steps, --reps, --threads, --seed, --search-steps, --max-states, --starts, --patience, --no-split, --only)")
+                bail!("unknown argument {other:?} (expected --steps, --reps, --threads, --seed, --search-steps, --max-states, --starts, --patience, --no-split, --fill-unobserved, --only)")
             }
         }
     }
@@ -208,6 +211,7 @@ fn main() -> Result<()> {
                 patience: args.patience,
                 split_moves: args.split_moves,
                 split_initial: args.split_moves,
+                fill_unobserved: args.fill_unobserved,
                 // Without rewards merging has nothing to go by (it would merge everything).
                 merge: with_rewards,
                 ..LrmConfig::default()
