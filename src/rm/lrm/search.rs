@@ -22,7 +22,7 @@
 
 use super::data::{cost_of_hist, ln_table, Data};
 use rand::seq::SliceRandom;
-use rand::Rng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::{HashSet, VecDeque};
 
@@ -54,12 +54,20 @@ struct Current {
     pos: Vec<Vec<u32>>,
 }
 
+/// A move of the neighbourhood.
 #[derive(Clone, Copy, Debug)]
-struct Move {
-    i: u16,
-    l: u16,
-    j: u16,
-    remove: bool,
+enum Move {
+    /// The reference move: add, redirect (`remove = false`) or remove the single transition
+    /// `(i, l) -> j`.
+    Single {
+        i: u16,
+        l: u16,
+        j: u16,
+        remove: bool,
+    },
+    /// Beyond the reference: redirect `(i, l)` into a fresh copy of its target (see
+    /// [`Searcher::split_into`]). Never raises the cost.
+    Split { i: u16, l: u16 },
 }
 
 pub(crate) struct SearchOutcome {
@@ -68,6 +76,9 @@ pub(crate) struct SearchOutcome {
     pub steps: usize,
     pub restarts: usize,
     pub neighbours_evaluated: u64,
+    /// The start whose machine was returned, and the best cost of every start.
+    pub best_start: usize,
+    pub start_costs: Vec<f64>,
 }
 
 pub(crate) struct Searcher<'a> {
@@ -77,6 +88,23 @@ pub(crate) struct Searcher<'a> {
     r_n: usize,
     reward_weight: f64,
     ln: Vec<f64>,
+    split_moves: bool,
+}
+
+/// Parameters of [`Searcher::search`].
+#[derive(Clone, Debug)]
+pub(crate) struct SearchParams {
+    pub tabu_len: usize,
+    /// Steps of each start at most.
+    pub max_steps: usize,
+    /// A start ends after this many steps without improving its best cost (0 = never).
+    pub patience: usize,
+    /// Independent starts (at least 1).
+    pub starts: usize,
+    pub threads: usize,
+    pub seed: u64,
+    /// An extra start (after the others): e.g. the best machine of a smaller `u_max`.
+    pub warm: Option<Table>,
 }
 
 impl<'a> Searcher<'a> {
@@ -91,7 +119,80 @@ impl<'a> Searcher<'a> {
             r_n,
             reward_weight,
             ln: ln_table(l_n.max(r_n)),
+            split_moves: true,
         }
+    }
+
+    /// `t` (a canonical table of a search with fewer states) as a table of this search: the
+    /// extra states are unused (stay everywhere), so it stays canonical.
+    pub fn widen(&self, t: &Table) -> Table {
+        let mut delta = self.identity();
+        let n = (t.delta.len() / self.l_n).min(self.u_max);
+        delta[..n * self.l_n].copy_from_slice(&t.delta[..n * self.l_n]);
+        Table {
+            delta,
+            n_used: t.n_used.min(self.u_max),
+        }
+    }
+
+    /// The initial-state split of `t` (a table of a search with fewer states than this
+    /// searcher's `u_max`), or `None` when no transition re-enters the initial state.
+    ///
+    /// The objective never sees the initial state as such: a prediction is made in the state
+    /// *after* each label, so when the traces start with the label that also leads back to
+    /// state 0 (Office task 4: every demonstration starts on A, and A after D re-enters the
+    /// state "seeking B"), the search has no reason to keep "before the first label" apart
+    /// from that state, and the learned machine refines the perfect one everywhere except at
+    /// the first position of each trace. The split adds a fresh initial state `f` that does
+    /// what state 0 does, except where state 0 stays on `l` only because some `(k, l)`
+    /// enters it (a stutter stay): there `f` goes to 0. Genuine stays of 0 stay in `f`. Runs
+    /// are unchanged except that the prefix before leaving `f` is read in `f`: prediction
+    /// cells are only partitioned, so the cost cannot rise.
+    pub fn split_initial(&self, t: &Table) -> Option<Table> {
+        let (l_n, n) = (self.l_n, t.n_used);
+        if n + 1 > self.u_max {
+            return None;
+        }
+        let delta = self.widen(t).delta;
+        let reentered: Vec<bool> = (0..l_n)
+            .map(|l| (1..n).any(|k| delta[k * l_n + l] == 0))
+            .collect();
+        if !reentered.iter().any(|&r| r) {
+            return None;
+        }
+        let f = n;
+        let mut split = delta.clone();
+        for l in 0..l_n {
+            let d0 = delta[l] as usize;
+            split[f * l_n + l] = if d0 != 0 || reentered[l] {
+                d0 as u16
+            } else {
+                f as u16
+            };
+        }
+        // Make `f` the initial state (state 0) by swapping it with 0.
+        let swap = |u: usize| -> usize {
+            if u == 0 {
+                f
+            } else if u == f {
+                0
+            } else {
+                u
+            }
+        };
+        let mut swapped = self.identity();
+        for u in 0..=n {
+            for l in 0..l_n {
+                swapped[swap(u) * l_n + l] = swap(split[u * l_n + l] as usize) as u16;
+            }
+        }
+        Some(self.canonical(&swapped))
+    }
+
+    /// Whether the neighbourhood includes the split move (default: yes).
+    pub fn with_split_moves(mut self, on: bool) -> Searcher<'a> {
+        self.split_moves = on;
+        self
     }
 
     fn total_cost(&self, hist: &[i64], rhist: &[i64]) -> f64 {
@@ -221,32 +322,53 @@ impl<'a> Searcher<'a> {
         }
     }
 
-    /// Column `l` of `delta` after the move.
-    fn column(&self, delta: &[u16], mv: Move, col: &mut Vec<u16>) {
-        let (l_n, l) = (self.l_n, mv.l as usize);
-        col.clear();
-        col.extend((0..self.u_max).map(|s| delta[s * l_n + l]));
-        let (i, j) = (mv.i as usize, mv.j);
-        if mv.remove {
-            col[i] = i as u16;
-        } else {
-            for (k, c) in col.iter_mut().enumerate() {
-                if *c as usize == i && k != i {
-                    *c = k as u16;
+    /// Writes the machine after the move into `out` (`n_used` = used states of `delta`).
+    fn apply_into(&self, delta: &[u16], n_used: usize, mv: Move, out: &mut Vec<u16>) {
+        out.clear();
+        out.extend_from_slice(delta);
+        let l_n = self.l_n;
+        match mv {
+            Move::Single { i, l, j, remove } => {
+                let (i, l) = (i as usize, l as usize);
+                if remove {
+                    out[i * l_n + l] = i as u16;
+                } else {
+                    // As in the reference: `j` stays on `l` and nothing else enters `i` on
+                    // `l`, which keeps the machine stutter invariant.
+                    for k in 0..self.u_max {
+                        if out[k * l_n + l] as usize == i && k != i {
+                            out[k * l_n + l] = k as u16;
+                        }
+                    }
+                    out[i * l_n + l] = j;
+                    out[j as usize * l_n + l] = j;
                 }
             }
-            col[i] = j;
-            col[j as usize] = j;
+            Move::Split { i, l } => Self::split_into(out, l_n, i as usize, l as usize, n_used),
         }
     }
 
-    fn apply(&self, delta: &[u16], mv: Move) -> Vec<u16> {
-        let mut col = Vec::new();
-        self.column(delta, mv, &mut col);
-        let mut out = delta.to_vec();
-        for (s, &c) in col.iter().enumerate() {
-            out[s * self.l_n + mv.l as usize] = c;
+    /// The split move: the fresh state `f` gets a copy of the row of `v = delta(i, l)` (its
+    /// stays become stays in `f`) and `(i, l)` now goes to `f`. `f` behaves like `v`, so every
+    /// run visits the same states except that some visits of `v` become visits of `f`: the
+    /// prediction cells of `v` are partitioned, which can only lower `Σ log |N|` (and the
+    /// reward term). It is the one move that adds a state "for free"; the reference
+    /// neighbourhood needs two moves, the first of which usually costs a lot (a fresh state
+    /// with no way out), so Tabu search rarely takes it: measured on Office task 4, where the
+    /// search stopped at 3 states (cost 10 909) and one split of the perfect machine's
+    /// missing state gives the perfect machine (cost 8 238).
+    fn split_into(delta: &mut [u16], l_n: usize, i: usize, l: usize, f: usize) {
+        let v = delta[i * l_n + l] as usize;
+        for x in 0..l_n {
+            let t = delta[v * l_n + x] as usize;
+            delta[f * l_n + x] = if t == v { f as u16 } else { t as u16 };
         }
+        delta[i * l_n + l] = f as u16;
+    }
+
+    fn apply(&self, delta: &[u16], n_used: usize, mv: Move) -> Vec<u16> {
+        let mut out = Vec::new();
+        self.apply_into(delta, n_used, mv, &mut out);
         out
     }
 
@@ -261,7 +383,7 @@ impl<'a> Searcher<'a> {
                         continue;
                     }
                     let remove = cur.table.delta[i * self.l_n + l] as usize == j;
-                    out.push(Move {
+                    out.push(Move::Single {
                         i: i as u16,
                         l: l as u16,
                         j: j as u16,
@@ -270,32 +392,54 @@ impl<'a> Searcher<'a> {
                 }
             }
         }
+        if self.split_moves && n < self.u_max {
+            for i in 0..n {
+                for l in 0..self.l_n {
+                    if !cur.pos[i * self.l_n + l].is_empty() {
+                        out.push(Move::Split {
+                            i: i as u16,
+                            l: l as u16,
+                        });
+                    }
+                }
+            }
+        }
         out
     }
 
     /// Cost of the neighbour, or `None` when the move cannot change the run.
     fn neighbour_cost(&self, cur: &Current, mv: Move, sc: &mut Scratch) -> Option<f64> {
-        let (d, l_n) = (self.data, self.l_n);
-        let l = mv.l as usize;
         let delta = &cur.table.delta;
-        self.column(delta, mv, &mut sc.col);
+        let mut nd = std::mem::take(&mut sc.delta);
+        self.apply_into(delta, cur.table.n_used, mv, &mut nd);
+        // The runs diverge only where the current run reads a changed cell.
         sc.positions.clear();
         let mut lists = 0;
-        for s in 0..self.u_max {
-            if sc.col[s] != delta[s * l_n + l] {
-                let p = &cur.pos[s * l_n + l];
+        for (cell, (&a, &b)) in delta.iter().zip(nd.iter()).enumerate() {
+            if a != b {
+                let p = &cur.pos[cell];
                 if !p.is_empty() {
                     sc.positions.extend_from_slice(p);
                     lists += 1;
                 }
             }
         }
-        if lists == 0 {
-            return None;
-        }
-        if lists > 1 {
-            sc.positions.sort_unstable();
-        }
+        let out = if lists == 0 {
+            None
+        } else {
+            if lists > 1 {
+                sc.positions.sort_unstable();
+            }
+            Some(self.windows_cost(cur, &nd, sc))
+        };
+        sc.delta = nd;
+        out
+    }
+
+    /// The neighbour's cost from the windows where its run (table `nd`) differs from the
+    /// current one, starting at `sc.positions` (sorted).
+    fn windows_cost(&self, cur: &Current, nd: &[u16], sc: &mut Scratch) -> f64 {
+        let (d, l_n) = (self.data, self.l_n);
         let mut cur_end = 0usize;
         for k in 0..sc.positions.len() {
             let p = sc.positions[k] as usize;
@@ -330,11 +474,7 @@ impl<'a> Searcher<'a> {
                         }
                     }
                 }
-                let sn = if lt == l {
-                    sc.col[s] as usize
-                } else {
-                    delta[s * l_n + lt] as usize
-                };
+                let sn = nd[s * l_n + lt] as usize;
                 let so = cur.after[t] as usize;
                 if sn == so {
                     cur_end = t + 1;
@@ -396,7 +536,7 @@ impl<'a> Searcher<'a> {
             sc.rmark[c] = false;
         }
         sc.rtouched.clear();
-        Some(self.total_cost(&sc.hist, &sc.rhist))
+        self.total_cost(&sc.hist, &sc.rhist)
     }
 
     fn scratch(&self) -> Scratch {
@@ -409,7 +549,7 @@ impl<'a> Searcher<'a> {
             rtouched: Vec::new(),
             rhist: Vec::new(),
             positions: Vec::new(),
-            col: Vec::new(),
+            delta: Vec::new(),
             hist: Vec::new(),
         }
     }
@@ -451,24 +591,26 @@ impl<'a> Searcher<'a> {
         out
     }
 
-    fn random_table(&self, rng: &mut ChaCha8Rng) -> Table {
+    /// A random machine over `n` states (`2 <= n <= u_max`): each cell gets a random
+    /// transition with probability 1/2, applied as reference moves (so it is stutter
+    /// invariant), then made canonical.
+    fn random_table(&self, n: usize, rng: &mut ChaCha8Rng) -> Table {
+        let n = n.clamp(2, self.u_max.max(2)).min(self.u_max);
         let mut delta = self.identity();
-        for i in 0..self.u_max {
+        for i in 0..n {
             for l in 0..self.l_n {
-                if rng.gen_bool(0.5) {
-                    let mut j = rng.gen_range(0..self.u_max - 1);
+                if n > 1 && rng.gen_bool(0.5) {
+                    let mut j = rng.gen_range(0..n - 1);
                     if j >= i {
                         j += 1;
                     }
-                    delta = self.apply(
-                        &delta,
-                        Move {
-                            i: i as u16,
-                            l: l as u16,
-                            j: j as u16,
-                            remove: false,
-                        },
-                    );
+                    let mv = Move::Single {
+                        i: i as u16,
+                        l: l as u16,
+                        j: j as u16,
+                        remove: false,
+                    };
+                    delta = self.apply(&delta, self.u_max, mv);
                 }
             }
         }
@@ -481,15 +623,103 @@ impl<'a> Searcher<'a> {
         cur
     }
 
-    /// The Tabu search from the one-state machine.
-    pub fn search(
+    /// Multi-start Tabu search (an addition to the reference, which runs one search from the
+    /// one-state machine): start 0 is the reference's start, start `k >= 1` is a random
+    /// machine over `2 + (k - 1) % (u_max - 1)` states drawn with its own random stream. Each
+    /// start is an independent Tabu search ([`Searcher::search_from`]) with its own RNG
+    /// (stream `k` of the seed), so its result does not depend on which thread runs it; the
+    /// best machine over all starts (lowest cost, then fewest states, then lowest start
+    /// index) is returned. Starts run in parallel (`min(threads, starts)` workers; the rest
+    /// of the threads evaluate neighbours within a start).
+    pub fn search(&self, p: &SearchParams) -> SearchOutcome {
+        let starts = p.starts.max(1) + usize::from(p.warm.is_some());
+        let run_start = |k: usize, threads: usize| -> SearchOutcome {
+            let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
+            rng.set_stream(k as u64);
+            let table = if k >= p.starts.max(1) {
+                p.warm
+                    .clone()
+                    .expect("only the warm start is past cfg.starts")
+            } else if k == 0 || self.u_max < 2 {
+                self.canonical(&self.identity())
+            } else {
+                self.random_table(2 + (k - 1) % (self.u_max - 1), &mut rng)
+            };
+            self.search_from(table, p, threads, &mut rng)
+        };
+        let workers = p.threads.clamp(1, starts);
+        let inner = (p.threads / workers).max(1);
+        let outcomes: Vec<SearchOutcome> = if workers == 1 {
+            (0..starts).map(|k| run_start(k, inner)).collect()
+        } else {
+            let next = std::sync::atomic::AtomicUsize::new(0);
+            let mut slots: Vec<Option<SearchOutcome>> = (0..starts).map(|_| None).collect();
+            let parts: Vec<Vec<(usize, SearchOutcome)>> = std::thread::scope(|scope| {
+                let handles: Vec<_> = (0..workers)
+                    .map(|_| {
+                        scope.spawn(|| {
+                            let mut done = Vec::new();
+                            loop {
+                                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                                if k >= starts {
+                                    break done;
+                                }
+                                done.push((k, run_start(k, inner)));
+                            }
+                        })
+                    })
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| h.join().expect("a start does not panic"))
+                    .collect()
+            });
+            for (k, o) in parts.into_iter().flatten() {
+                slots[k] = Some(o);
+            }
+            slots
+                .into_iter()
+                .map(|o| o.expect("every start ran"))
+                .collect()
+        };
+        let mut best_k = 0;
+        for (k, o) in outcomes.iter().enumerate() {
+            let b = &outcomes[best_k];
+            if o.best_cost < b.best_cost
+                || (o.best_cost == b.best_cost && o.best.n_used < b.best.n_used)
+            {
+                best_k = k;
+            }
+        }
+        let mut total = SearchOutcome {
+            best: outcomes[best_k].best.clone(),
+            best_cost: outcomes[best_k].best_cost,
+            steps: 0,
+            restarts: 0,
+            neighbours_evaluated: 0,
+            best_start: best_k,
+            start_costs: outcomes.iter().map(|o| o.best_cost).collect(),
+        };
+        for o in &outcomes {
+            total.steps += o.steps;
+            total.restarts += o.restarts;
+            total.neighbours_evaluated += o.neighbours_evaluated;
+        }
+        total
+    }
+
+    /// One Tabu search from `start` (the reference's loop): move to the best non-tabu
+    /// neighbour, restart from a random machine when every neighbour is tabu; stops after
+    /// `max_steps` steps or `patience` steps without improving the best machine found.
+    pub fn search_from(
         &self,
-        tabu_len: usize,
-        max_steps: usize,
+        start: Table,
+        p: &SearchParams,
         threads: usize,
         rng: &mut ChaCha8Rng,
     ) -> SearchOutcome {
-        let mut cur = self.load(self.canonical(&self.identity()));
+        let tabu_len = p.tabu_len;
+        let mut cur = self.load(start);
         let mut best = (cur.cost, cur.table.clone());
         let mut tabu_set: HashSet<Vec<u16>> = HashSet::new();
         let mut tabu_fifo: VecDeque<Vec<u16>> = VecDeque::new();
@@ -508,54 +738,53 @@ impl<'a> Searcher<'a> {
         };
         push_tabu(&cur.table, &mut tabu_set);
         let (mut steps, mut restarts, mut evaluated) = (0, 0, 0u64);
-        if self.u_max < 2 || self.data.len() == 0 {
-            return SearchOutcome {
-                best: best.1,
-                best_cost: best.0,
-                steps,
-                restarts,
-                neighbours_evaluated: evaluated,
-            };
-        }
-        while steps < max_steps {
-            steps += 1;
-            let moves = self.moves(&cur);
-            let costs = self.evaluate_all(&cur, &moves, threads);
-            evaluated += moves.len() as u64;
-            // Ties are broken by a seeded shuffle, not by move order.
-            let mut cands: Vec<(f64, usize)> = costs
-                .iter()
-                .enumerate()
-                .filter_map(|(m, c)| c.map(|c| (c, m)))
-                .collect();
-            cands.shuffle(rng);
-            cands.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let mut next = None;
-            for &(_, m) in &cands {
-                let t = self.canonical(&self.apply(&cur.table.delta, moves[m]));
-                if !tabu_set.contains(&t.delta) {
-                    next = Some(t);
-                    break;
-                }
-            }
-            let next = match next {
-                Some(t) => t,
-                None => {
-                    restarts += 1;
-                    let mut t = self.random_table(rng);
-                    for _ in 0..100 {
-                        if !tabu_set.contains(&t.delta) {
-                            break;
-                        }
-                        t = self.random_table(rng);
+        let mut since_best = 0;
+        if self.u_max >= 2 && self.data.len() > 0 {
+            while steps < p.max_steps && (p.patience == 0 || since_best < p.patience) {
+                steps += 1;
+                since_best += 1;
+                let moves = self.moves(&cur);
+                let costs = self.evaluate_all(&cur, &moves, threads);
+                evaluated += moves.len() as u64;
+                // Ties are broken by a seeded shuffle, not by move order.
+                let mut cands: Vec<(f64, usize)> = costs
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(m, c)| c.map(|c| (c, m)))
+                    .collect();
+                cands.shuffle(rng);
+                cands.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let mut next = None;
+                for &(_, m) in &cands {
+                    let delta = self.apply(&cur.table.delta, cur.table.n_used, moves[m]);
+                    let t = self.canonical(&delta);
+                    if !tabu_set.contains(&t.delta) {
+                        next = Some(t);
+                        break;
                     }
-                    t
                 }
-            };
-            cur = self.load(next);
-            push_tabu(&cur.table, &mut tabu_set);
-            if cur.cost < best.0 || (cur.cost == best.0 && cur.table.n_used < best.1.n_used) {
-                best = (cur.cost, cur.table.clone());
+                let next = match next {
+                    Some(t) => t,
+                    None => {
+                        restarts += 1;
+                        let mut t = self.random_table(self.u_max, rng);
+                        for _ in 0..100 {
+                            if !tabu_set.contains(&t.delta) {
+                                break;
+                            }
+                            t = self.random_table(self.u_max, rng);
+                        }
+                        t
+                    }
+                };
+                cur = self.load(next);
+                push_tabu(&cur.table, &mut tabu_set);
+                if cur.cost < best.0 || (cur.cost == best.0 && cur.table.n_used < best.1.n_used) {
+                    if cur.cost < best.0 {
+                        since_best = 0;
+                    }
+                    best = (cur.cost, cur.table.clone());
+                }
             }
         }
         SearchOutcome {
@@ -564,6 +793,8 @@ impl<'a> Searcher<'a> {
             steps,
             restarts,
             neighbours_evaluated: evaluated,
+            best_start: 0,
+            start_costs: vec![best.0],
         }
     }
 }
@@ -577,7 +808,8 @@ struct Scratch {
     rtouched: Vec<u32>,
     rhist: Vec<i64>,
     positions: Vec<u32>,
-    col: Vec<u16>,
+    /// The neighbour's table.
+    delta: Vec<u16>,
     hist: Vec<i64>,
 }
 
@@ -603,7 +835,7 @@ mod tests {
                 let moves = s.moves(&cur);
                 let costs = s.evaluate_all(&cur, &moves, 2);
                 for (m, c) in moves.iter().zip(&costs) {
-                    let full = s.cost(&s.apply(&cur.table.delta, *m));
+                    let full = s.cost(&s.apply(&cur.table.delta, cur.table.n_used, *m));
                     match c {
                         Some(c) => assert!(
                             (c - full).abs() < 1e-6 * full.max(1.0),
@@ -612,7 +844,7 @@ mod tests {
                         None => assert!((full - cur.cost).abs() < 1e-6 * full.max(1.0)),
                     }
                 }
-                table = s.random_table(&mut rng);
+                table = s.random_table(2 + round % 3, &mut rng);
             }
         }
     }
