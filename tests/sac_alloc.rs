@@ -7,23 +7,36 @@ use sac_common::PointReach;
 use smirl::nn::gemm;
 use smirl::rl::sac::{EnvReward, SacConfig, SacTrainer};
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::cell::Cell;
 
 struct CountingAllocator;
 
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+thread_local! {
+    // Per thread, so that allocations by the test harness's other threads (its progress
+    // notices under load, for one) are not counted against the training loop.
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(Cell::get)
+}
+
+fn count() {
+    // try_with: the slot may be gone while a thread is being torn down.
+    let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+}
 
 // SAFETY: forwards to the system allocator unchanged; only counts calls.
 unsafe impl GlobalAlloc for CountingAllocator {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         System.alloc(layout)
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         System.dealloc(ptr, layout)
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         System.realloc(ptr, layout, new_size)
     }
 }
@@ -50,11 +63,11 @@ fn steps_with_updates_allocate_only_inside_sgemm() {
     assert!(gemms_per_step > 30, "{gemms_per_step} products per step");
 
     let steps = 200; // crosses ten episode boundaries
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = allocations();
     trainer
         .train(&mut env, &mut EnvReward, steps, |_| {})
         .unwrap();
-    let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    let allocations = allocations() - before;
     eprintln!(
         "{allocations} allocations, {} sgemm calls",
         steps as usize * gemms_per_step
