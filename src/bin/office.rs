@@ -1,2 +1,300 @@
-//! `office`: the Office Gridworld experiments (filled in by the Office work).
-fn main() {}
+//! `office`: the Office Gridworld experiments (paper section 4.2, figures 4 and 5).
+//!
+//! ```text
+//! office --task 3 --algo smirl|maxent|apprenticeship|all --seeds 3 --seed 0 --out runs/office-t3 [--config office.toml] [--force]
+//! ```
+//! Writes into `--out`: `metrics.csv` (one row per algorithm, seed and IRL step),
+//! `summary.csv`, `success.svg` (mean ± std over seeds per algorithm), per SMIRL seed the
+//! reward machine (`rm_smirl_seed<S>.txt` and `.dot`), and the learned reward weights
+//! (`weights_<algo>_seed<S>.csv`). Arguments and configuration are checked before anything
+//! is written (bad ones exit with code 2); results are written to a temporary directory that
+//! is renamed to `--out` only when complete.
+
+use anyhow::{bail, Context, Result};
+use clap::Parser;
+use smirl::env::office::OfficeTask;
+use smirl::pipeline::office::{run, Algo, OfficeConfig, OfficeRun};
+use smirl::report::{aggregate_over_seeds, write_atomic, CsvTable, LinePlot, Series};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "office",
+    about = "Office Gridworld IRL experiments (SMIRL and baselines)"
+)]
+struct Args {
+    /// Task number, 0-4.
+    #[arg(long, allow_negative_numbers = true)]
+    task: i64,
+    /// smirl, maxent, apprenticeship or all.
+    #[arg(long, default_value = "all")]
+    algo: String,
+    /// Number of seeds.
+    #[arg(long, default_value_t = 3)]
+    seeds: u64,
+    /// Base seed: the runs use seed, seed+1, ...
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output directory (must not exist unless --force).
+    #[arg(long)]
+    out: PathBuf,
+    /// TOML configuration (see `OfficeConfig`).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Replace an existing output directory.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Everything checked before the run starts.
+struct Plan {
+    task: OfficeTask,
+    algos: Vec<Algo>,
+    seeds: Vec<u64>,
+    cfg: OfficeConfig,
+    out: PathBuf,
+}
+
+fn plan(args: &Args) -> Result<Plan> {
+    let task = OfficeTask::from_index(args.task)?;
+    let algos = if args.algo == "all" {
+        Algo::ALL.to_vec()
+    } else {
+        match Algo::parse(&args.algo) {
+            Some(a) => vec![a],
+            None => bail!(
+                "unknown algorithm {:?} (expected smirl, maxent, apprenticeship or all)",
+                args.algo
+            ),
+        }
+    };
+    if args.seeds == 0 {
+        bail!("--seeds must be at least 1");
+    }
+    let cfg = match &args.config {
+        None => OfficeConfig::default(),
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading config {}", path.display()))?;
+            OfficeConfig::from_toml(&text).with_context(|| format!("config {}", path.display()))?
+        }
+    };
+    if args.out.exists() && !args.force {
+        bail!(
+            "output directory {} already exists (use --force to replace it)",
+            args.out.display()
+        );
+    }
+    if args.out.file_name().is_none() {
+        bail!("--out {} names no directory", args.out.display());
+    }
+    let seeds = (0..args.seeds)
+        .map(|i| args.seed.checked_add(i))
+        .collect::<Option<Vec<u64>>>()
+        .context("seed range overflows u64")?;
+    Ok(Plan {
+        task,
+        algos,
+        seeds,
+        cfg,
+        out: args.out.clone(),
+    })
+}
+
+fn main() -> ExitCode {
+    let args = match Args::try_parse() {
+        Ok(a) => a,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    let plan = match plan(&args) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("office: error: {e:#}");
+            return ExitCode::from(2);
+        }
+    };
+    match execute(&plan) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("office: error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn execute(plan: &Plan) -> Result<()> {
+    let mut runs: Vec<OfficeRun> = Vec::new();
+    for &algo in &plan.algos {
+        for &seed in &plan.seeds {
+            let r = run(plan.task, algo, seed, &plan.cfg, &mut |line| {
+                eprintln!("[task {}] {line}", plan.task.index())
+            })?;
+            eprintln!(
+                "[task {}] {} seed {seed}: final success {} after {} IRL steps, {:.2} s",
+                plan.task.index(),
+                algo.name(),
+                r.final_success(),
+                r.steps.len() - 1,
+                r.timings.total_s
+            );
+            runs.push(r);
+        }
+    }
+    let parent = match plan.out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&parent).with_context(|| format!("creating {}", parent.display()))?;
+    let name = plan
+        .out
+        .file_name()
+        .expect("checked in plan")
+        .to_string_lossy();
+    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
+    let written = write_outputs(plan, &runs, &tmp);
+    if let Err(e) = written {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    if plan.out.exists() {
+        std::fs::remove_dir_all(&plan.out)
+            .with_context(|| format!("replacing {}", plan.out.display()))?;
+    }
+    std::fs::rename(&tmp, &plan.out)
+        .with_context(|| format!("moving results to {}", plan.out.display()))?;
+    eprintln!("results in {}", plan.out.display());
+    Ok(())
+}
+
+fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
+    let path = dir.join(name);
+    write_atomic(&path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))
+}
+
+fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
+    std::fs::create_dir(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let task = plan.task.index().to_string();
+    let mut metrics = CsvTable::new([
+        "task",
+        "algo",
+        "seed",
+        "step",
+        "env_interactions",
+        "gt_return",
+        "success",
+        "objective",
+        "mixture_return",
+        "elapsed_s",
+    ]);
+    for r in runs {
+        for s in &r.steps {
+            metrics.push([
+                task.clone(),
+                r.algo.name().to_string(),
+                r.seed.to_string(),
+                s.step.to_string(),
+                s.env_interactions.to_string(),
+                s.gt_return.to_string(),
+                (s.success as u8).to_string(),
+                s.objective.to_string(),
+                s.mixture_return.to_string(),
+                format!("{:.4}", s.elapsed_s),
+            ]);
+        }
+    }
+    write_file(dir, "metrics.csv", &metrics.to_csv())?;
+
+    let mut summary = CsvTable::new([
+        "task",
+        "algo",
+        "seed",
+        "final_success",
+        "irl_steps",
+        "converged",
+        "rm_states",
+        "refines_perfect",
+        "demos_s",
+        "rm_learning_s",
+        "irl_s",
+        "total_s",
+        "final_mixture_return",
+    ]);
+    for r in runs {
+        summary.push([
+            task.clone(),
+            r.algo.name().to_string(),
+            r.seed.to_string(),
+            (r.final_success() as u8).to_string(),
+            (r.steps.len() - 1).to_string(),
+            r.converged.to_string(),
+            r.rm.as_ref()
+                .map_or(String::new(), |m| m.n_states().to_string()),
+            r.refines_perfect.map_or(String::new(), |b| b.to_string()),
+            format!("{:.4}", r.timings.demos_s),
+            format!("{:.4}", r.timings.rm_learning_s),
+            format!("{:.4}", r.timings.irl_s),
+            format!("{:.4}", r.timings.total_s),
+            r.steps
+                .last()
+                .map_or(f64::NAN, |s| s.mixture_return)
+                .to_string(),
+        ]);
+        let mut w = CsvTable::new(
+            std::iter::once("rm_state".to_string()).chain(r.weight_columns.iter().cloned()),
+        );
+        for (u, row) in r.weights.iter().enumerate() {
+            w.push(std::iter::once(u.to_string()).chain(row.iter().map(|x| x.to_string())));
+        }
+        write_file(
+            dir,
+            &format!("weights_{}_seed{}.csv", r.algo.name(), r.seed),
+            &w.to_csv(),
+        )?;
+        if let Some(rm) = &r.rm {
+            write_file(
+                dir,
+                &format!("rm_{}_seed{}.txt", r.algo.name(), r.seed),
+                &smirl::rm::format::write_rm(rm),
+            )?;
+            write_file(
+                dir,
+                &format!("rm_{}_seed{}.dot", r.algo.name(), r.seed),
+                &smirl::rm::dot::to_dot(rm),
+            )?;
+        }
+    }
+    write_file(dir, "summary.csv", &summary.to_csv())?;
+
+    let mut plot = LinePlot::new(
+        &format!(
+            "Office task {}: {}",
+            plan.task.index(),
+            plan.task.description()
+        ),
+        "IRL step",
+        "ground-truth return (success rate)",
+    );
+    plot.y_range = Some((-0.05, 1.05));
+    for &algo in &plan.algos {
+        let curves: Vec<Vec<(f64, f64)>> = runs
+            .iter()
+            .filter(|r| r.algo == algo)
+            .map(|r| {
+                r.steps
+                    .iter()
+                    .map(|s| (s.step as f64, s.gt_return))
+                    .collect()
+            })
+            .collect();
+        plot.series.push(Series {
+            name: algo.label().to_string(),
+            points: aggregate_over_seeds(&curves),
+        });
+    }
+    write_file(dir, "success.svg", &plot.to_svg())?;
+    Ok(())
+}

@@ -4,6 +4,8 @@
 //! trains against. Observations and actions cross it as `f32` (what the networks use);
 //! physics inside stays `f64`.
 
+pub mod office;
+
 use crate::rm::LabelSet;
 
 /// What one environment step reports besides the next observation.

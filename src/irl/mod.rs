@@ -54,3 +54,4 @@ pub mod firl;
 pub mod kde;
 pub mod reward;
 pub mod smirl;
+pub mod tabular;

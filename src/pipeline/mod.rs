@@ -1,5 +1,6 @@
 //! End-to-end pipelines behind the binaries (experts, demonstrations, IRL, evaluation).
 
 pub mod expert;
+pub mod office;
 pub mod offline_rm;
 pub mod replay;

@@ -1,0 +1,306 @@
+//! SVG line plots: one line per named series with a shaded mean ± std band, axes with tick
+//! labels, axis titles and a legend. Series are generic `(x, mean, std)` points, so any
+//! experiment (tabular or continuous) can plot its curves over seeds.
+
+use std::fmt::Write;
+
+/// One point of a curve: the mean over seeds and its standard deviation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BandPoint {
+    pub x: f64,
+    pub mean: f64,
+    pub std: f64,
+}
+
+/// A named curve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Series {
+    pub name: String,
+    pub points: Vec<BandPoint>,
+}
+
+/// A line plot with mean ± std bands.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinePlot {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+    /// Fixed y range; `None` fits the data.
+    pub y_range: Option<(f64, f64)>,
+    pub width: f64,
+    pub height: f64,
+}
+
+impl LinePlot {
+    pub fn new(title: &str, x_label: &str, y_label: &str) -> LinePlot {
+        LinePlot {
+            title: title.into(),
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            series: Vec::new(),
+            y_range: None,
+            width: 640.0,
+            height: 420.0,
+        }
+    }
+
+    /// The SVG document.
+    pub fn to_svg(&self) -> String {
+        const PALETTE: [&str; 8] = [
+            "#2ca02c", "#1f77b4", "#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+        ];
+        let (w, h) = (self.width, self.height);
+        let (left, right, top, bottom) = (70.0, 20.0, 40.0, 55.0);
+        let (pw, ph) = (w - left - right, h - top - bottom);
+        let pts = self.series.iter().flat_map(|s| s.points.iter());
+        let finite = |v: f64| v.is_finite();
+        let (mut x0, mut x1) = (f64::INFINITY, f64::NEG_INFINITY);
+        let (mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY);
+        for p in pts {
+            if finite(p.x) {
+                x0 = x0.min(p.x);
+                x1 = x1.max(p.x);
+            }
+            if finite(p.mean) && finite(p.std) {
+                y0 = y0.min(p.mean - p.std);
+                y1 = y1.max(p.mean + p.std);
+            }
+        }
+        if !x0.is_finite() {
+            (x0, x1) = (0.0, 1.0);
+        }
+        if !y0.is_finite() {
+            (y0, y1) = (0.0, 1.0);
+        }
+        if let Some((a, b)) = self.y_range {
+            (y0, y1) = (a, b);
+        }
+        if x1 - x0 < 1e-12 {
+            x1 = x0 + 1.0;
+        }
+        if y1 - y0 < 1e-12 {
+            y0 -= 0.5;
+            y1 += 0.5;
+        }
+        let x_ticks = nice_ticks(x0, x1, 6);
+        let y_ticks = nice_ticks(y0, y1, 6);
+        let sx = |x: f64| left + (x - x0) / (x1 - x0) * pw;
+        let sy = |y: f64| top + ph - (y.clamp(y0, y1) - y0) / (y1 - y0) * ph;
+
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
+        );
+        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#,
+            w / 2.0,
+            esc(&self.title)
+        );
+        // Grid and ticks.
+        for &t in &x_ticks {
+            let x = sx(t);
+            let _ = writeln!(
+                s,
+                r##"<line x1="{x:.1}" y1="{top}" x2="{x:.1}" y2="{:.1}" stroke="#e5e5e5"/><text x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"##,
+                top + ph,
+                top + ph + 16.0,
+                fmt_tick(t)
+            );
+        }
+        for &t in &y_ticks {
+            let y = sy(t);
+            let _ = writeln!(
+                s,
+                r##"<line x1="{left}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#e5e5e5"/><text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"##,
+                left + pw,
+                left - 6.0,
+                y + 4.0,
+                fmt_tick(t)
+            );
+        }
+        let _ = writeln!(
+            s,
+            r#"<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
+            left + pw / 2.0,
+            h - 12.0,
+            esc(&self.x_label)
+        );
+        let _ = writeln!(
+            s,
+            r#"<text transform="translate(18,{:.1}) rotate(-90)" text-anchor="middle">{}</text>"#,
+            top + ph / 2.0,
+            esc(&self.y_label)
+        );
+        // Bands, then lines on top.
+        for (i, series) in self.series.iter().enumerate() {
+            let color = PALETTE[i % PALETTE.len()];
+            let pts: Vec<&BandPoint> = series
+                .points
+                .iter()
+                .filter(|p| p.x.is_finite() && p.mean.is_finite() && p.std.is_finite())
+                .collect();
+            if pts.len() >= 2 {
+                let mut poly = String::new();
+                for p in &pts {
+                    let _ = write!(poly, "{:.2},{:.2} ", sx(p.x), sy(p.mean + p.std));
+                }
+                for p in pts.iter().rev() {
+                    let _ = write!(poly, "{:.2},{:.2} ", sx(p.x), sy(p.mean - p.std));
+                }
+                let _ = writeln!(
+                    s,
+                    r#"<polygon points="{}" fill="{color}" fill-opacity="0.18" stroke="none"/>"#,
+                    poly.trim_end()
+                );
+            }
+        }
+        for (i, series) in self.series.iter().enumerate() {
+            let color = PALETTE[i % PALETTE.len()];
+            let mut line = String::new();
+            for p in series
+                .points
+                .iter()
+                .filter(|p| p.x.is_finite() && p.mean.is_finite())
+            {
+                let _ = write!(line, "{:.2},{:.2} ", sx(p.x), sy(p.mean));
+            }
+            let _ = writeln!(
+                s,
+                r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="2"/>"#,
+                line.trim_end()
+            );
+        }
+        // Legend, top left inside the plot area.
+        let lx = left + 10.0;
+        for (i, series) in self.series.iter().enumerate() {
+            let color = PALETTE[i % PALETTE.len()];
+            let ly = top + 16.0 + 18.0 * i as f64;
+            let _ = writeln!(
+                s,
+                r#"<line x1="{lx}" y1="{ly}" x2="{:.1}" y2="{ly}" stroke="{color}" stroke-width="3"/><text x="{:.1}" y="{:.1}">{}</text>"#,
+                lx + 22.0,
+                lx + 28.0,
+                ly + 4.0,
+                esc(&series.name)
+            );
+        }
+        s.push_str("</svg>\n");
+        s
+    }
+}
+
+/// Mean and (population) standard deviation over seeds, per x. Each run is a list of
+/// `(x, y)` with increasing x; x values are the union over runs. A run without a point at
+/// some x contributes its last earlier value (a run that stopped early has converged: its
+/// result no longer changes); before its first point it contributes nothing.
+pub fn aggregate_over_seeds(runs: &[Vec<(f64, f64)>]) -> Vec<BandPoint> {
+    let mut xs: Vec<f64> = runs.iter().flatten().map(|p| p.0).collect();
+    xs.sort_by(f64::total_cmp);
+    xs.dedup();
+    let mut cursor = vec![0usize; runs.len()];
+    xs.into_iter()
+        .map(|x| {
+            let mut vals = Vec::with_capacity(runs.len());
+            for (r, run) in runs.iter().enumerate() {
+                while cursor[r] < run.len() && run[cursor[r]].0 <= x {
+                    cursor[r] += 1;
+                }
+                if cursor[r] > 0 {
+                    vals.push(run[cursor[r] - 1].1);
+                }
+            }
+            let n = vals.len() as f64;
+            let mean = vals.iter().sum::<f64>() / n;
+            let var = vals.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
+            BandPoint {
+                x,
+                mean,
+                std: var.sqrt(),
+            }
+        })
+        .collect()
+}
+
+/// About `n` round tick values covering `[lo, hi]`.
+fn nice_ticks(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    let raw = (hi - lo) / n.max(1) as f64;
+    let mag = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 2.5, 5.0, 10.0]
+        .iter()
+        .map(|m| m * mag)
+        .find(|&s| s >= raw)
+        .unwrap_or(10.0 * mag);
+    let k0 = (lo / step - 1e-9).ceil() as i64;
+    let k1 = (hi / step + 1e-9).floor() as i64;
+    // Rounded through decimal text so that 3 × 0.2 prints and compares as 0.6.
+    (k0..=k1)
+        .map(|k| {
+            format!("{:.10}", k as f64 * step)
+                .parse::<f64>()
+                .unwrap_or(0.0)
+                + 0.0
+        })
+        .collect()
+}
+
+fn fmt_tick(t: f64) -> String {
+    if t.abs() >= 1e4 {
+        format!("{t:.0e}")
+    } else if t.fract().abs() < 1e-9 {
+        format!("{t:.0}")
+    } else {
+        let s = format!("{t:.3}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
+fn esc(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aggregates_with_carry_forward() {
+        let runs = vec![
+            vec![(0.0, 0.0), (1.0, 1.0), (2.0, 1.0)],
+            vec![(0.0, 0.0), (1.0, 0.0)],
+        ];
+        let band = aggregate_over_seeds(&runs);
+        assert_eq!(band.len(), 3);
+        assert_eq!(band[1].mean, 0.5);
+        assert_eq!(band[1].std, 0.5);
+        // The second run stopped at x = 1: its last value 0 counts at x = 2.
+        assert_eq!(band[2].mean, 0.5);
+    }
+
+    #[test]
+    fn svg_has_legend_labels_and_bands() {
+        let mut p = LinePlot::new("Task <3>", "IRL step", "success");
+        p.series.push(Series {
+            name: "SMIRL".into(),
+            points: aggregate_over_seeds(&[
+                vec![(0.0, 0.0), (1.0, 1.0)],
+                vec![(0.0, 1.0), (1.0, 1.0)],
+            ]),
+        });
+        let svg = p.to_svg();
+        assert!(svg.starts_with("<svg") && svg.ends_with("</svg>\n"));
+        assert!(svg.contains(">SMIRL<") && svg.contains(">IRL step<") && svg.contains(">success<"));
+        assert!(svg.contains("Task &lt;3&gt;"));
+        assert_eq!(svg.matches("<polygon").count(), 1);
+        assert_eq!(nice_ticks(0.0, 1.0, 5), vec![0.0, 0.2, 0.4, 0.6, 0.8, 1.0]);
+    }
+}
