@@ -336,6 +336,8 @@ pub fn learn_structure(
         // Merging joins states the observed rewards cannot tell apart; SMIRL has no rewards
         // (they are what IRL learns), so it would collapse the machine to one state.
         merge: false,
+        // Merge-time option and reward term: both unused here (no merging, no rewards).
+        ..LrmConfig::default()
     };
     learn_rm(world.vocab(), &traces, &cfg)
         .map(|learned| learned.rm)
