@@ -22,6 +22,7 @@ fn config(total_steps: u64) -> ExpertConfig {
         eval_episodes: 20,
         eval_max_steps: 100,
         progress_window: 20,
+        ..ExpertConfig::default()
     }
 }
 

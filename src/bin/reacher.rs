@@ -3,6 +3,10 @@
 //! - `reacher replay FILE.mcap [--verify]`: re-simulate logged episodes, check bit for bit.
 //! - `reacher learn-rm FILES… [--out DIR] [--compare RM.txt]`: learn an RM from logged labels.
 //! - `reacher demo --out FILE.mcap`: log scripted demonstrations (not the paper's SAC experts).
+//! - `reacher expert --task T`: train, evaluate and save the SAC expert of a task, with its
+//!   training curve and 16 demonstrations in MCAP.
+//!
+//! Exit status: 0 success, 1 failure while running, 2 bad arguments or config.
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -13,6 +17,7 @@ use smirl::pipeline::offline_rm::{compare, learn_from_files};
 use smirl::pipeline::replay::replay;
 use smirl::rm::lrm::LrmConfig;
 use std::path::PathBuf;
+use std::process::ExitCode;
 
 #[derive(Parser)]
 #[command(about = "ReacherDelivery: rollout logs, replay, offline reward-machine learning")]
@@ -34,6 +39,32 @@ enum Command {
     LearnRm(LearnRmArgs),
     /// Log scripted demonstrations (ball sequence) to an MCAP file.
     Demo(DemoArgs),
+    /// Train a task's SAC expert, evaluate it, save it and log 16 demonstrations.
+    Expert(ExpertArgs),
+}
+
+#[derive(Args)]
+struct ExpertArgs {
+    /// Task: or, sequential, if, composite.
+    #[arg(long)]
+    task: smirl::env::reacher_task::ReacherTask,
+    /// Expert config (TOML: run settings, [sac], [env]); defaults otherwise.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Continue a killed run from its last checkpoint in --out.
+    #[arg(long)]
+    resume: bool,
+    /// Run directory (checkpoint, curve, evaluation, demos).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Policy cache the trained actor is copied to (default experiments/experts/cache).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// No progress bar (e.g. for logs).
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Args)]
@@ -82,11 +113,23 @@ struct DemoArgs {
     observations: bool,
 }
 
-fn main() -> Result<()> {
-    match Cli::parse().command {
+fn main() -> ExitCode {
+    let result = match Cli::parse().command {
         Command::Replay { file, verify } => run_replay(file, verify),
         Command::LearnRm(args) => run_learn_rm(args),
         Command::Demo(args) => run_demo(args),
+        Command::Expert(args) => run_expert(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            if e.downcast_ref::<UsageError>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::FAILURE
+            }
+        }
     }
 }
 
@@ -212,6 +255,156 @@ fn run_demo(args: DemoArgs) -> Result<()> {
         s.steps_logged,
         s.bytes,
         s.bytes as f64 / s.steps_logged.max(1) as f64
+    );
+    Ok(())
+}
+
+/// A bad argument or config (exit status 2).
+#[derive(Debug)]
+struct UsageError(String);
+
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+fn run_expert(args: ExpertArgs) -> Result<()> {
+    use indicatif::{ProgressBar, ProgressStyle};
+    use smirl::pipeline::expert::ExpertConfig;
+    use smirl::pipeline::reacher_expert as rx;
+    use smirl::rl::sac::ActMode;
+
+    let task = args.task;
+    let config = match &args.config {
+        Some(path) => ExpertConfig::load(path).map_err(|e| UsageError(e.to_string()))?,
+        None => ExpertConfig::default(),
+    };
+    config
+        .validate()
+        .map_err(|e| UsageError(format!("expert config: {e}")))?;
+    let out = args
+        .out
+        .unwrap_or_else(|| PathBuf::from(format!("runs/experts/{task}")));
+    let cache = args.cache.unwrap_or_else(rx::default_cache_dir);
+    let checkpoint = out.join("expert.ckpt");
+    if checkpoint.exists() && !args.resume {
+        return Err(UsageError(format!(
+            "{} exists: pass --resume to continue that run, or remove it to start over",
+            checkpoint.display()
+        ))
+        .into());
+    }
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(config.total_steps)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix} [{elapsed_precise}] {wide_bar} {pos}/{len} steps ({per_sec}, eta {eta}) {msg}",
+        )
+        .expect("valid template"),
+    );
+    bar.set_prefix(format!("expert {task}"));
+    let started = std::time::Instant::now();
+    let (mut policy, outcome) =
+        rx::train_task_expert(task, &config, args.seed, &checkpoint, args.resume, |p| {
+            bar.set_position(p.env_steps.min(p.total_steps));
+            bar.set_message(format!(
+                "recent success {:.2}, return {:.2}{}",
+                p.recent_success,
+                p.recent_return,
+                if p.checkpointed { " [checkpoint]" } else { "" }
+            ));
+        })?;
+    bar.finish_and_clear();
+    let train_secs = started.elapsed().as_secs_f64();
+    if let Some(steps) = outcome.resumed_at {
+        println!("resumed from the checkpoint at {steps} steps");
+    }
+
+    let eval_seed = args.seed ^ 0x00e7_a100_0000_0000;
+    let episodes = config.eval_episodes;
+    let stochastic = rx::evaluate_policy(
+        &mut policy,
+        &config.env,
+        episodes,
+        ActMode::Sample,
+        eval_seed,
+    )?;
+    let mean = rx::evaluate_policy(&mut policy, &config.env, episodes, ActMode::Mean, eval_seed)?;
+
+    let policy_path = out.join("expert.policy");
+    policy.save(&policy_path)?;
+    std::fs::create_dir_all(&cache)
+        .with_context(|| format!("cannot create {}", cache.display()))?;
+    let cached = rx::expert_cache_path(&cache, task);
+    policy.save(&cached)?;
+
+    let curve_svg = out.join("curve.svg");
+    rx::write_curve_svg(&curve_svg, task, &outcome.curve, config.progress_window)?;
+
+    let demos_path = out.join("demos.mcap");
+    let header = rx::demo_log_header(&policy, &config.env, args.seed)?;
+    let options = LogOptions {
+        observations: true,
+        ..LogOptions::default()
+    };
+    let mut logger = smirl::log::RolloutLogger::create(&demos_path, header, options)?;
+    let demos = rx::generate_demos(
+        &mut policy,
+        task,
+        &config.env,
+        rx::PAPER_DEMOS,
+        args.seed,
+        Some(&mut logger),
+    )?;
+    logger.finish()?;
+    let demo_successes = demos.iter().filter(|d| d.success).count();
+
+    let summary = rx::ExpertRunSummary {
+        task: task.name().into(),
+        seed: args.seed,
+        env_steps: outcome.trainer.env_steps(),
+        episodes: outcome.trainer.episodes(),
+        train_seconds: train_secs,
+        resumed_at: outcome.resumed_at,
+        eval_episodes: episodes,
+        success_stochastic: stochastic.success_rate,
+        success_mean: mean.success_rate,
+        task_return_stochastic: stochastic.mean_task_return,
+        task_return_mean: mean.mean_task_return,
+        length_stochastic: stochastic.mean_length,
+        length_mean: mean.mean_length,
+        demos: demos.len(),
+        demo_successes,
+        git_commit: smirl::GIT_COMMIT.into(),
+    };
+    rx::write_run_summary(&out.join("summary.json"), &summary)?;
+    println!(
+        "expert {task}: {} steps in {:.0} s; success over {episodes} episodes: stochastic {:.2}, mean action {:.2}; task return {:.3} / {:.3}; {}/{} demos successful",
+        summary.env_steps,
+        train_secs,
+        stochastic.success_rate,
+        mean.success_rate,
+        stochastic.mean_task_return,
+        mean.mean_task_return,
+        demo_successes,
+        demos.len()
+    );
+    println!(
+        "wrote {} (checkpoint), {}, {}, {}, {} and {}",
+        checkpoint.display(),
+        policy_path.display(),
+        cached.display(),
+        curve_svg.display(),
+        demos_path.display(),
+        out.join("summary.json").display()
     );
     Ok(())
 }

@@ -10,6 +10,8 @@
 //! atomically at every checkpoint; on resume, curve rows beyond the checkpoint are dropped.
 //! A run that hits NaN/inf stops with an error and leaves the last good checkpoint in place.
 
+use super::reacher_expert::PolicyFileError;
+use crate::env::reacher::ReacherConfig;
 use crate::env::ContinuousEnv;
 use crate::nn::write_atomic;
 use crate::rl::sac::{
@@ -36,6 +38,11 @@ pub struct ExpertConfig {
     pub eval_max_steps: u64,
     /// Window (in episodes) of the recent success rate and return reported as progress.
     pub progress_window: usize,
+    /// Scale of the sub-goal potential shaping of ReacherDelivery task experts
+    /// (see [`crate::env::reacher_task::SubgoalPotential`]); 0 = task reward only.
+    pub shaping_scale: f64,
+    /// The environment ReacherDelivery task experts train on.
+    pub env: ReacherConfig,
 }
 
 impl Default for ExpertConfig {
@@ -47,6 +54,8 @@ impl Default for ExpertConfig {
             eval_episodes: 100,
             eval_max_steps: 10_000,
             progress_window: 100,
+            shaping_scale: 1.0,
+            env: ReacherConfig::default(),
         }
     }
 }
@@ -75,7 +84,27 @@ impl ExpertConfig {
         };
         let mut config: Self = deserialize_table(table, source_name)?;
         config.sac = sac;
+        config.validate().map_err(|e| parse(e.to_string()))?;
         Ok(config)
+    }
+
+    /// Checks value ranges (SAC settings, environment, shaping, run lengths).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.sac.validate()?;
+        let bad = |field, problem: String| Err(ConfigError::Invalid { field, problem });
+        if let Err(e) = self.env.validate() {
+            return bad("env", e.to_string());
+        }
+        if !(self.shaping_scale.is_finite() && self.shaping_scale >= 0.0) {
+            return bad("shaping_scale", "must be a non-negative number".into());
+        }
+        if self.total_steps == 0 {
+            return bad("total_steps", "must be positive".into());
+        }
+        if self.eval_max_steps == 0 {
+            return bad("eval_max_steps", "must be positive".into());
+        }
+        Ok(())
     }
 
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
@@ -138,6 +167,12 @@ pub enum ExpertError {
     Curve { path: String, problem: String },
     #[error("{0} exists: pass --resume to continue that run, or remove it to start over")]
     CheckpointExists(String),
+    #[error(transparent)]
+    Policy(#[from] PolicyFileError),
+    #[error("task '{task}': {problem}")]
+    Task { task: String, problem: String },
+    #[error(transparent)]
+    Log(Box<crate::log::LogError>),
 }
 
 /// Path of the training curve that belongs to `checkpoint`.

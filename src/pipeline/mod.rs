@@ -3,4 +3,5 @@
 pub mod expert;
 pub mod office;
 pub mod offline_rm;
+pub mod reacher_expert;
 pub mod replay;

@@ -1,0 +1,719 @@
+//! ReacherDelivery experts: SAC policies trained on a task's product environment
+//! (observation ⊕ one-hot state of the task's *perfect* reward machine, sub-goal shaping),
+//! stored as small actor-only policy files, and the demonstrations they produce.
+//!
+//! - [`ExpertPolicy`]: the actor network and its observation layout; [`ExpertPolicy::save`] /
+//!   [`ExpertPolicy::load`] read and write a versioned file holding only the actor (no
+//!   critics, no replay buffer), refusing another task, architecture or format version.
+//! - [`train_task_expert`]: [`train_expert`] on `task_env(task, …)` with checkpoints and
+//!   resume, success judged by the perfect machine reaching its goal.
+//! - [`evaluate_policy`]: success rate and task return of a policy, stochastic or mean action.
+//! - [`load_or_train_expert`]: the cache consumers use (IRL pipelines).
+//! - [`generate_demos`]: trajectories of the expert's stochastic policy (paper appendix C:
+//!   "16 trajectories collected from the expert stochastic policy"), optionally logged to
+//!   MCAP.
+//!
+//! Demonstrations carry the perfect machine's state for *evaluation only*: SMIRL must learn its
+//! own machine from the label traces and must not read [`DemoStep::rm_state`].
+
+use super::expert::{train_expert, ExpertConfig, ExpertError, ExpertOutcome, ExpertProgress};
+use crate::env::product::ProductEnv;
+use crate::env::reacher::{
+    default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM, VOCABULARY,
+};
+use crate::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
+use crate::env::{ContinuousEnv, EnvError, EnvStep};
+use crate::log::{LogError, RolloutLogger, RunHeader};
+use crate::nn::codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+use crate::nn::{gaussian, Mlp, MlpArch, MlpWorkspace};
+use crate::rl::sac::{episode_seed, ActMode, EpisodeSummary, SacError};
+use crate::rm::LabelSet;
+use nalgebra::DMatrix;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde::{Deserialize, Serialize};
+use std::cell::Cell;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+/// Demonstrations per task in the paper (appendix C).
+pub const PAPER_DEMOS: usize = 16;
+
+const POLICY_MAGIC: &[u8; 8] = b"SMIRLPOL";
+/// Format version of policy files; a file of another version is refused.
+pub const POLICY_VERSION: u32 = 1;
+
+/// A policy file that cannot be written or used.
+#[derive(Debug, thiserror::Error)]
+pub enum PolicyFileError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Codec {
+        path: String,
+        #[source]
+        source: CodecError,
+    },
+    #[error("{path}: expert policy is for task '{found}', not '{expected}'")]
+    WrongTask {
+        path: String,
+        found: String,
+        expected: String,
+    },
+    #[error("{path}: expert policy has a different architecture: {what} is {found} in the file, {expected} here")]
+    Architecture {
+        path: String,
+        what: &'static str,
+        found: String,
+        expected: String,
+    },
+    #[error("task '{task}': {problem}")]
+    Task { task: String, problem: String },
+}
+
+/// Where an expert came from (stored in the policy file as JSON).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PolicyInfo {
+    /// Seed of the training run.
+    pub seed: u64,
+    /// Environment steps it was trained for.
+    pub env_steps: u64,
+    /// Shaping scale of the training environment.
+    pub shaping_scale: f64,
+    /// The environment it was trained on.
+    pub env: ReacherConfig,
+    /// Commit of the code that trained it.
+    pub git_commit: String,
+}
+
+/// Observation size of `task`'s product environment: 17 + number of machine states.
+fn rm_states(task: ReacherTask) -> Result<usize, PolicyFileError> {
+    task.perfect_rm()
+        .map(|rm| rm.n_states())
+        .map_err(|e| PolicyFileError::Task {
+            task: task.name().into(),
+            problem: e.to_string(),
+        })
+}
+
+/// A trained expert: the SAC actor acting on the product observation of the task's
+/// perfect-machine environment, `[inner observation (17) | one-hot machine state]`.
+#[derive(Clone, Debug)]
+pub struct ExpertPolicy {
+    task: ReacherTask,
+    actor: Mlp,
+    info: PolicyInfo,
+    ws: MlpWorkspace,
+    obs: DMatrix<f32>,
+    eps: DMatrix<f32>,
+    pre: DMatrix<f32>,
+    actions: DMatrix<f32>,
+    log_prob: [f32; 1],
+}
+
+impl ExpertPolicy {
+    /// Wraps a trained actor (head: mean and log-std per action) for `task`; the actor's input
+    /// must be the task's product observation.
+    pub fn new(task: ReacherTask, actor: Mlp, info: PolicyInfo) -> Result<Self, PolicyFileError> {
+        let obs_dim = OBS_DIM + rm_states(task)?;
+        let arch = actor.arch();
+        let expected = MlpArch::new(obs_dim, &hidden_of(&arch), 2 * ACT_DIM);
+        if arch != expected {
+            return Err(PolicyFileError::Architecture {
+                path: "(in memory)".into(),
+                what: "actor",
+                found: arch.to_string(),
+                expected: expected.to_string(),
+            });
+        }
+        let ws = actor.workspace(1);
+        Ok(Self {
+            task,
+            actor,
+            info,
+            ws,
+            obs: DMatrix::zeros(obs_dim, 1),
+            eps: DMatrix::zeros(ACT_DIM, 1),
+            pre: DMatrix::zeros(ACT_DIM, 1),
+            actions: DMatrix::zeros(ACT_DIM, 1),
+            log_prob: [0.0],
+        })
+    }
+
+    pub fn task(&self) -> ReacherTask {
+        self.task
+    }
+    /// Product observation size (17 + machine states).
+    pub fn obs_dim(&self) -> usize {
+        self.actor.inputs()
+    }
+    pub fn act_dim(&self) -> usize {
+        ACT_DIM
+    }
+    /// Hidden layer widths of the actor.
+    pub fn hidden(&self) -> Vec<usize> {
+        hidden_of(&self.actor.arch())
+    }
+    pub fn info(&self) -> &PolicyInfo {
+        &self.info
+    }
+    pub fn actor(&self) -> &Mlp {
+        &self.actor
+    }
+
+    /// Chooses an action for one product observation, exactly as the SAC agent that trained
+    /// it would (same noise draws from `rng` in [`ActMode::Sample`]).
+    pub fn act(&mut self, obs: &[f32], mode: ActMode, rng: &mut impl Rng, action: &mut [f32]) {
+        self.obs.as_mut_slice().copy_from_slice(obs);
+        let head = self.actor.forward(&self.obs, &mut self.ws);
+        match mode {
+            ActMode::Mean => gaussian::mean_action(head, &mut self.actions),
+            ActMode::Sample => {
+                for e in self.eps.as_mut_slice() {
+                    *e = rng.sample(StandardNormal);
+                }
+                gaussian::sample(
+                    head,
+                    &self.eps,
+                    &mut self.pre,
+                    &mut self.actions,
+                    &mut self.log_prob,
+                );
+            }
+        }
+        action.copy_from_slice(self.actions.as_slice());
+    }
+
+    /// Writes the policy file (magic, version, task, info, actor) atomically.
+    pub fn save(&self, path: &Path) -> Result<(), PolicyFileError> {
+        let mut w = ByteWriter::new();
+        w.raw(POLICY_MAGIC);
+        w.u32(POLICY_VERSION);
+        w.str(self.task.name());
+        w.str(&serde_json::to_string(&self.info).expect("PolicyInfo serialises"));
+        self.actor.write(&mut w);
+        write_atomic(path, &w.bytes).map_err(|source| PolicyFileError::Io {
+            path: path.display().to_string(),
+            source,
+        })
+    }
+
+    /// Reads a policy file for `task` whose actor has the hidden layers `hidden`. A file of
+    /// another task, architecture or format version, or a truncated one, is refused with a
+    /// message naming the file and the difference.
+    pub fn load(
+        path: &Path,
+        task: ReacherTask,
+        hidden: &[usize],
+    ) -> Result<ExpertPolicy, PolicyFileError> {
+        let p = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|source| PolicyFileError::Io {
+            path: p.clone(),
+            source,
+        })?;
+        let codec = |source| PolicyFileError::Codec {
+            path: p.clone(),
+            source,
+        };
+        let mut r = ByteReader::new(&bytes);
+        r.magic(POLICY_MAGIC, "smirl expert policy")
+            .map_err(codec)?;
+        let version = r.u32("version").map_err(codec)?;
+        if version != POLICY_VERSION {
+            return Err(codec(CodecError::Version {
+                what: "expert policy",
+                found: version,
+                supported: POLICY_VERSION,
+            }));
+        }
+        let file_task = r.string("task").map_err(codec)?;
+        if file_task != task.name() {
+            return Err(PolicyFileError::WrongTask {
+                path: p,
+                found: file_task,
+                expected: task.name().into(),
+            });
+        }
+        let info_text = r.string("policy info").map_err(codec)?;
+        let info: PolicyInfo = serde_json::from_str(&info_text).map_err(|e| {
+            codec(CodecError::Invalid {
+                what: "policy info",
+                problem: e.to_string(),
+            })
+        })?;
+        let expected = MlpArch::new(OBS_DIM + rm_states(task)?, hidden, 2 * ACT_DIM);
+        let mut actor = Mlp::new(&expected, &mut ChaCha8Rng::seed_from_u64(0));
+        if let Err(found) = actor.read_into(&mut r).map_err(codec)? {
+            return Err(PolicyFileError::Architecture {
+                path: p,
+                what: "actor",
+                found: found.to_string(),
+                expected: expected.to_string(),
+            });
+        }
+        r.finish().map_err(codec)?;
+        if !actor.params_finite() {
+            return Err(codec(CodecError::Invalid {
+                what: "actor parameters",
+                problem: "contain NaN or infinity".into(),
+            }));
+        }
+        ExpertPolicy::new(task, actor, info)
+    }
+}
+
+/// Hidden widths of an architecture (all layer widths but input and output).
+fn hidden_of(arch: &MlpArch) -> Vec<usize> {
+    arch.sizes[1..arch.sizes.len() - 1].to_vec()
+}
+
+/// The committed expert cache, `experiments/experts/cache` in the source tree.
+pub fn default_cache_dir() -> PathBuf {
+    let assets = Path::new(crate::ASSETS_DIR);
+    assets
+        .parent()
+        .unwrap_or(assets)
+        .join("experiments")
+        .join("experts")
+        .join("cache")
+}
+
+/// The cached policy file of `task`'s expert in `cache_dir`.
+pub fn expert_cache_path(cache_dir: &Path, task: ReacherTask) -> PathBuf {
+    cache_dir.join(format!("expert_{}.policy", task.name()))
+}
+
+/// The training checkpoint of `task`'s expert in `dir`.
+pub fn expert_checkpoint_path(dir: &Path, task: ReacherTask) -> PathBuf {
+    dir.join(format!("expert_{}.ckpt", task.name()))
+}
+
+/// The product environment with a shared flag telling whether its last episode reached the
+/// machine's goal (the training loop only sees [`EpisodeSummary`]s, whose shaped rewards
+/// cannot tell success from failure).
+struct SuccessFlag {
+    env: ProductEnv<ReacherDelivery, SubgoalPotential>,
+    success: Rc<Cell<bool>>,
+}
+
+impl ContinuousEnv for SuccessFlag {
+    fn obs_dim(&self) -> usize {
+        self.env.obs_dim()
+    }
+    fn act_dim(&self) -> usize {
+        self.env.act_dim()
+    }
+    fn reset(&mut self, seed: u64, obs: &mut [f32]) {
+        self.success.set(false);
+        self.env.reset(seed, obs);
+    }
+    fn step(&mut self, action: &[f32], obs: &mut [f32]) -> Result<EnvStep, EnvError> {
+        let s = self.env.step_product(action, obs)?;
+        self.success.set(s.success);
+        Ok(s.step)
+    }
+}
+
+fn product_env(
+    task: ReacherTask,
+    env: &ReacherConfig,
+    shaping_scale: f64,
+    gamma: f64,
+) -> Result<ProductEnv<ReacherDelivery, SubgoalPotential>, ExpertError> {
+    task_env(task, env.clone(), shaping_scale, gamma).map_err(|e| ExpertError::Task {
+        task: task.name().into(),
+        problem: e.to_string(),
+    })
+}
+
+/// Trains (or with `resume`, continues from `checkpoint`) the SAC expert of `task` on its
+/// product environment with `config.shaping_scale` sub-goal shaping, and returns the trained
+/// actor as a policy with the run's outcome (curve, mean-action evaluation).
+pub fn train_task_expert(
+    task: ReacherTask,
+    config: &ExpertConfig,
+    seed: u64,
+    checkpoint: &Path,
+    resume: bool,
+    progress: impl FnMut(&ExpertProgress),
+) -> Result<(ExpertPolicy, ExpertOutcome), ExpertError> {
+    let success = Rc::new(Cell::new(false));
+    let mut env = SuccessFlag {
+        env: product_env(
+            task,
+            &config.env,
+            config.shaping_scale,
+            config.sac.gamma as f64,
+        )?,
+        success: success.clone(),
+    };
+    let outcome = train_expert(
+        &mut env,
+        config,
+        seed,
+        checkpoint,
+        resume,
+        |_: &EpisodeSummary| success.get(),
+        progress,
+    )?;
+    let info = PolicyInfo {
+        seed,
+        env_steps: outcome.trainer.env_steps(),
+        shaping_scale: config.shaping_scale,
+        env: config.env.clone(),
+        git_commit: crate::GIT_COMMIT.to_string(),
+    };
+    let policy = ExpertPolicy::new(task, outcome.trainer.agent.actor.clone(), info)?;
+    Ok((policy, outcome))
+}
+
+/// Success rate and returns of a policy over evaluation episodes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EvalSummary {
+    pub episodes: u64,
+    pub successes: u64,
+    pub success_rate: f64,
+    /// Mean return of the task's (unshaped) machine reward.
+    pub mean_task_return: f64,
+    /// Mean return of the environment's own reward.
+    pub mean_env_return: f64,
+    pub mean_length: f64,
+}
+
+/// Plays `episodes` episodes of `policy` on its task (no shaping), resets seeded by
+/// [`episode_seed`]`(seed, i)` and action noise from `seed`; success = the perfect machine
+/// reached its goal.
+pub fn evaluate_policy(
+    policy: &mut ExpertPolicy,
+    env_config: &ReacherConfig,
+    episodes: u64,
+    mode: ActMode,
+    seed: u64,
+) -> Result<EvalSummary, ExpertError> {
+    let demos = run_episodes(policy, env_config, episodes, mode, seed, None)?;
+    let n = demos.len().max(1) as f64;
+    let successes = demos.iter().filter(|d| d.success).count() as u64;
+    Ok(EvalSummary {
+        episodes,
+        successes,
+        success_rate: successes as f64 / n,
+        mean_task_return: demos.iter().map(|d| d.task_return).sum::<f64>() / n,
+        mean_env_return: demos.iter().map(|d| d.env_return).sum::<f64>() / n,
+        mean_length: demos.iter().map(|d| d.steps.len() as f64).sum::<f64>() / n,
+    })
+}
+
+/// The expert of `task` from `cache_dir` if its policy file is there, else trained (with a
+/// resumable checkpoint next to it, so a killed training continues) and saved there.
+/// A cached file of another task, architecture or version is an error, not retrained over.
+pub fn load_or_train_expert(
+    task: ReacherTask,
+    config: &ExpertConfig,
+    seed: u64,
+    cache_dir: &Path,
+    progress: impl FnMut(&ExpertProgress),
+) -> Result<ExpertPolicy, ExpertError> {
+    let path = expert_cache_path(cache_dir, task);
+    if path.exists() {
+        return Ok(ExpertPolicy::load(&path, task, &config.sac.hidden)?);
+    }
+    std::fs::create_dir_all(cache_dir).map_err(|source| {
+        ExpertError::Policy(PolicyFileError::Io {
+            path: cache_dir.display().to_string(),
+            source,
+        })
+    })?;
+    let checkpoint = expert_checkpoint_path(cache_dir, task);
+    let (policy, _) = train_task_expert(task, config, seed, &checkpoint, true, progress)?;
+    policy.save(&path)?;
+    Ok(policy)
+}
+
+/// One step of a demonstration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DemoStep {
+    /// Inner (ReacherDelivery) observation the action was taken in.
+    pub obs: [f32; OBS_DIM],
+    pub action: [f32; ACT_DIM],
+    /// Inner observation after the step.
+    pub next_obs: [f32; OBS_DIM],
+    /// Labels after the step, `L(next_obs)`.
+    pub labels: LabelSet,
+    /// State of the task's *perfect* machine after the step. For evaluation only: SMIRL must
+    /// not use it.
+    pub rm_state: usize,
+    /// The environment's own reward.
+    pub env_reward: f64,
+    /// The perfect machine's reward for the step.
+    pub task_reward: f64,
+}
+
+/// One demonstration episode.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Demo {
+    /// Reset seed of the episode.
+    pub seed: u64,
+    /// Perfect machine state before the first step (its initial state).
+    pub initial_rm_state: usize,
+    /// Labels of the initial observation.
+    pub initial_labels: LabelSet,
+    pub steps: Vec<DemoStep>,
+    /// The perfect machine reached its goal.
+    pub success: bool,
+    /// Sum of the machine's rewards.
+    pub task_return: f64,
+    /// Sum of the environment's rewards.
+    pub env_return: f64,
+}
+
+impl Demo {
+    /// The label trace (one label set per step).
+    pub fn labels(&self) -> Vec<LabelSet> {
+        self.steps.iter().map(|s| s.labels).collect()
+    }
+}
+
+/// Seed of the action noise of a demonstration/evaluation run, apart from its reset seeds.
+fn noise_seed(seed: u64) -> u64 {
+    seed ^ 0xac71_0e5e_ed00_0000
+}
+
+fn run_episodes(
+    policy: &mut ExpertPolicy,
+    env_config: &ReacherConfig,
+    n: u64,
+    mode: ActMode,
+    seed: u64,
+    mut logger: Option<&mut RolloutLogger>,
+) -> Result<Vec<Demo>, ExpertError> {
+    let task = policy.task();
+    // No shaping: the demonstrations and evaluation see the task's own reward only.
+    let mut env = product_env(task, env_config, 0.0, 0.99)?;
+    if env.obs_dim() != policy.obs_dim() {
+        return Err(SacError::Dimension {
+            what: "observation size",
+            expected: policy.obs_dim(),
+            got: env.obs_dim(),
+        }
+        .into());
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(noise_seed(seed));
+    let mut obs = vec![0.0f32; env.obs_dim()];
+    let mut action = [0.0f32; ACT_DIM];
+    let log_err = |e: LogError| ExpertError::Log(Box::new(e));
+    let mut demos = Vec::with_capacity(n as usize);
+    for i in 0..n {
+        let ep_seed = episode_seed(seed, i);
+        env.reset(ep_seed, &mut obs);
+        let mut demo = Demo {
+            seed: ep_seed,
+            initial_rm_state: env.rm_state(),
+            initial_labels: env.inner().labels(),
+            steps: Vec::new(),
+            success: false,
+            task_return: 0.0,
+            env_return: 0.0,
+        };
+        if let Some(l) = logger.as_deref_mut() {
+            l.begin_reacher_episode(
+                env.inner(),
+                ep_seed,
+                "expert",
+                Some(env.rm_state()),
+                env.inner_obs(),
+            )
+            .map_err(log_err)?;
+        }
+        loop {
+            let before: [f32; OBS_DIM] = env.inner_obs().try_into().expect("inner obs is 17");
+            policy.act(&obs, mode, &mut rng, &mut action);
+            let s = env
+                .step_product(&action, &mut obs)
+                .map_err(|source| SacError::Env {
+                    step: demo.steps.len() as u64,
+                    source,
+                })?;
+            if let Some(l) = logger.as_deref_mut() {
+                let inner_step = EnvStep {
+                    reward: s.env_reward,
+                    ..s.step
+                };
+                l.reacher_step(
+                    env.inner(),
+                    &action,
+                    &inner_step,
+                    Some((s.rm_state, s.task_reward)),
+                    env.inner_obs(),
+                )
+                .map_err(log_err)?;
+            }
+            demo.steps.push(DemoStep {
+                obs: before,
+                action,
+                next_obs: env.inner_obs().try_into().expect("inner obs is 17"),
+                labels: s.step.labels,
+                rm_state: s.rm_state,
+                env_reward: s.env_reward,
+                task_reward: s.task_reward,
+            });
+            demo.task_return += s.task_reward;
+            demo.env_return += s.env_reward;
+            if s.success {
+                demo.success = true;
+            }
+            if s.step.terminated || s.step.truncated {
+                break;
+            }
+        }
+        if let Some(l) = logger.as_deref_mut() {
+            l.end_episode(demo.success).map_err(log_err)?;
+        }
+        demos.push(demo);
+    }
+    Ok(demos)
+}
+
+/// `n` demonstrations of `policy`'s stochastic policy on `task` (episode `i` reset with
+/// [`episode_seed`]`(seed, i)`, action noise seeded from `seed`: the same seed gives the same
+/// demonstrations bit for bit). Episodes end when the perfect machine reaches its goal or
+/// failure sink, or at the time limit. With a `logger`, every episode is also logged (phase
+/// `"expert"`, with the perfect machine's state and reward).
+pub fn generate_demos(
+    policy: &mut ExpertPolicy,
+    task: ReacherTask,
+    env_config: &ReacherConfig,
+    n: usize,
+    seed: u64,
+    logger: Option<&mut RolloutLogger>,
+) -> Result<Vec<Demo>, ExpertError> {
+    if task != policy.task() {
+        return Err(ExpertError::Task {
+            task: task.name().into(),
+            problem: format!("the expert policy is for task '{}'", policy.task()),
+        });
+    }
+    run_episodes(policy, env_config, n as u64, ActMode::Sample, seed, logger)
+}
+
+/// The `/run` header of a demonstration log of `policy` (model XML, task, perfect machine).
+pub fn demo_log_header(
+    policy: &ExpertPolicy,
+    env_config: &ReacherConfig,
+    seed: u64,
+) -> Result<RunHeader, ExpertError> {
+    let config = serde_json::json!({
+        "env": env_config,
+        "expert": policy.info(),
+        "policy": "SAC expert, stochastic actions",
+        "vocabulary": VOCABULARY,
+    });
+    let mut header = RunHeader::reacher(policy.task().name(), seed, config, &default_xml_path())
+        .map_err(|e| ExpertError::Log(Box::new(e)))?;
+    let rm = policy.task().perfect_rm().map_err(|e| ExpertError::Task {
+        task: policy.task().name().into(),
+        problem: e.to_string(),
+    })?;
+    header.reward_machine = Some(crate::rm::format::write_rm(&rm));
+    Ok(header)
+}
+
+/// What `reacher expert` measured, written as `summary.json` in its run directory.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ExpertRunSummary {
+    pub task: String,
+    pub seed: u64,
+    pub env_steps: u64,
+    pub episodes: u64,
+    /// Wall time of the training in the last session (a resumed run counts only its own).
+    pub train_seconds: f64,
+    pub resumed_at: Option<u64>,
+    pub eval_episodes: u64,
+    pub success_stochastic: f64,
+    pub success_mean: f64,
+    pub task_return_stochastic: f64,
+    pub task_return_mean: f64,
+    pub length_stochastic: f64,
+    pub length_mean: f64,
+    pub demos: usize,
+    pub demo_successes: usize,
+    pub git_commit: String,
+}
+
+/// Writes `summary` as pretty JSON, atomically.
+pub fn write_run_summary(path: &Path, summary: &ExpertRunSummary) -> Result<(), ExpertError> {
+    let text = serde_json::to_string_pretty(summary).expect("summary serialises") + "\n";
+    write_atomic(path, text.as_bytes()).map_err(|e| ExpertError::Curve {
+        path: path.display().to_string(),
+        problem: e.to_string(),
+    })
+}
+
+/// Writes the training curve of a task expert as SVG: the success rate and the mean
+/// (shaped) training return over the last `window` episodes, against environment steps.
+/// The return plot goes next to `path` with `_return` added to its stem.
+pub fn write_curve_svg(
+    path: &Path,
+    task: ReacherTask,
+    curve: &[super::expert::CurvePoint],
+    window: usize,
+) -> Result<(), ExpertError> {
+    use crate::report::{BandPoint, LinePlot, Series};
+    let window = window.max(1);
+    let moving = |value: &dyn Fn(&super::expert::CurvePoint) -> f64| -> Vec<BandPoint> {
+        let mut sum = 0.0;
+        curve
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                sum += value(p);
+                if i >= window {
+                    sum -= value(&curve[i - window]);
+                }
+                BandPoint {
+                    x: p.env_steps as f64,
+                    mean: sum / (i + 1).min(window) as f64,
+                    std: 0.0,
+                }
+            })
+            .collect()
+    };
+    let mut success = LinePlot::new(
+        &format!("SAC expert, task {task}: training success rate"),
+        "environment steps",
+        &format!("success rate (last {window} episodes)"),
+    );
+    success.y_range = Some((0.0, 1.0));
+    success.series.push(Series {
+        name: task.name().into(),
+        points: moving(&|p| f64::from(u8::from(p.success))),
+    });
+    let mut ret = LinePlot::new(
+        &format!("SAC expert, task {task}: training return (shaped)"),
+        "environment steps",
+        &format!("mean return (last {window} episodes)"),
+    );
+    ret.series.push(Series {
+        name: task.name().into(),
+        points: moving(&|p| p.env_return),
+    });
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let return_path = path.with_file_name(format!("{stem}_return.svg"));
+    for (p, plot) in [(path, &success), (return_path.as_path(), &ret)] {
+        crate::report::write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| {
+            ExpertError::Curve {
+                path: p.display().to_string(),
+                problem: e.to_string(),
+            }
+        })?;
+    }
+    Ok(())
+}
