@@ -64,14 +64,14 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     for b in [Some(1), Some(0), None] {
         agent.obs.extend(row(b));
     }
-    let (obs, states, coeffs) = irl_coefficients(Algo::Smirl, &expert, None, &agent, 0.02).unwrap();
+    let c = irl_coefficients(Algo::Smirl, &expert, None, &agent, 0.02).unwrap();
     let mut model = LinearRmReward::new(
         FeatureMap::reacher_labels(),
         2,
         RewardOptimConfig::adam(0.1),
     )
     .unwrap();
-    model.backward(&obs, &states, &coeffs).unwrap();
+    model.backward(&c.obs, &c.states, &c.coeffs).unwrap();
     let features = FeatureMap::reacher_labels();
     let ascent = maxent_gradient(
         &features,

@@ -118,16 +118,16 @@ pub enum JobError {
 /// The environment SAC acts in: the plain ReacherDelivery (baselines) or its product with
 /// the learned machine (SMIRL).
 pub enum JobEnv {
-    Plain(ReacherDelivery),
-    Product(ProductEnv<ReacherDelivery>),
+    Plain(Box<ReacherDelivery>),
+    Product(Box<ProductEnv<ReacherDelivery>>),
 }
 
 impl JobEnv {
     pub fn new(config: &ReacherConfig, learned: Option<&RewardMachine>) -> Result<JobEnv, String> {
         let inner = ReacherDelivery::new(config.clone()).map_err(|e| e.to_string())?;
         Ok(match learned {
-            None => JobEnv::Plain(inner),
-            Some(rm) => JobEnv::Product(ProductEnv::new(inner, rm.clone())),
+            None => JobEnv::Plain(Box::new(inner)),
+            Some(rm) => JobEnv::Product(Box::new(ProductEnv::new(inner, rm.clone()))),
         })
     }
 
@@ -229,6 +229,16 @@ pub struct AgentBatch {
     pub lengths: Vec<usize>,
 }
 
+/// The batch of one reward update: rows, their RM states (SMIRL) and loss coefficients.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Coefficients {
+    /// Row-major observations, `OBS_DIM` wide.
+    pub obs: Vec<f32>,
+    /// RM state of each row (empty for the baselines).
+    pub states: Vec<u32>,
+    pub coeffs: Vec<f64>,
+}
+
 /// The rows, RM states and loss coefficients of one reward update (see `irl/mod.rs`):
 /// f-IRL's covariance surrogate (KDE of fingertip positions), continuous MaxEnt's
 /// T·(mean agent reward − mean expert reward), or SMIRL's per-trajectory MaxEnt on U × O,
@@ -240,7 +250,7 @@ pub fn irl_coefficients(
     expert_kde: Option<&Kde>,
     agent: &AgentBatch,
     kde_bandwidth: f64,
-) -> Result<(Vec<f32>, Vec<u32>, Vec<f64>), String> {
+) -> Result<Coefficients, String> {
     let n_agent = agent.lengths.iter().sum::<usize>();
     if agent.lengths.is_empty() || n_agent == 0 {
         return Err("no agent trajectories".into());
@@ -268,7 +278,11 @@ pub fn irl_coefficients(
                 DEFAULT_DENSITY_EPS,
             )
             .map_err(|e| e.to_string())?;
-            Ok((agent.obs.clone(), Vec::new(), s.coefficients))
+            Ok(Coefficients {
+                obs: agent.obs.clone(),
+                states: Vec::new(),
+                coeffs: s.coefficients,
+            })
         }
         Algo::MaxEnt => {
             let n_expert = expert.n_states();
@@ -276,7 +290,11 @@ pub fn irl_coefficients(
                 MaxEntCoefficients::new(n_agent, n_expert, horizon).map_err(|e| e.to_string())?;
             let mut coeffs = vec![c.agent; n_agent];
             coeffs.extend(std::iter::repeat(c.expert).take(n_expert));
-            Ok((concat(&agent.obs, &expert.obs), Vec::new(), coeffs))
+            Ok(Coefficients {
+                obs: concat(&agent.obs, &expert.obs),
+                states: Vec::new(),
+                coeffs,
+            })
         }
         Algo::Smirl | Algo::SmirlSmooth => {
             let agent_t = AnnotatedTrajectories {
@@ -287,7 +305,11 @@ pub fn irl_coefficients(
             let (mut coeffs, expert_c) = maxent_coefficients(&expert.annotated(), &agent_t);
             coeffs.extend(expert_c);
             let states = [agent.states.as_slice(), &expert.learned_states].concat();
-            Ok((concat(&agent.obs, &expert.obs), states, coeffs))
+            Ok(Coefficients {
+                obs: concat(&agent.obs, &expert.obs),
+                states,
+                coeffs,
+            })
         }
     }
 }
@@ -562,9 +584,12 @@ pub fn run_job(
             batch.lengths.push(len);
         }
         // 3–4. Coefficients of the algorithm's loss.
-        let (obs, states, coeffs) =
-            irl_coefficients(algo, expert, expert_kde.as_ref(), &batch, s.kde_bandwidth)
-                .map_err(fail)?;
+        let Coefficients {
+            obs,
+            states,
+            coeffs,
+        } = irl_coefficients(algo, expert, expert_kde.as_ref(), &batch, s.kde_bandwidth)
+            .map_err(fail)?;
         let mut r = vec![0.0f32; coeffs.len()];
         model
             .reward_batch(&obs, &states, &mut r)

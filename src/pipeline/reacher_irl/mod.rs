@@ -26,7 +26,9 @@ pub mod job;
 pub mod run;
 
 pub use config::{DemoSource, IrlConfigError, IrlRunConfig};
-pub use job::{irl_coefficients, run_job, AgentBatch, ExpertData, JobResult, MetricsRow};
+pub use job::{
+    irl_coefficients, run_job, AgentBatch, Coefficients, ExpertData, JobResult, MetricsRow,
+};
 pub use run::{run_pipeline, PipelineError, RunObserver, RunRequest, RunSummary};
 
 use crate::irl::firl::Divergence;
