@@ -6,6 +6,8 @@
 //! - `reacher expert --task T`: train, evaluate and save the SAC expert of a task, with its
 //!   training curve and 16 demonstrations in MCAP.
 //!
+//! - `reacher --task T [--algo A] [--seeds N] [--quick] …`: the IRL pipeline (see `irl_cli`).
+//!
 //! Exit status: 0 success, 1 failure while running, 2 bad arguments or config.
 
 use anyhow::{bail, Context, Result};
@@ -20,10 +22,15 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(about = "ReacherDelivery: rollout logs, replay, offline reward-machine learning")]
+#[command(
+    about = "ReacherDelivery: IRL pipeline (--task), rollout logs, replay, offline reward-machine learning",
+    args_conflicts_with_subcommands = true
+)]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+    #[command(flatten)]
+    pipeline: irl_cli::PipelineArgs,
 }
 
 #[derive(Subcommand)]
@@ -114,17 +121,21 @@ struct DemoArgs {
 }
 
 fn main() -> ExitCode {
-    let result = match Cli::parse().command {
-        Command::Replay { file, verify } => run_replay(file, verify),
-        Command::LearnRm(args) => run_learn_rm(args),
-        Command::Demo(args) => run_demo(args),
-        Command::Expert(args) => run_expert(args),
+    let cli = Cli::parse();
+    let result = match cli.command {
+        None => irl_cli::run(cli.pipeline),
+        Some(Command::Replay { file, verify }) => run_replay(file, verify),
+        Some(Command::LearnRm(args)) => run_learn_rm(args),
+        Some(Command::Demo(args)) => run_demo(args),
+        Some(Command::Expert(args)) => run_expert(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            if e.downcast_ref::<UsageError>().is_some() {
+            if e.downcast_ref::<UsageError>().is_some()
+                || e.downcast_ref::<irl_cli::PipelineUsage>().is_some()
+            {
                 ExitCode::from(2)
             } else {
                 ExitCode::FAILURE
@@ -418,4 +429,198 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         out.join("summary.json").display()
     );
     Ok(())
+}
+
+/// The top-level `reacher --task …` IRL pipeline (kept apart from the subcommands).
+mod irl_cli {
+    use anyhow::{Context, Result};
+    use clap::Args;
+    use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+    use smirl::env::reacher_task::ReacherTask;
+    use smirl::pipeline::reacher_irl::job::JobProgress;
+    use smirl::pipeline::reacher_irl::run::summary_markdown;
+    use smirl::pipeline::reacher_irl::{
+        run_pipeline, Algo, IrlRunConfig, JobResult, PipelineError, RunObserver, RunRequest,
+    };
+    use std::path::PathBuf;
+    use std::sync::Mutex;
+
+    /// Bad pipeline input (exit status 2).
+    #[derive(Debug)]
+    pub struct PipelineUsage(pub String);
+    impl std::fmt::Display for PipelineUsage {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str(&self.0)
+        }
+    }
+    impl std::error::Error for PipelineUsage {}
+
+    #[derive(Args)]
+    pub struct PipelineArgs {
+        /// Run the IRL pipeline on a task: or, sequential, if, composite.
+        #[arg(long)]
+        task: Option<ReacherTask>,
+        /// Algorithms, comma-separated: smirl, smirl-smooth, maxent, fkl, rkl, js, or all
+        /// [default: smirl,smirl-smooth,maxent,fkl].
+        #[arg(long)]
+        algo: Option<String>,
+        /// Number of seeds per algorithm (seeds S, S+1, …).
+        #[arg(long, default_value_t = 1)]
+        seeds: u64,
+        /// Base seed S (also seeds the demonstrations and LRM).
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Smoke profile (scripted demos, 4 short IRL iterations; a few minutes).
+        #[arg(long)]
+        quick: bool,
+        /// Run configuration (TOML, every top-level field required; see
+        /// experiments/reacher/config.toml). Overrides the built-in profile.
+        #[arg(long, conflicts_with = "quick")]
+        config: Option<PathBuf>,
+        /// Run directory [default: runs/reacher-<task>].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Print the effective configuration as TOML and exit.
+        #[arg(long)]
+        print_config: bool,
+        /// No progress bars.
+        #[arg(long)]
+        quiet: bool,
+    }
+
+    struct Bars {
+        multi: MultiProgress,
+        phase: ProgressBar,
+        jobs: Mutex<Vec<ProgressBar>>,
+        quiet: bool,
+    }
+
+    impl RunObserver for Bars {
+        fn phase(&self, name: &str) {
+            self.phase.set_message(
+                match name {
+                    "demos" => "generating demonstrations",
+                    "lrm" => "learning the reward machine (LRM)",
+                    "irl" => "IRL jobs",
+                    "reports" => "writing reports",
+                    other => other,
+                }
+                .to_string(),
+            );
+            self.phase.tick();
+        }
+        fn jobs(&self, labels: &[String], total_env_steps: u64) {
+            let style = ProgressStyle::with_template(
+                "{prefix:>22} [{bar:30}] {pos}/{len} env steps {msg} ({elapsed}, eta {eta})",
+            )
+            .expect("valid template")
+            .progress_chars("=> ");
+            let mut jobs = self.jobs.lock().expect("bars lock");
+            for label in labels {
+                let bar = if self.quiet {
+                    ProgressBar::hidden()
+                } else {
+                    self.multi.add(ProgressBar::new(total_env_steps))
+                };
+                bar.set_style(style.clone());
+                bar.set_prefix(label.clone());
+                jobs.push(bar);
+            }
+        }
+        fn job_progress(&self, job: usize, p: JobProgress) {
+            if let Some(bar) = self.jobs.lock().expect("bars lock").get(job) {
+                bar.set_position(p.env_steps);
+                bar.set_message(format!(
+                    "iter {}/{} success {:.2}",
+                    p.iteration, p.iterations, p.success_rate
+                ));
+            }
+        }
+        fn job_done(&self, job: usize, r: &JobResult) {
+            if let Some(bar) = self.jobs.lock().expect("bars lock").get(job) {
+                let last = r.rows.last().map_or(0.0, |x| x.success_rate);
+                bar.finish_with_message(format!("done, final success {last:.2}"));
+            }
+        }
+        fn message(&self, text: &str) {
+            if self.quiet {
+                eprintln!("{text}");
+            } else {
+                let _ = self.multi.println(text);
+            }
+        }
+    }
+
+    pub fn run(args: PipelineArgs) -> Result<()> {
+        let usage = |m: String| anyhow::Error::new(PipelineUsage(m));
+        let Some(task) = args.task else {
+            return Err(usage(
+                "nothing to do: give --task <or|sequential|if|composite> or a subcommand (see --help)"
+                    .into(),
+            ));
+        };
+        let algos = match &args.algo {
+            Some(s) => Algo::parse_list(s).map_err(usage)?,
+            None => Algo::DEFAULT.to_vec(),
+        };
+        let config = match (&args.config, args.quick) {
+            (Some(path), _) => IrlRunConfig::load(path).map_err(|e| usage(e.to_string()))?,
+            (None, true) => IrlRunConfig::quick(),
+            (None, false) => IrlRunConfig::standard(),
+        };
+        if args.print_config {
+            print!("{}", config.to_toml());
+            return Ok(());
+        }
+        let out = args
+            .out
+            .unwrap_or_else(|| PathBuf::from(format!("runs/reacher-{}", task.name())));
+        let request = RunRequest {
+            task,
+            algos,
+            seeds: args.seeds,
+            seed: args.seed,
+            config,
+            out: out.clone(),
+        };
+        let multi = MultiProgress::new();
+        let phase = if args.quiet {
+            ProgressBar::hidden()
+        } else {
+            multi.add(ProgressBar::new_spinner())
+        };
+        phase.set_style(
+            ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("valid template"),
+        );
+        phase.enable_steady_tick(std::time::Duration::from_millis(200));
+        let bars = Bars {
+            multi,
+            phase,
+            jobs: Mutex::new(Vec::new()),
+            quiet: args.quiet,
+        };
+        let summary = match run_pipeline(&request, &bars) {
+            Ok(s) => s,
+            Err(PipelineError::Usage(m)) => return Err(usage(m)),
+            Err(PipelineError::Run(m)) => {
+                return Err(anyhow::anyhow!(m)).with_context(|| {
+                    format!(
+                        "reacher --task {task} (incomplete output left in {}.partial)",
+                        out.display()
+                    )
+                })
+            }
+        };
+        bars.phase.finish_and_clear();
+        println!(
+            "\n{}",
+            summary_markdown(task, &summary.algos, summary.rm.as_ref())
+        );
+        println!(
+            "run directory: {} (total wall time {:.0} s)",
+            summary.out.display(),
+            summary.wall_secs
+        );
+        Ok(())
+    }
 }

@@ -4,4 +4,5 @@ pub mod expert;
 pub mod office;
 pub mod offline_rm;
 pub mod reacher_expert;
+pub mod reacher_irl;
 pub mod replay;

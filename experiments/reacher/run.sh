@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Figure 7 of the paper: ReacherDelivery tasks x IRL algorithms x seeds, ground-truth success
+# per IRL iteration. Usage:
+#   experiments/reacher/run.sh [TASKS] [ALGOS] [SEEDS] [CONFIG]
+# defaults: "or sequential if composite", "all", 3, experiments/reacher/config_scripted.toml
+# (scripted demonstrations until the SAC experts are in experiments/experts/cache; use
+# experiments/reacher/config.toml for the experts). One run directory per task under
+# experiments/reacher/runs/<task>; wall times go to experiments/reacher/runs/<task>.time.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+TASKS=${1:-"or sequential if composite"}
+ALGOS=${2:-all}
+SEEDS=${3:-3}
+CONFIG=${4:-experiments/reacher/config_scripted.toml}
+cargo build --release --bin reacher
+for task in $TASKS; do
+  start=$(date +%s)
+  ./target/release/reacher --task "$task" --algo "$ALGOS" --seeds "$SEEDS" --config "$CONFIG" \
+    --out "experiments/reacher/runs/$task" --quiet | tee "experiments/reacher/runs/$task.log"
+  echo "wall_secs $(( $(date +%s) - start )) task $task algos $ALGOS seeds $SEEDS config $CONFIG" \
+    > "experiments/reacher/runs/$task.time"
+done

@@ -1,0 +1,271 @@
+//! The run configuration of `reacher --task`: one TOML file, every top-level field required
+//! (a missing or mistyped field is an error naming it), the `env` and `sac` tables default
+//! field-wise to the environment's and the paper's IRL-run SAC values.
+
+use crate::env::reacher::ReacherConfig;
+use crate::rl::sac::SacConfig;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Where the demonstrations come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DemoSource {
+    /// The task's SAC expert from the expert cache (`expert_cache_dir`), trained there if
+    /// missing (the paper's setting: stochastic expert policy).
+    Expert,
+    /// The scripted inverse-kinematics controller driven by the task's perfect machine (fast,
+    /// no training; used by tests and `--quick`).
+    Scripted,
+}
+
+impl DemoSource {
+    pub fn name(self) -> &'static str {
+        match self {
+            DemoSource::Expert => "expert",
+            DemoSource::Scripted => "scripted",
+        }
+    }
+}
+
+/// Settings of a `reacher --task` run (see the module docs of [`super`] for what each
+/// phase does).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IrlRunConfig {
+    /// `"expert"` or `"scripted"`.
+    pub demo_source: DemoSource,
+    /// Directory of cached expert policies (`expert_<task>.policy`); relative paths are
+    /// relative to the working directory. Empty: the committed cache
+    /// (`experiments/experts/cache`).
+    pub expert_cache_dir: PathBuf,
+    /// Number of demonstrations (the paper: 16).
+    pub demo_episodes: usize,
+    /// IRL iterations M (one reward update each).
+    pub irl_iterations: usize,
+    /// SAC environment steps per IRL iteration K (SAC continues across iterations).
+    pub sac_steps_per_iteration: u64,
+    /// Fresh agent trajectories per iteration for the reward update (each `env.max_steps`
+    /// long for the baselines, whose f-IRL covariance needs a fixed horizon).
+    pub agent_trajectories: usize,
+    /// Ground-truth evaluation episodes per IRL iteration (mean action, fixed seeds).
+    pub eval_episodes: u64,
+    /// Adam learning rate of the baselines' (64, 64) reward net.
+    pub mlp_reward_lr: f32,
+    /// L2 penalty (weight decay) of the reward net.
+    pub mlp_reward_l2: f32,
+    /// Adam learning rate of SMIRL's linear per-RM-state weights.
+    pub smirl_reward_lr: f32,
+    /// L2 penalty of SMIRL's weights.
+    pub smirl_reward_l2: f32,
+    /// Reward optimiser steps per IRL iteration (on the same coefficients).
+    pub reward_steps_per_iteration: usize,
+    /// Width σ (m) of `smirl-smooth`'s features exp(−d²/2σ²).
+    pub smooth_sigma: f64,
+    /// Epanechnikov KDE bandwidth of f-IRL's fingertip densities (the paper: 0.02).
+    pub kde_bandwidth: f64,
+    /// LRM: most states of the learned machine (u_max).
+    pub lrm_max_states: usize,
+    /// LRM: tabu list length.
+    pub lrm_tabu_len: usize,
+    /// LRM: search steps.
+    pub lrm_steps: usize,
+    /// MCAP: log every n-th agent/evaluation episode of each job (demos are all logged);
+    /// 0 disables rollout logging.
+    pub log_every_nth_episode: u64,
+    /// Worker threads running (algorithm, seed) jobs.
+    pub threads: usize,
+    #[serde(default)]
+    pub env: ReacherConfig,
+    #[serde(default)]
+    pub sac: SacConfig,
+}
+
+/// A configuration file or value that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum IrlConfigError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{source_name}: {message}")]
+    Parse {
+        source_name: String,
+        message: String,
+    },
+    #[error("{source_name}: field `{field}` {problem}")]
+    Invalid {
+        source_name: String,
+        field: String,
+        problem: String,
+    },
+}
+
+impl IrlRunConfig {
+    /// The default profile: sized so that `reacher --task <t>` with the default algorithm set
+    /// finishes in well under 20 minutes on 2 cores (see experiments/reacher/README-section.md).
+    pub fn standard() -> IrlRunConfig {
+        IrlRunConfig {
+            demo_source: DemoSource::Expert,
+            expert_cache_dir: PathBuf::new(),
+            demo_episodes: 16,
+            irl_iterations: 20,
+            sac_steps_per_iteration: 5_000,
+            agent_trajectories: 20,
+            eval_episodes: 20,
+            mlp_reward_lr: 1e-3,
+            mlp_reward_l2: 1e-3,
+            smirl_reward_lr: 0.1,
+            smirl_reward_l2: 1e-3,
+            reward_steps_per_iteration: 5,
+            smooth_sigma: 0.05,
+            kde_bandwidth: 0.02,
+            lrm_max_states: 10,
+            lrm_tabu_len: 10_000,
+            lrm_steps: 100,
+            log_every_nth_episode: 10,
+            threads: 2,
+            env: ReacherConfig::default(),
+            sac: SacConfig::irl(),
+        }
+    }
+
+    /// The `--quick` smoke profile (a few minutes): scripted demos, few short iterations.
+    pub fn quick() -> IrlRunConfig {
+        IrlRunConfig {
+            demo_source: DemoSource::Scripted,
+            demo_episodes: 8,
+            irl_iterations: 4,
+            sac_steps_per_iteration: 2_000,
+            agent_trajectories: 8,
+            eval_episodes: 8,
+            lrm_steps: 50,
+            log_every_nth_episode: 4,
+            ..IrlRunConfig::standard()
+        }
+    }
+
+    /// Parses a TOML document; `source_name` (the file path) prefixes every message.
+    pub fn from_toml(text: &str, source_name: &str) -> Result<IrlRunConfig, IrlConfigError> {
+        let config: IrlRunConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
+            let mut message = e.message().trim().to_string();
+            if let Some(span) = e.span() {
+                let start = span.start.min(text.len());
+                let line = text[..start].matches('\n').count() + 1;
+                // Name the field whose value is wrong (the span points at the value).
+                let key = text
+                    .lines()
+                    .nth(line - 1)
+                    .and_then(|l| l.split_once('='))
+                    .map(|(k, _)| k.trim().to_string())
+                    .filter(|k| !k.is_empty() && !message.contains(k.as_str()));
+                message = match key {
+                    Some(k) => format!("line {line}: field `{k}`: {message}"),
+                    None => format!("line {line}: {message}"),
+                };
+            }
+            IrlConfigError::Parse {
+                source_name: source_name.to_string(),
+                message,
+            }
+        })?;
+        config.validate(source_name)?;
+        Ok(config)
+    }
+
+    /// Reads and parses a TOML file.
+    pub fn load(path: &Path) -> Result<IrlRunConfig, IrlConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| IrlConfigError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        IrlRunConfig::from_toml(&text, &path.display().to_string())
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("IrlRunConfig always serialises")
+    }
+
+    /// The expert cache directory (the committed one when `expert_cache_dir` is empty).
+    pub fn cache_dir(&self) -> PathBuf {
+        if self.expert_cache_dir.as_os_str().is_empty() {
+            crate::pipeline::reacher_expert::default_cache_dir()
+        } else {
+            self.expert_cache_dir.clone()
+        }
+    }
+
+    /// Checks value ranges (named by field).
+    pub fn validate(&self, source_name: &str) -> Result<(), IrlConfigError> {
+        let bad = |field: &str, problem: &str| {
+            Err(IrlConfigError::Invalid {
+                source_name: source_name.to_string(),
+                field: field.to_string(),
+                problem: problem.to_string(),
+            })
+        };
+        let positive = |x: f64| x.is_finite() && x > 0.0;
+        let non_negative = |x: f64| x.is_finite() && x >= 0.0;
+        if self.demo_episodes == 0 {
+            return bad("demo_episodes", "must be at least 1");
+        }
+        if self.irl_iterations == 0 {
+            return bad("irl_iterations", "must be at least 1");
+        }
+        if self.sac_steps_per_iteration == 0 {
+            return bad("sac_steps_per_iteration", "must be at least 1");
+        }
+        if self.agent_trajectories < 2 {
+            return bad(
+                "agent_trajectories",
+                "must be at least 2 (f-IRL's covariance)",
+            );
+        }
+        if self.eval_episodes == 0 {
+            return bad("eval_episodes", "must be at least 1");
+        }
+        for (field, v) in [
+            ("mlp_reward_lr", self.mlp_reward_lr),
+            ("smirl_reward_lr", self.smirl_reward_lr),
+        ] {
+            if !positive(f64::from(v)) {
+                return bad(field, "must be a positive number");
+            }
+        }
+        for (field, v) in [
+            ("mlp_reward_l2", self.mlp_reward_l2),
+            ("smirl_reward_l2", self.smirl_reward_l2),
+        ] {
+            if !non_negative(f64::from(v)) {
+                return bad(field, "must be a non-negative number");
+            }
+        }
+        if self.reward_steps_per_iteration == 0 {
+            return bad("reward_steps_per_iteration", "must be at least 1");
+        }
+        if !positive(self.smooth_sigma) {
+            return bad("smooth_sigma", "must be a positive number");
+        }
+        if !positive(self.kde_bandwidth) {
+            return bad("kde_bandwidth", "must be a positive number");
+        }
+        if self.lrm_max_states == 0 || self.lrm_steps == 0 || self.lrm_tabu_len == 0 {
+            return bad(
+                "lrm_max_states/lrm_steps/lrm_tabu_len",
+                "must be at least 1",
+            );
+        }
+        if self.threads == 0 {
+            return bad("threads", "must be at least 1");
+        }
+        if let Err(e) = self.env.validate() {
+            return bad("env", &e.to_string());
+        }
+        if let Err(e) = self.sac.validate() {
+            return bad("sac", &e.to_string());
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,638 @@
+//! The IRL training loop shared by every algorithm (one (algorithm, seed) job), as chained in
+//! `irl/mod.rs`: per iteration, continue the same SAC agent on the current learned reward,
+//! roll out fresh trajectories, compute the algorithm's per-state loss coefficients, update
+//! the reward model, evaluate on the ground-truth task. Only [`irl_coefficients`] and the
+//! choice of environment/reward model differ between algorithms.
+
+use super::Algo;
+use crate::env::product::ProductEnv;
+use crate::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP};
+use crate::env::{ContinuousEnv, EnvError, EnvStep};
+use crate::irl::firl::{FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
+use crate::irl::kde::Kde;
+use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel, RewardOptimConfig};
+use crate::irl::smirl::{maxent_coefficients, AnnotatedTrajectories, FeatureMap, LinearRmReward};
+use crate::log::RolloutLogger;
+use crate::rl::replay::ReplayBatch;
+use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacConfig, SacTrainer};
+use crate::rm::RewardMachine;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::path::Path;
+use std::time::Instant;
+
+/// What every job of a task shares: the demonstrations as the IRL algorithms see them.
+#[derive(Clone, Debug)]
+pub struct ExpertData {
+    /// Observations o_1..o_T of every demonstration step (row-major, `OBS_DIM` wide): the
+    /// states visited, as the agent's rollouts record them.
+    pub obs: Vec<f32>,
+    /// Demonstration lengths, in order.
+    pub lengths: Vec<usize>,
+    /// The learned machine's state each observation's labels are read in (u_{t−1}); empty
+    /// when no machine was learned.
+    pub learned_states: Vec<u32>,
+}
+
+impl ExpertData {
+    pub fn n_states(&self) -> usize {
+        self.lengths.iter().sum()
+    }
+
+    fn annotated(&self) -> AnnotatedTrajectories<'_> {
+        AnnotatedTrajectories {
+            obs: &self.obs,
+            rm_state: &self.learned_states,
+            lengths: &self.lengths,
+        }
+    }
+}
+
+/// The settings a job reads (a view of the run config).
+#[derive(Clone, Debug)]
+pub struct JobSettings {
+    pub env: ReacherConfig,
+    pub sac: SacConfig,
+    pub irl_iterations: usize,
+    pub sac_steps_per_iteration: u64,
+    pub agent_trajectories: usize,
+    pub eval_episodes: u64,
+    pub mlp_reward_lr: f32,
+    pub mlp_reward_l2: f32,
+    pub smirl_reward_lr: f32,
+    pub smirl_reward_l2: f32,
+    pub reward_steps_per_iteration: usize,
+    pub smooth_sigma: f64,
+    pub kde_bandwidth: f64,
+}
+
+/// One row of the metrics table: the ground-truth evaluation after `iteration` IRL
+/// iterations (0 = the untrained policy).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MetricsRow {
+    pub iteration: usize,
+    pub env_steps: u64,
+    /// Fraction of evaluation episodes in which the task's perfect machine reached its goal.
+    pub success_rate: f64,
+    /// Mean sum of the perfect machine's rewards.
+    pub task_return: f64,
+    /// Mean sum of the environment's own (distance) rewards.
+    pub env_return: f64,
+    /// Mean learned reward per step of the agent's rollouts this iteration.
+    pub learned_reward: f64,
+    /// The algorithm's surrogate loss Σ c_i r(o_i) before this iteration's update.
+    pub surrogate_loss: f64,
+}
+
+/// What a finished job hands back.
+#[derive(Clone, Debug)]
+pub struct JobResult {
+    pub algo: Algo,
+    pub seed: u64,
+    pub rows: Vec<MetricsRow>,
+    pub wall_secs: f64,
+}
+
+/// Progress of a job, for progress bars.
+#[derive(Clone, Copy, Debug)]
+pub struct JobProgress {
+    pub iteration: usize,
+    pub iterations: usize,
+    pub env_steps: u64,
+    pub total_env_steps: u64,
+    /// Success rate of the last evaluation.
+    pub success_rate: f64,
+}
+
+/// A job that failed.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    #[error("{algo} seed {seed}: {problem}")]
+    Run {
+        algo: Algo,
+        seed: u64,
+        problem: String,
+    },
+}
+
+/// The environment SAC acts in: the plain ReacherDelivery (baselines) or its product with
+/// the learned machine (SMIRL).
+pub enum JobEnv {
+    Plain(Box<ReacherDelivery>),
+    Product(Box<ProductEnv<ReacherDelivery>>),
+}
+
+impl JobEnv {
+    pub fn new(config: &ReacherConfig, learned: Option<&RewardMachine>) -> Result<JobEnv, String> {
+        let inner = ReacherDelivery::new(config.clone()).map_err(|e| e.to_string())?;
+        Ok(match learned {
+            None => JobEnv::Plain(Box::new(inner)),
+            Some(rm) => JobEnv::Product(Box::new(ProductEnv::new(inner, rm.clone()))),
+        })
+    }
+
+    pub fn reacher(&self) -> &ReacherDelivery {
+        match self {
+            JobEnv::Plain(e) => e,
+            JobEnv::Product(p) => p.inner(),
+        }
+    }
+
+    /// The learned machine's current state (SMIRL).
+    pub fn learned_state(&self) -> Option<usize> {
+        match self {
+            JobEnv::Plain(_) => None,
+            JobEnv::Product(p) => Some(p.rm_state()),
+        }
+    }
+
+    /// One step; also returns the environment's own reward (the product's step reward is
+    /// the learned machine's).
+    fn step_full(&mut self, action: &[f32], obs: &mut [f32]) -> Result<(EnvStep, f64), EnvError> {
+        match self {
+            JobEnv::Plain(e) => e.step(action, obs).map(|s| (s, s.reward)),
+            JobEnv::Product(p) => p.step_product(action, obs).map(|s| (s.step, s.env_reward)),
+        }
+    }
+}
+
+impl ContinuousEnv for JobEnv {
+    fn obs_dim(&self) -> usize {
+        match self {
+            JobEnv::Plain(e) => e.obs_dim(),
+            JobEnv::Product(p) => p.obs_dim(),
+        }
+    }
+    fn act_dim(&self) -> usize {
+        match self {
+            JobEnv::Plain(e) => e.act_dim(),
+            JobEnv::Product(p) => p.act_dim(),
+        }
+    }
+    fn reset(&mut self, seed: u64, obs: &mut [f32]) {
+        match self {
+            JobEnv::Plain(e) => e.reset(seed, obs),
+            JobEnv::Product(p) => p.reset(seed, obs),
+        }
+    }
+    fn step(&mut self, action: &[f32], obs: &mut [f32]) -> Result<EnvStep, EnvError> {
+        self.step_full(action, obs).map(|(s, _)| s)
+    }
+}
+
+/// Sample-time rewards for SAC: the learned reward of each replayed transition,
+/// r(o_{t+1}) for the baselines, δ_r(u_t, o_{t+1}) for SMIRL with u_t read from the stored
+/// observation's one-hot part — so old transitions follow the reward being optimised now.
+struct LearnedReward<'a> {
+    model: &'a mut dyn RewardModel,
+    product: bool,
+    obs: Vec<f32>,
+    states: Vec<u32>,
+    error: Option<RewardError>,
+}
+
+/// Index of the hot entry of a one-hot block.
+fn hot_index(block: &[f32]) -> u32 {
+    block.iter().position(|&x| x > 0.5).unwrap_or(0) as u32
+}
+
+impl RewardFn for LearnedReward<'_> {
+    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) {
+        let d = batch.obs.nrows();
+        self.obs.clear();
+        self.states.clear();
+        for (next, prev) in batch
+            .next_obs
+            .as_slice()
+            .chunks_exact(d)
+            .zip(batch.obs.as_slice().chunks_exact(d))
+        {
+            self.obs.extend_from_slice(&next[..OBS_DIM]);
+            if self.product {
+                self.states.push(hot_index(&prev[OBS_DIM..]));
+            }
+        }
+        if let Err(e) = self.model.reward_batch(&self.obs, &self.states, out) {
+            out.fill(0.0);
+            self.error.get_or_insert(e);
+        }
+    }
+}
+
+/// Agent trajectories as the reward update reads them.
+#[derive(Clone, Debug, Default)]
+pub struct AgentBatch {
+    /// o_1..o_T of every trajectory, row-major, `OBS_DIM` wide.
+    pub obs: Vec<f32>,
+    /// The learned machine's state paired with each observation (SMIRL; else empty).
+    pub states: Vec<u32>,
+    pub lengths: Vec<usize>,
+}
+
+/// The batch of one reward update: rows, their RM states (SMIRL) and loss coefficients.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Coefficients {
+    /// Row-major observations, `OBS_DIM` wide.
+    pub obs: Vec<f32>,
+    /// RM state of each row (empty for the baselines).
+    pub states: Vec<u32>,
+    pub coeffs: Vec<f64>,
+}
+
+/// The rows, RM states and loss coefficients of one reward update (see `irl/mod.rs`):
+/// f-IRL's covariance surrogate (KDE of fingertip positions), continuous MaxEnt's
+/// T·(mean agent reward − mean expert reward), or SMIRL's per-trajectory MaxEnt on U × O,
+/// whose parameter gradient is μ_π − μ_D (the negated expert-minus-agent feature
+/// expectation).
+pub fn irl_coefficients(
+    algo: Algo,
+    expert: &ExpertData,
+    expert_kde: Option<&Kde>,
+    agent: &AgentBatch,
+    kde_bandwidth: f64,
+) -> Result<Coefficients, String> {
+    let n_agent = agent.lengths.iter().sum::<usize>();
+    if agent.lengths.is_empty() || n_agent == 0 {
+        return Err("no agent trajectories".into());
+    }
+    let horizon = agent.lengths[0];
+    let concat = |a: &[f32], b: &[f32]| [a, b].concat();
+    match algo {
+        Algo::Fkl | Algo::Rkl | Algo::Js => {
+            if agent.lengths.iter().any(|&l| l != horizon) {
+                return Err("f-IRL needs agent trajectories of one fixed length".into());
+            }
+            let kde_e = expert_kde.ok_or("f-IRL needs the expert KDE")?;
+            let kde_a = Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, kde_bandwidth)
+                .map_err(|e| e.to_string())?;
+            let div = algo.divergence().expect("f-IRL algorithm");
+            let s = FirlSurrogate::from_kde(
+                div,
+                kde_e,
+                &kde_a,
+                &agent.obs,
+                OBS_DIM,
+                &OBS_TIP,
+                agent.lengths.len(),
+                horizon,
+                DEFAULT_DENSITY_EPS,
+            )
+            .map_err(|e| e.to_string())?;
+            Ok(Coefficients {
+                obs: agent.obs.clone(),
+                states: Vec::new(),
+                coeffs: s.coefficients,
+            })
+        }
+        Algo::MaxEnt => {
+            let n_expert = expert.n_states();
+            let c =
+                MaxEntCoefficients::new(n_agent, n_expert, horizon).map_err(|e| e.to_string())?;
+            let mut coeffs = vec![c.agent; n_agent];
+            coeffs.extend(std::iter::repeat(c.expert).take(n_expert));
+            Ok(Coefficients {
+                obs: concat(&agent.obs, &expert.obs),
+                states: Vec::new(),
+                coeffs,
+            })
+        }
+        Algo::Smirl | Algo::SmirlSmooth => {
+            let agent_t = AnnotatedTrajectories {
+                obs: &agent.obs,
+                rm_state: &agent.states,
+                lengths: &agent.lengths,
+            };
+            let (mut coeffs, expert_c) = maxent_coefficients(&expert.annotated(), &agent_t);
+            coeffs.extend(expert_c);
+            let states = [agent.states.as_slice(), &expert.learned_states].concat();
+            Ok(Coefficients {
+                obs: concat(&agent.obs, &expert.obs),
+                states,
+                coeffs,
+            })
+        }
+    }
+}
+
+/// The reward model of `algo`: the (64, 64) MLP on the fingertip position clamped to ±10
+/// (baselines), or δ_r(u, o) = w_uᵀ φ(o) with label or smooth features (SMIRL).
+pub fn reward_model(
+    algo: Algo,
+    settings: &JobSettings,
+    learned_states: usize,
+    seed: u64,
+) -> Result<Box<dyn RewardModel + Send>, RewardError> {
+    let smirl_optim = RewardOptimConfig {
+        adam: true,
+        lr: settings.smirl_reward_lr,
+        l2: settings.smirl_reward_l2,
+    };
+    Ok(match algo {
+        Algo::Smirl => Box::new(LinearRmReward::new(
+            FeatureMap::reacher_labels(),
+            learned_states,
+            smirl_optim,
+        )?),
+        Algo::SmirlSmooth => Box::new(LinearRmReward::new(
+            FeatureMap::reacher_smooth(settings.smooth_sigma)?,
+            learned_states,
+            smirl_optim,
+        )?),
+        Algo::MaxEnt | Algo::Fkl | Algo::Rkl | Algo::Js => {
+            let mut cfg = MlpRewardConfig::paper(OBS_TIP.to_vec(), settings.mlp_reward_lr, seed);
+            cfg.optim.l2 = settings.mlp_reward_l2;
+            Box::new(MlpReward::new(cfg, OBS_DIM)?)
+        }
+    })
+}
+
+/// Ground-truth outcome of one episode.
+#[derive(Clone, Copy, Debug, Default)]
+struct EpisodeOutcome {
+    success: bool,
+    task_return: f64,
+    env_return: f64,
+}
+
+/// Plays one episode. The perfect machine is tracked on the labels for the ground truth;
+/// `stop_when_decided` ends the episode once it reaches its goal or failure sink (evaluation).
+/// `on_step(inner o_{t+1}, learned u_t)` sees every step.
+#[allow(clippy::too_many_arguments)]
+fn play_episode(
+    agent: &mut SacAgent,
+    env: &mut JobEnv,
+    perfect: &RewardMachine,
+    mode: ActMode,
+    reset_seed: u64,
+    stop_when_decided: bool,
+    rng: &mut ChaCha8Rng,
+    mut logger: Option<(&mut RolloutLogger, &str)>,
+    mut on_step: impl FnMut(&[f32], Option<usize>),
+) -> Result<EpisodeOutcome, String> {
+    let mut obs = vec![0.0f32; env.obs_dim()];
+    let mut next = vec![0.0f32; env.obs_dim()];
+    let mut action = vec![0.0f32; env.act_dim()];
+    env.reset(reset_seed, &mut obs);
+    let mut up = perfect.initial();
+    let mut out = EpisodeOutcome::default();
+    if let Some((l, phase)) = logger.as_mut() {
+        l.begin_reacher_episode(env.reacher(), reset_seed, phase, Some(up), &obs[..OBS_DIM])
+            .map_err(|e| e.to_string())?;
+    }
+    let max_steps = env.reacher().config().max_steps;
+    for _ in 0..max_steps {
+        agent.act(&obs, mode, rng, &mut action);
+        let u_before = env.learned_state();
+        let (step, env_reward) = env
+            .step_full(&action, &mut next)
+            .map_err(|e| e.to_string())?;
+        let (u_next, r) = perfect.step(up, step.labels);
+        up = u_next;
+        out.task_return += r;
+        out.env_return += env_reward;
+        out.success |= perfect.is_terminal(up) && !perfect.is_failure(up);
+        if let Some((l, _)) = logger.as_mut() {
+            let inner = EnvStep {
+                reward: env_reward,
+                ..step
+            };
+            l.reacher_step(
+                env.reacher(),
+                &action,
+                &inner,
+                Some((up, r)),
+                &next[..OBS_DIM],
+            )
+            .map_err(|e| e.to_string())?;
+        }
+        on_step(&next[..OBS_DIM], u_before);
+        std::mem::swap(&mut obs, &mut next);
+        let decided = perfect.is_terminal(up) || perfect.is_failure(up);
+        if step.terminated || step.truncated || (stop_when_decided && decided) {
+            break;
+        }
+    }
+    if let Some((l, _)) = logger.as_mut() {
+        l.end_episode(out.success).map_err(|e| e.to_string())?;
+    }
+    Ok(out)
+}
+
+/// Everything one job reads.
+pub struct JobInputs<'a> {
+    pub algo: Algo,
+    pub seed: u64,
+    pub settings: &'a JobSettings,
+    pub perfect_rm: &'a RewardMachine,
+    /// The learned machine (required for SMIRL, ignored by the baselines).
+    pub learned_rm: Option<&'a RewardMachine>,
+    pub expert: &'a ExpertData,
+    /// Where the learned reward's parameters are saved at the end (`None`: not saved).
+    pub reward_path: Option<&'a Path>,
+}
+
+/// Runs one (algorithm, seed) job: a pure function of its inputs (own seeded RNGs), so the
+/// result does not depend on which thread runs it or when.
+pub fn run_job(
+    inputs: &JobInputs<'_>,
+    mut logger: Option<&mut RolloutLogger>,
+    progress: &(dyn Fn(JobProgress) + Sync),
+) -> Result<JobResult, JobError> {
+    let started = Instant::now();
+    let JobInputs {
+        algo,
+        seed,
+        settings: s,
+        perfect_rm,
+        expert,
+        ..
+    } = *inputs;
+    let fail = |problem: String| JobError::Run {
+        algo,
+        seed,
+        problem,
+    };
+    let learned = if algo.uses_rm() {
+        Some(
+            inputs
+                .learned_rm
+                .ok_or_else(|| fail("SMIRL needs a learned reward machine".into()))?,
+        )
+    } else {
+        None
+    };
+    let n_learned = learned.map_or(0, |rm| rm.n_states());
+    let mut env = JobEnv::new(&s.env, learned).map_err(fail)?;
+    let mut model =
+        reward_model(algo, s, n_learned.max(1), seed).map_err(|e| fail(e.to_string()))?;
+    let expert_kde = match algo.divergence() {
+        Some(_) => Some(
+            Kde::fit_columns(&expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
+                .map_err(|e| fail(format!("expert KDE: {e}")))?,
+        ),
+        None => None,
+    };
+    let mut trainer = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), seed)
+        .map_err(|e| fail(e.to_string()))?;
+    // Separate streams: rollouts and evaluation never perturb SAC's own RNG.
+    let mut rollout_rng = ChaCha8Rng::seed_from_u64(episode_seed(seed, 0x0a11_0a11));
+    let eval_seed = episode_seed(seed, 0xe7a1);
+    let total_env_steps = s.sac_steps_per_iteration * s.irl_iterations as u64;
+    let mut rows = Vec::with_capacity(s.irl_iterations + 1);
+    let mut rollout_index = 0u64;
+
+    let evaluate = |agent: &mut SacAgent,
+                    env: &mut JobEnv,
+                    logger: Option<&mut RolloutLogger>|
+     -> Result<(f64, f64, f64), String> {
+        let mut rng = ChaCha8Rng::seed_from_u64(eval_seed);
+        let mut logger = logger;
+        let (mut succ, mut ret, mut env_ret) = (0.0, 0.0, 0.0);
+        for i in 0..s.eval_episodes {
+            let o = play_episode(
+                agent,
+                env,
+                perfect_rm,
+                ActMode::Mean,
+                episode_seed(eval_seed, i),
+                true,
+                &mut rng,
+                logger.as_deref_mut().map(|l| (l, "eval")),
+                |_, _| {},
+            )?;
+            succ += f64::from(u8::from(o.success));
+            ret += o.task_return;
+            env_ret += o.env_return;
+        }
+        let n = s.eval_episodes as f64;
+        Ok((succ / n, ret / n, env_ret / n))
+    };
+
+    let (sr, tr, er) = evaluate(&mut trainer.agent, &mut env, None).map_err(fail)?;
+    rows.push(MetricsRow {
+        iteration: 0,
+        env_steps: 0,
+        success_rate: sr,
+        task_return: tr,
+        env_return: er,
+        learned_reward: 0.0,
+        surrogate_loss: 0.0,
+    });
+    progress(JobProgress {
+        iteration: 0,
+        iterations: s.irl_iterations,
+        env_steps: 0,
+        total_env_steps,
+        success_rate: sr,
+    });
+
+    for iteration in 1..=s.irl_iterations {
+        // 1. Policy: continue SAC on the current learned reward.
+        {
+            let mut reward_fn = LearnedReward {
+                model: model.as_mut(),
+                product: learned.is_some(),
+                obs: Vec::new(),
+                states: Vec::new(),
+                error: None,
+            };
+            let before = trainer.env_steps();
+            let chunk = 1_000u64;
+            let mut done = 0;
+            while done < s.sac_steps_per_iteration {
+                let n = chunk.min(s.sac_steps_per_iteration - done);
+                trainer
+                    .train(&mut env, &mut reward_fn, n, |_| {})
+                    .map_err(|e| fail(format!("SAC: {e}")))?;
+                done += n;
+                progress(JobProgress {
+                    iteration: iteration - 1,
+                    iterations: s.irl_iterations,
+                    env_steps: before + done,
+                    total_env_steps,
+                    success_rate: rows.last().map_or(0.0, |r| r.success_rate),
+                });
+            }
+            if let Some(e) = reward_fn.error {
+                return Err(fail(format!("learned reward: {e}")));
+            }
+        }
+        // 2. Rollouts: fresh trajectories of the current stochastic policy.
+        let mut batch = AgentBatch::default();
+        for _ in 0..s.agent_trajectories {
+            let reset_seed = episode_seed(seed ^ 0x7261_6e64, rollout_index);
+            rollout_index += 1;
+            let mut len = 0;
+            play_episode(
+                &mut trainer.agent,
+                &mut env,
+                perfect_rm,
+                ActMode::Sample,
+                reset_seed,
+                false,
+                &mut rollout_rng,
+                logger.as_deref_mut().map(|l| (l, "agent")),
+                |o, u| {
+                    batch.obs.extend_from_slice(o);
+                    if let Some(u) = u {
+                        batch.states.push(u as u32);
+                    }
+                    len += 1;
+                },
+            )
+            .map_err(fail)?;
+            batch.lengths.push(len);
+        }
+        // 3–4. Coefficients of the algorithm's loss.
+        let Coefficients {
+            obs,
+            states,
+            coeffs,
+        } = irl_coefficients(algo, expert, expert_kde.as_ref(), &batch, s.kde_bandwidth)
+            .map_err(fail)?;
+        let mut r = vec![0.0f32; coeffs.len()];
+        model
+            .reward_batch(&obs, &states, &mut r)
+            .map_err(|e| fail(e.to_string()))?;
+        let surrogate_loss: f64 = r.iter().zip(&coeffs).map(|(&r, c)| f64::from(r) * c).sum();
+        let n_agent = batch.obs.len() / OBS_DIM;
+        let learned_reward =
+            r[..n_agent].iter().map(|&x| f64::from(x)).sum::<f64>() / n_agent as f64;
+        // 5. Reward update.
+        for _ in 0..s.reward_steps_per_iteration {
+            model
+                .update(&obs, &states, &coeffs)
+                .map_err(|e| fail(format!("reward update: {e}")))?;
+        }
+        // Ground-truth evaluation.
+        let (sr, tr, er) =
+            evaluate(&mut trainer.agent, &mut env, logger.as_deref_mut()).map_err(fail)?;
+        rows.push(MetricsRow {
+            iteration,
+            env_steps: trainer.env_steps(),
+            success_rate: sr,
+            task_return: tr,
+            env_return: er,
+            learned_reward,
+            surrogate_loss,
+        });
+        progress(JobProgress {
+            iteration,
+            iterations: s.irl_iterations,
+            env_steps: trainer.env_steps(),
+            total_env_steps,
+            success_rate: sr,
+        });
+    }
+    if let Some(path) = inputs.reward_path {
+        model
+            .save(path)
+            .map_err(|e| fail(format!("saving the reward: {e}")))?;
+    }
+    Ok(JobResult {
+        algo,
+        seed,
+        rows,
+        wall_secs: started.elapsed().as_secs_f64(),
+    })
+}

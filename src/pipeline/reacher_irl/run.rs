@@ -1,0 +1,633 @@
+//! A whole `reacher --task` run: demos, RM learning, the (algorithm, seed) jobs on a thread
+//! pool, and the run directory.
+//!
+//! Run directory (written as `<out>.partial`, renamed to `<out>` when complete):
+//! - `config.toml` — the effective configuration; `run.json` — task, algorithms, seeds,
+//!   demo and RM facts, wall times, git commit.
+//! - `metrics.csv` — one row per (algorithm, seed, IRL iteration): ground-truth success rate
+//!   and returns (no wall times, so the same seed gives the same file bit for bit).
+//! - `summary.csv`, `summary.md` — final success/return mean ± std over seeds per algorithm.
+//! - `success.svg`, `task_return.svg` — mean ± std over seeds vs environment steps.
+//! - `rm/` — `perfect.txt`/`.dot`, and for SMIRL `learned.txt`/`.dot` and `report.txt`.
+//! - `rewards/<algo>_seed<S>.*` — learned reward parameters.
+//! - `logs/demos.mcap`, `logs/<algo>_seed<S>.mcap` — demos and sampled agent/eval episodes.
+
+use super::config::{DemoSource, IrlRunConfig};
+use super::demos::{load_expert, make_demos, DemoError};
+use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, JobSettings};
+use super::Algo;
+use crate::env::reacher::{default_xml_path, VOCABULARY};
+use crate::env::reacher_task::ReacherTask;
+use crate::log::{LogOptions, RolloutLogger, RunHeader};
+use crate::pipeline::reacher_expert::Demo;
+use crate::report::{aggregate_over_seeds, write_atomic, CsvTable, LinePlot, Series};
+use crate::rm::dot::to_dot;
+use crate::rm::equiv::{refines, state_counts};
+use crate::rm::format::write_rm;
+use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
+use crate::rm::{LabelSet, RewardMachine, Vocabulary};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct RunRequest {
+    pub task: ReacherTask,
+    pub algos: Vec<Algo>,
+    /// Number of seeds; job seeds are `seed, seed + 1, …`.
+    pub seeds: u64,
+    /// Base seed (also the demonstrations' and LRM's seed).
+    pub seed: u64,
+    pub config: IrlRunConfig,
+    /// Final run directory.
+    pub out: PathBuf,
+}
+
+/// A run that could not start (bad input: nothing written) or failed while running.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    /// Bad input, found before anything was written.
+    #[error("{0}")]
+    Usage(String),
+    #[error("{0}")]
+    Run(String),
+}
+
+/// Receives progress (the binary draws progress bars from it).
+pub trait RunObserver: Sync {
+    /// A phase starts (`"demos"`, `"lrm"`, `"irl"`, `"reports"`).
+    fn phase(&self, _name: &str) {}
+    /// The jobs of the IRL phase, in order (labels such as `smirl seed 1`).
+    fn jobs(&self, _labels: &[String], _total_env_steps: u64) {}
+    fn job_progress(&self, _job: usize, _progress: JobProgress) {}
+    fn job_done(&self, _job: usize, _result: &JobResult) {}
+    fn message(&self, _text: &str) {}
+}
+
+/// An observer that ignores everything.
+pub struct Silent;
+impl RunObserver for Silent {}
+
+/// Facts about the learned machine.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RmFacts {
+    pub learned_states: usize,
+    pub learned_reachable: usize,
+    pub perfect_states: usize,
+    /// Along the demonstrations, the perfect machine's state is a function of the learned one.
+    pub refines_perfect: bool,
+    pub ambiguous_steps: usize,
+    pub total_steps: usize,
+    pub lrm_cost: f64,
+    pub lrm_secs: f64,
+}
+
+/// Final numbers of one algorithm over seeds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct AlgoSummary {
+    pub algo: String,
+    pub seeds: usize,
+    pub final_success_mean: f64,
+    pub final_success_std: f64,
+    pub final_return_mean: f64,
+    pub final_return_std: f64,
+    /// Mean wall time of a job (seconds).
+    pub job_secs_mean: f64,
+}
+
+/// What a finished run reports.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RunSummary {
+    pub out: PathBuf,
+    pub task: String,
+    pub demos_kept: usize,
+    pub demos_generated: usize,
+    pub rm: Option<RmFacts>,
+    pub algos: Vec<AlgoSummary>,
+    pub wall_secs: f64,
+}
+
+fn mean_std(xs: &[f64]) -> (f64, f64) {
+    let n = xs.len().max(1) as f64;
+    let m = xs.iter().sum::<f64>() / n;
+    let v = xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n;
+    (m, v.sqrt())
+}
+
+/// The partial directory next to `out`.
+pub fn partial_dir(out: &Path) -> PathBuf {
+    let mut name = out
+        .file_name()
+        .map(|n| n.to_os_string())
+        .unwrap_or_default();
+    name.push(".partial");
+    out.with_file_name(name)
+}
+
+/// Annotates every demonstration observation with the learned machine's state before the
+/// step (the state its labels are read in).
+pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>) -> ExpertData {
+    let mut data = ExpertData {
+        obs: Vec::new(),
+        lengths: Vec::new(),
+        learned_states: Vec::new(),
+    };
+    for d in demos {
+        let mut u = rm.map(|m| m.initial());
+        for s in &d.steps {
+            data.obs.extend_from_slice(&s.next_obs);
+            if let (Some(m), Some(state)) = (rm, u) {
+                data.learned_states.push(state as u32);
+                u = Some(m.next_state(state, s.labels));
+            }
+        }
+        data.lengths.push(d.steps.len());
+    }
+    data
+}
+
+/// Learns the machine from the demos' label traces (no rewards).
+pub fn learn_machine(
+    demos: &[Demo],
+    config: &IrlRunConfig,
+    seed: u64,
+) -> Result<(RewardMachine, f64, f64), String> {
+    let vocab = Vocabulary::new(VOCABULARY);
+    let traces: Vec<LabelTrace> = demos
+        .iter()
+        .map(|d| LabelTrace {
+            labels: d.labels(),
+            rewards: None,
+        })
+        .collect();
+    let cfg = LrmConfig {
+        max_states: config.lrm_max_states,
+        tabu_len: config.lrm_tabu_len,
+        max_steps: config.lrm_steps,
+        seed,
+        threads: config.threads,
+        // Merging joins states by observed rewards; demos carry none (rewards are what IRL
+        // learns), so merging would collapse the machine to one state.
+        merge: false,
+        fill_unobserved: false,
+        reward_weight: 0.0,
+    };
+    let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
+    Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
+}
+
+fn io(path: &Path, e: impl std::fmt::Display) -> PipelineError {
+    PipelineError::Run(format!("{}: {e}", path.display()))
+}
+
+fn write_file(path: &Path, text: &str) -> Result<(), PipelineError> {
+    write_atomic(path, text.as_bytes()).map_err(|e| io(path, e))
+}
+
+fn job_settings(c: &IrlRunConfig) -> JobSettings {
+    JobSettings {
+        env: c.env.clone(),
+        sac: c.sac.clone(),
+        irl_iterations: c.irl_iterations,
+        sac_steps_per_iteration: c.sac_steps_per_iteration,
+        agent_trajectories: c.agent_trajectories,
+        eval_episodes: c.eval_episodes,
+        mlp_reward_lr: c.mlp_reward_lr,
+        mlp_reward_l2: c.mlp_reward_l2,
+        smirl_reward_lr: c.smirl_reward_lr,
+        smirl_reward_l2: c.smirl_reward_l2,
+        reward_steps_per_iteration: c.reward_steps_per_iteration,
+        smooth_sigma: c.smooth_sigma,
+        kde_bandwidth: c.kde_bandwidth,
+    }
+}
+
+fn log_header(
+    task: ReacherTask,
+    seed: u64,
+    config: &IrlRunConfig,
+    what: &str,
+    perfect: &RewardMachine,
+) -> Result<RunHeader, PipelineError> {
+    let json = serde_json::json!({ "run": what, "irl_config": config });
+    let mut header = RunHeader::reacher(task.name(), seed, json, &default_xml_path())
+        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    header.reward_machine = Some(write_rm(perfect));
+    Ok(header)
+}
+
+/// Runs everything and writes the run directory. Bad input (algorithm list, expert cache)
+/// is reported as [`PipelineError::Usage`] before anything is written.
+pub fn run_pipeline(
+    request: &RunRequest,
+    observer: &dyn RunObserver,
+) -> Result<RunSummary, PipelineError> {
+    let started = Instant::now();
+    let RunRequest {
+        task,
+        ref algos,
+        seeds,
+        seed,
+        ref config,
+        ref out,
+    } = *request;
+    let usage = PipelineError::Usage;
+    if algos.is_empty() {
+        return Err(usage("no algorithm selected".into()));
+    }
+    if seeds == 0 {
+        return Err(usage("--seeds must be at least 1".into()));
+    }
+    config
+        .validate("config")
+        .map_err(|e| usage(e.to_string()))?;
+    let perfect = task
+        .perfect_rm()
+        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let mut expert = match config.demo_source {
+        DemoSource::Expert => {
+            Some(load_expert(task, &config.cache_dir()).map_err(|e| match e {
+                DemoError::Cache { .. } => usage(e.to_string()),
+                other => PipelineError::Run(other.to_string()),
+            })?)
+        }
+        DemoSource::Scripted => None,
+    };
+
+    // From here on, output goes to <out>.partial.
+    let partial = partial_dir(out);
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial).map_err(|e| io(&partial, e))?;
+    }
+    for sub in ["rm", "rewards", "logs"] {
+        std::fs::create_dir_all(partial.join(sub)).map_err(|e| io(&partial, e))?;
+    }
+    write_file(&partial.join("config.toml"), &config.to_toml())?;
+    write_file(&partial.join("rm/perfect.txt"), &write_rm(&perfect))?;
+    write_file(&partial.join("rm/perfect.dot"), &to_dot(&perfect))?;
+
+    // 1. Demonstrations.
+    observer.phase("demos");
+    let demo_log = partial.join("logs/demos.mcap");
+    let mut logger = RolloutLogger::create(
+        &demo_log,
+        log_header(task, seed, config, "demonstrations", &perfect)?,
+        LogOptions {
+            observations: true,
+            ..LogOptions::default()
+        },
+    )
+    .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let all_demos = make_demos(task, config, expert.as_mut(), seed, Some(&mut logger))
+        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    logger
+        .finish()
+        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let demos_generated = all_demos.len();
+    let demos: Vec<Demo> = all_demos.into_iter().filter(|d| d.success).collect();
+    if demos.is_empty() {
+        return Err(PipelineError::Run(format!(
+            "none of the {demos_generated} demonstrations completes task '{task}'"
+        )));
+    }
+    observer.message(&format!(
+        "demonstrations: {} of {demos_generated} complete the task ({} source), {} steps",
+        demos.len(),
+        config.demo_source.name(),
+        demos.iter().map(|d| d.steps.len()).sum::<usize>()
+    ));
+
+    // 2. Reward machine (SMIRL only).
+    let mut rm_facts = None;
+    let learned = if algos.iter().any(|a| a.uses_rm()) {
+        observer.phase("lrm");
+        let (rm, cost, secs) = learn_machine(&demos, config, seed).map_err(PipelineError::Run)?;
+        let traces: Vec<Vec<LabelSet>> = demos.iter().map(|d| d.labels()).collect();
+        let r = refines(&rm, &perfect, traces.iter().map(|t| t.as_slice()));
+        let counts = state_counts(&rm, None).map_err(|e| PipelineError::Run(e.to_string()))?;
+        let facts = RmFacts {
+            learned_states: rm.n_states(),
+            learned_reachable: counts.reachable,
+            perfect_states: perfect.n_states(),
+            refines_perfect: r.refines,
+            ambiguous_steps: r.ambiguous_steps,
+            total_steps: r.total_steps,
+            lrm_cost: cost,
+            lrm_secs: secs,
+        };
+        let mut report = String::new();
+        let _ = writeln!(
+            report,
+            "learned machine: {} states ({} reachable); perfect machine: {} states",
+            facts.learned_states, facts.learned_reachable, facts.perfect_states
+        );
+        let _ = writeln!(
+            report,
+            "refines the perfect machine along the {} demonstrations: {} ({} of {} steps ambiguous)",
+            demos.len(),
+            facts.refines_perfect,
+            facts.ambiguous_steps,
+            facts.total_steps
+        );
+        let _ = writeln!(report, "LRM cost {:.3}, {:.2} s", cost, secs);
+        for (u, seen) in r.seen_with.iter().enumerate() {
+            let _ = writeln!(
+                report,
+                "learned state {u} seen with perfect states {seen:?}"
+            );
+        }
+        write_file(&partial.join("rm/learned.txt"), &write_rm(&rm))?;
+        write_file(&partial.join("rm/learned.dot"), &to_dot(&rm))?;
+        write_file(&partial.join("rm/report.txt"), &report)?;
+        observer.message(
+            report
+                .lines()
+                .take(2)
+                .collect::<Vec<_>>()
+                .join("; ")
+                .as_str(),
+        );
+        rm_facts = Some(facts);
+        Some(rm)
+    } else {
+        None
+    };
+    let expert_data = annotate(&demos, learned.as_ref());
+
+    // 3. IRL jobs on the pool.
+    observer.phase("irl");
+    let jobs: Vec<(Algo, u64)> = algos
+        .iter()
+        .flat_map(|&a| (0..seeds).map(move |k| (a, seed + k)))
+        .collect();
+    let labels: Vec<String> = jobs.iter().map(|(a, s)| format!("{a} seed {s}")).collect();
+    observer.jobs(
+        &labels,
+        config.sac_steps_per_iteration * config.irl_iterations as u64,
+    );
+    let settings = job_settings(config);
+    let next = AtomicUsize::new(0);
+    let results: Mutex<Vec<Option<Result<JobResult, String>>>> =
+        Mutex::new(jobs.iter().map(|_| None).collect());
+    std::thread::scope(|scope| {
+        for _ in 0..config.threads.min(jobs.len()) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::SeqCst);
+                let Some(&(algo, job_seed)) = jobs.get(i) else {
+                    break;
+                };
+                let outcome = run_one(
+                    task,
+                    algo,
+                    job_seed,
+                    config,
+                    &settings,
+                    &perfect,
+                    learned.as_ref(),
+                    &expert_data,
+                    &partial,
+                    &|p| observer.job_progress(i, p),
+                );
+                if let Ok(r) = &outcome {
+                    observer.job_done(i, r);
+                }
+                results
+                    .lock()
+                    .expect("no job panics while holding the lock")[i] = Some(outcome);
+            });
+        }
+    });
+    let results: Vec<JobResult> = results
+        .into_inner()
+        .expect("workers finished")
+        .into_iter()
+        .map(|r| r.unwrap_or_else(|| Err("job did not run".into())))
+        .collect::<Result<_, _>>()
+        .map_err(PipelineError::Run)?;
+
+    // 4. Reports.
+    observer.phase("reports");
+    let mut metrics = CsvTable::new([
+        "algo",
+        "seed",
+        "iteration",
+        "env_steps",
+        "success_rate",
+        "task_return",
+        "env_return",
+        "learned_reward",
+        "surrogate_loss",
+    ]);
+    for r in &results {
+        for row in &r.rows {
+            metrics.push([
+                r.algo.name().to_string(),
+                r.seed.to_string(),
+                row.iteration.to_string(),
+                row.env_steps.to_string(),
+                format!("{}", row.success_rate),
+                format!("{}", row.task_return),
+                format!("{:.6}", row.env_return),
+                format!("{:.6}", row.learned_reward),
+                format!("{:.6}", row.surrogate_loss),
+            ]);
+        }
+    }
+    write_file(&partial.join("metrics.csv"), &metrics.to_csv())?;
+
+    let mut summaries = Vec::new();
+    let mut success_plot = LinePlot::new(
+        &format!("ReacherDelivery {task}: ground-truth success"),
+        "environment steps",
+        "success rate",
+    );
+    success_plot.y_range = Some((0.0, 1.0));
+    let mut return_plot = LinePlot::new(
+        &format!("ReacherDelivery {task}: task return"),
+        "environment steps",
+        "task return",
+    );
+    for &algo in algos {
+        let runs: Vec<&JobResult> = results.iter().filter(|r| r.algo == algo).collect();
+        let curve = |f: fn(&super::MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
+            runs.iter()
+                .map(|r| {
+                    r.rows
+                        .iter()
+                        .map(|row| (row.env_steps as f64, f(row)))
+                        .collect()
+                })
+                .collect()
+        };
+        success_plot.series.push(Series {
+            name: algo.name().into(),
+            points: aggregate_over_seeds(&curve(|r| r.success_rate)),
+        });
+        return_plot.series.push(Series {
+            name: algo.name().into(),
+            points: aggregate_over_seeds(&curve(|r| r.task_return)),
+        });
+        let last = |f: fn(&super::MetricsRow) -> f64| -> Vec<f64> {
+            runs.iter()
+                .map(|r| f(r.rows.last().expect("iteration 0 row")))
+                .collect()
+        };
+        let (sm, ss) = mean_std(&last(|r| r.success_rate));
+        let (rm_, rs) = mean_std(&last(|r| r.task_return));
+        let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
+        summaries.push(AlgoSummary {
+            algo: algo.name().into(),
+            seeds: runs.len(),
+            final_success_mean: sm,
+            final_success_std: ss,
+            final_return_mean: rm_,
+            final_return_std: rs,
+            job_secs_mean: wm,
+        });
+    }
+    write_file(&partial.join("success.svg"), &success_plot.to_svg())?;
+    write_file(&partial.join("task_return.svg"), &return_plot.to_svg())?;
+    let mut table = CsvTable::new([
+        "task",
+        "algo",
+        "seeds",
+        "final_success_mean",
+        "final_success_std",
+        "final_return_mean",
+        "final_return_std",
+    ]);
+    for s in &summaries {
+        table.push([
+            task.name().to_string(),
+            s.algo.clone(),
+            s.seeds.to_string(),
+            format!("{:.3}", s.final_success_mean),
+            format!("{:.3}", s.final_success_std),
+            format!("{:.3}", s.final_return_mean),
+            format!("{:.3}", s.final_return_std),
+        ]);
+    }
+    write_file(&partial.join("summary.csv"), &table.to_csv())?;
+    write_file(
+        &partial.join("summary.md"),
+        &summary_markdown(task, &summaries, rm_facts.as_ref()),
+    )?;
+    let summary = RunSummary {
+        out: out.clone(),
+        task: task.name().into(),
+        demos_kept: demos.len(),
+        demos_generated,
+        rm: rm_facts,
+        algos: summaries,
+        wall_secs: started.elapsed().as_secs_f64(),
+    };
+    let run_json = serde_json::json!({
+        "summary": summary,
+        "seeds": (0..seeds).map(|k| seed + k).collect::<Vec<_>>(),
+        "demo_source": config.demo_source.name(),
+        "git_commit": crate::GIT_COMMIT,
+        "jobs": results.iter().map(|r| serde_json::json!({
+            "algo": r.algo.name(), "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
+    });
+    write_file(
+        &partial.join("run.json"),
+        &serde_json::to_string_pretty(&run_json).expect("JSON serialises"),
+    )?;
+    // Complete: replace any previous run directory.
+    if out.exists() {
+        std::fs::remove_dir_all(out).map_err(|e| io(out, e))?;
+    }
+    std::fs::rename(&partial, out).map_err(|e| io(out, e))?;
+    Ok(summary)
+}
+
+/// One job with its MCAP logger and reward file.
+#[allow(clippy::too_many_arguments)]
+fn run_one(
+    task: ReacherTask,
+    algo: Algo,
+    seed: u64,
+    config: &IrlRunConfig,
+    settings: &JobSettings,
+    perfect: &RewardMachine,
+    learned: Option<&RewardMachine>,
+    expert: &ExpertData,
+    dir: &Path,
+    progress: &(dyn Fn(JobProgress) + Sync),
+) -> Result<JobResult, String> {
+    let stem = format!("{}_seed{seed}", algo.name());
+    let reward_path = dir.join("rewards").join(format!(
+        "{stem}.{}",
+        if algo.uses_rm() { "json" } else { "bin" }
+    ));
+    let mut logger = if config.log_every_nth_episode > 0 {
+        let header = log_header(task, seed, config, &format!("irl {algo}"), perfect)
+            .map_err(|e| e.to_string())?;
+        Some(
+            RolloutLogger::create(
+                &dir.join("logs").join(format!("{stem}.mcap")),
+                header,
+                LogOptions {
+                    every_nth_episode: config.log_every_nth_episode,
+                    ..LogOptions::default()
+                },
+            )
+            .map_err(|e| e.to_string())?,
+        )
+    } else {
+        None
+    };
+    let inputs = JobInputs {
+        algo,
+        seed,
+        settings,
+        perfect_rm: perfect,
+        learned_rm: learned,
+        expert,
+        reward_path: Some(&reward_path),
+    };
+    let result = run_job(&inputs, logger.as_mut(), progress).map_err(|e| e.to_string())?;
+    if let Some(l) = logger {
+        l.finish().map_err(|e| e.to_string())?;
+    }
+    Ok(result)
+}
+
+/// The summary table as Markdown (also printed by the binary).
+pub fn summary_markdown(
+    task: ReacherTask,
+    summaries: &[AlgoSummary],
+    rm: Option<&RmFacts>,
+) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "| task | algorithm | seeds | final success | final task return | job wall time (s) |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    for a in summaries {
+        let _ = writeln!(
+            s,
+            "| {task} | {} | {} | {:.2} ± {:.2} | {:.2} ± {:.2} | {:.0} |",
+            a.algo,
+            a.seeds,
+            a.final_success_mean,
+            a.final_success_std,
+            a.final_return_mean,
+            a.final_return_std,
+            a.job_secs_mean
+        );
+    }
+    if let Some(f) = rm {
+        let _ = writeln!(
+            s,
+            "\nLearned RM: {} states ({} reachable; perfect: {}), refines the perfect machine \
+             along the demos: {}.",
+            f.learned_states, f.learned_reachable, f.perfect_states, f.refines_perfect
+        );
+    }
+    s
+}

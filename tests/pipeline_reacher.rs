@@ -1,0 +1,292 @@
+//! The `reacher --task` IRL pipeline: SMIRL's update direction at pipeline level, a tiny
+//! end-to-end run through the library and through the CLI (every artefact written, nothing
+//! half-written), bad input exiting 2 without output, and bit-identical metrics per seed.
+
+use smirl::env::reacher::OBS_DIM;
+use smirl::env::reacher_task::ReacherTask;
+use smirl::irl::reward::{RewardModel, RewardOptimConfig};
+use smirl::irl::smirl::{maxent_gradient, AnnotatedTrajectories, FeatureMap, LinearRmReward};
+use smirl::pipeline::reacher_irl::run::Silent;
+use smirl::pipeline::reacher_irl::{
+    irl_coefficients, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData, IrlRunConfig,
+    RunRequest,
+};
+use std::path::Path;
+use std::process::Command;
+
+/// A tiny but complete configuration: scripted demos, 2 IRL iterations of 300 SAC steps.
+fn tiny_config() -> IrlRunConfig {
+    let mut c = IrlRunConfig::quick();
+    c.demo_source = DemoSource::Scripted;
+    c.demo_episodes = 4;
+    c.irl_iterations = 2;
+    c.sac_steps_per_iteration = 300;
+    c.agent_trajectories = 3;
+    c.eval_episodes = 2;
+    c.lrm_steps = 20;
+    c.lrm_tabu_len = 100;
+    c.log_every_nth_episode = 2;
+    c.env.max_steps = 60;
+    c.sac.warmup_steps = 100;
+    c.sac.update_after = 100;
+    c.sac.batch_size = 64;
+    c
+}
+
+/// An observation row whose fingertip touches ball `ball` (or none), cancel flag off.
+fn row(ball: Option<usize>) -> Vec<f32> {
+    let mut r = vec![0.5f32; OBS_DIM];
+    r[16] = 0.0;
+    if let Some(b) = ball {
+        r[8 + 2 * b] = 0.005;
+        r[9 + 2 * b] = -0.005;
+    }
+    r
+}
+
+#[test]
+fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
+    // Expert: 2 trajectories touching red in u0 then blue in u1; agent: touches green in u0
+    // and red in u1, one trajectory.
+    let mut expert = ExpertData {
+        obs: Vec::new(),
+        lengths: vec![3, 2],
+        learned_states: vec![0, 0, 1, 0, 1],
+    };
+    for b in [Some(0), None, Some(2), Some(0), Some(2)] {
+        expert.obs.extend(row(b));
+    }
+    let mut agent = AgentBatch {
+        lengths: vec![3],
+        states: vec![0, 1, 1],
+        ..AgentBatch::default()
+    };
+    for b in [Some(1), Some(0), None] {
+        agent.obs.extend(row(b));
+    }
+    let c = irl_coefficients(Algo::Smirl, &expert, None, &agent, 0.02).unwrap();
+    let mut model = LinearRmReward::new(
+        FeatureMap::reacher_labels(),
+        2,
+        RewardOptimConfig::adam(0.1),
+    )
+    .unwrap();
+    model.backward(&c.obs, &c.states, &c.coeffs).unwrap();
+    let features = FeatureMap::reacher_labels();
+    let ascent = maxent_gradient(
+        &features,
+        2,
+        &AnnotatedTrajectories {
+            obs: &expert.obs,
+            rm_state: &expert.learned_states,
+            lengths: &expert.lengths,
+        },
+        &AnnotatedTrajectories {
+            obs: &agent.obs,
+            rm_state: &agent.states,
+            lengths: &agent.lengths,
+        },
+    )
+    .unwrap();
+    let grad = model.grad();
+    for (g, a) in grad.iter().zip(&ascent) {
+        assert!(
+            (f64::from(*g) + a).abs() < 1e-6,
+            "loss gradient {grad:?} vs ascent {ascent:?}"
+        );
+    }
+    // Known answer: μ_D(u0, red) = 2 touches / 2 trajectories = 1, μ_π(u0, red) = 0;
+    // μ_D(u1, red) = 0, μ_π(u1, red) = 1; μ_D(u0, green) = 0, μ_π(u0, green) = 1.
+    let k = features.len();
+    assert_eq!(ascent[0], 1.0);
+    assert_eq!(ascent[k], -1.0);
+    assert_eq!(ascent[1], -1.0);
+    assert_eq!(ascent[k + 2], 1.0);
+    // One optimiser step moves the reward toward the expert: w_u0[red] up, w_u1[red] down.
+    model.step();
+    assert!(model.weights(0)[0] > 0.0 && model.weights(1)[0] < 0.0);
+}
+
+fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
+    for f in [
+        "config.toml",
+        "run.json",
+        "metrics.csv",
+        "summary.csv",
+        "summary.md",
+        "success.svg",
+        "task_return.svg",
+        "rm/perfect.txt",
+        "rm/perfect.dot",
+        "rm/learned.txt",
+        "rm/learned.dot",
+        "rm/report.txt",
+        "logs/demos.mcap",
+    ] {
+        assert!(dir.join(f).is_file(), "missing {f}");
+    }
+    for a in algos {
+        assert!(
+            dir.join(format!("logs/{a}_seed{seed}.mcap")).is_file(),
+            "{a} log"
+        );
+        let ext = if a.starts_with("smirl") {
+            "json"
+        } else {
+            "bin"
+        };
+        assert!(
+            dir.join(format!("rewards/{a}_seed{seed}.{ext}")).is_file(),
+            "{a} reward"
+        );
+    }
+    let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    // Header + (iterations + 1) rows per job.
+    assert_eq!(metrics.lines().count(), 1 + algos.len() * 3, "{metrics}");
+    let svg = std::fs::read_to_string(dir.join("success.svg")).unwrap();
+    assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"));
+    // The demos log opens with the project's reader.
+    let log = smirl::log::read_log(&dir.join("logs/demos.mcap")).unwrap();
+    assert!(!log.episodes.is_empty());
+}
+
+#[test]
+fn tiny_library_run_writes_every_artefact_and_is_reproducible() {
+    let tmp = tempfile::tempdir().unwrap();
+    let request = |out: &str| RunRequest {
+        task: ReacherTask::Or,
+        algos: vec![Algo::Smirl, Algo::Fkl],
+        seeds: 1,
+        seed: 3,
+        config: tiny_config(),
+        out: tmp.path().join(out),
+    };
+    let a = run_pipeline(&request("a"), &Silent).unwrap();
+    assert!(a.rm.as_ref().unwrap().learned_states >= 1);
+    artefacts(&tmp.path().join("a"), &["smirl", "fkl"], 3);
+    assert!(!tmp.path().join("a.partial").exists());
+    run_pipeline(&request("b"), &Silent).unwrap();
+    let read = |d: &str| std::fs::read(tmp.path().join(d).join("metrics.csv")).unwrap();
+    assert_eq!(read("a"), read("b"), "same seed must give the same metrics");
+}
+
+fn reacher() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_reacher"))
+}
+
+#[test]
+fn cli_tiny_run_and_bad_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("tiny.toml");
+    std::fs::write(&cfg, tiny_config().to_toml()).unwrap();
+    let out = tmp.path().join("run");
+    let status = reacher()
+        .args([
+            "--task",
+            "sequential",
+            "--algo",
+            "smirl-smooth,maxent",
+            "--seed",
+            "1",
+            "--quiet",
+        ])
+        .arg("--config")
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    artefacts(&out, &["smirl-smooth", "maxent"], 1);
+
+    // Bad input: exit 2, nothing written.
+    let full = tiny_config().to_toml();
+    let missing = full.replace("irl_iterations = 2\n", "");
+    let mistyped = full.replace("irl_iterations = 2", "irl_iterations = \"two\"");
+    let unknown = format!("irl_iteratoins = 2\n{full}");
+    let cases: Vec<(Vec<String>, Option<(&str, String)>, &str)> = vec![
+        (vec!["--task".into(), "pentagon".into()], None, "pentagon"),
+        (
+            vec!["--task".into(), "or".into(), "--algo".into(), "gail".into()],
+            None,
+            "gail",
+        ),
+        (
+            vec!["--task".into(), "or".into(), "--seeds".into(), "0".into()],
+            None,
+            "seeds",
+        ),
+        (
+            vec!["--task".into(), "or".into()],
+            Some(("missing.toml", missing)),
+            "irl_iterations",
+        ),
+        (
+            vec!["--task".into(), "or".into()],
+            Some(("mistyped.toml", mistyped)),
+            "irl_iterations",
+        ),
+        (
+            vec!["--task".into(), "or".into()],
+            Some(("unknown.toml", unknown)),
+            "irl_iteratoins",
+        ),
+    ];
+    for (args, file, needle) in cases {
+        let bad_out = tmp.path().join("bad");
+        let mut cmd = reacher();
+        cmd.args(&args).arg("--out").arg(&bad_out);
+        if let Some((name, text)) = &file {
+            let p = tmp.path().join(name);
+            std::fs::write(&p, text).unwrap();
+            cmd.arg("--config").arg(&p);
+        }
+        let o = cmd.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!bad_out.exists() && !tmp.path().join("bad.partial").exists());
+    }
+    // An expert cache from another task is refused before anything is written.
+    let cache = tmp.path().join("cache");
+    std::fs::create_dir_all(&cache).unwrap();
+    std::fs::write(cache.join("expert_or.policy"), b"SMIRLPOL not a policy").unwrap();
+    let mut c = tiny_config();
+    c.demo_source = DemoSource::Expert;
+    c.expert_cache_dir = cache.clone();
+    let p = tmp.path().join("expert.toml");
+    std::fs::write(&p, c.to_toml()).unwrap();
+    let o = reacher()
+        .args(["--task", "or", "--config"])
+        .arg(&p)
+        .arg("--out")
+        .arg(tmp.path().join("bad"))
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("expert_or.policy"));
+    assert!(!tmp.path().join("bad").exists());
+    // The subcommands still work next to the top-level arguments.
+    assert_eq!(
+        reacher()
+            .args(["replay", "--help"])
+            .output()
+            .unwrap()
+            .status
+            .code(),
+        Some(0)
+    );
+}
+
+#[test]
+fn shipped_configs_parse() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
+    for name in ["config.toml", "quick.toml"] {
+        IrlRunConfig::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+}
