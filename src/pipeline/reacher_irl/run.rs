@@ -174,6 +174,8 @@ pub fn learn_machine(
         merge: false,
         fill_unobserved: false,
         reward_weight: 0.0,
+        // Restarts, split moves and patience keep the learner's defaults.
+        ..LrmConfig::default()
     };
     let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
