@@ -95,6 +95,10 @@ fn each_ball_label_fires_exactly_within_touch_radius() {
             for k in 0..4 {
                 let phi = k as f64 * std::f64::consts::FRAC_PI_2 + 0.3;
                 let target = [ball[0] + d * phi.cos(), ball[1] + d * phi.sin()];
+                let reach = target[0].hypot(target[1]);
+                if !(0.02..=0.205).contains(&reach) {
+                    continue; // outside the arm's annulus (joint1 is limited to ±3 rad)
+                }
                 e.set_arm(inverse_kinematics(target[0], target[1]), [0.0, 0.0])
                     .unwrap();
                 let tip = e.fingertip();
@@ -346,4 +350,38 @@ fn data_state_setters_check_lengths() {
     d.set_qpos(&[0.1; 10]).unwrap();
     d.forward().unwrap();
     assert_eq!(d.qpos(), &[0.1; 10]);
+}
+
+#[test]
+fn a_sweeping_arm_touches_at_most_one_ball_of_the_default_layout() {
+    // A policy that spins the shoulder at a fixed elbow angle must not complete a task by
+    // accident: at every elbow angle, a full turn of the shoulder touches at most one ball.
+    let mut e = env(ReacherConfig {
+        cancel: CancelConfig {
+            probability: 0.0,
+            ..Default::default()
+        },
+        ..Default::default()
+    });
+    let mut obs = vec![0.0; OBS_DIM];
+    e.reset(0, &mut obs);
+    for i in 0..=600 {
+        let q1 = -3.0 + 6.0 * i as f64 / 600.0;
+        let mut touched = 0u32;
+        for k in 0..720 {
+            let q0 = k as f64 * std::f64::consts::TAU / 720.0;
+            e.set_arm([q0, q1], [0.0, 0.0]).unwrap();
+            touched |= e.labels().0;
+        }
+        assert!(
+            touched.count_ones() <= 1,
+            "elbow {q1:.3}: touched {touched:#b}"
+        );
+    }
+    // ...and every ball can be touched.
+    for (bit, ball) in e.balls().iter().enumerate() {
+        e.set_arm(inverse_kinematics(ball[0], ball[1]), [0.0, 0.0])
+            .unwrap();
+        assert!(e.labels().contains(bit));
+    }
 }

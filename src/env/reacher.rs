@@ -24,10 +24,14 @@
 //! scheduled for one step drawn uniformly from `earliest_step..=latest_step` (default 10..=60,
 //! counted from 1); it fires on that step only. Everything random comes from the reset seed.
 //!
-//! **Balls**: a fixed default layout inside the reachable disc (reach 0.21 m), radius about
-//! 0.15–0.16 m, roughly 90° apart: red (0.10, 0.12), green (−0.14, 0.06), blue (−0.06, −0.15),
-//! yellow (0.14, −0.07). With `randomize_balls`, each reset draws positions uniformly in the
-//! annulus 0.06–0.19 m with at least 0.08 m between balls.
+//! **Balls**: a fixed default layout inside the reachable disc (reach 0.21 m). Each ball is at
+//! its own distance from the base — red 0.195 m at 60°, blue 0.06 m at 170°, green 0.105 m at
+//! 260°, yellow 0.15 m at 340° — 0.045 m apart in radius (more than the two touch radii), so
+//! an arm that sweeps at a fixed elbow angle touches at most one ball, and counter-clockwise
+//! the balls come red, blue, green, yellow, not the Sequential order. (A first layout with all balls at one radius in the
+//! order red, green, blue, yellow let a policy that merely spins the arm complete OR and
+//! Sequential.) With `randomize_balls`, each reset draws positions uniformly in the annulus
+//! 0.06–0.19 m with at least 0.08 m between balls.
 
 use super::{check_action, ContinuousEnv, EnvError, EnvStep};
 use crate::mujoco::{Data, MjError, Model, ObjectKind};
@@ -56,8 +60,12 @@ pub const OBS_CANCEL: usize = 16;
 pub const OBS_TIP: [usize; 2] = [6, 7];
 
 /// The default ball layout (x, y) in metres, in [`BALLS`] order.
-pub const DEFAULT_LAYOUT: [[f64; 2]; 4] =
-    [[0.10, 0.12], [-0.14, 0.06], [-0.06, -0.15], [0.14, -0.07]];
+pub const DEFAULT_LAYOUT: [[f64; 2]; 4] = [
+    [0.0975, 0.1689],
+    [-0.0182, -0.1034],
+    [-0.0591, 0.0104],
+    [0.141, -0.0513],
+];
 
 /// Path of the shipped model.
 pub fn default_xml_path() -> PathBuf {
