@@ -214,7 +214,9 @@ fn cli_tiny_run_and_bad_input() {
     let missing = full.replace("irl_iterations = 2\n", "");
     let mistyped = full.replace("irl_iterations = 2", "irl_iterations = \"two\"");
     let unknown = format!("irl_iteratoins = 2\n{full}");
-    let cases: Vec<(Vec<String>, Option<(&str, String)>, &str)> = vec![
+    /// (CLI arguments, optional config file (name, text), text the error must contain)
+    type BadInput<'a> = (Vec<String>, Option<(&'a str, String)>, &'a str);
+    let cases: Vec<BadInput> = vec![
         (vec!["--task".into(), "pentagon".into()], None, "pentagon"),
         (
             vec!["--task".into(), "or".into(), "--algo".into(), "gail".into()],

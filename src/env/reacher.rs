@@ -28,9 +28,9 @@
 //! its own distance from the base — red 0.195 m at 60°, blue 0.06 m at 170°, green 0.105 m at
 //! 260°, yellow 0.15 m at 340° — 0.045 m apart in radius (more than the two touch radii), so
 //! an arm that sweeps at a fixed elbow angle touches at most one ball, and counter-clockwise
-//! the balls come red, blue, green, yellow, not the Sequential order. (A first layout with all balls at one radius in the
-//! order red, green, blue, yellow let a policy that merely spins the arm complete OR and
-//! Sequential.) With `randomize_balls`, each reset draws positions uniformly in the annulus
+//! the balls come red, blue, green, yellow, not the Sequential order. (A first layout with all
+//! balls at one radius in the order red, green, blue, yellow let a policy that merely spins the
+//! arm complete OR and Sequential.) With `randomize_balls`, each reset draws positions uniformly in the annulus
 //! 0.06–0.19 m with at least 0.08 m between balls.
 
 use super::{check_action, ContinuousEnv, EnvError, EnvStep};
