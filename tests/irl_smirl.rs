@@ -331,3 +331,35 @@ fn linear_reward_saves_and_loads() {
         .to_string();
     assert!(err.contains("missing.json"), "{err}");
 }
+
+/// `SmirlNormalisation::Visits`: a row in state u is weighted by 1 / (number of trajectories
+/// of its set that visit u); for a state every trajectory visits it equals the plain
+/// per-trajectory coefficient.
+#[test]
+fn visit_normalised_coefficients_divide_by_trajectories_visiting_the_state() {
+    let obs = vec![0.0f32; 17 * 6];
+    // Expert: 2 trajectories; only the first reaches u1. Agent: 3 trajectories, two reach u1,
+    // one reaches u2.
+    let e_states = [0u32, 1, 1, 0, 0];
+    let e = AnnotatedTrajectories {
+        obs: &obs[..17 * 5],
+        rm_state: &e_states,
+        lengths: &[3, 2],
+    };
+    let a_states = [0u32, 1, 0, 1, 0, 2];
+    let a = AnnotatedTrajectories {
+        obs: &obs,
+        rm_state: &a_states,
+        lengths: &[2, 2, 2],
+    };
+    let (ca, ce) = maxent_coefficients_by_visits(&e, &a);
+    assert_eq!(ce, vec![-0.5, -1.0, -1.0, -0.5, -0.5]);
+    let third = 1.0 / 3.0;
+    assert_eq!(ca, vec![third, 0.5, third, 0.5, third, 1.0]);
+    let (pa, pe) = maxent_coefficients(&e, &a);
+    assert_eq!(
+        (pe[0], pa[0]),
+        (ce[0], ca[0]),
+        "u0 is visited by every trajectory"
+    );
+}

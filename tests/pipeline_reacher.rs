@@ -5,7 +5,9 @@
 use smirl::env::reacher::OBS_DIM;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
-use smirl::irl::smirl::{maxent_gradient, AnnotatedTrajectories, FeatureMap, LinearRmReward};
+use smirl::irl::smirl::{
+    maxent_gradient, AnnotatedTrajectories, FeatureMap, LinearRmReward, SmirlNormalisation,
+};
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{
     irl_coefficients, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData, IrlRunConfig,
@@ -64,7 +66,15 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     for b in [Some(1), Some(0), None] {
         agent.obs.extend(row(b));
     }
-    let c = irl_coefficients(Algo::Smirl, &expert, None, &agent, 0.02).unwrap();
+    let c = irl_coefficients(
+        Algo::Smirl,
+        &expert,
+        None,
+        &agent,
+        0.02,
+        SmirlNormalisation::Trajectories,
+    )
+    .unwrap();
     let mut model = LinearRmReward::new(
         FeatureMap::reacher_labels(),
         2,
@@ -291,4 +301,82 @@ fn shipped_configs_parse() {
     for name in ["config.toml", "quick.toml"] {
         IrlRunConfig::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
+}
+
+/// `demo_padding = "hold"`: a demonstration that ends at the goal is extended to the time
+/// limit by holding its final state (zero joint velocities, no cancel event, the labels of
+/// that state), the learned machine stepping on the held labels; `None` leaves it as is.
+#[test]
+fn annotate_holds_the_final_state_to_the_horizon() {
+    use smirl::pipeline::reacher_expert::{Demo, DemoStep};
+    use smirl::pipeline::reacher_irl::run::annotate;
+    use smirl::rm::{Formula, RewardMachine, Transition, Vocabulary};
+    let vocab = Vocabulary::new("rgbyc");
+    let tr = |from, to, f: &str| Transition {
+        from,
+        to,
+        formula: Formula::parse(f, &vocab).unwrap(),
+        reward: 0.0,
+    };
+    // u0 --r--> u1 --b--> u2 (no terminal state: learned machines have none).
+    let rm = RewardMachine::new(
+        vocab.clone(),
+        3,
+        0,
+        &[],
+        &[],
+        vec![tr(0, 1, "r"), tr(1, 2, "b")],
+    )
+    .unwrap();
+    let step = |ball: Option<usize>, cancel: bool| {
+        let mut next = row(ball);
+        next[4] = 0.3;
+        next[5] = -0.2;
+        next[16] = f32::from(u8::from(cancel));
+        let mut labels = FeatureMap::reacher_labels().labels_of(&next);
+        if cancel {
+            labels = labels.with(4);
+        }
+        DemoStep {
+            obs: [0.0; OBS_DIM],
+            action: [0.0; 2],
+            next_obs: next.try_into().unwrap(),
+            labels,
+            rm_state: 0,
+            env_reward: 0.0,
+            task_reward: 0.0,
+        }
+    };
+    let demo = Demo {
+        seed: 0,
+        initial_rm_state: 0,
+        initial_labels: smirl::rm::LabelSet::EMPTY,
+        steps: vec![step(None, false), step(Some(0), false), step(Some(2), true)],
+        success: true,
+        task_return: 1.0,
+        env_return: 0.0,
+    };
+    let plain = annotate(std::slice::from_ref(&demo), Some(&rm), None);
+    assert_eq!(plain.lengths, vec![3]);
+    assert_eq!(plain.learned_states, vec![0, 0, 1]);
+
+    let held = annotate(std::slice::from_ref(&demo), Some(&rm), Some(6));
+    assert_eq!(held.lengths, vec![6]);
+    // After the final (blue) step the machine is in u2, where the held blue touch is read.
+    assert_eq!(held.learned_states, vec![0, 0, 1, 2, 2, 2]);
+    assert_eq!(&held.obs[..3 * OBS_DIM], &plain.obs[..]);
+    let last = &plain.obs[2 * OBS_DIM..];
+    for t in 3..6 {
+        let r = &held.obs[t * OBS_DIM..(t + 1) * OBS_DIM];
+        assert_eq!((r[4], r[5], r[16]), (0.0, 0.0, 0.0), "held step {t}");
+        assert_eq!(&r[..4], &last[..4]);
+        assert_eq!(&r[6..16], &last[6..16]);
+        assert_eq!(
+            FeatureMap::reacher_labels().labels_of(r),
+            vocab.parse_labels("b").unwrap()
+        );
+    }
+    // A demonstration already at the horizon is not extended.
+    let full = annotate(std::slice::from_ref(&demo), Some(&rm), Some(2));
+    assert_eq!(full.lengths, vec![3]);
 }

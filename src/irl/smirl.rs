@@ -253,6 +253,70 @@ pub fn maxent_coefficients(
     (per(agent, 1.0), per(expert, -1.0))
 }
 
+/// How SMIRL averages feature counts over trajectories in each RM state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SmirlNormalisation {
+    /// μ_X(u) = 1/N_X Σ_τ Σ_t 1[u_t = u] φ(o_t): the plain MaxEnt gradient
+    /// ([`maxent_coefficients`]).
+    Trajectories,
+    /// μ_X(u) = 1/N_X(u) Σ_τ Σ_t 1[u_t = u] φ(o_t) with N_X(u) the number of trajectories of X
+    /// that visit u ([`maxent_coefficients_by_visits`]).
+    Visits,
+}
+
+impl SmirlNormalisation {
+    pub fn name(self) -> &'static str {
+        match self {
+            SmirlNormalisation::Trajectories => "trajectories",
+            SmirlNormalisation::Visits => "visits",
+        }
+    }
+}
+
+/// Per-state loss coefficients with *per-RM-state* normalisation: a row in state u gets
+/// +1/N_A(u) (agent) or −1/N_D(u) (expert), N_X(u) the number of trajectories of X that visit
+/// u. The update direction for w_u is then the difference of the *conditional* feature
+/// expectations given that u is reached: each RM state is its own sub-task, matched on the
+/// segments spent in it. Why: when the demonstrations take several branches of the learned
+/// machine (OR: 38 % red, 62 % green) and the agent commits to one, the plain gradient counts
+/// the agent's full visit of its branch against that branch's reward (agent 90 vs expert 35
+/// blue-touching steps per trajectory in the red branch's state, measured) and pushes down
+/// exactly the reward that completes the task, until the policy collapses and swaps branch.
+/// Conditioning removes that pull; the choice between branches is still matched in the
+/// state where it is made (u0: 1/N over all trajectories, as before). For a state every
+/// trajectory visits, the coefficient equals [`maxent_coefficients`]'s.
+pub fn maxent_coefficients_by_visits(
+    expert: &AnnotatedTrajectories<'_>,
+    agent: &AnnotatedTrajectories<'_>,
+) -> (Vec<f64>, Vec<f64>) {
+    let per = |t: &AnnotatedTrajectories<'_>, sign: f64| {
+        let n_states = t
+            .rm_state
+            .iter()
+            .map(|&u| u as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut visits = vec![0usize; n_states];
+        let mut seen = vec![usize::MAX; n_states];
+        let mut start = 0;
+        for (k, &len) in t.lengths.iter().enumerate() {
+            for &u in &t.rm_state[start..start + len] {
+                if seen[u as usize] != k {
+                    seen[u as usize] = k;
+                    visits[u as usize] += 1;
+                }
+            }
+            start += len;
+        }
+        t.rm_state
+            .iter()
+            .map(|&u| sign / visits[u as usize] as f64)
+            .collect::<Vec<f64>>()
+    };
+    (per(agent, 1.0), per(expert, -1.0))
+}
+
 /// The sample log-likelihood surrogate ℓ̂(w) of the module docs, for weights `w`
 /// (`n_states × n_features` row-major) and L2 coefficient `l2`.
 pub fn log_likelihood_surrogate(

@@ -3,6 +3,7 @@
 //! field-wise to the environment's and the paper's IRL-run SAC values.
 
 use crate::env::reacher::ReacherConfig;
+use crate::irl::smirl::SmirlNormalisation;
 use crate::rl::sac::SacConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -28,6 +29,29 @@ impl DemoSource {
     }
 }
 
+/// How demonstrations that end before the time limit (at the task's goal) are compared
+/// with agent rollouts, which always run `env.max_steps` steps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DemoPadding {
+    /// Extend every demonstration to `env.max_steps` steps by holding its final state (arm
+    /// at rest where the expert finished, no cancel event): the fixed horizon T that MaxEnt
+    /// IRL and f-IRL assume. Without it the learned reward is pushed down wherever the agent
+    /// stays after finishing the task (see experiments/reacher/results.md).
+    Hold,
+    /// Use the demonstrations as recorded (shorter than the agent's rollouts).
+    None,
+}
+
+impl DemoPadding {
+    pub fn name(self) -> &'static str {
+        match self {
+            DemoPadding::Hold => "hold",
+            DemoPadding::None => "none",
+        }
+    }
+}
+
 /// Settings of a `reacher --task` run (see the module docs of [`super`] for what each
 /// phase does).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -41,6 +65,9 @@ pub struct IrlRunConfig {
     pub expert_cache_dir: PathBuf,
     /// Number of demonstrations (the paper: 16).
     pub demo_episodes: usize,
+    /// `"hold"` (pad demonstrations to the time limit by holding the final state) or
+    /// `"none"`.
+    pub demo_padding: DemoPadding,
     /// IRL iterations M (one reward update each).
     pub irl_iterations: usize,
     /// SAC environment steps per IRL iteration K (SAC continues across iterations).
@@ -58,6 +85,9 @@ pub struct IrlRunConfig {
     pub smirl_reward_lr: f32,
     /// L2 penalty of SMIRL's weights.
     pub smirl_reward_l2: f32,
+    /// `"visits"` (feature counts of each RM state averaged over the trajectories that visit
+    /// it) or `"trajectories"` (the plain MaxEnt average over all trajectories).
+    pub smirl_normalisation: SmirlNormalisation,
     /// Reward optimiser steps per IRL iteration (on the same coefficients).
     pub reward_steps_per_iteration: usize,
     /// Width σ (m) of `smirl-smooth`'s features exp(−d²/2σ²).
@@ -111,6 +141,7 @@ impl IrlRunConfig {
             demo_source: DemoSource::Expert,
             expert_cache_dir: PathBuf::new(),
             demo_episodes: 16,
+            demo_padding: DemoPadding::Hold,
             irl_iterations: 20,
             sac_steps_per_iteration: 5_000,
             agent_trajectories: 20,
@@ -118,7 +149,8 @@ impl IrlRunConfig {
             mlp_reward_lr: 1e-3,
             mlp_reward_l2: 1e-3,
             smirl_reward_lr: 0.1,
-            smirl_reward_l2: 1e-3,
+            smirl_reward_l2: 0.05,
+            smirl_normalisation: SmirlNormalisation::Visits,
             reward_steps_per_iteration: 5,
             smooth_sigma: 0.05,
             kde_bandwidth: 0.02,

@@ -11,7 +11,10 @@ use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::irl::firl::{FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
 use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel, RewardOptimConfig};
-use crate::irl::smirl::{maxent_coefficients, AnnotatedTrajectories, FeatureMap, LinearRmReward};
+use crate::irl::smirl::{
+    maxent_coefficients, maxent_coefficients_by_visits, AnnotatedTrajectories, FeatureMap,
+    LinearRmReward, SmirlNormalisation,
+};
 use crate::log::RolloutLogger;
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacConfig, SacTrainer};
@@ -61,6 +64,7 @@ pub struct JobSettings {
     pub mlp_reward_l2: f32,
     pub smirl_reward_lr: f32,
     pub smirl_reward_l2: f32,
+    pub smirl_normalisation: SmirlNormalisation,
     pub reward_steps_per_iteration: usize,
     pub smooth_sigma: f64,
     pub kde_bandwidth: f64,
@@ -241,15 +245,16 @@ pub struct Coefficients {
 
 /// The rows, RM states and loss coefficients of one reward update (see `irl/mod.rs`):
 /// f-IRL's covariance surrogate (KDE of fingertip positions), continuous MaxEnt's
-/// T·(mean agent reward − mean expert reward), or SMIRL's per-trajectory MaxEnt on U × O,
-/// whose parameter gradient is μ_π − μ_D (the negated expert-minus-agent feature
-/// expectation).
+/// T·(mean agent reward − mean expert reward), or SMIRL's MaxEnt on U × O, whose parameter
+/// gradient is μ_π − μ_D (the negated expert-minus-agent feature expectation), normalised per
+/// trajectory or per trajectory visiting each RM state (`smirl_normalisation`).
 pub fn irl_coefficients(
     algo: Algo,
     expert: &ExpertData,
     expert_kde: Option<&Kde>,
     agent: &AgentBatch,
     kde_bandwidth: f64,
+    smirl_normalisation: SmirlNormalisation,
 ) -> Result<Coefficients, String> {
     let n_agent = agent.lengths.iter().sum::<usize>();
     if agent.lengths.is_empty() || n_agent == 0 {
@@ -302,7 +307,14 @@ pub fn irl_coefficients(
                 rm_state: &agent.states,
                 lengths: &agent.lengths,
             };
-            let (mut coeffs, expert_c) = maxent_coefficients(&expert.annotated(), &agent_t);
+            let (mut coeffs, expert_c) = match smirl_normalisation {
+                SmirlNormalisation::Trajectories => {
+                    maxent_coefficients(&expert.annotated(), &agent_t)
+                }
+                SmirlNormalisation::Visits => {
+                    maxent_coefficients_by_visits(&expert.annotated(), &agent_t)
+                }
+            };
             coeffs.extend(expert_c);
             let states = [agent.states.as_slice(), &expert.learned_states].concat();
             Ok(Coefficients {
@@ -588,8 +600,15 @@ pub fn run_job(
             obs,
             states,
             coeffs,
-        } = irl_coefficients(algo, expert, expert_kde.as_ref(), &batch, s.kde_bandwidth)
-            .map_err(fail)?;
+        } = irl_coefficients(
+            algo,
+            expert,
+            expert_kde.as_ref(),
+            &batch,
+            s.kde_bandwidth,
+            s.smirl_normalisation,
+        )
+        .map_err(fail)?;
         let mut r = vec![0.0f32; coeffs.len()];
         model
             .reward_batch(&obs, &states, &mut r)

@@ -25,7 +25,7 @@ pub mod demos;
 pub mod job;
 pub mod run;
 
-pub use config::{DemoSource, IrlConfigError, IrlRunConfig};
+pub use config::{DemoPadding, DemoSource, IrlConfigError, IrlRunConfig};
 pub use job::{
     irl_coefficients, run_job, AgentBatch, Coefficients, ExpertData, JobResult, MetricsRow,
 };

@@ -12,12 +12,13 @@
 //! - `rewards/<algo>_seed<S>.*` — learned reward parameters.
 //! - `logs/demos.mcap`, `logs/<algo>_seed<S>.mcap` — demos and sampled agent/eval episodes.
 
-use super::config::{DemoSource, IrlRunConfig};
+use super::config::{DemoPadding, DemoSource, IrlRunConfig};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, JobSettings};
 use super::Algo;
-use crate::env::reacher::{default_xml_path, VOCABULARY};
+use crate::env::reacher::{default_xml_path, OBS_CANCEL, VOCABULARY};
 use crate::env::reacher_task::ReacherTask;
+use crate::irl::smirl::FeatureMap;
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
 use crate::pipeline::reacher_expert::Demo;
 use crate::report::{aggregate_over_seeds, write_atomic, CsvTable, LinePlot, Series};
@@ -127,9 +128,18 @@ pub fn partial_dir(out: &Path) -> PathBuf {
     out.with_file_name(name)
 }
 
+/// Observation columns of the two joint velocities (see `env::reacher`).
+const OBS_JOINT_VEL: [usize; 2] = [4, 5];
+
 /// Annotates every demonstration observation with the learned machine's state before the
-/// step (the state its labels are read in).
-pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>) -> ExpertData {
+/// step (the state its labels are read in). With `hold_to` = Some(T), a demonstration shorter
+/// than T is extended to T steps by holding its final state: the last observation with zero
+/// joint velocities and no cancel event, its labels recomputed by the labelling rule, the
+/// learned machine stepped on them as on any other step. (The demonstrator has finished the
+/// task; staying put is what it does in the goal, and MaxEnt IRL and f-IRL compare expert
+/// and agent over one fixed horizon T.)
+pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usize>) -> ExpertData {
+    let labelling = FeatureMap::reacher_labels();
     let mut data = ExpertData {
         obs: Vec::new(),
         lengths: Vec::new(),
@@ -137,14 +147,29 @@ pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>) -> ExpertData {
     };
     for d in demos {
         let mut u = rm.map(|m| m.initial());
-        for s in &d.steps {
-            data.obs.extend_from_slice(&s.next_obs);
+        let mut push = |data: &mut ExpertData, obs: &[f32], labels: LabelSet| {
+            data.obs.extend_from_slice(obs);
             if let (Some(m), Some(state)) = (rm, u) {
                 data.learned_states.push(state as u32);
-                u = Some(m.next_state(state, s.labels));
+                u = Some(m.next_state(state, labels));
+            }
+        };
+        for s in &d.steps {
+            push(&mut data, &s.next_obs, s.labels);
+        }
+        let mut len = d.steps.len();
+        if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
+            let mut held = last.next_obs;
+            held[OBS_JOINT_VEL[0]] = 0.0;
+            held[OBS_JOINT_VEL[1]] = 0.0;
+            held[OBS_CANCEL] = 0.0;
+            let labels = labelling.labels_of(&held);
+            while len < horizon {
+                push(&mut data, &held, labels);
+                len += 1;
             }
         }
-        data.lengths.push(d.steps.len());
+        data.lengths.push(len);
     }
     data
 }
@@ -201,6 +226,7 @@ fn job_settings(c: &IrlRunConfig) -> JobSettings {
         mlp_reward_l2: c.mlp_reward_l2,
         smirl_reward_lr: c.smirl_reward_lr,
         smirl_reward_l2: c.smirl_reward_l2,
+        smirl_normalisation: c.smirl_normalisation,
         reward_steps_per_iteration: c.reward_steps_per_iteration,
         smooth_sigma: c.smooth_sigma,
         kde_bandwidth: c.kde_bandwidth,
@@ -357,7 +383,11 @@ pub fn run_pipeline(
     } else {
         None
     };
-    let expert_data = annotate(&demos, learned.as_ref());
+    let hold_to = match config.demo_padding {
+        DemoPadding::Hold => Some(config.env.max_steps),
+        DemoPadding::None => None,
+    };
+    let expert_data = annotate(&demos, learned.as_ref(), hold_to);
 
     // 3. IRL jobs on the pool.
     observer.phase("irl");
@@ -530,6 +560,8 @@ pub fn run_pipeline(
         "summary": summary,
         "seeds": (0..seeds).map(|k| seed + k).collect::<Vec<_>>(),
         "demo_source": config.demo_source.name(),
+        "demo_padding": config.demo_padding.name(),
+        "smirl_normalisation": config.smirl_normalisation.name(),
         "git_commit": crate::GIT_COMMIT,
         "jobs": results.iter().map(|r| serde_json::json!({
             "algo": r.algo.name(), "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
