@@ -17,7 +17,7 @@
 //! own machine from the label traces and must not read [`DemoStep::rm_state`].
 
 use super::expert::{train_expert, ExpertConfig, ExpertError, ExpertOutcome, ExpertProgress};
-use crate::env::product::ProductEnv;
+use crate::env::product::{Potential, ProductEnv};
 use crate::env::reacher::{
     default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, CANCEL_BIT, OBS_DIM, VOCABULARY,
 };
@@ -496,6 +496,94 @@ fn noise_seed(seed: u64) -> u64 {
     seed ^ 0xac71_0e5e_ed00_0000
 }
 
+/// Why recording an episode stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error("environment step {step}: {source}")]
+    Env { step: u64, source: EnvError },
+    #[error(transparent)]
+    Log(#[from] LogError),
+}
+
+/// Plays one episode of `policy` on the product of ReacherDelivery with the task's perfect
+/// machine and records it as a [`Demo`] (and, with a `logger`, logs it under `phase`). The
+/// policy sees the product observation (inner observation ⊕ one-hot machine state), the labels
+/// of the last step (of the reset state at first) and the machine state. Ends when the machine
+/// reaches its goal or failure sink, or at the time limit. The one episode recorder behind
+/// expert demonstrations, expert evaluation and scripted demonstrations.
+pub fn record_episode<P: Potential>(
+    env: &mut ProductEnv<ReacherDelivery, P>,
+    reset_seed: u64,
+    phase: &str,
+    mut logger: Option<&mut RolloutLogger>,
+    mut policy: impl FnMut(&[f32], LabelSet, usize) -> [f32; ACT_DIM],
+) -> Result<Demo, RecordError> {
+    let mut obs = vec![0.0f32; env.obs_dim()];
+    env.reset(reset_seed, &mut obs);
+    let mut demo = Demo {
+        seed: reset_seed,
+        initial_rm_state: env.rm_state(),
+        initial_labels: env.inner().labels(),
+        steps: Vec::new(),
+        success: false,
+        task_return: 0.0,
+        env_return: 0.0,
+    };
+    if let Some(l) = logger.as_deref_mut() {
+        l.begin_reacher_episode(
+            env.inner(),
+            reset_seed,
+            phase,
+            Some(env.rm_state()),
+            env.inner_obs(),
+        )?;
+    }
+    let mut labels = demo.initial_labels;
+    loop {
+        let before: [f32; OBS_DIM] = env.inner_obs().try_into().expect("inner obs is 17");
+        let action = policy(&obs, labels, env.rm_state());
+        let s = env
+            .step_product(&action, &mut obs)
+            .map_err(|source| RecordError::Env {
+                step: demo.steps.len() as u64,
+                source,
+            })?;
+        labels = s.step.labels;
+        if let Some(l) = logger.as_deref_mut() {
+            let inner_step = EnvStep {
+                reward: s.env_reward,
+                ..s.step
+            };
+            l.reacher_step(
+                env.inner(),
+                &action,
+                &inner_step,
+                Some((s.rm_state, s.task_reward)),
+                env.inner_obs(),
+            )?;
+        }
+        demo.steps.push(DemoStep {
+            obs: before,
+            action,
+            next_obs: env.inner_obs().try_into().expect("inner obs is 17"),
+            labels,
+            rm_state: s.rm_state,
+            env_reward: s.env_reward,
+            task_reward: s.task_reward,
+        });
+        demo.task_return += s.task_reward;
+        demo.env_return += s.env_reward;
+        demo.success |= s.success;
+        if s.step.terminated || s.step.truncated {
+            break;
+        }
+    }
+    if let Some(l) = logger {
+        l.end_episode(demo.success)?;
+    }
+    Ok(demo)
+}
+
 fn run_episodes(
     policy: &mut ExpertPolicy,
     env_config: &ReacherConfig,
@@ -516,76 +604,23 @@ fn run_episodes(
         .into());
     }
     let mut rng = ChaCha8Rng::seed_from_u64(noise_seed(seed));
-    let mut obs = vec![0.0f32; env.obs_dim()];
     let mut action = [0.0f32; ACT_DIM];
-    let log_err = |e: LogError| ExpertError::Log(Box::new(e));
     let mut demos = Vec::with_capacity(n as usize);
     for i in 0..n {
-        let ep_seed = episode_seed(seed, i);
-        env.reset(ep_seed, &mut obs);
-        let mut demo = Demo {
-            seed: ep_seed,
-            initial_rm_state: env.rm_state(),
-            initial_labels: env.inner().labels(),
-            steps: Vec::new(),
-            success: false,
-            task_return: 0.0,
-            env_return: 0.0,
-        };
-        if let Some(l) = logger.as_deref_mut() {
-            l.begin_reacher_episode(
-                env.inner(),
-                ep_seed,
-                "expert",
-                Some(env.rm_state()),
-                env.inner_obs(),
-            )
-            .map_err(log_err)?;
-        }
-        loop {
-            let before: [f32; OBS_DIM] = env.inner_obs().try_into().expect("inner obs is 17");
-            policy.act(&obs, mode, &mut rng, &mut action);
-            let s = env
-                .step_product(&action, &mut obs)
-                .map_err(|source| SacError::Env {
-                    step: demo.steps.len() as u64,
-                    source,
-                })?;
-            if let Some(l) = logger.as_deref_mut() {
-                let inner_step = EnvStep {
-                    reward: s.env_reward,
-                    ..s.step
-                };
-                l.reacher_step(
-                    env.inner(),
-                    &action,
-                    &inner_step,
-                    Some((s.rm_state, s.task_reward)),
-                    env.inner_obs(),
-                )
-                .map_err(log_err)?;
-            }
-            demo.steps.push(DemoStep {
-                obs: before,
-                action,
-                next_obs: env.inner_obs().try_into().expect("inner obs is 17"),
-                labels: s.step.labels,
-                rm_state: s.rm_state,
-                env_reward: s.env_reward,
-                task_reward: s.task_reward,
-            });
-            demo.task_return += s.task_reward;
-            demo.env_return += s.env_reward;
-            if s.success {
-                demo.success = true;
-            }
-            if s.step.terminated || s.step.truncated {
-                break;
-            }
-        }
-        if let Some(l) = logger.as_deref_mut() {
-            l.end_episode(demo.success).map_err(log_err)?;
-        }
+        let demo = record_episode(
+            &mut env,
+            episode_seed(seed, i),
+            "expert",
+            logger.as_deref_mut(),
+            |obs, _labels, _rm_state| {
+                policy.act(obs, mode, &mut rng, &mut action);
+                action
+            },
+        )
+        .map_err(|e| match e {
+            RecordError::Env { step, source } => SacError::Env { step, source }.into(),
+            RecordError::Log(e) => ExpertError::Log(Box::new(e)),
+        })?;
         demos.push(demo);
     }
     Ok(demos)

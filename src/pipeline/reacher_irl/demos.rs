@@ -5,13 +5,12 @@
 
 use super::config::{DemoSource, IrlRunConfig};
 use crate::env::product::ProductEnv;
-use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM, BALLS, OBS_DIM};
+use crate::env::reacher::{ReacherConfig, ReacherDelivery, BALLS, OBS_DIM};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::{ReacherTask, SubgoalPotential};
-use crate::env::{ContinuousEnv, EnvStep};
 use crate::log::{LogError, RolloutLogger};
 use crate::pipeline::reacher_expert::{
-    expert_cache_path, generate_demos, Demo, DemoStep, ExpertPolicy,
+    expert_cache_path, generate_demos, record_episode, Demo, ExpertPolicy, RecordError,
 };
 use crate::rl::sac::episode_seed;
 use crate::rm::LabelSet;
@@ -98,11 +97,8 @@ pub fn scripted_demos(
     let inner = ReacherDelivery::new(env_config.clone()).map_err(|e| run(e.to_string()))?;
     let mut env = ProductEnv::new(inner, rm);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5c41_97ed_de30_0000);
-    let mut obs = vec![0.0f32; env.obs_dim()];
     let mut demos = Vec::with_capacity(n);
     for i in 0..n {
-        let ep_seed = episode_seed(seed, i as u64);
-        env.reset(ep_seed, &mut obs);
         let pick: usize = rng.gen_range(0..BALLS.len());
         let choices: Vec<Vec<usize>> = (0..env.rm().n_states())
             .map(|u| potential.progress_balls(u).to_vec())
@@ -113,64 +109,17 @@ pub fn scripted_demos(
         };
         let mut ctl =
             ScriptedController::with_chooser(Box::new(choose), ControllerGains::default());
-        let mut demo = Demo {
-            seed: ep_seed,
-            initial_rm_state: env.rm_state(),
-            initial_labels: env.inner().labels(),
-            steps: Vec::new(),
-            success: false,
-            task_return: 0.0,
-            env_return: 0.0,
-        };
-        if let Some(l) = logger.as_deref_mut() {
-            l.begin_reacher_episode(
-                env.inner(),
-                ep_seed,
-                "demo",
-                Some(env.rm_state()),
-                env.inner_obs(),
-            )?;
-        }
-        let mut labels = env.inner().labels();
-        loop {
-            let before: [f32; OBS_DIM] = env.inner_obs().try_into().expect("inner obs is 17");
-            let action: [f32; ACT_DIM] = ctl.act(&before, labels, Some(env.rm_state()));
-            let s = env
-                .step_product(&action, &mut obs)
-                .map_err(|e| run(format!("episode {i}: {e}")))?;
-            labels = s.step.labels;
-            if let Some(l) = logger.as_deref_mut() {
-                let inner_step = EnvStep {
-                    reward: s.env_reward,
-                    ..s.step
-                };
-                l.reacher_step(
-                    env.inner(),
-                    &action,
-                    &inner_step,
-                    Some((s.rm_state, s.task_reward)),
-                    env.inner_obs(),
-                )?;
-            }
-            demo.steps.push(DemoStep {
-                obs: before,
-                action,
-                next_obs: env.inner_obs().try_into().expect("inner obs is 17"),
-                labels,
-                rm_state: s.rm_state,
-                env_reward: s.env_reward,
-                task_reward: s.task_reward,
-            });
-            demo.task_return += s.task_reward;
-            demo.env_return += s.env_reward;
-            demo.success |= s.success;
-            if s.step.terminated || s.step.truncated {
-                break;
-            }
-        }
-        if let Some(l) = logger.as_deref_mut() {
-            l.end_episode(demo.success)?;
-        }
+        let demo = record_episode(
+            &mut env,
+            episode_seed(seed, i as u64),
+            "demo",
+            logger.as_deref_mut(),
+            |obs, labels, rm_state| ctl.act(&obs[..OBS_DIM], labels, Some(rm_state)),
+        )
+        .map_err(|e| match e {
+            RecordError::Env { step, source } => run(format!("episode {i}, step {step}: {source}")),
+            RecordError::Log(e) => DemoError::Log(e),
+        })?;
         demos.push(demo);
     }
     Ok(demos)
