@@ -119,6 +119,25 @@ impl<'a> ByteReader<'a> {
         self.pos += magic.len();
         Ok(())
     }
+    /// Reads a file header: the magic bytes of `kind` (e.g. "smirl SAC checkpoint"), then a
+    /// format version that must be `version`.
+    pub fn header(
+        &mut self,
+        magic: &[u8],
+        kind: &'static str,
+        version: u32,
+    ) -> Result<(), CodecError> {
+        self.magic(magic, kind)?;
+        let found = self.u32("version")?;
+        if found != version {
+            return Err(CodecError::Version {
+                what: kind,
+                found,
+                supported: version,
+            });
+        }
+        Ok(())
+    }
     pub fn u8(&mut self, what: &'static str) -> Result<u8, CodecError> {
         Ok(self.take(1, what)?[0])
     }

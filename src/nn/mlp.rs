@@ -300,15 +300,8 @@ impl Mlp {
             source,
         };
         let mut r = ByteReader::new(&bytes);
-        r.magic(MLP_MAGIC, "smirl MLP parameter").map_err(codec)?;
-        let version = r.u32("version").map_err(codec)?;
-        if version != MLP_VERSION {
-            return Err(codec(CodecError::Version {
-                what: "MLP parameter file",
-                found: version,
-                supported: MLP_VERSION,
-            }));
-        }
+        r.header(MLP_MAGIC, "smirl MLP parameter", MLP_VERSION)
+            .map_err(codec)?;
         let mut staged = self.clone();
         match staged.read_into(&mut r).map_err(codec)? {
             Err(found) => Err(NnError::ArchitectureMismatch {

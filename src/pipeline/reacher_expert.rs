@@ -222,16 +222,8 @@ impl ExpertPolicy {
             source,
         };
         let mut r = ByteReader::new(&bytes);
-        r.magic(POLICY_MAGIC, "smirl expert policy")
+        r.header(POLICY_MAGIC, "smirl expert policy", POLICY_VERSION)
             .map_err(codec)?;
-        let version = r.u32("version").map_err(codec)?;
-        if version != POLICY_VERSION {
-            return Err(codec(CodecError::Version {
-                what: "expert policy",
-                found: version,
-                supported: POLICY_VERSION,
-            }));
-        }
         let file_task = r.string("task").map_err(codec)?;
         if file_task != task.name() {
             return Err(PolicyFileError::WrongTask {

@@ -363,16 +363,8 @@ impl SacTrainer {
             expected,
         };
         let mut r = ByteReader::new(&bytes);
-        r.magic(CHECKPOINT_MAGIC, "smirl SAC checkpoint")
+        r.header(CHECKPOINT_MAGIC, "smirl SAC checkpoint", CHECKPOINT_VERSION)
             .map_err(codec)?;
-        let version = r.u32("version").map_err(codec)?;
-        if version != CHECKPOINT_VERSION {
-            return Err(codec(CodecError::Version {
-                what: "SAC checkpoint",
-                found: version,
-                supported: CHECKPOINT_VERSION,
-            }));
-        }
         let file_obs = r.usize("observation size").map_err(codec)?;
         let file_act = r.usize("action size").map_err(codec)?;
         if file_obs != obs_dim {
