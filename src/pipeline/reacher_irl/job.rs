@@ -4,6 +4,7 @@
 //! the reward model, evaluate on the ground-truth task. Only [`irl_coefficients`] and the
 //! choice of environment/reward model differ between algorithms.
 
+use super::config::IrlRunConfig;
 use super::Algo;
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP};
@@ -17,7 +18,7 @@ use crate::irl::smirl::{
 };
 use crate::log::RolloutLogger;
 use crate::rl::replay::ReplayBatch;
-use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacConfig, SacTrainer};
+use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
 use crate::rm::RewardMachine;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -49,25 +50,6 @@ impl ExpertData {
             lengths: &self.lengths,
         }
     }
-}
-
-/// The settings a job reads (a view of the run config).
-#[derive(Clone, Debug)]
-pub struct JobSettings {
-    pub env: ReacherConfig,
-    pub sac: SacConfig,
-    pub irl_iterations: usize,
-    pub sac_steps_per_iteration: u64,
-    pub agent_trajectories: usize,
-    pub eval_episodes: u64,
-    pub mlp_reward_lr: f32,
-    pub mlp_reward_l2: f32,
-    pub smirl_reward_lr: f32,
-    pub smirl_reward_l2: f32,
-    pub smirl_normalisation: SmirlNormalisation,
-    pub reward_steps_per_iteration: usize,
-    pub smooth_sigma: f64,
-    pub kde_bandwidth: f64,
 }
 
 /// One row of the metrics table: the ground-truth evaluation after `iteration` IRL
@@ -330,7 +312,7 @@ pub fn irl_coefficients(
 /// (baselines), or δ_r(u, o) = w_uᵀ φ(o) with label or smooth features (SMIRL).
 pub fn reward_model(
     algo: Algo,
-    settings: &JobSettings,
+    settings: &IrlRunConfig,
     learned_states: usize,
     seed: u64,
 ) -> Result<Box<dyn RewardModel + Send>, RewardError> {
@@ -434,7 +416,7 @@ fn play_episode(
 pub struct JobInputs<'a> {
     pub algo: Algo,
     pub seed: u64,
-    pub settings: &'a JobSettings,
+    pub settings: &'a IrlRunConfig,
     pub perfect_rm: &'a RewardMachine,
     /// The learned machine (required for SMIRL, ignored by the baselines).
     pub learned_rm: Option<&'a RewardMachine>,

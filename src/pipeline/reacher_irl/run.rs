@@ -14,7 +14,7 @@
 
 use super::config::{DemoPadding, DemoSource, IrlRunConfig};
 use super::demos::{load_expert, make_demos, DemoError};
-use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, JobSettings};
+use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
 use super::Algo;
 use crate::env::reacher::{default_xml_path, OBS_CANCEL, VOCABULARY};
 use crate::env::reacher_task::ReacherTask;
@@ -214,25 +214,6 @@ fn write_file(path: &Path, text: &str) -> Result<(), PipelineError> {
     write_atomic(path, text.as_bytes()).map_err(|e| io(path, e))
 }
 
-fn job_settings(c: &IrlRunConfig) -> JobSettings {
-    JobSettings {
-        env: c.env.clone(),
-        sac: c.sac.clone(),
-        irl_iterations: c.irl_iterations,
-        sac_steps_per_iteration: c.sac_steps_per_iteration,
-        agent_trajectories: c.agent_trajectories,
-        eval_episodes: c.eval_episodes,
-        mlp_reward_lr: c.mlp_reward_lr,
-        mlp_reward_l2: c.mlp_reward_l2,
-        smirl_reward_lr: c.smirl_reward_lr,
-        smirl_reward_l2: c.smirl_reward_l2,
-        smirl_normalisation: c.smirl_normalisation,
-        reward_steps_per_iteration: c.reward_steps_per_iteration,
-        smooth_sigma: c.smooth_sigma,
-        kde_bandwidth: c.kde_bandwidth,
-    }
-}
-
 fn log_header(
     task: ReacherTask,
     seed: u64,
@@ -400,7 +381,6 @@ pub fn run_pipeline(
         &labels,
         config.sac_steps_per_iteration * config.irl_iterations as u64,
     );
-    let settings = job_settings(config);
     let next = AtomicUsize::new(0);
     let results: Mutex<Vec<Option<Result<JobResult, String>>>> =
         Mutex::new(jobs.iter().map(|_| None).collect());
@@ -416,7 +396,7 @@ pub fn run_pipeline(
                     algo,
                     job_seed,
                     config,
-                    &settings,
+                    config,
                     &perfect,
                     learned.as_ref(),
                     &expert_data,
@@ -585,7 +565,7 @@ fn run_one(
     algo: Algo,
     seed: u64,
     config: &IrlRunConfig,
-    settings: &JobSettings,
+    settings: &IrlRunConfig,
     perfect: &RewardMachine,
     learned: Option<&RewardMachine>,
     expert: &ExpertData,
