@@ -86,38 +86,29 @@ impl ReplayReport {
     }
 }
 
-fn bits_f64(xs: &[f64]) -> impl Iterator<Item = u64> + '_ {
-    xs.iter().map(|x| x.to_bits())
+/// Floats compared bit for bit (so -0.0 differs from 0.0 and NaNs compare by payload).
+trait ExactFloat: Copy + std::fmt::LowerExp {
+    fn bits(self) -> u64;
 }
 
-fn first_diff_f64(
-    what: &str,
-    logged: &[f64],
-    replayed: &[f64],
-) -> Option<(String, String, String)> {
-    if logged.len() != replayed.len() {
-        return Some((
-            format!("{what} length"),
-            logged.len().to_string(),
-            replayed.len().to_string(),
-        ));
+impl ExactFloat for f64 {
+    fn bits(self) -> u64 {
+        self.to_bits()
     }
-    bits_f64(logged)
-        .zip(bits_f64(replayed))
-        .position(|(a, b)| a != b)
-        .map(|i| {
-            (
-                format!("{what}[{i}]"),
-                format!("{:e}", logged[i]),
-                format!("{:e}", replayed[i]),
-            )
-        })
 }
 
-fn first_diff_f32(
+impl ExactFloat for f32 {
+    fn bits(self) -> u64 {
+        u64::from(self.to_bits())
+    }
+}
+
+/// The first element where the logged and replayed values differ in their bits, as
+/// `(where, logged, replayed)`.
+fn first_diff<T: ExactFloat>(
     what: &str,
-    logged: &[f32],
-    replayed: &[f32],
+    logged: &[T],
+    replayed: &[T],
 ) -> Option<(String, String, String)> {
     if logged.len() != replayed.len() {
         return Some((
@@ -129,7 +120,7 @@ fn first_diff_f32(
     logged
         .iter()
         .zip(replayed)
-        .position(|(a, b)| a.to_bits() != b.to_bits())
+        .position(|(a, b)| a.bits() != b.bits())
         .map(|i| {
             (
                 format!("{what}[{i}]"),
@@ -271,7 +262,7 @@ fn replay_episode(env: &mut ReacherDelivery, ep: &LoggedEpisode) -> Result<Episo
         return Ok(result);
     }
     if let Some(d) = (!start.obs.is_empty())
-        .then(|| first_diff_f32("obs", &start.obs, &obs))
+        .then(|| first_diff("obs", &start.obs, &obs))
         .flatten()
     {
         result.mismatch = Some(mismatch(0, d));
@@ -315,8 +306,8 @@ fn replay_episode(env: &mut ReacherDelivery, ep: &LoggedEpisode) -> Result<Episo
             }
             result.label_events += &format!("{}@{n}", vocab.format_labels(out.labels));
         }
-        let diff = first_diff_f64("qpos", &s.qpos, env.qpos())
-            .or_else(|| first_diff_f64("qvel", &s.qvel, env.qvel()))
+        let diff = first_diff("qpos", &s.qpos, env.qpos())
+            .or_else(|| first_diff("qvel", &s.qvel, env.qvel()))
             .or_else(|| {
                 (s.labels != out.labels.0).then(|| {
                     (
@@ -326,10 +317,10 @@ fn replay_episode(env: &mut ReacherDelivery, ep: &LoggedEpisode) -> Result<Episo
                     )
                 })
             })
-            .or_else(|| first_diff_f64("reward", &[s.reward], &[out.reward]))
+            .or_else(|| first_diff("reward", &[s.reward], &[out.reward]))
             .or_else(|| {
                 (!s.obs.is_empty())
-                    .then(|| first_diff_f32("obs", &s.obs, &obs))
+                    .then(|| first_diff("obs", &s.obs, &obs))
                     .flatten()
             })
             .or_else(|| {
