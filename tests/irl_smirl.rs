@@ -363,3 +363,56 @@ fn visit_normalised_coefficients_divide_by_trajectories_visiting_the_state() {
         "u0 is visited by every trajectory"
     );
 }
+
+#[test]
+fn learned_subgoal_potential_pulls_towards_the_best_paid_balls_of_each_state() {
+    let f = FeatureMap::reacher_labels();
+    // State 0: red 2.0 and green 1.5 attract (≥ ½ of the best), blue 0.5 does not, the
+    // cancel weight (3.0) is not a place. State 1: no positive ball weight, no pull.
+    #[rustfmt::skip]
+    let w = [
+        2.0, 1.5, 0.5, -1.0, 3.0,
+        -1.0, 0.0, -0.5, -2.0, 4.0,
+    ];
+    let p = LearnedSubgoalPotential::from_weights(&f, 2, &w, 0.5).unwrap();
+    assert_eq!(p.targets(0), &[0, 1]);
+    assert!(p.targets(1).is_empty());
+    let row = obs_with([[0.3, 0.4], [0.06, 0.08], [0.0, 0.01], [0.0, 0.0]], true);
+    // Nearest attracting ball is green at 0.1 m: Φ = −β · max w · d = −0.5 · 2 · 0.1.
+    assert!((p.potential(&row, 0) + 0.1).abs() < 1e-6);
+    assert_eq!(p.potential(&row, 1), 0.0);
+    // β = 0 switches shaping off everywhere.
+    let off = LearnedSubgoalPotential::from_weights(&f, 2, &w, 0.0).unwrap();
+    assert_eq!(off.potential(&row, 0), 0.0);
+    // Potential-based shaping telescopes: with γ = 1 its sum along any path is
+    // Φ(end) − Φ(start), whatever happens in between, so it cannot change which paths the
+    // learned reward prefers.
+    let path: Vec<(Vec<f32>, usize)> = (0..6)
+        .map(|t| {
+            let x = 0.05 * t as f32;
+            (obs_with([[x, 0.1], [0.1 - x, x], [x, x], [0.2, x]], false), t % 2)
+        })
+        .collect();
+    let shaped: f64 = path
+        .windows(2)
+        .map(|s| p.potential(&s[1].0, s[1].1) - p.potential(&s[0].0, s[0].1))
+        .sum();
+    let (first, last) = (&path[0], &path[5]);
+    let expected = p.potential(&last.0, last.1) - p.potential(&first.0, first.1);
+    assert!((shaped - expected).abs() < 1e-12);
+}
+
+#[test]
+fn learned_subgoal_potential_rejects_bad_weights_and_strengths() {
+    let f = FeatureMap::reacher_labels();
+    assert!(matches!(
+        LearnedSubgoalPotential::from_weights(&f, 2, &[0.0; 9], 1.0),
+        Err(RewardError::Length { .. })
+    ));
+    for beta in [-1.0, f64::NAN, f64::INFINITY] {
+        assert!(matches!(
+            LearnedSubgoalPotential::from_weights(&f, 1, &[0.0; 5], beta),
+            Err(RewardError::Config(_))
+        ));
+    }
+}

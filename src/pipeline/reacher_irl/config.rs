@@ -88,6 +88,10 @@ pub struct IrlRunConfig {
     /// `"visits"` (feature counts of each RM state averaged over the trajectories that visit
     /// it) or `"trajectories"` (the plain MaxEnt average over all trajectories).
     pub smirl_normalisation: SmirlNormalisation,
+    /// Strength β of SMIRL's potential-based shaping of SAC's reward (per metre, relative to
+    /// the RM state's largest ball weight; see `irl::smirl::LearnedSubgoalPotential`); 0 = the
+    /// learned reward alone.
+    pub smirl_shaping: f64,
     /// Reward optimiser steps per IRL iteration (on the same coefficients).
     pub reward_steps_per_iteration: usize,
     /// Width σ (m) of `smirl-smooth`'s features exp(−d²/2σ²).
@@ -151,6 +155,7 @@ impl IrlRunConfig {
             smirl_reward_lr: 0.1,
             smirl_reward_l2: 0.05,
             smirl_normalisation: SmirlNormalisation::Visits,
+            smirl_shaping: 0.0,
             reward_steps_per_iteration: 5,
             smooth_sigma: 0.05,
             kde_bandwidth: 0.02,
@@ -276,6 +281,9 @@ impl IrlRunConfig {
         }
         if self.reward_steps_per_iteration == 0 {
             return bad("reward_steps_per_iteration", "must be at least 1");
+        }
+        if !(self.smirl_shaping.is_finite() && self.smirl_shaping >= 0.0) {
+            return bad("smirl_shaping", "must be a non-negative number");
         }
         if !positive(self.smooth_sigma) {
             return bad("smooth_sigma", "must be a positive number");

@@ -14,7 +14,7 @@ use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::smirl::{
     maxent_coefficients, maxent_coefficients_by_visits, AnnotatedTrajectories, FeatureMap,
-    LinearRmReward, SmirlNormalisation,
+    LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
 };
 use crate::log::RolloutLogger;
 use crate::rl::replay::ReplayBatch;
@@ -169,9 +169,12 @@ impl ContinuousEnv for JobEnv {
 /// Sample-time rewards for SAC: the learned reward of each replayed transition,
 /// r(o_{t+1}) for the baselines, δ_r(u_t, o_{t+1}) for SMIRL with u_t read from the stored
 /// observation's one-hot part — so old transitions follow the reward being optimised now.
+/// With `shaping` (SMIRL), SAC's reward is δ_r(u_t, o_{t+1}) + γ Φ(u_{t+1}, o_{t+1}) −
+/// Φ(u_t, o_t) (see [`LearnedSubgoalPotential`]), Φ = 0 after a terminating step.
 struct LearnedReward<'a> {
     model: &'a mut dyn RewardModel,
     product: bool,
+    shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
     obs: Vec<f32>,
     states: Vec<u32>,
     error: Option<RewardError>,
@@ -201,6 +204,23 @@ impl RewardFn for LearnedReward<'_> {
         if let Err(e) = self.model.reward_batch(&self.obs, &self.states, out) {
             out.fill(0.0);
             self.error.get_or_insert(e);
+            return;
+        }
+        if let Some((potential, gamma)) = self.shaping {
+            let rows = batch.next_obs.as_slice().chunks_exact(d);
+            let prev_rows = batch.obs.as_slice().chunks_exact(d);
+            for (((next, prev), &terminated), r) in
+                rows.zip(prev_rows).zip(&batch.terminated).zip(out.iter_mut())
+            {
+                let u = hot_index(&prev[OBS_DIM..]) as usize;
+                let u_next = hot_index(&next[OBS_DIM..]) as usize;
+                let after = if terminated > 0.5 {
+                    0.0
+                } else {
+                    gamma * potential.potential(next, u_next)
+                };
+                *r += (after - potential.potential(prev, u)) as f32;
+            }
         }
     }
 }
@@ -308,6 +328,15 @@ pub fn irl_coefficients(
     }
 }
 
+/// SMIRL's feature map φ (`None` for the baselines).
+pub fn smirl_features(algo: Algo, settings: &IrlRunConfig) -> Result<Option<FeatureMap>, RewardError> {
+    Ok(match algo {
+        Algo::Smirl => Some(FeatureMap::reacher_labels()),
+        Algo::SmirlSmooth => Some(FeatureMap::reacher_smooth(settings.smooth_sigma)?),
+        Algo::MaxEnt | Algo::Fkl | Algo::Rkl | Algo::Js => None,
+    })
+}
+
 /// The reward model of `algo`: the (64, 64) MLP on the fingertip position clamped to ±10
 /// (baselines), or δ_r(u, o) = w_uᵀ φ(o) with label or smooth features (SMIRL).
 pub fn reward_model(
@@ -321,18 +350,9 @@ pub fn reward_model(
         lr: settings.smirl_reward_lr,
         l2: settings.smirl_reward_l2,
     };
-    Ok(match algo {
-        Algo::Smirl => Box::new(LinearRmReward::new(
-            FeatureMap::reacher_labels(),
-            learned_states,
-            smirl_optim,
-        )?),
-        Algo::SmirlSmooth => Box::new(LinearRmReward::new(
-            FeatureMap::reacher_smooth(settings.smooth_sigma)?,
-            learned_states,
-            smirl_optim,
-        )?),
-        Algo::MaxEnt | Algo::Fkl | Algo::Rkl | Algo::Js => {
+    Ok(match smirl_features(algo, settings)? {
+        Some(features) => Box::new(LinearRmReward::new(features, learned_states, smirl_optim)?),
+        None => {
             let mut cfg = MlpRewardConfig::paper(OBS_TIP.to_vec(), settings.mlp_reward_lr, seed);
             cfg.optim.l2 = settings.mlp_reward_l2;
             Box::new(MlpReward::new(cfg, OBS_DIM)?)
@@ -459,6 +479,7 @@ pub fn run_job(
     let mut env = JobEnv::new(&s.env, learned).map_err(fail)?;
     let mut model =
         reward_model(algo, s, n_learned.max(1), seed).map_err(|e| fail(e.to_string()))?;
+    let features = smirl_features(algo, s).map_err(|e| fail(e.to_string()))?;
     let expert_kde = match algo.divergence() {
         Some(_) => Some(
             Kde::fit_columns(&expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
@@ -521,11 +542,28 @@ pub fn run_job(
     });
 
     for iteration in 1..=s.irl_iterations {
-        // 1. Policy: continue SAC on the current learned reward.
+        // 1. Policy: continue SAC on the current learned reward (SMIRL: shaped by the
+        // potential of the current weights).
         {
+            let potential = match &features {
+                Some(f) => Some(
+                    LearnedSubgoalPotential::from_weights(
+                        f,
+                        n_learned.max(1),
+                        &model.params(),
+                        s.smirl_shaping,
+                    )
+                    .map_err(|e| fail(e.to_string()))?,
+                ),
+                None => None,
+            };
             let mut reward_fn = LearnedReward {
                 model: model.as_mut(),
                 product: learned.is_some(),
+                shaping: potential
+                    .as_ref()
+                    .filter(|_| learned.is_some() && s.smirl_shaping > 0.0)
+                    .map(|p| (p, f64::from(s.sac.gamma))),
                 obs: Vec::new(),
                 states: Vec::new(),
                 error: None,

@@ -542,6 +542,7 @@ pub fn run_pipeline(
         "demo_source": config.demo_source.name(),
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
+        "smirl_shaping": config.smirl_shaping,
         "git_commit": crate::GIT_COMMIT,
         "jobs": results.iter().map(|r| serde_json::json!({
             "algo": r.algo.name(), "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
