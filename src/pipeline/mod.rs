@@ -6,3 +6,4 @@ pub mod offline_rm;
 pub mod reacher_expert;
 pub mod reacher_irl;
 pub mod replay;
+pub mod training_log;
