@@ -1,6 +1,7 @@
 //! `reacher`: the ReacherDelivery command line — a thin clap front over library functions.
 //!
 //! - `reacher replay FILE.mcap [--verify]`: re-simulate logged episodes, check bit for bit.
+//! - `reacher render FILE.mcap [--episode N] --out PIC.png`: draw one episode top-down.
 //! - `reacher learn-rm FILES… [--out DIR] [--compare RM.txt]`: learn an RM from logged labels.
 //! - `reacher demo --out FILE.mcap`: log scripted demonstrations (not the paper's SAC experts).
 //! - `reacher expert --task T`: train, evaluate and save the SAC expert of a task, with its
@@ -42,6 +43,9 @@ enum Command {
         #[arg(long)]
         verify: bool,
     },
+    /// Draw one logged episode top-down as PNG (arena, balls, arm poses, fingertip path,
+    /// touches, cancel step).
+    Render(RenderArgs),
     /// Learn a reward machine from the label traces of rollout logs.
     LearnRm(LearnRmArgs),
     /// Log scripted demonstrations (ball sequence) to an MCAP file.
@@ -76,6 +80,23 @@ struct ExpertArgs {
     /// No progress bar (e.g. for logs).
     #[arg(long)]
     quiet: bool,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    file: PathBuf,
+    /// Episode id as `reacher replay` lists it [default: the first logged episode].
+    #[arg(long)]
+    episode: Option<u64>,
+    /// PNG file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Side of the arena picture in pixels.
+    #[arg(long, default_value_t = 480)]
+    size: u32,
+    /// Arm poses drawn, evenly spaced over the episode.
+    #[arg(long, default_value_t = 5)]
+    poses: usize,
 }
 
 #[derive(Args)]
@@ -129,6 +150,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         None => irl_cli::run(cli.pipeline),
         Some(Command::Replay { file, verify }) => run_replay(file, verify),
+        Some(Command::Render(args)) => run_render(args),
         Some(Command::LearnRm(args)) => run_learn_rm(args),
         Some(Command::Demo(args)) => run_demo(args),
         Some(Command::Expert(args)) => run_expert(args),
@@ -170,6 +192,37 @@ fn run_replay(file: PathBuf, verify: bool) -> Result<()> {
             report.mismatches()
         );
     }
+    Ok(())
+}
+
+fn run_render(args: RenderArgs) -> Result<()> {
+    use smirl::pipeline::render::{render_episode, write_png, RenderOptions};
+    let log = read_log(&args.file)?;
+    if let Some(rec) = &log.recovery {
+        eprintln!("warning: {}: {rec}", args.file.display());
+    }
+    let options = RenderOptions {
+        size: args.size,
+        poses: args.poses,
+    };
+    let picture = render_episode(&log, args.episode, &options)?;
+    write_png(&args.out, &picture)?;
+    let touches: Vec<String> = picture
+        .touches
+        .iter()
+        .map(|(step, ball)| format!("{ball}@{step}"))
+        .collect();
+    println!(
+        "wrote {}: episode {} [{}], {} steps, touches [{}], cancel {}",
+        args.out.display(),
+        picture.episode,
+        picture.phase,
+        picture.steps,
+        touches.join(" "),
+        picture
+            .cancel_step
+            .map_or("none".to_string(), |s| format!("at step {s}"))
+    );
     Ok(())
 }
 

@@ -280,6 +280,7 @@ fn save(trainer: &SacTrainer, checkpoint: &Path, curve: &[CurvePoint]) -> Result
 ///
 /// Without `resume`, an existing checkpoint is refused rather than overwritten; with
 /// `resume` and no checkpoint yet, the run starts from scratch.
+#[allow(clippy::too_many_arguments)]
 pub fn train_expert<E, S, P>(
     env: &mut E,
     config: &ExpertConfig,

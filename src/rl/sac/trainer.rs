@@ -303,7 +303,7 @@ impl SacTrainer {
             });
             self.episodes += 1;
             self.in_episode = false;
-            if let (Some(o), Some(e)) = (observer.as_deref_mut(), episode.as_ref()) {
+            if let (Some(o), Some(e)) = (observer, episode.as_ref()) {
                 observed(self.env_steps, o.episode_ended(env, e))?;
             }
         }
