@@ -158,6 +158,22 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
     // The demos log opens with the project's reader.
     let log = smirl::log::read_log(&dir.join("logs/demos.mcap")).unwrap();
     assert!(!log.episodes.is_empty());
+    // Each job's log holds SAC's training episodes as well as its rollouts and evaluations,
+    // every second one (log_every_nth_episode = 2), and all of them replay bit for bit with
+    // the task machine re-tracked.
+    for a in algos {
+        let log = smirl::log::read_log(&dir.join(format!("logs/{a}_seed{seed}.mcap"))).unwrap();
+        for phase in ["train", "agent", "eval"] {
+            assert!(
+                log.episodes.iter().any(|e| e.start.phase == phase),
+                "{a}: no {phase} episode"
+            );
+        }
+        assert!(log.episodes.iter().all(|e| e.start.episode % 2 == 0));
+        let report = smirl::pipeline::replay::replay(&log).unwrap();
+        assert!(report.all_match(), "{a}: {report}");
+        assert!(report.episodes.iter().all(|e| e.rm_checked), "{a}");
+    }
 }
 
 #[test]

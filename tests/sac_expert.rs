@@ -52,10 +52,19 @@ fn expert_training_succeeds_and_writes_checkpoint_and_curve() {
     let mut env = PointReach::new(40);
     let mut reports = 0;
     let mut checkpoints = 0;
-    let out = train_expert(&mut env, &config(4_000), 1, &ckpt, false, reached, |p| {
-        reports += 1;
-        checkpoints += usize::from(p.checkpointed);
-    })
+    let out = train_expert(
+        &mut env,
+        &config(4_000),
+        1,
+        &ckpt,
+        false,
+        reached,
+        |p| {
+            reports += 1;
+            checkpoints += usize::from(p.checkpointed);
+        },
+        None,
+    )
     .unwrap();
     assert!(out.success_rate >= 0.9, "success rate {}", out.success_rate);
     assert_eq!(out.curve.len(), 100);
@@ -68,7 +77,17 @@ fn expert_training_succeeds_and_writes_checkpoint_and_curve() {
     assert!(out.curve[..10].iter().filter(|p| p.success).count() <= 2);
     assert!(out.curve[90..].iter().filter(|p| p.success).count() >= 9);
     // Without --resume an existing checkpoint is not overwritten.
-    let err = train_expert(&mut env, &config(4_000), 1, &ckpt, false, reached, |_| {}).unwrap_err();
+    let err = train_expert(
+        &mut env,
+        &config(4_000),
+        1,
+        &ckpt,
+        false,
+        reached,
+        |_| {},
+        None,
+    )
+    .unwrap_err();
     assert!(matches!(err, ExpertError::CheckpointExists(_)), "{err}");
     assert!(err.to_string().contains("--resume"));
 }
@@ -86,6 +105,7 @@ fn resumed_expert_run_equals_uninterrupted_run() {
         false,
         reached,
         |_| {},
+        None,
     )
     .unwrap();
     let first = train_expert(
@@ -96,6 +116,7 @@ fn resumed_expert_run_equals_uninterrupted_run() {
         true,
         reached,
         |_| {},
+        None,
     )
     .unwrap();
     assert_eq!(first.trainer.env_steps(), 800);
@@ -107,6 +128,7 @@ fn resumed_expert_run_equals_uninterrupted_run() {
         true,
         reached,
         |_| {},
+        None,
     )
     .unwrap();
     assert_eq!(second.resumed_at, Some(800));
@@ -152,7 +174,7 @@ fn nan_stops_the_run_and_keeps_the_last_good_checkpoint() {
         nan_at: 1_000,
     };
     let cfg = config(4_000);
-    let err = train_expert(&mut env, &cfg, 3, &ckpt, false, reached, |_| {}).unwrap_err();
+    let err = train_expert(&mut env, &cfg, 3, &ckpt, false, reached, |_| {}, None).unwrap_err();
     let msg = err.to_string();
     assert!(
         msg.contains("non-finite") && msg.contains("critic"),

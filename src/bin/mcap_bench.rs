@@ -1,5 +1,8 @@
 //! Benchmark: rollout-logging overhead against the same environment loop without a logger
 //! (same run, interleaved repetitions, medians), bytes per step on disk, and replay speed.
+//! The logged loop goes through the training hook as SAC's trainer drives it
+//! ([`TrainingLog`]: Sequential's machine tracked along the labels, its state and reward
+//! logged), so the figures are those of a training log.
 //!
 //! `cargo run --release --bin mcap_bench -- --reps 7 --episodes 200`
 
@@ -11,6 +14,9 @@ use smirl::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, OBS_
 use smirl::env::ContinuousEnv;
 use smirl::log::{read_log, LogOptions, RolloutLogger, RunHeader};
 use smirl::pipeline::replay::replay;
+use smirl::pipeline::training_log::TrainingLog;
+use smirl::rl::sac::{EpisodeSummary, TrainingObserver};
+use smirl::rm::RewardMachine;
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -41,35 +47,45 @@ fn median(mut xs: Vec<f64>) -> f64 {
     xs[xs.len() / 2]
 }
 
-/// Runs the episodes with a smooth random policy (precomputed), optionally logging.
+/// Runs the episodes with a smooth random policy (precomputed), optionally logging through
+/// the training hook.
 fn run(
     env: &mut ReacherDelivery,
     actions: &[[f32; 2]],
     episodes: u64,
-    logger: Option<&mut RolloutLogger>,
+    mut log: Option<&mut TrainingLog>,
 ) -> Result<f64> {
     let mut obs = vec![0.0f32; OBS_DIM];
-    let mut logger = logger;
     let t = thread_cpu_secs()?;
     let mut k = 0;
+    let observer_err = |e| anyhow::anyhow!("{e}");
     for ep in 0..episodes {
         env.reset(ep, &mut obs);
-        if let Some(l) = logger.as_deref_mut() {
-            l.begin_reacher_episode(env, ep, "bench", None, &obs)?;
+        if let Some(l) = log.as_deref_mut() {
+            l.episode_started(env, ep, &obs).map_err(observer_err)?;
         }
+        let mut length = 0;
         loop {
             let a = &actions[k % actions.len()];
             k += 1;
+            length += 1;
             let step = env.step(a, &mut obs)?;
-            if let Some(l) = logger.as_deref_mut() {
-                l.reacher_step(env, a, &step, None, &obs)?;
+            if let Some(l) = log.as_deref_mut() {
+                l.stepped(env, a, &step, &obs).map_err(observer_err)?;
             }
             if step.truncated {
                 break;
             }
         }
-        if let Some(l) = logger.as_deref_mut() {
-            l.end_episode(false)?;
+        if let Some(l) = log.as_deref_mut() {
+            let summary = EpisodeSummary {
+                index: ep,
+                env_return: 0.0,
+                final_reward: 0.0,
+                length,
+                terminated: false,
+            };
+            l.episode_ended(env, &summary).map_err(observer_err)?;
         }
     }
     Ok(thread_cpu_secs()? - t)
@@ -82,6 +98,7 @@ fn main() -> Result<()> {
         "--reps and --episodes must be positive"
     );
     let mut env = ReacherDelivery::new(ReacherConfig::default())?;
+    let task_rm: RewardMachine = smirl::rm::perfect::reacher("sequential")?;
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let mut a = [0.0f32; 2];
     let actions: Vec<[f32; 2]> = (0..10_000)
@@ -102,16 +119,18 @@ fn main() -> Result<()> {
         let cpu_plain = run(&mut env, &actions, args.episodes, None)?;
         let t_plain = wall.elapsed().as_secs_f64();
         let path = dir.join(format!("bench{rep}.mcap"));
-        let header = RunHeader::reacher(
-            "bench",
+        let mut header = RunHeader::reacher(
+            "sequential",
             rep as u64,
             serde_json::json!({"env": ReacherConfig::default()}),
             &default_xml_path(),
         )?;
+        header.reward_machine = Some(smirl::rm::format::write_rm(&task_rm));
         let t = Instant::now();
         let cpu0 = thread_cpu_secs()?;
         let mut logger = RolloutLogger::create(&path, header, LogOptions::default())?;
-        run(&mut env, &actions, args.episodes, Some(&mut logger))?;
+        let mut log = TrainingLog::new(&mut logger, &task_rm, "train");
+        run(&mut env, &actions, args.episodes, Some(&mut log))?;
         let summary = logger.finish()?;
         let cpu_logged = thread_cpu_secs()? - cpu0;
         // Everything the logger costs, including creating and finishing the file.
@@ -141,7 +160,8 @@ fn main() -> Result<()> {
     }
     let (p, l) = (median(plain), median(logged));
     println!(
-        "MuJoCo {}, {} reps x {} episodes x 100 steps, default LogOptions (zstd, no observations)",
+        "MuJoCo {}, {} reps x {} episodes x 100 steps, default LogOptions (zstd, no observations), \
+         logged through the training hook with Sequential's machine tracked",
         smirl::mujoco::version_string(),
         args.reps,
         args.episodes

@@ -1,10 +1,11 @@
 //! `reacher`: the ReacherDelivery command line — a thin clap front over library functions.
 //!
 //! - `reacher replay FILE.mcap [--verify]`: re-simulate logged episodes, check bit for bit.
+//! - `reacher render FILE.mcap [--episode N] --out PIC.png`: draw one episode top-down.
 //! - `reacher learn-rm FILES… [--out DIR] [--compare RM.txt]`: learn an RM from logged labels.
 //! - `reacher demo --out FILE.mcap`: log scripted demonstrations (not the paper's SAC experts).
 //! - `reacher expert --task T`: train, evaluate and save the SAC expert of a task, with its
-//!   training curve and 16 demonstrations in MCAP.
+//!   training curve, its training episodes and 16 demonstrations in MCAP.
 //!
 //! - `reacher --task T [--algo A] [--seeds N] [--quick] …`: the IRL pipeline (see `irl_cli`).
 //!
@@ -42,6 +43,9 @@ enum Command {
         #[arg(long)]
         verify: bool,
     },
+    /// Draw one logged episode top-down as PNG (arena, balls, arm poses, fingertip path,
+    /// touches, cancel step).
+    Render(RenderArgs),
     /// Learn a reward machine from the label traces of rollout logs.
     LearnRm(LearnRmArgs),
     /// Log scripted demonstrations (ball sequence) to an MCAP file.
@@ -69,9 +73,30 @@ struct ExpertArgs {
     /// Policy cache the trained actor is copied to (default experiments/experts/cache).
     #[arg(long)]
     cache: Option<PathBuf>,
+    /// Log every N-th training episode to OUT/train.mcap (1 = all, 0 = no training log; a
+    /// resumed run writes the next free train.K.mcap).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    train_log_every: u64,
     /// No progress bar (e.g. for logs).
     #[arg(long)]
     quiet: bool,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    file: PathBuf,
+    /// Episode id as `reacher replay` lists it [default: the first logged episode].
+    #[arg(long)]
+    episode: Option<u64>,
+    /// PNG file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// Side of the arena picture in pixels.
+    #[arg(long, default_value_t = 480)]
+    size: u32,
+    /// Arm poses drawn, evenly spaced over the episode.
+    #[arg(long, default_value_t = 5)]
+    poses: usize,
 }
 
 #[derive(Args)]
@@ -125,6 +150,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         None => irl_cli::run(cli.pipeline),
         Some(Command::Replay { file, verify }) => run_replay(file, verify),
+        Some(Command::Render(args)) => run_render(args),
         Some(Command::LearnRm(args)) => run_learn_rm(args),
         Some(Command::Demo(args)) => run_demo(args),
         Some(Command::Expert(args)) => run_expert(args),
@@ -166,6 +192,37 @@ fn run_replay(file: PathBuf, verify: bool) -> Result<()> {
             report.mismatches()
         );
     }
+    Ok(())
+}
+
+fn run_render(args: RenderArgs) -> Result<()> {
+    use smirl::pipeline::render::{render_episode, write_png, RenderOptions};
+    let log = read_log(&args.file)?;
+    if let Some(rec) = &log.recovery {
+        eprintln!("warning: {}: {rec}", args.file.display());
+    }
+    let options = RenderOptions {
+        size: args.size,
+        poses: args.poses,
+    };
+    let picture = render_episode(&log, args.episode, &options)?;
+    write_png(&args.out, &picture)?;
+    let touches: Vec<String> = picture
+        .touches
+        .iter()
+        .map(|(step, ball)| format!("{ball}@{step}"))
+        .collect();
+    println!(
+        "wrote {}: episode {} [{}], {} steps, touches [{}], cancel {}",
+        args.out.display(),
+        picture.episode,
+        picture.phase,
+        picture.steps,
+        touches.join(" "),
+        picture
+            .cancel_step
+            .map_or("none".to_string(), |s| format!("at step {s}"))
+    );
     Ok(())
 }
 
@@ -322,9 +379,25 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         .expect("valid template"),
     );
     bar.set_prefix(format!("expert {task}"));
+    let mut train_logger = if args.train_log_every > 0 {
+        let path = free_log_path(&out, "train");
+        let header = rx::train_log_header(task, &config, args.seed)?;
+        let options = LogOptions {
+            every_nth_episode: args.train_log_every,
+            ..LogOptions::default()
+        };
+        Some(smirl::log::RolloutLogger::create(&path, header, options)?)
+    } else {
+        None
+    };
     let started = std::time::Instant::now();
-    let (mut policy, outcome) =
-        rx::train_task_expert(task, &config, args.seed, &checkpoint, args.resume, |p| {
+    let (mut policy, outcome) = rx::train_task_expert(
+        task,
+        &config,
+        args.seed,
+        &checkpoint,
+        args.resume,
+        |p| {
             bar.set_position(p.env_steps.min(p.total_steps));
             bar.set_message(format!(
                 "recent success {:.2}, return {:.2}{}",
@@ -332,8 +405,20 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
                 p.recent_return,
                 if p.checkpointed { " [checkpoint]" } else { "" }
             ));
-        })?;
+        },
+        train_logger.as_mut(),
+    )?;
     bar.finish_and_clear();
+    if let Some(l) = train_logger {
+        let s = l.finish()?;
+        println!(
+            "training log {}: {} episodes, {} steps, {:.1} B/step",
+            s.path.display(),
+            s.episodes_logged,
+            s.steps_logged,
+            s.bytes as f64 / s.steps_logged.max(1) as f64
+        );
+    }
     let train_secs = started.elapsed().as_secs_f64();
     if let Some(steps) = outcome.resumed_at {
         println!("resumed from the checkpoint at {steps} steps");
@@ -429,6 +514,20 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         out.join("summary.json").display()
     );
     Ok(())
+}
+
+/// `DIR/STEM.mcap`, or `DIR/STEM.K.mcap` with the first K ≥ 1 for which neither the file nor
+/// its unfinished `.part` exists (a resumed run must not overwrite the log of the first).
+fn free_log_path(dir: &std::path::Path, stem: &str) -> PathBuf {
+    let taken = |p: &PathBuf| p.exists() || p.with_extension("mcap.part").exists();
+    let first = dir.join(format!("{stem}.mcap"));
+    if !taken(&first) {
+        return first;
+    }
+    (1..)
+        .map(|k| dir.join(format!("{stem}.{k}.mcap")))
+        .find(|p| !taken(p))
+        .expect("some index is free")
 }
 
 /// The top-level `reacher --task …` IRL pipeline (kept apart from the subcommands).

@@ -248,6 +248,17 @@ impl Model {
     pub fn geom_radius(&self, geom: usize) -> f64 {
         self.slice(self.raw().geom_size, 3 * self.ngeom())[3 * geom]
     }
+
+    /// Colour of a geom as the XML gives it (RGBA, each 0–1).
+    pub fn geom_rgba(&self, geom: usize) -> [f32; 4] {
+        let s = self.slice(self.raw().geom_rgba, 4 * self.ngeom());
+        [
+            s[4 * geom],
+            s[4 * geom + 1],
+            s[4 * geom + 2],
+            s[4 * geom + 3],
+        ]
+    }
 }
 
 impl Drop for Model {

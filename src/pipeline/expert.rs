@@ -16,7 +16,7 @@ use crate::env::ContinuousEnv;
 use crate::nn::write_atomic;
 use crate::rl::sac::{
     deserialize_table, ActMode, CheckpointError, ConfigError, EnvReward, EpisodeSummary, SacConfig,
-    SacError, SacTrainer, UpdateStats,
+    SacError, SacTrainer, TrainingObserver, UpdateStats,
 };
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -275,10 +275,12 @@ fn save(trainer: &SacTrainer, checkpoint: &Path, curve: &[CurvePoint]) -> Result
 }
 
 /// Trains (or, with `resume`, continues) a SAC expert on `env`'s own reward, checkpointing to
-/// `checkpoint`, then evaluates it with mean actions. `success` judges finished episodes.
+/// `checkpoint`, then evaluates it with mean actions. `success` judges finished episodes;
+/// `observer` (e.g. a [`super::training_log::TrainingLog`]) sees every training episode.
 ///
 /// Without `resume`, an existing checkpoint is refused rather than overwritten; with
 /// `resume` and no checkpoint yet, the run starts from scratch.
+#[allow(clippy::too_many_arguments)]
 pub fn train_expert<E, S, P>(
     env: &mut E,
     config: &ExpertConfig,
@@ -287,6 +289,7 @@ pub fn train_expert<E, S, P>(
     resume: bool,
     mut success: S,
     mut progress: P,
+    mut observer: Option<&mut (dyn TrainingObserver<E> + '_)>,
 ) -> Result<ExpertOutcome, ExpertError>
 where
     E: ContinuousEnv + ?Sized,
@@ -316,7 +319,7 @@ where
     let mut next_checkpoint = (trainer.env_steps() / every + 1) * every;
     let window = config.progress_window.max(1);
     while trainer.env_steps() < config.total_steps || !trainer.at_episode_boundary() {
-        let outcome = trainer.step(env, &mut EnvReward)?;
+        let outcome = trainer.step_observed(env, &mut EnvReward, observer.as_deref_mut())?;
         let Some(ep) = outcome.episode else { continue };
         curve.push(CurvePoint {
             env_steps: trainer.env_steps(),

@@ -5,4 +5,6 @@ pub mod office;
 pub mod offline_rm;
 pub mod reacher_expert;
 pub mod reacher_irl;
+pub mod render;
 pub mod replay;
+pub mod training_log;

@@ -26,7 +26,8 @@ use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::log::{LogError, RolloutLogger, RunHeader};
 use crate::nn::codec::{write_atomic, ByteReader, ByteWriter, CodecError};
 use crate::nn::{gaussian, Mlp, MlpArch, MlpWorkspace};
-use crate::rl::sac::{episode_seed, ActMode, EpisodeSummary, SacError};
+use crate::pipeline::training_log::{ReacherView, TrainingLog};
+use crate::rl::sac::{episode_seed, ActMode, EpisodeSummary, SacError, TrainingObserver};
 use crate::rm::LabelSet;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
@@ -294,6 +295,15 @@ struct SuccessFlag {
     success: Rc<Cell<bool>>,
 }
 
+impl ReacherView for SuccessFlag {
+    fn reacher(&self) -> &ReacherDelivery {
+        self.env.inner()
+    }
+    fn inner_step(&self, seen: &EnvStep) -> EnvStep {
+        self.env.inner_step(seen)
+    }
+}
+
 impl ContinuousEnv for SuccessFlag {
     fn obs_dim(&self) -> usize {
         self.env.obs_dim()
@@ -326,7 +336,9 @@ fn product_env(
 
 /// Trains (or with `resume`, continues from `checkpoint`) the SAC expert of `task` on its
 /// product environment with `config.shaping_scale` sub-goal shaping, and returns the trained
-/// actor as a policy with the run's outcome (curve, mean-action evaluation).
+/// actor as a policy with the run's outcome (curve, mean-action evaluation). With a `logger`
+/// (see [`train_log_header`]), every training episode is logged (phase `"train"`, with the
+/// task machine's state and reward).
 pub fn train_task_expert(
     task: ReacherTask,
     config: &ExpertConfig,
@@ -334,6 +346,7 @@ pub fn train_task_expert(
     checkpoint: &Path,
     resume: bool,
     progress: impl FnMut(&ExpertProgress),
+    logger: Option<&mut RolloutLogger>,
 ) -> Result<(ExpertPolicy, ExpertOutcome), ExpertError> {
     let success = Rc::new(Cell::new(false));
     let mut env = SuccessFlag {
@@ -345,6 +358,8 @@ pub fn train_task_expert(
         )?,
         success: success.clone(),
     };
+    let task_rm = env.env.rm().clone();
+    let mut train_log = logger.map(|l| TrainingLog::new(l, &task_rm, "train"));
     let outcome = train_expert(
         &mut env,
         config,
@@ -353,6 +368,9 @@ pub fn train_task_expert(
         resume,
         |_: &EpisodeSummary| success.get(),
         progress,
+        train_log
+            .as_mut()
+            .map(|t| t as &mut dyn TrainingObserver<SuccessFlag>),
     )?;
     let info = PolicyInfo {
         seed,
@@ -434,7 +452,7 @@ pub fn load_or_train_expert(
         })
     })?;
     let checkpoint = expert_checkpoint_path(cache_dir, task);
-    let (policy, _) = train_task_expert(task, config, seed, &checkpoint, true, progress)?;
+    let (policy, _) = train_task_expert(task, config, seed, &checkpoint, true, progress, None)?;
     policy.save(&path)?;
     Ok(policy)
 }
@@ -656,6 +674,30 @@ pub fn demo_log_header(
         .map_err(|e| ExpertError::Log(Box::new(e)))?;
     let rm = policy.task().perfect_rm().map_err(|e| ExpertError::Task {
         task: policy.task().name().into(),
+        problem: e.to_string(),
+    })?;
+    header.reward_machine = Some(crate::rm::format::write_rm(&rm));
+    Ok(header)
+}
+
+/// The `/run` header of the training log of `task`'s expert (model XML, task, perfect
+/// machine, the expert config).
+pub fn train_log_header(
+    task: ReacherTask,
+    config: &ExpertConfig,
+    seed: u64,
+) -> Result<RunHeader, ExpertError> {
+    let json = serde_json::json!({
+        "run": "SAC expert training",
+        // Replay reads the environment config from `env` (time limit, cancel schedule).
+        "env": config.env,
+        "expert_config": config,
+        "vocabulary": VOCABULARY,
+    });
+    let mut header = RunHeader::reacher(task.name(), seed, json, &default_xml_path())
+        .map_err(|e| ExpertError::Log(Box::new(e)))?;
+    let rm = task.perfect_rm().map_err(|e| ExpertError::Task {
+        task: task.name().into(),
         problem: e.to_string(),
     })?;
     header.reward_machine = Some(crate::rm::format::write_rm(&rm));

@@ -2,6 +2,11 @@
 //! with the recorded actions, on the model XML stored in the file, and compare the state,
 //! labels, reward (and observation when logged) with the log bit for bit.
 //!
+//! Where the run tracked a reward machine (the task's machine, stored as text in the `/run`
+//! record; for a log that stores none, the shipped `assets/rm/reacher_<task>.txt`), replay
+//! re-tracks it along the re-simulated labels and compares the machine state and reward of
+//! every step, and the final state and success of every finished episode, with the log.
+//!
 //! Differences in the setting are reported as such before any step is compared: a log from
 //! another MuJoCo version (bit-exact agreement is then not expected), a stored XML whose hash
 //! is not the one recorded (a damaged file), or an XML that differs from the shipped model
@@ -9,9 +14,11 @@
 
 use crate::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
 use crate::env::ContinuousEnv;
-use crate::log::schema::sha256_hex;
+use crate::log::schema::{sha256_hex, NO_RM};
 use crate::log::{LoggedEpisode, RolloutLog};
 use crate::mujoco::Model;
+use crate::rm::format::{parse_rm, write_rm};
+use crate::rm::{perfect, LabelSet, RewardMachine};
 use std::fmt;
 use std::sync::Arc;
 
@@ -59,6 +66,8 @@ pub struct EpisodeReplay {
     /// `reset(seed)` reproduces the logged initial state (when false, the state was still
     /// restored from the log; this only flags a seed/env-code change).
     pub seed_reproduces_start: bool,
+    /// The logged reward-machine states and rewards were re-tracked and compared.
+    pub rm_checked: bool,
 }
 
 /// The outcome of a whole replay.
@@ -68,6 +77,9 @@ pub struct ReplayReport {
     pub setting_notes: Vec<String>,
     /// The MuJoCo versions differ, so bit-exact agreement is not expected.
     pub version_differs: bool,
+    /// The reward machine re-tracked along the labels: its size and where it came from
+    /// (`None`: the log has no machine states, or no machine is known for its task).
+    pub reward_machine: Option<String>,
     pub episodes: Vec<EpisodeReplay>,
     pub steps: usize,
     pub elapsed_secs: f64,
@@ -181,21 +193,32 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
     }
     let model = Model::from_xml_str(xml, &format!("{path}:model.xml"))
         .map_err(|e| cannot(e.to_string()))?;
-    // The config matters for reset(seed) only (ball randomisation, cancel schedule); the
-    // replayed episodes restore their logged start state.
-    let config: ReacherConfig = log
-        .run
-        .config
-        .get("env")
-        .and_then(|v| serde_json::from_value(v.clone()).ok())
-        .unwrap_or_default();
+    // The config matters for the time limit (`truncated`) and for reset(seed) (ball
+    // randomisation, cancel schedule); the replayed episodes restore their logged start state.
+    let config: ReacherConfig = match log.run.config.get("env") {
+        Some(v) => serde_json::from_value(v.clone()).map_err(|e| {
+            cannot(format!(
+                "the run config's `env` section does not parse: {e}"
+            ))
+        })?,
+        None => {
+            notes.push(
+                "the run config has no `env` section: replaying with the default environment \
+                 config (a different time limit would show as a `truncated` mismatch)"
+                    .into(),
+            );
+            ReacherConfig::default()
+        }
+    };
     let mut env =
         ReacherDelivery::with_model(Arc::new(model), config).map_err(|e| cannot(e.to_string()))?;
+    let reward_machine = run_reward_machine(log, &mut notes).map_err(cannot)?;
+    let rm = reward_machine.as_ref().map(|(rm, _)| rm);
     let started = std::time::Instant::now();
     let mut episodes = Vec::with_capacity(log.episodes.len());
     let mut steps = 0;
     for ep in &log.episodes {
-        let r = replay_episode(&mut env, ep)
+        let r = replay_episode(&mut env, ep, rm)
             .map_err(|problem| cannot(format!("episode {}: {problem}", ep.start.episode)))?;
         steps += r.steps;
         episodes.push(r);
@@ -203,13 +226,98 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
     Ok(ReplayReport {
         setting_notes: notes,
         version_differs,
+        reward_machine: reward_machine
+            .as_ref()
+            .map(|(rm, source)| format!("{} states, {source}", rm.n_states())),
         episodes,
         steps,
         elapsed_secs: started.elapsed().as_secs_f64(),
     })
 }
 
-fn replay_episode(env: &mut ReacherDelivery, ep: &LoggedEpisode) -> Result<EpisodeReplay, String> {
+/// The machine to re-track: the one stored in the run record, else (when steps carry
+/// machine states) the shipped machine of the run's task. Notes where it came from and
+/// whether it differs from the shipped one; a stored machine that does not parse is an error
+/// (a damaged file).
+fn run_reward_machine(
+    log: &RolloutLog,
+    notes: &mut Vec<String>,
+) -> Result<Option<(RewardMachine, String)>, String> {
+    let shipped_name = format!("reacher_{}", log.run.task);
+    let shipped = perfect::path(&shipped_name)
+        .is_file()
+        .then(|| perfect::load(&shipped_name).ok())
+        .flatten();
+    if let Some(text) = &log.run.reward_machine {
+        let rm = parse_rm(
+            text,
+            &format!("{}: /run reward_machine", log.path.display()),
+        )
+        .map_err(|e| format!("the stored reward machine does not parse: {e}"))?;
+        if let Some(s) = shipped.as_ref().filter(|s| write_rm(s) != write_rm(&rm)) {
+            notes.push(format!(
+                "the run's reward machine ({} states) differs from the shipped {} ({} states);                  re-tracking the stored one",
+                rm.n_states(),
+                perfect::path(&shipped_name).display(),
+                s.n_states()
+            ));
+        }
+        return Ok(Some((rm, "stored in the run record".into())));
+    }
+    let logs_states = log.episodes.iter().any(|e| e.start.rm_state != NO_RM);
+    match shipped {
+        Some(rm) if logs_states => Ok(Some((
+            rm,
+            format!(
+                "{} (the log stores none)",
+                perfect::path(&shipped_name).display()
+            ),
+        ))),
+        None if logs_states => {
+            notes.push(format!(
+                "the log has reward-machine states but no machine, and task '{}' has no shipped                  one: machine states are not checked",
+                log.run.task
+            ));
+            Ok(None)
+        }
+        _ => Ok(None),
+    }
+}
+
+/// Re-tracks a reward machine along the replayed labels of an episode.
+struct RmCheck<'a> {
+    rm: &'a RewardMachine,
+    state: usize,
+    success: bool,
+}
+
+impl RmCheck<'_> {
+    /// Advances on `labels` and compares with the logged state and reward.
+    fn step(
+        &mut self,
+        labels: LabelSet,
+        logged_state: i64,
+        logged_reward: f64,
+    ) -> Option<(String, String, String)> {
+        let (next, reward) = self.rm.step(self.state, labels);
+        self.state = next;
+        self.success |= self.rm.is_terminal(next) && !self.rm.is_failure(next);
+        if logged_state != next as i64 {
+            return Some((
+                "rm_state".into(),
+                logged_state.to_string(),
+                next.to_string(),
+            ));
+        }
+        first_diff("rm_reward", &[logged_reward], &[reward])
+    }
+}
+
+fn replay_episode(
+    env: &mut ReacherDelivery,
+    ep: &LoggedEpisode,
+    rm: Option<&RewardMachine>,
+) -> Result<EpisodeReplay, String> {
     let start = &ep.start;
     if start.balls.len() != 8 {
         return Err(format!(
@@ -243,6 +351,7 @@ fn replay_episode(env: &mut ReacherDelivery, ep: &LoggedEpisode) -> Result<Episo
         label_events: String::new(),
         mismatch: None,
         seed_reproduces_start,
+        rm_checked: false,
     };
     let mismatch = |step: usize, (what, logged, replayed): (String, String, String)| Mismatch {
         step,
@@ -268,6 +377,26 @@ fn replay_episode(env: &mut ReacherDelivery, ep: &LoggedEpisode) -> Result<Episo
         result.mismatch = Some(mismatch(0, d));
         return Ok(result);
     }
+    // Episodes logged without a machine state are not checked against one.
+    let mut rm_check = rm.filter(|_| start.rm_state != NO_RM).map(|rm| RmCheck {
+        rm,
+        state: rm.initial(),
+        success: false,
+    });
+    if let Some(c) = &rm_check {
+        if start.rm_state != c.state as i64 {
+            result.mismatch = Some(mismatch(
+                0,
+                (
+                    "rm_state".into(),
+                    start.rm_state.to_string(),
+                    c.state.to_string(),
+                ),
+            ));
+            return Ok(result);
+        }
+    }
+    result.rm_checked = rm_check.is_some();
     let vocab = env.vocabulary().clone();
     for (k, s) in ep.steps.iter().enumerate() {
         let n = k + 1;
@@ -331,10 +460,37 @@ fn replay_episode(env: &mut ReacherDelivery, ep: &LoggedEpisode) -> Result<Episo
                         out.truncated.to_string(),
                     )
                 })
+            })
+            .or_else(|| {
+                rm_check
+                    .as_mut()
+                    .and_then(|c| c.step(out.labels, s.rm_state, s.rm_reward))
             });
         if let Some(d) = diff {
             result.mismatch = Some(mismatch(n, d));
             break;
+        }
+    }
+    if let (Some(c), Some(end), None) = (&rm_check, &ep.end, &result.mismatch) {
+        let n = ep.steps.len();
+        if end.rm_state != c.state as i64 {
+            result.mismatch = Some(mismatch(
+                n,
+                (
+                    "final rm_state".into(),
+                    end.rm_state.to_string(),
+                    c.state.to_string(),
+                ),
+            ));
+        } else if end.success != c.success {
+            result.mismatch = Some(mismatch(
+                n,
+                (
+                    "success".into(),
+                    end.success.to_string(),
+                    c.success.to_string(),
+                ),
+            ));
         }
     }
     Ok(result)
@@ -345,8 +501,15 @@ impl fmt::Display for ReplayReport {
         for note in &self.setting_notes {
             writeln!(f, "NOTE: {note}")?;
         }
+        if let Some(rm) = &self.reward_machine {
+            writeln!(
+                f,
+                "reward machine: {rm}; re-tracked along the replayed labels"
+            )?;
+        }
         for e in &self.episodes {
             let status = match &e.mismatch {
+                None if e.rm_checked => "ok (bit-exact, RM states and rewards match)".to_string(),
                 None => "ok (bit-exact)".to_string(),
                 Some(m) => format!("MISMATCH at {m}"),
             };

@@ -3,6 +3,7 @@
 
 pub mod csv;
 pub mod plot;
+pub mod raster;
 
 pub use csv::CsvTable;
 pub use plot::{aggregate_over_seeds, BandPoint, LinePlot, Series};

@@ -21,7 +21,8 @@ pub use agent::{ActMode, RolloutStep, SacAgent, UpdateStats};
 pub(crate) use config::deserialize_table;
 pub use config::{ConfigError, SacConfig};
 pub use trainer::{
-    episode_seed, CheckpointError, EnvReward, EpisodeSummary, RewardFn, SacTrainer, StepOutcome,
+    episode_seed, CheckpointError, EnvReward, EpisodeSummary, ObserverError, RewardFn, SacTrainer,
+    StepOutcome, TrainingObserver,
 };
 
 use crate::env::EnvError;
@@ -40,6 +41,12 @@ pub enum SacError {
         step: u64,
         #[source]
         source: EnvError,
+    },
+    #[error("training observer at environment step {step}: {source}")]
+    Observer {
+        step: u64,
+        #[source]
+        source: ObserverError,
     },
     #[error("environment has {what} {got}, the agent was built for {expected}")]
     Dimension {

@@ -17,8 +17,9 @@ use crate::irl::smirl::{
     LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
 };
 use crate::log::RolloutLogger;
+use crate::pipeline::training_log::{ReacherView, TrainingLog};
 use crate::rl::replay::ReplayBatch;
-use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
+use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer, TrainingObserver};
 use crate::rm::RewardMachine;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -163,6 +164,18 @@ impl ContinuousEnv for JobEnv {
     }
     fn step(&mut self, action: &[f32], obs: &mut [f32]) -> Result<EnvStep, EnvError> {
         self.step_full(action, obs).map(|(s, _)| s)
+    }
+}
+
+impl ReacherView for JobEnv {
+    fn reacher(&self) -> &ReacherDelivery {
+        JobEnv::reacher(self)
+    }
+    fn inner_step(&self, seen: &EnvStep) -> EnvStep {
+        match self {
+            JobEnv::Plain(e) => e.inner_step(seen),
+            JobEnv::Product(p) => p.inner_step(seen),
+        }
     }
 }
 
@@ -406,10 +419,7 @@ fn play_episode(
         out.env_return += env_reward;
         out.success |= perfect.is_terminal(up) && !perfect.is_failure(up);
         if let Some((l, _)) = logger.as_mut() {
-            let inner = EnvStep {
-                reward: env_reward,
-                ..step
-            };
+            let inner = env.inner_step(&step);
             l.reacher_step(
                 env.reacher(),
                 &action,
@@ -571,10 +581,17 @@ pub fn run_job(
             let before = trainer.env_steps();
             let chunk = 1_000u64;
             let mut done = 0;
+            // SAC's own episodes go to the log too (phase "train").
+            let mut train_log = logger
+                .as_deref_mut()
+                .map(|l| TrainingLog::new(l, perfect_rm, "train"));
             while done < s.sac_steps_per_iteration {
                 let n = chunk.min(s.sac_steps_per_iteration - done);
+                let observer = train_log
+                    .as_mut()
+                    .map(|t| t as &mut dyn TrainingObserver<JobEnv>);
                 trainer
-                    .train(&mut env, &mut reward_fn, n, |_| {})
+                    .train_observed(&mut env, &mut reward_fn, n, observer, |_| {})
                     .map_err(|e| fail(format!("SAC: {e}")))?;
                 done += n;
                 progress(JobProgress {

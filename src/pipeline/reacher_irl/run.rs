@@ -221,7 +221,8 @@ fn log_header(
     what: &str,
     perfect: &RewardMachine,
 ) -> Result<RunHeader, PipelineError> {
-    let json = serde_json::json!({ "run": what, "irl_config": config });
+    // Replay reads the environment config from `env` (time limit, cancel schedule).
+    let json = serde_json::json!({ "run": what, "env": config.env, "irl_config": config });
     let mut header = RunHeader::reacher(task.name(), seed, json, &default_xml_path())
         .map_err(|e| PipelineError::Run(e.to_string()))?;
     header.reward_machine = Some(write_rm(perfect));

@@ -34,6 +34,34 @@ impl<F: FnMut(&ReplayBatch, &mut [f32])> RewardFn for F {
     }
 }
 
+/// Sees the episodes the trainer plays, step by step, with the environment's state after
+/// each event (e.g. to log them for replay). Training does not depend on it: the trainer
+/// calls it after the environment step and before any update, and takes nothing back but
+/// errors, which stop training.
+pub trait TrainingObserver<E: ?Sized> {
+    /// `env` was just reset with `reset_seed` for a new training episode; `obs` is its first
+    /// observation.
+    fn episode_started(
+        &mut self,
+        env: &E,
+        reset_seed: u64,
+        obs: &[f32],
+    ) -> Result<(), ObserverError>;
+    /// `env` took `action` and reported `step`; `obs` is the observation after it.
+    fn stepped(
+        &mut self,
+        env: &E,
+        action: &[f32],
+        step: &EnvStep,
+        obs: &[f32],
+    ) -> Result<(), ObserverError>;
+    /// The episode ended with that step (terminated or truncated).
+    fn episode_ended(&mut self, env: &E, episode: &EpisodeSummary) -> Result<(), ObserverError>;
+}
+
+/// What a [`TrainingObserver`] reports when it cannot go on (e.g. a log write failed).
+pub type ObserverError = Box<dyn std::error::Error + Send + Sync>;
+
 /// A finished episode.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EpisodeSummary {
@@ -203,12 +231,33 @@ impl SacTrainer {
         env: &mut E,
         reward: &mut R,
     ) -> Result<StepOutcome, SacError> {
+        self.step_observed(env, reward, None)
+    }
+
+    /// [`SacTrainer::step`], reporting the reset (if any), the step and the episode's end to
+    /// `observer`.
+    pub fn step_observed<E: ContinuousEnv + ?Sized, R: RewardFn + ?Sized>(
+        &mut self,
+        env: &mut E,
+        reward: &mut R,
+        mut observer: Option<&mut (dyn TrainingObserver<E> + '_)>,
+    ) -> Result<StepOutcome, SacError> {
         self.check_env(env)?;
+        let observed = |step: u64, r: Result<(), ObserverError>| {
+            r.map_err(|source| SacError::Observer { step, source })
+        };
         if !self.in_episode {
-            env.reset(episode_seed(self.seed, self.episodes), &mut self.obs);
+            let reset_seed = episode_seed(self.seed, self.episodes);
+            env.reset(reset_seed, &mut self.obs);
             self.in_episode = true;
             self.episode_return = 0.0;
             self.episode_len = 0;
+            if let Some(o) = observer.as_deref_mut() {
+                observed(
+                    self.env_steps,
+                    o.episode_started(env, reset_seed, &self.obs),
+                )?;
+            }
         }
         let cfg = self.agent.config();
         if self.env_steps < cfg.warmup_steps {
@@ -233,6 +282,12 @@ impl SacTrainer {
             env_step.labels,
             env_step.terminated,
         );
+        if let Some(o) = observer.as_deref_mut() {
+            observed(
+                self.env_steps,
+                o.stepped(env, &self.action, &env_step, &self.next_obs),
+            )?;
+        }
         std::mem::swap(&mut self.obs, &mut self.next_obs);
         self.env_steps += 1;
         self.episode_return += env_step.reward;
@@ -248,6 +303,9 @@ impl SacTrainer {
             });
             self.episodes += 1;
             self.in_episode = false;
+            if let (Some(o), Some(e)) = (observer, episode.as_ref()) {
+                observed(self.env_steps, o.episode_ended(env, e))?;
+            }
         }
         let mut update = None;
         let cfg = self.agent.config();
@@ -274,10 +332,22 @@ impl SacTrainer {
         env: &mut E,
         reward: &mut R,
         steps: u64,
+        on_step: impl FnMut(&StepOutcome),
+    ) -> Result<(), SacError> {
+        self.train_observed(env, reward, steps, None, on_step)
+    }
+
+    /// [`SacTrainer::train`] with a [`TrainingObserver`] seeing every episode.
+    pub fn train_observed<E: ContinuousEnv + ?Sized, R: RewardFn + ?Sized>(
+        &mut self,
+        env: &mut E,
+        reward: &mut R,
+        steps: u64,
+        mut observer: Option<&mut (dyn TrainingObserver<E> + '_)>,
         mut on_step: impl FnMut(&StepOutcome),
     ) -> Result<(), SacError> {
         for _ in 0..steps {
-            let outcome = self.step(env, reward)?;
+            let outcome = self.step_observed(env, reward, observer.as_deref_mut())?;
             on_step(&outcome);
         }
         Ok(())

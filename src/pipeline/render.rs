@@ -1,0 +1,320 @@
+//! A top-down picture of one logged ReacherDelivery episode, as PNG: the arena, the four
+//! balls in their model colours (at the episode's logged layout), the fingertip's path, the
+//! arm at a few time points (lighter = earlier), every touch (a ring in the ball's colour
+//! where the fingertip first touched it) and the cancel step (a black cross at the
+//! fingertip), plus a timeline strip under the arena with the same events.
+//!
+//! Positions come from MuJoCo's forward kinematics on the model XML stored in the log and the
+//! logged `qpos` of every step, so the picture shows the episode as it was simulated.
+
+use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
+use crate::log::{LoggedEpisode, RolloutLog};
+use crate::mujoco::{Data, Model, ObjectKind};
+use crate::report::raster::{Canvas, Rgb};
+use std::path::Path;
+use std::sync::Arc;
+
+/// What to draw and how large.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Side of the square arena picture in pixels (the timeline strip adds below it).
+    pub size: u32,
+    /// Arm poses drawn, evenly spaced from the first to the last state (at least 1).
+    pub poses: usize,
+}
+
+impl Default for RenderOptions {
+    fn default() -> RenderOptions {
+        RenderOptions {
+            size: 480,
+            poses: 5,
+        }
+    }
+}
+
+/// A picture that cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("{path}: {problem}")]
+    Input { path: String, problem: String },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// A rendered episode and what it shows.
+#[derive(Clone, Debug)]
+pub struct EpisodePicture {
+    pub canvas: Canvas,
+    pub episode: u64,
+    pub phase: String,
+    pub steps: usize,
+    /// Touches as (1-based step, ball letter), first contact of each touch.
+    pub touches: Vec<(usize, char)>,
+    /// 1-based cancel step, when the cancel event fired within the logged steps.
+    pub cancel_step: Option<usize>,
+    /// Ball centres in pixels, in [`BALLS`] order.
+    pub ball_pixels: [(f64, f64); 4],
+    /// Fingertip at the first and last state, in pixels.
+    pub tip_pixels: ((f64, f64), (f64, f64)),
+}
+
+/// Half-width of the pictured square in metres (walls at ±0.3 plus their thickness).
+const VIEW_HALF: f64 = 0.33;
+/// Height of the timeline strip in pixels.
+const STRIP: u32 = 28;
+
+/// World (x, y) in metres to pixel (x, y), y up in the world, down in the image.
+fn to_pixel(size: u32, [x, y]: [f64; 2]) -> (f64, f64) {
+    let scale = f64::from(size) / (2.0 * VIEW_HALF);
+    ((x + VIEW_HALF) * scale, (VIEW_HALF - y) * scale)
+}
+
+fn colour(rgba: [f32; 4]) -> Rgb {
+    Rgb(rgba[0], rgba[1], rgba[2])
+}
+
+/// Renders episode `episode` (its id in the log, as `reacher replay` prints it; `None` = the
+/// first logged episode).
+pub fn render_episode(
+    log: &RolloutLog,
+    episode: Option<u64>,
+    options: &RenderOptions,
+) -> Result<EpisodePicture, RenderError> {
+    let path = log.path.display().to_string();
+    let bad = |problem: String| RenderError::Input {
+        path: path.clone(),
+        problem,
+    };
+    if log.run.env != "ReacherDelivery" {
+        return Err(bad(format!(
+            "environment {} is not ReacherDelivery",
+            log.run.env
+        )));
+    }
+    if options.size < 64 || options.size > 8192 {
+        return Err(bad(format!(
+            "picture size {} must be between 64 and 8192 pixels",
+            options.size
+        )));
+    }
+    let ep = pick_episode(log, episode).map_err(&bad)?;
+    let xml = log
+        .model_xml
+        .as_deref()
+        .ok_or_else(|| bad("the file has no model.xml attachment".into()))?;
+    let model = Arc::new(
+        Model::from_xml_str(xml, &format!("{path}:model.xml")).map_err(|e| bad(e.to_string()))?,
+    );
+    let id = |kind, name: &str| model.id(kind, name).map_err(|e| bad(e.to_string()));
+    let elbow = id(ObjectKind::Body, "body1")?;
+    let tip = id(ObjectKind::Body, "fingertip")?;
+    let shoulder = id(ObjectKind::Body, "body0")?;
+    let link_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "link0")?));
+    let tip_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "fingertip")?));
+    let wall_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "sideS")?));
+    let mut ball_colours = [Rgb::BLACK; 4];
+    for (c, name) in ball_colours.iter_mut().zip(BALLS) {
+        *c = colour(model.geom_rgba(id(ObjectKind::Geom, name)?));
+    }
+    let ball_radius = model.geom_radius(id(ObjectKind::Geom, BALLS[0])?);
+    if ep.start.balls.len() != 8 {
+        return Err(bad(format!(
+            "episode {}: {} ball coordinates, expected 8",
+            ep.start.episode,
+            ep.start.balls.len()
+        )));
+    }
+
+    // Arm positions (shoulder, elbow, fingertip) of every state by forward kinematics.
+    let mut data = Data::new(model.clone()).map_err(|e| bad(e.to_string()))?;
+    let states = std::iter::once(&ep.start.qpos).chain(ep.steps.iter().map(|s| &s.qpos));
+    let mut arm = Vec::with_capacity(ep.steps.len() + 1);
+    for (k, qpos) in states.enumerate() {
+        data.set_qpos(qpos)
+            .and_then(|()| data.forward())
+            .map_err(|e| bad(format!("episode {} state {k}: {e}", ep.start.episode)))?;
+        let xy = |b: usize| {
+            let p = data.body_xpos(b);
+            [p[0], p[1]]
+        };
+        arm.push([xy(shoulder), xy(elbow), xy(tip)]);
+    }
+
+    let size = options.size;
+    let px = |p: [f64; 2]| to_pixel(size, p);
+    let scale = f64::from(size) / (2.0 * VIEW_HALF);
+    let mut canvas = Canvas::new(size, size + STRIP, Rgb::WHITE);
+    // Arena floor and walls.
+    let (a0, a1) = (px([-0.3, 0.3]), px([0.3, -0.3]));
+    canvas.rect(
+        a0.0 as i64,
+        a0.1 as i64,
+        a1.0 as i64,
+        a1.1 as i64,
+        Rgb(0.93, 0.93, 0.93),
+        1.0,
+    );
+    let corners = [[-0.3, -0.3], [0.3, -0.3], [0.3, 0.3], [-0.3, 0.3]];
+    for k in 0..4 {
+        canvas.line(
+            px(corners[k]),
+            px(corners[(k + 1) % 4]),
+            0.02 * scale,
+            wall_colour,
+            1.0,
+        );
+    }
+    // Balls: the touch zone lightly, the ball itself solid.
+    let mut ball_pixels = [(0.0, 0.0); 4];
+    for (i, c) in ball_colours.iter().enumerate() {
+        let centre = px([ep.start.balls[2 * i], ep.start.balls[2 * i + 1]]);
+        ball_pixels[i] = centre;
+        canvas.disc(
+            centre.0,
+            centre.1,
+            (ball_radius + TOUCH_RADIUS) * scale,
+            c.lighten(0.75),
+            1.0,
+        );
+        canvas.disc(centre.0, centre.1, ball_radius * scale, *c, 1.0);
+    }
+    // Arm poses, earliest lightest.
+    let n = arm.len();
+    let poses = options.poses.max(1).min(n);
+    for k in 0..poses {
+        let idx = if poses == 1 {
+            n - 1
+        } else {
+            k * (n - 1) / (poses - 1)
+        };
+        let fade = 0.8 * (1.0 - (k + 1) as f32 / poses as f32);
+        let [s, e, t] = arm[idx];
+        let w = 0.02 * scale;
+        canvas.line(px(s), px(e), w, link_colour.lighten(fade), 1.0);
+        canvas.line(px(e), px(t), w, link_colour.lighten(fade), 1.0);
+        canvas.disc(
+            px(t).0,
+            px(t).1,
+            0.01 * scale,
+            tip_colour.lighten(fade),
+            1.0,
+        );
+    }
+    // Fingertip path over the poses.
+    let path_colour = tip_colour.darken(0.55);
+    for w in arm.windows(2) {
+        canvas.line(px(w[0][2]), px(w[1][2]), 2.0, path_colour, 1.0);
+    }
+    // Touches (rising edges of ball labels) and the cancel step.
+    let mut touches = Vec::new();
+    let mut cancel_step = None;
+    let mut prev = ep.start.labels;
+    let letters: Vec<char> = log.run.vocabulary.chars().collect();
+    for (k, s) in ep.steps.iter().enumerate() {
+        let step = k + 1;
+        let tip_px = px(arm[step][2]);
+        for (b, c) in ball_colours.iter().enumerate() {
+            let bit = 1 << b;
+            if s.labels & bit != 0 && prev & bit == 0 {
+                touches.push((step, letters.get(b).copied().unwrap_or('?')));
+                canvas.ring(tip_px.0, tip_px.1, 0.018 * scale, 3.0, Rgb::BLACK, 1.0);
+                canvas.ring(tip_px.0, tip_px.1, 0.018 * scale, 1.5, *c, 1.0);
+            }
+        }
+        if s.labels & (1 << CANCEL_BIT) != 0 && cancel_step.is_none() {
+            cancel_step = Some(step);
+            let d = 0.015 * scale;
+            for (dx, dy) in [(d, d), (d, -d)] {
+                canvas.line(
+                    (tip_px.0 - dx, tip_px.1 - dy),
+                    (tip_px.0 + dx, tip_px.1 + dy),
+                    3.0,
+                    Rgb::BLACK,
+                    1.0,
+                );
+            }
+        }
+        prev = s.labels;
+    }
+    // Timeline: a grey bar over the episode's steps, ticks at touches and the cancel step.
+    let (left, right) = (8.0, f64::from(size) - 8.0);
+    let top = f64::from(size) + 6.0;
+    let bottom = f64::from(size + STRIP) - 6.0;
+    let mid = (top + bottom) / 2.0;
+    canvas.line((left, mid), (right, mid), 4.0, Rgb(0.75, 0.75, 0.75), 1.0);
+    let at = |step: usize| left + (right - left) * step as f64 / ep.steps.len().max(1) as f64;
+    for &(step, letter) in &touches {
+        let b = letters.iter().position(|&c| c == letter).unwrap_or(0);
+        let x = at(step);
+        canvas.line((x, top), (x, bottom), 3.0, ball_colours[b.min(3)], 1.0);
+    }
+    if let Some(step) = cancel_step {
+        let x = at(step);
+        canvas.line((x, top), (x, bottom), 2.0, Rgb::BLACK, 1.0);
+    }
+    Ok(EpisodePicture {
+        canvas,
+        episode: ep.start.episode,
+        phase: ep.start.phase.clone(),
+        steps: ep.steps.len(),
+        touches,
+        cancel_step,
+        ball_pixels,
+        tip_pixels: (px(arm[0][2]), px(arm[n - 1][2])),
+    })
+}
+
+/// The episode with id `episode` (the first one for `None`).
+fn pick_episode(log: &RolloutLog, episode: Option<u64>) -> Result<&LoggedEpisode, String> {
+    let ids = || {
+        let ids: Vec<String> = log
+            .episodes
+            .iter()
+            .take(12)
+            .map(|e| e.start.episode.to_string())
+            .collect();
+        let more = if log.episodes.len() > 12 { ", …" } else { "" };
+        format!(
+            "{} logged episode(s): {}{more}",
+            log.episodes.len(),
+            ids.join(", ")
+        )
+    };
+    match episode {
+        None => log
+            .episodes
+            .first()
+            .ok_or_else(|| "the log has no episodes".to_string()),
+        Some(id) => log
+            .episodes
+            .iter()
+            .find(|e| e.start.episode == id)
+            .ok_or_else(|| format!("episode {id} is not in the log ({})", ids())),
+    }
+}
+
+/// Writes the picture as PNG at `path` (through `path.part` and a rename, so a failed
+/// write leaves no file that looks complete).
+pub fn write_png(path: &Path, picture: &EpisodePicture) -> Result<(), RenderError> {
+    let io = |source| RenderError::Write {
+        path: path.display().to_string(),
+        source,
+    };
+    let bytes = picture
+        .canvas
+        .to_png()
+        .map_err(|e| io(std::io::Error::other(e.to_string())))?;
+    let mut part = path.as_os_str().to_owned();
+    part.push(".part");
+    let part = std::path::PathBuf::from(part);
+    std::fs::write(&part, &bytes)
+        .and_then(|()| std::fs::rename(&part, path))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&part);
+            io(e)
+        })
+}

@@ -1,0 +1,140 @@
+//! `reacher render`: a logged episode drawn as PNG (decodes, right size, the balls where the
+//! log puts them, touches and cancel found); bad input is an error and leaves no file.
+
+use smirl::env::reacher::ReacherConfig;
+use smirl::log::demo::{log_scripted_demos, DemoSpec};
+use smirl::log::{read_log, LogOptions};
+use smirl::pipeline::render::{render_episode, write_png, RenderOptions};
+use smirl::rm::perfect;
+use std::path::Path;
+use std::process::Command;
+
+fn demos(path: &Path) {
+    let mut env = ReacherConfig::default();
+    env.cancel.probability = 1.0;
+    log_scripted_demos(
+        path,
+        &DemoSpec {
+            task: "sequential".into(),
+            sequence: "rgby".into(),
+            episodes: 3,
+            seed: 11,
+            stop_when_done: true,
+            env,
+            reward_machine: Some(perfect::reacher("sequential").unwrap()),
+        },
+        LogOptions::default(),
+    )
+    .unwrap();
+}
+
+fn decode(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    (info.width, info.height, buf)
+}
+
+#[test]
+fn logged_episode_renders_to_a_png_with_its_balls_touches_and_cancel() {
+    let dir = tempfile::tempdir().unwrap();
+    let log_path = dir.path().join("seq.mcap");
+    demos(&log_path);
+    let log = read_log(&log_path).unwrap();
+    let options = RenderOptions {
+        size: 320,
+        poses: 4,
+    };
+    let pic = render_episode(&log, Some(1), &options).unwrap();
+    assert_eq!((pic.episode, pic.steps), (1, log.episodes[1].steps.len()));
+    // The scripted controller touches the balls in order; every episode has a cancel event.
+    let order: String = pic.touches.iter().map(|t| t.1).collect();
+    assert!(order.starts_with('r'), "{order}");
+    let cancel = log.episodes[1].start.cancel_step as usize;
+    if cancel <= pic.steps {
+        assert_eq!(pic.cancel_step, Some(cancel));
+    }
+
+    let out = dir.path().join("ep1.png");
+    write_png(&out, &pic).unwrap();
+    let (w, h, pixels) = decode(&out);
+    assert_eq!((w, h), (320, 320 + 28));
+    let at = |(x, y): (f64, f64)| {
+        let i = 3 * (y as usize * w as usize + x as usize);
+        [pixels[i], pixels[i + 1], pixels[i + 2]]
+    };
+    // The red ball's centre carries the model's red (the arm or a touch marker could cover
+    // other balls' centres; for this seed none covers the red one).
+    let red = at(pic.ball_pixels[0]);
+    assert!(
+        red[0] > 150 && red[1] < 120 && red[2] < 120,
+        "red ball {red:?}"
+    );
+    let background = at((3.0, 3.0));
+    assert_eq!(background, [255, 255, 255]);
+    let non_white = pixels.chunks(3).filter(|p| p != &[255, 255, 255]).count();
+    assert!(non_white > (w * w / 2) as usize, "{non_white} drawn pixels");
+    assert!(!dir.path().join("ep1.png.part").exists());
+}
+
+#[test]
+fn bad_input_is_an_error_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let log_path = dir.path().join("seq.mcap");
+    demos(&log_path);
+    let log = read_log(&log_path).unwrap();
+    let e = render_episode(&log, Some(9), &RenderOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("seq.mcap")
+            && e.contains("episode 9 is not in the log")
+            && e.contains("0, 1, 2"),
+        "{e}"
+    );
+
+    let reacher = || Command::new(env!("CARGO_BIN_EXE_reacher"));
+    let out = dir.path().join("pic.png");
+    let run = reacher()
+        .args(["render", log_path.to_str().unwrap(), "--episode", "5"])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("episode 5 is not in the log"), "{stderr}");
+    assert!(!out.exists());
+
+    let junk = dir.path().join("junk.mcap");
+    std::fs::write(&junk, b"this is not an MCAP file at all").unwrap();
+    let run = reacher()
+        .args(["render", junk.to_str().unwrap()])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("junk.mcap") && stderr.contains("not an MCAP file"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+
+    // The good case through the CLI writes the file.
+    let run = reacher()
+        .args(["render", log_path.to_str().unwrap(), "--episode", "2"])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(decode(&out).0, 480);
+}
