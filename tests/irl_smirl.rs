@@ -390,7 +390,10 @@ fn learned_subgoal_potential_pulls_towards_the_best_paid_balls_of_each_state() {
     let path: Vec<(Vec<f32>, usize)> = (0..6)
         .map(|t| {
             let x = 0.05 * t as f32;
-            (obs_with([[x, 0.1], [0.1 - x, x], [x, x], [0.2, x]], false), t % 2)
+            (
+                obs_with([[x, 0.1], [0.1 - x, x], [x, x], [0.2, x]], false),
+                t % 2,
+            )
         })
         .collect();
     let shaped: f64 = path

@@ -28,7 +28,9 @@ fn tiny_config() -> IrlRunConfig {
     c.lrm_steps = 20;
     c.lrm_tabu_len = 100;
     c.log_every_nth_episode = 2;
-    c.env.max_steps = 60;
+    // 300 SAC steps are not a whole number of 70-step episodes: each iteration has to finish
+    // SAC's episode in progress before the rollouts reset the environment.
+    c.env.max_steps = 70;
     c.sac.warmup_steps = 100;
     c.sac.update_after = 100;
     c.sac.batch_size = 64;
@@ -170,6 +172,22 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
             );
         }
         assert!(log.episodes.iter().all(|e| e.start.episode % 2 == 0));
+        // No training episode is cut off by an iteration boundary: each runs its 70 steps
+        // (ReacherDelivery never terminates early, nor does the learned OR machine, which has
+        // no terminal state) and ends in the log.
+        for e in log.episodes.iter().filter(|e| e.start.phase == "train") {
+            assert!(
+                e.is_complete(),
+                "{a}: training episode {} cut off",
+                e.start.episode
+            );
+            assert_eq!(
+                e.steps.len(),
+                70,
+                "{a}: training episode {}",
+                e.start.episode
+            );
+        }
         let report = smirl::pipeline::replay::replay(&log).unwrap();
         assert!(report.all_match(), "{a}: {report}");
         assert!(report.episodes.iter().all(|e| e.rm_checked), "{a}");

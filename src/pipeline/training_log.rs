@@ -55,9 +55,9 @@ impl<P: Potential> ReacherView for ProductEnv<ReacherDelivery, P> {
 /// A [`TrainingObserver`] writing the trainer's episodes to `logger` under `phase`
 /// (sampled by the logger's `every_nth_episode` like any other episode).
 ///
-/// An episode still running when this observer is dropped (e.g. the IRL loop pauses SAC for
-/// rollouts and evaluation, which reset the shared environment) stays unfinished in the log,
-/// and its continuation is not logged: it no longer starts from a logged state.
+/// An episode still running when this observer is dropped stays unfinished in the log, and
+/// its continuation is not logged (the IRL loop avoids this by finishing SAC's episode in
+/// progress before it pauses training for rollouts and evaluation).
 pub struct TrainingLog<'a> {
     logger: &'a mut RolloutLogger,
     task_rm: &'a RewardMachine,

@@ -222,8 +222,10 @@ impl RewardFn for LearnedReward<'_> {
         if let Some((potential, gamma)) = self.shaping {
             let rows = batch.next_obs.as_slice().chunks_exact(d);
             let prev_rows = batch.obs.as_slice().chunks_exact(d);
-            for (((next, prev), &terminated), r) in
-                rows.zip(prev_rows).zip(&batch.terminated).zip(out.iter_mut())
+            for (((next, prev), &terminated), r) in rows
+                .zip(prev_rows)
+                .zip(&batch.terminated)
+                .zip(out.iter_mut())
             {
                 let u = hot_index(&prev[OBS_DIM..]) as usize;
                 let u_next = hot_index(&next[OBS_DIM..]) as usize;
@@ -342,7 +344,10 @@ pub fn irl_coefficients(
 }
 
 /// SMIRL's feature map φ (`None` for the baselines).
-pub fn smirl_features(algo: Algo, settings: &IrlRunConfig) -> Result<Option<FeatureMap>, RewardError> {
+pub fn smirl_features(
+    algo: Algo,
+    settings: &IrlRunConfig,
+) -> Result<Option<FeatureMap>, RewardError> {
     Ok(match algo {
         Algo::Smirl => Some(FeatureMap::reacher_labels()),
         Algo::SmirlSmooth => Some(FeatureMap::reacher_smooth(settings.smooth_sigma)?),
@@ -585,8 +590,17 @@ pub fn run_job(
             let mut train_log = logger
                 .as_deref_mut()
                 .map(|l| TrainingLog::new(l, perfect_rm, "train"));
-            while done < s.sac_steps_per_iteration {
-                let n = chunk.min(s.sac_steps_per_iteration - done);
+            // Train the step budget, then play the episode in progress to its end: rollouts
+            // and evaluation reset the same environment, and SAC must not resume an episode
+            // from the state the last evaluation left it in (with 100-step episodes and a
+            // budget that is a multiple of 100, as in the shipped profiles, there is nothing
+            // to finish).
+            while done < s.sac_steps_per_iteration || !trainer.at_episode_boundary() {
+                let n = if done < s.sac_steps_per_iteration {
+                    chunk.min(s.sac_steps_per_iteration - done)
+                } else {
+                    1
+                };
                 let observer = train_log
                     .as_mut()
                     .map(|t| t as &mut dyn TrainingObserver<JobEnv>);
