@@ -332,9 +332,18 @@ fn cli_tiny_run_and_bad_input() {
 #[test]
 fn shipped_configs_parse() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
-    for name in ["config.toml", "quick.toml"] {
-        IrlRunConfig::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let mut parsed = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            IrlRunConfig::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            parsed += 1;
+        }
     }
+    assert!(
+        parsed >= 4,
+        "config, quick, config_scripted, config_shaping"
+    );
 }
 
 /// `demo_padding = "hold"`: a demonstration that ends at the goal is extended to the time

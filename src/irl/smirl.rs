@@ -328,13 +328,7 @@ pub fn log_likelihood_surrogate(
     agent: &AnnotatedTrajectories<'_>,
 ) -> Result<f64, RewardError> {
     let k = features.len();
-    if weights.len() != n_states * k {
-        return Err(RewardError::Length {
-            what: "weights",
-            got: weights.len(),
-            expected: n_states * k,
-        });
-    }
+    check_weights_len(weights.len(), n_states, k)?;
     let mean_return = |t: &AnnotatedTrajectories<'_>| -> Result<f64, RewardError> {
         t.check(features.obs_dim())?;
         let mut phi = vec![0.0; k];
@@ -352,6 +346,19 @@ pub fn log_likelihood_surrogate(
     };
     let norm2: f64 = weights.iter().map(|w| w * w).sum();
     Ok(mean_return(expert)? - mean_return(agent)? - 0.5 * l2 * norm2)
+}
+
+/// Weights are `n_states × n_features` row-major.
+fn check_weights_len(len: usize, n_states: usize, n_features: usize) -> Result<(), RewardError> {
+    if len == n_states * n_features {
+        Ok(())
+    } else {
+        Err(RewardError::Length {
+            what: "weights",
+            got: len,
+            expected: n_states * n_features,
+        })
+    }
 }
 
 fn check_state(u: u32, n_states: usize) -> Result<usize, RewardError> {
@@ -603,13 +610,7 @@ impl LearnedSubgoalPotential {
         beta: f64,
     ) -> Result<LearnedSubgoalPotential, RewardError> {
         let k = features.len();
-        if weights.len() != n_states * k {
-            return Err(RewardError::Length {
-                what: "weights",
-                got: weights.len(),
-                expected: n_states * k,
-            });
-        }
+        check_weights_len(weights.len(), n_states, k)?;
         if !(beta.is_finite() && beta >= 0.0) {
             return Err(RewardError::Config(format!(
                 "shaping strength must be a non-negative number, got {beta}"
