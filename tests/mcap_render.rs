@@ -3,10 +3,10 @@
 
 use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
-use smirl::log::{read_log, LogOptions};
+use smirl::log::{read_log, LogOptions, RolloutLog};
 use smirl::pipeline::render::{render_episode, write_png, RenderOptions};
 use smirl::rm::perfect;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn demos(path: &Path) {
@@ -28,6 +28,16 @@ fn demos(path: &Path) {
     .unwrap();
 }
 
+/// A temporary directory holding `seq.mcap` (three scripted Sequential demos), its path and
+/// the log as read back.
+fn logged_demos() -> (tempfile::TempDir, PathBuf, RolloutLog) {
+    let dir = tempfile::tempdir().unwrap();
+    let log_path = dir.path().join("seq.mcap");
+    demos(&log_path);
+    let log = read_log(&log_path).unwrap();
+    (dir, log_path, log)
+}
+
 fn decode(path: &Path) -> (u32, u32, Vec<u8>) {
     let decoder = png::Decoder::new(std::fs::File::open(path).unwrap());
     let mut reader = decoder.read_info().unwrap();
@@ -39,10 +49,7 @@ fn decode(path: &Path) -> (u32, u32, Vec<u8>) {
 
 #[test]
 fn logged_episode_renders_to_a_png_with_its_balls_touches_and_cancel() {
-    let dir = tempfile::tempdir().unwrap();
-    let log_path = dir.path().join("seq.mcap");
-    demos(&log_path);
-    let log = read_log(&log_path).unwrap();
+    let (dir, _, log) = logged_demos();
     let options = RenderOptions {
         size: 320,
         poses: 4,
@@ -81,10 +88,7 @@ fn logged_episode_renders_to_a_png_with_its_balls_touches_and_cancel() {
 
 #[test]
 fn bad_input_is_an_error_and_writes_nothing() {
-    let dir = tempfile::tempdir().unwrap();
-    let log_path = dir.path().join("seq.mcap");
-    demos(&log_path);
-    let log = read_log(&log_path).unwrap();
+    let (dir, log_path, log) = logged_demos();
     let e = render_episode(&log, Some(9), &RenderOptions::default())
         .unwrap_err()
         .to_string();
