@@ -200,3 +200,27 @@ fn mlp_reward_saves_loads_and_refuses_bad_input() {
     ));
     assert!(a.set_params(&[0.0; 3]).is_err());
 }
+
+/// `set_lr` changes the step size of the following optimiser steps: a zero rate freezes the
+/// parameters, restoring the rate moves them again.
+#[test]
+fn set_lr_changes_the_following_steps() {
+    use smirl::irl::smirl::{FeatureMap, LinearRmReward};
+    let mut model = LinearRmReward::new(
+        FeatureMap::reacher_labels(),
+        1,
+        RewardOptimConfig::adam(0.1),
+    )
+    .unwrap();
+    let obs = vec![0.0f32; model.obs_dim()];
+    // Fingertip on ball 0 (zero offset): feature 0 is 1, so the gradient of w_0 is the coefficient.
+    model.update(&obs, &[0], &[-1.0]).unwrap();
+    let after_first = model.params();
+    assert!(after_first[0] > 0.0);
+    model.set_lr(0.0);
+    model.update(&obs, &[0], &[-1.0]).unwrap();
+    assert_eq!(model.params(), after_first);
+    model.set_lr(0.1);
+    model.update(&obs, &[0], &[-1.0]).unwrap();
+    assert!(model.params()[0] > after_first[0]);
+}

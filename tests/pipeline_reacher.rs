@@ -10,8 +10,8 @@ use smirl::irl::smirl::{
 };
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{
-    irl_coefficients, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData, IrlRunConfig,
-    RunRequest,
+    irl_coefficients, reward_lr, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData,
+    IrlRunConfig, RunRequest,
 };
 use std::path::Path;
 use std::process::Command;
@@ -422,4 +422,24 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     // A demonstration already at the horizon is not extended.
     let full = annotate(std::slice::from_ref(&demo), Some(&rm), Some(2));
     assert_eq!(full.lengths, vec![3]);
+}
+
+/// The reward learning-rate schedule lr · k^(−p): SMIRL's base rate for SMIRL, the reward
+/// net's for the baselines, constant for p = 0.
+#[test]
+fn reward_learning_rate_decays_as_a_power_of_the_iteration() {
+    let mut c = IrlRunConfig::standard();
+    c.smirl_reward_lr = 0.1;
+    c.mlp_reward_lr = 0.001;
+    c.reward_lr_decay = 0.0;
+    for k in [1, 2, 20] {
+        assert_eq!(reward_lr(Algo::Smirl, &c, k), 0.1);
+        assert_eq!(reward_lr(Algo::Fkl, &c, k), 0.001);
+    }
+    c.reward_lr_decay = 0.5;
+    assert_eq!(reward_lr(Algo::SmirlSmooth, &c, 1), 0.1);
+    assert!((reward_lr(Algo::Smirl, &c, 4) - 0.05).abs() < 1e-7);
+    assert!((reward_lr(Algo::MaxEnt, &c, 16) - 0.00025).abs() < 1e-9);
+    c.reward_lr_decay = -0.5;
+    assert!(c.validate("test").is_err());
 }

@@ -97,6 +97,14 @@ pub(crate) struct TensorOptimizer {
 }
 
 impl TensorOptimizer {
+    /// Changes the learning rate of the following steps (Adam keeps its moment estimates).
+    pub(crate) fn set_lr(&mut self, lr: f32) {
+        self.config.lr = lr;
+        if let Some(adam) = &mut self.adam {
+            adam.config.lr = lr;
+        }
+    }
+
     pub(crate) fn new(config: RewardOptimConfig, lens: &[usize]) -> Result<Self, RewardError> {
         config.validate()?;
         let adam = config
@@ -158,6 +166,9 @@ pub trait RewardModel {
 
     /// One optimiser step (with the L2 penalty, if configured) on the stored gradient.
     fn step(&mut self);
+
+    /// Sets the learning rate of the following optimiser steps (a schedule).
+    fn set_lr(&mut self, lr: f32);
 
     /// `backward` then `step`.
     fn update(&mut self, obs: &[f32], rm_state: &[u32], coeffs: &[f64]) -> Result<(), RewardError> {
@@ -409,6 +420,10 @@ impl RewardModel for MlpReward {
             .zip(self.grad.iter_mut().map(|g| g.as_mut_slice()))
             .collect();
         self.optim.step(&mut tensors);
+    }
+
+    fn set_lr(&mut self, lr: f32) {
+        self.optim.set_lr(lr);
     }
 
     fn num_params(&self) -> usize {

@@ -534,6 +534,10 @@ impl RewardModel for LinearRmReward {
             .step(&mut [(self.weights.as_mut_slice(), self.grad.as_mut_slice())]);
     }
 
+    fn set_lr(&mut self, lr: f32) {
+        self.optim.set_lr(lr);
+    }
+
     fn num_params(&self) -> usize {
         self.weights.len()
     }

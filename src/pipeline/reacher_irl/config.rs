@@ -92,6 +92,9 @@ pub struct IrlRunConfig {
     /// the RM state's largest ball weight; see `irl::smirl::LearnedSubgoalPotential`); 0 = the
     /// learned reward alone.
     pub smirl_shaping: f64,
+    /// Exponent p of the reward learning-rate schedule lr_k = lr · k^(−p) over IRL iterations
+    /// k = 1, 2, … (every algorithm); 0 = constant.
+    pub reward_lr_decay: f64,
     /// Reward optimiser steps per IRL iteration (on the same coefficients).
     pub reward_steps_per_iteration: usize,
     /// Width σ (m) of `smirl-smooth`'s features exp(−d²/2σ²).
@@ -156,6 +159,7 @@ impl IrlRunConfig {
             smirl_reward_l2: 0.05,
             smirl_normalisation: SmirlNormalisation::Visits,
             smirl_shaping: 0.0,
+            reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,
             smooth_sigma: 0.05,
             kde_bandwidth: 0.02,
@@ -281,6 +285,9 @@ impl IrlRunConfig {
         }
         if self.reward_steps_per_iteration == 0 {
             return bad("reward_steps_per_iteration", "must be at least 1");
+        }
+        if !(self.reward_lr_decay.is_finite() && self.reward_lr_decay >= 0.0) {
+            return bad("reward_lr_decay", "must be a non-negative number");
         }
         if !(self.smirl_shaping.is_finite() && self.smirl_shaping >= 0.0) {
             return bad("smirl_shaping", "must be a non-negative number");

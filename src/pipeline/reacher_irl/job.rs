@@ -343,6 +343,20 @@ pub fn irl_coefficients(
     }
 }
 
+/// The reward learning rate of IRL iteration `iteration` (1-based): the algorithm's base rate
+/// times iteration^(−`reward_lr_decay`). Why a schedule: the reward update is a stochastic
+/// gradient step on sampled agent trajectories, and Adam takes steps of about lr whatever the
+/// size of the mismatch, so with a constant rate the reward keeps moving by sampling noise after
+/// the feature expectations match; a decaying rate lets it settle.
+pub fn reward_lr(algo: Algo, settings: &IrlRunConfig, iteration: usize) -> f32 {
+    let base = if algo.uses_rm() {
+        settings.smirl_reward_lr
+    } else {
+        settings.mlp_reward_lr
+    };
+    base * (iteration.max(1) as f32).powf(-(settings.reward_lr_decay as f32))
+}
+
 /// SMIRL's feature map φ (`None` for the baselines).
 pub fn smirl_features(
     algo: Algo,
@@ -494,7 +508,13 @@ pub fn run_job(
     let mut env = JobEnv::new(&s.env, learned).map_err(fail)?;
     let mut model =
         reward_model(algo, s, n_learned.max(1), seed).map_err(|e| fail(e.to_string()))?;
-    let features = smirl_features(algo, s).map_err(|e| fail(e.to_string()))?;
+    // SMIRL's feature map when its SAC is shaped (`smirl_shaping` > 0), else `None`.
+    let shaping_features = match learned {
+        Some(_) if s.smirl_shaping > 0.0 => {
+            smirl_features(algo, s).map_err(|e| fail(e.to_string()))?
+        }
+        _ => None,
+    };
     let expert_kde = match algo.divergence() {
         Some(_) => Some(
             Kde::fit_columns(&expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
@@ -560,11 +580,11 @@ pub fn run_job(
         // 1. Policy: continue SAC on the current learned reward (SMIRL: shaped by the
         // potential of the current weights).
         {
-            let potential = match &features {
+            let potential = match &shaping_features {
                 Some(f) => Some(
                     LearnedSubgoalPotential::from_weights(
                         f,
-                        n_learned.max(1),
+                        n_learned,
                         &model.params(),
                         s.smirl_shaping,
                     )
@@ -575,10 +595,7 @@ pub fn run_job(
             let mut reward_fn = LearnedReward {
                 model: model.as_mut(),
                 product: learned.is_some(),
-                shaping: potential
-                    .as_ref()
-                    .filter(|_| learned.is_some() && s.smirl_shaping > 0.0)
-                    .map(|p| (p, f64::from(s.sac.gamma))),
+                shaping: potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
                 obs: Vec::new(),
                 states: Vec::new(),
                 error: None,
@@ -668,7 +685,8 @@ pub fn run_job(
         let n_agent = batch.obs.len() / OBS_DIM;
         let learned_reward =
             r[..n_agent].iter().map(|&x| f64::from(x)).sum::<f64>() / n_agent as f64;
-        // 5. Reward update.
+        // 5. Reward update, with learning rate lr · k^(−reward_lr_decay) at iteration k.
+        model.set_lr(reward_lr(algo, s, iteration));
         for _ in 0..s.reward_steps_per_iteration {
             model
                 .update(&obs, &states, &coeffs)

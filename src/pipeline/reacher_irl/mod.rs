@@ -27,7 +27,8 @@ pub mod run;
 
 pub use config::{DemoPadding, DemoSource, IrlConfigError, IrlRunConfig};
 pub use job::{
-    irl_coefficients, run_job, AgentBatch, Coefficients, ExpertData, JobResult, MetricsRow,
+    irl_coefficients, reward_lr, run_job, AgentBatch, Coefficients, ExpertData, JobResult,
+    MetricsRow,
 };
 pub use run::{run_pipeline, PipelineError, RunObserver, RunRequest, RunSummary};
 

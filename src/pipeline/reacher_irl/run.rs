@@ -544,6 +544,7 @@ pub fn run_pipeline(
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
         "smirl_shaping": config.smirl_shaping,
+        "reward_lr_decay": config.reward_lr_decay,
         "git_commit": crate::GIT_COMMIT,
         "jobs": results.iter().map(|r| serde_json::json!({
             "algo": r.algo.name(), "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
