@@ -8,9 +8,8 @@
 //!
 //! Models that ignore the RM state (the MLP) accept an empty `rm_state` slice.
 
-use crate::nn::{
-    write_atomic, Adam, AdamConfig, BackwardMode, Mlp, MlpArch, MlpWorkspace, NnError,
-};
+use crate::atomic_file::write_atomic;
+use crate::nn::{Adam, AdamConfig, BackwardMode, Mlp, MlpArch, MlpWorkspace, NnError};
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

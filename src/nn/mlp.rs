@@ -1,8 +1,9 @@
 //! Multi-layer perceptrons: dense layers with ReLU between them and a linear output.
 
-use super::codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+use super::codec::{ByteReader, ByteWriter, CodecError};
 use super::dense::Dense;
 use super::NnError;
+use crate::atomic_file::write_atomic;
 use nalgebra::DMatrix;
 use rand::Rng;
 use std::fmt;

@@ -18,7 +18,7 @@ pub mod gemm;
 pub mod mlp;
 
 pub use adam::{Adam, AdamConfig};
-pub use codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+pub use codec::{ByteReader, ByteWriter, CodecError};
 pub use dense::Dense;
 pub use mlp::{BackwardMode, Mlp, MlpArch, MlpWorkspace};
 

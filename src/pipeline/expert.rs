@@ -11,9 +11,9 @@
 //! A run that hits NaN/inf stops with an error and leaves the last good checkpoint in place.
 
 use super::reacher_expert::PolicyFileError;
+use crate::atomic_file::write_atomic;
 use crate::env::reacher::ReacherConfig;
 use crate::env::ContinuousEnv;
-use crate::nn::write_atomic;
 use crate::rl::sac::{
     deserialize_table, ActMode, CheckpointError, ConfigError, EnvReward, EpisodeSummary, SacConfig,
     SacError, SacTrainer, TrainingObserver, UpdateStats,

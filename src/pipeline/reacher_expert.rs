@@ -17,6 +17,7 @@
 //! own machine from the label traces and must not read [`DemoStep::rm_state`].
 
 use super::expert::{train_expert, ExpertConfig, ExpertError, ExpertOutcome, ExpertProgress};
+use crate::atomic_file::write_atomic;
 use crate::env::product::{Potential, ProductEnv};
 use crate::env::reacher::{
     default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, CANCEL_BIT, OBS_DIM, VOCABULARY,
@@ -24,7 +25,7 @@ use crate::env::reacher::{
 use crate::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::log::{LogError, RolloutLogger, RunHeader};
-use crate::nn::codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
 use crate::nn::{gaussian, Mlp, MlpArch, MlpWorkspace};
 use crate::pipeline::training_log::{ReacherView, TrainingLog};
 use crate::rl::sac::{episode_seed, ActMode, EpisodeSummary, SacError, TrainingObserver};
@@ -794,11 +795,9 @@ pub fn write_curve_svg(
         .unwrap_or_default();
     let return_path = path.with_file_name(format!("{stem}_return.svg"));
     for (p, plot) in [(path, &success), (return_path.as_path(), &ret)] {
-        crate::report::write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| {
-            ExpertError::Curve {
-                path: p.display().to_string(),
-                problem: e.to_string(),
-            }
+        write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| ExpertError::Curve {
+            path: p.display().to_string(),
+            problem: e.to_string(),
         })?;
     }
     Ok(())

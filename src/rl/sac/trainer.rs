@@ -2,8 +2,9 @@
 
 use super::agent::{ActMode, SacAgent, UpdateStats};
 use super::{SacConfig, SacError};
+use crate::atomic_file::write_atomic;
 use crate::env::{ContinuousEnv, EnvStep};
-use crate::nn::codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
 use crate::rl::replay::{ReplayBatch, ReplayBuffer};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
