@@ -3,6 +3,52 @@
 //! Binary rather than JSON because checkpoints must restore `f32` parameters bit for bit and
 //! hold replay buffers of up to millions of transitions.
 
+use std::path::Path;
+
+/// A binary file (parameters, checkpoint, policy) that cannot be read, written or decoded,
+/// naming the file: the part every such file's error type shares.
+#[derive(Debug, thiserror::Error)]
+pub enum FileError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Codec {
+        path: String,
+        #[source]
+        source: CodecError,
+    },
+}
+
+impl FileError {
+    /// Names `path` in the codec errors of a reader of that file (for `map_err`).
+    pub fn codec_at(path: &str) -> impl Fn(CodecError) -> FileError + Copy + '_ {
+        move |source| FileError::Codec {
+            path: path.to_string(),
+            source,
+        }
+    }
+}
+
+/// Reads the whole file at `path`.
+pub fn read_file(path: &Path) -> Result<Vec<u8>, FileError> {
+    std::fs::read(path).map_err(|source| FileError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+/// Writes `bytes` to `path` atomically (see [`crate::atomic_file::write_atomic`]).
+pub fn save_file(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
+    crate::atomic_file::write_atomic(path, bytes).map_err(|source| FileError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
 /// A malformed or truncated binary file.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum CodecError {

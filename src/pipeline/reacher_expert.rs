@@ -25,7 +25,7 @@ use crate::env::reacher::{
 use crate::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::log::{LogError, RolloutLogger, RunHeader};
-use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
+use crate::nn::codec::{read_file, save_file, ByteReader, ByteWriter, CodecError, FileError};
 use crate::nn::{gaussian, Mlp, MlpArch, MlpWorkspace};
 use crate::pipeline::training_log::{ReacherView, TrainingLog};
 use crate::rl::sac::{episode_seed, ActMode, EpisodeSummary, SacError, TrainingObserver};
@@ -49,18 +49,8 @@ pub const POLICY_VERSION: u32 = 1;
 /// A policy file that cannot be written or used.
 #[derive(Debug, thiserror::Error)]
 pub enum PolicyFileError {
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{path}: {source}")]
-    Codec {
-        path: String,
-        #[source]
-        source: CodecError,
-    },
+    #[error(transparent)]
+    File(#[from] FileError),
     #[error("{path}: expert policy is for task '{found}', not '{expected}'")]
     WrongTask {
         path: String,
@@ -200,10 +190,7 @@ impl ExpertPolicy {
         w.str(self.task.name());
         w.str(&serde_json::to_string(&self.info).expect("PolicyInfo serialises"));
         self.actor.write(&mut w);
-        write_atomic(path, &w.bytes).map_err(|source| PolicyFileError::Io {
-            path: path.display().to_string(),
-            source,
-        })
+        Ok(save_file(path, &w.bytes)?)
     }
 
     /// Reads a policy file for `task` whose actor has the hidden layers `hidden`. A file of
@@ -215,14 +202,8 @@ impl ExpertPolicy {
         hidden: &[usize],
     ) -> Result<ExpertPolicy, PolicyFileError> {
         let p = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| PolicyFileError::Io {
-            path: p.clone(),
-            source,
-        })?;
-        let codec = |source| PolicyFileError::Codec {
-            path: p.clone(),
-            source,
-        };
+        let bytes = read_file(path)?;
+        let codec = FileError::codec_at(&p);
         let mut r = ByteReader::new(&bytes);
         r.header(POLICY_MAGIC, "smirl expert policy", POLICY_VERSION)
             .map_err(codec)?;
@@ -256,7 +237,8 @@ impl ExpertPolicy {
             return Err(codec(CodecError::Invalid {
                 what: "actor parameters",
                 problem: "contain NaN or infinity".into(),
-            }));
+            })
+            .into());
         }
         ExpertPolicy::new(task, actor, info)
     }
@@ -447,10 +429,10 @@ pub fn load_or_train_expert(
         return Ok(ExpertPolicy::load(&path, task, &config.sac.hidden)?);
     }
     std::fs::create_dir_all(cache_dir).map_err(|source| {
-        ExpertError::Policy(PolicyFileError::Io {
+        ExpertError::Policy(PolicyFileError::File(FileError::Io {
             path: cache_dir.display().to_string(),
             source,
-        })
+        }))
     })?;
     let checkpoint = expert_checkpoint_path(cache_dir, task);
     let (policy, _) = train_task_expert(task, config, seed, &checkpoint, true, progress, None)?;
