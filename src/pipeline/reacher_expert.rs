@@ -26,14 +26,14 @@ use crate::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::log::{LogError, RolloutLogger, RunHeader};
 use crate::nn::codec::{read_file, save_file, ByteReader, ByteWriter, CodecError, FileError};
-use crate::nn::{gaussian, Mlp, MlpArch, MlpWorkspace};
+use crate::nn::{Mlp, MlpArch};
 use crate::pipeline::training_log::{ReacherView, TrainingLog};
-use crate::rl::sac::{episode_seed, ActMode, EpisodeSummary, SacError, TrainingObserver};
+use crate::rl::sac::{
+    episode_seed, ActMode, ActWorkspace, EpisodeSummary, SacError, TrainingObserver,
+};
 use crate::rm::LabelSet;
-use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
 use std::path::{Path, PathBuf};
@@ -101,12 +101,7 @@ pub struct ExpertPolicy {
     task: ReacherTask,
     actor: Mlp,
     info: PolicyInfo,
-    ws: MlpWorkspace,
-    obs: DMatrix<f32>,
-    eps: DMatrix<f32>,
-    pre: DMatrix<f32>,
-    actions: DMatrix<f32>,
-    log_prob: [f32; 1],
+    act_ws: ActWorkspace,
 }
 
 impl ExpertPolicy {
@@ -124,17 +119,12 @@ impl ExpertPolicy {
                 expected: expected.to_string(),
             });
         }
-        let ws = actor.workspace(1);
+        let act_ws = ActWorkspace::new(&actor);
         Ok(Self {
             task,
             actor,
             info,
-            ws,
-            obs: DMatrix::zeros(obs_dim, 1),
-            eps: DMatrix::zeros(ACT_DIM, 1),
-            pre: DMatrix::zeros(ACT_DIM, 1),
-            actions: DMatrix::zeros(ACT_DIM, 1),
-            log_prob: [0.0],
+            act_ws,
         })
     }
 
@@ -162,24 +152,7 @@ impl ExpertPolicy {
     /// Chooses an action for one product observation, exactly as the SAC agent that trained
     /// it would (same noise draws from `rng` in [`ActMode::Sample`]).
     pub fn act(&mut self, obs: &[f32], mode: ActMode, rng: &mut impl Rng, action: &mut [f32]) {
-        self.obs.as_mut_slice().copy_from_slice(obs);
-        let head = self.actor.forward(&self.obs, &mut self.ws);
-        match mode {
-            ActMode::Mean => gaussian::mean_action(head, &mut self.actions),
-            ActMode::Sample => {
-                for e in self.eps.as_mut_slice() {
-                    *e = rng.sample(StandardNormal);
-                }
-                gaussian::sample(
-                    head,
-                    &self.eps,
-                    &mut self.pre,
-                    &mut self.actions,
-                    &mut self.log_prob,
-                );
-            }
-        }
-        action.copy_from_slice(self.actions.as_slice());
+        self.act_ws.act(&self.actor, obs, mode, rng, action);
     }
 
     /// Writes the policy file (magic, version, task, info, actor) atomically.

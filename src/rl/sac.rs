@@ -17,7 +17,7 @@ mod agent;
 mod config;
 mod trainer;
 
-pub use agent::{ActMode, RolloutStep, SacAgent, UpdateStats};
+pub use agent::{ActMode, ActWorkspace, RolloutStep, SacAgent, UpdateStats};
 pub(crate) use config::deserialize_table;
 pub use config::{ConfigError, SacConfig};
 pub use trainer::{
