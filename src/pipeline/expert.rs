@@ -15,7 +15,7 @@ use crate::atomic_file::write_atomic;
 use crate::env::reacher::ReacherConfig;
 use crate::env::ContinuousEnv;
 use crate::rl::sac::{
-    deserialize_table, parse_table, ActMode, CheckpointError, ConfigError, EnvReward,
+    deserialize_table, load_toml, parse_table, ActMode, CheckpointError, ConfigError, EnvReward,
     EpisodeSummary, SacConfig, SacError, SacTrainer, TrainingObserver, UpdateStats,
 };
 use serde::{Deserialize, Serialize};
@@ -125,12 +125,7 @@ impl ExpertConfig {
     }
 
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Parse {
-            source_name: name.clone(),
-            message: e.to_string(),
-        })?;
-        Self::from_toml(&text, &name)
+        load_toml(path, Self::from_toml)
     }
 }
 

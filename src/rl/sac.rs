@@ -18,7 +18,7 @@ mod config;
 mod trainer;
 
 pub use agent::{ActMode, ActWorkspace, RolloutStep, SacAgent, UpdateStats};
-pub(crate) use config::{deserialize_table, parse_table};
+pub(crate) use config::{deserialize_table, load_toml, parse_table};
 pub use config::{ConfigError, SacConfig};
 pub use trainer::{
     episode_seed, CheckpointError, EnvReward, EpisodeSummary, ObserverError, RewardFn, SacTrainer,

@@ -130,12 +130,7 @@ impl SacConfig {
 
     /// Reads and parses a TOML file.
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Parse {
-            source_name: name.clone(),
-            message: e.to_string(),
-        })?;
-        Self::from_toml(&text, &name)
+        load_toml(path, Self::from_toml)
     }
 
     pub fn to_toml(&self) -> String {
@@ -196,6 +191,20 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
     let line = text[start..].lines().next()?;
     let (key, _) = line.split_once('=')?;
     Some(key.trim().trim_matches('"').to_string())
+}
+
+/// Reads the TOML file at `path` and parses it with `from_toml`, which gets the path as the
+/// source name; a file that cannot be read is an error naming it.
+pub(crate) fn load_toml<T>(
+    path: &std::path::Path,
+    from_toml: impl FnOnce(&str, &str) -> Result<T, ConfigError>,
+) -> Result<T, ConfigError> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Parse {
+        source_name: name.clone(),
+        message: e.to_string(),
+    })?;
+    from_toml(&text, &name)
 }
 
 /// Parses a TOML document into a table, with errors naming `source_name`.
