@@ -16,7 +16,11 @@
 //!                        |
 //!     log (MCAP)  ->  pipeline  ->  report (plots, tables)
 //! ```
+//!
+//! `atomic_file` (the atomic write every saved file goes through) imports nothing and serves
+//! every layer.
 
+pub mod atomic_file;
 pub mod env;
 pub mod irl;
 pub mod log;

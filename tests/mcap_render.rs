@@ -83,7 +83,14 @@ fn logged_episode_renders_to_a_png_with_its_balls_touches_and_cancel() {
     assert_eq!(background, [255, 255, 255]);
     let non_white = pixels.chunks(3).filter(|p| p != &[255, 255, 255]).count();
     assert!(non_white > (w * w / 2) as usize, "{non_white} drawn pixels");
-    assert!(!dir.path().join("ep1.png.part").exists());
+    // No temporary file is left next to the picture (atomic writes use hidden `.NAME.tmp*`).
+    for entry in std::fs::read_dir(dir.path()).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(
+            !name.starts_with('.') && !name.ends_with(".part"),
+            "left over: {name}"
+        );
+    }
 }
 
 #[test]

@@ -6,7 +6,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use smirl::env::reacher::{ReacherConfig, OBS_DIM};
 use smirl::env::reacher_task::ReacherTask;
-use smirl::nn::{Mlp, MlpArch};
+use smirl::nn::{FileError, Mlp, MlpArch};
 use smirl::pipeline::expert::{ExpertConfig, ExpertError};
 use smirl::pipeline::reacher_expert::{
     default_cache_dir, evaluate_policy, expert_cache_path, generate_demos, ExpertPolicy,
@@ -127,7 +127,10 @@ fn policy_file_refusals_name_file_and_problem() {
         &[64, 64],
     )
     .unwrap_err();
-    assert!(matches!(e, PolicyFileError::Io { .. }), "{e}");
+    assert!(
+        matches!(e, PolicyFileError::File(FileError::Io { .. })),
+        "{e}"
+    );
 }
 
 /// The committed expert of `task`.

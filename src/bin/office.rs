@@ -12,11 +12,12 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
+use smirl::atomic_file::write_atomic;
 use smirl::env::office::{OfficeTask, OfficeWorld};
 use smirl::pipeline::office::{
     demonstrations, demonstrations_table, run, Algo, OfficeConfig, OfficeRun,
 };
-use smirl::report::{aggregate_over_seeds, write_atomic, CsvTable, LinePlot, Series};
+use smirl::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 

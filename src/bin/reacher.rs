@@ -262,7 +262,8 @@ fn run_learn_rm(args: LearnRmArgs) -> Result<()> {
     smirl::rm::format::save_rm(&txt, &learned.rm)
         .with_context(|| format!("cannot write {}", txt.display()))?;
     let dot = args.out.join("learned_rm.dot");
-    write_atomically(&dot, &smirl::rm::dot::to_dot(&learned.rm))?;
+    smirl::atomic_file::write_atomic(&dot, smirl::rm::dot::to_dot(&learned.rm).as_bytes())
+        .with_context(|| format!("cannot write {}", dot.display()))?;
     println!("wrote {} and {}", txt.display(), dot.display());
     if let Some(reference) = &args.compare {
         let reference_rm = smirl::rm::format::read_rm(reference)?;
@@ -283,12 +284,6 @@ fn run_learn_rm(args: LearnRmArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-fn write_atomically(path: &std::path::Path, text: &str) -> Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, text).with_context(|| format!("cannot write {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn run_demo(args: DemoArgs) -> Result<()> {

@@ -351,7 +351,7 @@ fn main() -> Result<()> {
     }
     print!("{out}");
     if let Some(path) = &args.out {
-        smirl::nn::write_atomic(path, out.as_bytes())
+        smirl::atomic_file::write_atomic(path, out.as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())

@@ -8,9 +8,8 @@
 //!
 //! Models that ignore the RM state (the MLP) accept an empty `rm_state` slice.
 
-use crate::nn::{
-    write_atomic, Adam, AdamConfig, BackwardMode, Mlp, MlpArch, MlpWorkspace, NnError,
-};
+use crate::atomic_file::write_atomic;
+use crate::nn::{Adam, AdamConfig, BackwardMode, Mlp, MlpArch, MlpWorkspace, NnError};
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -205,21 +204,28 @@ pub(crate) fn check_batch(
         });
     }
     let n = obs.len() / obs_dim;
-    if (rm_state_required || !rm_state.is_empty()) && rm_state.len() != n {
-        return Err(RewardError::Length {
-            what: "rm_state",
-            got: rm_state.len(),
-            expected: n,
-        });
+    if rm_state_required || !rm_state.is_empty() {
+        check_len("rm_state", rm_state.len(), n)?;
     }
-    if other.1 != n {
-        return Err(RewardError::Length {
-            what: other.0,
-            got: other.1,
-            expected: n,
-        });
-    }
+    check_len(other.0, other.1, n)?;
     Ok(n)
+}
+
+/// `what` has length `got`; it must be `expected`.
+pub(crate) fn check_len(
+    what: &'static str,
+    got: usize,
+    expected: usize,
+) -> Result<(), RewardError> {
+    if got == expected {
+        Ok(())
+    } else {
+        Err(RewardError::Length {
+            what,
+            got,
+            expected,
+        })
+    }
 }
 
 pub(crate) fn check_coefficients(coeffs: &[f64]) -> Result<(), RewardError> {
@@ -435,13 +441,7 @@ impl RewardModel for MlpReward {
     }
 
     fn set_params(&mut self, params: &[f32]) -> Result<(), RewardError> {
-        if params.len() != self.num_params() {
-            return Err(RewardError::Length {
-                what: "params",
-                got: params.len(),
-                expected: self.num_params(),
-            });
-        }
+        check_len("params", params.len(), self.num_params())?;
         let mut off = 0;
         for (p, _) in self.net.tensors_mut() {
             p.copy_from_slice(&params[off..off + p.len()]);

@@ -45,8 +45,8 @@
 //! here take whatever pairing the caller passes; expert and agent batches must use the same.
 
 use super::reward::{
-    check_batch, check_coefficients, save_bytes, RewardError, RewardModel, RewardOptimConfig,
-    TensorOptimizer,
+    check_batch, check_coefficients, check_len, save_bytes, RewardError, RewardModel,
+    RewardOptimConfig, TensorOptimizer,
 };
 use crate::env::reacher::{OBS_CANCEL, OBS_DIM, TOUCH_RADIUS};
 use std::path::Path;
@@ -350,15 +350,7 @@ pub fn log_likelihood_surrogate(
 
 /// Weights are `n_states × n_features` row-major.
 fn check_weights_len(len: usize, n_states: usize, n_features: usize) -> Result<(), RewardError> {
-    if len == n_states * n_features {
-        Ok(())
-    } else {
-        Err(RewardError::Length {
-            what: "weights",
-            got: len,
-            expected: n_states * n_features,
-        })
-    }
+    check_len("weights", len, n_states * n_features)
 }
 
 fn check_state(u: u32, n_states: usize) -> Result<usize, RewardError> {
@@ -547,13 +539,7 @@ impl RewardModel for LinearRmReward {
     }
 
     fn set_params(&mut self, params: &[f32]) -> Result<(), RewardError> {
-        if params.len() != self.weights.len() {
-            return Err(RewardError::Length {
-                what: "params",
-                got: params.len(),
-                expected: self.weights.len(),
-            });
-        }
+        check_len("params", params.len(), self.weights.len())?;
         self.weights.copy_from_slice(params);
         Ok(())
     }

@@ -1,11 +1,53 @@
-//! A minimal little-endian binary codec for parameter files and checkpoints, and the atomic
-//! file write every saved artefact goes through.
+//! A minimal little-endian binary codec for parameter files and checkpoints.
 //!
 //! Binary rather than JSON because checkpoints must restore `f32` parameters bit for bit and
 //! hold replay buffers of up to millions of transitions.
 
-use std::io::Write;
 use std::path::Path;
+
+/// A binary file (parameters, checkpoint, policy) that cannot be read, written or decoded,
+/// naming the file: the part every such file's error type shares.
+#[derive(Debug, thiserror::Error)]
+pub enum FileError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Codec {
+        path: String,
+        #[source]
+        source: CodecError,
+    },
+}
+
+impl FileError {
+    /// Names `path` in the codec errors of a reader of that file (for `map_err`).
+    pub fn codec_at(path: &str) -> impl Fn(CodecError) -> FileError + Copy + '_ {
+        move |source| FileError::Codec {
+            path: path.to_string(),
+            source,
+        }
+    }
+}
+
+/// Reads the whole file at `path`.
+pub fn read_file(path: &Path) -> Result<Vec<u8>, FileError> {
+    std::fs::read(path).map_err(|source| FileError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+/// Writes `bytes` to `path` atomically (see [`crate::atomic_file::write_atomic`]).
+pub fn save_file(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
+    crate::atomic_file::write_atomic(path, bytes).map_err(|source| FileError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
 
 /// A malformed or truncated binary file.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -209,30 +251,4 @@ impl<'a> ByteReader<'a> {
             n => Err(CodecError::Trailing(n)),
         }
     }
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a
-/// crash never leaves a half-written file under the final name.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::other("path has no file name"))?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(".tmp{}", std::process::id()));
-    let tmp = dir.join(tmp_name);
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
 }

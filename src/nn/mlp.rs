@@ -1,6 +1,6 @@
 //! Multi-layer perceptrons: dense layers with ReLU between them and a linear output.
 
-use super::codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+use super::codec::{read_file, save_file, ByteReader, ByteWriter, CodecError, FileError};
 use super::dense::Dense;
 use super::NnError;
 use nalgebra::DMatrix;
@@ -281,24 +281,15 @@ impl Mlp {
         w.raw(MLP_MAGIC);
         w.u32(MLP_VERSION);
         self.write(&mut w);
-        write_atomic(path, &w.bytes).map_err(|source| NnError::Io {
-            path: path.display().to_string(),
-            source,
-        })
+        Ok(save_file(path, &w.bytes)?)
     }
 
     /// Loads parameters saved by [`Mlp::save`] into this network; a file of another
     /// architecture or format version is refused.
     pub fn load(&mut self, path: &Path) -> Result<(), NnError> {
         let p = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| NnError::Io {
-            path: p.clone(),
-            source,
-        })?;
-        let codec = |source| NnError::Codec {
-            path: p.clone(),
-            source,
-        };
+        let bytes = read_file(path)?;
+        let codec = FileError::codec_at(&p);
         let mut r = ByteReader::new(&bytes);
         r.header(MLP_MAGIC, "smirl MLP parameter", MLP_VERSION)
             .map_err(codec)?;

@@ -18,25 +18,15 @@ pub mod gemm;
 pub mod mlp;
 
 pub use adam::{Adam, AdamConfig};
-pub use codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+pub use codec::{ByteReader, ByteWriter, CodecError, FileError};
 pub use dense::Dense;
 pub use mlp::{BackwardMode, Mlp, MlpArch, MlpWorkspace};
 
 /// Errors of the neural-network layer (loading parameters, mismatched shapes).
 #[derive(Debug, thiserror::Error)]
 pub enum NnError {
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{path}: {source}")]
-    Codec {
-        path: String,
-        #[source]
-        source: CodecError,
-    },
+    #[error(transparent)]
+    File(#[from] FileError),
     #[error("{path}: network architecture {found} does not match the expected {expected}")]
     ArchitectureMismatch {
         path: String,

@@ -11,12 +11,12 @@
 //! A run that hits NaN/inf stops with an error and leaves the last good checkpoint in place.
 
 use super::reacher_expert::PolicyFileError;
+use crate::atomic_file::write_atomic;
 use crate::env::reacher::ReacherConfig;
 use crate::env::ContinuousEnv;
-use crate::nn::write_atomic;
 use crate::rl::sac::{
-    deserialize_table, ActMode, CheckpointError, ConfigError, EnvReward, EpisodeSummary, SacConfig,
-    SacError, SacTrainer, TrainingObserver, UpdateStats,
+    deserialize_table, load_toml, parse_table, ActMode, CheckpointError, ConfigError, EnvReward,
+    EpisodeSummary, SacConfig, SacError, SacTrainer, TrainingObserver, UpdateStats,
 };
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -79,28 +79,18 @@ impl Default for ExpertConfig {
 impl ExpertConfig {
     /// Parses a TOML document: top-level run settings plus optional `[sac]` and `[env]`
     /// tables. Missing `[sac]` keys come from [`expert_sac`] (unless the table names a
-    /// `preset`, whose values then apply). Unknown
-    /// keys and wrong types are errors naming the key.
+    /// `preset`, whose values then apply). Unknown keys and wrong types are errors naming the
+    /// key.
     pub fn from_toml(text: &str, source_name: &str) -> Result<Self, ConfigError> {
         let parse = |message: String| ConfigError::Parse {
             source_name: source_name.to_string(),
             message,
         };
-        let mut table: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| parse(e.to_string()))?;
+        let mut table = parse_table(text, source_name)?;
         let sac = match table.remove("sac") {
             None => expert_sac(),
-            Some(toml::Value::Table(mut t)) => {
-                if !t.contains_key("preset") {
-                    t.insert("preset".into(), toml::Value::String("expert".into()));
-                    let d = expert_sac();
-                    t.entry("auto_alpha")
-                        .or_insert(toml::Value::Boolean(d.auto_alpha));
-                    t.entry("lr").or_insert(toml::Value::Float(f64::from(d.lr)));
-                }
-                let text = toml::to_string(&t).map_err(|e| parse(e.to_string()))?;
-                SacConfig::from_toml(&text, &format!("{source_name} [sac]"))?
+            Some(toml::Value::Table(t)) => {
+                SacConfig::from_table(t, expert_sac(), &format!("{source_name} [sac]"))?
             }
             Some(_) => return Err(parse("`sac` must be a table".into())),
         };
@@ -135,12 +125,7 @@ impl ExpertConfig {
     }
 
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Parse {
-            source_name: name.clone(),
-            message: e.to_string(),
-        })?;
-        Self::from_toml(&text, &name)
+        load_toml(path, Self::from_toml)
     }
 }
 

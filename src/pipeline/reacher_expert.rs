@@ -17,6 +17,7 @@
 //! own machine from the label traces and must not read [`DemoStep::rm_state`].
 
 use super::expert::{train_expert, ExpertConfig, ExpertError, ExpertOutcome, ExpertProgress};
+use crate::atomic_file::write_atomic;
 use crate::env::product::{Potential, ProductEnv};
 use crate::env::reacher::{
     default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, CANCEL_BIT, OBS_DIM, VOCABULARY,
@@ -24,15 +25,15 @@ use crate::env::reacher::{
 use crate::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::log::{LogError, RolloutLogger, RunHeader};
-use crate::nn::codec::{write_atomic, ByteReader, ByteWriter, CodecError};
-use crate::nn::{gaussian, Mlp, MlpArch, MlpWorkspace};
+use crate::nn::codec::{read_file, save_file, ByteReader, ByteWriter, CodecError, FileError};
+use crate::nn::{Mlp, MlpArch};
 use crate::pipeline::training_log::{ReacherView, TrainingLog};
-use crate::rl::sac::{episode_seed, ActMode, EpisodeSummary, SacError, TrainingObserver};
+use crate::rl::sac::{
+    episode_seed, ActMode, ActWorkspace, EpisodeSummary, SacError, TrainingObserver,
+};
 use crate::rm::LabelSet;
-use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use std::cell::Cell;
 use std::path::{Path, PathBuf};
@@ -48,18 +49,8 @@ pub const POLICY_VERSION: u32 = 1;
 /// A policy file that cannot be written or used.
 #[derive(Debug, thiserror::Error)]
 pub enum PolicyFileError {
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{path}: {source}")]
-    Codec {
-        path: String,
-        #[source]
-        source: CodecError,
-    },
+    #[error(transparent)]
+    File(#[from] FileError),
     #[error("{path}: expert policy is for task '{found}', not '{expected}'")]
     WrongTask {
         path: String,
@@ -110,12 +101,7 @@ pub struct ExpertPolicy {
     task: ReacherTask,
     actor: Mlp,
     info: PolicyInfo,
-    ws: MlpWorkspace,
-    obs: DMatrix<f32>,
-    eps: DMatrix<f32>,
-    pre: DMatrix<f32>,
-    actions: DMatrix<f32>,
-    log_prob: [f32; 1],
+    act_ws: ActWorkspace,
 }
 
 impl ExpertPolicy {
@@ -133,17 +119,12 @@ impl ExpertPolicy {
                 expected: expected.to_string(),
             });
         }
-        let ws = actor.workspace(1);
+        let act_ws = ActWorkspace::new(&actor);
         Ok(Self {
             task,
             actor,
             info,
-            ws,
-            obs: DMatrix::zeros(obs_dim, 1),
-            eps: DMatrix::zeros(ACT_DIM, 1),
-            pre: DMatrix::zeros(ACT_DIM, 1),
-            actions: DMatrix::zeros(ACT_DIM, 1),
-            log_prob: [0.0],
+            act_ws,
         })
     }
 
@@ -171,24 +152,7 @@ impl ExpertPolicy {
     /// Chooses an action for one product observation, exactly as the SAC agent that trained
     /// it would (same noise draws from `rng` in [`ActMode::Sample`]).
     pub fn act(&mut self, obs: &[f32], mode: ActMode, rng: &mut impl Rng, action: &mut [f32]) {
-        self.obs.as_mut_slice().copy_from_slice(obs);
-        let head = self.actor.forward(&self.obs, &mut self.ws);
-        match mode {
-            ActMode::Mean => gaussian::mean_action(head, &mut self.actions),
-            ActMode::Sample => {
-                for e in self.eps.as_mut_slice() {
-                    *e = rng.sample(StandardNormal);
-                }
-                gaussian::sample(
-                    head,
-                    &self.eps,
-                    &mut self.pre,
-                    &mut self.actions,
-                    &mut self.log_prob,
-                );
-            }
-        }
-        action.copy_from_slice(self.actions.as_slice());
+        self.act_ws.act(&self.actor, obs, mode, rng, action);
     }
 
     /// Writes the policy file (magic, version, task, info, actor) atomically.
@@ -199,10 +163,7 @@ impl ExpertPolicy {
         w.str(self.task.name());
         w.str(&serde_json::to_string(&self.info).expect("PolicyInfo serialises"));
         self.actor.write(&mut w);
-        write_atomic(path, &w.bytes).map_err(|source| PolicyFileError::Io {
-            path: path.display().to_string(),
-            source,
-        })
+        Ok(save_file(path, &w.bytes)?)
     }
 
     /// Reads a policy file for `task` whose actor has the hidden layers `hidden`. A file of
@@ -214,14 +175,8 @@ impl ExpertPolicy {
         hidden: &[usize],
     ) -> Result<ExpertPolicy, PolicyFileError> {
         let p = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| PolicyFileError::Io {
-            path: p.clone(),
-            source,
-        })?;
-        let codec = |source| PolicyFileError::Codec {
-            path: p.clone(),
-            source,
-        };
+        let bytes = read_file(path)?;
+        let codec = FileError::codec_at(&p);
         let mut r = ByteReader::new(&bytes);
         r.header(POLICY_MAGIC, "smirl expert policy", POLICY_VERSION)
             .map_err(codec)?;
@@ -255,7 +210,8 @@ impl ExpertPolicy {
             return Err(codec(CodecError::Invalid {
                 what: "actor parameters",
                 problem: "contain NaN or infinity".into(),
-            }));
+            })
+            .into());
         }
         ExpertPolicy::new(task, actor, info)
     }
@@ -446,10 +402,10 @@ pub fn load_or_train_expert(
         return Ok(ExpertPolicy::load(&path, task, &config.sac.hidden)?);
     }
     std::fs::create_dir_all(cache_dir).map_err(|source| {
-        ExpertError::Policy(PolicyFileError::Io {
+        ExpertError::Policy(PolicyFileError::File(FileError::Io {
             path: cache_dir.display().to_string(),
             source,
-        })
+        }))
     })?;
     let checkpoint = expert_checkpoint_path(cache_dir, task);
     let (policy, _) = train_task_expert(task, config, seed, &checkpoint, true, progress, None)?;
@@ -794,11 +750,9 @@ pub fn write_curve_svg(
         .unwrap_or_default();
     let return_path = path.with_file_name(format!("{stem}_return.svg"));
     for (p, plot) in [(path, &success), (return_path.as_path(), &ret)] {
-        crate::report::write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| {
-            ExpertError::Curve {
-                path: p.display().to_string(),
-                problem: e.to_string(),
-            }
+        write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| ExpertError::Curve {
+            path: p.display().to_string(),
+            problem: e.to_string(),
         })?;
     }
     Ok(())

@@ -7,6 +7,7 @@
 //! Positions come from MuJoCo's forward kinematics on the model XML stored in the log and the
 //! logged `qpos` of every step, so the picture shows the episode as it was simulated.
 
+use crate::atomic_file::write_atomic;
 use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
 use crate::log::{LoggedEpisode, RolloutLog};
 use crate::mujoco::{Data, Model, ObjectKind};
@@ -297,8 +298,8 @@ fn pick_episode(log: &RolloutLog, episode: Option<u64>) -> Result<&LoggedEpisode
     }
 }
 
-/// Writes the picture as PNG at `path` (through `path.part` and a rename, so a failed
-/// write leaves no file that looks complete).
+/// Writes the picture as PNG at `path`, atomically (a failed write leaves no file that looks
+/// complete).
 pub fn write_png(path: &Path, picture: &EpisodePicture) -> Result<(), RenderError> {
     let io = |source| RenderError::Write {
         path: path.display().to_string(),
@@ -308,13 +309,5 @@ pub fn write_png(path: &Path, picture: &EpisodePicture) -> Result<(), RenderErro
         .canvas
         .to_png()
         .map_err(|e| io(std::io::Error::other(e.to_string())))?;
-    let mut part = path.as_os_str().to_owned();
-    part.push(".part");
-    let part = std::path::PathBuf::from(part);
-    std::fs::write(&part, &bytes)
-        .and_then(|()| std::fs::rename(&part, path))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&part);
-            io(e)
-        })
+    write_atomic(path, &bytes).map_err(io)
 }

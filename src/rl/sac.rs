@@ -17,8 +17,8 @@ mod agent;
 mod config;
 mod trainer;
 
-pub use agent::{ActMode, RolloutStep, SacAgent, UpdateStats};
-pub(crate) use config::deserialize_table;
+pub use agent::{ActMode, ActWorkspace, RolloutStep, SacAgent, UpdateStats};
+pub(crate) use config::{deserialize_table, load_toml, parse_table};
 pub use config::{ConfigError, SacConfig};
 pub use trainer::{
     episode_seed, CheckpointError, EnvReward, EpisodeSummary, ObserverError, RewardFn, SacTrainer,

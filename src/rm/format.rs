@@ -327,23 +327,7 @@ pub fn write_rm(rm: &RewardMachine) -> String {
 /// Writes `rm` to `path` atomically: a temporary file in the same directory, then a rename,
 /// so a crash never leaves a half-written machine under the final name.
 pub fn save_rm(path: &Path, rm: &RewardMachine) -> io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let file_name = path
-        .file_name()
-        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "path has no file name"))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        file_name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = std::fs::write(&tmp, write_rm(rm)).and_then(|_| std::fs::rename(&tmp, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    crate::atomic_file::write_atomic(path, write_rm(rm).as_bytes())
 }
 
 fn strip_comment(line: &str) -> &str {

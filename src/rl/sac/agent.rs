@@ -49,10 +49,7 @@ struct UpdateWorkspace {
     q2: MlpWorkspace,
     /// Critic input: observation rows then action rows.
     q_in: DMatrix<f32>,
-    eps: DMatrix<f32>,
-    pre: DMatrix<f32>,
-    actions: DMatrix<f32>,
-    log_prob: Vec<f32>,
+    draw: PolicyDraw,
     targets: Vec<f32>,
     dq: DMatrix<f32>,
     dq_in: DMatrix<f32>,
@@ -61,15 +58,78 @@ struct UpdateWorkspace {
     d_head: DMatrix<f32>,
 }
 
-/// Buffers of a single-observation forward pass.
+/// Actions drawn from the actor's squashed Gaussian for a batch: the noise ε, pre-squash
+/// values, actions and log π, sized once so drawing does not allocate.
 #[derive(Clone, Debug)]
-struct ActWorkspace {
-    actor: MlpWorkspace,
-    obs: DMatrix<f32>,
+struct PolicyDraw {
     eps: DMatrix<f32>,
     pre: DMatrix<f32>,
     actions: DMatrix<f32>,
-    log_prob: [f32; 1],
+    log_prob: Vec<f32>,
+}
+
+impl PolicyDraw {
+    fn new(act_dim: usize, batch: usize) -> Self {
+        Self {
+            eps: DMatrix::zeros(act_dim, batch),
+            pre: DMatrix::zeros(act_dim, batch),
+            actions: DMatrix::zeros(act_dim, batch),
+            log_prob: vec![0.0; batch],
+        }
+    }
+
+    /// Draws ε ~ N(0, I) from `rng` (column by column) and samples reparameterised actions
+    /// from the actor output `head`.
+    fn sample(&mut self, head: &DMatrix<f32>, rng: &mut impl Rng) {
+        for e in self.eps.as_mut_slice() {
+            *e = rng.sample(StandardNormal);
+        }
+        gaussian::sample(
+            head,
+            &self.eps,
+            &mut self.pre,
+            &mut self.actions,
+            &mut self.log_prob,
+        );
+    }
+}
+
+/// Buffers for choosing one action at a time with an actor: what [`SacAgent::act`] uses, and
+/// what lets a saved actor act exactly as the agent that trained it (same noise draws).
+#[derive(Clone, Debug)]
+pub struct ActWorkspace {
+    actor: MlpWorkspace,
+    obs: DMatrix<f32>,
+    draw: PolicyDraw,
+}
+
+impl ActWorkspace {
+    /// Buffers for `actor`, whose output is a mean and a log-std per action.
+    pub fn new(actor: &Mlp) -> Self {
+        Self {
+            actor: actor.workspace(1),
+            obs: DMatrix::zeros(actor.inputs(), 1),
+            draw: PolicyDraw::new(actor.outputs() / 2, 1),
+        }
+    }
+
+    /// Chooses `actor`'s action for one observation.
+    pub fn act(
+        &mut self,
+        actor: &Mlp,
+        obs: &[f32],
+        mode: ActMode,
+        rng: &mut impl Rng,
+        action: &mut [f32],
+    ) {
+        self.obs.as_mut_slice().copy_from_slice(obs);
+        let head = actor.forward(&self.obs, &mut self.actor);
+        match mode {
+            ActMode::Mean => gaussian::mean_action(head, &mut self.draw.actions),
+            ActMode::Sample => self.draw.sample(head, rng),
+        }
+        action.copy_from_slice(self.draw.actions.as_slice());
+    }
 }
 
 /// Soft Actor-Critic with a tanh-squashed Gaussian actor and twin critics with Polyak targets.
@@ -126,10 +186,7 @@ impl SacAgent {
             q1: q1.workspace(b),
             q2: q2.workspace(b),
             q_in: DMatrix::zeros(obs_dim + act_dim, b),
-            eps: DMatrix::zeros(act_dim, b),
-            pre: DMatrix::zeros(act_dim, b),
-            actions: DMatrix::zeros(act_dim, b),
-            log_prob: vec![0.0; b],
+            draw: PolicyDraw::new(act_dim, b),
             targets: vec![0.0; b],
             dq: DMatrix::zeros(1, b),
             dq_in: DMatrix::zeros(obs_dim + act_dim, b),
@@ -137,14 +194,7 @@ impl SacAgent {
             d_log_prob: vec![0.0; b],
             d_head: DMatrix::zeros(2 * act_dim, b),
         };
-        let act_ws = ActWorkspace {
-            actor: actor.workspace(1),
-            obs: DMatrix::zeros(obs_dim, 1),
-            eps: DMatrix::zeros(act_dim, 1),
-            pre: DMatrix::zeros(act_dim, 1),
-            actions: DMatrix::zeros(act_dim, 1),
-            log_prob: [0.0],
-        };
+        let act_ws = ActWorkspace::new(&actor);
         Self {
             config: config.clone(),
             obs_dim,
@@ -186,19 +236,7 @@ impl SacAgent {
 
     /// Chooses an action for one observation.
     pub fn act(&mut self, obs: &[f32], mode: ActMode, rng: &mut impl Rng, action: &mut [f32]) {
-        let w = &mut self.act_ws;
-        w.obs.as_mut_slice().copy_from_slice(obs);
-        let head = self.actor.forward(&w.obs, &mut w.actor);
-        match mode {
-            ActMode::Mean => gaussian::mean_action(head, &mut w.actions),
-            ActMode::Sample => {
-                for e in w.eps.as_mut_slice() {
-                    *e = rng.sample(StandardNormal);
-                }
-                gaussian::sample(head, &w.eps, &mut w.pre, &mut w.actions, &mut w.log_prob);
-            }
-        }
-        action.copy_from_slice(w.actions.as_slice());
+        self.act_ws.act(&self.actor, obs, mode, rng, action);
     }
 
     /// Plays one episode from `env.reset(reset_seed)` for at most `max_steps` steps, calling
@@ -309,22 +347,13 @@ impl SacAgent {
 
         // Critic targets: y = r + γ (1 − terminated) (min Q_targ(s', a') − α log π(a'|s')).
         let head = self.actor.forward(&batch.next_obs, &mut ws.actor);
-        for e in ws.eps.as_mut_slice() {
-            *e = rng.sample(StandardNormal);
-        }
-        gaussian::sample(
-            head,
-            &ws.eps,
-            &mut ws.pre,
-            &mut ws.actions,
-            &mut ws.log_prob,
-        );
+        ws.draw.sample(head, rng);
         Self::fill_q_obs(&mut ws.q_in, &batch.next_obs, obs_dim);
-        Self::fill_q_actions(&mut ws.q_in, &ws.actions, obs_dim);
+        Self::fill_q_actions(&mut ws.q_in, &ws.draw.actions, obs_dim);
         let qt1 = self.q1_target.forward(&ws.q_in, &mut ws.q1);
         let qt2 = self.q2_target.forward(&ws.q_in, &mut ws.q2);
         for j in 0..b {
-            let soft_v = qt1[j].min(qt2[j]) - alpha * ws.log_prob[j];
+            let soft_v = qt1[j].min(qt2[j]) - alpha * ws.draw.log_prob[j];
             ws.targets[j] = rewards[j] + gamma * (1.0 - batch.terminated[j]) * soft_v;
         }
 
@@ -362,17 +391,8 @@ impl SacAgent {
 
         // Actor: L = mean(α log π(a|s) − min Q(s, a)), a reparameterised.
         let head = self.actor.forward(&batch.obs, &mut ws.actor);
-        for e in ws.eps.as_mut_slice() {
-            *e = rng.sample(StandardNormal);
-        }
-        gaussian::sample(
-            head,
-            &ws.eps,
-            &mut ws.pre,
-            &mut ws.actions,
-            &mut ws.log_prob,
-        );
-        Self::fill_q_actions(&mut ws.q_in, &ws.actions, obs_dim);
+        ws.draw.sample(head, rng);
+        Self::fill_q_actions(&mut ws.q_in, &ws.draw.actions, obs_dim);
         self.q1.forward(&ws.q_in, &mut ws.q1);
         self.q2.forward(&ws.q_in, &mut ws.q2);
         let mut actor_loss = 0.0;
@@ -380,8 +400,8 @@ impl SacAgent {
         {
             let (v1, v2) = (ws.q1.output().as_slice(), ws.q2.output().as_slice());
             for j in 0..b {
-                actor_loss += alpha * ws.log_prob[j] - v1[j].min(v2[j]);
-                sum_log_prob += ws.log_prob[j];
+                actor_loss += alpha * ws.draw.log_prob[j] - v1[j].min(v2[j]);
+                sum_log_prob += ws.draw.log_prob[j];
                 ws.d_log_prob[j] = alpha * inv_b;
             }
         }
@@ -420,8 +440,8 @@ impl SacAgent {
         }
         gaussian::backward(
             ws.actor.output(),
-            &ws.eps,
-            &ws.actions,
+            &ws.draw.eps,
+            &ws.draw.actions,
             &ws.d_actions,
             &ws.d_log_prob,
             &mut ws.d_head,

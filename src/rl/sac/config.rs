@@ -94,15 +94,22 @@ impl SacConfig {
     /// values, which the other keys override; unknown keys and wrong types are errors naming
     /// the key. `source_name` (usually the file path) prefixes every message.
     pub fn from_toml(text: &str, source_name: &str) -> Result<Self, ConfigError> {
+        Self::from_table(parse_table(text, source_name)?, Self::irl(), source_name)
+    }
+
+    /// [`SacConfig::from_toml`] on a parsed table, with `default_base` as the base values
+    /// when the table names no `preset`.
+    pub(crate) fn from_table(
+        mut user: toml::Table,
+        default_base: SacConfig,
+        source_name: &str,
+    ) -> Result<Self, ConfigError> {
         let parse = |message: String| ConfigError::Parse {
             source_name: source_name.to_string(),
             message,
         };
-        let mut user: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| parse(e.to_string()))?;
         let base = match user.remove("preset") {
-            None => Self::irl(),
+            None => default_base,
             Some(toml::Value::String(p)) if p == "irl" => Self::irl(),
             Some(toml::Value::String(p)) if p == "expert" => Self::expert(),
             Some(other) => {
@@ -123,12 +130,7 @@ impl SacConfig {
 
     /// Reads and parses a TOML file.
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Parse {
-            source_name: name.clone(),
-            message: e.to_string(),
-        })?;
-        Self::from_toml(&text, &name)
+        load_toml(path, Self::from_toml)
     }
 
     pub fn to_toml(&self) -> String {
@@ -189,6 +191,29 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
     let line = text[start..].lines().next()?;
     let (key, _) = line.split_once('=')?;
     Some(key.trim().trim_matches('"').to_string())
+}
+
+/// Reads the TOML file at `path` and parses it with `from_toml`, which gets the path as the
+/// source name; a file that cannot be read is an error naming it.
+pub(crate) fn load_toml<T>(
+    path: &std::path::Path,
+    from_toml: impl FnOnce(&str, &str) -> Result<T, ConfigError>,
+) -> Result<T, ConfigError> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Parse {
+        source_name: name.clone(),
+        message: e.to_string(),
+    })?;
+    from_toml(&text, &name)
+}
+
+/// Parses a TOML document into a table, with errors naming `source_name`.
+pub(crate) fn parse_table(text: &str, source_name: &str) -> Result<toml::Table, ConfigError> {
+    text.parse()
+        .map_err(|e: toml::de::Error| ConfigError::Parse {
+            source_name: source_name.to_string(),
+            message: e.to_string(),
+        })
 }
 
 /// Deserialises a TOML table into `T`, with errors naming the offending key. Going through

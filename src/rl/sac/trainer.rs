@@ -3,7 +3,7 @@
 use super::agent::{ActMode, SacAgent, UpdateStats};
 use super::{SacConfig, SacError};
 use crate::env::{ContinuousEnv, EnvStep};
-use crate::nn::codec::{write_atomic, ByteReader, ByteWriter, CodecError};
+use crate::nn::codec::{read_file, save_file, ByteReader, ByteWriter, CodecError, FileError};
 use crate::rl::replay::{ReplayBatch, ReplayBuffer};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -101,18 +101,8 @@ pub fn episode_seed(seed: u64, index: u64) -> u64 {
 /// A checkpoint that cannot be written or used.
 #[derive(Debug, thiserror::Error)]
 pub enum CheckpointError {
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{path}: {source}")]
-    Codec {
-        path: String,
-        #[source]
-        source: CodecError,
-    },
+    #[error(transparent)]
+    File(#[from] FileError),
     #[error("{path}: checkpoint is for a different architecture: {what} is {found} in the file, {expected} here")]
     Architecture {
         path: String,
@@ -402,10 +392,7 @@ impl SacTrainer {
         w.u64(self.episodes);
         self.agent.write(&mut w);
         self.replay.write(&mut w);
-        write_atomic(path, &w.bytes).map_err(|source| CheckpointError::Io {
-            path: path.display().to_string(),
-            source,
-        })
+        Ok(save_file(path, &w.bytes)?)
     }
 
     /// Restores a run saved by [`SacTrainer::save_checkpoint`]. The checkpoint must come from
@@ -418,14 +405,8 @@ impl SacTrainer {
         act_dim: usize,
     ) -> Result<Self, CheckpointError> {
         let p = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io {
-            path: p.clone(),
-            source,
-        })?;
-        let codec = |source| CheckpointError::Codec {
-            path: p.clone(),
-            source,
-        };
+        let bytes = read_file(path)?;
+        let codec = FileError::codec_at(&p);
         let arch = |what: &str, found: String, expected: String| CheckpointError::Architecture {
             path: p.clone(),
             what: what.to_string(),
