@@ -51,8 +51,13 @@ pub enum MjError {
 /// The message carried by an unwinding `mju_error`.
 struct MjErrorPayload(String);
 
+/// Most warnings kept per thread between two [`take_warnings`] calls: nothing in a long
+/// training run reads them, so the list must not grow without bound; later ones are counted.
+const MAX_KEPT_WARNINGS: usize = 64;
+
 thread_local! {
-    static WARNINGS: RefCell<Vec<String>> = const { RefCell::new(Vec::new()) };
+    /// Warnings kept, and how many more were dropped.
+    static WARNINGS: RefCell<(Vec<String>, u64)> = const { RefCell::new((Vec::new(), 0)) };
 }
 
 unsafe extern "C-unwind" fn on_error(msg: *const c_char) {
@@ -70,8 +75,14 @@ unsafe extern "C-unwind" fn on_warning(msg: *const c_char) {
     if msg.is_null() {
         return;
     }
-    let text = CStr::from_ptr(msg).to_string_lossy().into_owned();
-    WARNINGS.with(|w| w.borrow_mut().push(text));
+    WARNINGS.with(|w| {
+        let (kept, dropped) = &mut *w.borrow_mut();
+        if kept.len() < MAX_KEPT_WARNINGS {
+            kept.push(CStr::from_ptr(msg).to_string_lossy().into_owned());
+        } else {
+            *dropped += 1;
+        }
+    });
 }
 
 static INSTALL: Once = Once::new();
@@ -101,9 +112,17 @@ pub(crate) fn guard<T>(f: impl FnOnce() -> T) -> Result<T, MjError> {
     })
 }
 
-/// Takes the MuJoCo warnings recorded on this thread since the last call.
+/// Takes the MuJoCo warnings recorded on this thread since the last call (at most
+/// `MAX_KEPT_WARNINGS`, then one line saying how many more there were).
 pub fn take_warnings() -> Vec<String> {
-    WARNINGS.with(|w| std::mem::take(&mut *w.borrow_mut()))
+    WARNINGS.with(|w| {
+        let (kept, dropped) = std::mem::take(&mut *w.borrow_mut());
+        let mut out = kept;
+        if dropped > 0 {
+            out.push(format!("... and {dropped} more MuJoCo warnings"));
+        }
+        out
+    })
 }
 
 /// The linked library's version as MuJoCo reports it (`222` for 2.2.2).
@@ -148,6 +167,22 @@ pub fn raw_step_loop(data: &mut Data, ctrl: &[f64], steps: usize, frame_skip: us
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::ffi::CString;
+
+    #[test]
+    fn warnings_are_kept_up_to_a_bound_and_the_rest_counted() {
+        let _ = take_warnings();
+        let msg = CString::new("Nan, Inf or huge value in QACC").unwrap();
+        for _ in 0..MAX_KEPT_WARNINGS + 36 {
+            // SAFETY: a valid NUL-terminated string, as MuJoCo passes.
+            unsafe { on_warning(msg.as_ptr()) };
+        }
+        let got = take_warnings();
+        assert_eq!(got.len(), MAX_KEPT_WARNINGS + 1);
+        assert_eq!(got[0], "Nan, Inf or huge value in QACC");
+        assert_eq!(got[MAX_KEPT_WARNINGS], "... and 36 more MuJoCo warnings");
+        assert!(take_warnings().is_empty());
+    }
 
     #[test]
     fn linked_library_is_2_2() {
