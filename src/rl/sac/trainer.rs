@@ -190,10 +190,6 @@ impl SacTrainer {
     pub fn config(&self) -> &SacConfig {
         self.agent.config()
     }
-    /// The trainer's random generator (e.g. for evaluation rollouts that should stay seeded).
-    pub fn rng_mut(&mut self) -> &mut ChaCha8Rng {
-        &mut self.rng
-    }
 
     fn check_env<E: ContinuousEnv + ?Sized>(&self, env: &E) -> Result<(), SacError> {
         let dims = [
