@@ -333,16 +333,18 @@ fn cli_tiny_run_and_bad_input() {
 fn shipped_configs_parse() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
     let mut parsed = 0;
-    for entry in std::fs::read_dir(&dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.extension().is_some_and(|e| e == "toml") {
-            IrlRunConfig::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            parsed += 1;
+    for dir in [dir.clone(), dir.join("ablations")] {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                IrlRunConfig::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                parsed += 1;
+            }
         }
     }
     assert!(
-        parsed >= 4,
-        "config, quick, config_scripted, config_shaping"
+        parsed >= 6,
+        "config, quick, config_scripted and the three ablations"
     );
 }
 

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# SMIRL ablations on ReacherDelivery: one setting changed from experiments/reacher/config.toml
+# per file here, 3 seeds, expert demonstrations. Usage: experiments/reacher/ablations/run.sh
+# Run directories go to experiments/reacher/ablations/runs/<ablation>-<task>; the table:
+#   python3 experiments/reacher/ablations/results.py
+set -euo pipefail
+cd "$(dirname "$0")/../../.."
+cargo build --release --bin reacher
+out=experiments/reacher/ablations/runs
+mkdir -p "$out"
+run() { # ablation task algos
+  ./target/release/reacher --task "$2" --algo "$3" --seeds 3 \
+    --config "experiments/reacher/ablations/$1.toml" --out "$out/$1-$2" --quiet > "$out/$1-$2.log"
+}
+run shaping sequential smirl,smirl-smooth   # smirl_shaping = 1.0
+run lr_decay or smirl                       # reward_lr_decay = 0.5
+run lr_decay if smirl
+run lr_decay composite smirl
+run no_l2 or smirl                          # smirl_reward_l2 = 0
+run no_l2 composite smirl
