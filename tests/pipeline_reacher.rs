@@ -151,6 +151,9 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
             dir.join(format!("rewards/{a}_seed{seed}.{ext}")).is_file(),
             "{a} reward"
         );
+        if a.starts_with("smirl") {
+            check_reward_trace(dir, a, seed);
+        }
     }
     let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
     // Header + (iterations + 1) rows per job.
@@ -191,6 +194,45 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
         let report = smirl::pipeline::replay::replay(&log).unwrap();
         assert!(report.all_match(), "{a}: {report}");
         assert!(report.episodes.iter().all(|e| e.rm_checked), "{a}");
+    }
+}
+
+/// SMIRL's reward trace: one row per (iteration, learned state, feature), and the weights of
+/// the last iteration are the saved reward's.
+fn check_reward_trace(dir: &Path, algo: &str, seed: u64) {
+    let text =
+        std::fs::read_to_string(dir.join(format!("rewards/{algo}_seed{seed}.trace.csv"))).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("iteration,rm_state,feature,weight,data_gradient")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let saved: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join(format!("rewards/{algo}_seed{seed}.json"))).unwrap(),
+    )
+    .unwrap();
+    let weights = saved["weights"].as_array().unwrap();
+    let n_states = weights.len();
+    // tiny_config: 2 iterations; 5 features (r, g, b, y, c).
+    assert_eq!(rows.len(), 2 * n_states * 5, "{text}");
+    for (u, w) in weights.iter().enumerate() {
+        for (k, (w, name)) in w
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip("rgbyc".chars())
+            .enumerate()
+        {
+            let row = &rows[n_states * 5 + u * 5 + k];
+            assert_eq!(row[..3], ["2", &u.to_string(), &name.to_string()]);
+            let traced: f64 = row[3].parse().unwrap();
+            assert!(
+                (traced - w.as_f64().unwrap()).abs() < 1e-5,
+                "{row:?} vs {w}"
+            );
+            assert!(row[4].parse::<f64>().unwrap().is_finite());
+        }
     }
 }
 
@@ -444,4 +486,19 @@ fn reward_learning_rate_decays_as_a_power_of_the_iteration() {
     assert!((reward_lr(Algo::MaxEnt, &c, 16) - 0.00025).abs() < 1e-9);
     c.reward_lr_decay = -0.5;
     assert!(c.validate("test").is_err());
+}
+
+/// The counterfactual share is a probability; the error names the field.
+#[test]
+fn counterfactual_share_must_be_in_the_unit_interval() {
+    let mut c = IrlRunConfig::standard();
+    for ok in [0.0, 0.5, 1.0] {
+        c.smirl_counterfactual = ok;
+        c.validate("test").unwrap();
+    }
+    for bad in [-0.1, 1.5, f64::NAN] {
+        c.smirl_counterfactual = bad;
+        let e = c.validate("test").unwrap_err().to_string();
+        assert!(e.contains("smirl_counterfactual"), "{e}");
+    }
 }

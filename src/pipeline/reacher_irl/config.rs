@@ -92,6 +92,10 @@ pub struct IrlRunConfig {
     /// the RM state's largest ball weight; see `irl::smirl::LearnedSubgoalPotential`); 0 = the
     /// learned reward alone.
     pub smirl_shaping: f64,
+    /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
+    /// state (CRM, see `rl::crm`): 0 = only the states the agent was in, 1 = every sampled
+    /// transition from a uniformly drawn state.
+    pub smirl_counterfactual: f64,
     /// Exponent p of the reward learning-rate schedule lr_k = lr · k^(−p) over IRL iterations
     /// k = 1, 2, … (every algorithm); 0 = constant.
     pub reward_lr_decay: f64,
@@ -159,6 +163,7 @@ impl IrlRunConfig {
             smirl_reward_l2: 0.05,
             smirl_normalisation: SmirlNormalisation::Visits,
             smirl_shaping: 0.0,
+            smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,
             smooth_sigma: 0.05,
@@ -291,6 +296,9 @@ impl IrlRunConfig {
         }
         if !(self.smirl_shaping.is_finite() && self.smirl_shaping >= 0.0) {
             return bad("smirl_shaping", "must be a non-negative number");
+        }
+        if !(0.0..=1.0).contains(&self.smirl_counterfactual) {
+            return bad("smirl_counterfactual", "must be a number in [0, 1]");
         }
         if !positive(self.smooth_sigma) {
             return bad("smooth_sigma", "must be a positive number");

@@ -18,6 +18,7 @@ use crate::irl::smirl::{
 };
 use crate::log::RolloutLogger;
 use crate::pipeline::training_log::{ReacherView, TrainingLog};
+use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer, TrainingObserver};
 use crate::rm::RewardMachine;
@@ -77,7 +78,22 @@ pub struct JobResult {
     pub algo: Algo,
     pub seed: u64,
     pub rows: Vec<MetricsRow>,
+    /// SMIRL: the learned weights (`n_states × n_features` row-major) and the data gradient
+    /// μ_π − μ_D of each iteration's reward update, one entry per IRL iteration; empty for the
+    /// MLP rewards (too many parameters to trace).
+    pub reward_trace: Vec<RewardTraceRow>,
     pub wall_secs: f64,
+}
+
+/// One iteration of a SMIRL job's reward trace: how the weights moved and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RewardTraceRow {
+    pub iteration: usize,
+    /// The loss gradient without L2 (μ_π − μ_D under the configured normalisation) before
+    /// this iteration's update.
+    pub data_gradient: Vec<f32>,
+    /// The weights after this iteration's update.
+    pub weights: Vec<f32>,
 }
 
 /// Progress of a job, for progress bars.
@@ -184,21 +200,26 @@ impl ReacherView for JobEnv {
 /// observation's one-hot part — so old transitions follow the reward being optimised now.
 /// With `shaping` (SMIRL), SAC's reward is δ_r(u_t, o_{t+1}) + γ Φ(u_{t+1}, o_{t+1}) −
 /// Φ(u_t, o_t) (see [`LearnedSubgoalPotential`]), Φ = 0 after a terminating step.
+/// With `counterfactual` (SMIRL), a share of each batch is first moved to other learned-machine
+/// states (CRM, [`CounterfactualRm`]), so SAC learns every state's values from every step.
 struct LearnedReward<'a> {
     model: &'a mut dyn RewardModel,
     product: bool,
     shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
+    /// SMIRL: counterfactual learned-machine states for a share of each batch.
+    counterfactual: Option<&'a CounterfactualRm>,
     obs: Vec<f32>,
     states: Vec<u32>,
     error: Option<RewardError>,
 }
 
-/// Index of the hot entry of a one-hot block.
-fn hot_index(block: &[f32]) -> u32 {
-    block.iter().position(|&x| x > 0.5).unwrap_or(0) as u32
-}
-
 impl RewardFn for LearnedReward<'_> {
+    fn relabel(&mut self, batch: &mut ReplayBatch, rng: &mut dyn rand::RngCore) {
+        if let Some(crm) = self.counterfactual {
+            crm.relabel(batch, rng);
+        }
+    }
+
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) {
         let d = batch.obs.nrows();
         self.obs.clear();
@@ -211,7 +232,7 @@ impl RewardFn for LearnedReward<'_> {
         {
             self.obs.extend_from_slice(&next[..OBS_DIM]);
             if self.product {
-                self.states.push(hot_index(&prev[OBS_DIM..]));
+                self.states.push(hot_index(&prev[OBS_DIM..]) as u32);
             }
         }
         if let Err(e) = self.model.reward_batch(&self.obs, &self.states, out) {
@@ -227,8 +248,8 @@ impl RewardFn for LearnedReward<'_> {
                 .zip(&batch.terminated)
                 .zip(out.iter_mut())
             {
-                let u = hot_index(&prev[OBS_DIM..]) as usize;
-                let u_next = hot_index(&next[OBS_DIM..]) as usize;
+                let u = hot_index(&prev[OBS_DIM..]);
+                let u_next = hot_index(&next[OBS_DIM..]);
                 let after = if terminated > 0.5 {
                     0.0
                 } else {
@@ -515,6 +536,14 @@ pub fn run_job(
         }
         _ => None,
     };
+    // SMIRL's counterfactual relabelling of SAC batches (`smirl_counterfactual` > 0).
+    let counterfactual = match learned {
+        Some(rm) if s.smirl_counterfactual > 0.0 => Some(
+            CounterfactualRm::new(rm.clone(), OBS_DIM, s.smirl_counterfactual)
+                .map_err(|e| fail(e.to_string()))?,
+        ),
+        _ => None,
+    };
     let expert_kde = match algo.divergence() {
         Some(_) => Some(
             Kde::fit_columns(&expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
@@ -530,6 +559,7 @@ pub fn run_job(
     let total_env_steps = s.sac_steps_per_iteration * s.irl_iterations as u64;
     let mut rows = Vec::with_capacity(s.irl_iterations + 1);
     let mut rollout_index = 0u64;
+    let mut reward_trace = Vec::new();
 
     let evaluate = |agent: &mut SacAgent,
                     env: &mut JobEnv,
@@ -593,6 +623,7 @@ pub fn run_job(
                 None => None,
             };
             let mut reward_fn = LearnedReward {
+                counterfactual: counterfactual.as_ref(),
                 model: model.as_mut(),
                 product: learned.is_some(),
                 shaping: potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
@@ -685,12 +716,27 @@ pub fn run_job(
         let n_agent = batch.obs.len() / OBS_DIM;
         let learned_reward =
             r[..n_agent].iter().map(|&x| f64::from(x)).sum::<f64>() / n_agent as f64;
+        let data_gradient = if algo.uses_rm() {
+            model
+                .backward(&obs, &states, &coeffs)
+                .map_err(|e| fail(e.to_string()))?;
+            Some(model.grad())
+        } else {
+            None
+        };
         // 5. Reward update, with learning rate lr · k^(−reward_lr_decay) at iteration k.
         model.set_lr(reward_lr(algo, s, iteration));
         for _ in 0..s.reward_steps_per_iteration {
             model
                 .update(&obs, &states, &coeffs)
                 .map_err(|e| fail(format!("reward update: {e}")))?;
+        }
+        if let Some(data_gradient) = data_gradient {
+            reward_trace.push(RewardTraceRow {
+                iteration,
+                data_gradient,
+                weights: model.params(),
+            });
         }
         // Ground-truth evaluation.
         let (sr, tr, er) =
@@ -721,6 +767,7 @@ pub fn run_job(
         algo,
         seed,
         rows,
+        reward_trace,
         wall_secs: started.elapsed().as_secs_f64(),
     })
 }

@@ -9,12 +9,13 @@
 //! - `summary.csv`, `summary.md` — final success/return mean ± std over seeds per algorithm.
 //! - `success.svg`, `task_return.svg` — mean ± std over seeds vs environment steps.
 //! - `rm/` — `perfect.txt`/`.dot`, and for SMIRL `learned.txt`/`.dot` and `report.txt`.
-//! - `rewards/<algo>_seed<S>.*` — learned reward parameters.
+//! - `rewards/<algo>_seed<S>.*` — learned reward parameters; for SMIRL also
+//!   `rewards/<algo>_seed<S>.trace.csv`, the weights and data gradient of every IRL iteration.
 //! - `logs/demos.mcap`, `logs/<algo>_seed<S>.mcap` — demos and sampled agent/eval episodes.
 
 use super::config::{DemoPadding, DemoSource, IrlRunConfig};
 use super::demos::{load_expert, make_demos, DemoError};
-use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
+use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
 use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::{default_xml_path, OBS_CANCEL, VOCABULARY};
@@ -545,6 +546,7 @@ pub fn run_pipeline(
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
         "smirl_shaping": config.smirl_shaping,
+        "smirl_counterfactual": config.smirl_counterfactual,
         "reward_lr_decay": config.reward_lr_decay,
         "git_commit": crate::GIT_COMMIT,
         "jobs": results.iter().map(|r| serde_json::json!({
@@ -611,7 +613,37 @@ fn run_one(
     if let Some(l) = logger {
         l.finish().map_err(|e| e.to_string())?;
     }
+    if !result.reward_trace.is_empty() {
+        let path = dir.join("rewards").join(format!("{stem}.trace.csv"));
+        write_file(&path, &reward_trace_csv(&result.reward_trace).to_csv())
+            .map_err(|e| e.to_string())?;
+    }
     Ok(result)
+}
+
+/// A SMIRL reward trace as a long table: one row per (iteration, RM state, feature), the
+/// feature named by its proposition (label bit k is feature k).
+fn reward_trace_csv(trace: &[RewardTraceRow]) -> CsvTable {
+    let features: Vec<char> = VOCABULARY.chars().collect();
+    let mut table = CsvTable::new([
+        "iteration",
+        "rm_state",
+        "feature",
+        "weight",
+        "data_gradient",
+    ]);
+    for row in trace {
+        for (i, (w, g)) in row.weights.iter().zip(&row.data_gradient).enumerate() {
+            table.push([
+                row.iteration.to_string(),
+                (i / features.len()).to_string(),
+                features[i % features.len()].to_string(),
+                format!("{w:.6}"),
+                format!("{g:.6}"),
+            ]);
+        }
+    }
+    table
 }
 
 /// The summary table as Markdown (also printed by the binary).

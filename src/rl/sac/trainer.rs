@@ -16,6 +16,11 @@ const CHECKPOINT_VERSION: u32 = 1;
 pub trait RewardFn {
     /// Writes one reward per transition of `batch` into `out` (`out.len() == batch.len()`).
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]);
+
+    /// Rewrites sampled transitions before their rewards are filled (e.g. counterfactual
+    /// reward-machine states, `rl::crm`), drawing from SAC's own stream. Default: none, and no
+    /// draw, so a run without relabelling is unchanged.
+    fn relabel(&mut self, _batch: &mut ReplayBatch, _rng: &mut dyn rand::RngCore) {}
 }
 
 /// The environment's own reward, as stored in the replay buffer.
@@ -298,6 +303,7 @@ impl SacTrainer {
         if self.env_steps >= cfg.update_after && self.replay.len() >= cfg.batch_size {
             for _ in 0..cfg.updates_per_step {
                 self.replay.sample_into(&mut self.rng, &mut self.batch);
+                reward.relabel(&mut self.batch, &mut self.rng);
                 reward.fill_rewards(&self.batch, &mut self.rewards);
                 update = Some(
                     self.agent
