@@ -1,4 +1,5 @@
-//! Reinforcement learning: SAC, replay buffer, tabular solvers.
+//! Reinforcement learning: SAC, replay buffer, counterfactual reward-machine relabelling
+//! (CRM), tabular solvers.
 
 pub mod crm;
 pub mod replay;

@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
-"""Table of the SMIRL ablations (experiments/reacher/ablations/runs/*) next to the baseline
-figure-7 runs (experiments/reacher/runs/<task>), read from their summary.csv files."""
+"""Table of the SMIRL ablations (experiments/reacher/ablations/runs/*) next to the runs they
+change one setting of, read from their summary.csv files: no_crm against the figure-7 runs with
+the default config (experiments/reacher/runs/<task>); shaping, lr_decay and no_l2 against
+no_crm (the default they were run against, see run.sh)."""
 import csv, os
 here = os.path.dirname(os.path.abspath(__file__))
 runs = os.path.join(here, "runs")
@@ -9,13 +11,20 @@ def final(path):
     return {r["algo"]: "%s ± %s" % (r["final_success_mean"], r["final_success_std"])
             for r in csv.DictReader(open(os.path.join(path, "summary.csv")))}
 
-print("| ablation | task | algorithm | final success, ablation | final success, default config |")
-print("|---|---|---|---|---|")
+def reference(ablation, task):
+    if ablation == "no_crm":
+        return "default", os.path.join(here, "..", "runs", task)
+    return "no_crm", os.path.join(runs, "no_crm-" + task)
+
+print("| ablation | task | algorithm | final success, ablation | reference | final success, reference |")
+print("|---|---|---|---|---|---|")
 for name in sorted(os.listdir(runs)):
     d = os.path.join(runs, name)
     if not os.path.isdir(d) or name.endswith(".partial"):
         continue
     ablation, task = name.split("-", 1)
-    base = final(os.path.join(here, "..", "runs", task))
+    ref_name, ref_dir = reference(ablation, task)
+    base = final(ref_dir) if os.path.isdir(ref_dir) else {}
     for algo, value in final(d).items():
-        print("| %s | %s | %s | %s | %s |" % (ablation, task, algo, value, base.get(algo, "-")))
+        print("| %s | %s | %s | %s | %s | %s |"
+              % (ablation, task, algo, value, ref_name, base.get(algo, "-")))

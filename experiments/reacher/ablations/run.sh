@@ -1,6 +1,10 @@
 #!/usr/bin/env bash
-# SMIRL ablations on ReacherDelivery: one setting changed from experiments/reacher/config.toml
-# per file here, 3 seeds, expert demonstrations. Usage: experiments/reacher/ablations/run.sh
+# SMIRL ablations on ReacherDelivery, 3 seeds, expert demonstrations. Usage:
+#   experiments/reacher/ablations/run.sh
+# no_crm.toml is experiments/reacher/config.toml without counterfactual learned-machine states
+# (smirl_counterfactual = 0, the default before CRM; all six algorithms, so its run directories
+# are the whole figure 7 of that default); shaping, lr_decay and no_l2 each change one more
+# setting of no_crm.toml (they were run against that default).
 # Run directories go to experiments/reacher/ablations/runs/<ablation>-<task>; the table:
 #   python3 experiments/reacher/ablations/results.py
 set -euo pipefail
@@ -12,6 +16,9 @@ run() { # ablation task algos
   ./target/release/reacher --task "$2" --algo "$3" --seeds 3 \
     --config "experiments/reacher/ablations/$1.toml" --out "$out/$1-$2" --quiet > "$out/$1-$2.log"
 }
+for task in or sequential if composite; do
+  run no_crm "$task" all                    # smirl_counterfactual = 0
+done
 run shaping sequential smirl,smirl-smooth   # smirl_shaping = 1.0
 run lr_decay or smirl                       # reward_lr_decay = 0.5
 run lr_decay if smirl
