@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Table of the SMIRL ablations (experiments/reacher/ablations/runs/*) next to the runs they
-change one setting of, read from their summary.csv files: no_crm against the figure-7 runs with
-the default config (experiments/reacher/runs/<task>); shaping, lr_decay and no_l2 against
+change one setting of, read from their summary.csv files: no_crm, crm_lr_decay and replay_100k
+against the figure-7 runs with the default config (experiments/reacher/runs/<task>); shaping, lr_decay and no_l2 against
 no_crm (the default they were run against, see run.sh)."""
 import csv, os
 here = os.path.dirname(os.path.abspath(__file__))
@@ -12,7 +12,7 @@ def final(path):
             for r in csv.DictReader(open(os.path.join(path, "summary.csv")))}
 
 def reference(ablation, task):
-    if ablation == "no_crm":
+    if ablation in ("no_crm", "crm_lr_decay", "replay_100k"):
         return "default", os.path.join(here, "..", "runs", task)
     return "no_crm", os.path.join(runs, "no_crm-" + task)
 

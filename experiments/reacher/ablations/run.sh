@@ -3,7 +3,9 @@
 #   experiments/reacher/ablations/run.sh
 # no_crm.toml is experiments/reacher/config.toml without counterfactual learned-machine states
 # (smirl_counterfactual = 0, the default before CRM; all six algorithms, so its run directories
-# are the whole figure 7 of that default); shaping, lr_decay and no_l2 each change one more
+# are the whole figure 7 of that default); crm_lr_decay adds reward_lr_decay = 0.5 and
+# replay_100k a 10x replay buffer to the default (held-out seeds of the latter:
+# experiments/reacher/heldout.sh experiments/reacher/ablations/replay_100k.toml replay_100k-); shaping, lr_decay and no_l2 each change one more
 # setting of no_crm.toml (they were run against that default).
 # Run directories go to experiments/reacher/ablations/runs/<ablation>-<task>; the table:
 #   python3 experiments/reacher/ablations/results.py
@@ -19,6 +21,12 @@ run() { # ablation task algos
 for task in or sequential if composite; do
   run no_crm "$task" all                    # smirl_counterfactual = 0
 done
+run crm_lr_decay or smirl                   # default + reward_lr_decay = 0.5
+run crm_lr_decay sequential smirl
+run crm_lr_decay if smirl
+run replay_100k or smirl                    # default + [sac] replay_capacity = 100000
+run replay_100k sequential smirl
+run replay_100k if smirl
 run shaping sequential smirl,smirl-smooth   # smirl_shaping = 1.0
 run lr_decay or smirl                       # reward_lr_decay = 0.5
 run lr_decay if smirl
