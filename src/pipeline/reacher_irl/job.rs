@@ -716,17 +716,15 @@ pub fn run_job(
         let n_agent = batch.obs.len() / OBS_DIM;
         let learned_reward =
             r[..n_agent].iter().map(|&x| f64::from(x)).sum::<f64>() / n_agent as f64;
-        let data_gradient = if algo.uses_rm() {
-            model
-                .backward(&obs, &states, &coeffs)
-                .map_err(|e| fail(e.to_string()))?;
-            Some(model.grad())
-        } else {
-            None
-        };
-        // 5. Reward update, with learning rate lr · k^(−reward_lr_decay) at iteration k.
+        // 5. Reward update, with learning rate lr · k^(−reward_lr_decay) at iteration k: the
+        // first step's gradient (before any step) is SMIRL's traced data gradient.
         model.set_lr(reward_lr(algo, s, iteration));
-        for _ in 0..s.reward_steps_per_iteration {
+        model
+            .backward(&obs, &states, &coeffs)
+            .map_err(|e| fail(format!("reward update: {e}")))?;
+        let data_gradient = algo.uses_rm().then(|| model.grad());
+        model.step();
+        for _ in 1..s.reward_steps_per_iteration {
             model
                 .update(&obs, &states, &coeffs)
                 .map_err(|e| fail(format!("reward update: {e}")))?;
