@@ -106,14 +106,19 @@ fn bad_input_is_an_error_and_writes_nothing() {
         "{e}"
     );
 
-    let reacher = || Command::new(env!("CARGO_BIN_EXE_reacher"));
     let out = dir.path().join("pic.png");
-    let run = reacher()
-        .args(["render", log_path.to_str().unwrap(), "--episode", "5"])
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    // `reacher render ARGS --out pic.png`
+    let render = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_reacher"))
+            .arg("render")
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let log = log_path.to_str().unwrap();
+    let run = render(&[log, "--episode", "5"]);
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(stderr.contains("episode 5 is not in the log"), "{stderr}");
@@ -121,12 +126,7 @@ fn bad_input_is_an_error_and_writes_nothing() {
 
     let junk = dir.path().join("junk.mcap");
     std::fs::write(&junk, b"this is not an MCAP file at all").unwrap();
-    let run = reacher()
-        .args(["render", junk.to_str().unwrap()])
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let run = render(&[junk.to_str().unwrap()]);
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
@@ -136,12 +136,7 @@ fn bad_input_is_an_error_and_writes_nothing() {
     assert!(!out.exists());
 
     // The good case through the CLI writes the file.
-    let run = reacher()
-        .args(["render", log_path.to_str().unwrap(), "--episode", "2"])
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let run = render(&[log, "--episode", "2"]);
     assert!(
         run.status.success(),
         "{}",
