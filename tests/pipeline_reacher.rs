@@ -390,6 +390,42 @@ fn shipped_configs_parse() {
     );
 }
 
+/// The shipped figure-7 config is the built-in default profile, so `reacher --task t` and
+/// `experiments/reacher/run.sh` run the same thing.
+#[test]
+fn shipped_config_is_the_default_profile() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher/config.toml");
+    assert_eq!(IrlRunConfig::load(&path).unwrap(), IrlRunConfig::standard());
+}
+
+/// Keys missing from `[sac]` come from the IRL runs' SAC, not from the paper's preset; a
+/// `preset` key switches the base.
+#[test]
+fn sac_table_defaults_to_the_irl_run_sac() {
+    use smirl::pipeline::reacher_irl::config::irl_run_sac;
+    use smirl::rl::sac::SacConfig;
+    let mut text = IrlRunConfig::standard().to_toml();
+    let cut = text.find("[sac]").unwrap();
+    text.truncate(cut);
+    let c = IrlRunConfig::from_toml(&format!("{text}[sac]\nbatch_size = 128\n"), "c.toml").unwrap();
+    assert_eq!(
+        c.sac,
+        SacConfig {
+            batch_size: 128,
+            ..irl_run_sac()
+        }
+    );
+    assert_eq!(c.sac.replay_capacity, 100_000);
+    let c = IrlRunConfig::from_toml(&format!("{text}[sac]\npreset = \"irl\"\n"), "c.toml").unwrap();
+    assert_eq!(c.sac, SacConfig::irl());
+    let without = IrlRunConfig::from_toml(&text, "c.toml").unwrap();
+    assert_eq!(without.sac, irl_run_sac());
+    let err = IrlRunConfig::from_toml(&format!("{text}[sac]\nbatch = 3\n"), "c.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("c.toml") && err.contains("batch"), "{err}");
+}
+
 /// `demo_padding = "hold"`: a demonstration that ends at the goal is extended to the time
 /// limit by holding its final state (zero joint velocities, no cancel event, the labels of
 /// that state), the learned machine stepping on the held labels; `None` leaves it as is.
