@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Table of the SMIRL ablations (experiments/reacher/ablations/runs/*) next to the runs they
-change one setting of, read from their summary.csv files: no_crm, crm_lr_decay and replay_100k
-against the figure-7 runs with the default config (experiments/reacher/runs/<task>); shaping, lr_decay and no_l2 against
-no_crm (the default they were run against, see run.sh)."""
+change one setting of, read from their summary.csv files: paper_sac against the figure-7 runs
+with the default config (experiments/reacher/runs/<task>); no_crm, crm_lr_decay and replay_100k
+against paper_sac (the default they were run against); shaping, lr_decay and no_l2 against
+no_crm (see run.sh)."""
 import csv, os
 here = os.path.dirname(os.path.abspath(__file__))
 runs = os.path.join(here, "runs")
@@ -12,8 +13,10 @@ def final(path):
             for r in csv.DictReader(open(os.path.join(path, "summary.csv")))}
 
 def reference(ablation, task):
-    if ablation in ("no_crm", "crm_lr_decay", "replay_100k"):
+    if ablation == "paper_sac":
         return "default", os.path.join(here, "..", "runs", task)
+    if ablation in ("no_crm", "crm_lr_decay", "replay_100k"):
+        return "paper_sac", os.path.join(runs, "paper_sac-" + task)
     return "no_crm", os.path.join(runs, "no_crm-" + task)
 
 print("| ablation | task | algorithm | final success, ablation | reference | final success, reference |")

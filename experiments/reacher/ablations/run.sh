@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # SMIRL ablations on ReacherDelivery, 3 seeds, expert demonstrations. Usage:
 #   experiments/reacher/ablations/run.sh
-# no_crm.toml is experiments/reacher/config.toml without counterfactual learned-machine states
-# (smirl_counterfactual = 0, the default before CRM; all six algorithms, so its run directories
-# are the whole figure 7 of that default); crm_lr_decay adds reward_lr_decay = 0.5 and
-# replay_100k a 10x replay buffer to the default (held-out seeds of the latter:
-# experiments/reacher/heldout.sh experiments/reacher/ablations/replay_100k.toml replay_100k-); shaping, lr_decay and no_l2 each change one more
-# setting of no_crm.toml (they were run against that default).
+# paper_sac.toml is experiments/reacher/config.toml with the paper's IRL SAC ([sac] lr 3e-3,
+# replay_capacity 10000; the default before this session's change; all six algorithms, so its
+# run directories are the whole figure 7 of that default; held-out seeds:
+# experiments/reacher/heldout.sh experiments/reacher/ablations/paper_sac.toml paper_sac-).
+# no_crm.toml is paper_sac.toml without counterfactual learned-machine states
+# (smirl_counterfactual = 0, the default before CRM; all six algorithms); crm_lr_decay adds
+# reward_lr_decay = 0.5 and replay_100k a 10x replay buffer to paper_sac (held-out seeds of the
+# latter: experiments/reacher/heldout.sh experiments/reacher/ablations/replay_100k.toml
+# replay_100k-); shaping, lr_decay and no_l2 each change one more setting of no_crm.toml
+# (they were run against that default).
 # Run directories go to experiments/reacher/ablations/runs/<ablation>-<task>; the table:
 #   python3 experiments/reacher/ablations/results.py
 set -euo pipefail
@@ -19,12 +23,13 @@ run() { # ablation task algos
     --config "experiments/reacher/ablations/$1.toml" --out "$out/$1-$2" --quiet > "$out/$1-$2.log"
 }
 for task in or sequential if composite; do
-  run no_crm "$task" all                    # smirl_counterfactual = 0
+  run paper_sac "$task" all                 # [sac] lr = 3e-3, replay_capacity = 10000
+  run no_crm "$task" all                    # paper_sac + smirl_counterfactual = 0
 done
-run crm_lr_decay or smirl                   # default + reward_lr_decay = 0.5
+run crm_lr_decay or smirl                   # paper_sac + reward_lr_decay = 0.5
 run crm_lr_decay sequential smirl
 run crm_lr_decay if smirl
-run replay_100k or smirl                    # default + [sac] replay_capacity = 100000
+run replay_100k or smirl                    # paper_sac + [sac] replay_capacity = 100000
 run replay_100k sequential smirl
 run replay_100k if smirl
 run shaping sequential smirl,smirl-smooth   # smirl_shaping = 1.0

@@ -171,7 +171,7 @@ pub enum IrlConfigError {
 
 impl IrlRunConfig {
     /// The default profile: sized so that `reacher --task <t>` with the default algorithm set
-    /// finishes in well under 20 minutes on 2 cores (see experiments/reacher/README-section.md).
+    /// finishes in well under 20 minutes on 2 cores (README.md, "ReacherDelivery IRL").
     pub fn standard() -> IrlRunConfig {
         IrlRunConfig {
             demo_source: DemoSource::Expert,

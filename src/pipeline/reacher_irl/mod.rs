@@ -63,7 +63,7 @@ impl Algo {
         Algo::Js,
     ];
 
-    /// The default set of `reacher --task` (see experiments/reacher/README-section.md).
+    /// The default set of `reacher --task` (README.md, "ReacherDelivery IRL").
     pub const DEFAULT: [Algo; 4] = [Algo::Smirl, Algo::SmirlSmooth, Algo::MaxEnt, Algo::Fkl];
 
     pub fn name(self) -> &'static str {

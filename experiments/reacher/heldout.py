@@ -1,0 +1,27 @@
+#!/usr/bin/env python3
+"""Table of the held-out SMIRL runs (experiments/reacher/heldout/*, written by heldout.sh):
+final success per seed, mean ± std, and the mean over seeds and the last five iterations,
+read from each run directory's metrics.csv. Usage: python3 experiments/reacher/heldout.py"""
+import csv, os, statistics
+
+here = os.path.join(os.path.dirname(os.path.abspath(__file__)), "heldout")
+order = ["or", "sequential", "if"]
+print("| run | task | algorithm | seeds | final success per seed | final success (mean ± std) | mean success, last 5 iterations |")
+print("|---|---|---|---|---|---|---|")
+names = [n for n in os.listdir(here)
+         if os.path.isfile(os.path.join(here, n, "metrics.csv")) and not n.endswith(".partial")]
+def key(n):
+    prefix, _, task = n.rpartition("-")
+    return (prefix, order.index(task) if task in order else 9)
+for name in sorted(names, key=key):
+    prefix, _, task = name.rpartition("-")
+    curves = {}
+    for r in csv.DictReader(open(os.path.join(here, name, "metrics.csv"))):
+        curves.setdefault(r["algo"], {}).setdefault(int(r["seed"]), []).append(float(r["success_rate"]))
+    for algo, seeds in sorted(curves.items()):
+        finals = [c[-1] for _, c in sorted(seeds.items())]
+        last = [x for c in seeds.values() for x in c[-5:]]
+        print("| %s | %s | %s | %s | %s | %.2f ± %.2f | %.2f |" % (
+            prefix or "default", task, algo, ", ".join(str(s) for s in sorted(seeds)),
+            ", ".join("%.2f" % f for f in finals), statistics.mean(finals),
+            statistics.pstdev(finals), sum(last) / len(last)))
