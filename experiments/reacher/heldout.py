@@ -6,6 +6,7 @@ import csv, os, statistics
 
 here = os.path.join(os.path.dirname(os.path.abspath(__file__)), "heldout")
 order = ["or", "sequential", "if"]
+print("\n## Held-out runs (`heldout.sh`; table by `python3 heldout.py`)\n")
 print("| run | task | algorithm | seeds | final success per seed | final success (mean ± std) | mean success, last 5 iterations |")
 print("|---|---|---|---|---|---|---|")
 names = [n for n in os.listdir(here)
