@@ -176,10 +176,7 @@ impl IrlRunConfig {
         IrlRunConfig {
             demo_source: DemoSource::Expert,
             expert_cache_dir: PathBuf::new(),
-            // 32, not 16: from 16 Composite demonstrations LRM learns a 4-state machine without
-            // the "cancelled before blue" branch; from 32 it learns it (7 states; ablation
-            // `demos_16` in experiments/reacher/ablations.md).
-            demo_episodes: 32,
+            demo_episodes: 16,
             demo_padding: DemoPadding::Hold,
             irl_iterations: 20,
             sac_steps_per_iteration: 5_000,
