@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Table of the SMIRL ablations (experiments/reacher/ablations/runs/*) next to the runs they
-change one setting of, read from their summary.csv files: paper_sac against the figure-7 runs
-with the default config (experiments/reacher/runs/<task>); no_crm, crm_lr_decay and replay_100k
+change one setting of, read from their summary.csv files: paper_sac and demos_32 against the
+figure-7 runs with the default config (experiments/reacher/runs/<task>); no_crm, crm_lr_decay and replay_100k
 against paper_sac (the default they were run against); shaping, lr_decay and no_l2 against
 no_crm (see run.sh)."""
 import csv, os
@@ -13,7 +13,7 @@ def final(path):
             for r in csv.DictReader(open(os.path.join(path, "summary.csv")))}
 
 def reference(ablation, task):
-    if ablation == "paper_sac":
+    if ablation in ("paper_sac", "demos_32"):
         return "default", os.path.join(here, "..", "runs", task)
     if ablation in ("no_crm", "crm_lr_decay", "replay_100k"):
         return "paper_sac", os.path.join(runs, "paper_sac-" + task)

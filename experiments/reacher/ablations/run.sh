@@ -26,6 +26,8 @@ for task in or sequential if composite; do
   run paper_sac "$task" all                 # [sac] lr = 3e-3, replay_capacity = 10000
   run no_crm "$task" all                    # paper_sac + smirl_counterfactual = 0
 done
+run demos_32 composite smirl                # default + demo_episodes = 32 (held-out seeds:
+# heldout.sh experiments/reacher/ablations/demos_32.toml demos_32- [and demos_32-seeds6- 6])
 run crm_lr_decay or smirl                   # paper_sac + reward_lr_decay = 0.5
 run crm_lr_decay sequential smirl
 run crm_lr_decay if smirl
