@@ -200,6 +200,28 @@ fn arm_matches_gymnasium_reacher() {
         let g = m.id(ObjectKind::Geom, ball).unwrap();
         assert_eq!(m.geom_radius(g), 0.02);
     }
+    // The arena walls, from their `fromto` attributes: capsules along the square's sides.
+    let close = |a: [f64; 3], b: [f64; 3]| a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-9);
+    for (name, from, to) in [
+        ("sideS", [-0.3, -0.3, 0.01], [0.3, -0.3, 0.01]),
+        ("sideE", [0.3, -0.3, 0.01], [0.3, 0.3, 0.01]),
+        ("sideN", [-0.3, 0.3, 0.01], [0.3, 0.3, 0.01]),
+        ("sideW", [-0.3, -0.3, 0.01], [-0.3, 0.3, 0.01]),
+    ] {
+        let g = m.id(ObjectKind::Geom, name).unwrap();
+        let (a, b) = m.world_capsule_segment(g).unwrap();
+        assert!(
+            (close(a, from) && close(b, to)) || (close(a, to) && close(b, from)),
+            "{name}: {a:?} - {b:?}"
+        );
+        assert_eq!(m.geom_radius(g), 0.02);
+    }
+    let ball = m.id(ObjectKind::Geom, BALLS[0]).unwrap();
+    assert_eq!(
+        m.world_capsule_segment(ball),
+        None,
+        "a sphere has no segment"
+    );
     // One env step is 0.02 s.
     let mut e = env(ReacherConfig::default());
     let mut obs = vec![0.0; OBS_DIM];

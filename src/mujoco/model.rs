@@ -249,6 +249,31 @@ impl Model {
         self.slice(self.raw().geom_size, 3 * self.ngeom())[3 * geom]
     }
 
+    /// End points of a capsule geom's axis segment in its parent body's frame (the world
+    /// frame for a geom of the world body, e.g. an arena wall given by `fromto`): the geom's
+    /// position ± its half-length (second size parameter) along the z-axis of its
+    /// orientation. `None` for a geom that is not a capsule or not attached to the world body.
+    pub fn world_capsule_segment(&self, geom: usize) -> Option<([f64; 3], [f64; 3])> {
+        let n = self.ngeom();
+        let kind = self.slice(self.raw().geom_type, n)[geom];
+        let body = self.slice(self.raw().geom_bodyid, n)[geom];
+        if kind != sys::mjtGeom::mjGEOM_CAPSULE as i32 || body != 0 {
+            return None;
+        }
+        let p = &self.slice(self.raw().geom_pos, 3 * n)[3 * geom..3 * geom + 3];
+        let q = &self.slice(self.raw().geom_quat, 4 * n)[4 * geom..4 * geom + 4];
+        let half = self.slice(self.raw().geom_size, 3 * n)[3 * geom + 1];
+        let (w, x, y, z) = (q[0], q[1], q[2], q[3]);
+        // Third column of the rotation matrix of the unit quaternion (w, x, y, z).
+        let axis = [
+            2.0 * (x * z + w * y),
+            2.0 * (y * z - w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ];
+        let end = |sign: f64| std::array::from_fn(|k| p[k] + sign * half * axis[k]);
+        Some((end(-1.0), end(1.0)))
+    }
+
     /// Colour of a geom as the XML gives it (RGBA, each 0–1).
     pub fn geom_rgba(&self, geom: usize) -> [f32; 4] {
         let s = self.slice(self.raw().geom_rgba, 4 * self.ngeom());

@@ -63,8 +63,11 @@ pub struct EpisodePicture {
     pub tip_pixels: ((f64, f64), (f64, f64)),
 }
 
-/// Half-width of the pictured square in metres (walls at ±0.3 plus their thickness).
+/// Half-width of the pictured square in metres: fits the shipped arena (walls at ±0.3 plus
+/// their 0.02 radius); a model with a larger arena is drawn clipped.
 const VIEW_HALF: f64 = 0.33;
+/// The arena wall geoms of `assets/reacher_delivery.xml`.
+const WALLS: [&str; 4] = ["sideS", "sideE", "sideN", "sideW"];
 /// Height of the timeline strip in pixels.
 const STRIP: u32 = 28;
 
@@ -117,6 +120,17 @@ pub fn render_episode(
     let link_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "link0")?));
     let tip_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "fingertip")?));
     let wall_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "sideS")?));
+    // The arena walls as the logged model has them (capsules of the world body).
+    let mut walls = Vec::with_capacity(WALLS.len());
+    for name in WALLS {
+        let g = id(ObjectKind::Geom, name)?;
+        let (a, b) = model.world_capsule_segment(g).ok_or_else(|| {
+            bad(format!(
+                "model.xml: wall {name} is not a capsule of the world body"
+            ))
+        })?;
+        walls.push(([a[0], a[1]], [b[0], b[1]], model.geom_radius(g)));
+    }
     let mut ball_colours = [Rgb::BLACK; 4];
     for (c, name) in ball_colours.iter_mut().zip(BALLS) {
         *c = colour(model.geom_rgba(id(ObjectKind::Geom, name)?));
@@ -149,8 +163,15 @@ pub fn render_episode(
     let px = |p: [f64; 2]| to_pixel(size, p);
     let scale = f64::from(size) / (2.0 * VIEW_HALF);
     let mut canvas = Canvas::new(size, size + STRIP, Rgb::WHITE);
-    // Arena floor and walls.
-    let (a0, a1) = (px([-0.3, 0.3]), px([0.3, -0.3]));
+    // Arena floor (the walls' bounding box) and walls.
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in walls.iter().flat_map(|(a, b, _)| [a, b]) {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let (a0, a1) = (px([lo[0], hi[1]]), px([hi[0], lo[1]]));
     canvas.rect(
         a0.0 as i64,
         a0.1 as i64,
@@ -159,15 +180,8 @@ pub fn render_episode(
         Rgb(0.93, 0.93, 0.93),
         1.0,
     );
-    let corners = [[-0.3, -0.3], [0.3, -0.3], [0.3, 0.3], [-0.3, 0.3]];
-    for k in 0..4 {
-        canvas.line(
-            px(corners[k]),
-            px(corners[(k + 1) % 4]),
-            0.02 * scale,
-            wall_colour,
-            1.0,
-        );
+    for &(a, b, radius) in &walls {
+        canvas.line(px(a), px(b), 2.0 * radius * scale, wall_colour, 1.0);
     }
     // Balls: the touch zone lightly, the ball itself solid.
     let mut ball_pixels = [(0.0, 0.0); 4];
