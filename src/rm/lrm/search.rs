@@ -463,15 +463,7 @@ impl<'a> Searcher<'a> {
                     if ob != s {
                         let m = d.mult[t] as i64;
                         let r = d.rid[t] as usize;
-                        let (co, cn) = (ob * l_n + lt, s * l_n + lt);
-                        sc.rdiff[co * self.r_n + r] -= m;
-                        sc.rdiff[cn * self.r_n + r] += m;
-                        for c in [co, cn] {
-                            if !sc.rmark[c] {
-                                sc.rmark[c] = true;
-                                sc.rtouched.push(c as u32);
-                            }
-                        }
+                        sc.rewards.moved(ob * l_n + lt, s * l_n + lt, r, m);
                     }
                 }
                 let sn = nd[s * l_n + lt] as usize;
@@ -483,15 +475,7 @@ impl<'a> Searcher<'a> {
                 let wt = d.w[t] as i64;
                 if wt > 0 {
                     let nl = d.lab[t + 1] as usize;
-                    let (co, cn) = (so * l_n + lt, sn * l_n + lt);
-                    sc.diff[co * l_n + nl] -= wt;
-                    sc.diff[cn * l_n + nl] += wt;
-                    for c in [co, cn] {
-                        if !sc.mark[c] {
-                            sc.mark[c] = true;
-                            sc.touched.push(c as u32);
-                        }
-                    }
+                    sc.labels.moved(so * l_n + lt, sn * l_n + lt, nl, wt);
                 }
                 s = sn;
                 t += 1;
@@ -499,54 +483,19 @@ impl<'a> Searcher<'a> {
         }
         sc.hist.clear();
         sc.hist.extend_from_slice(&cur.hist);
-        for &c in &sc.touched {
-            let c = c as usize;
-            let (mut total, mut k) = (0i64, 0usize);
-            for nl in 0..l_n {
-                let idx = c * l_n + nl;
-                let v = cur.cnt[idx] as i64 + sc.diff[idx];
-                sc.diff[idx] = 0;
-                if v > 0 {
-                    total += v;
-                    k += 1;
-                }
-            }
-            sc.hist[cur.cell_k[c] as usize] -= cur.cell_c[c];
-            sc.hist[k] += total;
-            sc.mark[c] = false;
-        }
-        sc.touched.clear();
+        sc.labels
+            .apply(&cur.cnt, &cur.cell_k, &cur.cell_c, &mut sc.hist);
         sc.rhist.clear();
         sc.rhist.extend_from_slice(&cur.rhist);
-        let r_n = self.r_n;
-        for &c in &sc.rtouched {
-            let c = c as usize;
-            let (mut total, mut k) = (0i64, 0usize);
-            for r in 0..r_n {
-                let idx = c * r_n + r;
-                let v = cur.rcnt[idx] as i64 + sc.rdiff[idx];
-                sc.rdiff[idx] = 0;
-                if v > 0 {
-                    total += v;
-                    k += 1;
-                }
-            }
-            sc.rhist[cur.rcell_k[c] as usize] -= cur.rcell_c[c];
-            sc.rhist[k] += total;
-            sc.rmark[c] = false;
-        }
-        sc.rtouched.clear();
+        sc.rewards
+            .apply(&cur.rcnt, &cur.rcell_k, &cur.rcell_c, &mut sc.rhist);
         self.total_cost(&sc.hist, &sc.rhist)
     }
 
     fn scratch(&self) -> Scratch {
         Scratch {
-            diff: vec![0; self.u_max * self.l_n * self.l_n],
-            mark: vec![false; self.u_max * self.l_n],
-            touched: Vec::new(),
-            rdiff: vec![0; self.u_max * self.l_n * self.r_n],
-            rmark: vec![false; self.u_max * self.l_n],
-            rtouched: Vec::new(),
+            labels: CellDelta::new(self.u_max * self.l_n, self.l_n),
+            rewards: CellDelta::new(self.u_max * self.l_n, self.r_n),
             rhist: Vec::new(),
             positions: Vec::new(),
             delta: Vec::new(),
@@ -799,13 +748,65 @@ impl<'a> Searcher<'a> {
     }
 }
 
-struct Scratch {
+/// Changes a neighbour makes to per-cell outcome counts (successor labels or rewards,
+/// `width` outcomes per transition cell), and the cells it touched.
+struct CellDelta {
+    width: usize,
     diff: Vec<i64>,
     mark: Vec<bool>,
     touched: Vec<u32>,
-    rdiff: Vec<i64>,
-    rmark: Vec<bool>,
-    rtouched: Vec<u32>,
+}
+
+impl CellDelta {
+    fn new(cells: usize, width: usize) -> CellDelta {
+        CellDelta {
+            width,
+            diff: vec![0; cells * width],
+            mark: vec![false; cells],
+            touched: Vec::new(),
+        }
+    }
+
+    /// Weight `w` of outcome `outcome` moves from cell `from` to cell `to`.
+    fn moved(&mut self, from: usize, to: usize, outcome: usize, w: i64) {
+        self.diff[from * self.width + outcome] -= w;
+        self.diff[to * self.width + outcome] += w;
+        for c in [from, to] {
+            if !self.mark[c] {
+                self.mark[c] = true;
+                self.touched.push(c as u32);
+            }
+        }
+    }
+
+    /// Moves every touched cell of `hist` (a copy of the current machine's histogram, whose
+    /// cells have totals `cell_c` over `cell_k` distinct outcomes of counts `cnt`) to its
+    /// bin after the changes, and clears the changes for the next neighbour.
+    fn apply(&mut self, cnt: &[u64], cell_k: &[u32], cell_c: &[i64], hist: &mut [i64]) {
+        let width = self.width;
+        for &c in &self.touched {
+            let c = c as usize;
+            let (mut total, mut k) = (0i64, 0usize);
+            let cell = c * width..(c + 1) * width;
+            for (&n, d) in cnt[cell.clone()].iter().zip(&mut self.diff[cell]) {
+                let v = n as i64 + *d;
+                *d = 0;
+                if v > 0 {
+                    total += v;
+                    k += 1;
+                }
+            }
+            hist[cell_k[c] as usize] -= cell_c[c];
+            hist[k] += total;
+            self.mark[c] = false;
+        }
+        self.touched.clear();
+    }
+}
+
+struct Scratch {
+    labels: CellDelta,
+    rewards: CellDelta,
     rhist: Vec<i64>,
     positions: Vec<u32>,
     /// The neighbour's table.
