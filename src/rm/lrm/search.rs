@@ -235,24 +235,8 @@ impl<'a> Searcher<'a> {
                 }
             }
         }
-        let mut cell_c = vec![0i64; u_max * l_n];
-        let mut cell_k = vec![0u32; u_max * l_n];
-        let mut hist = vec![0i64; l_n + 1];
-        for cell in 0..u_max * l_n {
-            let row = &cnt[cell * l_n..(cell + 1) * l_n];
-            cell_c[cell] = row.iter().sum::<u64>() as i64;
-            cell_k[cell] = row.iter().filter(|&&v| v > 0).count() as u32;
-            hist[cell_k[cell] as usize] += cell_c[cell];
-        }
-        let mut rcell_c = vec![0i64; u_max * l_n];
-        let mut rcell_k = vec![0u32; u_max * l_n];
-        let mut rhist = vec![0i64; r_n.max(l_n) + 1];
-        for cell in 0..u_max * l_n {
-            let row = &rcnt[cell * r_n..(cell + 1) * r_n];
-            rcell_c[cell] = row.iter().sum::<u64>() as i64;
-            rcell_k[cell] = row.iter().filter(|&&v| v > 0).count() as u32;
-            rhist[rcell_k[cell] as usize] += rcell_c[cell];
-        }
+        let (cell_c, cell_k, hist) = summarise_cells(&cnt, l_n, l_n + 1);
+        let (rcell_c, rcell_k, rhist) = summarise_cells(&rcnt, r_n, r_n.max(l_n) + 1);
         let cost = self.total_cost(&hist, &rhist);
         Current {
             table: Table {
@@ -746,6 +730,23 @@ impl<'a> Searcher<'a> {
             start_costs: vec![best.0],
         }
     }
+}
+
+/// Per-cell totals `cell_c`, distinct-outcome counts `cell_k` and the histogram `hist[k]` (total
+/// weight of cells with `k` distinct outcomes, `hist_len` bins) of outcome counts `cnt`,
+/// `width` outcomes per cell — the summary [`CellDelta::apply`] updates incrementally.
+fn summarise_cells(cnt: &[u64], width: usize, hist_len: usize) -> (Vec<i64>, Vec<u32>, Vec<i64>) {
+    let mut hist = vec![0i64; hist_len];
+    let (cell_c, cell_k): (Vec<i64>, Vec<u32>) = cnt
+        .chunks(width)
+        .map(|row| {
+            let c = row.iter().sum::<u64>() as i64;
+            let k = row.iter().filter(|&&v| v > 0).count() as u32;
+            hist[k as usize] += c;
+            (c, k)
+        })
+        .unzip();
+    (cell_c, cell_k, hist)
 }
 
 /// Changes a neighbour makes to per-cell outcome counts (successor labels or rewards,
