@@ -249,10 +249,10 @@ impl Model {
         self.slice(self.raw().geom_size, 3 * self.ngeom())[3 * geom]
     }
 
-    /// End points of a capsule geom's axis segment in its parent body's frame (the world
-    /// frame for a geom of the world body, e.g. an arena wall given by `fromto`): the geom's
-    /// position ± its half-length (second size parameter) along the z-axis of its
-    /// orientation. `None` for a geom that is not a capsule or not attached to the world body.
+    /// World-frame end points of the axis of a capsule attached to the world body (e.g. an
+    /// arena wall given by `fromto`): the geom's position ± its half-length (second size
+    /// parameter) along the z-axis of its orientation. `None` for any other geom (its model
+    /// position would be relative to a moving body).
     pub fn world_capsule_segment(&self, geom: usize) -> Option<([f64; 3], [f64; 3])> {
         let n = self.ngeom();
         let kind = self.slice(self.raw().geom_type, n)[geom];

@@ -119,8 +119,9 @@ pub fn render_episode(
     let shoulder = id(ObjectKind::Body, "body0")?;
     let link_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "link0")?));
     let tip_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "fingertip")?));
-    let wall_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "sideS")?));
-    // The arena walls as the logged model has them (capsules of the world body).
+    // The arena walls as the logged model has them (capsules of the world body), drawn in
+    // the first wall's colour.
+    let wall_colour = colour(model.geom_rgba(id(ObjectKind::Geom, WALLS[0])?));
     let mut walls = Vec::with_capacity(WALLS.len());
     for name in WALLS {
         let g = id(ObjectKind::Geom, name)?;
