@@ -28,13 +28,19 @@ for task in names:
         last = [x for k in sorted(it)[-5:] for x in it[k]]
         last_txt = "%.2f" % (sum(last) / len(last)) if last else "-"
         job = [j for j in info["jobs"] if j["algo"] == r["algo"]]
-        rows.append((task, r["algo"], r["seeds"], r["final_success_mean"], r["final_success_std"],
+        # IF and Composite: final success on each branch (runs before per-branch evaluation: -).
+        if r.get("final_success_normal_mean"):
+            branch_txt = "%s ± %s / %s ± %s" % (r["final_success_normal_mean"], r["final_success_normal_std"],
+                                                r["final_success_cancel_mean"], r["final_success_cancel_std"])
+        else:
+            branch_txt = "-"
+        rows.append((task, r["algo"], r["seeds"], r["final_success_mean"], r["final_success_std"], branch_txt,
                      peak_txt, last_txt, r["final_return_mean"], r["final_return_std"],
                      "%.0f" % (sum(j["wall_secs"] for j in job) / max(len(job), 1)), wall,
                      "%s / %s" % (rm.get("learned_states", "-"), rm.get("refines_perfect", "-")),
                      info["demo_source"], info["git_commit"][:7]))
-out = ["| task | algorithm | seeds | final success (mean ± std) | peak mean success | mean success, last 5 iterations | final task return | job wall (s) | task run wall (s) | learned RM states / refines | demos | commit |",
-       "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+out = ["| task | algorithm | seeds | final success (mean ± std) | final normal / cancel branch | peak mean success | mean success, last 5 iterations | final task return | job wall (s) | task run wall (s) | learned RM states / refines | demos | commit |",
+       "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 for t in rows:
-    out.append("| %s | %s | %s | %s ± %s | %s | %s | %s ± %s | %s | %s | %s | %s | %s |" % t)
+    out.append("| %s | %s | %s | %s ± %s | %s | %s | %s | %s ± %s | %s | %s | %s | %s | %s |" % t)
 sys.stdout.write("\n".join(out) + "\n")

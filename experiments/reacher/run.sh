@@ -6,16 +6,19 @@
 # (scripted demonstrations until the SAC experts are in experiments/experts/cache; use
 # experiments/reacher/config.toml for the experts). One run directory per task under
 # experiments/reacher/runs/<task>; wall times go to experiments/reacher/runs/<task>.time.
+# REACHER_BIN runs another build of the binary (e.g. a copy, so that rebuilding the checkout
+# during a long sweep does not change the binary between tasks).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 TASKS=${1:-"or sequential if composite"}
 ALGOS=${2:-all}
 SEEDS=${3:-3}
 CONFIG=${4:-experiments/reacher/config_scripted.toml}
-cargo build --release --bin reacher
+if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
+BIN=${REACHER_BIN:-./target/release/reacher}
 for task in $TASKS; do
   start=$(date +%s)
-  ./target/release/reacher --task "$task" --algo "$ALGOS" --seeds "$SEEDS" --config "$CONFIG" \
+  "$BIN" --task "$task" --algo "$ALGOS" --seeds "$SEEDS" --config "$CONFIG" \
     --out "experiments/reacher/runs/$task" --quiet | tee "experiments/reacher/runs/$task.log"
   echo "wall_secs $(( $(date +%s) - start )) task $task algos $ALGOS seeds $SEEDS config $CONFIG" \
     > "experiments/reacher/runs/$task.time"

@@ -213,7 +213,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         .map(|(step, ball)| format!("{ball}@{step}"))
         .collect();
     println!(
-        "wrote {}: episode {} [{}], {} steps, touches [{}], cancel {}",
+        "wrote {}: episode {} [{}], {} steps, touches [{}], cancel {}{}",
         args.out.display(),
         picture.episode,
         picture.phase,
@@ -221,7 +221,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
         touches.join(" "),
         picture
             .cancel_step
-            .map_or("none".to_string(), |s| format!("at step {s}"))
+            .map_or("none".to_string(), |s| format!("at step {s}")),
+        picture
+            .branch
+            .map_or(String::new(), |b| format!(", {b} branch"))
     );
     Ok(())
 }
@@ -457,6 +460,7 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
     )?;
     logger.finish()?;
     let demo_successes = demos.iter().filter(|d| d.success).count();
+    let demo_branches = rx::branch_tally(task, &demos)?;
 
     let summary = rx::ExpertRunSummary {
         task: task.name().into(),
@@ -476,6 +480,9 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         cancel_successes_stochastic: stochastic.cancel_successes,
         cancel_episodes_mean: mean.cancel_episodes,
         cancel_successes_mean: mean.cancel_successes,
+        branches_stochastic: stochastic.branches,
+        branches_mean: mean.branches,
+        demo_branches,
         demos: demos.len(),
         demo_successes,
         git_commit: smirl::GIT_COMMIT.into(),
@@ -499,6 +506,11 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         mean.cancel_successes,
         mean.cancel_episodes
     );
+    if let (Some(st), Some(me), Some(de)) = (stochastic.branches, mean.branches, demo_branches) {
+        println!("branches, stochastic: {st}");
+        println!("branches, mean action: {me}");
+        println!("branches, the {} demonstrations: {de}", demos.len());
+    }
     println!(
         "wrote {} (checkpoint), {}, {}, {}, {} and {}",
         checkpoint.display(),

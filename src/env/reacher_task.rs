@@ -177,3 +177,141 @@ pub enum TaskEnvError {
     #[error("{0}")]
     Rm(String),
 }
+
+/// Which way an episode of a conditional task (IF, Composite) went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Branch {
+    /// The cancel event did not come before blue was touched (no cancel, or a late one).
+    Normal,
+    /// The cancel event came before blue was touched: blue is off the task.
+    Cancelled,
+}
+
+impl Branch {
+    pub const ALL: [Branch; 2] = [Branch::Normal, Branch::Cancelled];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Branch::Normal => "normal",
+            Branch::Cancelled => "cancel",
+        }
+    }
+
+    /// Position in [`Branch::ALL`] (for per-branch counters).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl fmt::Display for Branch {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Label bit of the blue ball (the sub-goal a cancel removes).
+const BLUE_BIT: usize = 2;
+
+/// The states of a task's perfect machine that belong to its "unless cancel" branch: those
+/// in which touching blue fails the task. Read off the machine, so the branch of an episode
+/// is a function of the perfect machine's trace along it; a machine without such states
+/// (OR, Sequential) has no branches.
+#[derive(Clone, Debug)]
+pub struct CancelBranch {
+    cancelled: Vec<bool>,
+}
+
+impl CancelBranch {
+    /// `None` when the machine has no cancel branch.
+    pub fn of(rm: &RewardMachine) -> Option<CancelBranch> {
+        let blue = LabelSet::EMPTY.with(BLUE_BIT);
+        let cancelled: Vec<bool> = (0..rm.n_states())
+            .map(|u| !rm.is_absorbing(u) && rm.is_failure(rm.next_state(u, blue)))
+            .collect();
+        cancelled
+            .iter()
+            .any(|&c| c)
+            .then_some(CancelBranch { cancelled })
+    }
+
+    /// The state belongs to the cancel branch.
+    pub fn is_cancelled(&self, u: usize) -> bool {
+        self.cancelled.get(u).copied().unwrap_or(false)
+    }
+
+    /// The branch of an episode from the perfect machine's states along it.
+    pub fn of_states(&self, states: impl IntoIterator<Item = usize>) -> Branch {
+        if states.into_iter().any(|u| self.is_cancelled(u)) {
+            Branch::Cancelled
+        } else {
+            Branch::Normal
+        }
+    }
+
+    /// The branch of an episode from its label trace, tracking `rm` (the machine this was
+    /// built from) from its initial state.
+    pub fn of_labels(
+        &self,
+        rm: &RewardMachine,
+        labels: impl IntoIterator<Item = LabelSet>,
+    ) -> Branch {
+        let mut u = rm.initial();
+        self.of_states(std::iter::once(u).chain(labels.into_iter().map(move |l| {
+            u = rm.next_state(u, l);
+            u
+        })))
+    }
+}
+
+/// Episodes and successes per [`Branch`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct BranchTally {
+    /// Episodes per branch, in [`Branch::ALL`] order.
+    pub episodes: [u64; 2],
+    pub successes: [u64; 2],
+}
+
+impl BranchTally {
+    pub fn add(&mut self, branch: Branch, success: bool) {
+        self.episodes[branch.index()] += 1;
+        self.successes[branch.index()] += u64::from(success);
+    }
+
+    /// Success rate on the branch's episodes (`None` without any).
+    pub fn rate(&self, branch: Branch) -> Option<f64> {
+        let i = branch.index();
+        (self.episodes[i] > 0).then(|| self.successes[i] as f64 / self.episodes[i] as f64)
+    }
+
+    /// Share of all episodes that took the branch.
+    pub fn share(&self, branch: Branch) -> f64 {
+        let total: u64 = self.episodes.iter().sum();
+        self.episodes[branch.index()] as f64 / total.max(1) as f64
+    }
+
+    /// The lower of the branch success rates, over the branches that occurred: the headline
+    /// success of a conditional task (a policy that ignores the cancel must not score the
+    /// mean of a solved and a failed branch).
+    pub fn worst_rate(&self) -> Option<f64> {
+        Branch::ALL
+            .iter()
+            .filter_map(|&b| self.rate(b))
+            .reduce(f64::min)
+    }
+}
+
+impl fmt::Display for BranchTally {
+    /// `normal 48/50, cancel 47/50 (50 % of episodes)`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let [n, c] = [Branch::Normal, Branch::Cancelled].map(|b| b.index());
+        write!(
+            f,
+            "normal {}/{}, cancel {}/{} successful (cancel branch in {:.0} % of episodes)",
+            self.successes[n],
+            self.episodes[n],
+            self.successes[c],
+            self.episodes[c],
+            100.0 * self.share(Branch::Cancelled)
+        )
+    }
+}

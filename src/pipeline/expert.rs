@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 /// Settings of an expert run. Defaults ([`expert_sac`]): the paper's expert SAC ((64, 64)
 /// ReLU, batch 100, replay 10⁶) but with α tuned automatically (starting at 0.2) and Adam
 /// lr 1e-3 instead of 3e-3, for 150 000 steps instead of 10⁶, checkpoints every 25 000
-/// steps, 100 evaluation episodes, sub-goal shaping of scale 0.2. Why (measured on
+/// steps, 200 evaluation episodes (about 100 per branch of IF and Composite), sub-goal shaping of scale 0.2. Why (measured on
 /// ReacherDelivery, see `experiments/experts/results.md`): with the paper's fixed α = 0.2 the
 /// policy stays too random to touch 2 cm balls and no task is solved in 10⁵ steps; with
 /// tuned α and lr 3e-3, OR and Sequential are solved but IF stalls at 0.5 and Composite at 0
@@ -67,7 +67,7 @@ impl Default for ExpertConfig {
             sac: expert_sac(),
             total_steps: 150_000,
             checkpoint_every: 25_000,
-            eval_episodes: 100,
+            eval_episodes: 200,
             eval_max_steps: 10_000,
             progress_window: 100,
             shaping_scale: 0.2,

@@ -22,7 +22,9 @@ use crate::env::product::{Potential, ProductEnv};
 use crate::env::reacher::{
     default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, CANCEL_BIT, OBS_DIM, VOCABULARY,
 };
-use crate::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
+use crate::env::reacher_task::{
+    task_env, Branch, BranchTally, CancelBranch, ReacherTask, SubgoalPotential,
+};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::log::{LogError, RolloutLogger, RunHeader};
 use crate::nn::codec::{read_file, save_file, ByteReader, ByteWriter, CodecError, FileError};
@@ -353,6 +355,8 @@ pub struct EvalSummary {
     /// Episodes in which the cancel event fired, and how many of them succeeded.
     pub cancel_episodes: u64,
     pub cancel_successes: u64,
+    /// Conditional tasks (IF, Composite): episodes and successes per branch.
+    pub branches: Option<BranchTally>,
 }
 
 impl Demo {
@@ -360,6 +364,28 @@ impl Demo {
     pub fn cancelled(&self) -> bool {
         self.steps.iter().any(|s| s.labels.contains(CANCEL_BIT))
     }
+
+    /// The branch the episode took, from the perfect machine's states along it.
+    pub fn branch(&self, branches: &CancelBranch) -> Branch {
+        branches.of_states(
+            std::iter::once(self.initial_rm_state).chain(self.steps.iter().map(|s| s.rm_state)),
+        )
+    }
+}
+
+/// Episodes and successes per branch of `demos` (`None` for a task without branches).
+pub fn branch_tally(task: ReacherTask, demos: &[Demo]) -> Result<Option<BranchTally>, ExpertError> {
+    let rm = task.perfect_rm().map_err(|e| ExpertError::Task {
+        task: task.name().into(),
+        problem: e.to_string(),
+    })?;
+    Ok(CancelBranch::of(&rm).map(|branches| {
+        let mut tally = BranchTally::default();
+        for d in demos {
+            tally.add(d.branch(&branches), d.success);
+        }
+        tally
+    }))
 }
 
 /// Plays `episodes` episodes of `policy` on its task (no shaping), resets seeded by
@@ -384,6 +410,7 @@ pub fn evaluate_policy(
         mean_length: demos.iter().map(|d| d.steps.len() as f64).sum::<f64>() / n,
         cancel_episodes: demos.iter().filter(|d| d.cancelled()).count() as u64,
         cancel_successes: demos.iter().filter(|d| d.cancelled() && d.success).count() as u64,
+        branches: branch_tally(policy.task(), &demos)?,
     })
 }
 
@@ -682,6 +709,11 @@ pub struct ExpertRunSummary {
     pub cancel_successes_stochastic: u64,
     pub cancel_episodes_mean: u64,
     pub cancel_successes_mean: u64,
+    /// Conditional tasks: evaluation episodes and successes per branch (normal, cancel).
+    pub branches_stochastic: Option<BranchTally>,
+    pub branches_mean: Option<BranchTally>,
+    /// Conditional tasks: the demonstrations per branch.
+    pub demo_branches: Option<BranchTally>,
     pub demos: usize,
     pub demo_successes: usize,
     pub git_commit: String,

@@ -9,9 +9,11 @@
 
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
+use crate::env::reacher_task::{Branch, CancelBranch};
 use crate::log::{LoggedEpisode, RolloutLog};
 use crate::mujoco::{Data, Model, ObjectKind};
 use crate::report::raster::{Canvas, Rgb};
+use crate::rm::LabelSet;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -57,6 +59,9 @@ pub struct EpisodePicture {
     pub touches: Vec<(usize, char)>,
     /// 1-based cancel step, when the cancel event fired within the logged steps.
     pub cancel_step: Option<usize>,
+    /// For a conditional task (IF, Composite): the branch the episode took, by the run's
+    /// reward machine along the logged labels.
+    pub branch: Option<Branch>,
     /// Ball centres in pixels, in [`BALLS`] order.
     pub ball_pixels: [(f64, f64); 4],
     /// Fingertip at the first and last state, in pixels.
@@ -272,8 +277,16 @@ pub fn render_episode(
         let x = at(step);
         canvas.line((x, top), (x, bottom), 2.0, Rgb::BLACK, 1.0);
     }
+    let branch = super::replay::run_reward_machine(log, &mut Vec::new())
+        .ok()
+        .flatten()
+        .and_then(|(rm, _)| {
+            let branches = CancelBranch::of(&rm)?;
+            Some(branches.of_labels(&rm, ep.steps.iter().map(|s| LabelSet(s.labels))))
+        });
     Ok(EpisodePicture {
         canvas,
+        branch,
         episode: ep.start.episode,
         phase: ep.start.phase.clone(),
         steps: ep.steps.len(),

@@ -13,6 +13,7 @@
 //! (replay still uses the stored one, which is what the run used).
 
 use crate::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
+use crate::env::reacher_task::{Branch, CancelBranch};
 use crate::env::ContinuousEnv;
 use crate::log::schema::{sha256_hex, NO_RM};
 use crate::log::{LoggedEpisode, RolloutLog};
@@ -68,6 +69,8 @@ pub struct EpisodeReplay {
     pub seed_reproduces_start: bool,
     /// The logged reward-machine states and rewards were re-tracked and compared.
     pub rm_checked: bool,
+    /// For a conditional task (IF, Composite): the branch the replayed labels took.
+    pub branch: Option<Branch>,
 }
 
 /// The outcome of a whole replay.
@@ -239,7 +242,7 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
 /// machine states) the shipped machine of the run's task. Notes where it came from and
 /// whether it differs from the shipped one; a stored machine that does not parse is an error
 /// (a damaged file).
-fn run_reward_machine(
+pub(crate) fn run_reward_machine(
     log: &RolloutLog,
     notes: &mut Vec<String>,
 ) -> Result<Option<(RewardMachine, String)>, String> {
@@ -352,7 +355,10 @@ fn replay_episode(
         mismatch: None,
         seed_reproduces_start,
         rm_checked: false,
+        branch: None,
     };
+    let branches = rm.and_then(|rm| CancelBranch::of(rm).map(|b| (rm, b)));
+    let mut replayed_labels = Vec::with_capacity(ep.steps.len());
     let mismatch = |step: usize, (what, logged, replayed): (String, String, String)| Mismatch {
         step,
         what,
@@ -429,6 +435,7 @@ fn replay_episode(
             }
         };
         result.env_return += out.reward;
+        replayed_labels.push(out.labels);
         if !out.labels.is_empty() {
             if !result.label_events.is_empty() {
                 result.label_events.push(' ');
@@ -471,6 +478,7 @@ fn replay_episode(
             break;
         }
     }
+    result.branch = branches.map(|(rm, b)| b.of_labels(rm, replayed_labels));
     if let (Some(c), Some(end), None) = (&rm_check, &ep.end, &result.mismatch) {
         let n = ep.steps.len();
         if end.rm_state != c.state as i64 {
@@ -515,7 +523,7 @@ impl fmt::Display for ReplayReport {
             };
             writeln!(
                 f,
-                "episode {:>5} [{}] seed {:>6}: {:>4} steps{}, return {:>9.3}, labels [{}]: {status}{}",
+                "episode {:>5} [{}] seed {:>6}: {:>4} steps{}, return {:>9.3}, labels [{}]{}: {status}{}",
                 e.episode,
                 e.phase,
                 e.seed,
@@ -523,6 +531,7 @@ impl fmt::Display for ReplayReport {
                 if e.complete { "" } else { " (unfinished)" },
                 e.env_return,
                 e.label_events,
+                e.branch.map_or(String::new(), |b| format!(", {b} branch")),
                 if e.seed_reproduces_start {
                     ""
                 } else {

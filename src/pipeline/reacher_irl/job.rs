@@ -8,6 +8,7 @@ use super::config::IrlRunConfig;
 use super::Algo;
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP};
+use crate::env::reacher_task::{Branch, BranchTally, CancelBranch};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::irl::firl::{FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
 use crate::irl::kde::Kde;
@@ -60,8 +61,11 @@ impl ExpertData {
 pub struct MetricsRow {
     pub iteration: usize,
     pub env_steps: u64,
-    /// Fraction of evaluation episodes in which the task's perfect machine reached its goal.
+    /// Fraction of evaluation episodes in which the task's perfect machine reached its goal;
+    /// for a conditional task (IF, Composite) the lower of the two branches' rates.
     pub success_rate: f64,
+    /// Conditional tasks: evaluation episodes and successes per branch.
+    pub branches: Option<BranchTally>,
     /// Mean sum of the perfect machine's rewards.
     pub task_return: f64,
     /// Mean sum of the environment's own (distance) rewards.
@@ -417,18 +421,22 @@ pub fn reward_model(
 #[derive(Clone, Copy, Debug, Default)]
 struct EpisodeOutcome {
     success: bool,
+    /// The branch taken, for a conditional task.
+    branch: Option<Branch>,
     task_return: f64,
     env_return: f64,
 }
 
 /// Plays one episode. The perfect machine is tracked on the labels for the ground truth;
 /// `stop_when_decided` ends the episode once it reaches its goal or failure sink (evaluation).
-/// `on_step(inner o_{t+1}, learned u_t)` sees every step.
+/// `on_step(inner o_{t+1}, learned u_t)` sees every step. With `branches`, the outcome says
+/// which branch of the conditional task the perfect machine's trace took.
 #[allow(clippy::too_many_arguments)]
 fn play_episode(
     agent: &mut SacAgent,
     env: &mut JobEnv,
     perfect: &RewardMachine,
+    branches: Option<&CancelBranch>,
     mode: ActMode,
     reset_seed: u64,
     stop_when_decided: bool,
@@ -442,6 +450,7 @@ fn play_episode(
     env.reset(reset_seed, &mut obs);
     let mut up = perfect.initial();
     let mut out = EpisodeOutcome::default();
+    let mut cancelled = branches.is_some_and(|b| b.is_cancelled(up));
     if let Some((l, phase)) = logger.as_mut() {
         l.begin_reacher_episode(env.reacher(), reset_seed, phase, Some(up), &obs[..OBS_DIM])
             .map_err(|e| e.to_string())?;
@@ -455,6 +464,7 @@ fn play_episode(
             .map_err(|e| e.to_string())?;
         let (u_next, r) = perfect.step(up, step.labels);
         up = u_next;
+        cancelled |= branches.is_some_and(|b| b.is_cancelled(up));
         out.task_return += r;
         out.env_return += env_reward;
         out.success |= perfect.is_terminal(up) && !perfect.is_failure(up);
@@ -479,7 +489,59 @@ fn play_episode(
     if let Some((l, _)) = logger.as_mut() {
         l.end_episode(out.success).map_err(|e| e.to_string())?;
     }
+    out.branch = branches.map(|_| {
+        if cancelled {
+            Branch::Cancelled
+        } else {
+            Branch::Normal
+        }
+    });
     Ok(out)
+}
+
+/// One ground-truth evaluation.
+struct Evaluation {
+    success_rate: f64,
+    branches: Option<BranchTally>,
+    task_return: f64,
+    env_return: f64,
+}
+
+/// Reset seeds of a conditional task's evaluation: the first `per_branch` seeds of the
+/// `eval_seed` stream whose reset schedules a cancel event and the first `per_branch` that
+/// schedule none, in stream order. (The branch an episode takes is read from its trace
+/// afterwards; with the default window (steps 1–8), which ends before the committed experts
+/// touch blue, a scheduled cancel almost always means the cancel branch.) A schedule that never (or always) cancels fills up with
+/// the next seeds of the stream, so there are always `2 · per_branch` seeds.
+pub fn stratified_eval_seeds(
+    env: &mut ReacherDelivery,
+    eval_seed: u64,
+    per_branch: u64,
+) -> Vec<u64> {
+    let mut obs = vec![0.0f32; OBS_DIM];
+    let target = 2 * per_branch as usize;
+    let mut counts = [0u64; 2];
+    let mut chosen = Vec::with_capacity(target);
+    let scan = 64 * per_branch;
+    for i in 0..scan {
+        let seed = episode_seed(eval_seed, i);
+        env.reset(seed, &mut obs);
+        let k = usize::from(env.cancel_step().is_some());
+        if counts[k] < per_branch {
+            counts[k] += 1;
+            chosen.push((i, seed));
+        }
+        if chosen.len() == target {
+            break;
+        }
+    }
+    let mut i = scan;
+    while chosen.len() < target {
+        chosen.push((i, episode_seed(eval_seed, i)));
+        i += 1;
+    }
+    chosen.sort_unstable();
+    chosen.into_iter().map(|(_, seed)| seed).collect()
 }
 
 /// Everything one job reads.
@@ -556,6 +618,19 @@ pub fn run_job(
     // Separate streams: rollouts and evaluation never perturb SAC's own RNG.
     let mut rollout_rng = ChaCha8Rng::seed_from_u64(episode_seed(seed, 0x0a11_0a11));
     let eval_seed = episode_seed(seed, 0xe7a1);
+    // Conditional tasks: evaluation episodes stratified by the cancel schedule, so that each
+    // branch gets about `eval_episodes` of them.
+    let branches = CancelBranch::of(perfect_rm);
+    let eval_seeds = match branches {
+        Some(_) => {
+            let mut schedule =
+                ReacherDelivery::new(s.env.clone()).map_err(|e| fail(e.to_string()))?;
+            stratified_eval_seeds(&mut schedule, eval_seed, s.eval_episodes)
+        }
+        None => (0..s.eval_episodes)
+            .map(|i| episode_seed(eval_seed, i))
+            .collect(),
+    };
     let total_env_steps = s.sac_steps_per_iteration * s.irl_iterations as u64;
     let mut rows = Vec::with_capacity(s.irl_iterations + 1);
     let mut rollout_index = 0u64;
@@ -564,17 +639,19 @@ pub fn run_job(
     let evaluate = |agent: &mut SacAgent,
                     env: &mut JobEnv,
                     logger: Option<&mut RolloutLogger>|
-     -> Result<(f64, f64, f64), String> {
+     -> Result<Evaluation, String> {
         let mut rng = ChaCha8Rng::seed_from_u64(eval_seed);
         let mut logger = logger;
         let (mut succ, mut ret, mut env_ret) = (0.0, 0.0, 0.0);
-        for i in 0..s.eval_episodes {
+        let mut tally = BranchTally::default();
+        for &reset_seed in &eval_seeds {
             let o = play_episode(
                 agent,
                 env,
                 perfect_rm,
+                branches.as_ref(),
                 ActMode::Mean,
-                episode_seed(eval_seed, i),
+                reset_seed,
                 true,
                 &mut rng,
                 logger.as_deref_mut().map(|l| (l, "eval")),
@@ -583,18 +660,29 @@ pub fn run_job(
             succ += f64::from(u8::from(o.success));
             ret += o.task_return;
             env_ret += o.env_return;
+            if let Some(b) = o.branch {
+                tally.add(b, o.success);
+            }
         }
-        let n = s.eval_episodes as f64;
-        Ok((succ / n, ret / n, env_ret / n))
+        let n = eval_seeds.len() as f64;
+        let branches = branches.as_ref().map(|_| tally);
+        Ok(Evaluation {
+            success_rate: branches.and_then(|t| t.worst_rate()).unwrap_or(succ / n),
+            branches,
+            task_return: ret / n,
+            env_return: env_ret / n,
+        })
     };
 
-    let (sr, tr, er) = evaluate(&mut trainer.agent, &mut env, None).map_err(fail)?;
+    let ev = evaluate(&mut trainer.agent, &mut env, None).map_err(fail)?;
+    let sr = ev.success_rate;
     rows.push(MetricsRow {
         iteration: 0,
         env_steps: 0,
         success_rate: sr,
-        task_return: tr,
-        env_return: er,
+        branches: ev.branches,
+        task_return: ev.task_return,
+        env_return: ev.env_return,
         learned_reward: 0.0,
         surrogate_loss: 0.0,
     });
@@ -678,6 +766,7 @@ pub fn run_job(
                 &mut trainer.agent,
                 &mut env,
                 perfect_rm,
+                None,
                 ActMode::Sample,
                 reset_seed,
                 false,
@@ -737,14 +826,15 @@ pub fn run_job(
             });
         }
         // Ground-truth evaluation.
-        let (sr, tr, er) =
-            evaluate(&mut trainer.agent, &mut env, logger.as_deref_mut()).map_err(fail)?;
+        let ev = evaluate(&mut trainer.agent, &mut env, logger.as_deref_mut()).map_err(fail)?;
+        let sr = ev.success_rate;
         rows.push(MetricsRow {
             iteration,
             env_steps: trainer.env_steps(),
             success_rate: sr,
-            task_return: tr,
-            env_return: er,
+            branches: ev.branches,
+            task_return: ev.task_return,
+            env_return: ev.env_return,
             learned_reward,
             surrogate_loss,
         });

@@ -5,9 +5,13 @@
 //! - `config.toml` — the effective configuration; `run.json` — task, algorithms, seeds,
 //!   demo and RM facts, wall times, git commit.
 //! - `metrics.csv` — one row per (algorithm, seed, IRL iteration): ground-truth success rate
-//!   and returns (no wall times, so the same seed gives the same file bit for bit).
-//! - `summary.csv`, `summary.md` — final success/return mean ± std over seeds per algorithm.
-//! - `success.svg`, `task_return.svg` — mean ± std over seeds vs environment steps.
+//!   and returns (no wall times, so the same seed gives the same file bit for bit); for IF and
+//!   Composite also the success rate and episode count of each branch (`success_normal`,
+//!   `success_cancel`, …), and `success_rate` is the lower of the two branch rates.
+//! - `summary.csv`, `summary.md` — final success/return (and, for IF and Composite, each
+//!   branch's success) mean ± std over seeds per algorithm.
+//! - `success.svg`, `task_return.svg` — mean ± std over seeds vs environment steps; for IF and
+//!   Composite also `success_branches.svg`, each branch's success per algorithm.
 //! - `rm/` — `perfect.txt`/`.dot`, and for SMIRL `learned.txt`/`.dot` and `report.txt`.
 //! - `rewards/<algo>_seed<S>.*` — learned reward parameters; for SMIRL also
 //!   `rewards/<algo>_seed<S>.trace.csv`, the weights and data gradient of every IRL iteration.
@@ -19,7 +23,7 @@ use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardT
 use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::{default_xml_path, OBS_CANCEL, VOCABULARY};
-use crate::env::reacher_task::ReacherTask;
+use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use crate::irl::smirl::FeatureMap;
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
 use crate::pipeline::reacher_expert::Demo;
@@ -97,6 +101,9 @@ pub struct AlgoSummary {
     pub final_success_std: f64,
     pub final_return_mean: f64,
     pub final_return_std: f64,
+    /// Conditional tasks: final success on each branch's evaluation episodes, mean and std
+    /// over seeds, in [`Branch::ALL`] order.
+    pub final_branch_success: Option<[(f64, f64); 2]>,
     /// Mean wall time of a job (seconds).
     pub job_secs_mean: f64,
 }
@@ -108,6 +115,8 @@ pub struct RunSummary {
     pub task: String,
     pub demos_kept: usize,
     pub demos_generated: usize,
+    /// Conditional tasks: the kept demonstrations per branch.
+    pub demo_branches: Option<BranchTally>,
     pub rm: Option<RmFacts>,
     pub algos: Vec<AlgoSummary>,
     pub wall_secs: f64,
@@ -305,11 +314,23 @@ pub fn run_pipeline(
             "none of the {demos_generated} demonstrations completes task '{task}'"
         )));
     }
+    let demo_branches = CancelBranch::of(&perfect).map(|branches| {
+        let mut tally = BranchTally::default();
+        for d in &demos {
+            tally.add(d.branch(&branches), d.success);
+        }
+        tally
+    });
     observer.message(&format!(
-        "demonstrations: {} of {demos_generated} complete the task ({} source), {} steps",
+        "demonstrations: {} of {demos_generated} complete the task ({} source), {} steps{}",
         demos.len(),
         config.demo_source.name(),
-        demos.iter().map(|d| d.steps.len()).sum::<usize>()
+        demos.iter().map(|d| d.steps.len()).sum::<usize>(),
+        demo_branches.map_or(String::new(), |t| format!(
+            "; {} take the normal branch, {} the cancel branch",
+            t.episodes[Branch::Normal.index()],
+            t.episodes[Branch::Cancelled.index()]
+        ))
     ));
 
     // 2. Reward machine (SMIRL only).
@@ -435,9 +456,19 @@ pub fn run_pipeline(
         "env_return",
         "learned_reward",
         "surrogate_loss",
+        "success_normal",
+        "success_cancel",
+        "episodes_normal",
+        "episodes_cancel",
     ]);
     for r in &results {
         for row in &r.rows {
+            let branch = |f: &dyn Fn(&BranchTally, Branch) -> String| -> [String; 2] {
+                Branch::ALL.map(|b| row.branches.as_ref().map_or(String::new(), |t| f(t, b)))
+            };
+            let [rate_normal, rate_cancel] =
+                branch(&|t, b| t.rate(b).map_or(String::new(), |x| format!("{x}")));
+            let [n_normal, n_cancel] = branch(&|t, b| t.episodes[b.index()].to_string());
             metrics.push([
                 r.algo.name().to_string(),
                 r.seed.to_string(),
@@ -448,6 +479,10 @@ pub fn run_pipeline(
                 format!("{:.6}", row.env_return),
                 format!("{:.6}", row.learned_reward),
                 format!("{:.6}", row.surrogate_loss),
+                rate_normal,
+                rate_cancel,
+                n_normal,
+                n_cancel,
             ]);
         }
     }
@@ -465,9 +500,16 @@ pub fn run_pipeline(
         "environment steps",
         "task return",
     );
+    let conditional = CancelBranch::of(&perfect).is_some();
+    let mut branch_plot = LinePlot::new(
+        &format!("ReacherDelivery {task}: success per branch"),
+        "environment steps",
+        "success rate",
+    );
+    branch_plot.y_range = Some((0.0, 1.0));
     for &algo in algos {
         let runs: Vec<&JobResult> = results.iter().filter(|r| r.algo == algo).collect();
-        let curve = |f: fn(&super::MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
+        let curve = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
             runs.iter()
                 .map(|r| {
                     r.rows
@@ -477,21 +519,35 @@ pub fn run_pipeline(
                 })
                 .collect()
         };
+        // A branch without evaluation episodes counts as failed (it cannot be shown solved).
+        let branch_rate = |row: &super::MetricsRow, b: Branch| -> f64 {
+            row.branches.and_then(|t| t.rate(b)).unwrap_or(0.0)
+        };
+        if conditional {
+            for b in Branch::ALL {
+                branch_plot.series.push(Series {
+                    name: format!("{} ({b})", algo.name()),
+                    points: aggregate_over_seeds(&curve(&|r| branch_rate(r, b))),
+                });
+            }
+        }
         success_plot.series.push(Series {
             name: algo.name().into(),
-            points: aggregate_over_seeds(&curve(|r| r.success_rate)),
+            points: aggregate_over_seeds(&curve(&|r| r.success_rate)),
         });
         return_plot.series.push(Series {
             name: algo.name().into(),
-            points: aggregate_over_seeds(&curve(|r| r.task_return)),
+            points: aggregate_over_seeds(&curve(&|r| r.task_return)),
         });
-        let last = |f: fn(&super::MetricsRow) -> f64| -> Vec<f64> {
+        let last = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Vec<f64> {
             runs.iter()
                 .map(|r| f(r.rows.last().expect("iteration 0 row")))
                 .collect()
         };
-        let (sm, ss) = mean_std(&last(|r| r.success_rate));
-        let (rm_, rs) = mean_std(&last(|r| r.task_return));
+        let (sm, ss) = mean_std(&last(&|r| r.success_rate));
+        let (rm_, rs) = mean_std(&last(&|r| r.task_return));
+        let final_branch_success =
+            conditional.then(|| Branch::ALL.map(|b| mean_std(&last(&|r| branch_rate(r, b)))));
         let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
         summaries.push(AlgoSummary {
             algo: algo.name().into(),
@@ -500,11 +556,15 @@ pub fn run_pipeline(
             final_success_std: ss,
             final_return_mean: rm_,
             final_return_std: rs,
+            final_branch_success,
             job_secs_mean: wm,
         });
     }
     write_file(&partial.join("success.svg"), &success_plot.to_svg())?;
     write_file(&partial.join("task_return.svg"), &return_plot.to_svg())?;
+    if conditional {
+        write_file(&partial.join("success_branches.svg"), &branch_plot.to_svg())?;
+    }
     let mut table = CsvTable::new([
         "task",
         "algo",
@@ -513,8 +573,22 @@ pub fn run_pipeline(
         "final_success_std",
         "final_return_mean",
         "final_return_std",
+        "final_success_normal_mean",
+        "final_success_normal_std",
+        "final_success_cancel_mean",
+        "final_success_cancel_std",
     ]);
     for s in &summaries {
+        let [(nm, ns), (cm, cs)] = s
+            .final_branch_success
+            .map_or([(f64::NAN, f64::NAN); 2], |b| b);
+        let cell = |x: f64| {
+            if x.is_nan() {
+                String::new()
+            } else {
+                format!("{x:.3}")
+            }
+        };
         table.push([
             task.name().to_string(),
             s.algo.clone(),
@@ -523,6 +597,10 @@ pub fn run_pipeline(
             format!("{:.3}", s.final_success_std),
             format!("{:.3}", s.final_return_mean),
             format!("{:.3}", s.final_return_std),
+            cell(nm),
+            cell(ns),
+            cell(cm),
+            cell(cs),
         ]);
     }
     write_file(&partial.join("summary.csv"), &table.to_csv())?;
@@ -535,6 +613,7 @@ pub fn run_pipeline(
         task: task.name().into(),
         demos_kept: demos.len(),
         demos_generated,
+        demo_branches,
         rm: rm_facts,
         algos: summaries,
         wall_secs: started.elapsed().as_secs_f64(),
@@ -653,15 +732,29 @@ pub fn summary_markdown(
     rm: Option<&RmFacts>,
 ) -> String {
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "| task | algorithm | seeds | final success | final task return | job wall time (s) |"
-    );
-    let _ = writeln!(s, "|---|---|---|---|---|---|");
-    for a in summaries {
+    let conditional = summaries.iter().any(|a| a.final_branch_success.is_some());
+    if conditional {
         let _ = writeln!(
             s,
-            "| {task} | {} | {} | {:.2} ± {:.2} | {:.2} ± {:.2} | {:.0} |",
+            "| task | algorithm | seeds | final success (lower branch) | normal branch | cancel branch | final task return | job wall time (s) |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    } else {
+        let _ = writeln!(
+            s,
+            "| task | algorithm | seeds | final success | final task return | job wall time (s) |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|---|---|");
+    }
+    for a in summaries {
+        let branches = match a.final_branch_success {
+            Some([(nm, ns), (cm, cs)]) => format!(" {nm:.2} ± {ns:.2} | {cm:.2} ± {cs:.2} |"),
+            None if conditional => " | |".to_string(),
+            None => String::new(),
+        };
+        let _ = writeln!(
+            s,
+            "| {task} | {} | {} | {:.2} ± {:.2} |{branches} {:.2} ± {:.2} | {:.0} |",
             a.algo,
             a.seeds,
             a.final_success_mean,
