@@ -1,5 +1,6 @@
-//! Build script of the `smirl` package: records where the shipped assets live and which git
-//! commit the binary was built from, so run logs can name both.
+//! Build script of the `smirl` package: records which git commit the binary was built from,
+//! so run logs can name it. (The shipped assets are built into the binary by `src/assets.rs`,
+//! so nothing here ties the binary to the checkout.)
 
 use std::process::Command;
 
@@ -16,7 +17,6 @@ fn git(manifest: &str, args: &[&str]) -> Option<String> {
 
 fn main() {
     let manifest = std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR");
-    println!("cargo:rustc-env=SMIRL_ASSETS_DIR={manifest}/assets");
     let commit = git(&manifest, &["rev-parse", "HEAD"]).unwrap_or_default();
     println!("cargo:rustc-env=SMIRL_GIT_COMMIT={commit}");
     println!("cargo:rerun-if-changed=build.rs");

@@ -17,9 +17,11 @@
 //!     log (MCAP)  ->  pipeline  ->  report (plots, tables)
 //! ```
 //!
-//! `atomic_file` (the atomic write every saved file goes through) imports nothing and serves
-//! every layer.
+//! `atomic_file` (the atomic write every saved file goes through), `assets` (the model,
+//! reward machines and committed experts built into the binaries) and `short_float` (serde
+//! helpers for readable configs) import nothing of the crate and serve every layer.
 
+pub mod assets;
 pub mod atomic_file;
 pub mod env;
 pub mod irl;
@@ -30,9 +32,7 @@ pub mod pipeline;
 pub mod report;
 pub mod rl;
 pub mod rm;
-
-/// Directory of the shipped assets (`assets/`), fixed at build time.
-pub const ASSETS_DIR: &str = env!("SMIRL_ASSETS_DIR");
+pub mod short_float;
 
 /// Git commit the crate was built from, empty when unknown.
 pub const GIT_COMMIT: &str = env!("SMIRL_GIT_COMMIT");

@@ -8,9 +8,7 @@ use smirl::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery, CANCEL_B
 use smirl::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use smirl::env::ContinuousEnv;
 use smirl::pipeline::expert::ExpertConfig;
-use smirl::pipeline::reacher_expert::{
-    default_cache_dir, evaluate_policy, expert_cache_path, ExpertPolicy,
-};
+use smirl::pipeline::reacher_expert::{committed_expert, evaluate_policy, ExpertPolicy};
 use smirl::pipeline::reacher_irl::job::stratified_eval_seeds;
 use smirl::pipeline::reacher_irl::IrlRunConfig;
 use smirl::rl::sac::{episode_seed, ActMode};
@@ -147,8 +145,7 @@ fn default_schedule_cancels_half_the_episodes_early() {
 
 /// The committed expert of `task`.
 fn committed(task: ReacherTask) -> ExpertPolicy {
-    let path = expert_cache_path(&default_cache_dir(), task);
-    ExpertPolicy::load(&path, task, &ExpertConfig::default().sac.hidden)
+    committed_expert(task, &ExpertConfig::default().sac.hidden)
         .unwrap_or_else(|e| panic!("committed expert: {e}"))
 }
 

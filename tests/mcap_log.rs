@@ -1,7 +1,7 @@
 //! Rollout log: write → read round trips, sampling, drop safety, truncation recovery, bad
 //! files, determinism, and the official Python reader.
 
-use smirl::env::reacher::{default_xml_path, ReacherConfig};
+use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::schema::{sha256_hex, NO_RM, SCHEMA_VERSION};
 use smirl::log::writer::EpisodeStartRecord;
@@ -12,12 +12,16 @@ use smirl::rm::LabelSet;
 use std::path::Path;
 use std::process::Command;
 
+fn shipped_xml() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/reacher_delivery.xml")
+}
+
 fn header() -> RunHeader {
     let mut h = RunHeader::reacher(
         "sequential",
         42,
         serde_json::json!({"env": ReacherConfig::default(), "note": "round trip"}),
-        &default_xml_path(),
+        &shipped_xml(),
     )
     .unwrap();
     h.reward_machine = Some("vocabulary: rgbyc\nstates: 1\ninitial: 0\n".into());
@@ -137,7 +141,7 @@ fn every_message_type_round_trips() {
         .as_deref()
         .unwrap()
         .starts_with("vocabulary"));
-    let xml = std::fs::read_to_string(default_xml_path()).unwrap();
+    let xml = std::fs::read_to_string(shipped_xml()).unwrap();
     assert_eq!(read.model_xml.as_deref(), Some(xml.as_str()));
     assert_eq!(run.model_xml_sha256, sha256_hex(&xml));
     let config: serde_json::Value =

@@ -175,7 +175,7 @@ fn cancel_event_is_reproducible_and_fires_once() {
 
 #[test]
 fn arm_matches_gymnasium_reacher() {
-    let m = Model::from_xml_path(&default_xml_path()).unwrap();
+    let m = Model::from_xml_path(&shipped_xml()).unwrap();
     assert_eq!(m.timestep(), 0.01);
     assert!(m.uses_rk4());
     let j0 = m.id(ObjectKind::Joint, "joint0").unwrap();
@@ -328,7 +328,7 @@ fn malformed_xml_reports_mujocos_message_and_the_file() {
 
 #[test]
 fn unknown_names_and_wrong_models_are_errors() {
-    let m = Arc::new(Model::from_xml_path(&default_xml_path()).unwrap());
+    let m = Arc::new(Model::from_xml_path(&shipped_xml()).unwrap());
     let e = m.id(ObjectKind::Body, "purple").unwrap_err();
     assert!(e.to_string().contains("no body named 'purple'"), "{e}");
     assert!(m.id(ObjectKind::Joint, "red_x").is_ok());
@@ -365,7 +365,7 @@ fn invalid_configs_are_rejected() {
 
 #[test]
 fn data_state_setters_check_lengths() {
-    let m = Arc::new(Model::from_xml_path(&default_xml_path()).unwrap());
+    let m = Arc::new(Model::from_xml_path(&shipped_xml()).unwrap());
     let mut d = Data::new(m).unwrap();
     assert_eq!(d.qpos().len(), 10);
     assert!(d.set_qpos(&[0.0; 3]).is_err());
@@ -406,4 +406,15 @@ fn a_sweeping_arm_touches_at_most_one_ball_of_the_default_layout() {
             .unwrap();
         assert!(e.labels().contains(bit));
     }
+}
+
+/// The shipped model file (the binaries use the same text, built in: `smirl::assets`).
+fn shipped_xml() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/reacher_delivery.xml")
+}
+
+#[test]
+fn built_in_model_is_the_shipped_file() {
+    let file = std::fs::read_to_string(shipped_xml()).unwrap();
+    assert_eq!(smirl::assets::REACHER_XML, file);
 }

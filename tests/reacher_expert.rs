@@ -9,8 +9,7 @@ use smirl::env::reacher_task::ReacherTask;
 use smirl::nn::{FileError, Mlp, MlpArch};
 use smirl::pipeline::expert::{ExpertConfig, ExpertError};
 use smirl::pipeline::reacher_expert::{
-    default_cache_dir, evaluate_policy, expert_cache_path, generate_demos, ExpertPolicy,
-    PolicyFileError, PolicyInfo,
+    committed_expert, evaluate_policy, generate_demos, ExpertPolicy, PolicyFileError, PolicyInfo,
 };
 use smirl::rl::sac::ActMode;
 use std::process::Command;
@@ -135,8 +134,7 @@ fn policy_file_refusals_name_file_and_problem() {
 
 /// The committed expert of `task`.
 fn committed(task: ReacherTask) -> ExpertPolicy {
-    let path = expert_cache_path(&default_cache_dir(), task);
-    ExpertPolicy::load(&path, task, &ExpertConfig::default().sac.hidden)
+    committed_expert(task, &ExpertConfig::default().sac.hidden)
         .unwrap_or_else(|e| panic!("committed expert: {e}"))
 }
 

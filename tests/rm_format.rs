@@ -10,7 +10,7 @@ use smirl::rm::{perfect, Formula, LabelSet, RewardMachine, Transition};
 
 #[test]
 fn every_asset_round_trips() {
-    let dir = std::path::Path::new(smirl::ASSETS_DIR).join("rm");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm");
     let mut n = 0;
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
@@ -25,9 +25,20 @@ fn every_asset_round_trips() {
         n += 1;
     }
     assert_eq!(n, perfect::NAMES.len());
+    // The machines built into the binaries are the shipped files.
     for name in perfect::NAMES {
-        perfect::load(name).unwrap();
+        let file = dir.join(format!("{name}.txt"));
+        assert_eq!(
+            perfect::load(name).unwrap(),
+            read_rm(&file).unwrap(),
+            "{name}"
+        );
+        assert_eq!(
+            perfect::text(name).unwrap(),
+            std::fs::read_to_string(&file).unwrap()
+        );
     }
+    assert!(perfect::load("office_t9").is_err());
 }
 
 #[test]

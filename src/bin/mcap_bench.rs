@@ -10,7 +10,7 @@ use anyhow::Result;
 use clap::Parser;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use smirl::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, OBS_DIM};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM};
 use smirl::env::ContinuousEnv;
 use smirl::log::{read_log, LogOptions, RolloutLogger, RunHeader};
 use smirl::pipeline::replay::replay;
@@ -119,12 +119,11 @@ fn main() -> Result<()> {
         let cpu_plain = run(&mut env, &actions, args.episodes, None)?;
         let t_plain = wall.elapsed().as_secs_f64();
         let path = dir.join(format!("bench{rep}.mcap"));
-        let mut header = RunHeader::reacher(
+        let mut header = RunHeader::reacher_shipped(
             "sequential",
             rep as u64,
             serde_json::json!({"env": ReacherConfig::default()}),
-            &default_xml_path(),
-        )?;
+        );
         header.reward_machine = Some(smirl::rm::format::write_rm(&task_rm));
         let t = Instant::now();
         let cpu0 = thread_cpu_secs()?;

@@ -7,7 +7,10 @@
 //! - `reacher expert --task T`: train, evaluate and save the SAC expert of a task, with its
 //!   training curve, its training episodes and 16 demonstrations in MCAP.
 //!
-//! - `reacher --task T [--algo A] [--seeds N] [--quick] …`: the IRL pipeline (see `irl_cli`).
+//! - `reacher --task T [--algo A] [--seeds N] [--quick] …`: the IRL pipeline (see `irl_cli`),
+//!   in one process; the same run in three steps a scheduler can spread over machines:
+//!   `reacher prepare --task T … --out DIR`, `reacher job --run DIR --index I` (one per job),
+//!   `reacher aggregate DIR`.
 //!
 //! Exit status: 0 success, 1 failure while running, 2 bad arguments or config.
 
@@ -52,6 +55,13 @@ enum Command {
     Demo(DemoArgs),
     /// Train a task's SAC expert, evaluate it, save it and log 16 demonstrations.
     Expert(ExpertArgs),
+    /// Step 1 of a run: demonstrations, learned machine and config into a run directory
+    /// (takes the same options as `reacher --task`); prints the number of jobs.
+    Prepare(irl_cli::PipelineArgs),
+    /// Step 2: one (algorithm, seed) job of a prepared run (a finished job is not rerun).
+    Job(irl_cli::JobArgs),
+    /// Step 3: metrics, summary and plots of a run's finished jobs.
+    Aggregate(irl_cli::AggregateArgs),
 }
 
 #[derive(Args)]
@@ -70,7 +80,9 @@ struct ExpertArgs {
     /// Run directory (checkpoint, curve, evaluation, demos); default target/expert-runs/TASK.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Policy cache the trained actor is copied to (default experiments/experts/cache).
+    /// Policy cache the trained actor is also copied to, as `expert_<task>.policy` (e.g.
+    /// experiments/experts/cache, the committed experts, which the next build embeds); by
+    /// default it stays in --out only.
     #[arg(long)]
     cache: Option<PathBuf>,
     /// Log every N-th training episode to OUT/train.mcap (1 = all, 0 = no training log; a
@@ -154,6 +166,9 @@ fn main() -> ExitCode {
         Some(Command::LearnRm(args)) => run_learn_rm(args),
         Some(Command::Demo(args)) => run_demo(args),
         Some(Command::Expert(args)) => run_expert(args),
+        Some(Command::Prepare(args)) => irl_cli::prepare(args),
+        Some(Command::Job(args)) => irl_cli::job(args),
+        Some(Command::Aggregate(args)) => irl_cli::aggregate(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -290,11 +305,10 @@ fn run_learn_rm(args: LearnRmArgs) -> Result<()> {
 }
 
 fn run_demo(args: DemoArgs) -> Result<()> {
-    let rm_path = smirl::rm::perfect::path(&format!("reacher_{}", args.task));
-    let reward_machine = if rm_path.exists() {
-        Some(smirl::rm::format::read_rm(&rm_path)?)
-    } else {
-        None
+    let rm_name = format!("reacher_{}", args.task);
+    let reward_machine = match smirl::rm::perfect::text(&rm_name) {
+        Some(_) => Some(smirl::rm::perfect::load(&rm_name)?),
+        None => None,
     };
     let mut env = ReacherConfig::default();
     if let Some(p) = args.cancel_probability {
@@ -354,7 +368,6 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
     let out = args
         .out
         .unwrap_or_else(|| PathBuf::from(format!("target/expert-runs/{task}")));
-    let cache = args.cache.unwrap_or_else(rx::default_cache_dir);
     let checkpoint = out.join("expert.ckpt");
     if checkpoint.exists() && !args.resume {
         return Err(UsageError(format!(
@@ -435,10 +448,16 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
 
     let policy_path = out.join("expert.policy");
     policy.save(&policy_path)?;
-    std::fs::create_dir_all(&cache)
-        .with_context(|| format!("cannot create {}", cache.display()))?;
-    let cached = rx::expert_cache_path(&cache, task);
-    policy.save(&cached)?;
+    let cached = match &args.cache {
+        Some(cache) => {
+            std::fs::create_dir_all(cache)
+                .with_context(|| format!("cannot create {}", cache.display()))?;
+            let path = rx::expert_cache_path(cache, task);
+            policy.save(&path)?;
+            Some(path)
+        }
+        None => None,
+    };
 
     let curve_svg = out.join("curve.svg");
     rx::write_curve_svg(&curve_svg, task, &outcome.curve, config.progress_window)?;
@@ -515,7 +534,7 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         "wrote {} (checkpoint), {}, {}, {}, {} and {}",
         checkpoint.display(),
         policy_path.display(),
-        cached.display(),
+        cached.map_or("(no --cache)".to_string(), |p| p.display().to_string()),
         curve_svg.display(),
         demos_path.display(),
         out.join("summary.json").display()
@@ -544,9 +563,11 @@ mod irl_cli {
     use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
     use smirl::env::reacher_task::ReacherTask;
     use smirl::pipeline::reacher_irl::job::JobProgress;
-    use smirl::pipeline::reacher_irl::run::summary_markdown;
+    use smirl::pipeline::reacher_irl::run::{
+        self, open_run, partial_dir, summary_markdown, JobRecord, PreparedRun,
+    };
     use smirl::pipeline::reacher_irl::{
-        run_pipeline, Algo, IrlRunConfig, JobResult, PipelineError, RunObserver, RunRequest,
+        run_pipeline, Algo, IrlRunConfig, PipelineError, RunObserver, RunRequest,
     };
     use std::path::PathBuf;
     use std::sync::Mutex;
@@ -642,7 +663,7 @@ mod irl_cli {
                 ));
             }
         }
-        fn job_done(&self, job: usize, r: &JobResult) {
+        fn job_done(&self, job: usize, r: &JobRecord) {
             if let Some(bar) = self.jobs.lock().expect("bars lock").get(job) {
                 let last = r.rows.last().map_or(0.0, |x| x.success_rate);
                 bar.finish_with_message(format!("done, final success {last:.2}"));
@@ -657,8 +678,48 @@ mod irl_cli {
         }
     }
 
-    pub fn run(args: PipelineArgs) -> Result<()> {
-        let usage = |m: String| anyhow::Error::new(PipelineUsage(m));
+    #[derive(Args)]
+    pub struct JobArgs {
+        /// Run directory written by `reacher prepare`.
+        #[arg(long)]
+        run: PathBuf,
+        /// The job's position in the run (algorithms outer, seeds inner, from 0), e.g. a Slurm
+        /// array index.
+        #[arg(long, conflicts_with_all = ["algo", "seed"], required_unless_present = "algo")]
+        index: Option<usize>,
+        /// The job's algorithm (with --seed).
+        #[arg(long, requires = "seed")]
+        algo: Option<Algo>,
+        #[arg(long, requires = "algo")]
+        seed: Option<u64>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    }
+
+    #[derive(Args)]
+    pub struct AggregateArgs {
+        /// Run directory written by `reacher prepare`.
+        dir: PathBuf,
+        /// Aggregate the finished jobs even if some are missing.
+        #[arg(long)]
+        partial: bool,
+    }
+
+    fn usage(m: String) -> anyhow::Error {
+        anyhow::Error::new(PipelineUsage(m))
+    }
+
+    fn pipeline_error(e: PipelineError) -> anyhow::Error {
+        match e {
+            PipelineError::Usage(m) => usage(m),
+            PipelineError::Run(m) => anyhow::anyhow!(m),
+        }
+    }
+
+    /// The run request of `reacher --task` / `reacher prepare` (`None`: `--print-config`
+    /// printed the config, nothing to run).
+    fn request(args: &PipelineArgs) -> Result<Option<RunRequest>> {
         let Some(task) = args.task else {
             return Err(usage(
                 "nothing to do: give --task <or|sequential|if|composite> or a subcommand (see --help)"
@@ -676,19 +737,145 @@ mod irl_cli {
         };
         if args.print_config {
             print!("{}", config.to_toml());
-            return Ok(());
+            return Ok(None);
         }
         let out = args
             .out
+            .clone()
             .unwrap_or_else(|| PathBuf::from(format!("runs/reacher-{}", task.name())));
-        let request = RunRequest {
+        Ok(Some(RunRequest {
             task,
             algos,
             seeds: args.seeds,
             seed: args.seed,
             config,
-            out: out.clone(),
+            out,
+        }))
+    }
+
+    /// `reacher prepare`: writes `<out>.partial`, renamed to `<out>` when complete. A
+    /// directory already prepared for the same plan and config is left as it is (so a
+    /// resubmitted sweep does not redo it); any other existing `<out>` is refused.
+    pub fn prepare(args: PipelineArgs) -> Result<()> {
+        let Some(request) = request(&args)? else {
+            return Ok(());
         };
+        let out = &request.out;
+        let planned_jobs = request.algos.len() as u64 * request.seeds;
+        if out.exists() {
+            let existing = open_run(out).map_err(|_| {
+                usage(format!(
+                    "{} exists and is not a prepared run directory: not touching it (choose another --out)",
+                    out.display()
+                ))
+            })?;
+            let same = existing.prepared.task == request.task
+                && existing.prepared.algos
+                    == request
+                        .algos
+                        .iter()
+                        .map(|a| a.name().to_string())
+                        .collect::<Vec<_>>()
+                && existing.prepared.seed == request.seed
+                && existing.prepared.seeds.len() as u64 == request.seeds
+                && existing.config == request.config;
+            if !same {
+                return Err(usage(format!(
+                    "{} is already prepared for another task, plan or config: not touching it",
+                    out.display()
+                )));
+            }
+            println!("{} is already prepared", out.display());
+            println!("jobs: {planned_jobs}");
+            return Ok(());
+        }
+        let partial = partial_dir(out);
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial)
+                .with_context(|| format!("cannot remove {}", partial.display()))?;
+        }
+        let prepared = run::prepare(&request, &partial, &run::Silent).map_err(pipeline_error)?;
+        std::fs::rename(&partial, out)
+            .with_context(|| format!("cannot rename {} to {}", partial.display(), out.display()))?;
+        println!(
+            "prepared {}: task {}, {} of {} demonstrations kept{}",
+            out.display(),
+            prepared.task,
+            prepared.demos_kept,
+            prepared.demos_generated,
+            prepared.rm.as_ref().map_or(String::new(), |rm| format!(
+                ", learned machine with {} states",
+                rm.learned_states
+            ))
+        );
+        println!("jobs: {planned_jobs}");
+        Ok(())
+    }
+
+    /// `reacher job`: one job of a prepared run.
+    pub fn job(args: JobArgs) -> Result<()> {
+        let run: PreparedRun = open_run(&args.run).map_err(pipeline_error)?;
+        let (algo, seed) = match (args.index, args.algo, args.seed) {
+            (Some(i), _, _) => run.job_at(i),
+            (None, Some(a), Some(s)) => run.job(a, s),
+            _ => Err(PipelineError::Usage(
+                "give --index, or --algo and --seed".into(),
+            )),
+        }
+        .map_err(pipeline_error)?;
+        let bar = if args.quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::new(run.config.sac_steps_per_iteration * run.config.irl_iterations as u64)
+        };
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{prefix} [{bar:30}] {pos}/{len} env steps {msg} ({elapsed}, eta {eta})",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        bar.set_prefix(format!("{algo} seed {seed}"));
+        let (record, ran) = run
+            .run_job(algo, seed, &|p: JobProgress| {
+                bar.set_position(p.env_steps);
+                bar.set_message(format!(
+                    "iter {}/{} success {:.2}",
+                    p.iteration, p.iterations, p.success_rate
+                ));
+            })
+            .map_err(|e| anyhow::anyhow!(e))
+            .with_context(|| format!("{algo} seed {seed} in {}", args.run.display()))?;
+        bar.finish_and_clear();
+        let last = record.rows.last().map_or(0.0, |r| r.success_rate);
+        if ran {
+            println!(
+                "{algo} seed {seed}: final success {last:.2} ({:.0} s)",
+                record.wall_secs
+            );
+        } else {
+            println!("{algo} seed {seed}: already done (final success {last:.2})");
+        }
+        Ok(())
+    }
+
+    /// `reacher aggregate`.
+    pub fn aggregate(args: AggregateArgs) -> Result<()> {
+        let run = open_run(&args.dir).map_err(pipeline_error)?;
+        let summary = run::aggregate(&run, args.partial, None).map_err(pipeline_error)?;
+        println!(
+            "{}",
+            summary_markdown(run.prepared.task, &summary.algos, summary.rm.as_ref())
+        );
+        println!("wrote {}", args.dir.join("metrics.csv").display());
+        Ok(())
+    }
+
+    pub fn run(args: PipelineArgs) -> Result<()> {
+        let Some(request) = request(&args)? else {
+            return Ok(());
+        };
+        let (task, out) = (request.task, request.out.clone());
         let multi = MultiProgress::new();
         let phase = if args.quiet {
             ProgressBar::hidden()

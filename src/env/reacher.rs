@@ -43,7 +43,7 @@ use crate::rm::{LabelSet, Vocabulary};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+
 use std::sync::Arc;
 
 /// Propositions of the domain, in label-bit order: red, green, blue, yellow, cancel.
@@ -70,11 +70,6 @@ pub const DEFAULT_LAYOUT: [[f64; 2]; 4] = [
     [-0.0591, 0.0104],
     [0.141, -0.0513],
 ];
-
-/// Path of the shipped model.
-pub fn default_xml_path() -> PathBuf {
-    Path::new(crate::ASSETS_DIR).join("reacher_delivery.xml")
-}
 
 /// When the cancel event fires.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -256,7 +251,8 @@ pub struct ReacherDelivery {
 impl ReacherDelivery {
     /// The environment on the shipped model.
     pub fn new(config: ReacherConfig) -> Result<ReacherDelivery, ReacherError> {
-        let model = Model::from_xml_path(&default_xml_path())?;
+        let model =
+            Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME)?;
         ReacherDelivery::with_model(Arc::new(model), config)
     }
 

@@ -3,7 +3,7 @@
 //! tests, the logging benchmark and `reacher demo`; not the paper's experts (SAC policies).
 
 use super::{LogError, LogOptions, LogSummary, RolloutLogger, RunHeader};
-use crate::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, OBS_DIM};
+use crate::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::ContinuousEnv;
 use crate::rm::format::write_rm;
@@ -44,7 +44,7 @@ pub fn log_scripted_demos(
         "demo": {"sequence": spec.sequence, "episodes": spec.episodes,
                  "stop_when_done": spec.stop_when_done},
     });
-    let mut header = RunHeader::reacher(&spec.task, spec.seed, config, &default_xml_path())?;
+    let mut header = RunHeader::reacher_shipped(&spec.task, spec.seed, config);
     let rm = spec.reward_machine.as_ref();
     header.reward_machine = rm.map(write_rm);
     let mut logger = RolloutLogger::create(path, header, options)?;

@@ -78,7 +78,34 @@ impl RunHeader {
             path: xml_path.to_path_buf(),
             source,
         })?;
-        Ok(RunHeader {
+        let name = xml_path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        Ok(RunHeader::reacher_with_model(
+            task, seed, config, &name, &model_xml,
+        ))
+    }
+
+    /// The header of a ReacherDelivery run on the shipped model (built into the binary).
+    pub fn reacher_shipped(task: &str, seed: u64, config: serde_json::Value) -> RunHeader {
+        RunHeader::reacher_with_model(
+            task,
+            seed,
+            config,
+            crate::assets::REACHER_XML_NAME,
+            crate::assets::REACHER_XML,
+        )
+    }
+
+    fn reacher_with_model(
+        task: &str,
+        seed: u64,
+        config: serde_json::Value,
+        model_xml_name: &str,
+        model_xml: &str,
+    ) -> RunHeader {
+        RunHeader {
             env: "ReacherDelivery".into(),
             task: task.into(),
             seed,
@@ -86,14 +113,11 @@ impl RunHeader {
             obs_dim: crate::env::reacher::OBS_DIM as u32,
             act_dim: crate::env::reacher::ACT_DIM as u32,
             step_duration_ns: 20_000_000,
-            model_xml_name: xml_path
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default(),
-            model_xml,
+            model_xml_name: model_xml_name.into(),
+            model_xml: model_xml.into(),
             config,
             reward_machine: None,
-        })
+        }
     }
 }
 

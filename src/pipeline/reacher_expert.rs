@@ -8,7 +8,7 @@
 //! - [`train_task_expert`]: [`train_expert`] on `task_env(task, …)` with checkpoints and
 //!   resume, success judged by the perfect machine reaching its goal.
 //! - [`evaluate_policy`]: success rate and task return of a policy, stochastic or mean action.
-//! - [`load_or_train_expert`]: the cache consumers use (IRL pipelines).
+//! - [`committed_expert`]: the committed expert of a task, built into the binary.
 //! - [`generate_demos`]: trajectories of the expert's stochastic policy (paper appendix C:
 //!   "16 trajectories collected from the expert stochastic policy"), optionally logged to
 //!   MCAP.
@@ -20,7 +20,7 @@ use super::expert::{train_expert, ExpertConfig, ExpertError, ExpertOutcome, Expe
 use crate::atomic_file::write_atomic;
 use crate::env::product::{Potential, ProductEnv};
 use crate::env::reacher::{
-    default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, CANCEL_BIT, OBS_DIM, VOCABULARY,
+    ReacherConfig, ReacherDelivery, ACT_DIM, CANCEL_BIT, OBS_DIM, VOCABULARY,
 };
 use crate::env::reacher_task::{
     task_env, Branch, BranchTally, CancelBranch, ReacherTask, SubgoalPotential,
@@ -176,10 +176,20 @@ impl ExpertPolicy {
         task: ReacherTask,
         hidden: &[usize],
     ) -> Result<ExpertPolicy, PolicyFileError> {
-        let p = path.display().to_string();
         let bytes = read_file(path)?;
+        ExpertPolicy::from_bytes(&bytes, &path.display().to_string(), task, hidden)
+    }
+
+    /// Reads the bytes of a policy file; `source_name` names it in errors.
+    pub fn from_bytes(
+        bytes: &[u8],
+        source_name: &str,
+        task: ReacherTask,
+        hidden: &[usize],
+    ) -> Result<ExpertPolicy, PolicyFileError> {
+        let p = source_name.to_string();
         let codec = FileError::codec_at(&p);
-        let mut r = ByteReader::new(&bytes);
+        let mut r = ByteReader::new(bytes);
         r.header(POLICY_MAGIC, "smirl expert policy", POLICY_VERSION)
             .map_err(codec)?;
         let file_task = r.string("task").map_err(codec)?;
@@ -224,15 +234,14 @@ fn hidden_of(arch: &MlpArch) -> Vec<usize> {
     arch.sizes[1..arch.sizes.len() - 1].to_vec()
 }
 
-/// The committed expert cache, `experiments/experts/cache` in the source tree.
-pub fn default_cache_dir() -> PathBuf {
-    let assets = Path::new(crate::ASSETS_DIR);
-    assets
-        .parent()
-        .unwrap_or(assets)
-        .join("experiments")
-        .join("experts")
-        .join("cache")
+/// The committed expert of `task`, built into the binary (`experiments/experts/cache`).
+pub fn committed_expert(
+    task: ReacherTask,
+    hidden: &[usize],
+) -> Result<ExpertPolicy, PolicyFileError> {
+    let name = format!("experiments/experts/cache/expert_{task}.policy (built in)");
+    let bytes = crate::assets::expert_policy(task.name()).unwrap_or_default();
+    ExpertPolicy::from_bytes(bytes, &name, task, hidden)
 }
 
 /// The cached policy file of `task`'s expert in `cache_dir`.
@@ -412,32 +421,6 @@ pub fn evaluate_policy(
         cancel_successes: demos.iter().filter(|d| d.cancelled() && d.success).count() as u64,
         branches: branch_tally(policy.task(), &demos)?,
     })
-}
-
-/// The expert of `task` from `cache_dir` if its policy file is there, else trained (with a
-/// resumable checkpoint next to it, so a killed training continues) and saved there.
-/// A cached file of another task, architecture or version is an error, not retrained over.
-pub fn load_or_train_expert(
-    task: ReacherTask,
-    config: &ExpertConfig,
-    seed: u64,
-    cache_dir: &Path,
-    progress: impl FnMut(&ExpertProgress),
-) -> Result<ExpertPolicy, ExpertError> {
-    let path = expert_cache_path(cache_dir, task);
-    if path.exists() {
-        return Ok(ExpertPolicy::load(&path, task, &config.sac.hidden)?);
-    }
-    std::fs::create_dir_all(cache_dir).map_err(|source| {
-        ExpertError::Policy(PolicyFileError::File(FileError::Io {
-            path: cache_dir.display().to_string(),
-            source,
-        }))
-    })?;
-    let checkpoint = expert_checkpoint_path(cache_dir, task);
-    let (policy, _) = train_task_expert(task, config, seed, &checkpoint, true, progress, None)?;
-    policy.save(&path)?;
-    Ok(policy)
 }
 
 /// One step of a demonstration.
@@ -653,8 +636,7 @@ pub fn demo_log_header(
         "policy": "SAC expert, stochastic actions",
         "vocabulary": VOCABULARY,
     });
-    let mut header = RunHeader::reacher(policy.task().name(), seed, config, &default_xml_path())
-        .map_err(|e| ExpertError::Log(Box::new(e)))?;
+    let mut header = RunHeader::reacher_shipped(policy.task().name(), seed, config);
     let rm = policy.task().perfect_rm().map_err(|e| ExpertError::Task {
         task: policy.task().name().into(),
         problem: e.to_string(),
@@ -677,8 +659,7 @@ pub fn train_log_header(
         "expert_config": config,
         "vocabulary": VOCABULARY,
     });
-    let mut header = RunHeader::reacher(task.name(), seed, json, &default_xml_path())
-        .map_err(|e| ExpertError::Log(Box::new(e)))?;
+    let mut header = RunHeader::reacher_shipped(task.name(), seed, json);
     let rm = task.perfect_rm().map_err(|e| ExpertError::Task {
         task: task.name().into(),
         problem: e.to_string(),

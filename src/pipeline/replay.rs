@@ -12,7 +12,7 @@
 //! is not the one recorded (a damaged file), or an XML that differs from the shipped model
 //! (replay still uses the stored one, which is what the run used).
 
-use crate::env::reacher::{default_xml_path, ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
+use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
 use crate::env::reacher_task::{Branch, CancelBranch};
 use crate::env::ContinuousEnv;
 use crate::log::schema::{sha256_hex, NO_RM};
@@ -179,20 +179,16 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
             log.run.mujoco_version
         ));
     }
-    match std::fs::read_to_string(default_xml_path()) {
-        Ok(shipped) if sha256_hex(&shipped) != stored_hash => notes.push(format!(
-            "the run used a model XML ({}, sha256 {}) that differs from the shipped {} \
+    let shipped = sha256_hex(crate::assets::REACHER_XML);
+    if shipped != stored_hash {
+        notes.push(format!(
+            "the run used a model XML ({}, sha256 {}) that differs from the shipped assets/{} \
              (sha256 {}); replaying with the XML stored in the log",
             log.run.model_xml_name,
             &stored_hash[..12],
-            default_xml_path().display(),
-            &sha256_hex(&shipped)[..12]
-        )),
-        Ok(_) => {}
-        Err(e) => notes.push(format!(
-            "cannot read the shipped model {} to compare ({e})",
-            default_xml_path().display()
-        )),
+            crate::assets::REACHER_XML_NAME,
+            &shipped[..12]
+        ));
     }
     let model = Model::from_xml_str(xml, &format!("{path}:model.xml"))
         .map_err(|e| cannot(e.to_string()))?;
@@ -247,10 +243,7 @@ pub(crate) fn run_reward_machine(
     notes: &mut Vec<String>,
 ) -> Result<Option<(RewardMachine, String)>, String> {
     let shipped_name = format!("reacher_{}", log.run.task);
-    let shipped = perfect::path(&shipped_name)
-        .is_file()
-        .then(|| perfect::load(&shipped_name).ok())
-        .flatten();
+    let shipped = perfect::text(&shipped_name).and_then(|_| perfect::load(&shipped_name).ok());
     if let Some(text) = &log.run.reward_machine {
         let rm = parse_rm(
             text,
@@ -259,9 +252,9 @@ pub(crate) fn run_reward_machine(
         .map_err(|e| format!("the stored reward machine does not parse: {e}"))?;
         if let Some(s) = shipped.as_ref().filter(|s| write_rm(s) != write_rm(&rm)) {
             notes.push(format!(
-                "the run's reward machine ({} states) differs from the shipped {} ({} states);                  re-tracking the stored one",
+                "the run's reward machine ({} states) differs from the shipped {} ({} states); re-tracking the stored one",
                 rm.n_states(),
-                perfect::path(&shipped_name).display(),
+                perfect::source_name(&shipped_name),
                 s.n_states()
             ));
         }
@@ -273,12 +266,12 @@ pub(crate) fn run_reward_machine(
             rm,
             format!(
                 "{} (the log stores none)",
-                perfect::path(&shipped_name).display()
+                perfect::source_name(&shipped_name)
             ),
         ))),
         None if logs_states => {
             notes.push(format!(
-                "the log has reward-machine states but no machine, and task '{}' has no shipped                  one: machine states are not checked",
+                "the log has reward-machine states but no machine, and task '{}' has no shipped one: machine states are not checked",
                 log.run.task
             ));
             Ok(None)

@@ -1,9 +1,9 @@
 //! The hand-written ("perfect") reward machines of the paper's tasks, shipped as text files
-//! under `assets/rm/` (see each file's comments for its reading of the task).
+//! under `assets/rm/` (see each file's comments for its reading of the task) and built into
+//! the binaries ([`crate::assets`]).
 
-use super::format::{read_rm, RmFileError};
+use super::format::{parse_rm, RmFileError};
 use super::machine::RewardMachine;
-use std::path::PathBuf;
 
 /// Names of every shipped machine (`assets/rm/<name>.txt`).
 pub const NAMES: [&str; 9] = [
@@ -18,16 +18,26 @@ pub const NAMES: [&str; 9] = [
     "reacher_composite",
 ];
 
-/// Path of a shipped machine.
-pub fn path(name: &str) -> PathBuf {
-    PathBuf::from(crate::ASSETS_DIR)
-        .join("rm")
-        .join(format!("{name}.txt"))
+/// The text of a shipped machine (`None`: no machine of that name).
+pub fn text(name: &str) -> Option<&'static str> {
+    crate::assets::reward_machine(name)
 }
 
-/// Loads `assets/rm/<name>.txt`.
+/// How messages name a shipped machine: `assets/rm/<name>.txt`.
+pub fn source_name(name: &str) -> String {
+    format!("assets/rm/{name}.txt")
+}
+
+/// Parses the built-in `assets/rm/<name>.txt`.
 pub fn load(name: &str) -> Result<RewardMachine, RmFileError> {
-    read_rm(&path(name))
+    let text = text(name).ok_or_else(|| RmFileError::Io {
+        file: source_name(name),
+        error: std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            format!("no shipped reward machine named '{name}'"),
+        ),
+    })?;
+    parse_rm(text, &source_name(name))
 }
 
 /// The machine of Office task `task` (0–4).

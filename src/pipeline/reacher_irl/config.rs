@@ -60,8 +60,8 @@ pub struct IrlRunConfig {
     /// `"expert"` or `"scripted"`.
     pub demo_source: DemoSource,
     /// Directory of cached expert policies (`expert_<task>.policy`); relative paths are
-    /// relative to the working directory. Empty: the committed cache
-    /// (`experiments/experts/cache`).
+    /// relative to the working directory. Empty: the committed experts
+    /// (`experiments/experts/cache`, built into the binary).
     pub expert_cache_dir: PathBuf,
     /// Number of demonstrations (the paper: 16).
     pub demo_episodes: usize,
@@ -78,12 +78,16 @@ pub struct IrlRunConfig {
     /// Ground-truth evaluation episodes per IRL iteration (mean action, fixed seeds).
     pub eval_episodes: u64,
     /// Adam learning rate of the baselines' (64, 64) reward net.
+    #[serde(serialize_with = "crate::short_float::f32")]
     pub mlp_reward_lr: f32,
     /// L2 penalty (weight decay) of the reward net.
+    #[serde(serialize_with = "crate::short_float::f32")]
     pub mlp_reward_l2: f32,
     /// Adam learning rate of SMIRL's linear per-RM-state weights.
+    #[serde(serialize_with = "crate::short_float::f32")]
     pub smirl_reward_lr: f32,
     /// L2 penalty of SMIRL's weights.
+    #[serde(serialize_with = "crate::short_float::f32")]
     pub smirl_reward_l2: f32,
     /// `"visits"` (feature counts of each RM state averaged over the trajectories that visit
     /// it) or `"trajectories"` (the plain MaxEnt average over all trajectories).
@@ -259,13 +263,10 @@ impl IrlRunConfig {
         toml::to_string(self).expect("IrlRunConfig always serialises")
     }
 
-    /// The expert cache directory (the committed one when `expert_cache_dir` is empty).
-    pub fn cache_dir(&self) -> PathBuf {
-        if self.expert_cache_dir.as_os_str().is_empty() {
-            crate::pipeline::reacher_expert::default_cache_dir()
-        } else {
-            self.expert_cache_dir.clone()
-        }
+    /// The expert cache directory; `None` (an empty `expert_cache_dir`) means the committed
+    /// experts built into the binary.
+    pub fn cache_dir(&self) -> Option<&Path> {
+        (!self.expert_cache_dir.as_os_str().is_empty()).then_some(self.expert_cache_dir.as_path())
     }
 
     /// Checks value ranges (named by field).

@@ -10,7 +10,8 @@ use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::{ReacherTask, SubgoalPotential};
 use crate::log::{LogError, RolloutLogger};
 use crate::pipeline::reacher_expert::{
-    expert_cache_path, generate_demos, record_episode, Demo, ExpertPolicy, RecordError,
+    committed_expert, expert_cache_path, generate_demos, record_episode, Demo, ExpertPolicy,
+    RecordError,
 };
 use crate::rl::sac::episode_seed;
 use crate::rm::LabelSet;
@@ -30,10 +31,17 @@ pub enum DemoError {
     Log(#[from] LogError),
 }
 
-/// Loads the cached expert of `task` (never trains here: training takes hours; run
-/// `reacher expert --task <task>` first). A file of another task, architecture or format
-/// version is refused.
-pub fn load_expert(task: ReacherTask, cache_dir: &Path) -> Result<ExpertPolicy, DemoError> {
+/// Loads the cached expert of `task` from `cache_dir`, or with `None` the committed one built
+/// into the binary (never trains here: run `reacher expert --task <task>` for that). A file
+/// of another task, architecture or format version is refused.
+pub fn load_expert(task: ReacherTask, cache_dir: Option<&Path>) -> Result<ExpertPolicy, DemoError> {
+    let hidden = crate::rl::sac::SacConfig::expert().hidden;
+    let Some(cache_dir) = cache_dir else {
+        return committed_expert(task, &hidden).map_err(|e| DemoError::Cache {
+            path: "experiments/experts/cache (built in)".into(),
+            problem: e.to_string(),
+        });
+    };
     let path = expert_cache_path(cache_dir, task);
     if !path.exists() {
         return Err(DemoError::Cache {
@@ -44,7 +52,6 @@ pub fn load_expert(task: ReacherTask, cache_dir: &Path) -> Result<ExpertPolicy, 
             ),
         });
     }
-    let hidden = crate::rl::sac::SacConfig::expert().hidden;
     ExpertPolicy::load(&path, task, &hidden).map_err(|e| DemoError::Cache {
         path: path.display().to_string(),
         problem: e.to_string(),

@@ -18,6 +18,7 @@ use crate::irl::smirl::{
     LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
 };
 use crate::log::RolloutLogger;
+use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
 use crate::pipeline::training_log::{ReacherView, TrainingLog};
 use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
@@ -53,11 +54,71 @@ impl ExpertData {
             lengths: &self.lengths,
         }
     }
+
+    /// The binary file `reacher prepare` writes for the jobs (`expert_data.bin`): exact
+    /// values, so a job that reads it computes what the one-process run computes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut w = ByteWriter::new();
+        w.raw(EXPERT_DATA_MAGIC);
+        w.u32(EXPERT_DATA_VERSION);
+        w.f32s(&self.obs);
+        w.usize(self.lengths.len());
+        for &len in &self.lengths {
+            w.usize(len);
+        }
+        w.u32s(&self.learned_states);
+        w.bytes
+    }
+
+    /// Reads [`ExpertData::to_bytes`]; every count is checked against the bytes present and
+    /// the arrays against each other.
+    pub fn from_bytes(bytes: &[u8]) -> Result<ExpertData, CodecError> {
+        let mut r = ByteReader::new(bytes);
+        r.header(EXPERT_DATA_MAGIC, "smirl expert data", EXPERT_DATA_VERSION)?;
+        let obs = r.f32s("observations")?;
+        let n = r.usize("demonstration count")?;
+        if n > bytes.len() / 8 {
+            return Err(CodecError::Invalid {
+                what: "demonstration count",
+                problem: format!("{n} is more than the file can hold"),
+            });
+        }
+        let lengths = (0..n)
+            .map(|_| r.usize("demonstration length"))
+            .collect::<Result<Vec<_>, _>>()?;
+        let learned_states = r.u32s("learned machine states")?;
+        r.finish()?;
+        let steps = lengths
+            .iter()
+            .try_fold(0usize, |a, &l| a.checked_add(l))
+            .filter(|&t| t.checked_mul(OBS_DIM) == Some(obs.len()))
+            .ok_or_else(|| CodecError::Invalid {
+                what: "observations",
+                problem: format!(
+                    "{} values do not fill the demonstrations' {n} lengths × {OBS_DIM}",
+                    obs.len()
+                ),
+            })?;
+        if !learned_states.is_empty() && learned_states.len() != steps {
+            return Err(CodecError::Invalid {
+                what: "learned machine states",
+                problem: format!("{} states for {steps} steps", learned_states.len()),
+            });
+        }
+        Ok(ExpertData {
+            obs,
+            lengths,
+            learned_states,
+        })
+    }
 }
+
+const EXPERT_DATA_MAGIC: &[u8] = b"SMIRLXD\0";
+const EXPERT_DATA_VERSION: u32 = 1;
 
 /// One row of the metrics table: the ground-truth evaluation after `iteration` IRL
 /// iterations (0 = the untrained policy).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MetricsRow {
     pub iteration: usize,
     pub env_steps: u64,

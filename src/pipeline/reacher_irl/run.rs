@@ -22,14 +22,16 @@ use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
 use super::Algo;
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::{default_xml_path, OBS_CANCEL, VOCABULARY};
+use crate::env::reacher::{OBS_CANCEL, VOCABULARY};
 use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use crate::irl::smirl::FeatureMap;
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
 use crate::pipeline::reacher_expert::Demo;
+use crate::pipeline::reacher_expert::ExpertPolicy;
 use crate::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
 use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
+use crate::rm::format::parse_rm;
 use crate::rm::format::write_rm;
 use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
 use crate::rm::{LabelSet, RewardMachine, Vocabulary};
@@ -70,7 +72,7 @@ pub trait RunObserver: Sync {
     /// The jobs of the IRL phase, in order (labels such as `smirl seed 1`).
     fn jobs(&self, _labels: &[String], _total_env_steps: u64) {}
     fn job_progress(&self, _job: usize, _progress: JobProgress) {}
-    fn job_done(&self, _job: usize, _result: &JobResult) {}
+    fn job_done(&self, _job: usize, _record: &JobRecord) {}
     fn message(&self, _text: &str) {}
 }
 
@@ -79,7 +81,7 @@ pub struct Silent;
 impl RunObserver for Silent {}
 
 /// Facts about the learned machine.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct RmFacts {
     pub learned_states: usize,
     pub learned_reachable: usize,
@@ -234,26 +236,83 @@ fn log_header(
 ) -> Result<RunHeader, PipelineError> {
     // Replay reads the environment config from `env` (time limit, cancel schedule).
     let json = serde_json::json!({ "run": what, "env": config.env, "irl_config": config });
-    let mut header = RunHeader::reacher(task.name(), seed, json, &default_xml_path())
-        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let mut header = RunHeader::reacher_shipped(task.name(), seed, json);
     header.reward_machine = Some(write_rm(perfect));
     Ok(header)
 }
 
-/// Runs everything and writes the run directory. Bad input (algorithm list, expert cache)
-/// is reported as [`PipelineError::Usage`] before anything is written.
-pub fn run_pipeline(
-    request: &RunRequest,
-    observer: &dyn RunObserver,
-) -> Result<RunSummary, PipelineError> {
-    let started = Instant::now();
+/// What `reacher prepare` decided and measured, stored as `prepare.json` in the run directory.
+/// It is written last, so its presence means the directory is prepared.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Prepared {
+    pub task: ReacherTask,
+    /// Algorithm names, in job order.
+    pub algos: Vec<String>,
+    /// Job seeds, in job order.
+    pub seeds: Vec<u64>,
+    /// Base seed (demonstrations and LRM).
+    pub seed: u64,
+    pub demos_kept: usize,
+    pub demos_generated: usize,
+    pub demo_branches: Option<BranchTally>,
+    pub rm: Option<RmFacts>,
+    pub prepare_secs: f64,
+    pub git_commit: String,
+}
+
+impl Prepared {
+    /// The (algorithm, seed) jobs, in the order `--index` counts them: algorithms outer,
+    /// seeds inner.
+    pub fn jobs(&self) -> Result<Vec<(Algo, u64)>, String> {
+        let algos = self
+            .algos
+            .iter()
+            .map(|a| a.parse::<Algo>())
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(algos
+            .iter()
+            .flat_map(|&a| self.seeds.iter().map(move |&s| (a, s)))
+            .collect())
+    }
+}
+
+/// A prepared run directory, read back: everything a job needs.
+pub struct PreparedRun {
+    pub dir: PathBuf,
+    pub prepared: Prepared,
+    pub config: IrlRunConfig,
+    pub perfect: RewardMachine,
+    pub learned: Option<RewardMachine>,
+    pub expert: ExpertData,
+}
+
+/// One finished job as `jobs/<algo>_seed<S>.json` (written last by the job: its presence
+/// means the job is done).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct JobRecord {
+    pub algo: String,
+    pub seed: u64,
+    pub rows: Vec<super::MetricsRow>,
+    pub wall_secs: f64,
+}
+
+const PREPARED_FILE: &str = "prepare.json";
+const EXPERT_DATA_FILE: &str = "expert_data.bin";
+
+fn job_stem(algo: Algo, seed: u64) -> String {
+    format!("{}_seed{seed}", algo.name())
+}
+
+/// Checks a request before anything is written: algorithms, seeds, config and (for expert
+/// demonstrations) the expert cache, which is loaded. Returns the expert and the last seed.
+fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), PipelineError> {
     let RunRequest {
         task,
         ref algos,
         seeds,
         seed,
         ref config,
-        ref out,
+        ..
     } = *request;
     let usage = PipelineError::Usage;
     if algos.is_empty() {
@@ -262,37 +321,55 @@ pub fn run_pipeline(
     if seeds == 0 {
         return Err(usage("--seeds must be at least 1".into()));
     }
+    let last_seed = seed
+        .checked_add(seeds - 1)
+        .ok_or_else(|| usage(format!("--seed {seed} + --seeds {seeds} overflows")))?;
     config
         .validate("config")
         .map_err(|e| usage(e.to_string()))?;
+    let expert = match config.demo_source {
+        DemoSource::Expert => Some(load_expert(task, config.cache_dir()).map_err(|e| match e {
+            DemoError::Cache { .. } => usage(e.to_string()),
+            other => PipelineError::Run(other.to_string()),
+        })?),
+        DemoSource::Scripted => None,
+    };
+    Ok((expert, last_seed))
+}
+
+/// Phase 1 of a run (`reacher prepare`): checks the request, then writes into `dir` (created
+/// if missing) the config, the perfect machine, the demonstrations (`logs/demos.mcap`), for
+/// SMIRL the learned machine and its report, the annotated expert data the jobs read, and
+/// last `prepare.json`. Bad input is [`PipelineError::Usage`], found before anything is
+/// written.
+pub fn prepare(
+    request: &RunRequest,
+    dir: &Path,
+    observer: &dyn RunObserver,
+) -> Result<Prepared, PipelineError> {
+    let started = Instant::now();
+    let RunRequest {
+        task,
+        ref algos,
+        seed,
+        ref config,
+        ..
+    } = *request;
+    let (mut expert, last_seed) = check_request(request)?;
     let perfect = task
         .perfect_rm()
         .map_err(|e| PipelineError::Run(e.to_string()))?;
-    let mut expert = match config.demo_source {
-        DemoSource::Expert => {
-            Some(load_expert(task, &config.cache_dir()).map_err(|e| match e {
-                DemoError::Cache { .. } => usage(e.to_string()),
-                other => PipelineError::Run(other.to_string()),
-            })?)
-        }
-        DemoSource::Scripted => None,
-    };
 
-    // From here on, output goes to <out>.partial.
-    let partial = partial_dir(out);
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial).map_err(|e| io(&partial, e))?;
+    for sub in ["rm", "rewards", "logs", "jobs"] {
+        std::fs::create_dir_all(dir.join(sub)).map_err(|e| io(dir, e))?;
     }
-    for sub in ["rm", "rewards", "logs"] {
-        std::fs::create_dir_all(partial.join(sub)).map_err(|e| io(&partial, e))?;
-    }
-    write_file(&partial.join("config.toml"), &config.to_toml())?;
-    write_file(&partial.join("rm/perfect.txt"), &write_rm(&perfect))?;
-    write_file(&partial.join("rm/perfect.dot"), &to_dot(&perfect))?;
+    write_file(&dir.join("config.toml"), &config.to_toml())?;
+    write_file(&dir.join("rm/perfect.txt"), &write_rm(&perfect))?;
+    write_file(&dir.join("rm/perfect.dot"), &to_dot(&perfect))?;
 
     // 1. Demonstrations.
     observer.phase("demos");
-    let demo_log = partial.join("logs/demos.mcap");
+    let demo_log = dir.join("logs/demos.mcap");
     let mut logger = RolloutLogger::create(
         &demo_log,
         log_header(task, seed, config, "demonstrations", &perfect)?,
@@ -372,9 +449,9 @@ pub fn run_pipeline(
                 "learned state {u} seen with perfect states {seen:?}"
             );
         }
-        write_file(&partial.join("rm/learned.txt"), &write_rm(&rm))?;
-        write_file(&partial.join("rm/learned.dot"), &to_dot(&rm))?;
-        write_file(&partial.join("rm/report.txt"), &report)?;
+        write_file(&dir.join("rm/learned.txt"), &write_rm(&rm))?;
+        write_file(&dir.join("rm/learned.dot"), &to_dot(&rm))?;
+        write_file(&dir.join("rm/report.txt"), &report)?;
         observer.message(
             report
                 .lines()
@@ -393,59 +470,285 @@ pub fn run_pipeline(
         DemoPadding::None => None,
     };
     let expert_data = annotate(&demos, learned.as_ref(), hold_to);
+    let path = dir.join(EXPERT_DATA_FILE);
+    write_atomic(&path, &expert_data.to_bytes()).map_err(|e| io(&path, e))?;
+    let prepared = Prepared {
+        task,
+        algos: algos.iter().map(|a| a.name().to_string()).collect(),
+        seeds: (seed..=last_seed).collect(),
+        seed,
+        demos_kept: demos.len(),
+        demos_generated,
+        demo_branches,
+        rm: rm_facts,
+        prepare_secs: started.elapsed().as_secs_f64(),
+        git_commit: crate::GIT_COMMIT.into(),
+    };
+    write_file(
+        &dir.join(PREPARED_FILE),
+        &(serde_json::to_string_pretty(&prepared).expect("JSON serialises") + "\n"),
+    )?;
+    Ok(prepared)
+}
 
-    // 3. IRL jobs on the pool.
+/// Reads a directory `prepare` finished. A directory it did not finish (no `prepare.json`)
+/// or whose files do not parse is [`PipelineError::Usage`].
+pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
+    let usage = PipelineError::Usage;
+    let marker = dir.join(PREPARED_FILE);
+    if !marker.is_file() {
+        return Err(usage(format!(
+            "{}: not a prepared run directory (no {PREPARED_FILE}: run `reacher prepare --out {}` \
+             first, or let it finish)",
+            dir.display(),
+            dir.display()
+        )));
+    }
+    let read = |name: &str| {
+        let path = dir.join(name);
+        std::fs::read_to_string(&path).map_err(|e| usage(format!("{}: {e}", path.display())))
+    };
+    let prepared: Prepared = serde_json::from_str(&read(PREPARED_FILE)?)
+        .map_err(|e| usage(format!("{}: {e}", marker.display())))?;
+    let config = IrlRunConfig::load(&dir.join("config.toml")).map_err(|e| usage(e.to_string()))?;
+    let rm_file = |name: &str| -> Result<RewardMachine, PipelineError> {
+        let path = dir.join(name);
+        parse_rm(&read(name)?, &path.display().to_string()).map_err(|e| usage(e.to_string()))
+    };
+    let perfect = rm_file("rm/perfect.txt")?;
+    let jobs = prepared.jobs().map_err(usage)?;
+    let learned = if jobs.iter().any(|(a, _)| a.uses_rm()) {
+        Some(rm_file("rm/learned.txt")?)
+    } else {
+        None
+    };
+    let data_path = dir.join(EXPERT_DATA_FILE);
+    let bytes =
+        std::fs::read(&data_path).map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
+    let expert = ExpertData::from_bytes(&bytes)
+        .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
+    Ok(PreparedRun {
+        dir: dir.to_path_buf(),
+        prepared,
+        config,
+        perfect,
+        learned,
+        expert,
+    })
+}
+
+impl PreparedRun {
+    /// The job `(algo, seed)` of this run, or a usage error naming what is not in the plan.
+    pub fn job(&self, algo: Algo, seed: u64) -> Result<(Algo, u64), PipelineError> {
+        let jobs = self.prepared.jobs().map_err(PipelineError::Usage)?;
+        if !jobs.iter().any(|&(a, _)| a == algo) {
+            return Err(PipelineError::Usage(format!(
+                "{}: algorithm '{algo}' is not in this run (prepared: {})",
+                self.dir.display(),
+                self.prepared.algos.join(", ")
+            )));
+        }
+        if !self.prepared.seeds.contains(&seed) {
+            return Err(PipelineError::Usage(format!(
+                "{}: seed {seed} is outside this run's seeds {}..={}",
+                self.dir.display(),
+                self.prepared.seeds[0],
+                self.prepared.seeds[self.prepared.seeds.len() - 1]
+            )));
+        }
+        Ok((algo, seed))
+    }
+
+    /// The `index`-th job (algorithms outer, seeds inner), as `reacher job --index` counts.
+    pub fn job_at(&self, index: usize) -> Result<(Algo, u64), PipelineError> {
+        let jobs = self.prepared.jobs().map_err(PipelineError::Usage)?;
+        jobs.get(index).copied().ok_or_else(|| {
+            PipelineError::Usage(format!(
+                "{}: job index {index} is outside 0..{} (the run has {} jobs)",
+                self.dir.display(),
+                jobs.len(),
+                jobs.len()
+            ))
+        })
+    }
+
+    fn record_path(&self, algo: Algo, seed: u64) -> PathBuf {
+        self.dir
+            .join("jobs")
+            .join(format!("{}.json", job_stem(algo, seed)))
+    }
+
+    /// Phase 2 (`reacher job`): runs one job and writes its log, reward, reward trace and
+    /// last its record `jobs/<algo>_seed<S>.json`. A finished job (record present) is not run
+    /// again: its record is returned. A job killed halfway left no record; it starts over and
+    /// overwrites its own files.
+    pub fn run_job(
+        &self,
+        algo: Algo,
+        seed: u64,
+        progress: &(dyn Fn(JobProgress) + Sync),
+    ) -> Result<(JobRecord, bool), String> {
+        let record_path = self.record_path(algo, seed);
+        if record_path.is_file() {
+            return read_record(&record_path).map(|r| (r, false));
+        }
+        let result = run_one(
+            self.prepared.task,
+            algo,
+            seed,
+            &self.config,
+            &self.perfect,
+            self.learned.as_ref(),
+            &self.expert,
+            &self.dir,
+            progress,
+        )?;
+        let record = JobRecord {
+            algo: algo.name().into(),
+            seed,
+            rows: result.rows,
+            wall_secs: result.wall_secs,
+        };
+        write_file(
+            &record_path,
+            &(serde_json::to_string(&record).expect("JSON serialises") + "\n"),
+        )
+        .map_err(|e| e.to_string())?;
+        Ok((record, true))
+    }
+
+    /// The jobs of the plan that have no record yet.
+    pub fn missing_jobs(&self) -> Result<Vec<(Algo, u64)>, PipelineError> {
+        Ok(self
+            .prepared
+            .jobs()
+            .map_err(PipelineError::Usage)?
+            .into_iter()
+            .filter(|&(a, s)| !self.record_path(a, s).is_file())
+            .collect())
+    }
+}
+
+fn read_record(path: &Path) -> Result<JobRecord, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Phase 3 (`reacher aggregate`): metrics, summary, plots and `run.json` from the finished
+/// jobs' records. Missing jobs are a usage error listing them, unless `allow_partial`
+/// (then the finished ones are aggregated). `wall_secs` is the whole run's wall time when one
+/// process ran it (`reacher --task`).
+pub fn aggregate(
+    run: &PreparedRun,
+    allow_partial: bool,
+    wall_secs: Option<f64>,
+) -> Result<RunSummary, PipelineError> {
+    let missing = run.missing_jobs()?;
+    if !missing.is_empty() && !allow_partial {
+        let names: Vec<String> = missing.iter().map(|&(a, s)| job_stem(a, s)).collect();
+        return Err(PipelineError::Usage(format!(
+            "{}: {} of {} jobs have not finished: {} (run them with `reacher job`, or pass \
+             --partial)",
+            run.dir.display(),
+            missing.len(),
+            run.prepared.jobs().map_err(PipelineError::Usage)?.len(),
+            names.join(", ")
+        )));
+    }
+    let mut records = Vec::new();
+    for (algo, seed) in run.prepared.jobs().map_err(PipelineError::Usage)? {
+        if missing.contains(&(algo, seed)) {
+            continue;
+        }
+        let record = read_record(&run.record_path(algo, seed)).map_err(PipelineError::Usage)?;
+        records.push((algo, record));
+    }
+    if records.is_empty() {
+        return Err(PipelineError::Usage(format!(
+            "{}: no job has finished yet",
+            run.dir.display()
+        )));
+    }
+    write_reports(run, &records, wall_secs)
+}
+
+/// Runs everything in one process and writes the run directory: [`prepare`], every job on a
+/// pool of `threads` workers, [`aggregate`] — the same three phases `reacher prepare`, `job`
+/// and `aggregate` run one process each. Bad input (algorithm list, expert cache) is reported
+/// as [`PipelineError::Usage`] before anything is written.
+pub fn run_pipeline(
+    request: &RunRequest,
+    observer: &dyn RunObserver,
+) -> Result<RunSummary, PipelineError> {
+    let started = Instant::now();
+    let out = &request.out;
+    check_request(request)?;
+    // From here on, output goes to <out>.partial.
+    let partial = partial_dir(out);
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial).map_err(|e| io(&partial, e))?;
+    }
+    prepare(request, &partial, observer)?;
+    let run = open_run(&partial)?;
+
     observer.phase("irl");
-    let jobs: Vec<(Algo, u64)> = algos
-        .iter()
-        .flat_map(|&a| (0..seeds).map(move |k| (a, seed + k)))
-        .collect();
+    let jobs = run.prepared.jobs().map_err(PipelineError::Run)?;
     let labels: Vec<String> = jobs.iter().map(|(a, s)| format!("{a} seed {s}")).collect();
     observer.jobs(
         &labels,
-        config.sac_steps_per_iteration * config.irl_iterations as u64,
+        run.config.sac_steps_per_iteration * run.config.irl_iterations as u64,
     );
     let next = AtomicUsize::new(0);
-    let results: Mutex<Vec<Option<Result<JobResult, String>>>> =
-        Mutex::new(jobs.iter().map(|_| None).collect());
+    let failures: Mutex<Vec<Option<String>>> = Mutex::new(jobs.iter().map(|_| None).collect());
     std::thread::scope(|scope| {
-        for _ in 0..config.threads.min(jobs.len()) {
+        for _ in 0..run.config.threads.min(jobs.len()) {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(&(algo, job_seed)) = jobs.get(i) else {
                     break;
                 };
-                let outcome = run_one(
-                    task,
-                    algo,
-                    job_seed,
-                    config,
-                    config,
-                    &perfect,
-                    learned.as_ref(),
-                    &expert_data,
-                    &partial,
-                    &|p| observer.job_progress(i, p),
-                );
-                if let Ok(r) = &outcome {
-                    observer.job_done(i, r);
+                match run.run_job(algo, job_seed, &|p| observer.job_progress(i, p)) {
+                    Ok((record, _)) => observer.job_done(i, &record),
+                    Err(e) => {
+                        failures
+                            .lock()
+                            .expect("no job panics while holding the lock")[i] = Some(e)
+                    }
                 }
-                results
-                    .lock()
-                    .expect("no job panics while holding the lock")[i] = Some(outcome);
             });
         }
     });
-    let results: Vec<JobResult> = results
+    if let Some(e) = failures
         .into_inner()
         .expect("workers finished")
         .into_iter()
-        .map(|r| r.unwrap_or_else(|| Err("job did not run".into())))
-        .collect::<Result<_, _>>()
-        .map_err(PipelineError::Run)?;
+        .flatten()
+        .next()
+    {
+        return Err(PipelineError::Run(e));
+    }
 
-    // 4. Reports.
     observer.phase("reports");
+    let mut summary = aggregate(&run, false, Some(started.elapsed().as_secs_f64()))?;
+    // Complete: replace any previous run directory.
+    if out.exists() {
+        std::fs::remove_dir_all(out).map_err(|e| io(out, e))?;
+    }
+    std::fs::rename(&partial, out).map_err(|e| io(out, e))?;
+    summary.out = out.clone();
+    summary.wall_secs = started.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Writes metrics.csv, the summaries, the plots and run.json of `records` into the run
+/// directory.
+fn write_reports(
+    run: &PreparedRun,
+    records: &[(Algo, JobRecord)],
+    wall_secs: Option<f64>,
+) -> Result<RunSummary, PipelineError> {
+    let dir = &run.dir;
+    let task = run.prepared.task;
     let mut metrics = CsvTable::new([
         "algo",
         "seed",
@@ -461,7 +764,7 @@ pub fn run_pipeline(
         "episodes_normal",
         "episodes_cancel",
     ]);
-    for r in &results {
+    for (_, r) in records {
         for row in &r.rows {
             let branch = |f: &dyn Fn(&BranchTally, Branch) -> String| -> [String; 2] {
                 Branch::ALL.map(|b| row.branches.as_ref().map_or(String::new(), |t| f(t, b)))
@@ -470,7 +773,7 @@ pub fn run_pipeline(
                 branch(&|t, b| t.rate(b).map_or(String::new(), |x| format!("{x}")));
             let [n_normal, n_cancel] = branch(&|t, b| t.episodes[b.index()].to_string());
             metrics.push([
-                r.algo.name().to_string(),
+                r.algo.clone(),
                 r.seed.to_string(),
                 row.iteration.to_string(),
                 row.env_steps.to_string(),
@@ -486,8 +789,17 @@ pub fn run_pipeline(
             ]);
         }
     }
-    write_file(&partial.join("metrics.csv"), &metrics.to_csv())?;
+    write_file(&dir.join("metrics.csv"), &metrics.to_csv())?;
 
+    let algos: Vec<Algo> = {
+        let mut seen = Vec::new();
+        for &(a, _) in records {
+            if !seen.contains(&a) {
+                seen.push(a);
+            }
+        }
+        seen
+    };
     let mut summaries = Vec::new();
     let mut success_plot = LinePlot::new(
         &format!("ReacherDelivery {task}: ground-truth success"),
@@ -500,15 +812,19 @@ pub fn run_pipeline(
         "environment steps",
         "task return",
     );
-    let conditional = CancelBranch::of(&perfect).is_some();
+    let conditional = CancelBranch::of(&run.perfect).is_some();
     let mut branch_plot = LinePlot::new(
         &format!("ReacherDelivery {task}: success per branch"),
         "environment steps",
         "success rate",
     );
     branch_plot.y_range = Some((0.0, 1.0));
-    for &algo in algos {
-        let runs: Vec<&JobResult> = results.iter().filter(|r| r.algo == algo).collect();
+    for &algo in &algos {
+        let runs: Vec<&JobRecord> = records
+            .iter()
+            .filter(|(a, _)| *a == algo)
+            .map(|(_, r)| r)
+            .collect();
         let curve = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
             runs.iter()
                 .map(|r| {
@@ -539,15 +855,24 @@ pub fn run_pipeline(
             name: algo.name().into(),
             points: aggregate_over_seeds(&curve(&|r| r.task_return)),
         });
-        let last = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Vec<f64> {
+        let last = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Result<Vec<f64>, PipelineError> {
             runs.iter()
-                .map(|r| f(r.rows.last().expect("iteration 0 row")))
+                .map(|r| {
+                    r.rows.last().map(f).ok_or_else(|| {
+                        PipelineError::Usage(format!("{algo} seed {}: no metrics rows", r.seed))
+                    })
+                })
                 .collect()
         };
-        let (sm, ss) = mean_std(&last(&|r| r.success_rate));
-        let (rm_, rs) = mean_std(&last(&|r| r.task_return));
-        let final_branch_success =
-            conditional.then(|| Branch::ALL.map(|b| mean_std(&last(&|r| branch_rate(r, b)))));
+        let (sm, ss) = mean_std(&last(&|r| r.success_rate)?);
+        let (rm_, rs) = mean_std(&last(&|r| r.task_return)?);
+        let final_branch_success = if conditional {
+            let normal = mean_std(&last(&|r| branch_rate(r, Branch::Normal))?);
+            let cancel = mean_std(&last(&|r| branch_rate(r, Branch::Cancelled))?);
+            Some([normal, cancel])
+        } else {
+            None
+        };
         let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
         summaries.push(AlgoSummary {
             algo: algo.name().into(),
@@ -560,10 +885,10 @@ pub fn run_pipeline(
             job_secs_mean: wm,
         });
     }
-    write_file(&partial.join("success.svg"), &success_plot.to_svg())?;
-    write_file(&partial.join("task_return.svg"), &return_plot.to_svg())?;
+    write_file(&dir.join("success.svg"), &success_plot.to_svg())?;
+    write_file(&dir.join("task_return.svg"), &return_plot.to_svg())?;
     if conditional {
-        write_file(&partial.join("success_branches.svg"), &branch_plot.to_svg())?;
+        write_file(&dir.join("success_branches.svg"), &branch_plot.to_svg())?;
     }
     let mut table = CsvTable::new([
         "task",
@@ -579,16 +904,11 @@ pub fn run_pipeline(
         "final_success_cancel_std",
     ]);
     for s in &summaries {
-        let [(nm, ns), (cm, cs)] = s
-            .final_branch_success
-            .map_or([(f64::NAN, f64::NAN); 2], |b| b);
-        let cell = |x: f64| {
-            if x.is_nan() {
-                String::new()
-            } else {
-                format!("{x:.3}")
-            }
+        let branch_cells = match s.final_branch_success {
+            Some([(nm, ns), (cm, cs)]) => [nm, ns, cm, cs].map(|x| format!("{x:.3}")),
+            None => Default::default(),
         };
+        let [nm, ns, cm, cs] = branch_cells;
         table.push([
             task.name().to_string(),
             s.algo.clone(),
@@ -597,30 +917,32 @@ pub fn run_pipeline(
             format!("{:.3}", s.final_success_std),
             format!("{:.3}", s.final_return_mean),
             format!("{:.3}", s.final_return_std),
-            cell(nm),
-            cell(ns),
-            cell(cm),
-            cell(cs),
+            nm,
+            ns,
+            cm,
+            cs,
         ]);
     }
-    write_file(&partial.join("summary.csv"), &table.to_csv())?;
+    write_file(&dir.join("summary.csv"), &table.to_csv())?;
+    let p = &run.prepared;
     write_file(
-        &partial.join("summary.md"),
-        &summary_markdown(task, &summaries, rm_facts.as_ref()),
+        &dir.join("summary.md"),
+        &summary_markdown(task, &summaries, p.rm.as_ref()),
     )?;
     let summary = RunSummary {
-        out: out.clone(),
+        out: dir.clone(),
         task: task.name().into(),
-        demos_kept: demos.len(),
-        demos_generated,
-        demo_branches,
-        rm: rm_facts,
+        demos_kept: p.demos_kept,
+        demos_generated: p.demos_generated,
+        demo_branches: p.demo_branches,
+        rm: p.rm.clone(),
         algos: summaries,
-        wall_secs: started.elapsed().as_secs_f64(),
+        wall_secs: wall_secs.unwrap_or(f64::NAN),
     };
+    let config = &run.config;
     let run_json = serde_json::json!({
         "summary": summary,
-        "seeds": (0..seeds).map(|k| seed + k).collect::<Vec<_>>(),
+        "seeds": p.seeds,
         "demo_source": config.demo_source.name(),
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
@@ -628,36 +950,33 @@ pub fn run_pipeline(
         "smirl_counterfactual": config.smirl_counterfactual,
         "reward_lr_decay": config.reward_lr_decay,
         "git_commit": crate::GIT_COMMIT,
-        "jobs": results.iter().map(|r| serde_json::json!({
-            "algo": r.algo.name(), "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
+        "prepare_git_commit": p.git_commit,
+        "prepare_secs": p.prepare_secs,
+        "jobs": records.iter().map(|(_, r)| serde_json::json!({
+            "algo": r.algo, "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
     });
     write_file(
-        &partial.join("run.json"),
+        &dir.join("run.json"),
         &serde_json::to_string_pretty(&run_json).expect("JSON serialises"),
     )?;
-    // Complete: replace any previous run directory.
-    if out.exists() {
-        std::fs::remove_dir_all(out).map_err(|e| io(out, e))?;
-    }
-    std::fs::rename(&partial, out).map_err(|e| io(out, e))?;
     Ok(summary)
 }
 
-/// One job with its MCAP logger and reward file.
+/// One job with its MCAP logger, reward file and (SMIRL) reward trace, in run directory
+/// `dir`.
 #[allow(clippy::too_many_arguments)]
 fn run_one(
     task: ReacherTask,
     algo: Algo,
     seed: u64,
     config: &IrlRunConfig,
-    settings: &IrlRunConfig,
     perfect: &RewardMachine,
     learned: Option<&RewardMachine>,
     expert: &ExpertData,
     dir: &Path,
     progress: &(dyn Fn(JobProgress) + Sync),
 ) -> Result<JobResult, String> {
-    let stem = format!("{}_seed{seed}", algo.name());
+    let stem = job_stem(algo, seed);
     let reward_path = dir.join("rewards").join(format!(
         "{stem}.{}",
         if algo.uses_rm() { "json" } else { "bin" }
@@ -682,7 +1001,7 @@ fn run_one(
     let inputs = JobInputs {
         algo,
         seed,
-        settings,
+        settings: config,
         perfect_rm: perfect,
         learned_rm: learned,
         expert,

@@ -15,19 +15,26 @@ pub struct SacConfig {
     /// Hidden layer widths of the actor and of each critic.
     pub hidden: Vec<usize>,
     /// Adam learning rate of actor, critics and log α.
+    #[serde(serialize_with = "crate::short_float::f32")]
     pub lr: f32,
     pub batch_size: usize,
     pub replay_capacity: usize,
     /// Discount factor.
+    #[serde(serialize_with = "crate::short_float::f32")]
     pub gamma: f32,
     /// Polyak coefficient of the target critics.
+    #[serde(serialize_with = "crate::short_float::f32")]
     pub tau: f32,
     /// Entropy temperature: fixed value, or the starting value when `auto_alpha`.
+    #[serde(serialize_with = "crate::short_float::f32")]
     pub alpha: f32,
     /// Tune α toward `target_entropy` (else keep it fixed).
     pub auto_alpha: bool,
     /// Target policy entropy; −act_dim when absent.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(
+        skip_serializing_if = "Option::is_none",
+        serialize_with = "crate::short_float::option_f32"
+    )]
     pub target_entropy: Option<f32>,
     /// Environment steps with uniformly random actions before the policy acts.
     pub warmup_steps: u64,

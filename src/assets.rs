@@ -1,0 +1,38 @@
+//! The files the programs need at run time, built into the binaries so that an installed or
+//! copied binary runs without the source tree: the ReacherDelivery model, the perfect reward
+//! machines and the committed expert policies. Each is the file of the same name in the
+//! source tree at build time (`include_str!`/`include_bytes!`, rebuilt when it changes).
+
+/// File name of the ReacherDelivery model (as logs record it).
+pub const REACHER_XML_NAME: &str = "reacher_delivery.xml";
+
+/// `assets/reacher_delivery.xml`.
+pub const REACHER_XML: &str = include_str!("../assets/reacher_delivery.xml");
+
+/// `assets/rm/<name>.txt`, for the names of [`crate::rm::perfect::NAMES`].
+pub fn reward_machine(name: &str) -> Option<&'static str> {
+    Some(match name {
+        "office_t0" => include_str!("../assets/rm/office_t0.txt"),
+        "office_t1" => include_str!("../assets/rm/office_t1.txt"),
+        "office_t2" => include_str!("../assets/rm/office_t2.txt"),
+        "office_t3" => include_str!("../assets/rm/office_t3.txt"),
+        "office_t4" => include_str!("../assets/rm/office_t4.txt"),
+        "reacher_or" => include_str!("../assets/rm/reacher_or.txt"),
+        "reacher_sequential" => include_str!("../assets/rm/reacher_sequential.txt"),
+        "reacher_if" => include_str!("../assets/rm/reacher_if.txt"),
+        "reacher_composite" => include_str!("../assets/rm/reacher_composite.txt"),
+        _ => return None,
+    })
+}
+
+/// `experiments/experts/cache/expert_<task>.policy`, the committed SAC expert of a
+/// ReacherDelivery task (`or`, `sequential`, `if`, `composite`).
+pub fn expert_policy(task: &str) -> Option<&'static [u8]> {
+    Some(match task {
+        "or" => include_bytes!("../experiments/experts/cache/expert_or.policy"),
+        "sequential" => include_bytes!("../experiments/experts/cache/expert_sequential.policy"),
+        "if" => include_bytes!("../experiments/experts/cache/expert_if.policy"),
+        "composite" => include_bytes!("../experiments/experts/cache/expert_composite.policy"),
+        _ => return None,
+    })
+}

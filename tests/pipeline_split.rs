@@ -1,0 +1,375 @@
+//! A run in three steps a scheduler can spread over machines — `reacher prepare`, one
+//! `reacher job` per (algorithm, seed), `reacher aggregate` — gives exactly what the
+//! one-process `reacher --task` gives; finished jobs are not rerun, killed ones start over;
+//! bad input names the item; the binary runs away from the checkout; configs print as a
+//! person would write them.
+
+use smirl::pipeline::reacher_irl::{DemoSource, IrlRunConfig};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Scripted demos, 2 IRL iterations of 300 SAC steps: seconds per job.
+fn tiny_config() -> IrlRunConfig {
+    let mut c = IrlRunConfig::quick();
+    c.demo_source = DemoSource::Scripted;
+    c.demo_episodes = 4;
+    c.irl_iterations = 2;
+    c.sac_steps_per_iteration = 300;
+    c.agent_trajectories = 3;
+    c.eval_episodes = 2;
+    c.lrm_steps = 20;
+    c.lrm_tabu_len = 100;
+    c.log_every_nth_episode = 2;
+    c.env.max_steps = 70;
+    c.sac.warmup_steps = 100;
+    c.sac.update_after = 100;
+    c.sac.batch_size = 64;
+    c
+}
+
+fn run(bin: &Path, dir: &Path, args: &[&str]) -> Output {
+    Command::new(bin)
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn ok(o: &Output) -> String {
+    assert!(
+        o.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn usage_error(o: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains(needle), "expected '{needle}' in: {err}");
+}
+
+fn bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_reacher"))
+}
+
+fn read(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+const PLAN: [&str; 8] = [
+    "--task",
+    "if",
+    "--algo",
+    "smirl,maxent",
+    "--seeds",
+    "2",
+    "--seed",
+    "5",
+];
+
+#[test]
+fn prepare_job_aggregate_equals_one_process_run_and_reruns_are_safe() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("tiny.toml"), tiny_config().to_toml()).unwrap();
+    let with = |extra: &[&'static str]| -> Vec<&'static str> {
+        let mut v: Vec<&str> = PLAN.to_vec();
+        v.extend_from_slice(&["--config", "tiny.toml", "--quiet"]);
+        v.extend_from_slice(extra);
+        v
+    };
+    ok(&run(&bin(), dir, &with(&["--out", "whole"])));
+
+    let mut prepare: Vec<&str> = vec!["prepare"];
+    prepare.extend(with(&["--out", "split"]));
+    prepare.retain(|a| *a != "--quiet");
+    let out = ok(&run(&bin(), dir, &prepare));
+    assert!(out.contains("jobs: 4"), "{out}");
+    // Preparing the same plan again leaves the directory as it is.
+    let out = ok(&run(&bin(), dir, &prepare));
+    assert!(
+        out.contains("already prepared") && out.contains("jobs: 4"),
+        "{out}"
+    );
+
+    // Jobs in another order than the one-process run, by index and by name.
+    for args in [
+        vec!["job", "--run", "split", "--index", "3", "--quiet"],
+        vec![
+            "job", "--run", "split", "--algo", "smirl", "--seed", "6", "--quiet",
+        ],
+        vec!["job", "--run", "split", "--index", "0", "--quiet"],
+    ] {
+        ok(&run(&bin(), dir, &args));
+    }
+    // Aggregating with a job missing lists it, unless --partial.
+    usage_error(&run(&bin(), dir, &["aggregate", "split"]), "maxent_seed5");
+    ok(&run(&bin(), dir, &["aggregate", "split", "--partial"]));
+    ok(&run(
+        &bin(),
+        dir,
+        &["job", "--run", "split", "--index", "2", "--quiet"],
+    ));
+    ok(&run(&bin(), dir, &["aggregate", "split"]));
+    for f in ["metrics.csv", "summary.csv", "summary.md"] {
+        if f == "summary.md" {
+            continue; // holds job wall times
+        }
+        assert_eq!(
+            read(&dir.join("whole").join(f)),
+            read(&dir.join("split").join(f)),
+            "{f}"
+        );
+    }
+    for f in [
+        "rewards/smirl_seed6.json",
+        "rewards/smirl_seed6.trace.csv",
+        "rewards/maxent_seed5.bin",
+        "rm/learned.txt",
+        "success_branches.svg",
+    ] {
+        assert_eq!(
+            read(&dir.join("whole").join(f)),
+            read(&dir.join("split").join(f)),
+            "{f}"
+        );
+    }
+
+    // A finished job is not run again.
+    let record = dir.join("split/jobs/smirl_seed5.json");
+    let before = read(&record);
+    let out = ok(&run(
+        &bin(),
+        dir,
+        &["job", "--run", "split", "--algo", "smirl", "--seed", "5"],
+    ));
+    assert!(out.contains("already done"), "{out}");
+    assert_eq!(read(&record), before);
+    // A job killed halfway (no record, an unfinished log left behind) starts over and the
+    // aggregate comes out the same.
+    std::fs::remove_file(&record).unwrap();
+    std::fs::write(dir.join("split/logs/smirl_seed5.mcap.part"), b"half a log").unwrap();
+    std::fs::write(dir.join("split/rewards/smirl_seed5.json"), b"{\"half\":").unwrap();
+    ok(&run(
+        &bin(),
+        dir,
+        &["job", "--run", "split", "--index", "0", "--quiet"],
+    ));
+    let rows =
+        |bytes: &[u8]| serde_json::from_slice::<serde_json::Value>(bytes).unwrap()["rows"].clone();
+    assert_eq!(rows(&read(&record)), rows(&before));
+    ok(&run(&bin(), dir, &["aggregate", "split"]));
+    assert_eq!(
+        read(&dir.join("whole/metrics.csv")),
+        read(&dir.join("split/metrics.csv"))
+    );
+    assert!(!dir.join("split/logs/smirl_seed5.mcap.part").exists());
+    smirl::log::read_log(&dir.join("split/logs/smirl_seed5.mcap")).unwrap();
+}
+
+#[test]
+fn split_steps_refuse_bad_input_naming_the_item() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    std::fs::write(dir.join("tiny.toml"), tiny_config().to_toml()).unwrap();
+    // A directory `prepare` did not finish (or never touched).
+    std::fs::create_dir(dir.join("mine")).unwrap();
+    std::fs::write(dir.join("mine/notes.txt"), b"user data").unwrap();
+    usage_error(
+        &run(&bin(), dir, &["job", "--run", "mine", "--index", "0"]),
+        "not a prepared run directory",
+    );
+    usage_error(&run(&bin(), dir, &["aggregate", "mine"]), "prepare.json");
+    // `prepare` never writes into a directory it did not prepare.
+    usage_error(
+        &run(
+            &bin(),
+            dir,
+            &[
+                "prepare",
+                "--task",
+                "or",
+                "--config",
+                "tiny.toml",
+                "--out",
+                "mine",
+            ],
+        ),
+        "not touching it",
+    );
+    assert_eq!(read(&dir.join("mine/notes.txt")), b"user data");
+    assert_eq!(std::fs::read_dir(dir.join("mine")).unwrap().count(), 1);
+
+    ok(&run(
+        &bin(),
+        dir,
+        &[
+            "prepare",
+            "--task",
+            "or",
+            "--algo",
+            "maxent",
+            "--seeds",
+            "2",
+            "--config",
+            "tiny.toml",
+            "--out",
+            "run",
+        ],
+    ));
+    usage_error(
+        &run(
+            &bin(),
+            dir,
+            &["job", "--run", "run", "--algo", "fkl", "--seed", "0"],
+        ),
+        "algorithm 'fkl' is not in this run",
+    );
+    usage_error(
+        &run(
+            &bin(),
+            dir,
+            &["job", "--run", "run", "--algo", "maxent", "--seed", "7"],
+        ),
+        "seed 7 is outside this run's seeds 0..=1",
+    );
+    usage_error(
+        &run(&bin(), dir, &["job", "--run", "run", "--index", "2"]),
+        "job index 2 is outside 0..2",
+    );
+    usage_error(
+        &run(
+            &bin(),
+            dir,
+            &["job", "--run", "run", "--algo", "gail", "--seed", "0"],
+        ),
+        "gail",
+    );
+    usage_error(
+        &run(&bin(), dir, &["aggregate", "run"]),
+        "maxent_seed0, maxent_seed1",
+    );
+    usage_error(
+        &run(&bin(), dir, &["aggregate", "run", "--partial"]),
+        "no job has finished",
+    );
+    // Another plan into the prepared directory is refused.
+    usage_error(
+        &run(
+            &bin(),
+            dir,
+            &[
+                "prepare",
+                "--task",
+                "or",
+                "--algo",
+                "fkl",
+                "--config",
+                "tiny.toml",
+                "--out",
+                "run",
+            ],
+        ),
+        "another task, plan or config",
+    );
+}
+
+/// The binary carries its model, reward machines and committed experts: a copy in a
+/// directory outside the checkout, run from there, runs a `--quick` pipeline and prepares a
+/// run from the committed expert.
+#[test]
+fn relocated_binary_runs_outside_the_checkout() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let copy = dir.join("reacher");
+    std::fs::copy(bin(), &copy).unwrap();
+    let out = ok(&run(
+        &copy,
+        dir,
+        &[
+            "--task", "or", "--quick", "--algo", "maxent", "--quiet", "--out", "q",
+        ],
+    ));
+    assert!(out.contains("maxent"), "{out}");
+    assert!(dir.join("q/metrics.csv").is_file());
+    let mut expert = tiny_config();
+    expert.demo_source = DemoSource::Expert;
+    std::fs::write(dir.join("expert.toml"), expert.to_toml()).unwrap();
+    let out = ok(&run(
+        &copy,
+        dir,
+        &[
+            "prepare",
+            "--task",
+            "composite",
+            "--algo",
+            "smirl",
+            "--config",
+            "expert.toml",
+            "--out",
+            "p",
+        ],
+    ));
+    assert!(out.contains("4 of 4 demonstrations kept"), "{out}");
+    // The logs carry the built-in model, which is the shipped file.
+    let log = smirl::log::read_log(&dir.join("p/logs/demos.mcap")).unwrap();
+    let shipped = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/reacher_delivery.xml"),
+    )
+    .unwrap();
+    assert_eq!(log.model_xml.as_deref(), Some(shipped.as_str()));
+    let report = ok(&run(
+        &copy,
+        dir,
+        &["replay", "p/logs/demos.mcap", "--verify"],
+    ));
+    assert!(!report.contains("differs from the shipped"), "{report}");
+}
+
+/// A number with more than 8 digits after its decimal point (`0.0010000000474974513`).
+fn long_decimal(text: &str) -> bool {
+    text.split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter_map(|t| t.split_once('.'))
+        .any(|(_, fraction)| fraction.len() > 8)
+}
+
+#[test]
+fn configs_print_shortest_decimals_and_read_back_the_same() {
+    let o = Command::new(bin())
+        .args(["--task", "or", "--print-config"])
+        .output()
+        .unwrap();
+    let text = ok(&o);
+    assert!(text.contains("\nlr = 0.001\n"), "{text}");
+    assert!(text.contains("\nmlp_reward_lr = 0.001\n"), "{text}");
+    assert!(text.contains("\ngamma = 0.99\n"), "{text}");
+    assert!(!long_decimal(&text), "{text}");
+    assert_eq!(
+        IrlRunConfig::from_toml(&text, "printed").unwrap(),
+        IrlRunConfig::standard()
+    );
+    // Awkward values survive the round trip bit for bit.
+    let mut c = IrlRunConfig::quick();
+    c.mlp_reward_lr = 3.3e-7;
+    c.smirl_reward_l2 = 0.123_456_79;
+    c.sac.gamma = 0.999;
+    c.sac.tau = f32::MIN_POSITIVE;
+    c.sac.target_entropy = Some(-1.7);
+    let back = IrlRunConfig::from_toml(&c.to_toml(), "written").unwrap();
+    assert_eq!(back, c);
+    assert_eq!(back.mlp_reward_lr.to_bits(), c.mlp_reward_lr.to_bits());
+    assert!(
+        c.to_toml().contains("target_entropy = -1.7"),
+        "{}",
+        c.to_toml()
+    );
+    // The shipped configs are written that way too.
+    let shipped = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher/config.toml"),
+    )
+    .unwrap();
+    assert!(!long_decimal(&shipped), "{shipped}");
+}
