@@ -4,28 +4,11 @@
 //! bad input names the item; the binary runs away from the checkout; configs print as a
 //! person would write them.
 
+mod irl_run_common;
+use irl_run_common::tiny_config;
 use smirl::pipeline::reacher_irl::{DemoSource, IrlRunConfig};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-/// Scripted demos, 2 IRL iterations of 300 SAC steps: seconds per job.
-fn tiny_config() -> IrlRunConfig {
-    let mut c = IrlRunConfig::quick();
-    c.demo_source = DemoSource::Scripted;
-    c.demo_episodes = 4;
-    c.irl_iterations = 2;
-    c.sac_steps_per_iteration = 300;
-    c.agent_trajectories = 3;
-    c.eval_episodes = 2;
-    c.lrm_steps = 20;
-    c.lrm_tabu_len = 100;
-    c.log_every_nth_episode = 2;
-    c.env.max_steps = 70;
-    c.sac.warmup_steps = 100;
-    c.sac.update_after = 100;
-    c.sac.batch_size = 64;
-    c
-}
 
 fn run(bin: &Path, dir: &Path, args: &[&str]) -> Output {
     Command::new(bin)
@@ -74,10 +57,10 @@ const PLAN: [&str; 8] = [
 fn prepare_job_aggregate_equals_one_process_run_and_reruns_are_safe() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    std::fs::write(dir.join("tiny.toml"), tiny_config().to_toml()).unwrap();
+    // The `--quick` profile, as a user would run it.
     let with = |extra: &[&'static str]| -> Vec<&'static str> {
         let mut v: Vec<&str> = PLAN.to_vec();
-        v.extend_from_slice(&["--config", "tiny.toml", "--quiet"]);
+        v.extend_from_slice(&["--quick", "--quiet"]);
         v.extend_from_slice(extra);
         v
     };

@@ -1,0 +1,25 @@
+//! The tiny IRL run configuration the pipeline tests share.
+
+use smirl::pipeline::reacher_irl::{DemoSource, IrlRunConfig};
+
+/// A tiny but complete configuration: scripted demos, 2 IRL iterations of 300 SAC steps
+/// (seconds per job).
+pub fn tiny_config() -> IrlRunConfig {
+    let mut c = IrlRunConfig::quick();
+    c.demo_source = DemoSource::Scripted;
+    c.demo_episodes = 4;
+    c.irl_iterations = 2;
+    c.sac_steps_per_iteration = 300;
+    c.agent_trajectories = 3;
+    c.eval_episodes = 2;
+    c.lrm_steps = 20;
+    c.lrm_tabu_len = 100;
+    c.log_every_nth_episode = 2;
+    // 300 SAC steps are not a whole number of 70-step episodes: each iteration has to finish
+    // SAC's episode in progress before the rollouts reset the environment.
+    c.env.max_steps = 70;
+    c.sac.warmup_steps = 100;
+    c.sac.update_after = 100;
+    c.sac.batch_size = 64;
+    c
+}
