@@ -17,13 +17,11 @@ fn shipped_xml() -> std::path::PathBuf {
 }
 
 fn header() -> RunHeader {
-    let mut h = RunHeader::reacher(
+    let mut h = RunHeader::reacher_shipped(
         "sequential",
         42,
         serde_json::json!({"env": ReacherConfig::default(), "note": "round trip"}),
-        &shipped_xml(),
-    )
-    .unwrap();
+    );
     h.reward_machine = Some("vocabulary: rgbyc\nstates: 1\ninitial: 0\n".into());
     h
 }

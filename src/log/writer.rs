@@ -68,25 +68,6 @@ pub struct RunHeader {
 
 impl RunHeader {
     /// The header of a ReacherDelivery run on the model at `xml_path`.
-    pub fn reacher(
-        task: &str,
-        seed: u64,
-        config: serde_json::Value,
-        xml_path: &Path,
-    ) -> Result<RunHeader, LogError> {
-        let model_xml = std::fs::read_to_string(xml_path).map_err(|source| LogError::Io {
-            path: xml_path.to_path_buf(),
-            source,
-        })?;
-        let name = xml_path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        Ok(RunHeader::reacher_with_model(
-            task, seed, config, &name, &model_xml,
-        ))
-    }
-
     /// The header of a ReacherDelivery run on the shipped model (built into the binary).
     pub fn reacher_shipped(task: &str, seed: u64, config: serde_json::Value) -> RunHeader {
         RunHeader::reacher_with_model(

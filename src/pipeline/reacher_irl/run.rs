@@ -27,7 +27,7 @@ use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use crate::irl::smirl::FeatureMap;
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
 use crate::pipeline::reacher_expert::Demo;
-use crate::pipeline::reacher_expert::ExpertPolicy;
+use crate::pipeline::reacher_expert::{branch_tally, ExpertPolicy};
 use crate::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
 use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
@@ -391,13 +391,8 @@ pub fn prepare(
             "none of the {demos_generated} demonstrations completes task '{task}'"
         )));
     }
-    let demo_branches = CancelBranch::of(&perfect).map(|branches| {
-        let mut tally = BranchTally::default();
-        for d in &demos {
-            tally.add(d.branch(&branches), d.success);
-        }
-        tally
-    });
+    let demo_branches =
+        branch_tally(task, &demos).map_err(|e| PipelineError::Run(e.to_string()))?;
     observer.message(&format!(
         "demonstrations: {} of {demos_generated} complete the task ({} source), {} steps{}",
         demos.len(),
