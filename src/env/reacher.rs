@@ -52,6 +52,10 @@ pub const VOCABULARY: &str = "rgbyc";
 pub const BALLS: [&str; 4] = ["red", "green", "blue", "yellow"];
 /// Label bit of the cancel proposition.
 pub const CANCEL_BIT: usize = 4;
+/// The domain's *events*: propositions true on a single step by construction (the cancel);
+/// the ball propositions hold as long as the fingertip touches the ball. Learned machines
+/// read an event first in a label set they never saw (`rm::lrm::Guards`).
+pub const EVENTS: LabelSet = LabelSet(1 << CANCEL_BIT);
 /// A ball's proposition is true when the fingertip is closer than this to its centre (m).
 pub const TOUCH_RADIUS: f64 = 0.02;
 pub const OBS_DIM: usize = 17;

@@ -5,6 +5,7 @@
 use crate::env::reacher::ReacherConfig;
 use crate::irl::smirl::SmirlNormalisation;
 use crate::rl::sac::SacConfig;
+use crate::rm::lrm::Guards;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -115,6 +116,12 @@ pub struct IrlRunConfig {
     pub lrm_tabu_len: usize,
     /// LRM: search steps.
     pub lrm_steps: usize,
+    /// LRM: how the learned machine reads label sets the demonstrations never showed in a
+    /// state (`rm::lrm::Guards`): `"tree"` (events first) or `"exact"` (stay, LRM's
+    /// reading). A config without the key is read as `"exact"`, which is what every run
+    /// before the key existed used; the committed configs say `"tree"`.
+    #[serde(default)]
+    pub lrm_guards: Guards,
     /// MCAP: log every n-th agent/evaluation episode of each job (demos are all logged);
     /// 0 disables rollout logging.
     pub log_every_nth_episode: u64,
@@ -200,6 +207,7 @@ impl IrlRunConfig {
             lrm_max_states: 10,
             lrm_tabu_len: 10_000,
             lrm_steps: 100,
+            lrm_guards: Guards::Tree,
             log_every_nth_episode: 10,
             threads: 2,
             env: ReacherConfig::default(),

@@ -22,7 +22,7 @@ use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
 use super::Algo;
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::{OBS_CANCEL, VOCABULARY};
+use crate::env::reacher::{EVENTS, OBS_CANCEL, VOCABULARY};
 use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use crate::irl::smirl::FeatureMap;
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
@@ -212,6 +212,8 @@ pub fn learn_machine(
         merge: false,
         fill_unobserved: false,
         reward_weight: 0.0,
+        guards: config.lrm_guards,
+        events: EVENTS,
         // Restarts, split moves and patience keep the learner's defaults.
         ..LrmConfig::default()
     };
@@ -438,6 +440,12 @@ pub fn prepare(
             facts.total_steps
         );
         let _ = writeln!(report, "LRM cost {:.3}, {:.2} s", cost, secs);
+        let _ = writeln!(
+            report,
+            "guards for label sets unseen in a state: {} (events read first: \"{}\")",
+            config.lrm_guards.name(),
+            rm.vocab().format_labels(EVENTS)
+        );
         for (u, seen) in r.seen_with.iter().enumerate() {
             let _ = writeln!(
                 report,

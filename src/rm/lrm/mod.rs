@@ -50,6 +50,12 @@
 //! measure applied to the rewards, weighted high so that machines that explain the rewards
 //! come first. With `reward_weight = 0` (or no rewards) the objective is the reference one.
 //!
+//! **Beyond the reference: guards for unseen label sets.** With [`Guards::Tree`] each
+//! state's transitions are a decision tree over the propositions fitted to the cells the
+//! traces define (the domain's events, [`LrmConfig::events`], are split on first),
+//! instead of "stay" on every label set the traces never showed in that state; see
+//! `guards.rs` for the reason (Reacher IF/Composite) and the rule.
+//!
 //! **Beyond the reference: merging.** The objective adds states that predict the next label
 //! but pay the same rewards. With [`LrmConfig::merge`] (the default) states with the same
 //! reward behaviour are merged afterwards (Mealy minimisation over the observed label sets;
@@ -57,11 +63,13 @@
 //! machine before merging.
 
 mod data;
+mod guards;
 mod merge;
 mod search;
 pub mod synthetic;
 
 pub use data::MAX_OBSERVED_LABEL_SETS;
+pub use guards::Guards;
 
 use crate::rm::formula::Formula;
 use crate::rm::labels::{LabelSet, Vocabulary};
@@ -120,6 +128,12 @@ pub struct LrmConfig {
     /// state 0 and the objective could not tell "before the first label" from it (see
     /// `search.rs`); the learned machine may then have `max_states + 1` states.
     pub split_initial: bool,
+    /// How the machine reads label sets never observed in a state (see `guards.rs`):
+    /// [`Guards::Exact`] = LRM's (stay).
+    pub guards: Guards,
+    /// Propositions the domain declares instantaneous (true on one step by construction),
+    /// which [`Guards::Tree`] reads first; empty = none.
+    pub events: LabelSet,
 }
 
 impl Default for LrmConfig {
@@ -139,6 +153,8 @@ impl Default for LrmConfig {
             patience: DEFAULT_PATIENCE,
             split_moves: true,
             split_initial: true,
+            guards: Guards::Exact,
+            events: LabelSet::EMPTY,
         }
     }
 }
@@ -296,23 +312,24 @@ fn learn_warm(
         .collect();
     let raw = machine_from_cells(vocab, &data.labels, n, &raw_cells);
 
-    let (rm, final_cost) = if cfg.merge {
-        // Defined cells: observed ones, and the stays implied by stutter invariance.
-        let mut cells: Vec<Option<Cell>> = (0..n * l_n)
-            .map(|cell| (count[cell] > 0).then(|| raw_cells[cell].unwrap()))
-            .collect();
-        for (cell, &seen) in count.iter().enumerate() {
-            let (u, l) = (cell / l_n, cell % l_n);
-            let v = table.delta[cell] as usize;
-            if seen > 0 && v != u && cells[v * l_n + l].is_none() {
-                cells[v * l_n + l] = Some(Cell {
-                    target: v,
-                    reward: 0.0,
-                    weight: 0.0,
-                });
-            }
+    // Defined cells: observed ones, and the stays implied by stutter invariance.
+    let mut defined: Vec<Option<Cell>> = (0..n * l_n)
+        .map(|cell| (count[cell] > 0).then(|| raw_cells[cell].unwrap()))
+        .collect();
+    for (cell, &seen) in count.iter().enumerate() {
+        let (u, l) = (cell / l_n, cell % l_n);
+        let v = table.delta[cell] as usize;
+        if seen > 0 && v != u && defined[v * l_n + l].is_none() {
+            defined[v * l_n + l] = Some(Cell {
+                target: v,
+                reward: 0.0,
+                weight: 0.0,
+            });
         }
-        let (blocks, merged) = merge_states(n, l_n, cells, cfg.fill_unobserved);
+    }
+
+    let (exact_rm, final_cells, final_n, final_cost) = if cfg.merge {
+        let (blocks, merged) = merge_states(n, l_n, defined, cfg.fill_unobserved);
         let (quotient_cells, q_n) = renumber_blocks(&blocks, &merged, l_n);
         let rm = machine_from_cells(vocab, &data.labels, q_n, &quotient_cells);
         let delta: Vec<u16> = (0..(cfg.max_states + 1) * l_n)
@@ -325,9 +342,16 @@ fn learn_warm(
             })
             .collect();
         let cost = final_searcher.cost(&delta);
-        (rm, cost)
+        (rm, quotient_cells, q_n, cost)
     } else {
-        (raw.clone(), best_cost)
+        (raw.clone(), defined, n, best_cost)
+    };
+    // A tree agrees with the table on every defined cell, so the cost is the same.
+    let rm = match cfg.guards {
+        Guards::Exact => exact_rm,
+        Guards::Tree => {
+            guards::tree_machine(vocab, &data.labels, final_n, &final_cells, cfg.events.0)
+        }
     };
 
     let learned = LearnedRm {
