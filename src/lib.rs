@@ -17,9 +17,11 @@
 //!     log (MCAP)  ->  pipeline  ->  report (plots, tables)
 //! ```
 //!
-//! `atomic_file` (the atomic write every saved file goes through), `assets` (the model,
-//! reward machines and committed experts built into the binaries) and `short_float` (serde
-//! helpers for readable configs) import nothing of the crate and serve every layer.
+//! `atomic_file` (the atomic write every saved file goes through), `output` (where a command
+//! may write: output directories and files are checked, never replaced unless ours),
+//! `assets` (the model, reward machines and committed experts built into the binaries) and
+//! `short_float` (serde helpers for readable configs) import nothing of the crate and serve
+//! every layer.
 
 pub mod assets;
 pub mod atomic_file;
@@ -28,6 +30,7 @@ pub mod irl;
 pub mod log;
 pub mod mujoco;
 pub mod nn;
+pub mod output;
 pub mod pipeline;
 pub mod report;
 pub mod rl;

@@ -227,6 +227,7 @@ fn tiny_library_run_writes_every_artefact_and_is_reproducible() {
         seed: 3,
         config: tiny_config(),
         out: tmp.path().join(out),
+        force: false,
     };
     let a = run_pipeline(&request("a"), &Silent).unwrap();
     assert!(a.rm.as_ref().unwrap().learned_states >= 1);

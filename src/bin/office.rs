@@ -14,6 +14,7 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 use smirl::atomic_file::write_atomic;
 use smirl::env::office::{OfficeTask, OfficeWorld};
+use smirl::output::OutputDir;
 use smirl::pipeline::office::{
     demonstrations, demonstrations_table, run, Algo, OfficeConfig, OfficeRun,
 };
@@ -39,13 +40,15 @@ struct Args {
     /// Base seed: the runs use seed, seed+1, ...
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Output directory (must not exist unless --force).
+    /// Output directory (must not exist or be empty; with --force, an earlier output of this
+    /// program is replaced).
     #[arg(long)]
     out: PathBuf,
     /// TOML configuration (see `OfficeConfig`).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Replace an existing output directory.
+    /// Replace an existing output directory (only one this program wrote; never `.`, an
+    /// ancestor of the working directory or the home directory).
     #[arg(long)]
     force: bool,
     /// Also write each seed's demonstrations (`demos_seed<S>.csv`).
@@ -53,13 +56,16 @@ struct Args {
     write_demos: bool,
 }
 
+/// Most seeds one run takes (every seed's run is kept in memory until the reports).
+const MAX_SEEDS: u64 = 1_000;
+
 /// Everything checked before the run starts.
 struct Plan {
     task: OfficeTask,
     algos: Vec<Algo>,
     seeds: Vec<u64>,
     cfg: OfficeConfig,
-    out: PathBuf,
+    output: OutputDir,
     write_demos: bool,
 }
 
@@ -79,6 +85,12 @@ fn plan(args: &Args) -> Result<Plan> {
     if args.seeds == 0 {
         bail!("--seeds must be at least 1");
     }
+    if args.seeds > MAX_SEEDS {
+        bail!(
+            "--seeds {} is more than the limit of {MAX_SEEDS} seeds per run",
+            args.seeds
+        );
+    }
     let cfg = match &args.config {
         None => OfficeConfig::default(),
         Some(path) => {
@@ -87,15 +99,7 @@ fn plan(args: &Args) -> Result<Plan> {
             OfficeConfig::from_toml(&text).with_context(|| format!("config {}", path.display()))?
         }
     };
-    if args.out.exists() && !args.force {
-        bail!(
-            "output directory {} already exists (use --force to replace it)",
-            args.out.display()
-        );
-    }
-    if args.out.file_name().is_none() {
-        bail!("--out {} names no directory", args.out.display());
-    }
+    let output = OutputDir::check(&args.out, args.force)?;
     let seeds = (0..args.seeds)
         .map(|i| args.seed.checked_add(i))
         .collect::<Option<Vec<u64>>>()
@@ -105,7 +109,7 @@ fn plan(args: &Args) -> Result<Plan> {
         algos,
         seeds,
         cfg,
-        out: args.out.clone(),
+        output,
         write_demos: args.write_demos,
     })
 }
@@ -152,29 +156,14 @@ fn execute(plan: &Plan) -> Result<()> {
             runs.push(r);
         }
     }
-    let parent = match plan.out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&parent).with_context(|| format!("creating {}", parent.display()))?;
-    let name = plan
-        .out
-        .file_name()
-        .expect("checked in plan")
-        .to_string_lossy();
-    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
-    let written = write_outputs(plan, &runs, &tmp);
-    if let Err(e) = written {
-        let _ = std::fs::remove_dir_all(&tmp);
+    let partial = plan.output.begin()?;
+    if let Err(e) = write_outputs(plan, &runs, &partial) {
+        // Only the directory this run created (and marked) is removed.
+        let _ = std::fs::remove_dir_all(&partial);
         return Err(e);
     }
-    if plan.out.exists() {
-        std::fs::remove_dir_all(&plan.out)
-            .with_context(|| format!("replacing {}", plan.out.display()))?;
-    }
-    std::fs::rename(&tmp, &plan.out)
-        .with_context(|| format!("moving results to {}", plan.out.display()))?;
-    eprintln!("results in {}", plan.out.display());
+    plan.output.commit(&partial)?;
+    eprintln!("results in {}", plan.output.path().display());
     Ok(())
 }
 

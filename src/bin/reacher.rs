@@ -19,6 +19,7 @@ use clap::{Args, Parser, Subcommand};
 use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::{read_log, LogOptions};
+use smirl::output::{check_file, OutputDir};
 use smirl::pipeline::offline_rm::{compare, learn_from_files};
 use smirl::pipeline::replay::replay;
 use smirl::rm::lrm::LrmConfig;
@@ -78,8 +79,13 @@ struct ExpertArgs {
     #[arg(long)]
     resume: bool,
     /// Run directory (checkpoint, curve, evaluation, demos); default target/expert-runs/TASK.
+    /// Must not exist or be empty, unless --resume (or --force to start over in one this
+    /// program wrote).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Start over in an existing run directory (only one this program wrote).
+    #[arg(long, conflicts_with = "resume")]
+    force: bool,
     /// Policy cache the trained actor is also copied to, as `expert_<task>.policy` (e.g.
     /// experiments/experts/cache, the committed experts, which the next build embeds); by
     /// default it stays in --out only.
@@ -100,9 +106,12 @@ struct RenderArgs {
     /// Episode id as `reacher replay` lists it [default: the first logged episode].
     #[arg(long)]
     episode: Option<u64>,
-    /// PNG file to write.
+    /// PNG file to write (an existing file only with --force).
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing --out file.
+    #[arg(long)]
+    force: bool,
     /// Side of the arena picture in pixels.
     #[arg(long, default_value_t = 480)]
     size: u32,
@@ -115,9 +124,12 @@ struct RenderArgs {
 struct LearnRmArgs {
     #[arg(required = true)]
     files: Vec<PathBuf>,
-    /// Directory for learned_rm.txt and learned_rm.dot.
+    /// Directory for learned_rm.txt and learned_rm.dot (existing ones only with --force).
     #[arg(long, default_value = ".")]
     out: PathBuf,
+    /// Replace existing learned_rm.txt / learned_rm.dot in --out.
+    #[arg(long)]
+    force: bool,
     /// Reference machine to check equivalence with (e.g. assets/rm/reacher_sequential.txt).
     #[arg(long)]
     compare: Option<PathBuf>,
@@ -137,8 +149,12 @@ struct LearnRmArgs {
 
 #[derive(Args)]
 struct DemoArgs {
+    /// MCAP file to write (an existing file only with --force).
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing --out file.
+    #[arg(long)]
+    force: bool,
     /// Balls to visit, in order (r, g, b, y).
     #[arg(long, default_value = "rgby")]
     sequence: String,
@@ -212,6 +228,7 @@ fn run_replay(file: PathBuf, verify: bool) -> Result<()> {
 
 fn run_render(args: RenderArgs) -> Result<()> {
     use smirl::pipeline::render::{render_episode, write_png, RenderOptions};
+    check_file(&args.out, args.force).map_err(|e| UsageError(e.to_string()))?;
     let log = read_log(&args.file)?;
     if let Some(rec) = &log.recovery {
         eprintln!("warning: {}: {rec}", args.file.display());
@@ -252,6 +269,19 @@ fn run_learn_rm(args: LearnRmArgs) -> Result<()> {
         merge: !args.no_merge,
         ..LrmConfig::default()
     };
+    // Every input and output is checked before the search runs.
+    let txt = args.out.join("learned_rm.txt");
+    let dot = args.out.join("learned_rm.dot");
+    for path in [&txt, &dot] {
+        check_file(path, args.force).map_err(|e| UsageError(e.to_string()))?;
+    }
+    let reference = match &args.compare {
+        Some(path) => Some((
+            path,
+            smirl::rm::format::read_rm(path).map_err(|e| UsageError(format!("{e:#}")))?,
+        )),
+        None => None,
+    };
     let result = learn_from_files(&args.files, &cfg)?;
     for w in &result.traces.warnings {
         eprintln!("warning: {w}");
@@ -274,18 +304,13 @@ fn run_learn_rm(args: LearnRmArgs) -> Result<()> {
         learned.stats.search_states,
         learned.cost
     );
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let txt = args.out.join("learned_rm.txt");
     smirl::rm::format::save_rm(&txt, &learned.rm)
         .with_context(|| format!("cannot write {}", txt.display()))?;
-    let dot = args.out.join("learned_rm.dot");
     smirl::atomic_file::write_atomic(&dot, smirl::rm::dot::to_dot(&learned.rm).as_bytes())
         .with_context(|| format!("cannot write {}", dot.display()))?;
     println!("wrote {} and {}", txt.display(), dot.display());
-    if let Some(reference) = &args.compare {
-        let reference_rm = smirl::rm::format::read_rm(reference)?;
-        let c = compare(&learned.rm, &reference_rm, &result.traces.traces)?;
+    if let Some((reference, reference_rm)) = &reference {
+        let c = compare(&learned.rm, reference_rm, &result.traces.traces)?;
         match c.counterexample {
             None => println!(
                 "equivalent to {} (over the observed label sets)",
@@ -305,6 +330,7 @@ fn run_learn_rm(args: LearnRmArgs) -> Result<()> {
 }
 
 fn run_demo(args: DemoArgs) -> Result<()> {
+    check_file(&args.out, args.force).map_err(|e| UsageError(e.to_string()))?;
     let rm_name = format!("reacher_{}", args.task);
     let reward_machine = match smirl::rm::perfect::text(&rm_name) {
         Some(_) => Some(smirl::rm::perfect::load(&rm_name)?),
@@ -369,14 +395,24 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         .out
         .unwrap_or_else(|| PathBuf::from(format!("target/expert-runs/{task}")));
     let checkpoint = out.join("expert.ckpt");
-    if checkpoint.exists() && !args.resume {
-        return Err(UsageError(format!(
-            "{} exists: pass --resume to continue that run, or remove it to start over",
-            checkpoint.display()
-        ))
-        .into());
+    if args.resume {
+        if !checkpoint.is_file() {
+            return Err(UsageError(format!(
+                "--resume: {} does not exist (nothing to resume)",
+                checkpoint.display()
+            ))
+            .into());
+        }
+    } else {
+        let output = OutputDir::check(&out, args.force).map_err(|e| {
+            UsageError(if out.join("expert.ckpt").exists() {
+                format!("{e} (pass --resume to continue the run in it)")
+            } else {
+                e.to_string()
+            })
+        })?;
+        output.create()?;
     }
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
 
     let bar = if args.quiet {
         ProgressBar::hidden()
@@ -562,9 +598,10 @@ mod irl_cli {
     use clap::Args;
     use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
     use smirl::env::reacher_task::ReacherTask;
+    use smirl::output::{check_not_protected, OutputDir};
     use smirl::pipeline::reacher_irl::job::JobProgress;
     use smirl::pipeline::reacher_irl::run::{
-        self, open_run, partial_dir, summary_markdown, JobRecord, PreparedRun,
+        self, open_run, summary_markdown, JobRecord, PreparedRun,
     };
     use smirl::pipeline::reacher_irl::{
         run_pipeline, Algo, IrlRunConfig, PipelineError, RunObserver, RunRequest,
@@ -604,9 +641,13 @@ mod irl_cli {
         /// experiments/reacher/config.toml). Overrides the built-in profile.
         #[arg(long, conflicts_with = "quick")]
         config: Option<PathBuf>,
-        /// Run directory [default: runs/reacher-<task>].
+        /// Run directory [default: runs/reacher-<task>]; must not exist, or be empty.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace an existing run directory (only one this program wrote; never `.`, an
+        /// ancestor of the working directory or the home directory).
+        #[arg(long)]
+        force: bool,
         /// Print the effective configuration as TOML and exit.
         #[arg(long)]
         print_config: bool,
@@ -750,6 +791,7 @@ mod irl_cli {
             seed: args.seed,
             config,
             out,
+            force: args.force,
         }))
     }
 
@@ -762,6 +804,7 @@ mod irl_cli {
         };
         let out = &request.out;
         let planned_jobs = request.algos.len() as u64 * request.seeds;
+        check_not_protected(out).map_err(|e| usage(e.to_string()))?;
         if out.exists() {
             let existing = open_run(out).map_err(|_| {
                 usage(format!(
@@ -789,14 +832,10 @@ mod irl_cli {
             println!("jobs: {planned_jobs}");
             return Ok(());
         }
-        let partial = partial_dir(out);
-        if partial.exists() {
-            std::fs::remove_dir_all(&partial)
-                .with_context(|| format!("cannot remove {}", partial.display()))?;
-        }
+        let output = OutputDir::check(out, false).map_err(|e| usage(e.to_string()))?;
+        let partial = output.begin()?;
         let prepared = run::prepare(&request, &partial, &run::Silent).map_err(pipeline_error)?;
-        std::fs::rename(&partial, out)
-            .with_context(|| format!("cannot rename {} to {}", partial.display(), out.display()))?;
+        output.commit(&partial)?;
         println!(
             "prepared {}: task {}, {} of {} demonstrations kept{}",
             out.display(),

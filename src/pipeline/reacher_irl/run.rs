@@ -26,6 +26,7 @@ use crate::env::reacher::{EVENTS, OBS_CANCEL, VOCABULARY};
 use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use crate::irl::smirl::FeatureMap;
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
+use crate::output::OutputDir;
 use crate::pipeline::reacher_expert::Demo;
 use crate::pipeline::reacher_expert::{branch_tally, ExpertPolicy};
 use crate::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
@@ -53,6 +54,8 @@ pub struct RunRequest {
     pub config: IrlRunConfig,
     /// Final run directory.
     pub out: PathBuf,
+    /// Replace an existing `out` (only one this program wrote, see [`crate::output`]).
+    pub force: bool,
 }
 
 /// A run that could not start (bad input: nothing written) or failed while running.
@@ -131,15 +134,8 @@ fn mean_std(xs: &[f64]) -> (f64, f64) {
     (m, v.sqrt())
 }
 
-/// The partial directory next to `out`.
-pub fn partial_dir(out: &Path) -> PathBuf {
-    let mut name = out
-        .file_name()
-        .map(|n| n.to_os_string())
-        .unwrap_or_default();
-    name.push(".partial");
-    out.with_file_name(name)
-}
+/// Most seeds per algorithm in one run (each is a job of minutes to hours).
+pub const MAX_SEEDS: u64 = 1_000;
 
 /// Observation columns of the two joint velocities (see `env::reacher`).
 const OBS_JOINT_VEL: [usize; 2] = [4, 5];
@@ -322,6 +318,11 @@ fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), Pi
     }
     if seeds == 0 {
         return Err(usage("--seeds must be at least 1".into()));
+    }
+    if seeds > MAX_SEEDS {
+        return Err(usage(format!(
+            "--seeds {seeds} is more than the limit of {MAX_SEEDS} seeds per run"
+        )));
     }
     let last_seed = seed
         .checked_add(seeds - 1)
@@ -685,12 +686,13 @@ pub fn run_pipeline(
 ) -> Result<RunSummary, PipelineError> {
     let started = Instant::now();
     let out = &request.out;
+    let output =
+        OutputDir::check(out, request.force).map_err(|e| PipelineError::Usage(e.to_string()))?;
     check_request(request)?;
     // From here on, output goes to <out>.partial.
-    let partial = partial_dir(out);
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial).map_err(|e| io(&partial, e))?;
-    }
+    let partial = output
+        .begin()
+        .map_err(|e| PipelineError::Run(e.to_string()))?;
     prepare(request, &partial, observer)?;
     let run = open_run(&partial)?;
 
@@ -733,11 +735,10 @@ pub fn run_pipeline(
 
     observer.phase("reports");
     let mut summary = aggregate(&run, false, Some(started.elapsed().as_secs_f64()))?;
-    // Complete: replace any previous run directory.
-    if out.exists() {
-        std::fs::remove_dir_all(out).map_err(|e| io(out, e))?;
-    }
-    std::fs::rename(&partial, out).map_err(|e| io(out, e))?;
+    // Complete: replace the previous run directory (checked to be ours).
+    output
+        .commit(&partial)
+        .map_err(|e| PipelineError::Run(e.to_string()))?;
     summary.out = out.clone();
     summary.wall_secs = started.elapsed().as_secs_f64();
     Ok(summary)
