@@ -17,7 +17,8 @@
 //!     log (MCAP)  ->  pipeline  ->  report (plots, tables)
 //! ```
 //!
-//! `atomic_file` (the atomic write every saved file goes through), `output` (where a command
+//! `atomic_file` (the atomic write every saved file goes through), `config_text` (size
+//! limit of text inputs, line of a TOML key for errors), `output` (where a command
 //! may write: output directories and files are checked, never replaced unless ours),
 //! `assets` (the model, reward machines and committed experts built into the binaries) and
 //! `short_float` (serde helpers for readable configs) import nothing of the crate and serve
@@ -25,6 +26,7 @@
 
 pub mod assets;
 pub mod atomic_file;
+pub mod config_text;
 pub mod env;
 pub mod irl;
 pub mod log;

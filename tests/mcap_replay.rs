@@ -104,7 +104,7 @@ fn learn_rm_on_sequential_demo_logs_recovers_the_task() {
         threads: 1,
         ..LrmConfig::default()
     };
-    let result = learn_from_files(&[a, b], &cfg).unwrap();
+    let result = learn_from_files(&[a, b], &cfg, false).unwrap();
     assert_eq!(result.traces.traces.len(), 30);
     assert!(result.traces.traces[0].rewards.is_some());
     let reference = perfect::reacher("sequential").unwrap();
@@ -113,4 +113,25 @@ fn learn_rm_on_sequential_demo_logs_recovers_the_task() {
     // absorbing: the learned machine agrees with the perfect one up to the goal.
     assert!(c.equivalent_until_done, "{c:?}\n{:?}", result.learned.rm);
     assert_eq!(result.learned.rm.n_states(), 4);
+}
+
+#[test]
+fn replay_prints_label_runs_compactly() {
+    use smirl::pipeline::replay::label_runs;
+    use smirl::rm::{LabelSet, Vocabulary};
+    let v = Vocabulary::new("rgbyc");
+    let (r, y, c) = (LabelSet(1), LabelSet(1 << 3), LabelSet(1 << 4));
+    let mut trace = vec![
+        LabelSet::EMPTY,
+        c,
+        LabelSet::EMPTY,
+        r,
+        r,
+        r,
+        LabelSet::EMPTY,
+    ];
+    trace.extend(std::iter::repeat(y).take(78));
+    assert_eq!(label_runs(&v, &trace), "c@2 r@4\u{2013}6 y@8\u{2013}85");
+    assert_eq!(label_runs(&v, &[]), "");
+    assert_eq!(label_runs(&v, &[LabelSet(1 | 1 << 4)]), "rc@1");
 }

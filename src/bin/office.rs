@@ -94,7 +94,7 @@ fn plan(args: &Args) -> Result<Plan> {
     let cfg = match &args.config {
         None => OfficeConfig::default(),
         Some(path) => {
-            let text = std::fs::read_to_string(path)
+            let text = smirl::config_text::read_text_file(path)
                 .with_context(|| format!("reading config {}", path.display()))?;
             OfficeConfig::from_toml(&text).with_context(|| format!("config {}", path.display()))?
         }
@@ -172,8 +172,8 @@ fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
     write_atomic(&path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))
 }
 
+/// Writes every output file into `dir` (the run's `.partial` directory, already created).
 fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
-    std::fs::create_dir(dir).with_context(|| format!("creating {}", dir.display()))?;
     let task = plan.task.index().to_string();
     let mut metrics = CsvTable::new([
         "task",

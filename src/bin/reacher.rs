@@ -1,6 +1,6 @@
 //! `reacher`: the ReacherDelivery command line — a thin clap front over library functions.
 //!
-//! - `reacher replay FILE.mcap [--verify]`: re-simulate logged episodes, check bit for bit.
+//! - `reacher replay FILE.mcap [--verify] [--allow-partial]`: re-simulate logged episodes, check bit for bit.
 //! - `reacher render FILE.mcap [--episode N] --out PIC.png`: draw one episode top-down.
 //! - `reacher learn-rm FILES… [--out DIR] [--compare RM.txt]`: learn an RM from logged labels.
 //! - `reacher demo --out FILE.mcap`: log scripted demonstrations (not the paper's SAC experts).
@@ -43,9 +43,13 @@ enum Command {
     /// Re-simulate every episode of a rollout log and compare with it bit for bit.
     Replay {
         file: PathBuf,
-        /// Exit with status 1 if any episode differs from the log.
+        /// Exit with status 1 if any episode differs from the log, the log holds no
+        /// episode, or it was cut short (unless --allow-partial).
         #[arg(long)]
         verify: bool,
+        /// Accept a log cut short (its complete episodes are used).
+        #[arg(long)]
+        allow_partial: bool,
     },
     /// Draw one logged episode top-down as PNG (arena, balls, arm poses, fingertip path,
     /// touches, cancel step).
@@ -115,6 +119,9 @@ struct RenderArgs {
     /// Side of the arena picture in pixels.
     #[arg(long, default_value_t = 480)]
     size: u32,
+    /// Accept a log cut short (its complete episodes are used).
+    #[arg(long)]
+    allow_partial: bool,
     /// Arm poses drawn, evenly spaced over the episode.
     #[arg(long, default_value_t = 5)]
     poses: usize,
@@ -141,6 +148,9 @@ struct LearnRmArgs {
     steps: usize,
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Accept logs cut short (their complete episodes are used).
+    #[arg(long)]
+    allow_partial: bool,
     /// Keep the search's machine instead of merging reward-indistinguishable states (demos
     /// that only ever show the task in order cannot tell its states apart by reward).
     #[arg(long)]
@@ -177,7 +187,11 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         None => irl_cli::run(cli.pipeline),
-        Some(Command::Replay { file, verify }) => run_replay(file, verify),
+        Some(Command::Replay {
+            file,
+            verify,
+            allow_partial,
+        }) => run_replay(file, verify, allow_partial),
         Some(Command::Render(args)) => run_render(args),
         Some(Command::LearnRm(args)) => run_learn_rm(args),
         Some(Command::Demo(args)) => run_demo(args),
@@ -201,14 +215,30 @@ fn main() -> ExitCode {
     }
 }
 
-fn run_replay(file: PathBuf, verify: bool) -> Result<()> {
-    let log = read_log(&file)?;
+/// A log cut short is refused (exit 1) unless `allow_partial`; with it, a warning.
+fn check_partial(log: &smirl::log::RolloutLog, allow_partial: bool) -> Result<()> {
     if let Some(rec) = &log.recovery {
-        eprintln!("warning: {}: {rec}", file.display());
+        if !allow_partial {
+            bail!(
+                "{}: {rec}; pass --allow-partial to use its complete episodes",
+                log.path.display()
+            );
+        }
+        eprintln!("warning: {}: {rec}", log.path.display());
     }
+    Ok(())
+}
+
+fn run_replay(file: PathBuf, verify: bool, allow_partial: bool) -> Result<()> {
+    let log = read_log(&file)?;
+    // Listing a partial log is harmless; verifying one is not a pass.
+    check_partial(&log, allow_partial || !verify)?;
     let report = replay(&log)?;
     println!("{report}");
-    if verify && (!report.all_match() || report.episodes.is_empty()) {
+    if verify && report.episodes.is_empty() {
+        bail!("{}: the log holds no episode to verify", file.display());
+    }
+    if verify && !report.all_match() {
         if report.version_differs {
             bail!(
                 "{}: replay differs from the log (logged with MuJoCo {}, this is {})",
@@ -230,9 +260,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     use smirl::pipeline::render::{render_episode, write_png, RenderOptions};
     check_file(&args.out, args.force).map_err(|e| UsageError(e.to_string()))?;
     let log = read_log(&args.file)?;
-    if let Some(rec) = &log.recovery {
-        eprintln!("warning: {}: {rec}", args.file.display());
-    }
+    check_partial(&log, args.allow_partial)?;
     let options = RenderOptions {
         size: args.size,
         poses: args.poses,
@@ -270,6 +298,13 @@ fn run_learn_rm(args: LearnRmArgs) -> Result<()> {
         ..LrmConfig::default()
     };
     // Every input and output is checked before the search runs.
+    use smirl::rm::lrm::{MAX_SEARCH_STEPS, MAX_STATES};
+    if !(1..=MAX_STATES).contains(&args.max_states) {
+        return Err(UsageError(format!("--max-states must be in 1..={MAX_STATES}")).into());
+    }
+    if !(1..=MAX_SEARCH_STEPS).contains(&args.steps) {
+        return Err(UsageError(format!("--steps must be in 1..={MAX_SEARCH_STEPS}")).into());
+    }
     let txt = args.out.join("learned_rm.txt");
     let dot = args.out.join("learned_rm.dot");
     for path in [&txt, &dot] {
@@ -282,7 +317,7 @@ fn run_learn_rm(args: LearnRmArgs) -> Result<()> {
         )),
         None => None,
     };
-    let result = learn_from_files(&args.files, &cfg)?;
+    let result = learn_from_files(&args.files, &cfg, args.allow_partial)?;
     for w in &result.traces.warnings {
         eprintln!("warning: {w}");
     }

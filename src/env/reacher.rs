@@ -138,6 +138,8 @@ impl Default for ReacherConfig {
 pub enum ConfigError {
     #[error("max_steps must be at least 1")]
     NoSteps,
+    #[error("max_steps ({0}) is more than the limit of {MAX_EPISODE_STEPS} steps per episode")]
+    TooManySteps(usize),
     #[error("cancel.probability is {0}, it must be in [0, 1]")]
     CancelProbability(f64),
     #[error(
@@ -153,10 +155,29 @@ pub enum ConfigError {
     BallOutOfRange { ball: &'static str, x: f64, y: f64 },
 }
 
+/// Longest episode a config may ask for (episodes are buffered whole).
+pub const MAX_EPISODE_STEPS: usize = 10_000;
+
+impl ConfigError {
+    /// The config key the error is about, as a path below `[env]`.
+    pub fn field(&self) -> &'static str {
+        match self {
+            ConfigError::NoSteps | ConfigError::TooManySteps(_) => "max_steps",
+            ConfigError::CancelProbability(_) => "cancel.probability",
+            ConfigError::CancelWindow { .. } => "cancel.earliest_step",
+            ConfigError::CancelAfterEpisode { .. } => "cancel.latest_step",
+            ConfigError::BallOutOfRange { .. } => "ball_layout",
+        }
+    }
+}
+
 impl ReacherConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         if self.max_steps == 0 {
             return Err(ConfigError::NoSteps);
+        }
+        if self.max_steps > MAX_EPISODE_STEPS {
+            return Err(ConfigError::TooManySteps(self.max_steps));
         }
         let p = self.cancel.probability;
         if !(0.0..=1.0).contains(&p) {

@@ -122,6 +122,8 @@ struct Reading<'p> {
     metadata: HashMap<String, String>,
     episodes: Vec<LoggedEpisode>,
     messages: u64,
+    /// (messages, chunks) of the summary's statistics record, when the file has one.
+    statistics: Option<(u64, u32)>,
 }
 
 impl Reading<'_> {
@@ -186,6 +188,9 @@ impl Reading<'_> {
                     schema::ATTACHMENT_CONFIG => self.config_json = Some(text()),
                     _ => {}
                 }
+            }
+            Record::Statistics(st) => {
+                self.statistics = Some((st.message_count, st.chunk_count));
             }
             Record::Metadata(m) if m.name == schema::METADATA_RUN => {
                 if let Some(v) = m.metadata.get("schema_version") {
@@ -277,6 +282,7 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
         metadata: HashMap::new(),
         episodes: Vec::new(),
         messages: 0,
+        statistics: None,
     };
     let mut chunks = 0;
     let mut footer = false;
@@ -301,6 +307,10 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
         if opcode == op::FOOTER {
             footer = true;
         }
+        check_lengths(opcode, data).map_err(|problem| LogError::Corrupt {
+            path: path.into(),
+            problem: format!("record (opcode {opcode:#04x}): {problem}"),
+        })?;
         let record = mcap::parse_record(opcode, data).map_err(|e| LogError::Corrupt {
             path: path.into(),
             problem: format!("record (opcode {opcode:#04x}) cannot be parsed: {e}"),
@@ -309,6 +319,17 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
     })?;
     match outcome {
         None => {}
+        // A file that ends with a valid footer was written to the end: a record running past
+        // it is damage, not truncation.
+        Some(e) if is_truncation(&e) && ends_with_footer(bytes) => {
+            return Err(LogError::Corrupt {
+                path: path.into(),
+                problem: format!(
+                    "the file ends with its footer (it was finished), but a record's length runs \
+                     past the data: {e}"
+                ),
+            })
+        }
         Some(e) if is_truncation(&e) => stopped_by = Some(format!("it ends inside a record: {e}")),
         Some(McapError::BadMagic) => {
             return Err(LogError::NotMcap {
@@ -335,6 +356,25 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
             problem: "no /run record".into(),
         });
     };
+    if footer {
+        if let Some((messages, chunk_count)) = r.statistics {
+            if messages != r.messages || chunk_count as usize != chunks {
+                return Err(LogError::Corrupt {
+                    path: path.into(),
+                    problem: format!(
+                        "the summary counts {messages} messages in {chunk_count} chunks, the data \
+                         holds {} in {chunks}",
+                        r.messages
+                    ),
+                });
+            }
+        }
+    } else if ends_with_footer(bytes) {
+        return Err(LogError::Corrupt {
+            path: path.into(),
+            problem: "the file ends with a footer that the records before it do not reach".into(),
+        });
+    }
     let recovery = if footer && stopped_by.is_none() {
         None
     } else {
@@ -420,6 +460,7 @@ fn read_chunk(r: &mut Reading, opcode: u8, data: &[u8], number: usize) -> Result
     let mut records = Vec::new();
     let mut input = &framed[..];
     let outcome = drive(&mut inner, &mut input, |op, body| {
+        check_lengths(op, body).map_err(|p| corrupt(format!("record (opcode {op:#04x}): {p}")))?;
         let rec = mcap::parse_record(op, body)
             .map_err(|e| corrupt(format!("record cannot be parsed: {e}")))?;
         records.push(rec.into_owned());
@@ -430,6 +471,153 @@ fn read_chunk(r: &mut Reading, opcode: u8, data: &[u8], number: usize) -> Result
     }
     for rec in records {
         r.record(rec)?;
+    }
+    Ok(())
+}
+
+/// The file ends with a footer record and the closing magic (as every finished log does):
+/// opcode, length 20, two offsets and a CRC, then the 8 magic bytes.
+fn ends_with_footer(bytes: &[u8]) -> bool {
+    const FOOTER_RECORD: usize = 1 + 8 + 20;
+    let magic = mcap::MAGIC.len();
+    if bytes.len() < mcap::MAGIC.len() + FOOTER_RECORD + magic {
+        return false;
+    }
+    let tail = &bytes[bytes.len() - magic - FOOTER_RECORD..];
+    tail[0] == op::FOOTER
+        && tail[1..9] == 20u64.to_le_bytes()
+        && &tail[FOOTER_RECORD..] == mcap::MAGIC
+}
+
+/// Checks that every length prefix inside a record's body (strings, byte arrays, maps,
+/// arrays) fits in the body, before the mcap crate parses it: the crate allocates what a
+/// prefix declares, so a damaged one (e.g. 0xFFFFFFFF) would otherwise ask for gigabytes.
+/// Layouts from the MCAP specification; records this reader does not know pass.
+fn check_lengths(opcode: u8, body: &[u8]) -> Result<(), String> {
+    struct Cursor<'a> {
+        rest: &'a [u8],
+    }
+    impl Cursor<'_> {
+        fn skip(&mut self, n: u64, what: &str) -> Result<(), String> {
+            if n > self.rest.len() as u64 {
+                return Err(format!(
+                    "{what} declares {n} bytes but only {} remain in the record",
+                    self.rest.len()
+                ));
+            }
+            self.rest = &self.rest[n as usize..];
+            Ok(())
+        }
+        fn int(&mut self, bytes: usize, what: &str) -> Result<u64, String> {
+            if self.rest.len() < bytes {
+                return Err(format!("{what}: the record ends early"));
+            }
+            let mut v = [0u8; 8];
+            v[..bytes].copy_from_slice(&self.rest[..bytes]);
+            self.rest = &self.rest[bytes..];
+            Ok(u64::from_le_bytes(v))
+        }
+        /// A u32-prefixed string or byte array.
+        fn string(&mut self, what: &str) -> Result<(), String> {
+            let n = self.int(4, what)?;
+            self.skip(n, what)
+        }
+        /// A map of strings to strings (u32 byte length, then the entries).
+        fn string_map(&mut self, what: &str) -> Result<(), String> {
+            let n = self.int(4, what)?;
+            if n > self.rest.len() as u64 {
+                return self.skip(n, what);
+            }
+            let mut inner = Cursor {
+                rest: &self.rest[..n as usize],
+            };
+            while !inner.rest.is_empty() {
+                inner.string(what)?;
+                inner.string(what)?;
+            }
+            self.skip(n, what)
+        }
+    }
+    let mut c = Cursor { rest: body };
+    match opcode {
+        op::HEADER => {
+            c.string("profile")?;
+            c.string("library")?;
+        }
+        op::SCHEMA => {
+            c.int(2, "schema id")?;
+            c.string("schema name")?;
+            c.string("schema encoding")?;
+            c.string("schema data")?;
+        }
+        op::CHANNEL => {
+            c.int(2, "channel id")?;
+            c.int(2, "schema id")?;
+            c.string("topic")?;
+            c.string("message encoding")?;
+            c.string_map("channel metadata")?;
+        }
+        op::CHUNK => {
+            c.int(8, "start time")?;
+            c.int(8, "end time")?;
+            c.int(8, "uncompressed size")?;
+            c.int(4, "uncompressed crc")?;
+            c.string("compression")?;
+            let n = c.int(8, "chunk records")?;
+            c.skip(n, "chunk records")?;
+        }
+        op::MESSAGE_INDEX => {
+            c.int(2, "channel id")?;
+            c.string("message index entries")?;
+        }
+        op::CHUNK_INDEX => {
+            for what in ["start time", "end time", "chunk offset", "chunk length"] {
+                c.int(8, what)?;
+            }
+            c.string("message index offsets")?;
+            c.int(8, "message index length")?;
+            c.string("compression")?;
+        }
+        op::ATTACHMENT => {
+            c.int(8, "log time")?;
+            c.int(8, "create time")?;
+            c.string("attachment name")?;
+            c.string("media type")?;
+            let n = c.int(8, "attachment data")?;
+            c.skip(n, "attachment data")?;
+        }
+        op::ATTACHMENT_INDEX => {
+            for what in ["offset", "length", "log time", "create time", "data size"] {
+                c.int(8, what)?;
+            }
+            c.string("attachment name")?;
+            c.string("media type")?;
+        }
+        op::STATISTICS => {
+            c.int(8, "message count")?;
+            c.int(2, "schema count")?;
+            for what in [
+                "channel count",
+                "attachment count",
+                "metadata count",
+                "chunk count",
+            ] {
+                c.int(4, what)?;
+            }
+            c.int(8, "start time")?;
+            c.int(8, "end time")?;
+            c.string("channel message counts")?;
+        }
+        op::METADATA => {
+            c.string("metadata name")?;
+            c.string_map("metadata")?;
+        }
+        op::METADATA_INDEX => {
+            c.int(8, "offset")?;
+            c.int(8, "length")?;
+            c.string("metadata name")?;
+        }
+        _ => {}
     }
     Ok(())
 }

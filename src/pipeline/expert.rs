@@ -12,7 +12,7 @@
 
 use super::reacher_expert::PolicyFileError;
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::ReacherConfig;
+use crate::env::reacher::{ReacherConfig, MAX_EPISODE_STEPS};
 use crate::env::ContinuousEnv;
 use crate::rl::sac::{
     deserialize_table, load_toml, parse_table, ActMode, CheckpointError, ConfigError, EnvReward,
@@ -61,6 +61,11 @@ pub fn expert_sac() -> SacConfig {
     }
 }
 
+/// Most environment steps of one expert's training.
+pub const MAX_TOTAL_STEPS: u64 = 1_000_000_000;
+/// Most evaluation episodes (and the longest progress window).
+pub const MAX_EVAL_EPISODES: u64 = 1_000_000;
+
 impl Default for ExpertConfig {
     fn default() -> Self {
         Self {
@@ -96,30 +101,58 @@ impl ExpertConfig {
         };
         let mut config: Self = deserialize_table(table, source_name)?;
         config.sac = sac;
-        config.validate().map_err(|e| parse(e.to_string()))?;
+        config.check().map_err(|(field, problem)| {
+            let line = crate::config_text::key_line(text, &field)
+                .map_or(String::new(), |l| format!("line {l}: "));
+            parse(format!("{line}field `{field}` {problem}"))
+        })?;
         Ok(config)
     }
 
     /// Checks value ranges (SAC settings, environment, shaping, run lengths).
     pub fn validate(&self) -> Result<(), ConfigError> {
-        self.sac.validate()?;
-        let bad = |field: &str, problem: String| {
-            Err(ConfigError::Parse {
-                source_name: "expert config".into(),
-                message: format!("field `{field}`: {problem}"),
-            })
-        };
+        self.check().map_err(|(field, problem)| ConfigError::Parse {
+            source_name: "expert config".into(),
+            message: format!("field `{field}` {problem}"),
+        })
+    }
+
+    /// [`ExpertConfig::validate`]'s checks: the dotted key and the problem.
+    fn check(&self) -> Result<(), (String, String)> {
+        let bad = |field: &str, problem: String| Err((field.to_string(), problem));
+        match self.sac.validate() {
+            Err(ConfigError::Invalid { field, problem }) => {
+                return bad(&format!("sac.{field}"), problem)
+            }
+            Err(e) => return bad("sac", e.to_string()),
+            Ok(()) => {}
+        }
         if let Err(e) = self.env.validate() {
-            return bad("env", e.to_string());
+            return bad(&format!("env.{}", e.field()), e.to_string());
         }
         if !(self.shaping_scale.is_finite() && self.shaping_scale >= 0.0) {
             return bad("shaping_scale", "must be a non-negative number".into());
         }
-        if self.total_steps == 0 {
-            return bad("total_steps", "must be positive".into());
-        }
-        if self.eval_max_steps == 0 {
-            return bad("eval_max_steps", "must be positive".into());
+        for (field, value, limit) in [
+            ("total_steps", self.total_steps, MAX_TOTAL_STEPS),
+            ("eval_episodes", self.eval_episodes, MAX_EVAL_EPISODES),
+            (
+                "eval_max_steps",
+                self.eval_max_steps,
+                MAX_EPISODE_STEPS as u64,
+            ),
+            (
+                "progress_window",
+                self.progress_window as u64,
+                MAX_EVAL_EPISODES,
+            ),
+        ] {
+            if value == 0 && matches!(field, "total_steps" | "eval_max_steps") {
+                return bad(field, "must be positive".into());
+            }
+            if value > limit {
+                return bad(field, format!("is {value}, more than the limit of {limit}"));
+            }
         }
         Ok(())
     }

@@ -67,6 +67,13 @@ pub enum Structure {
     Perfect,
 }
 
+/// Most demonstrations of an Office run.
+pub const MAX_OFFICE_DEMOS: usize = 100_000;
+/// Longest Office episode (demonstrations and evaluation).
+pub const MAX_OFFICE_HORIZON: usize = 10_000;
+/// Most LRM threads.
+pub const MAX_OFFICE_THREADS: usize = 256;
+
 /// Demonstration settings (the seed comes from the run).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -201,6 +208,23 @@ impl OfficeConfig {
         }
         if self.lrm.max_states < 1 || self.lrm.threads < 1 {
             return bad("lrm.max_states and lrm.threads must be ≥ 1".into());
+        }
+        for (field, value, limit) in [
+            ("demos.n_demos", self.demos.n_demos, MAX_OFFICE_DEMOS),
+            ("demos.horizon", self.demos.horizon, MAX_OFFICE_HORIZON),
+            ("eval.horizon", self.eval.horizon, MAX_OFFICE_HORIZON),
+            (
+                "lrm.max_states",
+                self.lrm.max_states,
+                crate::rm::lrm::MAX_STATES,
+            ),
+            ("lrm.threads", self.lrm.threads, MAX_OFFICE_THREADS),
+        ] {
+            if value > limit {
+                return bad(format!(
+                    "{field} = {value} is more than the limit of {limit}"
+                ));
+            }
         }
         Ok(())
     }

@@ -13,6 +13,8 @@ use std::path::PathBuf;
 pub enum OfflineRmError {
     #[error(transparent)]
     Log(#[from] LogError),
+    #[error("{path}: {recovery}; pass --allow-partial to learn from its complete episodes")]
+    Partial { path: PathBuf, recovery: String },
     #[error("{path}: vocabulary \"{found}\" differs from \"{expected}\" of the first log")]
     Vocabulary {
         path: PathBuf,
@@ -96,12 +98,24 @@ pub fn traces_from_logs(logs: &[RolloutLog]) -> Result<LogTraces, OfflineRmError
     })
 }
 
-/// Reads the logs and extracts their traces.
-pub fn traces_from_files(paths: &[PathBuf]) -> Result<LogTraces, OfflineRmError> {
+/// Reads the logs and extracts their traces. A log cut short (see
+/// [`crate::log::RolloutLog::recovery`]) is an error unless `allow_partial`.
+pub fn traces_from_files(
+    paths: &[PathBuf],
+    allow_partial: bool,
+) -> Result<LogTraces, OfflineRmError> {
     let logs = paths
         .iter()
         .map(|p| read_log(p))
         .collect::<Result<Vec<_>, _>>()?;
+    if !allow_partial {
+        if let Some(log) = logs.iter().find(|l| l.recovery.is_some()) {
+            return Err(OfflineRmError::Partial {
+                path: log.path.clone(),
+                recovery: log.recovery.as_ref().expect("found").to_string(),
+            });
+        }
+    }
     traces_from_logs(&logs)
 }
 
@@ -112,8 +126,12 @@ pub struct OfflineRm {
     pub traces: LogTraces,
 }
 
-pub fn learn_from_files(paths: &[PathBuf], cfg: &LrmConfig) -> Result<OfflineRm, OfflineRmError> {
-    let traces = traces_from_files(paths)?;
+pub fn learn_from_files(
+    paths: &[PathBuf],
+    cfg: &LrmConfig,
+    allow_partial: bool,
+) -> Result<OfflineRm, OfflineRmError> {
+    let traces = traces_from_files(paths, allow_partial)?;
     let learned = learn_rm(&traces.vocabulary, &traces.traces, cfg)?;
     Ok(OfflineRm { learned, traces })
 }

@@ -61,7 +61,8 @@ pub struct EpisodeReplay {
     /// The log has the episode's end record.
     pub complete: bool,
     pub env_return: f64,
-    /// Labels seen along the episode, as text per step where non-empty (e.g. `r@12 g@40`).
+    /// Labels seen along the episode, as runs of one label set (steps from 1; e.g.
+    /// `c@3 r@9–11 y@23–100`, empty sets left out); see [`label_runs`].
     pub label_events: String,
     pub mismatch: Option<Mismatch>,
     /// `reset(seed)` reproduces the logged initial state (when false, the state was still
@@ -429,12 +430,6 @@ fn replay_episode(
         };
         result.env_return += out.reward;
         replayed_labels.push(out.labels);
-        if !out.labels.is_empty() {
-            if !result.label_events.is_empty() {
-                result.label_events.push(' ');
-            }
-            result.label_events += &format!("{}@{n}", vocab.format_labels(out.labels));
-        }
         let diff = first_diff("qpos", &s.qpos, env.qpos())
             .or_else(|| first_diff("qvel", &s.qvel, env.qvel()))
             .or_else(|| {
@@ -471,6 +466,7 @@ fn replay_episode(
             break;
         }
     }
+    result.label_events = label_runs(&vocab, &replayed_labels);
     result.branch = branches.map(|(rm, b)| b.of_labels(rm, replayed_labels));
     if let (Some(c), Some(end), None) = (&rm_check, &ep.end, &result.mismatch) {
         let n = ep.steps.len();
@@ -544,4 +540,28 @@ impl fmt::Display for ReplayReport {
             self.mismatches()
         )
     }
+}
+
+/// A label trace as runs of one non-empty label set: `r@9–11` for steps 9 to 11 (steps
+/// counted from 1), `c@3` for a single step, separated by spaces.
+pub fn label_runs(vocab: &crate::rm::Vocabulary, labels: &[crate::rm::LabelSet]) -> String {
+    let mut parts = Vec::new();
+    let mut k = 0;
+    while k < labels.len() {
+        let l = labels[k];
+        let mut end = k;
+        while end + 1 < labels.len() && labels[end + 1] == l {
+            end += 1;
+        }
+        if !l.is_empty() {
+            let text = vocab.format_labels(l);
+            parts.push(if end == k {
+                format!("{text}@{}", k + 1)
+            } else {
+                format!("{text}@{}\u{2013}{}", k + 1, end + 1)
+            });
+        }
+        k = end + 1;
+    }
+    parts.join(" ")
 }

@@ -27,6 +27,11 @@
 //!   so read → write → read gives back the same machine.
 //!
 //! Errors name the file, the 1-based line and what was expected.
+//!
+//! **Limits** (checked while parsing, before anything is allocated from them): at most
+//! [`MAX_STATES`] states, [`MAX_TRANSITIONS`] transitions, [`MAX_LINE_CHARS`] characters per
+//! line, formulas nested at most [`super::formula::MAX_DEPTH`] deep; [`read_rm`] reads at
+//! most [`crate::config_text::MAX_TEXT_FILE_BYTES`].
 
 use super::formula::Formula;
 use super::labels::Vocabulary;
@@ -62,6 +67,13 @@ impl RmFileError {
     }
 }
 
+/// Most states of a machine read from a file (its table has states × 2^|P| cells).
+pub const MAX_STATES: usize = 1_000;
+/// Most transition lines.
+pub const MAX_TRANSITIONS: usize = 10_000;
+/// Longest line, in characters.
+pub const MAX_LINE_CHARS: usize = 4_096;
+
 /// A header value and the line it came from.
 struct Header<T> {
     value: T,
@@ -86,11 +98,23 @@ pub fn parse_rm(text: &str, source: &str) -> Result<RewardMachine, RmFileError> 
 
     for (k, raw) in text.lines().enumerate() {
         let line_no = k + 1;
+        if raw.chars().count() > MAX_LINE_CHARS {
+            return Err(syntax(
+                line_no,
+                format!("the line is longer than the limit of {MAX_LINE_CHARS} characters"),
+            ));
+        }
         let line = strip_comment(raw).trim();
         if line.is_empty() {
             continue;
         }
         if line.starts_with('(') {
+            if transition_lines.len() == MAX_TRANSITIONS {
+                return Err(syntax(
+                    line_no,
+                    format!("more than the limit of {MAX_TRANSITIONS} transitions"),
+                ));
+            }
             transition_lines.push((line_no, line));
             continue;
         }
@@ -129,6 +153,12 @@ pub fn parse_rm(text: &str, source: &str) -> Result<RewardMachine, RmFileError> 
                 let n = parse_state(value).map_err(|p| syntax(line_no, p))?;
                 if n == 0 {
                     return Err(syntax(line_no, "expected at least 1 state, found 0".into()));
+                }
+                if n > MAX_STATES {
+                    return Err(syntax(
+                        line_no,
+                        format!("{n} states is more than the limit of {MAX_STATES}"),
+                    ));
                 }
                 n_states = Some(Header {
                     value: n,
@@ -286,7 +316,7 @@ pub fn parse_rm(text: &str, source: &str) -> Result<RewardMachine, RmFileError> 
 /// Reads a reward-machine file.
 pub fn read_rm(path: &Path) -> Result<RewardMachine, RmFileError> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|error| RmFileError::Io {
+    let text = crate::config_text::read_text_file(path).map_err(|error| RmFileError::Io {
         file: name.clone(),
         error,
     })?;

@@ -39,6 +39,7 @@ impl Formula {
         let mut p = Parser {
             chars: text.chars().collect(),
             pos: 0,
+            depth: 0,
             vocab,
             text,
         };
@@ -145,9 +146,15 @@ fn write_formula(
     }
 }
 
+/// Deepest nesting of `!` and parentheses a formula may have (the parser and every
+/// recursive walk of the tree recurse once per level).
+pub const MAX_DEPTH: usize = 64;
+
 struct Parser<'a> {
     chars: Vec<char>,
     pos: usize,
+    /// Current nesting of `!` and `(`.
+    depth: usize,
     vocab: &'a Vocabulary,
     text: &'a str,
 }
@@ -199,6 +206,18 @@ impl Parser<'_> {
     }
 
     fn unary(&mut self) -> Result<Formula, FormulaError> {
+        if self.depth >= MAX_DEPTH {
+            return Err(self.error(format!(
+                "nested more than {MAX_DEPTH} deep ('!' and parentheses)"
+            )));
+        }
+        self.depth += 1;
+        let f = self.unary_inner();
+        self.depth -= 1;
+        f
+    }
+
+    fn unary_inner(&mut self) -> Result<Formula, FormulaError> {
         match self.peek() {
             None => {
                 Err(self

@@ -172,13 +172,38 @@ pub enum IrlConfigError {
         source_name: String,
         message: String,
     },
-    #[error("{source_name}: field `{field}` {problem}")]
+    #[error("{source_name}: {}field `{field}` {problem}", line.map_or(String::new(), |l| format!("line {l}: ")))]
     Invalid {
         source_name: String,
+        /// Dotted key path (`sac.batch_size`, `env.max_steps`, `lrm_steps`).
         field: String,
         problem: String,
+        /// Line of the key (or of its table's header, when the key is left at its
+        /// default); `None` when the config did not come from a file.
+        line: Option<usize>,
     },
 }
+
+// Limits of the sizes a config may ask for, checked by `validate` before any work (a typo
+// must be an error naming the key, not an allocation failure an hour later).
+
+/// Most demonstrations generated.
+pub const MAX_DEMO_EPISODES: usize = 10_000;
+/// Most IRL iterations.
+pub const MAX_IRL_ITERATIONS: usize = 100_000;
+/// Most SAC environment steps per IRL iteration.
+pub const MAX_SAC_STEPS_PER_ITERATION: u64 = 100_000_000;
+/// Most environment steps kept in memory for one iteration's agent rollouts (or its
+/// evaluation episodes): trajectories × `env.max_steps`.
+pub const MAX_ROLLOUT_STEPS: usize = 10_000_000;
+/// Most reward optimiser steps per IRL iteration.
+pub const MAX_REWARD_STEPS: usize = 100_000;
+/// Most states of a learned machine.
+pub const MAX_LRM_STATES: usize = crate::rm::lrm::MAX_STATES;
+/// Most LRM search steps and tabu-list entries.
+pub const MAX_LRM_STEPS: usize = crate::rm::lrm::MAX_SEARCH_STEPS;
+/// Most worker threads.
+pub const MAX_THREADS: usize = 256;
 
 impl IrlRunConfig {
     /// The default profile: sized so that `reacher --task <t>` with the default algorithm set
@@ -234,7 +259,8 @@ impl IrlRunConfig {
     pub fn from_toml(text: &str, source_name: &str) -> Result<IrlRunConfig, IrlConfigError> {
         let config: IrlRunConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
             let mut message = e.message().trim().to_string();
-            if let Some(span) = e.span() {
+            // A missing key has no line of its own (the span is the whole document).
+            if let Some(span) = e.span().filter(|_| !message.starts_with("missing field")) {
                 let start = span.start.min(text.len());
                 let line = text[..start].matches('\n').count() + 1;
                 // Name the field whose value is wrong (the span points at the value).
@@ -254,16 +280,30 @@ impl IrlRunConfig {
                 message,
             }
         })?;
-        config.validate(source_name)?;
+        config.validate(source_name).map_err(|e| match e {
+            IrlConfigError::Invalid {
+                source_name,
+                field,
+                problem,
+                ..
+            } => IrlConfigError::Invalid {
+                line: crate::config_text::key_line(text, &field),
+                source_name,
+                field,
+                problem,
+            },
+            other => other,
+        })?;
         Ok(config)
     }
 
     /// Reads and parses a TOML file.
     pub fn load(path: &Path) -> Result<IrlRunConfig, IrlConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| IrlConfigError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
+        let text =
+            crate::config_text::read_text_file(path).map_err(|source| IrlConfigError::Io {
+                path: path.display().to_string(),
+                source,
+            })?;
         IrlRunConfig::from_toml(&text, &path.display().to_string())
     }
 
@@ -284,8 +324,71 @@ impl IrlRunConfig {
                 source_name: source_name.to_string(),
                 field: field.to_string(),
                 problem: problem.to_string(),
+                line: None,
             })
         };
+        // The environment first: the rollout limits below use its episode length.
+        if let Err(e) = self.env.validate() {
+            return bad(&format!("env.{}", e.field()), &e.to_string());
+        }
+        let over = |field: &str, value: u64, limit: u64| {
+            bad(
+                field,
+                &format!("is {value}, more than the limit of {limit}"),
+            )
+        };
+        for (field, value, limit) in [
+            (
+                "demo_episodes",
+                self.demo_episodes as u64,
+                MAX_DEMO_EPISODES as u64,
+            ),
+            (
+                "irl_iterations",
+                self.irl_iterations as u64,
+                MAX_IRL_ITERATIONS as u64,
+            ),
+            (
+                "sac_steps_per_iteration",
+                self.sac_steps_per_iteration,
+                MAX_SAC_STEPS_PER_ITERATION,
+            ),
+            (
+                "reward_steps_per_iteration",
+                self.reward_steps_per_iteration as u64,
+                MAX_REWARD_STEPS as u64,
+            ),
+            (
+                "lrm_max_states",
+                self.lrm_max_states as u64,
+                MAX_LRM_STATES as u64,
+            ),
+            ("lrm_steps", self.lrm_steps as u64, MAX_LRM_STEPS as u64),
+            (
+                "lrm_tabu_len",
+                self.lrm_tabu_len as u64,
+                MAX_LRM_STEPS as u64,
+            ),
+            ("threads", self.threads as u64, MAX_THREADS as u64),
+        ] {
+            if value > limit {
+                return over(field, value, limit);
+            }
+        }
+        for (field, episodes) in [
+            ("agent_trajectories", self.agent_trajectories as u64),
+            ("eval_episodes", self.eval_episodes),
+        ] {
+            let steps = episodes.saturating_mul(self.env.max_steps as u64);
+            if steps > MAX_ROLLOUT_STEPS as u64 {
+                return bad(
+                    field,
+                    &format!(
+                        "× env.max_steps = {steps} steps per iteration, more than the limit of {MAX_ROLLOUT_STEPS}"
+                    ),
+                );
+            }
+        }
         let positive = |x: f64| x.is_finite() && x > 0.0;
         let non_negative = |x: f64| x.is_finite() && x >= 0.0;
         if self.demo_episodes == 0 {
@@ -349,12 +452,12 @@ impl IrlRunConfig {
         if self.threads == 0 {
             return bad("threads", "must be at least 1");
         }
-        if let Err(e) = self.env.validate() {
-            return bad("env", &e.to_string());
+        match self.sac.validate() {
+            Err(crate::rl::sac::ConfigError::Invalid { field, problem }) => {
+                bad(&format!("sac.{field}"), &problem)
+            }
+            Err(e) => bad("sac", &e.to_string()),
+            Ok(()) => Ok(()),
         }
-        if let Err(e) = self.sac.validate() {
-            return bad("sac", &e.to_string());
-        }
-        Ok(())
     }
 }

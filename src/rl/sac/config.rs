@@ -63,6 +63,20 @@ impl Default for SacConfig {
     }
 }
 
+// Limits of the sizes a config may ask for, checked by `SacConfig::validate` before any
+// allocation (a typo such as `hidden = [1000000]` must be an error, not an abort).
+
+/// Most hidden layers of each network.
+pub const MAX_HIDDEN_LAYERS: usize = 8;
+/// Widest hidden layer (a 4096² weight matrix is 64 MiB).
+pub const MAX_LAYER_WIDTH: usize = 4096;
+/// Largest minibatch.
+pub const MAX_BATCH_SIZE: usize = 65_536;
+/// Largest replay buffer, in transitions (a few hundred bytes each on Reacher's product).
+pub const MAX_REPLAY_CAPACITY: usize = 4_000_000;
+/// Most gradient updates per environment step.
+pub const MAX_UPDATES_PER_STEP: u32 = 64;
+
 /// A configuration that cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ConfigError {
@@ -101,7 +115,9 @@ impl SacConfig {
     /// values, which the other keys override; unknown keys and wrong types are errors naming
     /// the key. `source_name` (usually the file path) prefixes every message.
     pub fn from_toml(text: &str, source_name: &str) -> Result<Self, ConfigError> {
-        Self::from_table(parse_table(text, source_name)?, Self::irl(), source_name)
+        let config = Self::from_table(parse_table(text, source_name)?, Self::irl(), source_name)?;
+        config.validate()?;
+        Ok(config)
     }
 
     /// [`SacConfig::from_toml`] on a parsed table, with `default_base` as the base values
@@ -130,9 +146,8 @@ impl SacConfig {
         for (k, v) in user {
             merged.insert(k, v);
         }
-        let config: Self = deserialize_table(merged, source_name)?;
-        config.validate()?;
-        Ok(config)
+        // Ranges are checked by the caller's `validate`, which can name the key's line.
+        deserialize_table(merged, source_name)
     }
 
     /// Reads and parses a TOML file.
@@ -154,6 +169,36 @@ impl SacConfig {
         };
         if self.hidden.is_empty() || self.hidden.contains(&0) {
             return bad("hidden", "must list at least one positive layer width");
+        }
+        if self.hidden.len() > MAX_HIDDEN_LAYERS {
+            return bad(
+                "hidden",
+                &format!("lists more than {MAX_HIDDEN_LAYERS} layers"),
+            );
+        }
+        if let Some(w) = self.hidden.iter().find(|&&w| w > MAX_LAYER_WIDTH) {
+            return bad(
+                "hidden",
+                &format!("has a layer of width {w}, more than the limit of {MAX_LAYER_WIDTH}"),
+            );
+        }
+        if self.batch_size > MAX_BATCH_SIZE {
+            return bad(
+                "batch_size",
+                &format!("is more than the limit of {MAX_BATCH_SIZE}"),
+            );
+        }
+        if self.replay_capacity > MAX_REPLAY_CAPACITY {
+            return bad(
+                "replay_capacity",
+                &format!("is more than the limit of {MAX_REPLAY_CAPACITY} transitions"),
+            );
+        }
+        if self.updates_per_step > MAX_UPDATES_PER_STEP {
+            return bad(
+                "updates_per_step",
+                &format!("is more than the limit of {MAX_UPDATES_PER_STEP}"),
+            );
         }
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return bad("lr", "must be a positive number");
@@ -207,7 +252,7 @@ pub(crate) fn load_toml<T>(
     from_toml: impl FnOnce(&str, &str) -> Result<T, ConfigError>,
 ) -> Result<T, ConfigError> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Parse {
+    let text = crate::config_text::read_text_file(path).map_err(|e| ConfigError::Parse {
         source_name: name.clone(),
         message: e.to_string(),
     })?;

@@ -90,6 +90,12 @@ pub struct LabelTrace {
 /// first and predicting the next label second.
 pub const DEFAULT_REWARD_WEIGHT: f64 = 100.0;
 
+/// Most states a configured search may use (the count tables grow with states × label
+/// sets²); configs are checked against it before any work.
+pub const MAX_STATES: usize = 100;
+/// Most search steps (and tabu-list entries) a config may ask for.
+pub const MAX_SEARCH_STEPS: usize = 1_000_000;
+
 /// Default number of independent starts of the search.
 pub const DEFAULT_STARTS: usize = 4;
 /// Default number of steps without improvement after which a start ends.

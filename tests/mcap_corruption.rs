@@ -1,0 +1,179 @@
+//! Corruption is not truncation (issue 16). Regression tests: on the previous main, a bit
+//! flipped in a chunk's length field (footer intact) was taken for truncation, `replay
+//! --verify` replayed a quarter of the episodes and exited 0; a log without episodes
+//! "verified"; a damaged string length made the reader ask for ~4 GB.
+
+use smirl::env::reacher::ReacherConfig;
+use smirl::log::demo::{log_scripted_demos, DemoSpec};
+use smirl::log::{read_log_bytes, LogError, LogOptions, RolloutLogger, RunHeader};
+use std::path::Path;
+use std::process::Command;
+
+fn demo_bytes(dir: &Path, episodes: u64) -> Vec<u8> {
+    let path = dir.join("demo.mcap");
+    log_scripted_demos(
+        &path,
+        &DemoSpec {
+            task: "sequential".into(),
+            sequence: "rgby".into(),
+            episodes,
+            seed: 7,
+            stop_when_done: true,
+            env: ReacherConfig::default(),
+            reward_machine: None,
+        },
+        LogOptions {
+            chunk_size: 8 << 10,
+            ..LogOptions::default()
+        },
+    )
+    .unwrap();
+    std::fs::read(&path).unwrap()
+}
+
+/// Offsets of the top-level records with `opcode` (each record: opcode, u64 length, body).
+fn records(bytes: &[u8], opcode: u8) -> Vec<usize> {
+    let mut at = mcap::MAGIC.len();
+    let mut found = Vec::new();
+    while at + 9 <= bytes.len() - mcap::MAGIC.len() {
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+        if bytes[at] == opcode {
+            found.push(at);
+        }
+        at += 9 + len;
+    }
+    found
+}
+
+fn reacher(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_damaged_chunk_length_in_a_finished_log_is_corruption() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = demo_bytes(dir.path(), 12);
+    let chunks = records(&good, mcap::records::op::CHUNK);
+    assert!(chunks.len() >= 4, "{} chunks", chunks.len());
+    let second = chunks[1];
+    // Every single-bit flip of the length field: longer (runs past the footer or into the
+    // next records) or shorter (cuts the chunk).
+    for bit in 0..64 {
+        let mut bad = good.clone();
+        bad[second + 1 + bit / 8] ^= 1 << (bit % 8);
+        match read_log_bytes(&bad, Path::new("flipped.mcap")) {
+            Err(LogError::Corrupt { .. }) | Err(LogError::Mcap { .. }) => {}
+            Err(e) => panic!("bit {bit}: unexpected error kind: {e}"),
+            Ok(log) => panic!(
+                "bit {bit}: read as {} episodes, recovery {:?}",
+                log.episodes.len(),
+                log.recovery
+            ),
+        }
+    }
+    // On the command line: `replay --verify` exits 1 and names the file; `learn-rm` and
+    // `render` refuse it too.
+    let mut bad = good.clone();
+    bad[second + 6] ^= 0x10;
+    let path = dir.path().join("flipped.mcap");
+    std::fs::write(&path, &bad).unwrap();
+    let p = path.to_str().unwrap();
+    for args in [
+        vec!["replay", p, "--verify"],
+        vec!["replay", p, "--verify", "--allow-partial"],
+        vec!["learn-rm", p, "--out", dir.path().to_str().unwrap()],
+    ] {
+        let o = reacher(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains("flipped.mcap"), "{err}");
+    }
+}
+
+#[test]
+fn a_truncated_log_is_used_only_with_allow_partial() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = demo_bytes(dir.path(), 12);
+    let chunks = records(&good, mcap::records::op::CHUNK);
+    let cut = &good[..chunks[3] + 20];
+    let log = read_log_bytes(cut, Path::new("cut.mcap")).unwrap();
+    let recovery = log.recovery.as_ref().expect("flagged as cut short");
+    assert!(recovery.complete_episodes > 0 && recovery.complete_episodes < 12);
+    let path = dir.path().join("cut.mcap");
+    std::fs::write(&path, cut).unwrap();
+    let p = path.to_str().unwrap();
+    let out = dir.path().join("rm");
+    let o_out = out.to_str().unwrap();
+    for args in [
+        vec!["replay", p, "--verify"],
+        vec!["learn-rm", p, "--out", o_out],
+        vec!["render", p, "--out", "/nonexistent-dir-for-test/x.png"],
+    ] {
+        let o = reacher(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_ne!(o.status.code(), Some(0), "{args:?}: {err}");
+    }
+    let o = reacher(&["replay", p, "--verify", "--allow-partial"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = reacher(&["replay", p]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("incomplete"));
+}
+
+#[test]
+fn a_log_without_episodes_does_not_verify() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("empty.mcap");
+    let header = RunHeader::reacher_shipped("or", 0, serde_json::json!({}));
+    RolloutLogger::create(&path, header, LogOptions::default())
+        .unwrap()
+        .finish()
+        .unwrap();
+    let o = reacher(&["replay", path.to_str().unwrap(), "--verify"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no episode"));
+}
+
+#[test]
+fn damaged_string_lengths_are_errors_not_huge_allocations() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = demo_bytes(dir.path(), 2);
+    let metadata = records(&good, mcap::records::op::METADATA);
+    let attachments = records(&good, mcap::records::op::ATTACHMENT);
+    assert!(!metadata.is_empty() && !attachments.is_empty());
+    // The metadata's name length, and its map's byte length; the attachment's name length.
+    let name_len = metadata[0] + 9;
+    let name = u32::from_le_bytes(good[name_len..name_len + 4].try_into().unwrap()) as usize;
+    let map_len = name_len + 4 + name;
+    let attachment_name = attachments[0] + 9 + 16;
+    for at in [name_len, map_len, attachment_name] {
+        let mut bad = good.clone();
+        bad[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+        let e = read_log_bytes(&bad, Path::new("long.mcap")).unwrap_err();
+        assert!(
+            matches!(e, LogError::Corrupt { .. }) && e.to_string().contains("declares"),
+            "{e}"
+        );
+        // Under a 1 GiB address-space limit the command fails cleanly (no abort).
+        let path = dir.path().join("long.mcap");
+        std::fs::write(&path, &bad).unwrap();
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "ulimit -v 1048576; exec {} replay {}",
+                env!("CARGO_BIN_EXE_reacher"),
+                path.display()
+            ))
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(1),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}
