@@ -9,5 +9,5 @@ cargo build --release --bin reacher
 mkdir -p experiments/reacher/diagnostics
 ./target/release/reacher --task composite --algo smirl --seeds 3 \
   --config experiments/reacher/ablations/no_crm.toml \
-  --out experiments/reacher/diagnostics/no_crm-composite --quiet \
+  --out experiments/reacher/diagnostics/no_crm-composite --force --quiet \
   > experiments/reacher/diagnostics/no_crm-composite.log

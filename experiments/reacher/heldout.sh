@@ -16,6 +16,6 @@ BIN=${REACHER_BIN:-./target/release/reacher}
 mkdir -p experiments/reacher/heldout
 for task in ${TASKS:-or sequential if composite}; do
   "$BIN" --task "$task" --algo smirl --seed "$BASE" --seeds 3 \
-    --config "$CONFIG" --out "experiments/reacher/heldout/$PREFIX$task" --quiet \
+    --config "$CONFIG" --out "experiments/reacher/heldout/$PREFIX$task" --force --quiet \
     > "experiments/reacher/heldout/$PREFIX$task.log"
 done

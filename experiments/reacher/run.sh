@@ -19,7 +19,7 @@ BIN=${REACHER_BIN:-./target/release/reacher}
 for task in $TASKS; do
   start=$(date +%s)
   "$BIN" --task "$task" --algo "$ALGOS" --seeds "$SEEDS" --config "$CONFIG" \
-    --out "experiments/reacher/runs/$task" --quiet | tee "experiments/reacher/runs/$task.log"
+    --out "experiments/reacher/runs/$task" --force --quiet | tee "experiments/reacher/runs/$task.log"
   echo "wall_secs $(( $(date +%s) - start )) task $task algos $ALGOS seeds $SEEDS config $CONFIG" \
     > "experiments/reacher/runs/$task.time"
 done

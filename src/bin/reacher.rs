@@ -79,7 +79,8 @@ struct ExpertArgs {
     config: Option<PathBuf>,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Continue a killed run from its last checkpoint in --out.
+    /// Continue a killed run from its last checkpoint in --out (or start one if --out has no
+    /// checkpoint).
     #[arg(long)]
     resume: bool,
     /// Run directory (checkpoint, curve, evaluation, demos); default target/expert-runs/TASK.
@@ -430,15 +431,8 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
         .out
         .unwrap_or_else(|| PathBuf::from(format!("target/expert-runs/{task}")));
     let checkpoint = out.join("expert.ckpt");
-    if args.resume {
-        if !checkpoint.is_file() {
-            return Err(UsageError(format!(
-                "--resume: {} does not exist (nothing to resume)",
-                checkpoint.display()
-            ))
-            .into());
-        }
-    } else {
+    // --resume continues the run whose checkpoint is in --out, or starts one there.
+    if !(args.resume && checkpoint.is_file()) {
         let output = OutputDir::check(&out, args.force).map_err(|e| {
             UsageError(if out.join("expert.ckpt").exists() {
                 format!("{e} (pass --resume to continue the run in it)")

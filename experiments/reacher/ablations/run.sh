@@ -20,7 +20,7 @@ out=experiments/reacher/ablations/runs
 mkdir -p "$out"
 run() { # ablation task algos
   ./target/release/reacher --task "$2" --algo "$3" --seeds 3 \
-    --config "experiments/reacher/ablations/$1.toml" --out "$out/$1-$2" --quiet > "$out/$1-$2.log"
+    --config "experiments/reacher/ablations/$1.toml" --out "$out/$1-$2" --force --quiet > "$out/$1-$2.log"
 }
 for task in or sequential if composite; do
   run paper_sac "$task" all                 # [sac] lr = 3e-3, replay_capacity = 10000
