@@ -4,6 +4,7 @@
 //! - `reacher render FILE.mcap [--episode N] --out PIC.png`: draw one episode top-down.
 //! - `reacher learn-rm FILES… [--out DIR] [--compare RM.txt]`: learn an RM from logged labels.
 //! - `reacher demo --out FILE.mcap`: log scripted demonstrations (not the paper's SAC experts).
+//! - `reacher foxglove FILE.mcap --out VIEW.mcap`: the log plus a Foxglove 3D scene.
 //! - `reacher expert --task T`: train, evaluate and save the SAC expert of a task, with its
 //!   training curve, its training episodes and 16 demonstrations in MCAP.
 //!
@@ -56,6 +57,9 @@ enum Command {
     Render(RenderArgs),
     /// Learn a reward machine from the label traces of rollout logs.
     LearnRm(LearnRmArgs),
+    /// Write a copy of a log with a Foxglove 3D scene (/scene: foxglove.SceneUpdate, /tf:
+    /// foxglove.FrameTransforms) of the arm, balls, touches and cancel events.
+    Foxglove(FoxgloveArgs),
     /// Log scripted demonstrations (ball sequence) to an MCAP file.
     Demo(DemoArgs),
     /// Train a task's SAC expert, evaluate it, save it and log 16 demonstrations.
@@ -129,6 +133,20 @@ struct RenderArgs {
 }
 
 #[derive(Args)]
+struct FoxgloveArgs {
+    file: PathBuf,
+    /// MCAP file to write (an existing file only with --force).
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace an existing --out file.
+    #[arg(long)]
+    force: bool,
+    /// Accept a log cut short (its complete chunks are exported).
+    #[arg(long)]
+    allow_partial: bool,
+}
+
+#[derive(Args)]
 struct LearnRmArgs {
     #[arg(required = true)]
     files: Vec<PathBuf>,
@@ -195,6 +213,7 @@ fn main() -> ExitCode {
         }) => run_replay(file, verify, allow_partial),
         Some(Command::Render(args)) => run_render(args),
         Some(Command::LearnRm(args)) => run_learn_rm(args),
+        Some(Command::Foxglove(args)) => run_foxglove(args),
         Some(Command::Demo(args)) => run_demo(args),
         Some(Command::Expert(args)) => run_expert(args),
         Some(Command::Prepare(args)) => irl_cli::prepare(args),
@@ -286,6 +305,20 @@ fn run_render(args: RenderArgs) -> Result<()> {
         picture
             .branch
             .map_or(String::new(), |b| format!(", {b} branch"))
+    );
+    Ok(())
+}
+
+fn run_foxglove(args: FoxgloveArgs) -> Result<()> {
+    check_file(&args.out, args.force).map_err(|e| UsageError(e.to_string()))?;
+    let s =
+        smirl::pipeline::foxglove_scene::export_scene(&args.file, &args.out, args.allow_partial)?;
+    println!(
+        "wrote {}: {} messages of the log, {} scene states of {} episodes (/scene, /tf); open it in Foxglove and add a 3D panel",
+        s.out.display(),
+        s.copied,
+        s.scenes,
+        s.episodes
     );
     Ok(())
 }

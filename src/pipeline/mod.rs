@@ -1,6 +1,7 @@
 //! End-to-end pipelines behind the binaries (experts, demonstrations, IRL, evaluation).
 
 pub mod expert;
+pub mod foxglove_scene;
 pub mod office;
 pub mod offline_rm;
 pub mod reacher_expert;

@@ -1,0 +1,539 @@
+//! Foxglove 3D view of a rollout log (`reacher foxglove LOG --out VIEW.mcap`): a copy of the
+//! log with two more channels in Foxglove's standard schemas, so that opening it in Foxglove
+//! shows the arm moving among the balls in a 3D panel.
+//!
+//! - `/scene` (`foxglove.SceneUpdate`): entity `arena` (floor and walls, at each episode
+//!   start), `balls` (the four balls at the episode's layout, translucent as in the model),
+//!   `arm` (both links as cylinders and the fingertip as a sphere, at every logged state),
+//!   `events` (a lit touch zone around each ball the fingertip touches, and a "cancel" text
+//!   on the step the cancel fires; empty otherwise).
+//! - `/tf` (`foxglove.FrameTransforms`): frames `link0`, `link1` and `fingertip` in `world`.
+//!
+//! Geometry, colours and sizes come from the log's own model XML; poses from forward
+//! kinematics on the logged `qpos` (exact doubles), at the `log_time` of the state's
+//! `/episode/start` or `/step` message. Every original record (messages, attachments,
+//! metadata) is copied unchanged; the log itself keeps its size (the view is a separate
+//! file). Schemas are the official ones of the `foxglove` crate.
+
+use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
+use crate::log::schema::{EpisodeStartMsg, StepMsg, TOPIC_EPISODE_START, TOPIC_STEP};
+use crate::log::{read_log_bytes, LogError};
+use crate::mujoco::{Data, Model, ObjectKind};
+use foxglove::schemas::{
+    Color, CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms, Pose, Quaternion,
+    SceneEntity, SceneUpdate, SpherePrimitive, TextPrimitive, Timestamp, Vector3,
+};
+use foxglove::Encode;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+pub const TOPIC_SCENE: &str = "/scene";
+pub const TOPIC_TF: &str = "/tf";
+/// The frame every scene entity is expressed in.
+pub const FRAME_WORLD: &str = "world";
+/// Arena walls of the model (capsules of the world body).
+const WALLS: [&str; 4] = ["sideS", "sideE", "sideN", "sideW"];
+
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error(transparent)]
+    Log(#[from] LogError),
+    #[error("{path}: {problem}")]
+    Input { path: PathBuf, problem: String },
+    #[error("{path}: {problem}")]
+    Output { path: PathBuf, problem: String },
+}
+
+/// What the export wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneSummary {
+    pub out: PathBuf,
+    /// Messages copied from the log.
+    pub copied: u64,
+    /// `/scene` messages written (as many `/tf` messages).
+    pub scenes: u64,
+    pub episodes: usize,
+}
+
+/// The model facts the scene needs.
+struct Geometry {
+    model: Arc<Model>,
+    arm_bodies: [usize; 3],
+    ball_bodies: [usize; 4],
+    link_radius: f64,
+    tip_radius: f64,
+    ball_radius: f64,
+    link_colour: Color,
+    tip_colour: Color,
+    ball_colours: [Color; 4],
+    walls: Vec<([f64; 3], [f64; 3], f64)>,
+    wall_colour: Color,
+}
+
+fn colour(rgba: [f32; 4], alpha: Option<f64>) -> Color {
+    Color {
+        r: f64::from(rgba[0]),
+        g: f64::from(rgba[1]),
+        b: f64::from(rgba[2]),
+        a: alpha.unwrap_or(f64::from(rgba[3])),
+    }
+}
+
+impl Geometry {
+    fn new(xml: &str, source: &str) -> Result<Geometry, String> {
+        let model = Arc::new(Model::from_xml_str(xml, source).map_err(|e| e.to_string())?);
+        let id = |kind, name: &str| model.id(kind, name).map_err(|e| e.to_string());
+        let geom = |name: &str| id(ObjectKind::Geom, name);
+        let arm_bodies = [
+            id(ObjectKind::Body, "body0")?,
+            id(ObjectKind::Body, "body1")?,
+            id(ObjectKind::Body, "fingertip")?,
+        ];
+        let mut ball_bodies = [0; 4];
+        let mut ball_colours = [Color::default(); 4];
+        for (k, name) in BALLS.iter().enumerate() {
+            ball_bodies[k] = id(ObjectKind::Body, name)?;
+            ball_colours[k] = colour(model.geom_rgba(geom(name)?), None);
+        }
+        let mut walls = Vec::new();
+        for name in WALLS {
+            let g = geom(name)?;
+            let (a, b) = model
+                .world_capsule_segment(g)
+                .ok_or_else(|| format!("wall {name} is not a capsule of the world body"))?;
+            walls.push((a, b, model.geom_radius(g)));
+        }
+        Ok(Geometry {
+            link_radius: model.geom_radius(geom("link0")?),
+            tip_radius: model.geom_radius(geom("fingertip")?),
+            ball_radius: model.geom_radius(geom(BALLS[0])?),
+            link_colour: colour(model.geom_rgba(geom("link0")?), None),
+            tip_colour: colour(model.geom_rgba(geom("fingertip")?), None),
+            wall_colour: colour(model.geom_rgba(geom(WALLS[0])?), None),
+            ball_colours,
+            walls,
+            arm_bodies,
+            ball_bodies,
+            model,
+        })
+    }
+}
+
+fn vector(p: [f64; 3]) -> Vector3 {
+    Vector3 {
+        x: p[0],
+        y: p[1],
+        z: p[2],
+    }
+}
+
+fn at(p: [f64; 3]) -> Option<Pose> {
+    Some(Pose {
+        position: Some(vector(p)),
+        orientation: Some(Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 1.0,
+        }),
+    })
+}
+
+/// The rotation taking +z to the unit vector `d` (a cylinder's axis is its z axis).
+fn z_to(d: [f64; 3]) -> Quaternion {
+    // q = (z × d, 1 + z·d), normalised; the antiparallel case turns about x.
+    let (x, y, w) = (-d[1], d[0], 1.0 + d[2]);
+    let n = (x * x + y * y + w * w).sqrt();
+    if n < 1e-12 {
+        return Quaternion {
+            x: 1.0,
+            y: 0.0,
+            z: 0.0,
+            w: 0.0,
+        };
+    }
+    Quaternion {
+        x: x / n,
+        y: y / n,
+        z: 0.0,
+        w: w / n,
+    }
+}
+
+/// A cylinder from `a` to `b` of the given radius.
+fn segment(a: [f64; 3], b: [f64; 3], radius: f64, color: Color) -> CylinderPrimitive {
+    let d = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    let unit = if len > 0.0 {
+        [d[0] / len, d[1] / len, d[2] / len]
+    } else {
+        [0.0, 0.0, 1.0]
+    };
+    CylinderPrimitive {
+        pose: Some(Pose {
+            position: Some(vector([
+                (a[0] + b[0]) / 2.0,
+                (a[1] + b[1]) / 2.0,
+                (a[2] + b[2]) / 2.0,
+            ])),
+            orientation: Some(z_to(unit)),
+        }),
+        size: Some(vector([2.0 * radius, 2.0 * radius, len])),
+        bottom_scale: 1.0,
+        top_scale: 1.0,
+        color: Some(color),
+    }
+}
+
+fn sphere(p: [f64; 3], radius: f64, color: Color) -> SpherePrimitive {
+    SpherePrimitive {
+        pose: at(p),
+        size: Some(vector([2.0 * radius; 3])),
+        color: Some(color),
+    }
+}
+
+fn entity(id: &str, time: Timestamp) -> SceneEntity {
+    SceneEntity {
+        timestamp: Some(time),
+        frame_id: FRAME_WORLD.into(),
+        id: id.into(),
+        ..Default::default()
+    }
+}
+
+fn timestamp(log_time_ns: u64) -> Timestamp {
+    Timestamp::new(
+        (log_time_ns / 1_000_000_000) as u32,
+        (log_time_ns % 1_000_000_000) as u32,
+    )
+}
+
+/// The scene and frames of one logged state.
+struct Frame {
+    scene: SceneUpdate,
+    transforms: FrameTransforms,
+}
+
+impl Geometry {
+    fn frame(
+        &self,
+        data: &mut Data,
+        qpos: &[f64],
+        labels: u32,
+        episode_start: bool,
+        log_time: u64,
+    ) -> Result<Frame, String> {
+        data.set_qpos(qpos)
+            .and_then(|()| data.forward())
+            .map_err(|e| e.to_string())?;
+        let time = timestamp(log_time);
+        let [shoulder, elbow, tip] = self.arm_bodies.map(|b| data.body_xpos(b));
+        let balls = self.ball_bodies.map(|b| data.body_xpos(b));
+
+        let mut arm = entity("arm", time);
+        arm.cylinders = vec![
+            segment(shoulder, elbow, self.link_radius, self.link_colour),
+            segment(elbow, tip, self.link_radius, self.link_colour),
+        ];
+        arm.spheres = vec![sphere(tip, self.tip_radius, self.tip_colour)];
+
+        let mut events = entity("events", time);
+        for (k, p) in balls.iter().enumerate() {
+            if labels >> k & 1 == 1 {
+                let lit = Color {
+                    a: 0.35,
+                    ..self.ball_colours[k]
+                };
+                events
+                    .spheres
+                    .push(sphere(*p, self.ball_radius + TOUCH_RADIUS, lit));
+            }
+        }
+        if labels >> CANCEL_BIT & 1 == 1 {
+            events.texts.push(TextPrimitive {
+                pose: at([0.0, 0.0, 0.12]),
+                billboard: true,
+                font_size: 24.0,
+                scale_invariant: true,
+                color: Some(Color {
+                    r: 0.0,
+                    g: 0.0,
+                    b: 0.0,
+                    a: 1.0,
+                }),
+                text: "cancel".into(),
+            });
+        }
+        let mut entities = vec![arm, events];
+        if episode_start {
+            let mut ball_entity = entity("balls", time);
+            ball_entity.spheres = balls
+                .iter()
+                .zip(self.ball_colours)
+                .map(|(p, c)| sphere(*p, self.ball_radius, c))
+                .collect();
+            let mut arena = entity("arena", time);
+            arena.cubes = vec![CubePrimitive {
+                pose: at([0.0, 0.0, -0.001]),
+                size: Some(vector([0.6, 0.6, 0.002])),
+                color: Some(Color {
+                    r: 0.9,
+                    g: 0.9,
+                    b: 0.9,
+                    a: 1.0,
+                }),
+            }];
+            arena.cylinders = self
+                .walls
+                .iter()
+                .map(|&(a, b, r)| segment(a, b, r, self.wall_colour))
+                .collect();
+            entities.push(ball_entity);
+            entities.push(arena);
+        }
+
+        let transform = |child: &str, p: [f64; 3], towards: Option<[f64; 3]>| {
+            let yaw = towards.map_or(0.0, |q| (q[1] - p[1]).atan2(q[0] - p[0]));
+            FrameTransform {
+                timestamp: Some(time),
+                parent_frame_id: FRAME_WORLD.into(),
+                child_frame_id: child.into(),
+                translation: Some(vector(p)),
+                rotation: Some(Quaternion {
+                    x: 0.0,
+                    y: 0.0,
+                    z: (yaw / 2.0).sin(),
+                    w: (yaw / 2.0).cos(),
+                }),
+            }
+        };
+        Ok(Frame {
+            scene: SceneUpdate {
+                deletions: Vec::new(),
+                entities,
+            },
+            transforms: FrameTransforms {
+                transforms: vec![
+                    transform("link0", shoulder, Some(elbow)),
+                    transform("link1", elbow, Some(tip)),
+                    transform("fingertip", tip, None),
+                ],
+            },
+        })
+    }
+}
+
+fn encoded<T: Encode>(message: &T) -> Vec<u8> {
+    let mut buf = Vec::new();
+    message
+        .encode(&mut buf)
+        .expect("a Vec grows to fit any message");
+    buf
+}
+
+/// Writes `out`: the log at `input` plus the `/scene` and `/tf` channels (see the module
+/// docs). A log cut short is refused unless `allow_partial`; the output is written to
+/// `<out>.part` and renamed when complete.
+pub fn export_scene(
+    input: &Path,
+    out: &Path,
+    allow_partial: bool,
+) -> Result<SceneSummary, SceneError> {
+    let bad_input = |problem: String| SceneError::Input {
+        path: input.into(),
+        problem,
+    };
+    let bad_output = |problem: String| SceneError::Output {
+        path: out.into(),
+        problem,
+    };
+    let bytes = std::fs::read(input).map_err(|e| bad_input(e.to_string()))?;
+    let log = read_log_bytes(&bytes, input)?;
+    if let (Some(rec), false) = (&log.recovery, allow_partial) {
+        return Err(bad_input(format!(
+            "{rec}; pass --allow-partial to export its complete chunks"
+        )));
+    }
+    if log.run.env != "ReacherDelivery" {
+        return Err(bad_input(format!(
+            "environment {} is not ReacherDelivery",
+            log.run.env
+        )));
+    }
+    let xml = log
+        .model_xml
+        .as_deref()
+        .ok_or_else(|| bad_input("the file has no model.xml attachment".into()))?;
+    let geometry = Geometry::new(xml, &format!("{}:model.xml", input.display()))
+        .map_err(|e| bad_input(format!("model.xml: {e}")))?;
+    let mut data = Data::new(geometry.model.clone()).map_err(|e| bad_input(e.to_string()))?;
+
+    let mut part = out.as_os_str().to_os_string();
+    part.push(".part");
+    let part = PathBuf::from(part);
+    let file = std::fs::File::create(&part).map_err(|e| bad_output(e.to_string()))?;
+    let written = write_view(&bytes, &log, &geometry, &mut data, file, input, out);
+    if written.is_err() {
+        // Only the file this call created.
+        let _ = std::fs::remove_file(&part);
+    }
+    let (copied, scenes) = written?;
+    std::fs::rename(&part, out).map_err(|e| bad_output(e.to_string()))?;
+    Ok(SceneSummary {
+        out: out.into(),
+        copied,
+        scenes,
+        episodes: log.episodes.len(),
+    })
+}
+
+/// Writes the view into `file`; returns (messages copied, scene states written).
+fn write_view(
+    bytes: &[u8],
+    log: &crate::log::RolloutLog,
+    geometry: &Geometry,
+    data: &mut Data,
+    file: std::fs::File,
+    input: &Path,
+    out: &Path,
+) -> Result<(u64, u64), SceneError> {
+    let bad_input = |problem: String| SceneError::Input {
+        path: input.into(),
+        problem,
+    };
+    let bad_output = |problem: String| SceneError::Output {
+        path: out.into(),
+        problem,
+    };
+    let mcap_err = |e: mcap::McapError| bad_output(e.to_string());
+    let mut writer = mcap::WriteOptions::new()
+        .compression_threads(0)
+        .create(std::io::BufWriter::new(file))
+        .map_err(mcap_err)?;
+    let schema_of = |s: Option<foxglove::Schema>| s.expect("foxglove schemas are known");
+    let scene_schema = schema_of(SceneUpdate::get_schema());
+    let tf_schema = schema_of(FrameTransforms::get_schema());
+    let scene_channel = {
+        let s = writer
+            .add_schema(
+                &scene_schema.name,
+                &scene_schema.encoding,
+                &scene_schema.data,
+            )
+            .map_err(mcap_err)?;
+        writer
+            .add_channel(
+                s,
+                TOPIC_SCENE,
+                &SceneUpdate::get_message_encoding(),
+                &BTreeMap::new(),
+            )
+            .map_err(mcap_err)?
+    };
+    let tf_channel = {
+        let s = writer
+            .add_schema(&tf_schema.name, &tf_schema.encoding, &tf_schema.data)
+            .map_err(mcap_err)?;
+        writer
+            .add_channel(
+                s,
+                TOPIC_TF,
+                &FrameTransforms::get_message_encoding(),
+                &BTreeMap::new(),
+            )
+            .map_err(mcap_err)?
+    };
+
+    let mut channels: BTreeMap<u16, u16> = BTreeMap::new();
+    let (mut copied, mut scenes) = (0u64, 0u64);
+    let mut sequence = 0u32;
+    for message in mcap::MessageStream::new(bytes).map_err(|e| bad_input(e.to_string()))? {
+        let message = match message {
+            Ok(m) => m,
+            // A partial log (accepted above) ends inside a record.
+            Err(_) if log.recovery.is_some() => break,
+            Err(e) => return Err(bad_input(e.to_string())),
+        };
+        // Original channels are re-declared once each (new ids), then written as they were.
+        let channel_id = match channels.get(&message.channel.id) {
+            Some(&id) => id,
+            None => {
+                let ch = &message.channel;
+                let schema_id = match &ch.schema {
+                    Some(s) => writer
+                        .add_schema(&s.name, &s.encoding, &s.data)
+                        .map_err(mcap_err)?,
+                    None => 0,
+                };
+                let id = writer
+                    .add_channel(schema_id, &ch.topic, &ch.message_encoding, &ch.metadata)
+                    .map_err(mcap_err)?;
+                channels.insert(ch.id, id);
+                id
+            }
+        };
+        writer
+            .write_to_known_channel(
+                &mcap::records::MessageHeader {
+                    channel_id,
+                    sequence: message.sequence,
+                    log_time: message.log_time,
+                    publish_time: message.publish_time,
+                },
+                &message.data,
+            )
+            .map_err(mcap_err)?;
+        copied += 1;
+        let state = match message.channel.topic.as_str() {
+            TOPIC_EPISODE_START => {
+                let m = EpisodeStartMsg::decode(&message.data)
+                    .map_err(|e| bad_input(format!("{TOPIC_EPISODE_START}: {e}")))?;
+                Some((m.qpos, m.labels, true))
+            }
+            TOPIC_STEP => {
+                let m = StepMsg::decode(&message.data)
+                    .map_err(|e| bad_input(format!("{TOPIC_STEP}: {e}")))?;
+                Some((m.qpos, m.labels, false))
+            }
+            _ => None,
+        };
+        let Some((qpos, labels, start)) = state else {
+            continue;
+        };
+        let frame = geometry
+            .frame(data, &qpos, labels, start, message.log_time)
+            .map_err(|e| bad_input(format!("state at log time {}: {e}", message.log_time)))?;
+        for (channel_id, payload) in [
+            (scene_channel, encoded(&frame.scene)),
+            (tf_channel, encoded(&frame.transforms)),
+        ] {
+            writer
+                .write_to_known_channel(
+                    &mcap::records::MessageHeader {
+                        channel_id,
+                        sequence,
+                        log_time: message.log_time,
+                        publish_time: message.log_time,
+                    },
+                    &payload,
+                )
+                .map_err(mcap_err)?;
+        }
+        sequence = sequence.wrapping_add(1);
+        scenes += 1;
+    }
+    if let Ok(Some(summary)) = mcap::Summary::read(bytes) {
+        for index in &summary.attachment_indexes {
+            let a = mcap::read::attachment(bytes, index).map_err(|e| bad_input(e.to_string()))?;
+            writer.attach(&a).map_err(mcap_err)?;
+        }
+        for index in &summary.metadata_indexes {
+            let m = mcap::read::metadata(bytes, index).map_err(|e| bad_input(e.to_string()))?;
+            writer.write_metadata(&m).map_err(mcap_err)?;
+        }
+    }
+    writer.finish().map_err(mcap_err)?;
+    Ok((copied, scenes))
+}
