@@ -35,8 +35,12 @@ struct Args {
     reps: usize,
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Report file (an existing one only with --force).
     #[arg(long, default_value = "experiments/irl/kde_bench.txt")]
     out: PathBuf,
+    /// Replace an existing --out file.
+    #[arg(long)]
+    force: bool,
 }
 
 fn median(mut xs: Vec<f64>) -> f64 {
@@ -123,6 +127,7 @@ fn bench(name: &'static str, fit: &[f64], queries: &[f64], args: &Args) -> Resul
 
 fn main() -> Result<()> {
     let args = Args::parse();
+    smirl::output::check_file(&args.out, args.force)?;
     anyhow::ensure!(args.reps >= 1, "--reps must be at least 1");
     anyhow::ensure!(args.points >= 1, "--points must be at least 1");
     anyhow::ensure!(

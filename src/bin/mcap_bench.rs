@@ -189,6 +189,7 @@ fn main() -> Result<()> {
 
 fn tempfile_dir() -> Result<std::path::PathBuf> {
     let dir = std::env::temp_dir().join(format!("smirl_mcap_bench_{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
+    // create_dir, not create_dir_all: the directory must be new, since it is removed at the end.
+    std::fs::create_dir(&dir)?;
     Ok(dir)
 }

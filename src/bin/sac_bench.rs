@@ -43,9 +43,12 @@ struct Args {
     act_dim: usize,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Also write the report here (atomically).
+    /// Also write the report here (atomically; an existing file only with --force).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Replace an existing --out file.
+    #[arg(long)]
+    force: bool,
 }
 
 /// Cheap stand-in environment with the product environment's sizes: a damped linear system
@@ -297,6 +300,9 @@ fn fmt2(v: &[f64]) -> String {
 
 fn main() -> Result<()> {
     let args = Args::parse();
+    if let Some(path) = &args.out {
+        smirl::output::check_file(path, args.force)?;
+    }
     let config = match &args.config {
         Some(p) => SacConfig::load(p)?,
         None => SacConfig::default(),
