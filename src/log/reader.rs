@@ -299,6 +299,10 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
     );
     let mut input = bytes;
     let outcome = drive(&mut top, &mut input, |opcode, data| {
+        check_lengths(opcode, data).map_err(|problem| LogError::Corrupt {
+            path: path.into(),
+            problem: format!("record (opcode {opcode:#04x}): {problem}"),
+        })?;
         if opcode == op::CHUNK {
             read_chunk(&mut r, opcode, data, chunks + 1)?;
             chunks += 1;
@@ -307,10 +311,6 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
         if opcode == op::FOOTER {
             footer = true;
         }
-        check_lengths(opcode, data).map_err(|problem| LogError::Corrupt {
-            path: path.into(),
-            problem: format!("record (opcode {opcode:#04x}): {problem}"),
-        })?;
         let record = mcap::parse_record(opcode, data).map_err(|e| LogError::Corrupt {
             path: path.into(),
             problem: format!("record (opcode {opcode:#04x}) cannot be parsed: {e}"),
