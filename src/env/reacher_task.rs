@@ -134,6 +134,95 @@ impl SubgoalPotential {
     }
 }
 
+/// Partial progress along a task's perfect machine, as the paper's figure 7 credits it
+/// (its baselines "saturate at a partial reward level, given for reaching the end
+/// location"): how many of the task's sub-goals (ball touches on the machine's shortest path
+/// to the goal) an episode completed, and whether it touched a ball that can end the task.
+#[derive(Clone, Debug)]
+pub struct TaskProgress {
+    /// Ball touches from each state to the goal (`None`: goal unreachable, e.g. the failure
+    /// sink).
+    distance: Vec<Option<usize>>,
+    /// Label bits of the balls whose touch can move some state to a terminal one.
+    final_balls: u32,
+}
+
+/// Sub-goal bookkeeping of one episode (see [`TaskProgress::track`]).
+#[derive(Clone, Copy, Debug)]
+pub struct ProgressTracker {
+    done: usize,
+    remaining: Option<usize>,
+    final_ball: bool,
+}
+
+impl TaskProgress {
+    pub fn of(rm: &RewardMachine) -> TaskProgress {
+        let potential = SubgoalPotential::from_rm(rm);
+        let distance = (0..rm.n_states())
+            .map(|u| potential.touches_to_goal(u))
+            .collect();
+        let mut final_balls = 0u32;
+        for u in (0..rm.n_states()).filter(|&u| !rm.is_absorbing(u)) {
+            for b in 0..BALLS.len() {
+                if rm.is_terminal(rm.next_state(u, LabelSet::EMPTY.with(b))) {
+                    final_balls |= 1 << b;
+                }
+            }
+        }
+        TaskProgress {
+            distance,
+            final_balls,
+        }
+    }
+
+    /// The bookkeeping of an episode starting in `initial`.
+    pub fn start(&self, initial: usize) -> ProgressTracker {
+        ProgressTracker {
+            done: 0,
+            remaining: self.distance[initial],
+            final_ball: false,
+        }
+    }
+
+    /// Records a step from `u` to `v` on `labels`. A decrease of the touches left counts as
+    /// sub-goals done when a ball was touched; a decrease by an event alone (the cancel
+    /// removing blue) only shortens what remains. Entering a state that cannot reach the
+    /// goal (the failure sink) freezes the record.
+    pub fn track(&self, t: &mut ProgressTracker, u: usize, v: usize, labels: LabelSet) {
+        t.final_ball |= labels.0 & self.final_balls != 0;
+        if u == v || t.remaining.is_none() {
+            return;
+        }
+        let (Some(du), Some(dv)) = (self.distance[u], self.distance[v]) else {
+            // Into the failure sink: the sub-goals done so far stay, the rest is lost.
+            return;
+        };
+        let touched_ball = labels.0 & ((1 << BALLS.len()) - 1) != 0;
+        if dv < du && touched_ball {
+            t.done += du - dv;
+        }
+        t.remaining = Some(dv);
+    }
+}
+
+impl ProgressTracker {
+    /// Fraction of the sub-goals completed: done / (done + remaining), in [0, 1].
+    pub fn fraction(&self) -> f64 {
+        let remaining = self.remaining.unwrap_or(0);
+        let total = self.done + remaining;
+        if total == 0 {
+            0.0
+        } else {
+            self.done as f64 / total as f64
+        }
+    }
+
+    /// A ball that can end the task was touched (in any machine state).
+    pub fn touched_final_ball(&self) -> bool {
+        self.final_ball
+    }
+}
+
 impl Potential for SubgoalPotential {
     fn potential(&self, obs: &[f32], u: usize) -> f64 {
         let Some(d) = self.distance[u] else {

@@ -8,7 +8,7 @@ use super::config::IrlRunConfig;
 use super::Algo;
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP};
-use crate::env::reacher_task::{Branch, BranchTally, CancelBranch};
+use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, TaskProgress};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::irl::firl::{FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
 use crate::irl::kde::Kde;
@@ -135,6 +135,14 @@ pub struct MetricsRow {
     pub learned_reward: f64,
     /// The algorithm's surrogate loss Σ c_i r(o_i) before this iteration's update.
     pub surrogate_loss: f64,
+    /// Mean fraction of the task's sub-goals completed along the perfect machine
+    /// (`env::reacher_task::TaskProgress`); `None` in jobs run before the metric existed.
+    #[serde(default)]
+    pub progress: Option<f64>,
+    /// Fraction of evaluation episodes that touched a ball which can end the task (the
+    /// paper's "end location"); `None` in jobs run before the metric existed.
+    #[serde(default)]
+    pub final_ball: Option<f64>,
 }
 
 /// What a finished job hands back.
@@ -482,6 +490,10 @@ pub fn reward_model(
 #[derive(Clone, Copy, Debug, Default)]
 struct EpisodeOutcome {
     success: bool,
+    /// Fraction of the sub-goals completed (see `TaskProgress`).
+    progress: f64,
+    /// A ball that can end the task was touched.
+    final_ball: bool,
     /// The branch taken, for a conditional task.
     branch: Option<Branch>,
     task_return: f64,
@@ -497,6 +509,7 @@ fn play_episode(
     agent: &mut SacAgent,
     env: &mut JobEnv,
     perfect: &RewardMachine,
+    task_progress: &TaskProgress,
     branches: Option<&CancelBranch>,
     mode: ActMode,
     reset_seed: u64,
@@ -511,6 +524,7 @@ fn play_episode(
     env.reset(reset_seed, &mut obs);
     let mut up = perfect.initial();
     let mut out = EpisodeOutcome::default();
+    let mut tracker = task_progress.start(up);
     let mut cancelled = branches.is_some_and(|b| b.is_cancelled(up));
     if let Some((l, phase)) = logger.as_mut() {
         l.begin_reacher_episode(env.reacher(), reset_seed, phase, Some(up), &obs[..OBS_DIM])
@@ -524,6 +538,7 @@ fn play_episode(
             .step_full(&action, &mut next)
             .map_err(|e| e.to_string())?;
         let (u_next, r) = perfect.step(up, step.labels);
+        task_progress.track(&mut tracker, up, u_next, step.labels);
         up = u_next;
         cancelled |= branches.is_some_and(|b| b.is_cancelled(up));
         out.task_return += r;
@@ -550,6 +565,8 @@ fn play_episode(
     if let Some((l, _)) = logger.as_mut() {
         l.end_episode(out.success).map_err(|e| e.to_string())?;
     }
+    out.progress = tracker.fraction();
+    out.final_ball = tracker.touched_final_ball();
     out.branch = branches.map(|_| {
         if cancelled {
             Branch::Cancelled
@@ -563,6 +580,8 @@ fn play_episode(
 /// One ground-truth evaluation.
 struct Evaluation {
     success_rate: f64,
+    progress: f64,
+    final_ball: f64,
     branches: Option<BranchTally>,
     task_return: f64,
     env_return: f64,
@@ -682,6 +701,7 @@ pub fn run_job(
     // Conditional tasks: evaluation episodes stratified by the cancel schedule, so that each
     // branch gets about `eval_episodes` of them.
     let branches = CancelBranch::of(perfect_rm);
+    let task_progress = TaskProgress::of(perfect_rm);
     let eval_seeds = match branches {
         Some(_) => {
             let mut schedule =
@@ -704,12 +724,14 @@ pub fn run_job(
         let mut rng = ChaCha8Rng::seed_from_u64(eval_seed);
         let mut logger = logger;
         let (mut succ, mut ret, mut env_ret) = (0.0, 0.0, 0.0);
+        let (mut progress, mut final_ball) = (0.0, 0.0);
         let mut tally = BranchTally::default();
         for &reset_seed in &eval_seeds {
             let o = play_episode(
                 agent,
                 env,
                 perfect_rm,
+                &task_progress,
                 branches.as_ref(),
                 ActMode::Mean,
                 reset_seed,
@@ -719,6 +741,8 @@ pub fn run_job(
                 |_, _| {},
             )?;
             succ += f64::from(u8::from(o.success));
+            progress += o.progress;
+            final_ball += f64::from(u8::from(o.final_ball));
             ret += o.task_return;
             env_ret += o.env_return;
             if let Some(b) = o.branch {
@@ -729,6 +753,8 @@ pub fn run_job(
         let branches = branches.as_ref().map(|_| tally);
         Ok(Evaluation {
             success_rate: branches.and_then(|t| t.worst_rate()).unwrap_or(succ / n),
+            progress: progress / n,
+            final_ball: final_ball / n,
             branches,
             task_return: ret / n,
             env_return: env_ret / n,
@@ -746,6 +772,8 @@ pub fn run_job(
         env_return: ev.env_return,
         learned_reward: 0.0,
         surrogate_loss: 0.0,
+        progress: Some(ev.progress),
+        final_ball: Some(ev.final_ball),
     });
     progress(JobProgress {
         iteration: 0,
@@ -827,6 +855,7 @@ pub fn run_job(
                 &mut trainer.agent,
                 &mut env,
                 perfect_rm,
+                &task_progress,
                 None,
                 ActMode::Sample,
                 reset_seed,
@@ -898,6 +927,8 @@ pub fn run_job(
             env_return: ev.env_return,
             learned_reward,
             surrogate_loss,
+            progress: Some(ev.progress),
+            final_ball: Some(ev.final_ball),
         });
         progress(JobProgress {
             iteration,

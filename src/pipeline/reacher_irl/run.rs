@@ -11,7 +11,10 @@
 //! - `summary.csv`, `summary.md` — final success/return (and, for IF and Composite, each
 //!   branch's success) mean ± std over seeds per algorithm.
 //! - `success.svg`, `task_return.svg` — mean ± std over seeds vs environment steps; for IF and
-//!   Composite also `success_branches.svg`, each branch's success per algorithm.
+//!   Composite also `success_branches.svg`, each branch's success per algorithm;
+//!   `progress.svg`, the partial progress the paper's figure credits: the fraction of the
+//!   task's sub-goals completed along the perfect machine and the fraction of episodes that
+//!   touched a ball that can end the task (`progress`, `final_ball` in `metrics.csv`).
 //! - `rm/` — `perfect.txt`/`.dot`, and for SMIRL `learned.txt`/`.dot` and `report.txt`.
 //! - `rewards/<algo>_seed<S>.*` — learned reward parameters; for SMIRL also
 //!   `rewards/<algo>_seed<S>.trace.csv`, the weights and data gradient of every IRL iteration.
@@ -767,7 +770,10 @@ fn write_reports(
         "success_cancel",
         "episodes_normal",
         "episodes_cancel",
+        "progress",
+        "final_ball",
     ]);
+    let optional = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x}"));
     for (_, r) in records {
         for row in &r.rows {
             let branch = |f: &dyn Fn(&BranchTally, Branch) -> String| -> [String; 2] {
@@ -790,6 +796,8 @@ fn write_reports(
                 rate_cancel,
                 n_normal,
                 n_cancel,
+                optional(row.progress),
+                optional(row.final_ball),
             ]);
         }
     }
@@ -823,6 +831,14 @@ fn write_reports(
         "success rate",
     );
     branch_plot.y_range = Some((0.0, 1.0));
+    let mut progress_plot = LinePlot::new(
+        &format!(
+            "ReacherDelivery {task}: sub-goals completed (solid) and end ball touched (dashed)"
+        ),
+        "environment steps",
+        "fraction",
+    );
+    progress_plot.y_range = Some((0.0, 1.0));
     for &algo in &algos {
         let runs: Vec<&JobRecord> = records
             .iter()
@@ -855,6 +871,20 @@ fn write_reports(
             name: algo.name().into(),
             points: aggregate_over_seeds(&curve(&|r| r.success_rate)),
         });
+        // Jobs from before the progress metric have none: no curve for them.
+        if runs
+            .iter()
+            .all(|r| r.rows.iter().all(|row| row.progress.is_some()))
+        {
+            progress_plot.series.push(Series {
+                name: format!("{} sub-goals", algo.name()),
+                points: aggregate_over_seeds(&curve(&|r| r.progress.unwrap_or(0.0))),
+            });
+            progress_plot.series.push(Series {
+                name: format!("{} end ball", algo.name()),
+                points: aggregate_over_seeds(&curve(&|r| r.final_ball.unwrap_or(0.0))),
+            });
+        }
         return_plot.series.push(Series {
             name: algo.name().into(),
             points: aggregate_over_seeds(&curve(&|r| r.task_return)),
@@ -891,6 +921,9 @@ fn write_reports(
     }
     write_file(&dir.join("success.svg"), &success_plot.to_svg())?;
     write_file(&dir.join("task_return.svg"), &return_plot.to_svg())?;
+    if !progress_plot.series.is_empty() {
+        write_file(&dir.join("progress.svg"), &progress_plot.to_svg())?;
+    }
     if conditional {
         write_file(&dir.join("success_branches.svg"), &branch_plot.to_svg())?;
     }

@@ -1,0 +1,49 @@
+//! Partial progress along the perfect machines (issue 14's metric): the fraction of a task's
+//! sub-goals an episode completed, and whether it touched a ball that can end the task, on
+//! hand-written label traces with known answers.
+
+use smirl::env::reacher_task::{ReacherTask, TaskProgress};
+use smirl::rm::LabelSet;
+
+/// Runs `trace` (label sets as strings over "rgbyc", one per step) through the task's perfect
+/// machine; returns (fraction of sub-goals, end ball touched).
+fn progress(task: ReacherTask, trace: &[&str]) -> (f64, bool) {
+    let rm = task.perfect_rm().unwrap();
+    let p = TaskProgress::of(&rm);
+    let mut u = rm.initial();
+    let mut t = p.start(u);
+    for step in trace {
+        let labels: LabelSet = rm.vocab().parse_labels(step).unwrap();
+        let v = rm.next_state(u, labels);
+        p.track(&mut t, u, v, labels);
+        u = v;
+    }
+    (t.fraction(), t.touched_final_ball())
+}
+
+#[test]
+fn sub_goals_completed_on_known_traces() {
+    use ReacherTask::*;
+    let cases: [(ReacherTask, &[&str], f64, bool); 12] = [
+        (Or, &["", "r"], 0.5, false), // OR: red or green, then blue
+        (Or, &["", "b"], 0.0, true),  // the end location without the sub-goal before it
+        (Or, &["g", "", "b"], 1.0, true),
+        (Sequential, &["r", "", "g"], 0.5, false),
+        (Sequential, &["g", "r", "b", "y"], 0.25, true), // only red counts: order matters
+        (Sequential, &["r", "g", "b", "y"], 1.0, true),
+        (Composite, &["", "r", ""], 1.0 / 3.0, false),
+        (Composite, &["g", "b", "y"], 1.0, true),
+        (Composite, &["r", "c", "y"], 1.0, true), // the cancel removes blue: 2 of 2 done
+        (If, &["r", "r", "b", "", "r"], 1.0, true), // waiting on red does nothing; blue, red
+        (If, &["c", "", "b"], 0.0, false),        // blue after the cancel: failure, nothing done
+        (If, &["r", "b"], 0.5, true),             // the end ball touched early, then blue: 1 of 2
+    ];
+    for (task, trace, fraction, end) in cases {
+        let (f, e) = progress(task, trace);
+        assert!(
+            (f - fraction).abs() < 1e-12,
+            "{task:?} {trace:?}: {f} != {fraction}"
+        );
+        assert_eq!(e, end, "{task:?} {trace:?}");
+    }
+}
