@@ -30,8 +30,10 @@ done
   done
   for t in or sequential; do for s in 0 1 2; do echo "$R/runs/$t smirl $s"; done; done
   for t in if composite or sequential; do for s in 0 1 2; do echo "$R/runs/$t smirl-smooth $s"; done; done
-  for a in maxent fkl rkl js; do
-    for t in if composite or sequential; do for s in 0 1 2; do echo "$R/runs/$t $a $s"; done; done
+  # Baselines (they do not read the machine): OR and Sequential first, whose rkl and js
+  # jobs were never run before.
+  for t in or sequential if composite; do
+    for a in maxent fkl rkl js; do for s in 0 1 2; do echo "$R/runs/$t $a $s"; done; done
   done
 } | xargs -P "${JOBS:-2}" -L 1 sh -c '"$0" job --run "$1" --algo "$2" --seed "$3" --quiet > /dev/null 2>> "$1/jobs.err" || echo "failed: $*" >&2' "$BIN"
 for d in $R/runs/if $R/runs/composite $R/runs/or $R/runs/sequential $R/heldout/if $R/heldout/seeds6-if $R/heldout/composite $R/heldout/seeds6-composite; do
