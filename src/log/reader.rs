@@ -79,6 +79,20 @@ impl RolloutLog {
     pub fn steps(&self) -> usize {
         self.episodes.iter().map(|e| e.steps.len()).sum()
     }
+
+    /// The model XML stored with a ReacherDelivery log (what replay, render and the
+    /// Foxglove view simulate); the message says why there is none.
+    pub fn reacher_model_xml(&self) -> Result<&str, String> {
+        if self.run.env != "ReacherDelivery" {
+            return Err(format!(
+                "environment {} is not ReacherDelivery",
+                self.run.env
+            ));
+        }
+        self.model_xml
+            .as_deref()
+            .ok_or_else(|| "the file has no model.xml attachment".to_string())
+    }
 }
 
 /// Reads a rollout log. A truncated file is read up to its last complete chunk (see

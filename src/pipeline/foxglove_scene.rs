@@ -325,6 +325,21 @@ impl Geometry {
     }
 }
 
+/// Declares `topic` with the official schema and encoding of `T`; returns the channel id.
+fn add_channel<T: Encode, W: std::io::Write + std::io::Seek>(
+    writer: &mut mcap::Writer<W>,
+    topic: &str,
+) -> Result<u16, mcap::McapError> {
+    let schema = T::get_schema().expect("foxglove's schemas are known");
+    let schema_id = writer.add_schema(&schema.name, &schema.encoding, &schema.data)?;
+    writer.add_channel(
+        schema_id,
+        topic,
+        &T::get_message_encoding(),
+        &BTreeMap::new(),
+    )
+}
+
 fn encoded<T: Encode>(message: &T) -> Vec<u8> {
     let mut buf = Vec::new();
     message
@@ -356,16 +371,7 @@ pub fn export_scene(
             "{rec}; pass --allow-partial to export its complete chunks"
         )));
     }
-    if log.run.env != "ReacherDelivery" {
-        return Err(bad_input(format!(
-            "environment {} is not ReacherDelivery",
-            log.run.env
-        )));
-    }
-    let xml = log
-        .model_xml
-        .as_deref()
-        .ok_or_else(|| bad_input("the file has no model.xml attachment".into()))?;
+    let xml = log.reacher_model_xml().map_err(bad_input)?;
     let geometry = Geometry::new(xml, &format!("{}:model.xml", input.display()))
         .map_err(|e| bad_input(format!("model.xml: {e}")))?;
     let mut data = Data::new(geometry.model.clone()).map_err(|e| bad_input(e.to_string()))?;
@@ -412,39 +418,9 @@ fn write_view(
         .compression_threads(0)
         .create(std::io::BufWriter::new(file))
         .map_err(mcap_err)?;
-    let schema_of = |s: Option<foxglove::Schema>| s.expect("foxglove schemas are known");
-    let scene_schema = schema_of(SceneUpdate::get_schema());
-    let tf_schema = schema_of(FrameTransforms::get_schema());
-    let scene_channel = {
-        let s = writer
-            .add_schema(
-                &scene_schema.name,
-                &scene_schema.encoding,
-                &scene_schema.data,
-            )
-            .map_err(mcap_err)?;
-        writer
-            .add_channel(
-                s,
-                TOPIC_SCENE,
-                &SceneUpdate::get_message_encoding(),
-                &BTreeMap::new(),
-            )
-            .map_err(mcap_err)?
-    };
-    let tf_channel = {
-        let s = writer
-            .add_schema(&tf_schema.name, &tf_schema.encoding, &tf_schema.data)
-            .map_err(mcap_err)?;
-        writer
-            .add_channel(
-                s,
-                TOPIC_TF,
-                &FrameTransforms::get_message_encoding(),
-                &BTreeMap::new(),
-            )
-            .map_err(mcap_err)?
-    };
+    let scene_channel =
+        add_channel::<SceneUpdate, _>(&mut writer, TOPIC_SCENE).map_err(mcap_err)?;
+    let tf_channel = add_channel::<FrameTransforms, _>(&mut writer, TOPIC_TF).map_err(mcap_err)?;
 
     let mut channels: BTreeMap<u16, u16> = BTreeMap::new();
     let (mut copied, mut scenes) = (0u64, 0u64);

@@ -98,12 +98,7 @@ pub fn render_episode(
         path: path.clone(),
         problem,
     };
-    if log.run.env != "ReacherDelivery" {
-        return Err(bad(format!(
-            "environment {} is not ReacherDelivery",
-            log.run.env
-        )));
-    }
+    let xml = log.reacher_model_xml().map_err(&bad)?;
     if options.size < 64 || options.size > 8192 {
         return Err(bad(format!(
             "picture size {} must be between 64 and 8192 pixels",
@@ -111,10 +106,6 @@ pub fn render_episode(
         )));
     }
     let ep = pick_episode(log, episode).map_err(&bad)?;
-    let xml = log
-        .model_xml
-        .as_deref()
-        .ok_or_else(|| bad("the file has no model.xml attachment".into()))?;
     let model = Arc::new(
         Model::from_xml_str(xml, &format!("{path}:model.xml")).map_err(|e| bad(e.to_string()))?,
     );

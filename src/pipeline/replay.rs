@@ -153,16 +153,7 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
         path: path.clone(),
         problem,
     };
-    if log.run.env != "ReacherDelivery" {
-        return Err(cannot(format!(
-            "environment {} is not ReacherDelivery",
-            log.run.env
-        )));
-    }
-    let xml = log
-        .model_xml
-        .as_deref()
-        .ok_or_else(|| cannot("the file has no model.xml attachment".into()))?;
+    let xml = log.reacher_model_xml().map_err(cannot)?;
     let stored_hash = sha256_hex(xml);
     if stored_hash != log.run.model_xml_sha256 {
         return Err(cannot(format!(
