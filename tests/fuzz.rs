@@ -101,7 +101,8 @@ fn mutate(rng: &mut ChaCha8Rng, input: &[u8]) -> Vec<u8> {
                 // length fields).
                 let width = if rng.gen_bool(0.5) { 4 } else { 8 };
                 let i = rng.gen_range(0..len.saturating_sub(width));
-                let value: u64 = [0, u64::MAX, u32::MAX as u64, 1 << 31, 1 << 40][rng.gen_range(0..5)];
+                let value: u64 =
+                    [0, u64::MAX, u32::MAX as u64, 1 << 31, 1 << 40][rng.gen_range(0..5)];
                 out[i..i + width].copy_from_slice(&value.to_le_bytes()[..width]);
             }
             7 if len > 0 => {

@@ -56,6 +56,20 @@ pub struct SceneSummary {
     pub episodes: usize,
 }
 
+fn input_error(path: &Path) -> impl Fn(String) -> SceneError + '_ {
+    move |problem| SceneError::Input {
+        path: path.into(),
+        problem,
+    }
+}
+
+fn output_error(path: &Path) -> impl Fn(String) -> SceneError + '_ {
+    move |problem| SceneError::Output {
+        path: path.into(),
+        problem,
+    }
+}
+
 /// The model facts the scene needs.
 struct Geometry {
     model: Arc<Model>,
@@ -356,14 +370,7 @@ pub fn export_scene(
     out: &Path,
     allow_partial: bool,
 ) -> Result<SceneSummary, SceneError> {
-    let bad_input = |problem: String| SceneError::Input {
-        path: input.into(),
-        problem,
-    };
-    let bad_output = |problem: String| SceneError::Output {
-        path: out.into(),
-        problem,
-    };
+    let (bad_input, bad_output) = (input_error(input), output_error(out));
     let bytes = std::fs::read(input).map_err(|e| bad_input(e.to_string()))?;
     let log = read_log_bytes(&bytes, input)?;
     if let (Some(rec), false) = (&log.recovery, allow_partial) {
@@ -371,7 +378,7 @@ pub fn export_scene(
             "{rec}; pass --allow-partial to export its complete chunks"
         )));
     }
-    let xml = log.reacher_model_xml().map_err(bad_input)?;
+    let xml = log.reacher_model_xml().map_err(&bad_input)?;
     let geometry = Geometry::new(xml, &format!("{}:model.xml", input.display()))
         .map_err(|e| bad_input(format!("model.xml: {e}")))?;
     let mut data = Data::new(geometry.model.clone()).map_err(|e| bad_input(e.to_string()))?;
@@ -405,14 +412,7 @@ fn write_view(
     input: &Path,
     out: &Path,
 ) -> Result<(u64, u64), SceneError> {
-    let bad_input = |problem: String| SceneError::Input {
-        path: input.into(),
-        problem,
-    };
-    let bad_output = |problem: String| SceneError::Output {
-        path: out.into(),
-        problem,
-    };
+    let (bad_input, bad_output) = (input_error(input), output_error(out));
     let mcap_err = |e: mcap::McapError| bad_output(e.to_string());
     let mut writer = mcap::WriteOptions::new()
         .compression_threads(0)
