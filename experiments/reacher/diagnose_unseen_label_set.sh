@@ -13,8 +13,13 @@ cd "$(dirname "$0")/../.."
 OUT=${1:-/tmp/diagnose-if-rc}
 BIN=${REACHER_BIN:-target/release/reacher}
 [ -n "${REACHER_BIN:-}" ] || cargo build --release --bin reacher
-"$BIN" prepare --task if --algo smirl --seeds 3 --config experiments/reacher/config.toml --out "$OUT"
-cmp "$OUT/rm/learned.txt" experiments/reacher/runs/if/rm/learned.txt
+# The machine of the exact-guard run (LRM's reading of unseen label sets: stay), which
+# runs/if-exact_guards used; the default config now says lrm_guards = "tree".
+CONFIG=$(mktemp --suffix=.toml)
+sed 's/^lrm_guards = .*/lrm_guards = "exact"/' experiments/reacher/config.toml > "$CONFIG"
+"$BIN" prepare --task if --algo smirl --seeds 3 --config "$CONFIG" --out "$OUT"
+rm -f "$CONFIG"
+cmp "$OUT/rm/learned.txt" experiments/reacher/runs/if-exact_guards/rm/learned.txt
 printf "(0, 3, 'r&!g&!b&!y&c', 0)\n(1, 2, 'r&!g&!b&!y&c', 0)\n" >> "$OUT/rm/learned.txt"
 "$BIN" job --run "$OUT" --algo smirl --seed 1 --quiet
 python3 - "$OUT/jobs/smirl_seed1.json" <<'PY'
