@@ -21,18 +21,20 @@ pub fn reward_machine(name: &str) -> Option<&'static str> {
         "reacher_sequential" => include_str!("../assets/rm/reacher_sequential.txt"),
         "reacher_if" => include_str!("../assets/rm/reacher_if.txt"),
         "reacher_composite" => include_str!("../assets/rm/reacher_composite.txt"),
+        "reacher_blue" => include_str!("../assets/rm/reacher_blue.txt"),
         _ => return None,
     })
 }
 
 /// `experiments/experts/cache/expert_<task>.policy`, the committed SAC expert of a
-/// ReacherDelivery task (`or`, `sequential`, `if`, `composite`).
+/// ReacherDelivery task (`or`, `sequential`, `if`, `composite`, `blue`).
 pub fn expert_policy(task: &str) -> Option<&'static [u8]> {
     Some(match task {
         "or" => include_bytes!("../experiments/experts/cache/expert_or.policy"),
         "sequential" => include_bytes!("../experiments/experts/cache/expert_sequential.policy"),
         "if" => include_bytes!("../experiments/experts/cache/expert_if.policy"),
         "composite" => include_bytes!("../experiments/experts/cache/expert_composite.policy"),
+        "blue" => include_bytes!("../experiments/experts/cache/expert_blue.policy"),
         _ => return None,
     })
 }

@@ -24,7 +24,7 @@ fn progress(task: ReacherTask, trace: &[&str]) -> (f64, bool) {
 #[test]
 fn sub_goals_completed_on_known_traces() {
     use ReacherTask::*;
-    let cases: [(ReacherTask, &[&str], f64, bool); 12] = [
+    let cases: [(ReacherTask, &[&str], f64, bool); 15] = [
         (Or, &["", "r"], 0.5, false), // OR: red or green, then blue
         (Or, &["", "b"], 0.0, true),  // the end location without the sub-goal before it
         (Or, &["g", "", "b"], 1.0, true),
@@ -37,6 +37,9 @@ fn sub_goals_completed_on_known_traces() {
         (If, &["r", "r", "b", "", "r"], 1.0, true), // waiting on red does nothing; blue, red
         (If, &["c", "", "b"], 0.0, false),        // blue after the cancel: failure, nothing done
         (If, &["r", "b"], 0.5, true),             // the end ball touched early, then blue: 1 of 2
+        (Blue, &["r", "g", "y"], 0.0, false),     // the positive control: blue alone counts
+        (Blue, &["c", "", "b"], 1.0, true),       // the cancel plays no part
+        (Blue, &["yb"], 1.0, true),
     ];
     for (task, trace, fraction, end) in cases {
         let (f, e) = progress(task, trace);

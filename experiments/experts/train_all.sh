@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Trains the SAC experts of the four ReacherDelivery tasks with the default ExpertConfig
+# Trains the SAC experts of the four ReacherDelivery tasks and of the baselines' Markovian
+# positive control "blue" (touch blue) with the default ExpertConfig
 # (see src/pipeline/expert.rs) or, when experiments/experts/config_<task>.toml exists, that
 # config (documented in results.md), evaluates each on 100 episodes (stochastic and mean action),
 # copies the actor-only policy files into experiments/experts/cache/, copies the training
@@ -9,7 +10,7 @@
 #   SEED  training seed of every task (default 0)
 #   JOBS  tasks trained at once (default 2: the machine has 2 cores; 4 also works and is
 #         faster overall when nothing else runs)
-# TASKS="if composite" restricts the training to those tasks (the table covers all four).
+# TASKS="if composite" restricts the training to those tasks (the table covers all five).
 # Runs go to target/expert-runs/<task>/ (checkpoints, demos.mcap); rerunning resumes them.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -37,7 +38,7 @@ train() {
 export -f train
 export BIN SEED OUT
 mkdir -p target/expert-runs "$OUT/cache"
-TASKS=${TASKS:-or sequential if composite}
+TASKS=${TASKS:-or sequential if composite blue}
 printf '%s\n' $TASKS | xargs -P "$JOBS" -I{} bash -c 'train {}'
 
 python3 - "$OUT" "$SEED" "$JOBS" <<'PY'
@@ -52,7 +53,7 @@ def branches(b):
     return f"{sn}/{n} ({sn / max(n, 1):.2f}), {sc}/{c} ({sc / max(c, 1):.2f})"
 def share(b):
     return "–" if not b else f"{b['episodes'][1] / max(sum(b['episodes']), 1):.2f}"
-for task in ["or", "sequential", "if", "composite"]:
+for task in ["or", "sequential", "if", "composite", "blue"]:
     s = json.load(open(os.path.join(out, f"summary_{task}.json")))
     demo_b = s.get("demo_branches")
     demos = "–" if not demo_b else f"{demo_b['episodes'][0]} / {demo_b['episodes'][1]}"

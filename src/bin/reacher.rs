@@ -75,7 +75,7 @@ enum Command {
 
 #[derive(Args)]
 struct ExpertArgs {
-    /// Task: or, sequential, if, composite.
+    /// Task: or, sequential, if, composite (the paper's), blue (positive control).
     #[arg(long)]
     task: smirl::env::reacher_task::ReacherTask,
     /// Expert config (TOML: run settings, [sac], [env]); defaults otherwise.
@@ -683,7 +683,7 @@ mod irl_cli {
 
     #[derive(Args)]
     pub struct PipelineArgs {
-        /// Run the IRL pipeline on a task: or, sequential, if, composite.
+        /// Run the IRL pipeline on a task: or, sequential, if, composite, blue.
         #[arg(long)]
         task: Option<ReacherTask>,
         /// Algorithms, comma-separated: smirl, smirl-smooth, maxent, fkl, rkl, js, or all
@@ -825,7 +825,7 @@ mod irl_cli {
     fn request(args: &PipelineArgs) -> Result<Option<RunRequest>> {
         let Some(task) = args.task else {
             return Err(usage(
-                "nothing to do: give --task <or|sequential|if|composite> or a subcommand (see --help)"
+                "nothing to do: give --task <or|sequential|if|composite|blue> or a subcommand (see --help)"
                     .into(),
             ));
         };

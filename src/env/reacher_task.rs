@@ -22,14 +22,19 @@ pub enum ReacherTask {
     If,
     /// Red or green, then blue unless cancel, then yellow (7).
     Composite,
+    /// Touch blue (2): not a paper task but the baselines' Markovian positive control, a
+    /// task a reward over the fingertip's position alone can express.
+    Blue,
 }
 
 impl ReacherTask {
-    pub const ALL: [ReacherTask; 4] = [
+    /// Every task: the paper's four, then the positive control.
+    pub const ALL: [ReacherTask; 5] = [
         ReacherTask::Or,
         ReacherTask::Sequential,
         ReacherTask::If,
         ReacherTask::Composite,
+        ReacherTask::Blue,
     ];
 
     pub fn name(self) -> &'static str {
@@ -38,6 +43,7 @@ impl ReacherTask {
             ReacherTask::Sequential => "sequential",
             ReacherTask::If => "if",
             ReacherTask::Composite => "composite",
+            ReacherTask::Blue => "blue",
         }
     }
 
@@ -60,7 +66,7 @@ impl FromStr for ReacherTask {
             .into_iter()
             .find(|t| t.name() == s)
             .ok_or_else(|| {
-                format!("unknown task '{s}' (expected one of: or, sequential, if, composite)")
+                format!("unknown task '{s}' (expected one of: or, sequential, if, composite, blue)")
             })
     }
 }

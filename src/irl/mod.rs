@@ -8,6 +8,8 @@
 //! # Continuous IRL (ReacherDelivery)
 //!
 //! - [`kde`]: exact Epanechnikov KDE on a bandwidth-sized cell grid (state marginals).
+//! - [`knn_divergence`]: the k-nearest-neighbour KL estimate between two sample sets, f-IRL's
+//!   measure of how well an agent's state marginal matches a target density.
 //! - [`firl`]: f-IRL (fkl, rkl, js) and continuous MaxEnt IRL as per-state loss coefficients.
 //! - [`smirl`]: SMIRL's linear reward δ_r(u, o) = w_uᵀ φ(o) on U × O and its MaxEnt gradient.
 //! - [`reward`]: the [`reward::RewardModel`] trait SAC reads rewards from, and the (64, 64)
@@ -57,6 +59,7 @@
 
 pub mod firl;
 pub mod kde;
+pub mod knn_divergence;
 pub mod reward;
 pub mod smirl;
 pub mod tabular;

@@ -6,7 +6,7 @@ use super::format::{parse_rm, RmFileError};
 use super::machine::RewardMachine;
 
 /// Names of every shipped machine (`assets/rm/<name>.txt`).
-pub const NAMES: [&str; 9] = [
+pub const NAMES: [&str; 10] = [
     "office_t0",
     "office_t1",
     "office_t2",
@@ -16,6 +16,7 @@ pub const NAMES: [&str; 9] = [
     "reacher_sequential",
     "reacher_if",
     "reacher_composite",
+    "reacher_blue",
 ];
 
 /// The text of a shipped machine (`None`: no machine of that name).
@@ -45,7 +46,7 @@ pub fn office(task: usize) -> Result<RewardMachine, RmFileError> {
     load(&format!("office_t{task}"))
 }
 
-/// The machine of a ReacherDelivery task: `or`, `sequential`, `if` or `composite`.
+/// The machine of a ReacherDelivery task: `or`, `sequential`, `if`, `composite` or `blue`.
 pub fn reacher(task: &str) -> Result<RewardMachine, RmFileError> {
     load(&format!("reacher_{task}"))
 }
