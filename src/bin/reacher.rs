@@ -71,6 +71,36 @@ enum Command {
     Job(irl_cli::JobArgs),
     /// Step 3: metrics, summary and plots of a run's finished jobs.
     Aggregate(irl_cli::AggregateArgs),
+    /// f-IRL's own Reacher experiment (ReacherDraw): match a fingertip density with one
+    /// baseline (maxent, fkl, rkl, js); forward and reverse KL per iteration.
+    Draw(DrawArgs),
+}
+
+#[derive(Args)]
+struct DrawArgs {
+    /// maxent, fkl, rkl or js.
+    #[arg(long)]
+    algo: smirl::pipeline::reacher_irl::Algo,
+    /// Target density: gaussian or mixture (overrides the config's `target`).
+    #[arg(long)]
+    target: Option<smirl::pipeline::reacher_draw::DrawTarget>,
+    /// Run config (TOML, the fields of `DrawConfig`); f-IRL's settings otherwise.
+    #[arg(long, conflicts_with = "quick")]
+    config: Option<PathBuf>,
+    /// Smoke profile: 6 short iterations (seconds).
+    #[arg(long)]
+    quick: bool,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Run directory (config.toml, metrics.csv, summary.json, density.png); must not exist or
+    /// be empty (or --force to replace one this program wrote).
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long)]
+    force: bool,
+    /// No per-estimate lines.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Args)]
@@ -219,6 +249,7 @@ fn main() -> ExitCode {
         Some(Command::Prepare(args)) => irl_cli::prepare(args),
         Some(Command::Job(args)) => irl_cli::job(args),
         Some(Command::Aggregate(args)) => irl_cli::aggregate(args),
+        Some(Command::Draw(args)) => run_draw(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -233,6 +264,53 @@ fn main() -> ExitCode {
             }
         }
     }
+}
+
+fn run_draw(args: DrawArgs) -> Result<()> {
+    use smirl::pipeline::reacher_draw::{self as draw, DrawConfig};
+    let mut config = match (&args.config, args.quick) {
+        (Some(path), _) => DrawConfig::load(path).map_err(|e| UsageError(e.to_string()))?,
+        (None, true) => DrawConfig::quick(),
+        (None, false) => DrawConfig::default(),
+    };
+    if let Some(target) = args.target {
+        config.target = target;
+    }
+    if args.algo.uses_rm() {
+        return Err(UsageError(format!(
+            "--algo {}: ReacherDraw runs maxent, fkl, rkl or js (no labelled events for SMIRL)",
+            args.algo
+        ))
+        .into());
+    }
+    let output = OutputDir::check(&args.out, args.force).map_err(|e| UsageError(e.to_string()))?;
+    let partial = output.begin()?;
+    let result = draw::run_draw(args.algo, &config, args.seed, |row| {
+        if !args.quiet {
+            eprintln!(
+                "iteration {:>5}  env steps {:>7}  KL(target||agent) {:>8.3}  KL(agent||target) {:>8.3}  {:.0} s",
+                row.iteration, row.env_steps, row.forward_kl, row.reverse_kl, row.wall_secs
+            );
+        }
+    })?;
+    let summary = draw::write_run(&partial, args.algo, args.seed, &config, &result)
+        .map_err(anyhow::Error::msg)?;
+    output.commit(&partial)?;
+    println!(
+        "{} {} seed {}: forward KL {:.3} -> {:.3} ({:.0} %), reverse KL {:.3} -> {:.3} ({:.0} %), {:.0} s; wrote {}",
+        summary.algo,
+        config.target.name(),
+        args.seed,
+        summary.first_forward_kl,
+        summary.last_forward_kl,
+        100.0 * summary.forward_ratio,
+        summary.first_reverse_kl,
+        summary.last_reverse_kl,
+        100.0 * summary.reverse_ratio,
+        summary.wall_secs,
+        args.out.display()
+    );
+    Ok(())
 }
 
 /// A log cut short is refused (exit 1) unless `allow_partial`; with it, a warning.

@@ -120,6 +120,27 @@ pub struct ReacherConfig {
     /// Draw a new ball layout at every reset.
     pub randomize_balls: bool,
     pub cancel: CancelConfig,
+    /// How the arm starts an episode (absent from written configs when `random`, the
+    /// default, so configs from before the option read and write unchanged).
+    #[serde(skip_serializing_if = "ArmStart::is_random")]
+    pub arm_start: ArmStart,
+}
+
+/// The arm's state at reset.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ArmStart {
+    /// Gymnasium's Reacher: joint angles uniform in ±0.1 rad, velocities in ±0.005.
+    #[default]
+    Random,
+    /// Both joints at 0 rad and at rest (fingertip at (0.21, 0)): f-IRL's ReacherDraw.
+    Zero,
+}
+
+impl ArmStart {
+    pub fn is_random(&self) -> bool {
+        *self == ArmStart::Random
+    }
 }
 
 impl Default for ReacherConfig {
@@ -129,6 +150,7 @@ impl Default for ReacherConfig {
             ball_layout: DEFAULT_LAYOUT,
             randomize_balls: false,
             cancel: CancelConfig::default(),
+            arm_start: ArmStart::Random,
         }
     }
 }
@@ -476,15 +498,16 @@ impl ContinuousEnv for ReacherDelivery {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         self.data.reset();
         self.balls = self.draw_layout(&mut rng);
-        {
+        // ArmStart::Zero: the state data.reset() left (qpos0 = 0, at rest), no draw.
+        if self.config.arm_start == ArmStart::Random {
             let q = self.data.qpos_mut();
             for &a in &self.layout.arm_qpos {
                 q[a] = rng.gen_range(-0.1..0.1);
             }
-        }
-        for k in 0..2 {
-            let d = self.layout.arm_dof[k];
-            self.data.qvel_mut()[d] = rng.gen_range(-0.005..0.005);
+            for k in 0..2 {
+                let d = self.layout.arm_dof[k];
+                self.data.qvel_mut()[d] = rng.gen_range(-0.005..0.005);
+            }
         }
         for (i, b) in self.balls.iter().enumerate() {
             let a = self.layout.ball_qpos[i];

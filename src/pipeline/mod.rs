@@ -4,6 +4,7 @@ pub mod expert;
 pub mod foxglove_scene;
 pub mod office;
 pub mod offline_rm;
+pub mod reacher_draw;
 pub mod reacher_expert;
 pub mod reacher_irl;
 pub mod render;

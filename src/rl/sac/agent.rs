@@ -106,14 +106,28 @@ pub struct ActWorkspace {
 impl ActWorkspace {
     /// Buffers for `actor`, whose output is a mean and a log-std per action.
     pub fn new(actor: &Mlp) -> Self {
+        Self::with_batch(actor, 1)
+    }
+
+    /// Buffers for choosing actions for `batch` observations at once (environments stepped
+    /// in lockstep): one matrix product per layer instead of `batch`.
+    pub fn with_batch(actor: &Mlp, batch: usize) -> Self {
         Self {
-            actor: actor.workspace(1),
-            obs: DMatrix::zeros(actor.inputs(), 1),
-            draw: PolicyDraw::new(actor.outputs() / 2, 1),
+            actor: actor.workspace(batch),
+            obs: DMatrix::zeros(actor.inputs(), batch),
+            draw: PolicyDraw::new(actor.outputs() / 2, batch),
         }
     }
 
-    /// Chooses `actor`'s action for one observation.
+    /// Observations per call of [`ActWorkspace::act`].
+    pub fn batch(&self) -> usize {
+        self.obs.ncols()
+    }
+
+    /// Chooses `actor`'s actions for [`ActWorkspace::batch`] observations: `obs` holds them
+    /// one after the other (`batch × obs_dim`), `action` receives theirs the same way
+    /// (`batch × act_dim`). Sampling draws the noise observation by observation, so a batch of
+    /// one draws what one call per observation draws.
     pub fn act(
         &mut self,
         actor: &Mlp,

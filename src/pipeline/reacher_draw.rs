@@ -1,0 +1,741 @@
+//! f-IRL's own Reacher experiment, "ReacherDraw" (Ni et al., CoRL 2020; the settings of its
+//! official code are in `../shared/notes/firl.md`): the arm alone, every episode from both
+//! joints at 0 rad and at rest, T = 30 steps, never done, and an expert given not by
+//! demonstrations but as a density over the fingertip's (x, y) — a Gaussian at (−0.21, 0) or
+//! an equal mixture of two at (−0.1485, ±0.1485), std 0.05. The IRL baselines' positive
+//! control: a state-marginal task that f-IRL was built for and solves in its paper, so a
+//! baseline that cannot match these densities is broken, and one that can fails the paper's
+//! tasks for another reason.
+//!
+//! The arm is ReacherDelivery's (Gymnasium's reacher, whose balls are non-colliding and never
+//! read here) with `arm_start = "zero"`. Every algorithm reads only the fingertip: the reward
+//! is the baselines' (64, 64) MLP on it, f-IRL's agent density is the Epanechnikov KDE of the
+//! iteration's fingertip states, the expert density is the analytic target (as in f-IRL's
+//! code), MaxEnt IRL's expert states are `expert_samples` draws from it. Quality is the
+//! forward and reverse KL between those draws and the agent's fingertip states, by the kNN
+//! estimator ([`crate::irl::knn_divergence`], k = 3), as f-IRL reports it.
+//!
+//! One IRL iteration, top to bottom in [`run_draw`]: SAC continues on the current reward for
+//! `sac_steps_per_iteration` steps; `agent_trajectories` fresh episodes of the stochastic
+//! policy; the algorithm's per-state loss coefficients; `reward_steps_per_iteration` Adam
+//! steps of the reward; every `eval_every` iterations the two KLs.
+
+use super::reacher_irl::Algo;
+use crate::env::reacher::{
+    ArmStart, CancelConfig, ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP,
+};
+use crate::env::ContinuousEnv;
+use crate::irl::firl::{density_ratio, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
+use crate::irl::kde::Kde;
+use crate::irl::knn_divergence::knn_kl;
+use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardModel};
+use crate::report::raster::{Canvas, Rgb};
+use crate::rl::replay::ReplayBatch;
+use crate::rl::sac::{episode_seed, ActMode, ActWorkspace, SacConfig, SacTrainer};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+use std::path::Path;
+use std::time::Instant;
+
+/// The expert's fingertip density.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DrawTarget {
+    /// One Gaussian at (−0.21, 0), std 0.05: the point opposite the start, at full reach.
+    Gaussian,
+    /// An equal mixture of Gaussians at (−0.1485, ±0.1485), std 0.05.
+    Mixture,
+}
+
+/// Standard deviation of every target component (m).
+pub const TARGET_STD: f64 = 0.05;
+
+impl DrawTarget {
+    pub fn name(self) -> &'static str {
+        match self {
+            DrawTarget::Gaussian => "gaussian",
+            DrawTarget::Mixture => "mixture",
+        }
+    }
+
+    fn means(self) -> &'static [[f64; 2]] {
+        match self {
+            DrawTarget::Gaussian => &[[-0.21, 0.0]],
+            DrawTarget::Mixture => &[[-0.1485, 0.1485], [-0.1485, -0.1485]],
+        }
+    }
+
+    /// The density at fingertip position (x, y).
+    pub fn density(self, x: f64, y: f64) -> f64 {
+        let means = self.means();
+        let var = TARGET_STD * TARGET_STD;
+        means
+            .iter()
+            .map(|m| {
+                let d2 = (x - m[0]).powi(2) + (y - m[1]).powi(2);
+                (-d2 / (2.0 * var)).exp() / (2.0 * PI * var)
+            })
+            .sum::<f64>()
+            / means.len() as f64
+    }
+
+    /// `n` draws, row-major (x, y).
+    pub fn sample(self, n: usize, rng: &mut impl Rng) -> Vec<f64> {
+        let normal = Normal::new(0.0, TARGET_STD).expect("positive std");
+        let means = self.means();
+        let mut out = Vec::with_capacity(2 * n);
+        for _ in 0..n {
+            let m = means[rng.gen_range(0..means.len())];
+            out.push(m[0] + normal.sample(rng));
+            out.push(m[1] + normal.sample(rng));
+        }
+        out
+    }
+}
+
+impl std::str::FromStr for DrawTarget {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "gaussian" => Ok(DrawTarget::Gaussian),
+            "mixture" => Ok(DrawTarget::Mixture),
+            _ => Err(format!(
+                "unknown target '{s}' (expected gaussian or mixture)"
+            )),
+        }
+    }
+}
+
+/// A ReacherDraw run's settings; defaults are f-IRL's (`../shared/notes/firl.md`) except
+/// SAC's network widths (see `DrawConfig::default`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DrawConfig {
+    pub target: DrawTarget,
+    pub iterations: usize,
+    pub sac_steps_per_iteration: u64,
+    /// Steps per episode (never done before).
+    pub horizon: usize,
+    /// Fresh episodes of the stochastic policy per iteration (the KDE's sample).
+    pub agent_trajectories: usize,
+    /// Draws from the target: MaxEnt IRL's expert states and the KL estimates' sample.
+    pub expert_samples: usize,
+    pub kde_bandwidth: f64,
+    #[serde(serialize_with = "crate::short_float::f32")]
+    pub reward_lr: f32,
+    pub reward_steps_per_iteration: usize,
+    /// Iterations between KL estimates (also the first and the last iteration).
+    pub eval_every: usize,
+    pub sac: SacConfig,
+}
+
+impl Default for DrawConfig {
+    /// f-IRL's ReacherDraw: 800 iterations × 300 SAC steps, T = 30, 1 000 trajectories,
+    /// 10 000 target samples, bandwidth 0.02, reward Adam lr 1e-3 × 2 steps, SAC lr 3e-3 with
+    /// fixed α = 1, replay 12 000, 5 random episodes first. SAC's networks are (64, 64)
+    /// instead of f-IRL's (256, 256): every SAC of this crate uses them, and the wider ones
+    /// cost about 16× the update time on the 2-core machine (a 2-dimensional state needs no
+    /// more capacity).
+    fn default() -> Self {
+        DrawConfig {
+            target: DrawTarget::Gaussian,
+            iterations: 800,
+            sac_steps_per_iteration: 300,
+            horizon: 30,
+            agent_trajectories: 1000,
+            expert_samples: 10_000,
+            kde_bandwidth: 0.02,
+            reward_lr: 1e-3,
+            reward_steps_per_iteration: 2,
+            eval_every: 10,
+            sac: SacConfig {
+                hidden: vec![64, 64],
+                lr: 3e-3,
+                batch_size: 256,
+                replay_capacity: 12_000,
+                gamma: 0.99,
+                tau: 0.005,
+                alpha: 1.0,
+                auto_alpha: false,
+                target_entropy: None,
+                warmup_steps: 150,
+                update_after: 150,
+                updates_per_step: 1,
+            },
+        }
+    }
+}
+
+/// Most IRL iterations of a ReacherDraw run.
+pub const MAX_DRAW_ITERATIONS: usize = 100_000;
+/// Most SAC steps per iteration.
+pub const MAX_DRAW_SAC_STEPS: u64 = 10_000_000;
+/// Most fingertip states collected per iteration (trajectories × horizon).
+pub const MAX_DRAW_AGENT_STATES: usize = 1_000_000;
+/// Most target samples.
+pub const MAX_DRAW_EXPERT_SAMPLES: usize = 1_000_000;
+/// Most reward steps per iteration.
+pub const MAX_DRAW_REWARD_STEPS: usize = 1_000;
+
+/// A config or run that cannot work.
+#[derive(Debug, thiserror::Error)]
+pub enum DrawError {
+    #[error("{source_name}: {}field `{field}` {problem}", line.map_or(String::new(), |l| format!("line {l}: ")))]
+    Invalid {
+        source_name: String,
+        field: String,
+        problem: String,
+        line: Option<usize>,
+    },
+    #[error("{source_name}: {message}")]
+    Parse {
+        source_name: String,
+        message: String,
+    },
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(
+        "{algo} is not a ReacherDraw algorithm (maxent, fkl, rkl, js: SMIRL needs labelled events)"
+    )]
+    Algo { algo: Algo },
+    #[error("{0}")]
+    Run(String),
+}
+
+impl DrawConfig {
+    /// The smoke profile of `--quick`: 6 iterations of 300 SAC steps, 50 trajectories,
+    /// 2 000 target samples, a KL estimate every 2.
+    pub fn quick() -> DrawConfig {
+        DrawConfig {
+            iterations: 6,
+            agent_trajectories: 50,
+            expert_samples: 2_000,
+            eval_every: 2,
+            ..DrawConfig::default()
+        }
+    }
+
+    pub fn from_toml(text: &str, source_name: &str) -> Result<DrawConfig, DrawError> {
+        let config: DrawConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
+            let mut message = e.message().trim().to_string();
+            if let Some(span) = e.span() {
+                let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
+                message = format!("line {line}: {message}");
+            }
+            DrawError::Parse {
+                source_name: source_name.to_string(),
+                message,
+            }
+        })?;
+        config.validate(source_name).map_err(|e| match e {
+            DrawError::Invalid {
+                source_name,
+                field,
+                problem,
+                ..
+            } => DrawError::Invalid {
+                line: crate::config_text::key_line(text, &field),
+                source_name,
+                field,
+                problem,
+            },
+            other => other,
+        })?;
+        Ok(config)
+    }
+
+    pub fn load(path: &Path) -> Result<DrawConfig, DrawError> {
+        let text = crate::config_text::read_text_file(path).map_err(|source| DrawError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        DrawConfig::from_toml(&text, &path.display().to_string())
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("DrawConfig always serialises")
+    }
+
+    /// Checks every size and rate against its limit (named by field) before any work.
+    pub fn validate(&self, source_name: &str) -> Result<(), DrawError> {
+        let bad = |field: &str, problem: String| {
+            Err(DrawError::Invalid {
+                source_name: source_name.to_string(),
+                field: field.to_string(),
+                problem,
+                line: None,
+            })
+        };
+        let range = |field: &str, value: u64, min: u64, max: u64| {
+            if value < min || value > max {
+                bad(field, format!("is {value}, it must be in {min}..={max}"))
+            } else {
+                Ok(())
+            }
+        };
+        range(
+            "iterations",
+            self.iterations as u64,
+            1,
+            MAX_DRAW_ITERATIONS as u64,
+        )?;
+        range(
+            "sac_steps_per_iteration",
+            self.sac_steps_per_iteration,
+            1,
+            MAX_DRAW_SAC_STEPS,
+        )?;
+        range(
+            "horizon",
+            self.horizon as u64,
+            1,
+            crate::env::reacher::MAX_EPISODE_STEPS as u64,
+        )?;
+        range(
+            "agent_trajectories",
+            self.agent_trajectories as u64,
+            2,
+            MAX_DRAW_AGENT_STATES as u64,
+        )?;
+        let states = self.agent_trajectories.saturating_mul(self.horizon);
+        if states > MAX_DRAW_AGENT_STATES {
+            return bad(
+                "agent_trajectories",
+                format!(
+                    "× horizon = {states} fingertip states per iteration, more than the limit of {MAX_DRAW_AGENT_STATES}"
+                ),
+            );
+        }
+        // The kNN estimate needs k + 1 = 4 samples of each side.
+        range(
+            "expert_samples",
+            self.expert_samples as u64,
+            4,
+            MAX_DRAW_EXPERT_SAMPLES as u64,
+        )?;
+        range(
+            "reward_steps_per_iteration",
+            self.reward_steps_per_iteration as u64,
+            1,
+            MAX_DRAW_REWARD_STEPS as u64,
+        )?;
+        range(
+            "eval_every",
+            self.eval_every as u64,
+            1,
+            MAX_DRAW_ITERATIONS as u64,
+        )?;
+        if !(self.kde_bandwidth.is_finite() && self.kde_bandwidth > 0.0) {
+            return bad("kde_bandwidth", "must be a positive number".into());
+        }
+        if !(self.reward_lr.is_finite() && self.reward_lr > 0.0) {
+            return bad("reward_lr", "must be a positive number".into());
+        }
+        match self.sac.validate() {
+            Err(crate::rl::sac::ConfigError::Invalid { field, problem }) => {
+                bad(&format!("sac.{field}"), problem)
+            }
+            Err(e) => bad("sac", e.to_string()),
+            Ok(()) => Ok(()),
+        }
+    }
+
+    /// The arm alone: T-step episodes from rest at 0 rad, no cancel event.
+    pub fn env_config(&self) -> ReacherConfig {
+        ReacherConfig {
+            max_steps: self.horizon,
+            arm_start: ArmStart::Zero,
+            cancel: CancelConfig {
+                probability: 0.0,
+                earliest_step: 1,
+                latest_step: 1,
+            },
+            ..ReacherConfig::default()
+        }
+    }
+}
+
+/// One KL estimate of a run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DrawRow {
+    pub iteration: usize,
+    pub env_steps: u64,
+    /// KL(target ‖ agent), kNN estimate between the target samples and the iteration's agent
+    /// fingertip states.
+    pub forward_kl: f64,
+    /// KL(agent ‖ target).
+    pub reverse_kl: f64,
+    /// Mean learned reward over the iteration's agent states.
+    pub learned_reward: f64,
+    /// Σ c r before the iteration's reward update.
+    pub surrogate_loss: f64,
+    pub wall_secs: f64,
+}
+
+/// A finished run: its KL estimates and the last iteration's agent fingertip states.
+#[derive(Clone, Debug)]
+pub struct DrawResult {
+    pub rows: Vec<DrawRow>,
+    /// The last batch of agent fingertip states, row-major (x, y).
+    pub final_tips: Vec<f64>,
+    /// The target samples the KLs were measured against.
+    pub target_samples: Vec<f64>,
+}
+
+/// Runs one ReacherDraw job: `algo` (maxent, fkl, rkl, js) on `config`, seeded by `seed`
+/// (SAC, rollouts and target samples have their own streams). `on_row` sees each KL
+/// estimate as it is made.
+pub fn run_draw(
+    algo: Algo,
+    config: &DrawConfig,
+    seed: u64,
+    mut on_row: impl FnMut(&DrawRow),
+) -> Result<DrawResult, DrawError> {
+    if algo.uses_rm() {
+        return Err(DrawError::Algo { algo });
+    }
+    config.validate("ReacherDraw config")?;
+    let run = |what: &str, e: &dyn std::fmt::Display| DrawError::Run(format!("{what}: {e}"));
+    let started = Instant::now();
+    let target = config.target;
+    let horizon = config.horizon;
+    let mut env = ReacherDelivery::new(config.env_config()).map_err(|e| run("environment", &e))?;
+    let mut trainer =
+        SacTrainer::new(&config.sac, OBS_DIM, env.act_dim(), seed).map_err(|e| run("SAC", &e))?;
+    let mut model: Box<dyn RewardModel + Send> = Box::new(
+        MlpReward::new(
+            MlpRewardConfig::paper(OBS_TIP.to_vec(), config.reward_lr, seed),
+            OBS_DIM,
+        )
+        .map_err(|e| run("reward", &e))?,
+    );
+    let target_samples = target.sample(
+        config.expert_samples,
+        &mut ChaCha8Rng::seed_from_u64(episode_seed(seed, 0xd2a3)),
+    );
+    // MaxEnt's expert states: the target samples as observations (the reward reads only the
+    // fingertip columns).
+    let expert_obs: Vec<f32> = target_samples
+        .chunks_exact(2)
+        .flat_map(|p| {
+            let mut o = [0.0f32; OBS_DIM];
+            o[OBS_TIP[0]] = p[0] as f32;
+            o[OBS_TIP[1]] = p[1] as f32;
+            o
+        })
+        .collect();
+    let mut rollout_rng = ChaCha8Rng::seed_from_u64(episode_seed(seed, 0x0a11_0a11));
+    // Rollout environments stepped in lockstep, and the actor's buffers for them.
+    let act_dim = env.act_dim();
+    let mut lockstep = (0..config.agent_trajectories.min(ROLLOUT_LOCKSTEP))
+        .map(|_| ReacherDelivery::new(config.env_config()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| run("environment", &e))?;
+    let mut act_ws = ActWorkspace::with_batch(&trainer.agent.actor, lockstep.len());
+    let mut round_obs = vec![0.0f32; lockstep.len() * OBS_DIM];
+    let mut round_actions = vec![0.0f32; lockstep.len() * act_dim];
+    let mut rollout_index = 0u64;
+    let mut rows = Vec::new();
+    let mut tips = Vec::new();
+    let mut reward_error = None;
+
+    for iteration in 1..=config.iterations {
+        // 1. SAC on the current reward r(o_{t+1}) of each replayed transition.
+        {
+            let mut next_obs = Vec::new();
+            let mut reward_fn = |batch: &ReplayBatch, out: &mut [f32]| {
+                next_obs.clear();
+                next_obs.extend_from_slice(batch.next_obs.as_slice());
+                if let Err(e) = model.reward_batch(&next_obs, &[], out) {
+                    out.fill(0.0);
+                    reward_error.get_or_insert(e);
+                }
+            };
+            trainer
+                .train(
+                    &mut env,
+                    &mut reward_fn,
+                    config.sac_steps_per_iteration,
+                    |_| {},
+                )
+                .map_err(|e| run("SAC", &e))?;
+            // Play the episode in progress to its end: the rollouts below reset the same
+            // environment, and SAC must not resume from the state they leave.
+            while !trainer.at_episode_boundary() {
+                trainer
+                    .train(&mut env, &mut reward_fn, 1, |_| {})
+                    .map_err(|e| run("SAC", &e))?;
+            }
+            if let Some(e) = reward_error.take() {
+                return Err(run("learned reward", &e));
+            }
+        }
+        // 2. Fresh episodes of the stochastic policy: fingertip states s_1..s_T, played
+        // `lockstep.len()` at a time so that the actor acts on all of them in one product.
+        let n_traj = config.agent_trajectories;
+        let mut agent_obs = vec![0.0f32; n_traj * horizon * OBS_DIM];
+        for first in (0..n_traj).step_by(lockstep.len()) {
+            let round = lockstep.len().min(n_traj - first);
+            for (k, env) in lockstep.iter_mut().take(round).enumerate() {
+                let reset_seed = episode_seed(seed ^ 0x7261_6e64, rollout_index + k as u64);
+                env.reset(reset_seed, &mut round_obs[k * OBS_DIM..(k + 1) * OBS_DIM]);
+            }
+            rollout_index += round as u64;
+            for t in 0..horizon {
+                act_ws.act(
+                    &trainer.agent.actor,
+                    &round_obs,
+                    ActMode::Sample,
+                    &mut rollout_rng,
+                    &mut round_actions,
+                );
+                for (k, env) in lockstep.iter_mut().take(round).enumerate() {
+                    let o = &mut round_obs[k * OBS_DIM..(k + 1) * OBS_DIM];
+                    let step = env
+                        .step(&round_actions[k * act_dim..(k + 1) * act_dim], o)
+                        .map_err(|e| run("rollout", &e))?;
+                    if step.terminated || (step.truncated && t + 1 < horizon) {
+                        return Err(DrawError::Run(
+                            "an episode ended before the horizon (ReacherDraw's episodes are never done)"
+                                .into(),
+                        ));
+                    }
+                    let at = ((first + k) * horizon + t) * OBS_DIM;
+                    agent_obs[at..at + OBS_DIM].copy_from_slice(o);
+                }
+            }
+        }
+        tips = agent_obs
+            .chunks_exact(OBS_DIM)
+            .flat_map(|o| [f64::from(o[OBS_TIP[0]]), f64::from(o[OBS_TIP[1]])])
+            .collect();
+        // 3. The algorithm's loss coefficients at the agent (and, MaxEnt, expert) states.
+        let (obs, coeffs) = match algo.divergence() {
+            Some(divergence) => {
+                let kde_agent =
+                    Kde::fit(&tips, 2, config.kde_bandwidth).map_err(|e| run("agent KDE", &e))?;
+                let mut rho_agent = vec![0.0; tips.len() / 2];
+                kde_agent.density_batch(&tips, &mut rho_agent);
+                let rho_target: Vec<f64> = tips
+                    .chunks_exact(2)
+                    .map(|p| target.density(p[0], p[1]))
+                    .collect();
+                let ratios = density_ratio(&rho_target, &rho_agent, DEFAULT_DENSITY_EPS)
+                    .map_err(|e| run("density ratio", &e))?;
+                let s = FirlSurrogate::new(divergence, &ratios, config.agent_trajectories, horizon)
+                    .map_err(|e| run("f-IRL surrogate", &e))?;
+                (agent_obs.clone(), s.coefficients)
+            }
+            None => {
+                let n_agent = tips.len() / 2;
+                let c = MaxEntCoefficients::new(n_agent, config.expert_samples, horizon)
+                    .map_err(|e| run("MaxEnt", &e))?;
+                let mut coeffs = vec![c.agent; n_agent];
+                coeffs.extend(std::iter::repeat(c.expert).take(config.expert_samples));
+                ([agent_obs.as_slice(), &expert_obs].concat(), coeffs)
+            }
+        };
+        let mut r = vec![0.0f32; coeffs.len()];
+        model
+            .reward_batch(&obs, &[], &mut r)
+            .map_err(|e| run("learned reward", &e))?;
+        let surrogate_loss: f64 = r.iter().zip(&coeffs).map(|(&r, c)| f64::from(r) * c).sum();
+        let n_agent = tips.len() / 2;
+        let learned_reward =
+            r[..n_agent].iter().map(|&x| f64::from(x)).sum::<f64>() / n_agent as f64;
+        // 4. Reward steps on the same coefficients.
+        for _ in 0..config.reward_steps_per_iteration {
+            model
+                .update(&obs, &[], &coeffs)
+                .map_err(|e| run("reward update", &e))?;
+        }
+        // 5. The KLs to the target, on this iteration's states.
+        if iteration == 1 || iteration % config.eval_every == 0 || iteration == config.iterations {
+            let forward_kl =
+                knn_kl(&target_samples, &tips, 2, 3).map_err(|e| run("forward KL", &e))?;
+            let reverse_kl =
+                knn_kl(&tips, &target_samples, 2, 3).map_err(|e| run("reverse KL", &e))?;
+            let row = DrawRow {
+                iteration,
+                env_steps: trainer.env_steps(),
+                forward_kl,
+                reverse_kl,
+                learned_reward,
+                surrogate_loss,
+                wall_secs: started.elapsed().as_secs_f64(),
+            };
+            on_row(&row);
+            rows.push(row);
+        }
+    }
+    Ok(DrawResult {
+        rows,
+        final_tips: tips,
+        target_samples,
+    })
+}
+
+/// Most rollout environments stepped together (their actor batch).
+const ROLLOUT_LOCKSTEP: usize = 250;
+
+/// Half-width of the pictured square around the arm's base (m): the arena's walls.
+const VIEW_HALF_WIDTH: f64 = 0.3;
+
+/// A PNG of two panels over the arena: the target density (left) and a histogram of the
+/// agent's fingertip states (right), each shaded relative to its own maximum, with the
+/// arm's reach (0.21 m) as a ring and the start (0.21, 0) as a dot.
+pub fn density_picture(target: DrawTarget, tips: &[f64]) -> Result<Vec<u8>, String> {
+    const PANEL: u32 = 300;
+    const BINS: usize = 60;
+    const GAP: u32 = 20;
+    let mut canvas = Canvas::new(2 * PANEL + GAP, PANEL, Rgb::WHITE);
+    let cell = PANEL as f64 / BINS as f64;
+    let bin_centre =
+        |i: usize| -VIEW_HALF_WIDTH + (i as f64 + 0.5) * 2.0 * VIEW_HALF_WIDTH / BINS as f64;
+    let mut target_grid = vec![0.0; BINS * BINS];
+    for (j, row) in target_grid.chunks_exact_mut(BINS).enumerate() {
+        for (i, v) in row.iter_mut().enumerate() {
+            *v = target.density(bin_centre(i), bin_centre(BINS - 1 - j));
+        }
+    }
+    let mut agent_grid = vec![0.0; BINS * BINS];
+    for p in tips.chunks_exact(2) {
+        let to_bin =
+            |v: f64| ((v + VIEW_HALF_WIDTH) / (2.0 * VIEW_HALF_WIDTH) * BINS as f64).floor();
+        let (i, j) = (to_bin(p[0]), to_bin(p[1]));
+        if (0.0..BINS as f64).contains(&i) && (0.0..BINS as f64).contains(&j) {
+            agent_grid[(BINS - 1 - j as usize) * BINS + i as usize] += 1.0;
+        }
+    }
+    let shade = Rgb(0.1, 0.2, 0.6);
+    for (panel, grid) in [(0u32, &target_grid), (1, &agent_grid)] {
+        let x0 = f64::from(panel * (PANEL + GAP));
+        let max = grid.iter().cloned().fold(0.0, f64::max);
+        if max > 0.0 {
+            for (k, &v) in grid.iter().enumerate() {
+                let (i, j) = ((k % BINS) as f64, (k / BINS) as f64);
+                canvas.rect(
+                    (x0 + i * cell) as i64,
+                    (j * cell) as i64,
+                    (x0 + (i + 1.0) * cell) as i64,
+                    ((j + 1.0) * cell) as i64,
+                    shade,
+                    (v / max).sqrt() as f32,
+                );
+            }
+        }
+        let to_px = |x: f64, y: f64| {
+            (
+                x0 + (x + VIEW_HALF_WIDTH) / (2.0 * VIEW_HALF_WIDTH) * f64::from(PANEL),
+                (VIEW_HALF_WIDTH - y) / (2.0 * VIEW_HALF_WIDTH) * f64::from(PANEL),
+            )
+        };
+        let (cx, cy) = to_px(0.0, 0.0);
+        let reach = 0.21 / (2.0 * VIEW_HALF_WIDTH) * f64::from(PANEL);
+        canvas.ring(cx, cy, reach, 1.0, Rgb(0.5, 0.5, 0.5), 1.0);
+        let (sx, sy) = to_px(0.21, 0.0);
+        canvas.disc(sx, sy, 3.0, Rgb(0.8, 0.1, 0.1), 1.0);
+    }
+    canvas.to_png().map_err(|e| e.to_string())
+}
+
+/// What `summary.json` of a run records: the first and last KL estimates and their ratios.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DrawSummary {
+    pub algo: String,
+    pub target: DrawTarget,
+    pub seed: u64,
+    pub iterations: usize,
+    pub first_forward_kl: f64,
+    pub first_reverse_kl: f64,
+    pub last_forward_kl: f64,
+    pub last_reverse_kl: f64,
+    /// Last / first forward KL (issue 14's target: at most 0.2).
+    pub forward_ratio: f64,
+    pub reverse_ratio: f64,
+    pub wall_secs: f64,
+    pub git_commit: String,
+}
+
+impl DrawSummary {
+    pub fn of(
+        algo: Algo,
+        seed: u64,
+        config: &DrawConfig,
+        result: &DrawResult,
+    ) -> Option<DrawSummary> {
+        let (first, last) = (result.rows.first()?, result.rows.last()?);
+        Some(DrawSummary {
+            algo: algo.name().to_string(),
+            target: config.target,
+            seed,
+            iterations: config.iterations,
+            first_forward_kl: first.forward_kl,
+            first_reverse_kl: first.reverse_kl,
+            last_forward_kl: last.forward_kl,
+            last_reverse_kl: last.reverse_kl,
+            forward_ratio: last.forward_kl / first.forward_kl,
+            reverse_ratio: last.reverse_kl / first.reverse_kl,
+            wall_secs: last.wall_secs,
+            git_commit: crate::GIT_COMMIT.to_string(),
+        })
+    }
+}
+
+/// `metrics.csv` of a run: one row per KL estimate.
+pub fn metrics_csv(algo: Algo, seed: u64, rows: &[DrawRow]) -> String {
+    let mut out = String::from(
+        "algo,seed,iteration,env_steps,forward_kl,reverse_kl,learned_reward,surrogate_loss,wall_secs\n",
+    );
+    for r in rows {
+        out.push_str(&format!(
+            "{},{seed},{},{},{},{},{},{},{:.1}\n",
+            algo.name(),
+            r.iteration,
+            r.env_steps,
+            r.forward_kl,
+            r.reverse_kl,
+            r.learned_reward,
+            r.surrogate_loss,
+            r.wall_secs
+        ));
+    }
+    out
+}
+
+/// Writes a finished run into `dir` (an existing, writable directory): `config.toml`,
+/// `metrics.csv`, `summary.json` and `density.png` (target vs the last iteration's agent).
+pub fn write_run(
+    dir: &Path,
+    algo: Algo,
+    seed: u64,
+    config: &DrawConfig,
+    result: &DrawResult,
+) -> Result<DrawSummary, String> {
+    let summary =
+        DrawSummary::of(algo, seed, config, result).ok_or("the run made no KL estimate")?;
+    let write = |name: &str, bytes: &[u8]| {
+        let path = dir.join(name);
+        crate::atomic_file::write_atomic(&path, bytes)
+            .map_err(|e| format!("{}: {e}", path.display()))
+    };
+    write("config.toml", config.to_toml().as_bytes())?;
+    write(
+        "metrics.csv",
+        metrics_csv(algo, seed, &result.rows).as_bytes(),
+    )?;
+    let json = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    write("summary.json", json.as_bytes())?;
+    write(
+        "density.png",
+        &density_picture(config.target, &result.final_tips)?,
+    )?;
+    Ok(summary)
+}
