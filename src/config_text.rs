@@ -29,6 +29,28 @@ pub fn read_text_file(path: &Path) -> std::io::Result<String> {
     Ok(text)
 }
 
+/// The message of a TOML parse error of `text`, led by its line and, when the error is about
+/// a value, the key it belongs to (`line 3: field `kde_bandwidth`: invalid type ...`). A
+/// missing key has no line of its own (the error spans the whole document): none is given.
+pub fn toml_error_message(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim().to_string();
+    let Some(span) = e.span().filter(|_| !message.starts_with("missing field")) else {
+        return message;
+    };
+    let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
+    // Name the field whose value is wrong (the span points at the value).
+    let key = text
+        .lines()
+        .nth(line - 1)
+        .and_then(|l| l.split_once('='))
+        .map(|(k, _)| k.trim().to_string())
+        .filter(|k| !k.is_empty() && !message.contains(k.as_str()));
+    match key {
+        Some(k) => format!("line {line}: field `{k}`: {message}"),
+        None => format!("line {line}: {message}"),
+    }
+}
+
 /// The 1-based line of the key `dotted` (`"lrm_steps"`, `"sac.batch_size"`,
 /// `"env.cancel.latest_step"`: table path, then key) in a TOML document written with one
 /// `[table]` header per table; the table's header line when the key is absent (its value

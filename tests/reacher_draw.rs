@@ -6,7 +6,8 @@ use rand_chacha::ChaCha8Rng;
 use smirl::env::reacher::{ArmStart, ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP};
 use smirl::env::ContinuousEnv;
 use smirl::nn::mlp::Mlp;
-use smirl::pipeline::reacher_draw::{DrawConfig, DrawError, DrawTarget, TARGET_STD};
+use smirl::pipeline::reacher_draw::{DrawConfig, DrawTarget, TARGET_STD};
+use smirl::pipeline::reacher_irl::IrlConfigError;
 use smirl::rl::sac::{ActMode, ActWorkspace, SacAgent, SacConfig};
 use std::process::Command;
 
@@ -116,7 +117,7 @@ fn config_errors_name_the_field_and_line() {
     let e = DrawConfig::from_toml("target = \"gaussian\"\nhorizon = 0\n", "draw.toml").unwrap_err();
     let msg = e.to_string();
     assert!(
-        matches!(e, DrawError::Invalid { line: Some(2), .. }),
+        matches!(e, IrlConfigError::Invalid { line: Some(2), .. }),
         "{msg}"
     );
     assert!(

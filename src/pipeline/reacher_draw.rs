@@ -20,7 +20,8 @@
 //! policy; the algorithm's per-state loss coefficients; `reward_steps_per_iteration` Adam
 //! steps of the reward; every `eval_every` iterations the two KLs.
 
-use super::reacher_irl::Algo;
+use super::reacher_irl::config::{load_toml_config, parse_toml_config};
+use super::reacher_irl::{Algo, IrlConfigError};
 use crate::env::reacher::{
     ArmStart, CancelConfig, ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP,
 };
@@ -180,27 +181,11 @@ pub const MAX_DRAW_EXPERT_SAMPLES: usize = 1_000_000;
 /// Most reward steps per iteration.
 pub const MAX_DRAW_REWARD_STEPS: usize = 1_000;
 
-/// A config or run that cannot work.
+/// A run that cannot work (a bad config is an [`IrlConfigError`], as for `reacher --task`).
 #[derive(Debug, thiserror::Error)]
 pub enum DrawError {
-    #[error("{source_name}: {}field `{field}` {problem}", line.map_or(String::new(), |l| format!("line {l}: ")))]
-    Invalid {
-        source_name: String,
-        field: String,
-        problem: String,
-        line: Option<usize>,
-    },
-    #[error("{source_name}: {message}")]
-    Parse {
-        source_name: String,
-        message: String,
-    },
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
+    #[error(transparent)]
+    Config(#[from] IrlConfigError),
     #[error(
         "{algo} is not a ReacherDraw algorithm (maxent, fkl, rkl, js: SMIRL needs labelled events)"
     )]
@@ -222,41 +207,12 @@ impl DrawConfig {
         }
     }
 
-    pub fn from_toml(text: &str, source_name: &str) -> Result<DrawConfig, DrawError> {
-        let config: DrawConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
-            let mut message = e.message().trim().to_string();
-            if let Some(span) = e.span() {
-                let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
-                message = format!("line {line}: {message}");
-            }
-            DrawError::Parse {
-                source_name: source_name.to_string(),
-                message,
-            }
-        })?;
-        config.validate(source_name).map_err(|e| match e {
-            DrawError::Invalid {
-                source_name,
-                field,
-                problem,
-                ..
-            } => DrawError::Invalid {
-                line: crate::config_text::key_line(text, &field),
-                source_name,
-                field,
-                problem,
-            },
-            other => other,
-        })?;
-        Ok(config)
+    pub fn from_toml(text: &str, source_name: &str) -> Result<DrawConfig, IrlConfigError> {
+        parse_toml_config(text, source_name, DrawConfig::validate)
     }
 
-    pub fn load(path: &Path) -> Result<DrawConfig, DrawError> {
-        let text = crate::config_text::read_text_file(path).map_err(|source| DrawError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
-        DrawConfig::from_toml(&text, &path.display().to_string())
+    pub fn load(path: &Path) -> Result<DrawConfig, IrlConfigError> {
+        load_toml_config(path, DrawConfig::validate)
     }
 
     pub fn to_toml(&self) -> String {
@@ -264,9 +220,9 @@ impl DrawConfig {
     }
 
     /// Checks every size and rate against its limit (named by field) before any work.
-    pub fn validate(&self, source_name: &str) -> Result<(), DrawError> {
+    pub fn validate(&self, source_name: &str) -> Result<(), IrlConfigError> {
         let bad = |field: &str, problem: String| {
-            Err(DrawError::Invalid {
+            Err(IrlConfigError::Invalid {
                 source_name: source_name.to_string(),
                 field: field.to_string(),
                 problem,

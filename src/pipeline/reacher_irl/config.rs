@@ -184,6 +184,54 @@ pub enum IrlConfigError {
     },
 }
 
+/// Parses a run config of type `T` from TOML `text` and checks it with `validate`: a
+/// syntax or type error names its line and key, an invalid value the line of its key.
+pub fn parse_toml_config<T: serde::de::DeserializeOwned>(
+    text: &str,
+    source_name: &str,
+    validate: impl FnOnce(&T, &str) -> Result<(), IrlConfigError>,
+) -> Result<T, IrlConfigError> {
+    let config: T = toml::from_str(text).map_err(|e: toml::de::Error| IrlConfigError::Parse {
+        source_name: source_name.to_string(),
+        message: crate::config_text::toml_error_message(text, &e),
+    })?;
+    validate(&config, source_name).map_err(|e| e.at_key_line(text))?;
+    Ok(config)
+}
+
+/// [`parse_toml_config`] of a file (at most `config_text::MAX_TEXT_FILE_BYTES`).
+pub fn load_toml_config<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    validate: impl FnOnce(&T, &str) -> Result<(), IrlConfigError>,
+) -> Result<T, IrlConfigError> {
+    let text = crate::config_text::read_text_file(path).map_err(|source| IrlConfigError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    parse_toml_config(&text, &path.display().to_string(), validate)
+}
+
+impl IrlConfigError {
+    /// An invalid value's error with the line of its key in `text`, the document it was
+    /// parsed from; other errors unchanged.
+    pub fn at_key_line(self, text: &str) -> IrlConfigError {
+        match self {
+            IrlConfigError::Invalid {
+                source_name,
+                field,
+                problem,
+                ..
+            } => IrlConfigError::Invalid {
+                line: crate::config_text::key_line(text, &field),
+                source_name,
+                field,
+                problem,
+            },
+            other => other,
+        }
+    }
+}
+
 // Limits of the sizes a config may ask for, checked by `validate` before any work (a typo
 // must be an error naming the key, not an allocation failure an hour later).
 
@@ -257,54 +305,12 @@ impl IrlRunConfig {
 
     /// Parses a TOML document; `source_name` (the file path) prefixes every message.
     pub fn from_toml(text: &str, source_name: &str) -> Result<IrlRunConfig, IrlConfigError> {
-        let config: IrlRunConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
-            let mut message = e.message().trim().to_string();
-            // A missing key has no line of its own (the span is the whole document).
-            if let Some(span) = e.span().filter(|_| !message.starts_with("missing field")) {
-                let start = span.start.min(text.len());
-                let line = text[..start].matches('\n').count() + 1;
-                // Name the field whose value is wrong (the span points at the value).
-                let key = text
-                    .lines()
-                    .nth(line - 1)
-                    .and_then(|l| l.split_once('='))
-                    .map(|(k, _)| k.trim().to_string())
-                    .filter(|k| !k.is_empty() && !message.contains(k.as_str()));
-                message = match key {
-                    Some(k) => format!("line {line}: field `{k}`: {message}"),
-                    None => format!("line {line}: {message}"),
-                };
-            }
-            IrlConfigError::Parse {
-                source_name: source_name.to_string(),
-                message,
-            }
-        })?;
-        config.validate(source_name).map_err(|e| match e {
-            IrlConfigError::Invalid {
-                source_name,
-                field,
-                problem,
-                ..
-            } => IrlConfigError::Invalid {
-                line: crate::config_text::key_line(text, &field),
-                source_name,
-                field,
-                problem,
-            },
-            other => other,
-        })?;
-        Ok(config)
+        parse_toml_config(text, source_name, IrlRunConfig::validate)
     }
 
     /// Reads and parses a TOML file.
     pub fn load(path: &Path) -> Result<IrlRunConfig, IrlConfigError> {
-        let text =
-            crate::config_text::read_text_file(path).map_err(|source| IrlConfigError::Io {
-                path: path.display().to_string(),
-                source,
-            })?;
-        IrlRunConfig::from_toml(&text, &path.display().to_string())
+        load_toml_config(path, IrlRunConfig::validate)
     }
 
     pub fn to_toml(&self) -> String {
