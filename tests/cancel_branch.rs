@@ -236,10 +236,18 @@ fn quick_if_run_reports_each_branch() {
         col("episodes_normal"),
         col("episodes_cancel"),
     );
+    let support = col("expert_support");
     let mut rows = 0;
     for line in lines {
         let f: Vec<&str> = line.split(',').collect();
         let x = |i: usize| f[i].parse::<f64>().unwrap();
+        // The share of agent states in the expert density's support: none before the first
+        // rollouts, a fraction after.
+        if rows == 0 {
+            assert_eq!(f[support], "", "{line}");
+        } else {
+            assert!((0.0..=1.0).contains(&x(support)), "{line}");
+        }
         // The quick profile's window is the default one: every scheduled cancel comes before
         // blue, so the stratified evaluation splits evenly.
         assert_eq!(x(n_normal) + x(n_cancel), 2.0 * per_branch as f64, "{line}");

@@ -143,6 +143,12 @@ pub struct MetricsRow {
     /// paper's "end location"); `None` in jobs run before the metric existed.
     #[serde(default)]
     pub final_ball: Option<f64>,
+    /// Fraction of this iteration's agent fingertip states inside the support of the expert's
+    /// Epanechnikov KDE (within `kde_bandwidth` of some demonstration state): where f-IRL's
+    /// density ratio can be anything but 0. `None` before the first rollouts and in jobs run
+    /// before the measurement existed.
+    #[serde(default)]
+    pub expert_support: Option<f64>,
 }
 
 /// What a finished job hands back.
@@ -686,13 +692,10 @@ pub fn run_job(
         ),
         _ => None,
     };
-    let expert_kde = match algo.divergence() {
-        Some(_) => Some(
-            Kde::fit_columns(&expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
-                .map_err(|e| fail(format!("expert KDE: {e}")))?,
-        ),
-        None => None,
-    };
+    // The expert's fingertip density: f-IRL's ρ_E, and for every algorithm the measure of
+    // how much of the agent's sample it covers (`expert_support`).
+    let expert_kde = Kde::fit_columns(&expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
+        .map_err(|e| fail(format!("expert KDE: {e}")))?;
     let mut trainer = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), seed)
         .map_err(|e| fail(e.to_string()))?;
     // Separate streams: rollouts and evaluation never perturb SAC's own RNG.
@@ -774,6 +777,7 @@ pub fn run_job(
         surrogate_loss: 0.0,
         progress: Some(ev.progress),
         final_ball: Some(ev.final_ball),
+        expert_support: None,
     });
     progress(JobProgress {
         iteration: 0,
@@ -873,6 +877,13 @@ pub fn run_job(
             .map_err(fail)?;
             batch.lengths.push(len);
         }
+        let expert_support = expert_kde
+            .density_columns(&batch.obs, OBS_DIM, &OBS_TIP)
+            .map_err(|e| fail(format!("expert KDE: {e}")))?
+            .iter()
+            .filter(|&&d| d > 0.0)
+            .count() as f64
+            / (batch.obs.len() / OBS_DIM).max(1) as f64;
         // 3–4. Coefficients of the algorithm's loss.
         let Coefficients {
             obs,
@@ -881,7 +892,7 @@ pub fn run_job(
         } = irl_coefficients(
             algo,
             expert,
-            expert_kde.as_ref(),
+            Some(&expert_kde),
             &batch,
             s.kde_bandwidth,
             s.smirl_normalisation,
@@ -929,6 +940,7 @@ pub fn run_job(
             surrogate_loss,
             progress: Some(ev.progress),
             final_ball: Some(ev.final_ball),
+            expert_support: Some(expert_support),
         });
         progress(JobProgress {
             iteration,

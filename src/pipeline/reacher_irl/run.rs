@@ -772,6 +772,7 @@ fn write_reports(
         "episodes_cancel",
         "progress",
         "final_ball",
+        "expert_support",
     ]);
     let optional = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x}"));
     for (_, r) in records {
@@ -798,6 +799,7 @@ fn write_reports(
                 n_cancel,
                 optional(row.progress),
                 optional(row.final_ball),
+                optional(row.expert_support),
             ]);
         }
     }
