@@ -232,3 +232,26 @@ fn bad_arguments_exit_2_before_any_work() {
         "keep"
     );
 }
+
+#[test]
+fn the_reachable_floor_of_the_reverse_kl_is_minus_log_the_reachable_mass() {
+    use smirl::pipeline::reacher_draw::{reachable_floor, REACH};
+    for target in [DrawTarget::Gaussian, DrawTarget::Mixture] {
+        let samples = target.sample(10_000, &mut ChaCha8Rng::seed_from_u64(7));
+        // KL(p restricted to the disc ‖ p) = −log P(disc), exactly.
+        let check = target.sample(200_000, &mut ChaCha8Rng::seed_from_u64(8));
+        let inside = check
+            .chunks_exact(2)
+            .filter(|p| p[0].hypot(p[1]) <= REACH)
+            .count() as f64
+            / 200_000.0;
+        let (forward, reverse) = reachable_floor(target, &samples, 0).unwrap();
+        assert!(
+            (reverse + inside.ln()).abs() < 0.08,
+            "{target:?}: {reverse} vs {}",
+            -inside.ln()
+        );
+        // Half the target is out of reach: the forward KL cannot come near 0.
+        assert!(forward > 1.0, "{target:?}: {forward}");
+    }
+}

@@ -594,7 +594,7 @@ pub fn density_picture(target: DrawTarget, tips: &[f64]) -> Result<Vec<u8>, Stri
             )
         };
         let (cx, cy) = to_px(0.0, 0.0);
-        let reach = 0.21 / (2.0 * VIEW_HALF_WIDTH) * f64::from(PANEL);
+        let reach = REACH / (2.0 * VIEW_HALF_WIDTH) * f64::from(PANEL);
         canvas.ring(cx, cy, reach, 1.0, Rgb(0.5, 0.5, 0.5), 1.0);
         let (sx, sy) = to_px(0.21, 0.0);
         canvas.disc(sx, sy, 3.0, Rgb(0.8, 0.1, 0.1), 1.0);
@@ -616,6 +616,13 @@ pub struct DrawSummary {
     /// Last / first forward KL (issue 14's target: at most 0.2).
     pub forward_ratio: f64,
     pub reverse_ratio: f64,
+    /// The KLs the best the arm can do would measure: the same estimates against the target
+    /// conditioned on the arm's reach ([`reachable_floor`]); both targets sit at full reach,
+    /// so about half their mass is out of it and no policy gets below these.
+    #[serde(default)]
+    pub reachable_forward_kl: Option<f64>,
+    #[serde(default)]
+    pub reachable_reverse_kl: Option<f64>,
     pub wall_secs: f64,
     pub git_commit: String,
 }
@@ -628,6 +635,7 @@ impl DrawSummary {
         result: &DrawResult,
     ) -> Option<DrawSummary> {
         let (first, last) = (result.rows.first()?, result.rows.last()?);
+        let floor = reachable_floor(config.target, &result.target_samples, seed).ok();
         Some(DrawSummary {
             algo: algo.name().to_string(),
             target: config.target,
@@ -639,10 +647,39 @@ impl DrawSummary {
             last_reverse_kl: last.reverse_kl,
             forward_ratio: last.forward_kl / first.forward_kl,
             reverse_ratio: last.reverse_kl / first.reverse_kl,
+            reachable_forward_kl: floor.map(|f| f.0),
+            reachable_reverse_kl: floor.map(|f| f.1),
             wall_secs: last.wall_secs,
             git_commit: crate::GIT_COMMIT.to_string(),
         })
     }
+}
+
+/// Reach of the fingertip from the arm's base (m): links of 0.1 and 0.11.
+pub const REACH: f64 = 0.21;
+
+/// The (forward, reverse) KL estimates between `target_samples` and as many draws of the
+/// target conditioned on the disc the fingertip can reach: what a policy that matched the
+/// target wherever the arm can go would measure.
+pub fn reachable_floor(
+    target: DrawTarget,
+    target_samples: &[f64],
+    seed: u64,
+) -> Result<(f64, f64), crate::irl::knn_divergence::KnnError> {
+    let n = target_samples.len() / 2;
+    let mut rng = ChaCha8Rng::seed_from_u64(episode_seed(seed, 0x4eac));
+    let mut reachable = Vec::with_capacity(2 * n);
+    while reachable.len() < 2 * n {
+        for p in target.sample(n, &mut rng).chunks_exact(2) {
+            if p[0].hypot(p[1]) <= REACH && reachable.len() < 2 * n {
+                reachable.extend_from_slice(p);
+            }
+        }
+    }
+    Ok((
+        knn_kl(target_samples, &reachable, 2, 3)?,
+        knn_kl(&reachable, target_samples, 2, 3)?,
+    ))
 }
 
 /// `metrics.csv` of a run: one row per KL estimate.
