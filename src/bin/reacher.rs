@@ -74,6 +74,18 @@ enum Command {
     /// f-IRL's own Reacher experiment (ReacherDraw): match a fingertip density with one
     /// baseline (maxent, fkl, rkl, js); forward and reverse KL per iteration.
     Draw(DrawArgs),
+    /// Print a baseline's saved reward (rewards/<algo>_seed<k>.bin of maxent, fkl, rkl, js)
+    /// at fingertip positions.
+    Reward(RewardArgs),
+}
+
+#[derive(Args)]
+struct RewardArgs {
+    /// The reward file.
+    file: PathBuf,
+    /// Fingertip positions `x,y` (m), e.g. `--at 0.21,0 --at -0.0591,0.0104`.
+    #[arg(long, required = true, allow_hyphen_values = true)]
+    at: Vec<String>,
 }
 
 #[derive(Args)]
@@ -250,6 +262,7 @@ fn main() -> ExitCode {
         Some(Command::Job(args)) => irl_cli::job(args),
         Some(Command::Aggregate(args)) => irl_cli::aggregate(args),
         Some(Command::Draw(args)) => run_draw(args),
+        Some(Command::Reward(args)) => run_reward(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -264,6 +277,32 @@ fn main() -> ExitCode {
             }
         }
     }
+}
+
+fn run_reward(args: RewardArgs) -> Result<()> {
+    let points = args
+        .at
+        .iter()
+        .map(|p| {
+            let xy: Vec<f64> = p
+                .split(',')
+                .map(|v| v.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| UsageError(format!("--at {p}: expected x,y (two numbers)")))?;
+            match xy[..] {
+                [x, y] if x.is_finite() && y.is_finite() => Ok([x, y]),
+                _ => Err(UsageError(format!(
+                    "--at {p}: expected x,y (two finite numbers)"
+                ))),
+            }
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let r = smirl::pipeline::reacher_irl::job::baseline_reward_at(&args.file, &points)
+        .map_err(|e| UsageError(e.to_string()))?;
+    for (p, r) in points.iter().zip(r) {
+        println!("{} {} {r}", p[0], p[1]);
+    }
+    Ok(())
 }
 
 fn run_draw(args: DrawArgs) -> Result<()> {

@@ -492,6 +492,21 @@ pub fn reward_model(
     })
 }
 
+/// The saved reward of a baseline job (`rewards/<algo>_seed<k>.bin` of maxent, fkl, rkl, js:
+/// the (64, 64) MLP on the fingertip, clamped to ±10) at fingertip positions (x, y).
+pub fn baseline_reward_at(path: &Path, points: &[[f64; 2]]) -> Result<Vec<f32>, RewardError> {
+    let mut model = MlpReward::new(MlpRewardConfig::paper(OBS_TIP.to_vec(), 1e-3, 0), OBS_DIM)?;
+    model.load(path)?;
+    let mut obs = vec![0.0f32; points.len() * OBS_DIM];
+    for (row, p) in obs.chunks_exact_mut(OBS_DIM).zip(points) {
+        row[OBS_TIP[0]] = p[0] as f32;
+        row[OBS_TIP[1]] = p[1] as f32;
+    }
+    let mut r = vec![0.0f32; points.len()];
+    model.reward_batch(&obs, &[], &mut r)?;
+    Ok(r)
+}
+
 /// Ground-truth outcome of one episode.
 #[derive(Clone, Copy, Debug, Default)]
 struct EpisodeOutcome {
