@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The learned rewards of the positive control's baseline jobs at the fingertip's start (0.21, 0)
 # and at the blue ball (-0.0591, 0.0104): does the reward ask for blue? Writes
-# experiments/reacher/controls/rewards.md. Usage: experiments/reacher/controls/rewards_at.sh [RUN_DIR]
+# experiments/reacher/controls/rewards_<run>.md. Usage: experiments/reacher/controls/rewards_at.sh [RUN_DIR]
 #   RUN_DIR default experiments/reacher/runs/blue; REACHER_BIN=<binary> runs another build.
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 RUN=${1:-experiments/reacher/runs/blue}
 if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
 BIN=${REACHER_BIN:-./target/release/reacher}
+OUT=experiments/reacher/controls/rewards_$(basename "$RUN").md
 {
   echo "# Learned rewards of \`$RUN\` at the start and at blue"
   echo
@@ -21,5 +22,5 @@ BIN=${REACHER_BIN:-./target/release/reacher}
     higher=$(awk -v s="$start" -v b="$blue" 'BEGIN { print (b > s) ? "blue" : "start" }')
     printf '| %s | %.3f | %.3f | %s |\n' "$(basename "$f" .bin)" "$start" "$blue" "$higher"
   done
-} > experiments/reacher/controls/rewards.md
-cat experiments/reacher/controls/rewards.md
+} > "$OUT"
+cat "$OUT"
