@@ -405,11 +405,9 @@ pub fn run_draw(
     for iteration in 1..=config.iterations {
         // 1. SAC on the current reward r(o_{t+1}) of each replayed transition.
         {
-            let mut next_obs = Vec::new();
+            // The plain environment's observations are the reward's input rows as stored.
             let mut reward_fn = |batch: &ReplayBatch, out: &mut [f32]| {
-                next_obs.clear();
-                next_obs.extend_from_slice(batch.next_obs.as_slice());
-                if let Err(e) = model.reward_batch(&next_obs, &[], out) {
+                if let Err(e) = model.reward_batch(batch.next_obs.as_slice(), &[], out) {
                     out.fill(0.0);
                     reward_error.get_or_insert(e);
                 }
@@ -487,7 +485,7 @@ pub fn run_draw(
                     .map_err(|e| run("density ratio", &e))?;
                 let s = FirlSurrogate::new(divergence, &ratios, config.agent_trajectories, horizon)
                     .map_err(|e| run("f-IRL surrogate", &e))?;
-                (agent_obs.clone(), s.coefficients)
+                (agent_obs, s.coefficients)
             }
             None => {
                 let n_agent = tips.len() / 2;
