@@ -78,6 +78,10 @@ fn prepare_job_aggregate_equals_one_process_run_and_reruns_are_safe() {
         "{out}"
     );
 
+    // A run directory as git checks it out: `logs/` is ignored, so it is not there.
+    // Regression: jobs failed on the missing `logs/<job>.mcap.part`.
+    std::fs::remove_dir_all(dir.join("split/logs")).unwrap();
+
     // Jobs in another order than the one-process run, by index and by name.
     for args in [
         vec!["job", "--run", "split", "--index", "3", "--quiet"],

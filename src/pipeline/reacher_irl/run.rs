@@ -599,6 +599,12 @@ impl PreparedRun {
         if record_path.is_file() {
             return read_record(&record_path).map(|r| (r, false));
         }
+        // A run directory checked out from git has no `logs/` (ignored: the MCAP files are
+        // large) and, before its first job is committed, no `rewards/` or `jobs/`.
+        for sub in ["rewards", "logs", "jobs"] {
+            let sub = self.dir.join(sub);
+            std::fs::create_dir_all(&sub).map_err(|e| format!("{}: {e}", sub.display()))?;
+        }
         let result = run_one(
             self.prepared.task,
             algo,
