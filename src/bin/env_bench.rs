@@ -1,5 +1,7 @@
 //! Benchmark: ReacherDelivery steps per second against the raw FFI step loop on the same
-//! model, measured in the same run (interleaved repetitions, medians).
+//! model, measured in the same run (interleaved repetitions, medians); and what one episode
+//! reset costs in environment steps (f-IRL resets 1 000 times per iteration for 30-step
+//! episodes, so a reset worth many steps is a large share of its sampling).
 //!
 //! `cargo run --release --bin env_bench -- --reps 7 --steps 20000`
 
@@ -38,7 +40,8 @@ fn main() -> anyhow::Result<()> {
     let ctrl = [0.3f64, -0.2];
     let mut obs = vec![0.0f32; OBS_DIM];
 
-    let (mut raw_rates, mut env_rates) = (vec![], vec![]);
+    let (mut raw_rates, mut env_rates, mut reset_costs) = (vec![], vec![], vec![]);
+    let resets = (args.steps / 10).max(1);
     for rep in 0..args.reps {
         raw.reset();
         let t = Instant::now();
@@ -56,6 +59,13 @@ fn main() -> anyhow::Result<()> {
             }
         }
         env_rates.push(args.steps as f64 / t.elapsed().as_secs_f64());
+
+        let t = Instant::now();
+        for episode in 0..resets {
+            env.reset(episode as u64, &mut obs);
+        }
+        let reset_secs = t.elapsed().as_secs_f64() / resets as f64;
+        reset_costs.push(reset_secs * env_rates[rep]);
         eprintln!(
             "rep {rep}: raw {:.0} steps/s, env {:.0} steps/s",
             raw_rates[rep], env_rates[rep]
@@ -67,6 +77,7 @@ fn main() -> anyhow::Result<()> {
         .map(|(e, r)| e / r)
         .collect();
     let (raw_med, env_med) = (median(raw_rates), median(env_rates));
+    let reset_cost = median(reset_costs);
     println!(
         "MuJoCo {} ({} steps x {} reps, {FRAME_SKIP} mj_step per env step)",
         mujoco::version_string(),
@@ -84,6 +95,10 @@ fn main() -> anyhow::Result<()> {
     println!(
         "ratio env/raw     : {:.3} (median of per-rep ratios; target >= 0.9)",
         median(ratios)
+    );
+    println!(
+        "episode reset     : {:.1} us = {reset_cost:.2} env steps (median per rep; target <= 1)",
+        reset_cost * 1e6 / env_med
     );
     Ok(())
 }
