@@ -418,3 +418,34 @@ fn built_in_model_is_the_shipped_file() {
     let file = std::fs::read_to_string(shipped_xml()).unwrap();
     assert_eq!(smirl::assets::REACHER_XML, file);
 }
+
+#[test]
+fn constraint_buffers_hold_every_limit_at_once() {
+    // The model sizes its constraint buffers (njmax) to what it can produce, because MuJoCo
+    // zeroes them on every reset. The worst case: the elbow and all eight ball slides at
+    // their limits and moving outward, nine limit rows. A full buffer is a MuJoCo warning.
+    let m = Arc::new(Model::from_xml_path(&shipped_xml()).unwrap());
+    let mut d = Data::new(m).unwrap();
+    smirl::mujoco::take_warnings();
+    let mut qpos = [0.27f64; 10];
+    qpos[0] = 0.0;
+    qpos[1] = 3.0;
+    for (i, q) in qpos.iter_mut().enumerate().skip(2) {
+        if i % 2 == 1 {
+            *q = -*q;
+        }
+    }
+    let qvel: Vec<f64> = qpos.iter().map(|q: &f64| q.signum()).collect();
+    d.set_qpos(&qpos).unwrap();
+    d.set_qvel(&qvel).unwrap();
+    d.set_ctrl(&[1.0, 1.0]).unwrap();
+    for _ in 0..20 {
+        d.step().unwrap();
+    }
+    assert_eq!(smirl::mujoco::take_warnings(), Vec::<String>::new());
+    // The limits held: every limited joint is still within a few mm (or rad/100) of its range.
+    for (i, q) in d.qpos().iter().enumerate().skip(1) {
+        let limit = if i == 1 { 3.0 } else { 0.27 };
+        assert!(q.abs() < limit + 0.05, "qpos[{i}] = {q}");
+    }
+}
