@@ -66,6 +66,10 @@ pub fn key_line(text: &str, dotted: &str) -> Option<usize> {
         let line = raw.split('#').next().unwrap_or("").trim();
         if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
             current = name.trim().to_string();
+            if current == dotted {
+                // The key names a table (`[schedule.fkl]`): its header.
+                return Some(i + 1);
+            }
             if current == table {
                 header = Some(i + 1);
             }
@@ -96,6 +100,7 @@ mod tests {
         assert_eq!(key_line(text, "sac.lr"), Some(3));
         assert_eq!(key_line(text, "env.max_steps"), Some(7));
         assert_eq!(key_line(text, "env.cancel.latest_step"), Some(9));
+        assert_eq!(key_line(text, "env.cancel"), Some(8));
         assert_eq!(key_line(text, "batch_size"), None);
     }
 }

@@ -520,3 +520,134 @@ fn counterfactual_share_must_be_in_the_unit_interval() {
         assert!(e.contains("smirl_counterfactual"), "{e}");
     }
 }
+
+/// `[schedule.<algo>]`: an algorithm's own IRL schedule replaces exactly the fields it names
+/// (the SAC keys on top of the run's `[sac]`); the other algorithms keep the run's; the
+/// config prints and parses back unchanged.
+#[test]
+fn per_algorithm_schedules_replace_only_their_fields() {
+    use smirl::rl::sac::SacConfig;
+    let text = IrlRunConfig::standard().to_toml()
+        + "\n[schedule.fkl]\nirl_iterations = 800\nsac_steps_per_iteration = 300\n\
+           agent_trajectories = 300\nreward_steps_per_iteration = 2\nmlp_reward_l2 = 0.0\n\
+           \n[schedule.fkl.sac]\nlr = 0.003\nalpha = 1.0\nauto_alpha = false\n";
+    let c = IrlRunConfig::from_toml(&text, "c.toml").unwrap();
+    let standard = IrlRunConfig::standard();
+    let fkl = c.for_algo(Algo::Fkl).unwrap();
+    assert_eq!(
+        (
+            fkl.irl_iterations,
+            fkl.sac_steps_per_iteration,
+            fkl.agent_trajectories,
+            fkl.reward_steps_per_iteration,
+            fkl.mlp_reward_l2
+        ),
+        (800, 300, 300, 2, 0.0)
+    );
+    assert_eq!(
+        fkl.sac,
+        SacConfig {
+            lr: 0.003,
+            alpha: 1.0,
+            auto_alpha: false,
+            ..standard.sac.clone()
+        }
+    );
+    assert_eq!(fkl.mlp_reward_lr, standard.mlp_reward_lr);
+    assert_eq!(fkl.env, standard.env);
+    assert!(fkl.schedule.is_empty());
+    for algo in [Algo::Smirl, Algo::MaxEnt, Algo::Rkl] {
+        assert_eq!(c.for_algo(algo).unwrap(), standard, "{algo}");
+    }
+    let printed = c.to_toml();
+    assert!(printed.contains("[schedule.fkl]"), "{printed}");
+    assert_eq!(IrlRunConfig::from_toml(&printed, "printed").unwrap(), c);
+    // Without schedules the printed config is what it always was.
+    assert!(!standard.to_toml().contains("schedule"));
+}
+
+/// A schedule for an unknown algorithm, an unknown or out-of-range field in one: an error
+/// naming the schedule's key and its line, before any work.
+#[test]
+fn bad_schedules_name_the_key_and_line() {
+    let base = IrlRunConfig::standard().to_toml();
+    let base_lines = base.lines().count();
+    for (table, expected_key, expected_line) in [
+        ("[schedule.fkx]\nirl_iterations = 3\n", "schedule.fkx", 2),
+        (
+            "[schedule.fkl]\nirl_iterations = 0\n",
+            "schedule.fkl.irl_iterations",
+            3,
+        ),
+        (
+            "[schedule.js]\nagent_trajectories = 1000000\n",
+            "schedule.js.agent_trajectories",
+            3,
+        ),
+        (
+            "[schedule.rkl]\nkde_bandwidth = -1.0\n",
+            "schedule.rkl.kde_bandwidth",
+            3,
+        ),
+        ("[schedule.fkl.sac]\nlr = -1.0\n", "schedule.fkl.sac.lr", 3),
+    ] {
+        let text = format!("{base}\n{table}");
+        let err = IrlRunConfig::from_toml(&text, "c.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("c.toml")
+                && err.contains(expected_key)
+                && err.contains(&format!("line {}", base_lines + expected_line)),
+            "{table}: {err}"
+        );
+    }
+    for (table, needle) in [
+        ("[schedule.fkl]\nirl_iteration = 3\n", "irl_iteration"),
+        ("[schedule.fkl]\nenv = 3\n", "env"),
+        ("[schedule.fkl.sac]\nbatch = 3\n", "batch"),
+    ] {
+        let err = IrlRunConfig::from_toml(&format!("{base}\n{table}"), "c.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("c.toml") && err.contains(needle),
+            "{table}: {err}"
+        );
+    }
+}
+
+/// A job runs with its algorithm's schedule: one IRL iteration for `maxent`, the run's two
+/// for `smirl`, in the same run.
+#[test]
+fn jobs_run_with_their_algorithms_schedule() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut config = tiny_config();
+    config.schedule.insert(
+        "maxent".into(),
+        smirl::pipeline::reacher_irl::config::AlgoSchedule {
+            irl_iterations: Some(1),
+            ..Default::default()
+        },
+    );
+    let request = RunRequest {
+        task: ReacherTask::Or,
+        algos: vec![Algo::Smirl, Algo::MaxEnt],
+        seeds: 1,
+        seed: 3,
+        config,
+        out: tmp.path().join("run"),
+        force: false,
+    };
+    run_pipeline(&request, &Silent).unwrap();
+    let metrics = std::fs::read_to_string(tmp.path().join("run/metrics.csv")).unwrap();
+    let rows = |algo: &str| {
+        metrics
+            .lines()
+            .filter(|l| l.starts_with(&format!("{algo},")))
+            .count()
+    };
+    assert_eq!((rows("smirl"), rows("maxent")), (3, 2), "{metrics}");
+    let written = std::fs::read_to_string(tmp.path().join("run/config.toml")).unwrap();
+    assert!(written.contains("[schedule.maxent]"), "{written}");
+}

@@ -876,6 +876,8 @@ mod irl_cli {
         }
         fn job_progress(&self, job: usize, p: JobProgress) {
             if let Some(bar) = self.jobs.lock().expect("bars lock").get(job) {
+                // A job with its own schedule ([schedule.<algo>]) has its own length.
+                bar.set_length(p.total_env_steps);
                 bar.set_position(p.env_steps);
                 bar.set_message(format!(
                     "iter {}/{} success {:.2}",

@@ -1,12 +1,15 @@
 //! The run configuration of `reacher --task`: one TOML file, every top-level field required
 //! (a missing or mistyped field is an error naming it), the `env` and `sac` tables default
-//! field-wise to the environment's values and to [`irl_run_sac`].
+//! field-wise to the environment's values and to [`irl_run_sac`]. Optional
+//! `[schedule.<algorithm>]` tables give one algorithm its own IRL schedule ([`AlgoSchedule`]).
 
+use super::Algo;
 use crate::env::reacher::ReacherConfig;
 use crate::irl::smirl::SmirlNormalisation;
 use crate::rl::sac::SacConfig;
 use crate::rm::lrm::Guards;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// Where the demonstrations come from.
@@ -133,6 +136,51 @@ pub struct IrlRunConfig {
     /// (or from the table's `preset`, as in [`SacConfig::from_toml`]).
     #[serde(default = "irl_run_sac", deserialize_with = "deserialize_irl_run_sac")]
     pub sac: SacConfig,
+    /// Per-algorithm schedules, keyed by algorithm name (`[schedule.fkl]`): an algorithm
+    /// with a table runs with those fields in place of the ones above; the others (and
+    /// every field the table leaves out) use the run's. Empty: one schedule for all.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub schedule: BTreeMap<String, AlgoSchedule>,
+}
+
+/// The fields one algorithm may run with its own values of (`[schedule.<algorithm>]`): the
+/// IRL schedule, the baselines' reward optimiser and KDE, rollout logging and SAC. What the
+/// algorithms must share to be compared stays run-wide: the demonstrations, the environment
+/// (episode length, cancel schedule) and the ground-truth evaluation.
+///
+/// Why: f-IRL's own code runs many short IRL iterations (800 × 300 SAC steps, 2 reward steps,
+/// SAC with fixed α = 1) and fails even a one-ball control task under SMIRL's 20 × 5 000
+/// (README, "Positive controls"); each algorithm gets the schedule its positive control needs.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AlgoSchedule {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub irl_iterations: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sac_steps_per_iteration: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub agent_trajectories: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reward_steps_per_iteration: Option<usize>,
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        serialize_with = "crate::short_float::option_f32"
+    )]
+    pub mlp_reward_lr: Option<f32>,
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        serialize_with = "crate::short_float::option_f32"
+    )]
+    pub mlp_reward_l2: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kde_bandwidth: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub log_every_nth_episode: Option<u64>,
+    /// SAC keys that differ from the run's `[sac]` (which supplies the rest).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sac: Option<toml::Table>,
 }
 
 /// The inner SAC of the IRL runs: the paper's IRL settings (`SacConfig::irl`) with Adam lr
@@ -285,6 +333,7 @@ impl IrlRunConfig {
             threads: 2,
             env: ReacherConfig::default(),
             sac: irl_run_sac(),
+            schedule: BTreeMap::new(),
         }
     }
 
@@ -315,6 +364,48 @@ impl IrlRunConfig {
 
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("IrlRunConfig always serialises")
+    }
+
+    /// The settings `algo` runs with: the run's, with `algo`'s `[schedule.<algo>]` fields
+    /// in their place. The schedules were checked by [`IrlRunConfig::validate`].
+    pub fn for_algo(&self, algo: Algo) -> Result<IrlRunConfig, IrlConfigError> {
+        let mut config = IrlRunConfig {
+            schedule: BTreeMap::new(),
+            ..self.clone()
+        };
+        let Some(s) = self.schedule.get(algo.name()) else {
+            return Ok(config);
+        };
+        let field = |name: &str| format!("schedule.{algo}.{name}");
+        macro_rules! take {
+            ($($f:ident),*) => {$(
+                if let Some(v) = s.$f {
+                    config.$f = v;
+                }
+            )*};
+        }
+        take!(
+            irl_iterations,
+            sac_steps_per_iteration,
+            agent_trajectories,
+            reward_steps_per_iteration,
+            mlp_reward_lr,
+            mlp_reward_l2,
+            kde_bandwidth,
+            log_every_nth_episode
+        );
+        if let Some(table) = &s.sac {
+            config.sac =
+                SacConfig::from_table(table.clone(), self.sac.clone(), "").map_err(|e| {
+                    IrlConfigError::Invalid {
+                        source_name: String::new(),
+                        field: field("sac"),
+                        problem: e.to_string(),
+                        line: None,
+                    }
+                })?;
+        }
+        Ok(config)
     }
 
     /// The expert cache directory; `None` (an empty `expert_cache_dir`) means the committed
@@ -460,10 +551,33 @@ impl IrlRunConfig {
         }
         match self.sac.validate() {
             Err(crate::rl::sac::ConfigError::Invalid { field, problem }) => {
-                bad(&format!("sac.{field}"), &problem)
+                return bad(&format!("sac.{field}"), &problem)
             }
-            Err(e) => bad("sac", &e.to_string()),
-            Ok(()) => Ok(()),
+            Err(e) => return bad("sac", &e.to_string()),
+            Ok(()) => {}
         }
+        // Each schedule: a known algorithm, and the settings it resolves to pass the same
+        // checks (an error names the schedule's key).
+        for name in self.schedule.keys() {
+            let algo: Algo = match name.parse() {
+                Ok(a) => a,
+                Err(e) => return bad(&format!("schedule.{name}"), &e),
+            };
+            let resolved = self.for_algo(algo).map_err(|e| match e {
+                IrlConfigError::Invalid { field, problem, .. } => IrlConfigError::Invalid {
+                    source_name: source_name.to_string(),
+                    field,
+                    problem,
+                    line: None,
+                },
+                other => other,
+            })?;
+            if let Err(IrlConfigError::Invalid { field, problem, .. }) =
+                resolved.validate(source_name)
+            {
+                return bad(&format!("schedule.{name}.{field}"), &problem);
+            }
+        }
+        Ok(())
     }
 }

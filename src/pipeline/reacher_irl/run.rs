@@ -1021,6 +1021,8 @@ fn run_one(
     dir: &Path,
     progress: &(dyn Fn(JobProgress) + Sync),
 ) -> Result<JobResult, String> {
+    // The algorithm's own schedule, if the config gives it one.
+    let config = &config.for_algo(algo).map_err(|e| e.to_string())?;
     let stem = job_stem(algo, seed);
     let reward_path = dir.join("rewards").join(format!(
         "{stem}.{}",
