@@ -7,7 +7,8 @@
 # only if it solves this one. Rerunning skips finished jobs.
 # Usage: experiments/reacher/positive_control.sh [CONFIG] [SUFFIX] [ALGOS]
 #   ALGOS: default "maxent fkl rkl js smirl smirl-smooth"
-#   (REACHER_BIN=<binary> runs another build, e.g. a copy during a long sweep; JOBS=<n>)
+#   (REACHER_BIN=<binary> runs another build, e.g. a copy during a long sweep; JOBS=<n>;
+#   SEEDS="0" runs only those of the three prepared seeds)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 CONFIG=${1:-experiments/reacher/config.toml}
@@ -19,7 +20,7 @@ out=experiments/reacher/runs/blue$SUFFIX
 start=$(date +%s)
 [ -f "$out/prepare.json" ] || "$BIN" prepare --task blue --algo all --seeds 3 --config "$CONFIG" \
   --out "$out" --quiet
-for a in $ALGOS; do for s in 0 1 2; do echo "$a $s"; done; done |
+for a in $ALGOS; do for s in ${SEEDS:-0 1 2}; do echo "$a $s"; done; done |
   xargs -P "${JOBS:-2}" -L 1 sh -c '"$0" job --run "$1" --algo "$2" --seed "$3" --quiet > /dev/null' "$BIN" "$out"
 "$BIN" aggregate "$out" --partial | tee "$out.log"
-echo "wall_secs $(( $(date +%s) - start )) task blue algos $ALGOS seeds 3 config $CONFIG" > "$out.time"
+echo "wall_secs $(( $(date +%s) - start )) task blue algos $ALGOS seeds ${SEEDS:-0 1 2} config $CONFIG" > "$out.time"
