@@ -651,3 +651,48 @@ fn jobs_run_with_their_algorithms_schedule() {
     let written = std::fs::read_to_string(tmp.path().join("run/config.toml")).unwrap();
     assert!(written.contains("[schedule.maxent]"), "{written}");
 }
+
+/// Issue 14's positive control as a user runs it: `reacher --task blue --quick` with a
+/// baseline of each family completes, and every row has the partial-progress columns and,
+/// for f-IRL, the share of its states inside the expert's support.
+#[test]
+fn quick_positive_control_run_completes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("blue");
+    let o = reacher()
+        .args([
+            "--task",
+            "blue",
+            "--quick",
+            "--algo",
+            "maxent,fkl",
+            "--quiet",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let metrics = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    let mut lines = metrics.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (algo, iteration, progress, support) = (
+        col("algo"),
+        col("iteration"),
+        col("progress"),
+        col("expert_support"),
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // 4 quick iterations plus the untrained policy's evaluation, for each algorithm.
+    assert_eq!(rows.len(), 2 * 5, "{metrics}");
+    for r in &rows {
+        let p: f64 = r[progress].parse().unwrap();
+        assert!((0.0..=1.0).contains(&p), "{metrics}");
+        if r[algo] == "fkl" && r[iteration] != "0" {
+            let s: f64 = r[support].parse().unwrap();
+            assert!((0.0..=1.0).contains(&s), "{metrics}");
+        }
+    }
+    assert!(out.join("progress.svg").is_file());
+}
