@@ -56,6 +56,7 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
         &agent,
         0.02,
         SmirlNormalisation::Trajectories,
+        None,
     )
     .unwrap();
     let mut model = LinearRmReward::new(
@@ -357,7 +358,7 @@ fn cli_tiny_run_and_bad_input() {
 fn shipped_configs_parse() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
     let mut parsed = 0;
-    for dir in [dir.clone(), dir.join("ablations")] {
+    for dir in [dir.clone(), dir.join("ablations"), dir.join("controls")] {
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "toml") {
@@ -367,8 +368,8 @@ fn shipped_configs_parse() {
         }
     }
     assert!(
-        parsed >= 6,
-        "config, quick, config_scripted and the three ablations"
+        parsed >= 20,
+        "config, config_schedules, quick, config_scripted, the three ablations and the controls"
     );
 }
 
@@ -695,4 +696,67 @@ fn quick_positive_control_run_completes() {
         }
     }
     assert!(out.join("progress.svg").is_file());
+}
+
+/// `firl_density_ratio = "discriminator"` (in an algorithm's schedule here) runs f-IRL on a
+/// classifier's log-ratio: the job completes, its learned reward differs from the KDE run's
+/// on the same seed, and the written config keeps the key; without it the config prints as
+/// before the key existed.
+#[test]
+fn discriminator_density_ratio_runs_and_is_recorded() {
+    assert!(!IrlRunConfig::standard()
+        .to_toml()
+        .contains("firl_density_ratio"));
+    let run = |ratio: Option<&str>| {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut config = tiny_config();
+        if let Some(ratio) = ratio {
+            let text = format!(
+                "{}\n[schedule.rkl]\nfirl_density_ratio = \"{ratio}\"\n",
+                config.to_toml()
+            );
+            config = IrlRunConfig::from_toml(&text, "c.toml").unwrap();
+        }
+        let request = RunRequest {
+            task: ReacherTask::Blue,
+            algos: vec![Algo::Rkl],
+            seeds: 1,
+            seed: 4,
+            config,
+            out: tmp.path().join("run"),
+            force: false,
+        };
+        run_pipeline(&request, &Silent).unwrap();
+        let read = |f: &str| std::fs::read_to_string(tmp.path().join("run").join(f)).unwrap();
+        (read("metrics.csv"), read("config.toml"))
+    };
+    let (kde, _) = run(None);
+    let (disc, written) = run(Some("discriminator"));
+    assert!(
+        written.contains("firl_density_ratio = \"discriminator\""),
+        "{written}"
+    );
+    let learned = |m: &str| -> Vec<String> {
+        let mut lines = m.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = header.iter().position(|h| *h == "learned_reward").unwrap();
+        lines
+            .map(|l| l.split(',').nth(col).unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(learned(&kde).len(), learned(&disc).len());
+    assert_ne!(learned(&kde)[1..], learned(&disc)[1..], "{kde}\n{disc}");
+    let err = IrlRunConfig::from_toml(
+        &format!(
+            "firl_density_ratio = \"classifier\"\n{}",
+            IrlRunConfig::standard().to_toml()
+        ),
+        "c.toml",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("c.toml") && err.contains("line 1") && err.contains("classifier"),
+        "{err}"
+    );
 }

@@ -10,6 +10,8 @@
 //! - [`kde`]: exact Epanechnikov KDE on a bandwidth-sized cell grid (state marginals).
 //! - [`knn_divergence`]: the k-nearest-neighbour KL estimate between two sample sets, f-IRL's
 //!   measure of how well an agent's state marginal matches a target density.
+//! - [`discriminator`]: a logistic classifier of expert vs agent states whose logit estimates
+//!   log(ρ_E/ρ_θ), f-IRL's density ratio for an expert given by demonstrations.
 //! - [`firl`]: f-IRL (fkl, rkl, js) and continuous MaxEnt IRL as per-state loss coefficients.
 //! - [`smirl`]: SMIRL's linear reward δ_r(u, o) = w_uᵀ φ(o) on U × O and its MaxEnt gradient.
 //! - [`reward`]: the [`reward::RewardModel`] trait SAC reads rewards from, and the (64, 64)
@@ -57,6 +59,7 @@
 //! milliseconds (see `kde_bench`), the MLP backward over 30 000 states is a few tens of ms;
 //! SAC's K steps dominate.
 
+pub mod discriminator;
 pub mod firl;
 pub mod kde;
 pub mod knn_divergence;

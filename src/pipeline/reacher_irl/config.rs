@@ -5,6 +5,7 @@
 
 use super::Algo;
 use crate::env::reacher::ReacherConfig;
+use crate::irl::firl::DensityRatio;
 use crate::irl::smirl::SmirlNormalisation;
 use crate::rl::sac::SacConfig;
 use crate::rm::lrm::Guards;
@@ -113,6 +114,12 @@ pub struct IrlRunConfig {
     pub smooth_sigma: f64,
     /// Epanechnikov KDE bandwidth of f-IRL's fingertip densities (the paper: 0.02).
     pub kde_bandwidth: f64,
+    /// f-IRL's density ratio: `"kde"` (KDEs of both state sets, the SMIRL paper's baselines)
+    /// or `"discriminator"` (a classifier, f-IRL's code for an expert given by samples;
+    /// `irl::discriminator`). Omitted from written configs when `"kde"`, so configs from
+    /// before the key existed read and write unchanged.
+    #[serde(default, skip_serializing_if = "DensityRatio::is_kde")]
+    pub firl_density_ratio: DensityRatio,
     /// LRM: most states of the learned machine (u_max).
     pub lrm_max_states: usize,
     /// LRM: tabu list length.
@@ -176,6 +183,8 @@ pub struct AlgoSchedule {
     pub mlp_reward_l2: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kde_bandwidth: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub firl_density_ratio: Option<DensityRatio>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub log_every_nth_episode: Option<u64>,
     /// SAC keys that differ from the run's `[sac]` (which supplies the rest).
@@ -325,6 +334,7 @@ impl IrlRunConfig {
             reward_steps_per_iteration: 5,
             smooth_sigma: 0.05,
             kde_bandwidth: 0.02,
+            firl_density_ratio: DensityRatio::Kde,
             lrm_max_states: 10,
             lrm_tabu_len: 10_000,
             lrm_steps: 100,
@@ -392,6 +402,7 @@ impl IrlRunConfig {
             mlp_reward_lr,
             mlp_reward_l2,
             kde_bandwidth,
+            firl_density_ratio,
             log_every_nth_episode
         );
         if let Some(table) = &s.sac {

@@ -10,7 +10,8 @@ use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP};
 use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, TaskProgress};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
-use crate::irl::firl::{FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
+use crate::irl::discriminator::{Discriminator, DiscriminatorConfig};
+use crate::irl::firl::{DensityRatio, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
 use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::smirl::{
@@ -361,7 +362,8 @@ pub struct Coefficients {
 }
 
 /// The rows, RM states and loss coefficients of one reward update (see `irl/mod.rs`):
-/// f-IRL's covariance surrogate (KDE of fingertip positions), continuous MaxEnt's
+/// f-IRL's covariance surrogate (density ratio of fingertip positions from the two KDEs, or
+/// from `discriminator` when given, which first trains on this batch), continuous MaxEnt's
 /// T·(mean agent reward − mean expert reward), or SMIRL's MaxEnt on U × O, whose parameter
 /// gradient is μ_π − μ_D (the negated expert-minus-agent feature expectation), normalised per
 /// trajectory or per trajectory visiting each RM state (`smirl_normalisation`).
@@ -372,6 +374,7 @@ pub fn irl_coefficients(
     agent: &AgentBatch,
     kde_bandwidth: f64,
     smirl_normalisation: SmirlNormalisation,
+    discriminator: Option<&mut Discriminator>,
 ) -> Result<Coefficients, String> {
     let n_agent = agent.lengths.iter().sum::<usize>();
     if agent.lengths.is_empty() || n_agent == 0 {
@@ -384,21 +387,37 @@ pub fn irl_coefficients(
             if agent.lengths.iter().any(|&l| l != horizon) {
                 return Err("f-IRL needs agent trajectories of one fixed length".into());
             }
-            let kde_e = expert_kde.ok_or("f-IRL needs the expert KDE")?;
-            let kde_a = Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, kde_bandwidth)
-                .map_err(|e| e.to_string())?;
             let div = algo.divergence().expect("f-IRL algorithm");
-            let s = FirlSurrogate::from_kde(
-                div,
-                kde_e,
-                &kde_a,
-                &agent.obs,
-                OBS_DIM,
-                &OBS_TIP,
-                agent.lengths.len(),
-                horizon,
-                DEFAULT_DENSITY_EPS,
-            )
+            let n_traj = agent.lengths.len();
+            let s = match discriminator {
+                Some(d) => {
+                    d.train(&expert.obs, &agent.obs, OBS_DIM)
+                        .map_err(|e| format!("discriminator: {e}"))?;
+                    let ratios: Vec<f64> = d
+                        .log_ratio(&agent.obs, OBS_DIM)
+                        .map_err(|e| format!("discriminator: {e}"))?
+                        .into_iter()
+                        .map(f64::exp)
+                        .collect();
+                    FirlSurrogate::new(div, &ratios, n_traj, horizon)
+                }
+                None => {
+                    let kde_e = expert_kde.ok_or("f-IRL needs the expert KDE")?;
+                    let kde_a = Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, kde_bandwidth)
+                        .map_err(|e| e.to_string())?;
+                    FirlSurrogate::from_kde(
+                        div,
+                        kde_e,
+                        &kde_a,
+                        &agent.obs,
+                        OBS_DIM,
+                        &OBS_TIP,
+                        n_traj,
+                        horizon,
+                        DEFAULT_DENSITY_EPS,
+                    )
+                }
+            }
             .map_err(|e| e.to_string())?;
             Ok(Coefficients {
                 obs: agent.obs.clone(),
@@ -711,6 +730,19 @@ pub fn run_job(
     // how much of the agent's sample it covers (`expert_support`).
     let expert_kde = Kde::fit_columns(&expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
         .map_err(|e| fail(format!("expert KDE: {e}")))?;
+    // f-IRL's density ratio from a classifier instead (`firl_density_ratio`), kept across
+    // iterations, on its own random stream.
+    let mut discriminator = match (algo.divergence(), s.firl_density_ratio) {
+        (Some(_), DensityRatio::Discriminator) => Some(
+            Discriminator::new(
+                DiscriminatorConfig::firl(),
+                &OBS_TIP,
+                episode_seed(seed, 0xd15c),
+            )
+            .map_err(|e| fail(e.to_string()))?,
+        ),
+        _ => None,
+    };
     let mut trainer = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), seed)
         .map_err(|e| fail(e.to_string()))?;
     // Separate streams: rollouts and evaluation never perturb SAC's own RNG.
@@ -911,6 +943,7 @@ pub fn run_job(
             &batch,
             s.kde_bandwidth,
             s.smirl_normalisation,
+            discriminator.as_mut(),
         )
         .map_err(fail)?;
         let mut r = vec![0.0f32; coeffs.len()];
