@@ -15,13 +15,15 @@
 
 mod agent;
 mod config;
+mod episode;
 mod trainer;
 
-pub use agent::{ActMode, ActWorkspace, RolloutStep, SacAgent, UpdateStats};
+pub use agent::{ActMode, ActWorkspace, SacAgent, UpdateStats};
 pub(crate) use config::{deserialize_table, load_toml, parse_table};
 pub use config::{ConfigError, SacConfig};
+pub use episode::{EpisodeSummary, RolloutStep};
 pub use trainer::{
-    episode_seed, CheckpointError, EnvReward, EpisodeSummary, ObserverError, RewardFn, SacTrainer,
+    episode_seed, CheckpointError, EnvReward, ObserverError, RewardFn, SacTrainer,
     StepOutcome, TrainingObserver,
 };
 

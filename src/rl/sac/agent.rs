@@ -1,8 +1,8 @@
 //! The SAC learner: networks, optimisers, temperature, and one gradient update.
 
-use super::trainer::EpisodeSummary;
+use super::episode::{EpisodeSummary, RolloutStep};
 use super::{SacConfig, SacError};
-use crate::env::{ContinuousEnv, EnvStep};
+use crate::env::ContinuousEnv;
 use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
 use crate::nn::{gaussian, Adam, AdamConfig, BackwardMode, Mlp, MlpArch, MlpWorkspace};
 use crate::rl::replay::ReplayBatch;
@@ -28,17 +28,6 @@ pub struct UpdateStats {
     pub alpha: f32,
     /// Mean log π of the batch's fresh actions (−entropy estimate).
     pub mean_log_prob: f32,
-}
-
-/// One step of [`SacAgent::rollout`].
-#[derive(Clone, Copy, Debug)]
-pub struct RolloutStep<'a> {
-    /// 0-based step index within the episode.
-    pub t: u64,
-    pub obs: &'a [f32],
-    pub action: &'a [f32],
-    pub next_obs: &'a [f32],
-    pub env_step: EnvStep,
 }
 
 /// Buffers of one update, sized for the batch once so updates do not allocate.

@@ -1,6 +1,7 @@
 //! The SAC training loop and its checkpoints.
 
 use super::agent::{ActMode, SacAgent, UpdateStats};
+use super::episode::EpisodeSummary;
 use super::{SacConfig, SacError};
 use crate::env::{ContinuousEnv, EnvStep};
 use crate::nn::codec::{read_file, save_file, ByteReader, ByteWriter, CodecError, FileError};
@@ -66,20 +67,6 @@ pub trait TrainingObserver<E: ?Sized> {
 
 /// What a [`TrainingObserver`] reports when it cannot go on (e.g. a log write failed).
 pub type ObserverError = Box<dyn std::error::Error + Send + Sync>;
-
-/// A finished episode.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EpisodeSummary {
-    /// 0-based episode index.
-    pub index: u64,
-    /// Sum of the environment's rewards.
-    pub env_return: f64,
-    /// The environment's reward of the last step.
-    pub final_reward: f64,
-    pub length: u64,
-    /// Ended by the environment (else by the time limit).
-    pub terminated: bool,
-}
 
 /// What one call of [`SacTrainer::step`] did.
 #[derive(Clone, Copy, Debug, PartialEq)]
