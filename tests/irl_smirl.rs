@@ -8,6 +8,11 @@ use smirl::env::ContinuousEnv;
 use smirl::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::*;
 
+mod smirl_reference;
+use smirl_reference::{
+    feature_expectations, log_likelihood_surrogate, maxent_gradient, maxent_step,
+};
+
 /// A Reacher observation with the fingertip at the given offsets (dx, dy) from each ball
 /// and the cancel flag.
 fn obs_with(deltas: [[f32; 2]; 4], cancel: bool) -> Vec<f32> {
@@ -214,10 +219,10 @@ fn maxent_gradient_is_expert_minus_agent_feature_expectation() {
     for (w, g) in model.params().iter().zip(&g) {
         assert!((f64::from(*w) - 0.1 * g).abs() < 1e-6);
     }
-    // And `maxent_step` is the same step.
+    // And the IRL loop's step (coefficients, backward, optimiser step) is the same step.
     let mut m2 =
         LinearRmReward::new(FeatureMap::reacher_labels(), 2, RewardOptimConfig::sgd(0.1)).unwrap();
-    m2.maxent_step(&e.view(), &a.view()).unwrap();
+    maxent_step(&mut m2, &e.view(), &a.view()).unwrap();
     assert_eq!(m2.params(), model.params());
 }
 

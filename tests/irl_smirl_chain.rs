@@ -9,6 +9,8 @@ use smirl::env::reacher::{DEFAULT_LAYOUT, OBS_DIM};
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::*;
 
+mod smirl_reference;
+
 /// A Reacher observation row with the fingertip at `tip` (only what the features read).
 fn obs_at(tip: [f32; 2]) -> Vec<f32> {
     let mut o = vec![0.0f32; OBS_DIM];
@@ -102,7 +104,7 @@ fn run(features: FeatureMap) -> [f64; 2] {
             rm_state: &a_rm,
             lengths: &a_len,
         };
-        model.maxent_step(&expert, &agent).unwrap();
+        smirl_reference::maxent_step(&mut model, &expert, &agent).unwrap();
     }
     [
         touch_mass(&policy(&mut model, &grid, 0), &grid, 0),

@@ -7,14 +7,14 @@ use irl_run_common::tiny_config;
 use smirl::env::reacher::OBS_DIM;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
-use smirl::irl::smirl::{
-    maxent_gradient, AnnotatedTrajectories, FeatureMap, LinearRmReward, SmirlNormalisation,
-};
+use smirl::irl::smirl::{AnnotatedTrajectories, FeatureMap, LinearRmReward, SmirlNormalisation};
+mod smirl_reference;
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{
     irl_coefficients, reward_lr, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData,
     IrlRunConfig, RunRequest,
 };
+use smirl_reference::maxent_gradient;
 use std::path::Path;
 use std::process::Command;
 

@@ -50,7 +50,7 @@
 //!    - MaxEnt: `MaxEntCoefficients::new(n_A, n_E, T)` — `agent` at every agent state,
 //!      `expert` at every expert state; concatenate `obs_A ++ obs_E` and the coefficients.
 //!    - SMIRL: [`smirl::maxent_coefficients`] on the annotated expert and agent batches
-//!      (equivalently `LinearRmReward::maxent_step`).
+//!      (the tests check it against the expert-minus-agent feature expectations).
 //! 5. **Reward update.** `reward.update(obs, rm_state, &coeffs)` — one or a few optimiser
 //!    steps (the f-IRL code takes a few reward gradient steps per iteration on the same
 //!    batch; recompute nothing in between, the coefficients do not depend on θ).

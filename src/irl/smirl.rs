@@ -190,56 +190,6 @@ pub struct AnnotatedTrajectories<'a> {
     pub lengths: &'a [usize],
 }
 
-impl AnnotatedTrajectories<'_> {
-    fn check(&self, obs_dim: usize) -> Result<(), RewardError> {
-        let total: usize = self.lengths.iter().sum();
-        if self.lengths.is_empty() {
-            return Err(RewardError::Config("no trajectories".into()));
-        }
-        check_batch(self.obs, obs_dim, self.rm_state, true, ("Σ lengths", total))?;
-        Ok(())
-    }
-}
-
-/// μ(u) = 1/N Σ_τ Σ_t 1[u_t = u] φ(o_t), as an `n_states × n_features` row-major matrix.
-pub fn feature_expectations(
-    features: &FeatureMap,
-    n_states: usize,
-    trajs: &AnnotatedTrajectories<'_>,
-) -> Result<Vec<f64>, RewardError> {
-    trajs.check(features.obs_dim())?;
-    let k = features.len();
-    let mut mu = vec![0.0; n_states * k];
-    let mut phi = vec![0.0; k];
-    for (row, &u) in trajs
-        .obs
-        .chunks_exact(features.obs_dim())
-        .zip(trajs.rm_state)
-    {
-        let u = check_state(u, n_states)?;
-        features.features(row, &mut phi);
-        for (m, p) in mu[u * k..(u + 1) * k].iter_mut().zip(&phi) {
-            *m += p;
-        }
-    }
-    let n = trajs.lengths.len() as f64;
-    mu.iter_mut().for_each(|m| *m /= n);
-    Ok(mu)
-}
-
-/// The log-likelihood ascent direction μ_D − μ_π (without the L2 term), `n_states ×
-/// n_features` row-major.
-pub fn maxent_gradient(
-    features: &FeatureMap,
-    n_states: usize,
-    expert: &AnnotatedTrajectories<'_>,
-    agent: &AnnotatedTrajectories<'_>,
-) -> Result<Vec<f64>, RewardError> {
-    let mu_d = feature_expectations(features, n_states, expert)?;
-    let mu_pi = feature_expectations(features, n_states, agent)?;
-    Ok(mu_d.iter().zip(&mu_pi).map(|(d, p)| d - p).collect())
-}
-
 /// Per-state coefficients of the loss −ℓ̂: (+1/N_A at every agent row, −1/N_D at every
 /// expert row).
 pub fn maxent_coefficients(
@@ -317,37 +267,6 @@ pub fn maxent_coefficients_by_visits(
     (per(agent, 1.0), per(expert, -1.0))
 }
 
-/// The sample log-likelihood surrogate ℓ̂(w) of the module docs, for weights `w`
-/// (`n_states × n_features` row-major) and L2 coefficient `l2`.
-pub fn log_likelihood_surrogate(
-    features: &FeatureMap,
-    n_states: usize,
-    weights: &[f64],
-    l2: f64,
-    expert: &AnnotatedTrajectories<'_>,
-    agent: &AnnotatedTrajectories<'_>,
-) -> Result<f64, RewardError> {
-    let k = features.len();
-    check_weights_len(weights.len(), n_states, k)?;
-    let mean_return = |t: &AnnotatedTrajectories<'_>| -> Result<f64, RewardError> {
-        t.check(features.obs_dim())?;
-        let mut phi = vec![0.0; k];
-        let mut sum = 0.0;
-        for (row, &u) in t.obs.chunks_exact(features.obs_dim()).zip(t.rm_state) {
-            let u = check_state(u, n_states)?;
-            features.features(row, &mut phi);
-            sum += weights[u * k..(u + 1) * k]
-                .iter()
-                .zip(&phi)
-                .map(|(w, p)| w * p)
-                .sum::<f64>();
-        }
-        Ok(sum / t.lengths.len() as f64)
-    };
-    let norm2: f64 = weights.iter().map(|w| w * w).sum();
-    Ok(mean_return(expert)? - mean_return(agent)? - 0.5 * l2 * norm2)
-}
-
 /// Weights are `n_states × n_features` row-major.
 fn check_weights_len(len: usize, n_states: usize, n_features: usize) -> Result<(), RewardError> {
     check_len("weights", len, n_states * n_features)
@@ -419,21 +338,6 @@ impl LinearRmReward {
     pub fn weights(&self, u: usize) -> &[f32] {
         let k = self.features.len();
         &self.weights[u * k..(u + 1) * k]
-    }
-
-    /// One MaxEnt step from expert and agent trajectories: the stored gradient becomes
-    /// μ_π − μ_D (the gradient of −ℓ̂ without L2) and the optimiser steps on it.
-    pub fn maxent_step(
-        &mut self,
-        expert: &AnnotatedTrajectories<'_>,
-        agent: &AnnotatedTrajectories<'_>,
-    ) -> Result<(), RewardError> {
-        let g = maxent_gradient(&self.features, self.n_states, expert, agent)?;
-        for (dst, g) in self.grad.iter_mut().zip(&g) {
-            *dst = -*g as f32;
-        }
-        self.step();
-        Ok(())
     }
 
     /// Loads a reward saved by [`RewardModel::save`].
