@@ -6,4 +6,4 @@ pub mod plot;
 pub mod raster;
 
 pub use csv::CsvTable;
-pub use plot::{aggregate_over_seeds, BandPoint, LinePlot, Series};
+pub use plot::{aggregate_over_seeds, downsample, BandPoint, LinePlot, Series, MAX_DRAWN_POINTS};

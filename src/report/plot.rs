@@ -1,8 +1,67 @@
 //! SVG line plots: one line per named series with a shaded mean ± std band, axes with tick
 //! labels, axis titles and a legend. Series are generic `(x, mean, std)` points, so any
 //! experiment (tabular or continuous) can plot its curves over seeds.
+//!
+//! A series longer than [`MAX_DRAWN_POINTS`] (an expert's 10 000 training episodes, f-IRL's
+//! 800 iterations) is drawn through [`downsample`]: its line and each edge of its band keep,
+//! per bucket of consecutive points, the lowest and the highest point, so a plot stays a few
+//! tens of kilobytes and a one-point spike is still drawn. Shorter series are drawn point for
+//! point, as before; the data (CSV, JSON) is never reduced, only its picture.
 
 use std::fmt::Write;
+
+/// Most points one drawn curve (a series' line, or one edge of its band) is made of; longer
+/// series are reduced by [`downsample`] (about 1.7 points per pixel of the default plot's
+/// 550-pixel-wide plotting area).
+pub const MAX_DRAWN_POINTS: usize = 500;
+
+/// At most `max_points` of `points` for drawing a curve through them, in their order: the
+/// first and the last point, and of the points between, split into `(max_points - 2) / 2`
+/// buckets of equal width in x (of equal count when x decreases somewhere or is constant), the
+/// lowest and the highest of each bucket (one point when they are the same; the earlier
+/// first). So the curve's vertical extent over every bucket, a few pixels wide, is drawn as it
+/// is, and the global minimum and maximum are points of the result. `points` with at most
+/// `max_points` entries (or `max_points < 4`, too few for a bucket) are returned as they are.
+pub fn downsample(points: &[(f64, f64)], max_points: usize) -> Vec<(f64, f64)> {
+    let n = points.len();
+    if n <= max_points || max_points < 4 {
+        return points.to_vec();
+    }
+    let inner = &points[1..n - 1];
+    let buckets = (max_points - 2) / 2;
+    let (lo, hi) = (inner[0].0, inner[inner.len() - 1].0);
+    let by_x = hi > lo && inner.windows(2).all(|w| w[0].0 <= w[1].0);
+    let bucket = |i: usize| {
+        if by_x {
+            (((inner[i].0 - lo) / (hi - lo) * buckets as f64) as usize).min(buckets - 1)
+        } else {
+            i * buckets / inner.len()
+        }
+    };
+    let mut out = Vec::with_capacity(2 * buckets + 2);
+    out.push(points[0]);
+    let mut start = 0;
+    while start < inner.len() {
+        let b = bucket(start);
+        let (mut imin, mut imax, mut end) = (start, start, start);
+        while end < inner.len() && bucket(end) == b {
+            if inner[end].1 < inner[imin].1 {
+                imin = end;
+            }
+            if inner[end].1 > inner[imax].1 {
+                imax = end;
+            }
+            end += 1;
+        }
+        out.push(inner[imin.min(imax)]);
+        if imin != imax {
+            out.push(inner[imin.max(imax)]);
+        }
+        start = end;
+    }
+    out.push(points[n - 1]);
+    out
+}
 
 /// One point of a curve: the mean over seeds and its standard deviation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -148,12 +207,18 @@ impl LinePlot {
                 .filter(|p| p.x.is_finite() && p.mean.is_finite() && p.std.is_finite())
                 .collect();
             if pts.len() >= 2 {
+                // Each edge on its own: the band's extremes are those of mean ± std.
+                let edge = |sign: f64| {
+                    let e: Vec<(f64, f64)> =
+                        pts.iter().map(|p| (p.x, p.mean + sign * p.std)).collect();
+                    downsample(&e, MAX_DRAWN_POINTS)
+                };
                 let mut poly = String::new();
-                for p in &pts {
-                    let _ = write!(poly, "{:.2},{:.2} ", sx(p.x), sy(p.mean + p.std));
+                for (x, y) in edge(1.0) {
+                    let _ = write!(poly, "{:.2},{:.2} ", sx(x), sy(y));
                 }
-                for p in pts.iter().rev() {
-                    let _ = write!(poly, "{:.2},{:.2} ", sx(p.x), sy(p.mean - p.std));
+                for (x, y) in edge(-1.0).into_iter().rev() {
+                    let _ = write!(poly, "{:.2},{:.2} ", sx(x), sy(y));
                 }
                 let _ = writeln!(
                     s,
@@ -164,13 +229,15 @@ impl LinePlot {
         }
         for (i, series) in self.series.iter().enumerate() {
             let color = PALETTE[i % PALETTE.len()];
-            let mut line = String::new();
-            for p in series
+            let pts: Vec<(f64, f64)> = series
                 .points
                 .iter()
                 .filter(|p| p.x.is_finite() && p.mean.is_finite())
-            {
-                let _ = write!(line, "{:.2},{:.2} ", sx(p.x), sy(p.mean));
+                .map(|p| (p.x, p.mean))
+                .collect();
+            let mut line = String::new();
+            for (x, y) in downsample(&pts, MAX_DRAWN_POINTS) {
+                let _ = write!(line, "{:.2},{:.2} ", sx(x), sy(y));
             }
             let _ = writeln!(
                 s,
