@@ -1,25 +1,27 @@
 #!/usr/bin/env python3
 """Table of the held-out SMIRL runs (experiments/reacher/heldout/*, written by heldout.sh):
 final success per seed, mean ± std, and the mean over seeds and the last five iterations,
-read from each run directory's metrics.csv; for IF and Composite also each branch's final
-success per seed (normal / cancel; the headline is the lower of the two).
+read from each run directory's metrics.csv, or for the runs not on disk from the consolidated
+heldout/metrics.csv.gz (rundata.py); for IF and Composite also each branch's final success per
+seed (normal / cancel; the headline is the lower of the two).
 Usage: python3 experiments/reacher/heldout.py"""
-import csv, os, statistics
+import os, statistics
+
+import rundata
 
 here = os.path.join(os.path.dirname(os.path.abspath(__file__)), "heldout")
 order = ["or", "sequential", "if", "composite"]
 print("\n## Held-out runs (`heldout.sh`; table by `python3 heldout.py`)\n")
 print("| run | task | algorithm | seeds | final success per seed | final success (mean ± std) | mean success, last 5 iterations | final normal / cancel branch per seed |")
 print("|---|---|---|---|---|---|---|---|")
-names = [n for n in os.listdir(here)
-         if os.path.isfile(os.path.join(here, n, "metrics.csv")) and not n.endswith(".partial")]
+names = rundata.runs(here, "metrics.csv")
 def key(n):
     prefix, _, task = n.rpartition("-")
     return (prefix, order.index(task) if task in order else 9)
 for name in sorted(names, key=key):
     prefix, _, task = name.rpartition("-")
     curves, branches = {}, {}
-    for r in csv.DictReader(open(os.path.join(here, name, "metrics.csv"))):
+    for r in rundata.metrics(os.path.join(here, name)):
         curves.setdefault(r["algo"], {}).setdefault(int(r["seed"]), []).append(float(r["success_rate"]))
         # Older runs (before per-branch evaluation) have no branch columns.
         if r.get("success_normal"):

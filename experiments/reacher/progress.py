@@ -2,11 +2,14 @@
 """Partial progress of a run directory's jobs (metrics.csv columns `progress`, `final_ball`):
 per algorithm and seed, the final iteration's success, sub-goal fraction and end-ball rate,
 and their means over the last five iterations. Jobs run before the metric existed are left out.
+Reads metrics.csv, metrics.csv.gz or the run's rows of a consolidated file (rundata.py).
 Usage: python3 experiments/reacher/progress.py experiments/reacher/runs/<task>"""
-import csv, os, sys
+import sys
+
+import rundata
 
 d = sys.argv[1]
-rows = list(csv.DictReader(open(os.path.join(d, "metrics.csv"))))
+rows = rundata.metrics(d)
 print("| algorithm | seed | final success | final sub-goals done | final end ball touched | sub-goals, last 5 | end ball, last 5 |")
 print("|---|---|---|---|---|---|---|")
 algos = []

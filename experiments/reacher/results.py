@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
-"""Builds experiments/reacher/results.md from the run directories' summary.csv, run.json and
-.time files (numbers come from the runs, never typed by hand)."""
-import csv, json, os, sys
+"""Builds experiments/reacher/results.md from the run directories' summary.csv, run.json,
+metrics.csv (or metrics.csv.gz) and .time files (numbers come from the runs, never typed by hand)."""
+import json, os, sys
+
+import rundata
 
 here = os.path.dirname(os.path.abspath(__file__))
 runs = os.path.join(here, "runs")
@@ -18,9 +20,9 @@ for task in names:
     rm = info["summary"].get("rm") or {}
     # Peak of the seed-mean success over IRL iterations (IRL runs can reach the task and drift away).
     curves = {}
-    for m in csv.DictReader(open(os.path.join(d, "metrics.csv"))):
+    for m in rundata.metrics(d):
         curves.setdefault(m["algo"], {}).setdefault(int(m["iteration"]), []).append(float(m["success_rate"]))
-    for r in csv.DictReader(open(os.path.join(d, "summary.csv"))):
+    for r in rundata.summary(d):
         it = curves.get(r["algo"], {})
         peak = max(it.items(), key=lambda kv: sum(kv[1]) / len(kv[1])) if it else (0, [0])
         peak_txt = "%.2f (iter %d)" % (sum(peak[1]) / len(peak[1]), peak[0])

@@ -3,14 +3,17 @@
 change one setting of, read from their summary.csv files: paper_sac and demos_32 against the
 figure-7 runs with the default config (experiments/reacher/runs/<task>); no_crm, crm_lr_decay and replay_100k
 against paper_sac (the default they were run against); shaping, lr_decay and no_l2 against
-no_crm (see run.sh)."""
-import csv, os
+no_crm (see run.sh). The ablation runs' summaries are the consolidated runs/summary.csv (a
+run directory on disk wins: rundata.py)."""
+import os, sys
 here = os.path.dirname(os.path.abspath(__file__))
 runs = os.path.join(here, "runs")
+sys.path.insert(0, os.path.dirname(here))
+import rundata  # noqa: E402
 
 def final(path):
     return {r["algo"]: "%s ± %s" % (r["final_success_mean"], r["final_success_std"])
-            for r in csv.DictReader(open(os.path.join(path, "summary.csv")))}
+            for r in rundata.summary(path)}
 
 def reference(ablation, task):
     if ablation in ("paper_sac", "demos_32"):
@@ -21,13 +24,14 @@ def reference(ablation, task):
 
 print("| ablation | task | algorithm | final success, ablation | reference | final success, reference |")
 print("|---|---|---|---|---|---|")
-for name in sorted(os.listdir(runs)):
+for name in sorted(rundata.runs(runs, "summary.csv")):
     d = os.path.join(runs, name)
-    if not os.path.isdir(d) or name.endswith(".partial"):
-        continue
     ablation, task = name.split("-", 1)
     ref_name, ref_dir = reference(ablation, task)
-    base = final(ref_dir) if os.path.isdir(ref_dir) else {}
+    try:
+        base = final(ref_dir)
+    except FileNotFoundError:
+        base = {}
     for algo, value in final(d).items():
         print("| %s | %s | %s | %s | %s | %s |"
               % (ablation, task, algo, value, ref_name, base.get(algo, "-")))

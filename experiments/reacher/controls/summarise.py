@@ -3,12 +3,16 @@
 experiments/reacher/runs/blue<suffix> (one per schedule tried), algorithm and seed, the final
 iteration's success, the mean over the last five iterations, the best iteration, the
 iteration-by-iteration success as a strip (one digit per iteration, 9 = 0.9 or more) and the
-job's wall time (jobs/<algo>_seed<S>.json; two jobs shared the 2-core machine at a time).
+job's wall time (`wall_secs` of the job in run.json, as in jobs/<algo>_seed<S>.json; two jobs
+shared the 2-core machine at a time). Reads metrics.csv or metrics.csv.gz (rundata.py).
 Usage: python3 experiments/reacher/controls/summarise.py > experiments/reacher/controls/results.md"""
-import csv
 import glob
 import json
 import os
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import rundata  # noqa: E402
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "runs")
 CONFIGS = {
@@ -32,10 +36,13 @@ print("The `blue-firl_reacherdraw_disc` jobs ran a build of the discriminator ch
 print("(their records name 2281c6a, its parent); its code is that of 17a775d.\n")
 for d in sorted(glob.glob(os.path.join(ROOT, "blue*"))):
     name = os.path.basename(d)
-    path = os.path.join(d, "metrics.csv")
-    if not os.path.isfile(path):
+    if not rundata.has(d, "metrics.csv"):
         continue
-    rows = list(csv.DictReader(open(path)))
+    rows = rundata.metrics(d)
+    walls = {}
+    if os.path.isfile(os.path.join(d, "run.json")):
+        walls = {(j["algo"], str(j["seed"])): j["wall_secs"]
+                 for j in json.load(open(os.path.join(d, "run.json")))["jobs"]}
     print(f"## `runs/{name}`: {CONFIGS.get(name, '')}\n")
     print("| algorithm | seed | final success | mean of last 5 | best iteration | success per iteration | wall (s) |")
     print("|---|---|---|---|---|---|---|")
@@ -49,7 +56,6 @@ for d in sorted(glob.glob(os.path.join(ROOT, "blue*"))):
             succ = [float(r["success_rate"]) for r in rs]
             step = max(1, len(succ) // 40)
             strip = "".join(str(min(9, int(x * 10))) for x in succ[::step])
-            record = os.path.join(d, "jobs", f"{a}_seed{s}.json")
-            wall = json.load(open(record))["wall_secs"] if os.path.isfile(record) else float("nan")
+            wall = walls.get((a, s), float("nan"))
             print(f"| {a} | {s} | {succ[-1]:.2f} | {sum(succ[-5:]) / 5:.2f} | {max(succ):.2f} | `{strip}` | {wall:.0f} |")
     print()
