@@ -2,6 +2,8 @@
 # The learned rewards of the positive control's baseline jobs at the fingertip's start (0.21, 0)
 # and at the blue ball (-0.0591, 0.0104): does the reward ask for blue? Writes
 # experiments/reacher/controls/rewards_<run>.md. Usage: experiments/reacher/controls/rewards_at.sh [RUN_DIR]
+#   The reward nets rewards/*.bin are not tracked (experiments/README.md): a run directory of this
+#   machine's, or restored from history (git restore --source=4e88128 --worktree -- RUN_DIR/rewards).
 #   RUN_DIR default experiments/reacher/runs/blue; REACHER_BIN=<binary> runs another build.
 set -euo pipefail
 cd "$(dirname "$0")/../../.."

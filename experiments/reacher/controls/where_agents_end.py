@@ -5,7 +5,9 @@ For every `logs/<algo>_seed<s>.mcap` of a run directory: the fingertip at the en
 20 logged evaluation episodes (median x and y), its distance to the blue ball and to the start,
 the closest the episodes came to blue, and the learned reward (`reacher reward`) at the start,
 at that end point and at blue. With `--expert`, the fingertip path of the first demonstrations
-in `logs/demos.mcap`. The logs are not committed; `reacher job` writes them.
+in `logs/demos.mcap`. The logs are not committed; `reacher job` writes them. The reward nets
+(`rewards/*.bin`) are not tracked either (experiments/README.md): a run directory of this
+machine's, or restored from history (`git restore --source=4e88128 --worktree -- RUN_DIR/rewards`).
 
 Usage: python3 experiments/reacher/controls/where_agents_end.py RUN_DIR [--expert N]
        (REACHER_BIN=<binary>, default target/release/reacher; needs `pip install mcap`)
