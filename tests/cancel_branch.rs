@@ -7,8 +7,9 @@
 use smirl::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery, CANCEL_BIT};
 use smirl::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use smirl::env::ContinuousEnv;
-use smirl::pipeline::expert::ExpertConfig;
-use smirl::pipeline::reacher_expert::{committed_expert, evaluate_policy, ExpertPolicy};
+use smirl::pipeline::reacher_expert::{
+    committed_expert, evaluate_expert, ExpertConfig, ExpertPolicy,
+};
 use smirl::pipeline::reacher_irl::job::stratified_eval_seeds;
 use smirl::pipeline::reacher_irl::IrlRunConfig;
 use smirl::rl::sac::{episode_seed, ActMode};
@@ -157,7 +158,7 @@ fn committed_conditional_experts_take_and_solve_both_branches() {
     for task in [ReacherTask::If, ReacherTask::Composite] {
         let mut policy = committed(task);
         for mode in [ActMode::Sample, ActMode::Mean] {
-            let eval = evaluate_policy(&mut policy, &env, 100, mode, 7).unwrap();
+            let eval = evaluate_expert(&mut policy, &env, 100, mode, 7).unwrap();
             let b = eval.branches.expect("a conditional task");
             let share = b.share(Branch::Cancelled);
             assert!((0.3..=0.6).contains(&share), "{task} {mode:?}: {b}");

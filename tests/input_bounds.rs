@@ -4,7 +4,7 @@
 //! validation with the file, the key's line and the limit.
 
 use smirl::config_text::MAX_TEXT_FILE_BYTES;
-use smirl::pipeline::expert::ExpertConfig;
+use smirl::pipeline::reacher_expert::ExpertConfig;
 use smirl::pipeline::reacher_irl::IrlRunConfig;
 use smirl::rm::format::{parse_rm, read_rm};
 use std::process::Command;

@@ -4,8 +4,7 @@
 
 use smirl::env::reacher_task::ReacherTask;
 use smirl::log::{read_log, LogOptions, RolloutLogger};
-use smirl::pipeline::expert::ExpertConfig;
-use smirl::pipeline::reacher_expert::{train_log_header, train_task_expert};
+use smirl::pipeline::reacher_expert::{train_log_header, train_task_expert, ExpertConfig};
 use smirl::pipeline::replay::replay;
 
 fn tiny_expert_config() -> ExpertConfig {

@@ -1,17 +1,17 @@
 //! ReacherDelivery experts: the actor-only policy file (round trip, refusals), demonstrations
 //! (deterministic per seed, perfect-machine states consistent with their labels), the
-//! committed experts, and `reacher expert`'s argument errors.
+//! committed experts, the expert config file, and `reacher expert`'s argument errors.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use smirl::env::reacher::{ReacherConfig, OBS_DIM};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::nn::{FileError, Mlp, MlpArch};
-use smirl::pipeline::expert::{ExpertConfig, ExpertError};
 use smirl::pipeline::reacher_expert::{
-    committed_expert, evaluate_policy, generate_demos, ExpertPolicy, PolicyFileError, PolicyInfo,
+    committed_expert, evaluate_expert, expert_sac, generate_demos, ExpertConfig, ExpertError,
+    ExpertPolicy, PolicyFileError, PolicyInfo,
 };
-use smirl::rl::sac::ActMode;
+use smirl::rl::sac::{ActMode, SacConfig};
 use std::process::Command;
 
 fn info() -> PolicyInfo {
@@ -180,7 +180,7 @@ fn demos_are_deterministic_and_carry_the_perfect_machines_states() {
 fn committed_or_expert_succeeds() {
     let mut policy = committed(ReacherTask::Or);
     let env = ReacherConfig::default();
-    let eval = evaluate_policy(&mut policy, &env, 20, ActMode::Sample, 99).unwrap();
+    let eval = evaluate_expert(&mut policy, &env, 20, ActMode::Sample, 99).unwrap();
     assert!(eval.success_rate >= 0.9, "{eval:?}");
     assert!(eval.mean_task_return >= 0.9, "{eval:?}");
 }
@@ -313,4 +313,43 @@ fn expert_command_resumes_exactly() {
     for f in ["curve.svg", "curve_return.svg", "summary.json"] {
         assert!(split.join(f).exists(), "{f}");
     }
+}
+
+#[test]
+fn expert_config_uses_the_expert_preset_and_names_bad_keys() {
+    let c = ExpertConfig::from_toml("total_steps = 5000\n[sac]\nlr = 5e-4\n", "e.toml").unwrap();
+    assert_eq!(c.total_steps, 5000);
+    assert_eq!(
+        c.sac,
+        SacConfig {
+            lr: 5e-4,
+            ..expert_sac()
+        }
+    );
+    // Naming a preset takes that preset's values (the paper's fixed α = 0.2, lr 3e-3).
+    let c = ExpertConfig::from_toml("[sac]\npreset = \"expert\"\n", "e.toml").unwrap();
+    assert_eq!(c.sac, SacConfig::expert());
+    assert!(!c.sac.auto_alpha);
+    assert_eq!(
+        ExpertConfig::from_toml("", "e.toml").unwrap(),
+        ExpertConfig::default()
+    );
+    let msg = ExpertConfig::from_toml("total_step = 5\n", "e.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("e.toml") && msg.contains("total_step"),
+        "{msg}"
+    );
+    let msg = ExpertConfig::from_toml("eval_episodes = -3\n", "e.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("eval_episodes"), "{msg}");
+    let msg = ExpertConfig::from_toml("[sac]\nbatch = 3\n", "e.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("e.toml [sac]") && msg.contains("batch"),
+        "{msg}"
+    );
 }

@@ -1,17 +1,15 @@
 //! Expert training loop: learns, checkpoints, resumes exactly, keeps the last good
-//! checkpoint on NaN, refuses to overwrite, parses its config.
+//! checkpoint on NaN, refuses to overwrite.
 
 mod sac_common;
 
 use sac_common::PointReach;
 use smirl::env::{ContinuousEnv, EnvError, EnvStep};
-use smirl::pipeline::expert::{
-    curve_path, expert_sac, read_curve, train_expert, ExpertConfig, ExpertError,
-};
+use smirl::pipeline::expert::{curve_path, read_curve, train_expert, TrainingError, TrainingPlan};
 use smirl::rl::sac::{EpisodeSummary, SacConfig, SacTrainer};
 
-fn config(total_steps: u64) -> ExpertConfig {
-    ExpertConfig {
+fn config(total_steps: u64) -> TrainingPlan {
+    TrainingPlan {
         sac: SacConfig {
             hidden: vec![32, 32],
             batch_size: 64,
@@ -24,7 +22,6 @@ fn config(total_steps: u64) -> ExpertConfig {
         eval_episodes: 20,
         eval_max_steps: 100,
         progress_window: 20,
-        ..ExpertConfig::default()
     }
 }
 
@@ -88,7 +85,7 @@ fn expert_training_succeeds_and_writes_checkpoint_and_curve() {
         None,
     )
     .unwrap_err();
-    assert!(matches!(err, ExpertError::CheckpointExists(_)), "{err}");
+    assert!(matches!(err, TrainingError::CheckpointExists(_)), "{err}");
     assert!(err.to_string().contains("--resume"));
 }
 
@@ -183,43 +180,4 @@ fn nan_stops_the_run_and_keeps_the_last_good_checkpoint() {
     let resumed = SacTrainer::resume(&ckpt, &cfg.sac, 2, 1).unwrap();
     assert_eq!(resumed.env_steps(), 800);
     assert!(resumed.agent.actor.params_finite() && resumed.agent.q1.params_finite());
-}
-
-#[test]
-fn expert_config_uses_the_expert_preset_and_names_bad_keys() {
-    let c = ExpertConfig::from_toml("total_steps = 5000\n[sac]\nlr = 5e-4\n", "e.toml").unwrap();
-    assert_eq!(c.total_steps, 5000);
-    assert_eq!(
-        c.sac,
-        SacConfig {
-            lr: 5e-4,
-            ..expert_sac()
-        }
-    );
-    // Naming a preset takes that preset's values (the paper's fixed α = 0.2, lr 3e-3).
-    let c = ExpertConfig::from_toml("[sac]\npreset = \"expert\"\n", "e.toml").unwrap();
-    assert_eq!(c.sac, SacConfig::expert());
-    assert!(!c.sac.auto_alpha);
-    assert_eq!(
-        ExpertConfig::from_toml("", "e.toml").unwrap(),
-        ExpertConfig::default()
-    );
-    let msg = ExpertConfig::from_toml("total_step = 5\n", "e.toml")
-        .unwrap_err()
-        .to_string();
-    assert!(
-        msg.contains("e.toml") && msg.contains("total_step"),
-        "{msg}"
-    );
-    let msg = ExpertConfig::from_toml("eval_episodes = -3\n", "e.toml")
-        .unwrap_err()
-        .to_string();
-    assert!(msg.contains("eval_episodes"), "{msg}");
-    let msg = ExpertConfig::from_toml("[sac]\nbatch = 3\n", "e.toml")
-        .unwrap_err()
-        .to_string();
-    assert!(
-        msg.contains("e.toml [sac]") && msg.contains("batch"),
-        "{msg}"
-    );
 }

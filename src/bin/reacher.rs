@@ -565,7 +565,7 @@ impl std::error::Error for UsageError {}
 
 fn run_expert(args: ExpertArgs) -> Result<()> {
     use indicatif::{ProgressBar, ProgressStyle};
-    use smirl::pipeline::expert::ExpertConfig;
+    use smirl::pipeline::reacher_expert::ExpertConfig;
     use smirl::pipeline::reacher_expert as rx;
     use smirl::rl::sac::ActMode;
 
@@ -652,14 +652,14 @@ fn run_expert(args: ExpertArgs) -> Result<()> {
 
     let eval_seed = args.seed ^ 0x00e7_a100_0000_0000;
     let episodes = config.eval_episodes;
-    let stochastic = rx::evaluate_policy(
+    let stochastic = rx::evaluate_expert(
         &mut policy,
         &config.env,
         episodes,
         ActMode::Sample,
         eval_seed,
     )?;
-    let mean = rx::evaluate_policy(&mut policy, &config.env, episodes, ActMode::Mean, eval_seed)?;
+    let mean = rx::evaluate_expert(&mut policy, &config.env, episodes, ActMode::Mean, eval_seed)?;
 
     let policy_path = out.join("expert.policy");
     policy.save(&policy_path)?;

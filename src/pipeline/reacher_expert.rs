@@ -5,9 +5,11 @@
 //! - [`ExpertPolicy`]: the actor network and its observation layout; [`ExpertPolicy::save`] /
 //!   [`ExpertPolicy::load`] read and write a versioned file holding only the actor (no
 //!   critics, no replay buffer), refusing another task, architecture or format version.
+//! - [`ExpertConfig`] (`config.rs`): the config file of an expert run.
 //! - [`train_task_expert`]: [`train_expert`] on `task_env(task, …)` with checkpoints and
 //!   resume, success judged by the perfect machine reaching its goal.
-//! - [`evaluate_policy`]: success rate and task return of a policy, stochastic or mean action.
+//! - [`evaluate_expert`]: success rate and task return of an expert policy over episodes on
+//!   its task, stochastic or mean action.
 //! - [`committed_expert`]: the committed expert of a task, built into the binary.
 //! - [`generate_demos`]: trajectories of the expert's stochastic policy (paper appendix C:
 //!   "16 trajectories collected from the expert stochastic policy"), optionally logged to
@@ -16,7 +18,11 @@
 //! Demonstrations carry the perfect machine's state for *evaluation only*: SMIRL must learn its
 //! own machine from the label traces and must not read [`DemoStep::rm_state`].
 
-use super::expert::{train_expert, ExpertConfig, ExpertError, ExpertOutcome, ExpertProgress};
+mod config;
+
+pub use config::{expert_sac, ExpertConfig, MAX_EVAL_EPISODES, MAX_TOTAL_STEPS};
+
+use super::expert::{train_expert, CurvePoint, ExpertOutcome, ExpertProgress, TrainingError};
 use crate::atomic_file::write_atomic;
 use crate::env::product::{Potential, ProductEnv};
 use crate::env::reacher::{
@@ -84,6 +90,24 @@ pub struct PolicyInfo {
     pub env: ReacherConfig,
     /// Commit of the code that trained it.
     pub git_commit: String,
+}
+
+/// Why training, evaluating or saving a task expert, or recording its demonstrations, failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ExpertError {
+    #[error(transparent)]
+    Training(#[from] TrainingError),
+    #[error(transparent)]
+    Sac(#[from] SacError),
+    #[error(transparent)]
+    Policy(#[from] PolicyFileError),
+    #[error("task '{task}': {problem}")]
+    Task { task: String, problem: String },
+    #[error(transparent)]
+    Log(Box<LogError>),
+    /// A summary or plot that cannot be written.
+    #[error("{path}: {problem}")]
+    Write { path: String, problem: String },
 }
 
 /// Observation size of `task`'s product environment: 17 + number of machine states.
@@ -329,7 +353,7 @@ pub fn train_task_expert(
     let mut train_log = logger.map(|l| TrainingLog::new(l, &task_rm, "train"));
     let outcome = train_expert(
         &mut env,
-        config,
+        &config.training_plan(),
         seed,
         checkpoint,
         resume,
@@ -400,7 +424,7 @@ pub fn branch_tally(task: ReacherTask, demos: &[Demo]) -> Result<Option<BranchTa
 /// Plays `episodes` episodes of `policy` on its task (no shaping), resets seeded by
 /// [`episode_seed`]`(seed, i)` and action noise from `seed`; success = the perfect machine
 /// reached its goal.
-pub fn evaluate_policy(
+pub fn evaluate_expert(
     policy: &mut ExpertPolicy,
     env_config: &ReacherConfig,
     episodes: u64,
@@ -703,7 +727,7 @@ pub struct ExpertRunSummary {
 /// Writes `summary` as pretty JSON, atomically.
 pub fn write_run_summary(path: &Path, summary: &ExpertRunSummary) -> Result<(), ExpertError> {
     let text = serde_json::to_string_pretty(summary).expect("summary serialises") + "\n";
-    write_atomic(path, text.as_bytes()).map_err(|e| ExpertError::Curve {
+    write_atomic(path, text.as_bytes()).map_err(|e| ExpertError::Write {
         path: path.display().to_string(),
         problem: e.to_string(),
     })
@@ -715,12 +739,12 @@ pub fn write_run_summary(path: &Path, summary: &ExpertRunSummary) -> Result<(), 
 pub fn write_curve_svg(
     path: &Path,
     task: ReacherTask,
-    curve: &[super::expert::CurvePoint],
+    curve: &[CurvePoint],
     window: usize,
 ) -> Result<(), ExpertError> {
     use crate::report::{BandPoint, LinePlot, Series};
     let window = window.max(1);
-    let moving = |value: &dyn Fn(&super::expert::CurvePoint) -> f64| -> Vec<BandPoint> {
+    let moving = |value: &dyn Fn(&CurvePoint) -> f64| -> Vec<BandPoint> {
         let mut sum = 0.0;
         curve
             .iter()
@@ -763,7 +787,7 @@ pub fn write_curve_svg(
         .unwrap_or_default();
     let return_path = path.with_file_name(format!("{stem}_return.svg"));
     for (p, plot) in [(path, &success), (return_path.as_path(), &ret)] {
-        write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| ExpertError::Curve {
+        write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| ExpertError::Write {
             path: p.display().to_string(),
             problem: e.to_string(),
         })?;
