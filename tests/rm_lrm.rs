@@ -5,10 +5,7 @@ use smirl::env::office::{OfficeTask, OfficeWorld};
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines};
 use smirl::rm::lrm::synthetic::{expert_like_traces, ExpertStyle};
-use smirl::rm::lrm::{
-    learn_rm, learn_rm_auto, observed_label_sets, trace_cost, LabelTrace, LrmConfig, LrmError,
-    AUTO_LOOKAHEAD, AUTO_REL_TOL,
-};
+use smirl::rm::lrm::{learn_rm, observed_label_sets, trace_cost, LabelTrace, LrmConfig, LrmError};
 use smirl::rm::transform::restart_on_goal;
 use smirl::rm::{perfect, LabelSet, Vocabulary};
 
@@ -253,49 +250,6 @@ fn learned_rewards_are_observed_means_on_a_hand_made_trace() {
         learned.stats.observed_label_sets,
         vec![l(""), l("a"), l("b")]
     );
-}
-
-#[test]
-fn auto_u_max_stops_when_cost_stops_improving() {
-    let p = perfect::load("reacher_or").unwrap();
-    let traces = expert_like_traces(&p, &ExpertStyle::reacher(), 6_000, 2);
-    let auto = learn_rm_auto(
-        p.vocab(),
-        &traces,
-        &LrmConfig {
-            max_states: 6,
-            ..cfg(2)
-        },
-    )
-    .unwrap();
-    let costs: Vec<f64> = auto.costs.iter().map(|c| c.1).collect();
-    assert!(auto.chosen_max_states >= 2, "{:?}", auto.costs);
-    assert!(auto.learned.raw.n_states() <= auto.chosen_max_states);
-    // The chosen cost improves on every smaller u_max by more than the tolerance, no larger
-    // one tried improves on it, and the scan looked AUTO_LOOKAHEAD steps past it (or ran out).
-    let k = auto.chosen_max_states - 1;
-    let c = costs[k];
-    assert_eq!(auto.learned.cost, c);
-    assert!(
-        costs[..k].iter().all(|&x| c < x * (1.0 - AUTO_REL_TOL)),
-        "{:?}",
-        auto.costs
-    );
-    assert!(
-        costs[k + 1..]
-            .iter()
-            .all(|&x| x >= c * (1.0 - AUTO_REL_TOL)),
-        "{:?}",
-        auto.costs
-    );
-    assert_eq!(
-        costs.len(),
-        (k + 1 + AUTO_LOOKAHEAD).min(6),
-        "{:?}",
-        auto.costs
-    );
-    // Warm starts from the smaller machine: the cost never rises with u_max.
-    assert!(costs.windows(2).all(|w| w[1] <= w[0]), "{:?}", auto.costs);
 }
 
 #[test]

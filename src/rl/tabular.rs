@@ -175,19 +175,12 @@ impl Iteration {
     }
 }
 
-/// Which backup a value iteration uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Backup {
-    Max,
-    LogSumExp,
-}
-
-fn iterate(
+/// Discounted value iteration: `Q = r + γ V(s')`, `V = max_a Q`. `v_init` warm-starts it.
+pub fn value_iteration(
     mdp: &DetMdp,
     reward: &[f64],
     it: Iteration,
     v_init: Option<&[f64]>,
-    backup: Backup,
 ) -> Result<Values, TabularError> {
     it.check()?;
     let (n_s, n_a) = (mdp.n_states, mdp.n_actions);
@@ -210,10 +203,7 @@ fn iterate(
             for a in 0..n_a {
                 q_s[a] = reward[row + a] + it.gamma * v[mdp.next[row + a] as usize];
             }
-            let x = match backup {
-                Backup::Max => q_s.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-                Backup::LogSumExp => log_sum_exp(&q_s),
-            };
+            let x = q_s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             delta = delta.max((x - v[s]).abs());
             // In place (Gauss–Seidel): later states of the sweep already see the new value,
             // which converges to the same fixed point in fewer sweeps.
@@ -234,37 +224,6 @@ fn iterate(
         sweeps,
         converged,
     })
-}
-
-/// Discounted value iteration: `Q = r + γ V(s')`, `V = max_a Q`. `v_init` warm-starts it.
-pub fn value_iteration(
-    mdp: &DetMdp,
-    reward: &[f64],
-    it: Iteration,
-    v_init: Option<&[f64]>,
-) -> Result<Values, TabularError> {
-    iterate(mdp, reward, it, v_init, Backup::Max)
-}
-
-/// Discounted soft value iteration: `Q = r + γ V(s')`, `V = logsumexp_a Q`; the soft-optimal
-/// policy is `π(a|s) = exp(Q − V)` (see [`soft_policy`]).
-pub fn soft_value_iteration(
-    mdp: &DetMdp,
-    reward: &[f64],
-    it: Iteration,
-    v_init: Option<&[f64]>,
-) -> Result<Values, TabularError> {
-    iterate(mdp, reward, it, v_init, Backup::LogSumExp)
-}
-
-/// `π(a|s) = exp(Q(s, a) − V(s))` from soft values, flat `s * A + a`.
-pub fn soft_policy(values: &Values, n_actions: usize) -> Vec<f64> {
-    values
-        .q
-        .iter()
-        .enumerate()
-        .map(|(k, &q)| (q - values.v[k / n_actions]).exp())
-        .collect()
 }
 
 /// Greedy policy: the first action of maximal value in each state.
@@ -708,27 +667,6 @@ mod tests {
         assert!((vals.v[2] - v3).abs() < 1e-9);
         assert!((vals.v[1] - 0.9 * v3).abs() < 1e-9);
         assert_eq!(greedy_actions(&vals.q, 2), vec![1, 1, 1, 1]);
-    }
-
-    #[test]
-    fn soft_value_iteration_is_a_log_sum_exp_fixed_point() {
-        let (mdp, r) = chain();
-        let it = Iteration {
-            gamma: 0.8,
-            tol: 1e-13,
-            max_sweeps: 10_000,
-        };
-        let vals = soft_value_iteration(&mdp, &r, it, None).unwrap();
-        for s in 0..4 {
-            let qs: Vec<f64> = (0..2)
-                .map(|a| r[s * 2 + a] + 0.8 * vals.v[mdp.next(s, a)])
-                .collect();
-            assert!((log_sum_exp(&qs) - vals.v[s]).abs() < 1e-10);
-        }
-        let pi = soft_policy(&vals, 2);
-        for s in 0..4 {
-            assert!((pi[2 * s] + pi[2 * s + 1] - 1.0).abs() < 1e-12);
-        }
     }
 
     #[test]

@@ -230,17 +230,6 @@ pub fn learn_rm(
     traces: &[LabelTrace],
     cfg: &LrmConfig,
 ) -> Result<LearnedRm, LrmError> {
-    learn_warm(vocab, traces, cfg, None).map(|(learned, _)| learned)
-}
-
-/// [`learn_rm`], with `warm` (the search table of a run with fewer states) as an extra start;
-/// also returns the search's best table.
-fn learn_warm(
-    vocab: &Vocabulary,
-    traces: &[LabelTrace],
-    cfg: &LrmConfig,
-    warm: Option<&search::Table>,
-) -> Result<(LearnedRm, search::Table), LrmError> {
     let started = Instant::now();
     if cfg.max_states == 0 || cfg.max_states > u16::MAX as usize {
         return Err(LrmError::Config(format!(
@@ -265,7 +254,6 @@ fn learn_warm(
         starts: cfg.starts,
         threads: cfg.threads.max(1),
         seed: cfg.seed,
-        warm: warm.map(|t| searcher.widen(t)),
     });
     // The initial-state split (see `Searcher::split_initial`): on a searcher with one more
     // state, which also evaluates the final machines.
@@ -360,7 +348,7 @@ fn learn_warm(
         }
     };
 
-    let learned = LearnedRm {
+    Ok(LearnedRm {
         rm,
         raw,
         cost: best_cost,
@@ -378,77 +366,6 @@ fn learn_warm(
             final_cost,
             elapsed_secs: started.elapsed().as_secs_f64(),
         },
-    };
-    Ok((learned, outcome.best))
-}
-
-/// Result of [`learn_rm_auto`]: the chosen machine and the cost found for each `u_max`
-/// tried.
-#[derive(Clone, Debug)]
-pub struct AutoLearned {
-    pub learned: LearnedRm,
-    pub chosen_max_states: usize,
-    pub costs: Vec<(usize, f64)>,
-}
-
-/// A cost counts as improved when it drops by more than this fraction (and by more than
-/// [`AUTO_ABS_TOL`]).
-pub const AUTO_REL_TOL: f64 = 0.01;
-pub const AUTO_ABS_TOL: f64 = 1e-6;
-
-/// How many larger `u_max` in a row must fail to improve on a machine before
-/// [`learn_rm_auto`] settles for it.
-pub const AUTO_LOOKAHEAD: usize = 2;
-
-/// Chooses `u_max` automatically: learns with `u_max = 1, 2, …, cfg.max_states` and keeps the
-/// smallest `u_max` whose cost the next [`AUTO_LOOKAHEAD`] ones do not improve (by more than
-/// [`AUTO_REL_TOL`] of it).
-///
-/// Each `u_max` after the first also starts from the best machine found with one state fewer
-/// (an extra start besides `cfg.starts`): without it the cost was not even monotone in
-/// `u_max` (measured on Office task 3: 8 948 with 8 states, 10 008 with 9), and a search
-/// that happened to do worse with one more state stopped the scan early. The look-ahead is
-/// for plateaus: on Office task 1 the costs were 21 224 with 4 and 5 states, then fell to
-/// 15 918 with 9, and the 4-state machine does not refine the perfect one.
-pub fn learn_rm_auto(
-    vocab: &Vocabulary,
-    traces: &[LabelTrace],
-    cfg: &LrmConfig,
-) -> Result<AutoLearned, LrmError> {
-    let mut costs = Vec::new();
-    let mut chosen: Option<(LearnedRm, usize)> = None;
-    let mut last_table: Option<search::Table> = None;
-    for u in 1..=cfg.max_states.max(1) {
-        let (learned, table) = learn_warm(
-            vocab,
-            traces,
-            &LrmConfig {
-                max_states: u,
-                ..cfg.clone()
-            },
-            last_table.as_ref(),
-        )?;
-        costs.push((u, learned.cost));
-        last_table = Some(table);
-        let improved = match &chosen {
-            None => true,
-            Some((c, _)) => learned.cost < c.cost - (AUTO_REL_TOL * c.cost).max(AUTO_ABS_TOL),
-        };
-        if improved {
-            let zero = learned.cost <= AUTO_ABS_TOL;
-            chosen = Some((learned, u));
-            if zero {
-                break;
-            }
-        } else if u - chosen.as_ref().expect("set on the first u").1 >= AUTO_LOOKAHEAD {
-            break;
-        }
-    }
-    let (learned, chosen_max_states) = chosen.expect("at least one u_max is tried");
-    Ok(AutoLearned {
-        learned,
-        chosen_max_states,
-        costs,
     })
 }
 

@@ -103,8 +103,6 @@ pub(crate) struct SearchParams {
     pub starts: usize,
     pub threads: usize,
     pub seed: u64,
-    /// An extra start (after the others): e.g. the best machine of a smaller `u_max`.
-    pub warm: Option<Table>,
 }
 
 impl<'a> Searcher<'a> {
@@ -565,15 +563,11 @@ impl<'a> Searcher<'a> {
     /// index) is returned. Starts run in parallel (`min(threads, starts)` workers; the rest
     /// of the threads evaluate neighbours within a start).
     pub fn search(&self, p: &SearchParams) -> SearchOutcome {
-        let starts = p.starts.max(1) + usize::from(p.warm.is_some());
+        let starts = p.starts.max(1);
         let run_start = |k: usize, threads: usize| -> SearchOutcome {
             let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
             rng.set_stream(k as u64);
-            let table = if k >= p.starts.max(1) {
-                p.warm
-                    .clone()
-                    .expect("only the warm start is past cfg.starts")
-            } else if k == 0 || self.u_max < 2 {
+            let table = if k == 0 || self.u_max < 2 {
                 self.canonical(&self.identity())
             } else {
                 self.random_table(2 + (k - 1) % (self.u_max - 1), &mut rng)
