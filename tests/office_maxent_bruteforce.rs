@@ -1,7 +1,7 @@
 //! Soft value iteration and the MaxEnt gradient against brute force on a tiny MDP: every
 //! action sequence of the horizon is enumerated.
 
-use smirl::irl::tabular::{FeatureMap, MaxEntConfig, MaxEntIrl, Optimizer, NO_FEATURE};
+use smirl::irl::tabular::{MaxEntConfig, MaxEntIrl, Optimizer, StateActionFeatures, NO_FEATURE};
 use smirl::rl::tabular::{
     expected_visitation, finite_horizon_greedy, log_sum_exp as lse, soft_backward, DetMdp,
     FiniteSoftPolicy,
@@ -11,7 +11,7 @@ const S: usize = 4;
 const A: usize = 3;
 const T: usize = 5;
 
-fn tiny() -> (DetMdp, FeatureMap) {
+fn tiny() -> (DetMdp, StateActionFeatures) {
     // Arbitrary deterministic transitions, with self-loops and a state reached two ways.
     let next = vec![1, 2, 0, 2, 3, 1, 3, 0, 2, 3, 3, 1];
     let mdp = DetMdp::new(S, A, next).unwrap();
@@ -21,7 +21,7 @@ fn tiny() -> (DetMdp, FeatureMap) {
     ];
     (
         mdp,
-        FeatureMap {
+        StateActionFeatures {
             n_features: 3,
             feature,
         },
@@ -75,7 +75,13 @@ fn soft_value_iteration_is_a_log_sum_exp_fixed_point() {
 type Traj = (Vec<usize>, Vec<usize>, f64, Vec<f64>);
 
 /// All action sequences of length `horizon` from `s0`.
-fn enumerate(mdp: &DetMdp, f: &FeatureMap, r: &[f64], s0: usize, horizon: usize) -> Vec<Traj> {
+fn enumerate(
+    mdp: &DetMdp,
+    f: &StateActionFeatures,
+    r: &[f64],
+    s0: usize,
+    horizon: usize,
+) -> Vec<Traj> {
     let mut out = Vec::new();
     for code in 0..A.pow(horizon as u32) {
         let mut c = code;

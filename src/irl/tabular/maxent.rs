@@ -14,15 +14,16 @@ use std::collections::BTreeMap;
 /// Marks a state-action pair without a feature (reward 0).
 pub const NO_FEATURE: u32 = u32::MAX;
 
-/// One-hot features of state-action pairs.
+/// One-hot features of state-action pairs: `r(s, a) = θ[f(s, a)]` (Office; the continuous
+/// SMIRL reward reads observations through `irl::smirl::FeatureMap` instead).
 #[derive(Clone, Debug, PartialEq)]
-pub struct FeatureMap {
+pub struct StateActionFeatures {
     pub n_features: usize,
     /// Feature of `(s, a)` at `s * A + a`, or [`NO_FEATURE`].
     pub feature: Vec<u32>,
 }
 
-impl FeatureMap {
+impl StateActionFeatures {
     /// The reward table `r(s, a) = θ[f(s, a)]` written into `out`.
     pub fn reward_into(&self, theta: &[f64], out: &mut [f64]) {
         for (r, &f) in out.iter_mut().zip(&self.feature) {
@@ -155,7 +156,7 @@ pub struct GradientInfo {
 #[derive(Clone, Debug)]
 pub struct MaxEntIrl<'a> {
     mdp: &'a DetMdp,
-    features: &'a FeatureMap,
+    features: &'a StateActionFeatures,
     cfg: MaxEntConfig,
     groups: Vec<LengthGroup>,
     n_demos: f64,
@@ -183,7 +184,7 @@ impl<'a> MaxEntIrl<'a> {
     /// Checks the problem and prepares the demonstration statistics; θ starts at 0.
     pub fn new(
         mdp: &'a DetMdp,
-        features: &'a FeatureMap,
+        features: &'a StateActionFeatures,
         demos: &[StateActionDemo],
         cfg: MaxEntConfig,
     ) -> Result<MaxEntIrl<'a>, MaxEntError> {

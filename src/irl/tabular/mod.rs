@@ -12,7 +12,7 @@ pub use apprenticeship::{Apprenticeship, ApprenticeshipConfig, ApprenticeshipSte
 pub use demos::{DemoConfig, Demonstration, OfficeExpert, Trip};
 pub use eval::{evaluate_policy, greedy_policy, Evaluation};
 pub use maxent::{
-    FeatureMap, GradientInfo, MaxEntConfig, MaxEntError, MaxEntIrl, Optimizer, StateActionDemo,
-    NO_FEATURE,
+    GradientInfo, MaxEntConfig, MaxEntError, MaxEntIrl, Optimizer, StateActionDemo,
+    StateActionFeatures, NO_FEATURE,
 };
 pub use product::{trivial_rm, ProductIrl};

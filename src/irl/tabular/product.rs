@@ -12,7 +12,7 @@
 
 use super::demos::Demonstration;
 use super::maxent::{
-    FeatureMap, MaxEntConfig, MaxEntError, MaxEntIrl, StateActionDemo, NO_FEATURE,
+    MaxEntConfig, MaxEntError, MaxEntIrl, StateActionDemo, StateActionFeatures, NO_FEATURE,
 };
 use crate::env::office::{OfficeWorld, N_ACTIONS};
 use crate::rl::tabular::{DetMdp, TabularError};
@@ -29,7 +29,7 @@ pub fn trivial_rm(vocab: &Vocabulary) -> RewardMachine {
 pub struct ProductIrl {
     pub model_rm: RewardMachine,
     pub mdp: DetMdp,
-    pub features: FeatureMap,
+    pub features: StateActionFeatures,
     n_cells: usize,
     n_props: usize,
 }
@@ -55,7 +55,7 @@ impl ProductIrl {
                 }
             }
         }
-        let features = FeatureMap {
+        let features = StateActionFeatures {
             n_features: model_rm.n_states() * n_props,
             feature,
         };
