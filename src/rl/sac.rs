@@ -23,8 +23,8 @@ pub(crate) use config::{deserialize_table, load_toml, parse_table};
 pub use config::{ConfigError, SacConfig};
 pub use episode::{EpisodeSummary, RolloutStep};
 pub use trainer::{
-    episode_seed, CheckpointError, EnvReward, ObserverError, RewardFn, SacTrainer,
-    StepOutcome, TrainingObserver,
+    episode_seed, CheckpointError, EnvReward, ObserverError, RewardFn, SacTrainer, StepOutcome,
+    TrainingObserver,
 };
 
 use crate::env::EnvError;
