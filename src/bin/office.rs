@@ -7,19 +7,15 @@
 //! `summary.csv`, `success.svg` (mean ± std over seeds per algorithm), per SMIRL seed the
 //! reward machine (`rm_smirl_seed<S>.txt` and `.dot`), and the learned reward weights
 //! (`weights_<algo>_seed<S>.csv`). Arguments and configuration are checked before anything
-//! is written (bad ones exit with code 2); results are written to a temporary directory that
-//! is renamed to `--out` only when complete.
+//! is written; results are written to a temporary directory that is renamed to `--out` only
+//! when complete. The work is [`smirl::pipeline::commands::office`]; this file parses the
+//! arguments.
+//!
+//! Exit status: 0 success, 1 failure while running, 2 bad arguments or config.
 
-use anyhow::{bail, Context, Result};
 use clap::Parser;
-use smirl::atomic_file::write_atomic;
-use smirl::env::office::{OfficeTask, OfficeWorld};
-use smirl::output::OutputDir;
-use smirl::pipeline::office::{
-    demonstrations, demonstrations_table, run, Algo, OfficeConfig, OfficeRun,
-};
-use smirl::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
-use std::path::{Path, PathBuf};
+use smirl::pipeline::commands::{self, office::OfficeRequest};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser, Debug)]
@@ -56,64 +52,6 @@ struct Args {
     write_demos: bool,
 }
 
-/// Most seeds one run takes (every seed's run is kept in memory until the reports).
-const MAX_SEEDS: u64 = 1_000;
-
-/// Everything checked before the run starts.
-struct Plan {
-    task: OfficeTask,
-    algos: Vec<Algo>,
-    seeds: Vec<u64>,
-    cfg: OfficeConfig,
-    output: OutputDir,
-    write_demos: bool,
-}
-
-fn plan(args: &Args) -> Result<Plan> {
-    let task = OfficeTask::from_index(args.task)?;
-    let algos = if args.algo == "all" {
-        Algo::ALL.to_vec()
-    } else {
-        match Algo::parse(&args.algo) {
-            Some(a) => vec![a],
-            None => bail!(
-                "unknown algorithm {:?} (expected smirl, maxent, apprenticeship or all)",
-                args.algo
-            ),
-        }
-    };
-    if args.seeds == 0 {
-        bail!("--seeds must be at least 1");
-    }
-    if args.seeds > MAX_SEEDS {
-        bail!(
-            "--seeds {} is more than the limit of {MAX_SEEDS} seeds per run",
-            args.seeds
-        );
-    }
-    let cfg = match &args.config {
-        None => OfficeConfig::default(),
-        Some(path) => {
-            let text = smirl::config_text::read_text_file(path)
-                .with_context(|| format!("reading config {}", path.display()))?;
-            OfficeConfig::from_toml(&text).with_context(|| format!("config {}", path.display()))?
-        }
-    };
-    let output = OutputDir::check(&args.out, args.force)?;
-    let seeds = (0..args.seeds)
-        .map(|i| args.seed.checked_add(i))
-        .collect::<Option<Vec<u64>>>()
-        .context("seed range overflows u64")?;
-    Ok(Plan {
-        task,
-        algos,
-        seeds,
-        cfg,
-        output,
-        write_demos: args.write_demos,
-    })
-}
-
 fn main() -> ExitCode {
     let args = match Args::try_parse() {
         Ok(a) => a,
@@ -122,225 +60,21 @@ fn main() -> ExitCode {
             return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
         }
     };
-    let plan = match plan(&args) {
-        Ok(p) => p,
-        Err(e) => {
-            eprintln!("office: error: {e:#}");
-            return ExitCode::from(2);
-        }
+    let request = OfficeRequest {
+        task: args.task,
+        algo: args.algo,
+        seeds: args.seeds,
+        seed: args.seed,
+        out: args.out,
+        config: args.config,
+        force: args.force,
+        write_demos: args.write_demos,
     };
-    match execute(&plan) {
+    match commands::office::run(&request) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("office: error: {e:#}");
-            ExitCode::from(1)
+            ExitCode::from(if commands::is_usage(&e) { 2 } else { 1 })
         }
     }
-}
-
-fn execute(plan: &Plan) -> Result<()> {
-    let mut runs: Vec<OfficeRun> = Vec::new();
-    for &algo in &plan.algos {
-        for &seed in &plan.seeds {
-            let r = run(plan.task, algo, seed, &plan.cfg, &mut |line| {
-                eprintln!("[task {}] {line}", plan.task.index())
-            })?;
-            eprintln!(
-                "[task {}] {} seed {seed}: final success {} after {} IRL steps, {:.2} s",
-                plan.task.index(),
-                algo.name(),
-                r.final_success(),
-                r.steps.len() - 1,
-                r.timings.total_s
-            );
-            runs.push(r);
-        }
-    }
-    let partial = plan.output.begin()?;
-    if let Err(e) = write_outputs(plan, &runs, &partial) {
-        // Only the directory this run created (and marked) is removed.
-        let _ = std::fs::remove_dir_all(&partial);
-        return Err(e);
-    }
-    plan.output.commit(&partial)?;
-    eprintln!("results in {}", plan.output.path().display());
-    Ok(())
-}
-
-fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
-    let path = dir.join(name);
-    write_atomic(&path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))
-}
-
-/// Writes every output file into `dir` (the run's `.partial` directory, already created).
-fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
-    let task = plan.task.index().to_string();
-    let mut metrics = CsvTable::new([
-        "task",
-        "algo",
-        "seed",
-        "step",
-        "env_interactions",
-        "gt_return",
-        "success",
-        "objective",
-        "mixture_return",
-        "elapsed_s",
-    ]);
-    for r in runs {
-        for s in &r.steps {
-            metrics.push([
-                task.clone(),
-                r.algo.name().to_string(),
-                r.seed.to_string(),
-                s.step.to_string(),
-                s.env_interactions.to_string(),
-                s.gt_return.to_string(),
-                (s.success as u8).to_string(),
-                s.objective.to_string(),
-                s.mixture_return.to_string(),
-                format!("{:.4}", s.elapsed_s),
-            ]);
-        }
-    }
-    write_file(dir, "metrics.csv", &metrics.to_csv())?;
-
-    let mut summary = CsvTable::new([
-        "task",
-        "algo",
-        "seed",
-        "final_success",
-        "irl_steps",
-        "converged",
-        "rm_states",
-        "refines_perfect",
-        "demos_s",
-        "rm_learning_s",
-        "irl_s",
-        "total_s",
-        "final_mixture_return",
-    ]);
-    for r in runs {
-        summary.push([
-            task.clone(),
-            r.algo.name().to_string(),
-            r.seed.to_string(),
-            (r.final_success() as u8).to_string(),
-            (r.steps.len() - 1).to_string(),
-            r.converged.to_string(),
-            r.rm.as_ref()
-                .map_or(String::new(), |m| m.n_states().to_string()),
-            r.refines_perfect.map_or(String::new(), |b| b.to_string()),
-            format!("{:.4}", r.timings.demos_s),
-            format!("{:.4}", r.timings.rm_learning_s),
-            format!("{:.4}", r.timings.irl_s),
-            format!("{:.4}", r.timings.total_s),
-            r.steps
-                .last()
-                .map_or(f64::NAN, |s| s.mixture_return)
-                .to_string(),
-        ]);
-        let mut w = CsvTable::new(
-            std::iter::once("rm_state".to_string()).chain(r.weight_columns.iter().cloned()),
-        );
-        for (u, row) in r.weights.iter().enumerate() {
-            w.push(std::iter::once(u.to_string()).chain(row.iter().map(|x| x.to_string())));
-        }
-        write_file(
-            dir,
-            &format!("weights_{}_seed{}.csv", r.algo.name(), r.seed),
-            &w.to_csv(),
-        )?;
-        if let Some(rm) = &r.rm {
-            write_file(
-                dir,
-                &format!("rm_{}_seed{}.txt", r.algo.name(), r.seed),
-                &smirl::rm::format::write_rm(rm),
-            )?;
-            write_file(
-                dir,
-                &format!("rm_{}_seed{}.dot", r.algo.name(), r.seed),
-                &smirl::rm::dot::to_dot(rm),
-            )?;
-        }
-    }
-    write_file(dir, "summary.csv", &summary.to_csv())?;
-
-    let mut plot = LinePlot::new(
-        &format!(
-            "Office task {}: {}",
-            plan.task.index(),
-            plan.task.description()
-        ),
-        "IRL step",
-        "ground-truth return (success rate)",
-    );
-    plot.y_range = Some((-0.05, 1.05));
-    for &algo in &plan.algos {
-        let curves: Vec<Vec<(f64, f64)>> = runs
-            .iter()
-            .filter(|r| r.algo == algo)
-            .map(|r| {
-                r.steps
-                    .iter()
-                    .map(|s| (s.step as f64, s.gt_return))
-                    .collect()
-            })
-            .collect();
-        plot.series.push(Series {
-            name: algo.label().to_string(),
-            points: aggregate_over_seeds(&curves),
-        });
-    }
-    write_file(dir, "success.svg", &plot.to_svg())?;
-
-    // Figure 5's x-axis: environment interactions, for the algorithms that sample them.
-    let mut by_interactions = LinePlot::new(
-        &format!(
-            "Office task {}: {} (sampling algorithms)",
-            plan.task.index(),
-            plan.task.description()
-        ),
-        "environment interactions",
-        "ground-truth return (success rate)",
-    );
-    by_interactions.y_range = Some((-0.05, 1.05));
-    for &algo in &plan.algos {
-        let curves: Vec<Vec<(f64, f64)>> = runs
-            .iter()
-            .filter(|r| r.algo == algo && r.steps.iter().any(|s| s.env_interactions > 0))
-            .map(|r| {
-                r.steps
-                    .iter()
-                    .map(|s| (s.env_interactions as f64, s.gt_return))
-                    .collect()
-            })
-            .collect();
-        if !curves.is_empty() {
-            by_interactions.series.push(Series {
-                name: algo.label().to_string(),
-                points: aggregate_over_seeds(&curves),
-            });
-        }
-    }
-    if !by_interactions.series.is_empty() {
-        write_file(
-            dir,
-            "success_vs_interactions.svg",
-            &by_interactions.to_svg(),
-        )?;
-    }
-
-    if plan.write_demos {
-        let world = OfficeWorld::new();
-        for &seed in &plan.seeds {
-            let demos = demonstrations(&world, plan.task, &plan.cfg.demos, seed)?;
-            write_file(
-                dir,
-                &format!("demos_seed{seed}.csv"),
-                &demonstrations_table(&demos, &world).to_csv(),
-            )?;
-        }
-    }
-    Ok(())
 }

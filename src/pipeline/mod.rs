@@ -1,5 +1,6 @@
 //! End-to-end pipelines behind the binaries (experts, demonstrations, IRL, evaluation).
 
+pub mod commands;
 pub mod expert;
 pub mod foxglove_scene;
 pub mod office;

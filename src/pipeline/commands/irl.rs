@@ -1,0 +1,359 @@
+//! The IRL pipeline commands of `reacher`: `reacher --task` (the whole run in one process
+//! with progress bars), its three steps `prepare`, `job` and `aggregate` (the same run spread
+//! over processes or machines), and `reward` (a baseline's saved reward at fingertip
+//! positions). The pipeline itself is [`crate::pipeline::reacher_irl`]; this module turns
+//! arguments into its requests, draws progress and prints summaries.
+
+use super::{usage, UsageError};
+use crate::env::reacher_task::ReacherTask;
+use crate::output::{check_not_protected, OutputDir};
+use crate::pipeline::reacher_irl::job::JobProgress;
+use crate::pipeline::reacher_irl::run::{self, open_run, summary_markdown, JobRecord, PreparedRun};
+use crate::pipeline::reacher_irl::{
+    run_pipeline, Algo, IrlRunConfig, PipelineError, RunObserver, RunRequest,
+};
+use anyhow::{Context, Result};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// The arguments of `reacher --task` and `reacher prepare`.
+#[derive(Clone, Debug, Default)]
+pub struct IrlRequest {
+    /// The task; `None` is refused (nothing to do).
+    pub task: Option<ReacherTask>,
+    /// Algorithms, comma-separated (see [`Algo::parse_list`]); `None`: [`Algo::DEFAULT`].
+    pub algo: Option<String>,
+    /// Seeds per algorithm: `seed`, `seed + 1`, …
+    pub seeds: u64,
+    /// Base seed (also seeds the demonstrations and LRM).
+    pub seed: u64,
+    /// [`IrlRunConfig::quick`] instead of [`IrlRunConfig::standard`] (without `config`).
+    pub quick: bool,
+    /// Run configuration (TOML); overrides the built-in profiles.
+    pub config: Option<PathBuf>,
+    /// Run directory; `None`: `runs/reacher-<task>`.
+    pub out: Option<PathBuf>,
+    /// Replace an existing run directory (only one this program wrote).
+    pub force: bool,
+    /// Print the effective configuration as TOML instead of running.
+    pub print_config: bool,
+    /// No progress bars.
+    pub quiet: bool,
+}
+
+/// Progress bars of `reacher --task`: a spinner naming the phase, one bar per job.
+struct Bars {
+    multi: MultiProgress,
+    phase: ProgressBar,
+    jobs: Mutex<Vec<ProgressBar>>,
+    quiet: bool,
+}
+
+impl RunObserver for Bars {
+    fn phase(&self, name: &str) {
+        self.phase.set_message(
+            match name {
+                "demos" => "generating demonstrations",
+                "lrm" => "learning the reward machine (LRM)",
+                "irl" => "IRL jobs",
+                "reports" => "writing reports",
+                other => other,
+            }
+            .to_string(),
+        );
+        self.phase.tick();
+    }
+    fn jobs(&self, labels: &[String], total_env_steps: u64) {
+        let style = ProgressStyle::with_template(
+            "{prefix:>22} [{bar:30}] {pos}/{len} env steps {msg} ({elapsed}, eta {eta})",
+        )
+        .expect("valid template")
+        .progress_chars("=> ");
+        let mut jobs = self.jobs.lock().expect("bars lock");
+        for label in labels {
+            let bar = if self.quiet {
+                ProgressBar::hidden()
+            } else {
+                self.multi.add(ProgressBar::new(total_env_steps))
+            };
+            bar.set_style(style.clone());
+            bar.set_prefix(label.clone());
+            jobs.push(bar);
+        }
+    }
+    fn job_progress(&self, job: usize, p: JobProgress) {
+        if let Some(bar) = self.jobs.lock().expect("bars lock").get(job) {
+            // A job with its own schedule ([schedule.<algo>]) has its own length.
+            bar.set_length(p.total_env_steps);
+            bar.set_position(p.env_steps);
+            bar.set_message(format!(
+                "iter {}/{} success {:.2}",
+                p.iteration, p.iterations, p.success_rate
+            ));
+        }
+    }
+    fn job_done(&self, job: usize, r: &JobRecord) {
+        if let Some(bar) = self.jobs.lock().expect("bars lock").get(job) {
+            let last = r.rows.last().map_or(0.0, |x| x.success_rate);
+            bar.finish_with_message(format!("done, final success {last:.2}"));
+        }
+    }
+    fn message(&self, text: &str) {
+        if self.quiet {
+            eprintln!("{text}");
+        } else {
+            let _ = self.multi.println(text);
+        }
+    }
+}
+
+/// The arguments of `reacher job`: the run and the job, by index or by algorithm and seed.
+#[derive(Clone, Debug)]
+pub struct JobRequest {
+    /// Run directory written by `reacher prepare`.
+    pub run: PathBuf,
+    /// The job's position in the run (algorithms outer, seeds inner, from 0).
+    pub index: Option<usize>,
+    /// The job's algorithm and seed (both, instead of `index`).
+    pub algo: Option<Algo>,
+    pub seed: Option<u64>,
+    /// No progress bar.
+    pub quiet: bool,
+}
+
+fn pipeline_error(e: PipelineError) -> anyhow::Error {
+    match e {
+        PipelineError::Usage(m) => usage(m),
+        PipelineError::Run(m) => anyhow::anyhow!(m),
+    }
+}
+
+/// The run request of `reacher --task` / `reacher prepare` (`None`: `--print-config`
+/// printed the config, nothing to run).
+fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
+    let Some(task) = args.task else {
+        return Err(usage(
+            "nothing to do: give --task <or|sequential|if|composite|blue> or a subcommand (see --help)",
+        ));
+    };
+    let algos = match &args.algo {
+        Some(s) => Algo::parse_list(s).map_err(usage)?,
+        None => Algo::DEFAULT.to_vec(),
+    };
+    let config = match (&args.config, args.quick) {
+        (Some(path), _) => IrlRunConfig::load(path).map_err(usage)?,
+        (None, true) => IrlRunConfig::quick(),
+        (None, false) => IrlRunConfig::standard(),
+    };
+    if args.print_config {
+        print!("{}", config.to_toml());
+        return Ok(None);
+    }
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("runs/reacher-{}", task.name())));
+    Ok(Some(RunRequest {
+        task,
+        algos,
+        seeds: args.seeds,
+        seed: args.seed,
+        config,
+        out,
+        force: args.force,
+    }))
+}
+
+/// `reacher prepare`: writes `<out>.partial`, renamed to `<out>` when complete, and prints the
+/// number of jobs. A directory already prepared for the same plan and config is left as it is
+/// (so a resubmitted sweep does not redo it); any other existing `<out>` is refused.
+pub fn prepare(args: &IrlRequest) -> Result<()> {
+    let Some(request) = request(args)? else {
+        return Ok(());
+    };
+    let out = &request.out;
+    let planned_jobs = request.algos.len() as u64 * request.seeds;
+    check_not_protected(out).map_err(usage)?;
+    if out.exists() {
+        let existing = open_run(out).map_err(|_| {
+            usage(format!(
+                "{} exists and is not a prepared run directory: not touching it (choose another --out)",
+                out.display()
+            ))
+        })?;
+        let same = existing.prepared.task == request.task
+            && existing.prepared.algos
+                == request
+                    .algos
+                    .iter()
+                    .map(|a| a.name().to_string())
+                    .collect::<Vec<_>>()
+            && existing.prepared.seed == request.seed
+            && existing.prepared.seeds.len() as u64 == request.seeds
+            && existing.config == request.config;
+        if !same {
+            return Err(usage(format!(
+                "{} is already prepared for another task, plan or config: not touching it",
+                out.display()
+            )));
+        }
+        println!("{} is already prepared", out.display());
+        println!("jobs: {planned_jobs}");
+        return Ok(());
+    }
+    let output = OutputDir::check(out, false).map_err(usage)?;
+    let partial = output.begin()?;
+    let prepared = run::prepare(&request, &partial, &run::Silent).map_err(pipeline_error)?;
+    output.commit(&partial)?;
+    println!(
+        "prepared {}: task {}, {} of {} demonstrations kept{}",
+        out.display(),
+        prepared.task,
+        prepared.demos_kept,
+        prepared.demos_generated,
+        prepared.rm.as_ref().map_or(String::new(), |rm| format!(
+            ", learned machine with {} states",
+            rm.learned_states
+        ))
+    );
+    println!("jobs: {planned_jobs}");
+    Ok(())
+}
+
+/// `reacher job`: runs one job of a prepared run (a finished job is not rerun) and prints its
+/// final success rate.
+pub fn job(args: &JobRequest) -> Result<()> {
+    let run: PreparedRun = open_run(&args.run).map_err(pipeline_error)?;
+    let (algo, seed) = match (args.index, args.algo, args.seed) {
+        (Some(i), _, _) => run.job_at(i),
+        (None, Some(a), Some(s)) => run.job(a, s),
+        _ => Err(PipelineError::Usage(
+            "give --index, or --algo and --seed".into(),
+        )),
+    }
+    .map_err(pipeline_error)?;
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(run.config.sac_steps_per_iteration * run.config.irl_iterations as u64)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix} [{bar:30}] {pos}/{len} env steps {msg} ({elapsed}, eta {eta})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(format!("{algo} seed {seed}"));
+    let (record, ran) = run
+        .run_job(algo, seed, &|p: JobProgress| {
+            bar.set_position(p.env_steps);
+            bar.set_message(format!(
+                "iter {}/{} success {:.2}",
+                p.iteration, p.iterations, p.success_rate
+            ));
+        })
+        .map_err(|e| anyhow::anyhow!(e))
+        .with_context(|| format!("{algo} seed {seed} in {}", args.run.display()))?;
+    bar.finish_and_clear();
+    let last = record.rows.last().map_or(0.0, |r| r.success_rate);
+    if ran {
+        println!(
+            "{algo} seed {seed}: final success {last:.2} ({:.0} s)",
+            record.wall_secs
+        );
+    } else {
+        println!("{algo} seed {seed}: already done (final success {last:.2})");
+    }
+    Ok(())
+}
+
+/// `reacher aggregate`: metrics, summary and plots of a prepared run's finished jobs (all of
+/// them unless `partial`); prints the summary table.
+pub fn aggregate(dir: &Path, partial: bool) -> Result<()> {
+    let run = open_run(dir).map_err(pipeline_error)?;
+    let summary = run::aggregate(&run, partial, None).map_err(pipeline_error)?;
+    println!(
+        "{}",
+        summary_markdown(run.prepared.task, &summary.algos, summary.rm.as_ref())
+    );
+    println!("wrote {}", dir.join("metrics.csv").display());
+    Ok(())
+}
+
+/// `reacher --task`: the whole IRL pipeline in this process, with progress bars (unless
+/// `quiet`); prints the summary table. On a failure while running, the incomplete output is
+/// left in `<out>.partial`.
+pub fn run(args: &IrlRequest) -> Result<()> {
+    let Some(request) = request(args)? else {
+        return Ok(());
+    };
+    let (task, out) = (request.task, request.out.clone());
+    let multi = MultiProgress::new();
+    let phase = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        multi.add(ProgressBar::new_spinner())
+    };
+    phase.set_style(
+        ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("valid template"),
+    );
+    phase.enable_steady_tick(std::time::Duration::from_millis(200));
+    let bars = Bars {
+        multi,
+        phase,
+        jobs: Mutex::new(Vec::new()),
+        quiet: args.quiet,
+    };
+    let summary = match run_pipeline(&request, &bars) {
+        Ok(s) => s,
+        Err(PipelineError::Usage(m)) => return Err(usage(m)),
+        Err(PipelineError::Run(m)) => {
+            return Err(anyhow::anyhow!(m)).with_context(|| {
+                format!(
+                    "reacher --task {task} (incomplete output left in {}.partial)",
+                    out.display()
+                )
+            })
+        }
+    };
+    bars.phase.finish_and_clear();
+    println!(
+        "\n{}",
+        summary_markdown(task, &summary.algos, summary.rm.as_ref())
+    );
+    println!(
+        "run directory: {} (total wall time {:.0} s)",
+        summary.out.display(),
+        summary.wall_secs
+    );
+    Ok(())
+}
+
+/// `reacher reward FILE --at x,y …`: prints a baseline's saved reward at fingertip positions,
+/// one `x y reward` line per position. A position that is not two finite numbers, or a file
+/// that is not a baseline reward, is bad input.
+pub fn reward(file: &Path, at: &[String]) -> Result<()> {
+    let points = at
+        .iter()
+        .map(|p| {
+            let xy: Vec<f64> = p
+                .split(',')
+                .map(|v| v.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| UsageError(format!("--at {p}: expected x,y (two numbers)")))?;
+            match xy[..] {
+                [x, y] if x.is_finite() && y.is_finite() => Ok([x, y]),
+                _ => Err(UsageError(format!(
+                    "--at {p}: expected x,y (two finite numbers)"
+                ))),
+            }
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let r = crate::pipeline::reacher_irl::job::baseline_reward_at(file, &points).map_err(usage)?;
+    for (p, r) in points.iter().zip(r) {
+        println!("{} {} {r}", p[0], p[1]);
+    }
+    Ok(())
+}

@@ -1,0 +1,46 @@
+//! The commands behind the binaries `reacher` and `office`: one entry point per command,
+//! taking the parsed arguments as a plain struct, checking them, running the pipeline and
+//! printing what the command prints. The binaries only parse arguments, call one entry point
+//! and turn its result into an exit status, so everything a command decides (defaults of
+//! output directories, which inputs are refused, what is printed) lives here, where tests and
+//! other programs can reach it.
+//!
+//! - [`logs`]: `reacher replay`, `render`, `foxglove`, `demo`, `learn-rm` (rollout logs).
+//! - [`expert`]: `reacher expert` (train, evaluate and save a task's SAC expert).
+//! - [`irl`]: `reacher --task`, `prepare`, `job`, `aggregate`, `reward` (the IRL pipeline).
+//! - [`draw`]: `reacher draw` (f-IRL's ReacherDraw).
+//! - [`office`]: `office` (the Office Gridworld experiments).
+//!
+//! Errors: a command fails with a [`UsageError`] for bad input (an argument, a config, an
+//! output path it may not write), found before anything is written where it can be, and with
+//! any other error for a failure while running. Commands never print their error: the binary
+//! prints it once and maps a [`UsageError`] to exit status 2, anything else to 1.
+
+pub mod draw;
+pub mod expert;
+pub mod irl;
+pub mod logs;
+pub mod office;
+
+/// Bad input to a command: an argument, a config or an output path it may not write (exit
+/// status 2). Its message is printed as it is.
+#[derive(Debug)]
+pub struct UsageError(pub String);
+
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+/// Whether `error` (or an error it wraps) is a [`UsageError`].
+pub fn is_usage(error: &anyhow::Error) -> bool {
+    error.downcast_ref::<UsageError>().is_some()
+}
+
+/// A [`UsageError`] with `message`, as the commands return it.
+fn usage(message: impl std::fmt::Display) -> anyhow::Error {
+    anyhow::Error::new(UsageError(message.to_string()))
+}
