@@ -70,7 +70,7 @@ fn main() -> ExitCode {
         force: args.force,
         write_demos: args.write_demos,
     };
-    match commands::office::run(&request) {
+    match commands::office::run(request) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("office: error: {e:#}");

@@ -326,13 +326,13 @@ fn main() -> ExitCode {
 fn try_main(cli: Cli) -> anyhow::Result<()> {
     use commands::{draw, expert, irl, logs};
     match cli.command {
-        None => irl::run(&cli.pipeline.into()),
+        None => irl::run(cli.pipeline.into()),
         Some(Command::Replay {
             file,
             verify,
             allow_partial,
         }) => logs::replay(&file, verify, allow_partial),
-        Some(Command::Render(a)) => logs::render(&RenderRequest {
+        Some(Command::Render(a)) => logs::render(RenderRequest {
             file: a.file,
             episode: a.episode,
             out: a.out,
@@ -341,7 +341,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             allow_partial: a.allow_partial,
             poses: a.poses,
         }),
-        Some(Command::LearnRm(a)) => logs::learn_rm(&LearnRmRequest {
+        Some(Command::LearnRm(a)) => logs::learn_rm(LearnRmRequest {
             files: a.files,
             out: a.out,
             force: a.force,
@@ -374,8 +374,8 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             train_log_every: a.train_log_every,
             quiet: a.quiet,
         }),
-        Some(Command::Prepare(a)) => irl::prepare(&a.into()),
-        Some(Command::Job(a)) => irl::job(&JobRequest {
+        Some(Command::Prepare(a)) => irl::prepare(a.into()),
+        Some(Command::Job(a)) => irl::job(JobRequest {
             run: a.run,
             index: a.index,
             algo: a.algo,
@@ -383,7 +383,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             quiet: a.quiet,
         }),
         Some(Command::Aggregate(a)) => irl::aggregate(&a.dir, a.partial),
-        Some(Command::Draw(a)) => draw::run(&DrawRequest {
+        Some(Command::Draw(a)) => draw::run(DrawRequest {
             algo: a.algo,
             target: a.target,
             config: a.config,

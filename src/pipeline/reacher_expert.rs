@@ -273,11 +273,6 @@ pub fn expert_cache_path(cache_dir: &Path, task: ReacherTask) -> PathBuf {
     cache_dir.join(format!("expert_{}.policy", task.name()))
 }
 
-/// The training checkpoint of `task`'s expert in `dir`.
-pub fn expert_checkpoint_path(dir: &Path, task: ReacherTask) -> PathBuf {
-    dir.join(format!("expert_{}.ckpt", task.name()))
-}
-
 /// The product environment with a shared flag telling whether its last episode reached the
 /// machine's goal (the training loop only sees [`EpisodeSummary`]s, whose shaped rewards
 /// cannot tell success from failure).
@@ -392,20 +387,6 @@ pub struct EvalSummary {
     pub branches: Option<BranchTally>,
 }
 
-impl Demo {
-    /// The cancel event fired during the episode.
-    pub fn cancelled(&self) -> bool {
-        self.steps.iter().any(|s| s.labels.contains(CANCEL_BIT))
-    }
-
-    /// The branch the episode took, from the perfect machine's states along it.
-    pub fn branch(&self, branches: &CancelBranch) -> Branch {
-        branches.of_states(
-            std::iter::once(self.initial_rm_state).chain(self.steps.iter().map(|s| s.rm_state)),
-        )
-    }
-}
-
 /// Episodes and successes per branch of `demos` (`None` for a task without branches).
 pub fn branch_tally(task: ReacherTask, demos: &[Demo]) -> Result<Option<BranchTally>, ExpertError> {
     let rm = task.perfect_rm().map_err(|e| ExpertError::Task {
@@ -488,6 +469,18 @@ impl Demo {
     /// The label trace (one label set per step).
     pub fn labels(&self) -> Vec<LabelSet> {
         self.steps.iter().map(|s| s.labels).collect()
+    }
+
+    /// The cancel event fired during the episode.
+    pub fn cancelled(&self) -> bool {
+        self.steps.iter().any(|s| s.labels.contains(CANCEL_BIT))
+    }
+
+    /// The branch the episode took, from the perfect machine's states along it.
+    pub fn branch(&self, branches: &CancelBranch) -> Branch {
+        branches.of_states(
+            std::iter::once(self.initial_rm_state).chain(self.steps.iter().map(|s| s.rm_state)),
+        )
     }
 }
 

@@ -29,7 +29,7 @@ pub struct DrawRequest {
 
 /// `reacher draw`: runs the baseline, writes the run directory and prints the first and last
 /// KL estimates.
-pub fn run(args: &DrawRequest) -> Result<()> {
+pub fn run(args: DrawRequest) -> Result<()> {
     let mut config = match (&args.config, args.quick) {
         (Some(path), _) => DrawConfig::load(path).map_err(usage)?,
         (None, true) => DrawConfig::quick(),

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// The arguments of `reacher --task` and `reacher prepare`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct IrlRequest {
     /// The task; `None` is refused (nothing to do).
     pub task: Option<ReacherTask>,
@@ -168,8 +168,8 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
 /// `reacher prepare`: writes `<out>.partial`, renamed to `<out>` when complete, and prints the
 /// number of jobs. A directory already prepared for the same plan and config is left as it is
 /// (so a resubmitted sweep does not redo it); any other existing `<out>` is refused.
-pub fn prepare(args: &IrlRequest) -> Result<()> {
-    let Some(request) = request(args)? else {
+pub fn prepare(args: IrlRequest) -> Result<()> {
+    let Some(request) = request(&args)? else {
         return Ok(());
     };
     let out = &request.out;
@@ -223,7 +223,7 @@ pub fn prepare(args: &IrlRequest) -> Result<()> {
 
 /// `reacher job`: runs one job of a prepared run (a finished job is not rerun) and prints its
 /// final success rate.
-pub fn job(args: &JobRequest) -> Result<()> {
+pub fn job(args: JobRequest) -> Result<()> {
     let run: PreparedRun = open_run(&args.run).map_err(pipeline_error)?;
     let (algo, seed) = match (args.index, args.algo, args.seed) {
         (Some(i), _, _) => run.job_at(i),
@@ -285,8 +285,8 @@ pub fn aggregate(dir: &Path, partial: bool) -> Result<()> {
 /// `reacher --task`: the whole IRL pipeline in this process, with progress bars (unless
 /// `quiet`); prints the summary table. On a failure while running, the incomplete output is
 /// left in `<out>.partial`.
-pub fn run(args: &IrlRequest) -> Result<()> {
-    let Some(request) = request(args)? else {
+pub fn run(args: IrlRequest) -> Result<()> {
+    let Some(request) = request(&args)? else {
         return Ok(());
     };
     let (task, out) = (request.task, request.out.clone());

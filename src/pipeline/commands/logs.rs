@@ -77,7 +77,7 @@ pub struct RenderRequest {
 }
 
 /// `reacher render`: draws one logged episode top-down as PNG and prints what it shows.
-pub fn render(args: &RenderRequest) -> Result<()> {
+pub fn render(args: RenderRequest) -> Result<()> {
     check_file(&args.out, args.force).map_err(usage)?;
     let log = read_log(&args.file)?;
     check_partial(&log, args.allow_partial)?;
@@ -147,7 +147,7 @@ pub struct LearnRmRequest {
 
 /// `reacher learn-rm`: learns a reward machine from the label traces of rollout logs, writes
 /// it as text and DOT, and compares it with a reference machine if one is given.
-pub fn learn_rm(args: &LearnRmRequest) -> Result<()> {
+pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
     let cfg = LrmConfig {
         max_states: args.max_states,
         max_steps: args.steps,

@@ -43,8 +43,8 @@ pub struct OfficeRequest {
 
 /// `office`: checks the request (bad input is a usage error, before anything is written),
 /// runs every (algorithm, seed), reporting progress on stderr, and writes the results.
-pub fn run(args: &OfficeRequest) -> Result<()> {
-    let plan = plan(args).map_err(|e| usage(format!("{e:#}")))?;
+pub fn run(args: OfficeRequest) -> Result<()> {
+    let plan = plan(&args).map_err(|e| usage(format!("{e:#}")))?;
     execute(&plan)
 }
 

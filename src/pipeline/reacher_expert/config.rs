@@ -24,7 +24,8 @@ pub struct ExpertConfig {
     pub total_steps: u64,
     /// A checkpoint is taken at the first episode boundary after every this many steps.
     pub checkpoint_every: u64,
-    /// Deterministic (mean-action) evaluation episodes after training.
+    /// Evaluation episodes after training: the training loop's mean-action evaluation, and
+    /// `reacher expert`'s stochastic and mean-action evaluations on the unshaped task.
     pub eval_episodes: u64,
     /// Step limit of an evaluation episode (the environment's own limit normally ends it).
     pub eval_max_steps: u64,
