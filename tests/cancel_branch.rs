@@ -10,7 +10,7 @@ use smirl::env::ContinuousEnv;
 use smirl::pipeline::reacher_expert::{
     committed_expert, evaluate_expert, ExpertConfig, ExpertPolicy,
 };
-use smirl::pipeline::reacher_irl::job::stratified_eval_seeds;
+use smirl::pipeline::reacher_irl::evaluation::stratified_eval_seeds;
 use smirl::pipeline::reacher_irl::IrlRunConfig;
 use smirl::rl::sac::{episode_seed, ActMode};
 use smirl::rm::LabelSet;

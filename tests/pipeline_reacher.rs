@@ -11,8 +11,7 @@ use smirl::irl::smirl::{AnnotatedTrajectories, FeatureMap, LinearRmReward, Smirl
 mod smirl_reference;
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{
-    irl_coefficients, reward_lr, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData,
-    IrlRunConfig, RunRequest,
+    reward_lr, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData, IrlRunConfig, RunRequest,
 };
 use smirl_reference::maxent_gradient;
 use std::path::Path;
@@ -49,16 +48,11 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     for b in [Some(1), Some(0), None] {
         agent.obs.extend(row(b));
     }
-    let c = irl_coefficients(
-        Algo::Smirl,
+    let c = smirl::pipeline::reacher_irl::smirl::coefficients(
         &expert,
-        None,
         &agent,
-        0.02,
         SmirlNormalisation::Trajectories,
-        None,
-    )
-    .unwrap();
+    );
     let mut model = LinearRmReward::new(
         FeatureMap::reacher_labels(),
         2,
@@ -415,7 +409,7 @@ fn sac_table_defaults_to_the_irl_run_sac() {
 #[test]
 fn annotate_holds_the_final_state_to_the_horizon() {
     use smirl::pipeline::reacher_expert::{Demo, DemoStep};
-    use smirl::pipeline::reacher_irl::run::annotate;
+    use smirl::pipeline::reacher_irl::smirl::annotate;
     use smirl::rm::{Formula, RewardMachine, Transition, Vocabulary};
     let vocab = Vocabulary::new("rgbyc");
     let tr = |from, to, f: &str| Transition {
@@ -487,8 +481,8 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     assert_eq!(full.lengths, vec![3]);
 }
 
-/// The reward learning-rate schedule lr · k^(−p): SMIRL's base rate for SMIRL, the reward
-/// net's for the baselines, constant for p = 0.
+/// The reward learning-rate schedule lr · k^(−p) of a base rate (SMIRL's or the reward
+/// net's), constant for p = 0.
 #[test]
 fn reward_learning_rate_decays_as_a_power_of_the_iteration() {
     let mut c = IrlRunConfig::standard();
@@ -496,13 +490,13 @@ fn reward_learning_rate_decays_as_a_power_of_the_iteration() {
     c.mlp_reward_lr = 0.001;
     c.reward_lr_decay = 0.0;
     for k in [1, 2, 20] {
-        assert_eq!(reward_lr(Algo::Smirl, &c, k), 0.1);
-        assert_eq!(reward_lr(Algo::Fkl, &c, k), 0.001);
+        assert_eq!(reward_lr(c.smirl_reward_lr, &c, k), 0.1);
+        assert_eq!(reward_lr(c.mlp_reward_lr, &c, k), 0.001);
     }
     c.reward_lr_decay = 0.5;
-    assert_eq!(reward_lr(Algo::SmirlSmooth, &c, 1), 0.1);
-    assert!((reward_lr(Algo::Smirl, &c, 4) - 0.05).abs() < 1e-7);
-    assert!((reward_lr(Algo::MaxEnt, &c, 16) - 0.00025).abs() < 1e-9);
+    assert_eq!(reward_lr(c.smirl_reward_lr, &c, 1), 0.1);
+    assert!((reward_lr(c.smirl_reward_lr, &c, 4) - 0.05).abs() < 1e-7);
+    assert!((reward_lr(c.mlp_reward_lr, &c, 16) - 0.00025).abs() < 1e-9);
     c.reward_lr_decay = -0.5;
     assert!(c.validate("test").is_err());
 }

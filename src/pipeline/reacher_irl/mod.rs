@@ -5,31 +5,36 @@
 //! Phases of a run ([`run::run_pipeline`]):
 //! 1. **Demonstrations** ([`demos`]): the task's cached SAC expert (the paper) or the scripted
 //!    controller; episodes end at the task's goal. Failed demonstrations are dropped.
-//! 2. **Reward machine** (SMIRL only): LRM's Tabu search on the demos' label traces, without
-//!    rewards (`reward_weight` 0, no merging: rewards are what IRL learns), then every expert
-//!    observation o_t is annotated with the learned state u_{t−1} its labels are read in. The
-//!    run reports the learned machine's size and whether it refines the perfect one along the
-//!    demos (`rm::equiv::refines`).
-//! 3. **IRL** ([`job`]): one loop shared by every algorithm, one job per (algorithm, seed) on
-//!    a pool of worker threads. Baselines act on the plain 17-dim observation and learn a
-//!    (64, 64) reward net on the fingertip (clamped ±10); SMIRL acts on ReacherDelivery ×
-//!    learned RM (observation ⊕ one-hot learned state) with δ_r(u, o) = w_uᵀ φ(o).
-//!    `smirl` uses the paper's φ = labels; `smirl-smooth` the documented smooth variant
-//!    φ_k = exp(−d_k²/2σ²) — reported as a separate algorithm, never in place of `smirl`.
+//! 2. **Reward machine** (SMIRL only, [`smirl::learn_machine`], [`smirl::annotate`]): LRM's
+//!    Tabu search on the demos' label traces, without rewards, then every expert observation
+//!    o_t is annotated with the learned state u_{t−1} its labels are read in. The run reports
+//!    the learned machine's size and whether it refines the perfect one along the demos
+//!    (`rm::equiv::refines`).
+//! 3. **IRL**: one job per (algorithm, seed) ([`job::run_job`]) on a pool of worker threads,
+//!    each algorithm's loop in one file — [`smirl::train`] (SAC on ReacherDelivery × learned
+//!    RM, δ_r(u, o) = w_uᵀ φ(o); `smirl` uses the paper's φ = labels, `smirl-smooth` the
+//!    documented smooth variant φ_k = exp(−d_k²/2σ²), reported as a separate algorithm, never
+//!    in place of `smirl`) and [`firl::train`] (continuous MaxEnt and f-IRL fkl/rkl/js: SAC on
+//!    the plain 17-dim observation, a (64, 64) reward net on the fingertip clamped ±10). What
+//!    every loop shares is in [`episodes`] (the environment, an episode, the SAC phase, the
+//!    rollouts); [`evaluation`] watches each job from outside (ground truth after every
+//!    iteration, logs, progress).
 //! 4. **Reports** ([`run`]): metrics CSV, mean ± std plots over seeds, learned RM (text +
 //!    DOT), reward parameters, MCAP logs, a summary table. Everything is written into
 //!    `<out>.partial` and renamed to `<out>` at the end.
 
 pub mod config;
 pub mod demos;
+pub mod episodes;
+pub mod evaluation;
+pub mod firl;
 pub mod job;
 pub mod run;
+pub mod smirl;
 
 pub use config::{DemoPadding, DemoSource, IrlConfigError, IrlRunConfig};
-pub use job::{
-    irl_coefficients, reward_lr, run_job, AgentBatch, Coefficients, ExpertData, JobResult,
-    MetricsRow,
-};
+pub use episodes::AgentBatch;
+pub use job::{reward_lr, run_job, Coefficients, ExpertData, JobResult, MetricsRow};
 pub use run::{run_pipeline, PipelineError, RunObserver, RunRequest, RunSummary};
 
 use crate::irl::firl::Divergence;

@@ -23,11 +23,11 @@
 use super::config::{DemoPadding, DemoSource, IrlRunConfig};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
+use super::smirl::{annotate, learn_machine};
 use super::Algo;
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::{EVENTS, OBS_CANCEL, VOCABULARY};
+use crate::env::reacher::{EVENTS, VOCABULARY};
 use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
-use crate::irl::smirl::FeatureMap;
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
 use crate::output::OutputDir;
 use crate::pipeline::reacher_expert::Demo;
@@ -37,8 +37,7 @@ use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
 use crate::rm::format::parse_rm;
 use crate::rm::format::write_rm;
-use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
-use crate::rm::{LabelSet, RewardMachine, Vocabulary};
+use crate::rm::{LabelSet, RewardMachine};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -139,86 +138,6 @@ fn mean_std(xs: &[f64]) -> (f64, f64) {
 
 /// Most seeds per algorithm in one run (each is a job of minutes to hours).
 pub const MAX_SEEDS: u64 = 1_000;
-
-/// Observation columns of the two joint velocities (see `env::reacher`).
-const OBS_JOINT_VEL: [usize; 2] = [4, 5];
-
-/// Annotates every demonstration observation with the learned machine's state before the
-/// step (the state its labels are read in). With `hold_to` = Some(T), a demonstration shorter
-/// than T is extended to T steps by holding its final state: the last observation with zero
-/// joint velocities and no cancel event, its labels recomputed by the labelling rule, the
-/// learned machine stepped on them as on any other step. (The demonstrator has finished the
-/// task; staying put is what it does in the goal, and MaxEnt IRL and f-IRL compare expert
-/// and agent over one fixed horizon T.)
-pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usize>) -> ExpertData {
-    let labelling = FeatureMap::reacher_labels();
-    let mut data = ExpertData {
-        obs: Vec::new(),
-        lengths: Vec::new(),
-        learned_states: Vec::new(),
-    };
-    for d in demos {
-        let mut u = rm.map(|m| m.initial());
-        let mut push = |data: &mut ExpertData, obs: &[f32], labels: LabelSet| {
-            data.obs.extend_from_slice(obs);
-            if let (Some(m), Some(state)) = (rm, u) {
-                data.learned_states.push(state as u32);
-                u = Some(m.next_state(state, labels));
-            }
-        };
-        for s in &d.steps {
-            push(&mut data, &s.next_obs, s.labels);
-        }
-        let mut len = d.steps.len();
-        if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
-            let mut held = last.next_obs;
-            held[OBS_JOINT_VEL[0]] = 0.0;
-            held[OBS_JOINT_VEL[1]] = 0.0;
-            held[OBS_CANCEL] = 0.0;
-            let labels = labelling.labels_of(&held);
-            while len < horizon {
-                push(&mut data, &held, labels);
-                len += 1;
-            }
-        }
-        data.lengths.push(len);
-    }
-    data
-}
-
-/// Learns the machine from the demos' label traces (no rewards).
-pub fn learn_machine(
-    demos: &[Demo],
-    config: &IrlRunConfig,
-    seed: u64,
-) -> Result<(RewardMachine, f64, f64), String> {
-    let vocab = Vocabulary::new(VOCABULARY);
-    let traces: Vec<LabelTrace> = demos
-        .iter()
-        .map(|d| LabelTrace {
-            labels: d.labels(),
-            rewards: None,
-        })
-        .collect();
-    let cfg = LrmConfig {
-        max_states: config.lrm_max_states,
-        tabu_len: config.lrm_tabu_len,
-        max_steps: config.lrm_steps,
-        seed,
-        threads: config.threads,
-        // Merging joins states by observed rewards; demos carry none (rewards are what IRL
-        // learns), so merging would collapse the machine to one state.
-        merge: false,
-        fill_unobserved: false,
-        reward_weight: 0.0,
-        guards: config.lrm_guards,
-        events: EVENTS,
-        // Restarts, split moves and patience keep the learner's defaults.
-        ..LrmConfig::default()
-    };
-    let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
-    Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
-}
 
 fn io(path: &Path, e: impl std::fmt::Display) -> PipelineError {
     PipelineError::Run(format!("{}: {e}", path.display()))

@@ -1,0 +1,292 @@
+//! What watches an IRL job without steering it ([`JobWatch`]): the ground-truth evaluation of
+//! the policy after every iteration (the rows of `metrics.csv`), how much of the agent's sample
+//! lies where the expert's density is non-zero, the MCAP log of the job's episodes, and
+//! progress reports. The algorithms call it at fixed points of their loops; nothing it
+//! computes flows back into training (its episodes use their own random streams and reset
+//! seeds).
+
+use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
+use super::job::{JobProgress, MetricsRow};
+use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
+use crate::env::reacher_task::BranchTally;
+use crate::env::ContinuousEnv;
+use crate::irl::kde::Kde;
+use crate::log::RolloutLogger;
+use crate::rl::sac::{episode_seed, ActMode, SacAgent};
+use crate::rm::RewardMachine;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+/// One ground-truth evaluation.
+#[derive(Clone, Copy, Debug)]
+pub struct Evaluation {
+    /// Fraction of successful episodes; for a conditional task the lower branch rate.
+    pub success_rate: f64,
+    pub progress: f64,
+    pub final_ball: f64,
+    pub branches: Option<BranchTally>,
+    pub task_return: f64,
+    pub env_return: f64,
+}
+
+/// Reset seeds of a conditional task's evaluation: the first `per_branch` seeds of the
+/// `eval_seed` stream whose reset schedules a cancel event and the first `per_branch` that
+/// schedule none, in stream order. (The branch an episode takes is read from its trace
+/// afterwards; with the default window (steps 1–8), which ends before the committed experts
+/// touch blue, a scheduled cancel almost always means the cancel branch.) A schedule that
+/// never (or always) cancels fills up with the next seeds of the stream, so there are always
+/// `2 · per_branch` seeds.
+pub fn stratified_eval_seeds(
+    env: &mut ReacherDelivery,
+    eval_seed: u64,
+    per_branch: u64,
+) -> Vec<u64> {
+    let mut obs = vec![0.0f32; OBS_DIM];
+    let target = 2 * per_branch as usize;
+    let mut counts = [0u64; 2];
+    let mut chosen = Vec::with_capacity(target);
+    let scan = 64 * per_branch;
+    for i in 0..scan {
+        let seed = episode_seed(eval_seed, i);
+        env.reset(seed, &mut obs);
+        let k = usize::from(env.cancel_step().is_some());
+        if counts[k] < per_branch {
+            counts[k] += 1;
+            chosen.push((i, seed));
+        }
+        if chosen.len() == target {
+            break;
+        }
+    }
+    let mut i = scan;
+    while chosen.len() < target {
+        chosen.push((i, episode_seed(eval_seed, i)));
+        i += 1;
+    }
+    chosen.sort_unstable();
+    chosen.into_iter().map(|(_, seed)| seed).collect()
+}
+
+/// The ground-truth judge of a job: fixed evaluation episodes (the mean action, from the same
+/// reset seeds every time, each ended once the task is decided) scored by the perfect machine.
+pub struct GroundTruth<'r> {
+    task: GroundTruthTask<'r>,
+    eval_seed: u64,
+    eval_seeds: Vec<u64>,
+}
+
+impl<'r> GroundTruth<'r> {
+    /// `eval_episodes` evaluation episodes, or for a conditional task (IF, Composite) that many
+    /// per branch (seeds stratified by the cancel schedule).
+    pub fn new(
+        perfect: &'r RewardMachine,
+        env: &mut ReacherDelivery,
+        seed: u64,
+        eval_episodes: u64,
+    ) -> GroundTruth<'r> {
+        let task = GroundTruthTask::of(perfect);
+        let eval_seed = episode_seed(seed, 0xe7a1);
+        let eval_seeds = match task.branches {
+            Some(_) => stratified_eval_seeds(env, eval_seed, eval_episodes),
+            None => (0..eval_episodes)
+                .map(|i| episode_seed(eval_seed, i))
+                .collect(),
+        };
+        GroundTruth {
+            task,
+            eval_seed,
+            eval_seeds,
+        }
+    }
+
+    /// Plays the evaluation episodes with `agent`'s mean action in `env`.
+    pub fn evaluate<E: JobEnv>(
+        &self,
+        agent: &mut SacAgent,
+        env: &mut E,
+        mut logger: Option<&mut RolloutLogger>,
+    ) -> Result<Evaluation, String> {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.eval_seed);
+        let (mut succ, mut ret, mut env_ret) = (0.0, 0.0, 0.0);
+        let (mut progress, mut final_ball) = (0.0, 0.0);
+        let mut tally = BranchTally::default();
+        for &reset_seed in &self.eval_seeds {
+            let spec = EpisodeSpec {
+                mode: ActMode::Mean,
+                reset_seed,
+                stop_when_decided: true,
+                with_branch: true,
+                phase: "eval",
+            };
+            let o = play_episode(
+                agent,
+                env,
+                &self.task,
+                spec,
+                &mut rng,
+                logger.as_deref_mut(),
+                |_, _| {},
+            )?;
+            succ += f64::from(u8::from(o.success));
+            progress += o.progress;
+            final_ball += f64::from(u8::from(o.final_ball));
+            ret += o.task_return;
+            env_ret += o.env_return;
+            if let Some(b) = o.branch {
+                tally.add(b, o.success);
+            }
+        }
+        let n = self.eval_seeds.len() as f64;
+        let branches = self.task.branches.as_ref().map(|_| tally);
+        Ok(Evaluation {
+            success_rate: branches.and_then(|t| t.worst_rate()).unwrap_or(succ / n),
+            progress: progress / n,
+            final_ball: final_ball / n,
+            branches,
+            task_return: ret / n,
+            env_return: env_ret / n,
+        })
+    }
+}
+
+/// What an iteration's reward update reports, for the metrics row.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct UpdateFacts {
+    /// Mean learned reward per step of this iteration's agent rollouts (before the update).
+    pub learned_reward: f64,
+    /// The algorithm's surrogate loss Σ c_i r(o_i) before the update.
+    pub surrogate_loss: f64,
+}
+
+impl UpdateFacts {
+    /// From the rewards `r` of the update's rows (the agent's `n_agent` rows first) and their
+    /// loss coefficients.
+    pub fn of(r: &[f32], coeffs: &[f64], n_agent: usize) -> UpdateFacts {
+        UpdateFacts {
+            learned_reward: r[..n_agent].iter().map(|&x| f64::from(x)).sum::<f64>()
+                / n_agent as f64,
+            surrogate_loss: r.iter().zip(coeffs).map(|(&r, c)| f64::from(r) * c).sum(),
+        }
+    }
+}
+
+/// Everything that watches one job: see the module docs.
+pub struct JobWatch<'r, 'l> {
+    ground_truth: GroundTruth<'r>,
+    perfect: &'r RewardMachine,
+    /// The expert's fingertip KDE, to measure how much of the agent's sample it covers.
+    expert_kde: Kde,
+    logger: Option<&'l mut RolloutLogger>,
+    progress: &'l (dyn Fn(JobProgress) + Sync),
+    iterations: usize,
+    total_env_steps: u64,
+    /// `expert_support` of the last rollouts, for the next row.
+    expert_support: Option<f64>,
+    rows: Vec<MetricsRow>,
+}
+
+impl<'r, 'l> JobWatch<'r, 'l> {
+    pub fn new(
+        ground_truth: GroundTruth<'r>,
+        perfect: &'r RewardMachine,
+        expert_kde: Kde,
+        logger: Option<&'l mut RolloutLogger>,
+        progress: &'l (dyn Fn(JobProgress) + Sync),
+        iterations: usize,
+        total_env_steps: u64,
+    ) -> JobWatch<'r, 'l> {
+        JobWatch {
+            ground_truth,
+            perfect,
+            expert_kde,
+            logger,
+            progress,
+            iterations,
+            total_env_steps,
+            expert_support: None,
+            rows: Vec::with_capacity(iterations + 1),
+        }
+    }
+
+    /// The task's perfect machine (logged episodes track it).
+    pub fn perfect(&self) -> &'r RewardMachine {
+        self.perfect
+    }
+
+    /// The job's rollout log, if it keeps one.
+    pub fn logger(&mut self) -> Option<&mut RolloutLogger> {
+        self.logger.as_deref_mut()
+    }
+
+    /// SAC has taken `env_steps` environment steps in all, during `iteration`.
+    pub fn sac_progress(&self, iteration: usize, env_steps: u64) {
+        (self.progress)(JobProgress {
+            iteration: iteration - 1,
+            iterations: self.iterations,
+            env_steps,
+            total_env_steps: self.total_env_steps,
+            success_rate: self.rows.last().map_or(0.0, |r| r.success_rate),
+        });
+    }
+
+    /// The agent's rollouts of this iteration: the share of their fingertip states inside the
+    /// support of the expert's Epanechnikov KDE (within the bandwidth of some demonstration
+    /// state), where f-IRL's density ratio can be anything but 0.
+    pub fn rollouts(&mut self, batch: &AgentBatch) -> Result<(), String> {
+        let inside = self
+            .expert_kde
+            .density_columns(&batch.obs, OBS_DIM, &OBS_TIP)
+            .map_err(|e| format!("expert KDE: {e}"))?
+            .iter()
+            .filter(|&&d| d > 0.0)
+            .count();
+        self.expert_support = Some(inside as f64 / batch.n_states().max(1) as f64);
+        Ok(())
+    }
+
+    /// End of `iteration` (0: before any training): evaluates the policy on the ground truth
+    /// and records the metrics row. `update` is `None` before the first reward update.
+    pub fn iteration_done<E: JobEnv>(
+        &mut self,
+        iteration: usize,
+        env_steps: u64,
+        agent: &mut SacAgent,
+        env: &mut E,
+        update: Option<UpdateFacts>,
+    ) -> Result<(), String> {
+        // The untrained policy's evaluation is not logged.
+        let logger = if iteration == 0 {
+            None
+        } else {
+            self.logger.as_deref_mut()
+        };
+        let ev = self.ground_truth.evaluate(agent, env, logger)?;
+        let facts = update.unwrap_or_default();
+        self.rows.push(MetricsRow {
+            iteration,
+            env_steps,
+            success_rate: ev.success_rate,
+            branches: ev.branches,
+            task_return: ev.task_return,
+            env_return: ev.env_return,
+            learned_reward: facts.learned_reward,
+            surrogate_loss: facts.surrogate_loss,
+            progress: Some(ev.progress),
+            final_ball: Some(ev.final_ball),
+            expert_support: self.expert_support.take(),
+        });
+        (self.progress)(JobProgress {
+            iteration,
+            iterations: self.iterations,
+            env_steps,
+            total_env_steps: self.total_env_steps,
+            success_rate: ev.success_rate,
+        });
+        Ok(())
+    }
+
+    /// The metrics rows, iteration 0 first.
+    pub fn into_rows(self) -> Vec<MetricsRow> {
+        self.rows
+    }
+}

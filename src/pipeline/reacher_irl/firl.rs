@@ -1,0 +1,261 @@
+//! The baselines on ReacherDelivery, as f-IRL's code runs them (Ni et al. 2020; the SMIRL
+//! paper used that code for both): f-IRL with forward KL, reverse KL or Jensen–Shannon, and
+//! continuous MaxEnt IRL, which shares f-IRL's loop and differs only in its loss.
+//!
+//! The reward is a (64, 64) MLP of the fingertip position, clamped to ±10. Per iteration
+//! ([`train`]):
+//! 1. SAC on the plain ReacherDelivery with the current reward r(o_{t+1}), recomputed when a
+//!    batch is sampled (the same agent and replay buffer throughout);
+//! 2. fresh rollouts of the stochastic policy (N trajectories of the fixed length T);
+//! 3. the loss coefficients ([`coefficients`]): for f-IRL the covariance surrogate
+//!    Cov_i(Σ_t h_f(ρ_E/ρ_θ), Σ_t r)/T, the density ratio from an Epanechnikov KDE of the
+//!    agent's fingertip states against the expert's (or from a classifier,
+//!    `firl_density_ratio = "discriminator"`); for MaxEnt T·(mean r over agent states − mean r
+//!    over expert states);
+//! 4. reward steps (Adam).
+//!
+//! Ground-truth evaluation, logging and progress watch the loop from outside ([`JobWatch`]).
+
+use super::config::IrlRunConfig;
+use super::episodes::{train_sac, AgentBatch, RolloutStream};
+use super::evaluation::{JobWatch, UpdateFacts};
+use super::job::{reward_lr, Coefficients, ExpertData};
+use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
+use crate::env::ContinuousEnv;
+use crate::irl::discriminator::{Discriminator, DiscriminatorConfig};
+use crate::irl::firl::{
+    DensityRatio, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS,
+};
+use crate::irl::kde::Kde;
+use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel};
+use crate::rl::replay::ReplayBatch;
+use crate::rl::sac::{episode_seed, RewardFn, SacTrainer};
+use std::path::Path;
+
+/// Which baseline.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Loss {
+    /// f-IRL with this f-divergence.
+    FDivergence(Divergence),
+    /// Continuous MaxEnt IRL.
+    MaxEnt,
+}
+
+/// Where f-IRL's density ratio comes from, kept across iterations.
+pub enum Ratio<'a> {
+    /// The expert's KDE (fitted once) against a KDE of each iteration's agent states.
+    Kde { expert: &'a Kde, bandwidth: f64 },
+    /// A classifier of expert vs agent fingertip states, trained further every iteration.
+    Discriminator(Box<Discriminator>),
+}
+
+/// Step 3: the rows and loss coefficients of one reward update (see the module docs). f-IRL:
+/// one coefficient per agent row; MaxEnt: agent rows then expert rows.
+pub fn coefficients(
+    loss: Loss,
+    expert: &ExpertData,
+    agent: &AgentBatch,
+    ratio: Option<&mut Ratio<'_>>,
+) -> Result<Coefficients, String> {
+    let n_agent = agent.lengths.iter().sum::<usize>();
+    if agent.lengths.is_empty() || n_agent == 0 {
+        return Err("no agent trajectories".into());
+    }
+    let horizon = agent.lengths[0];
+    match loss {
+        Loss::FDivergence(div) => {
+            if agent.lengths.iter().any(|&l| l != horizon) {
+                return Err("f-IRL needs agent trajectories of one fixed length".into());
+            }
+            let n_traj = agent.lengths.len();
+            let surrogate = match ratio.ok_or("f-IRL needs a density ratio")? {
+                Ratio::Discriminator(d) => {
+                    d.train(&expert.obs, &agent.obs, OBS_DIM)
+                        .map_err(|e| format!("discriminator: {e}"))?;
+                    let ratios: Vec<f64> = d
+                        .log_ratio(&agent.obs, OBS_DIM)
+                        .map_err(|e| format!("discriminator: {e}"))?
+                        .into_iter()
+                        .map(f64::exp)
+                        .collect();
+                    FirlSurrogate::new(div, &ratios, n_traj, horizon)
+                }
+                Ratio::Kde {
+                    expert: kde_e,
+                    bandwidth,
+                } => {
+                    let kde_a = Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, *bandwidth)
+                        .map_err(|e| e.to_string())?;
+                    FirlSurrogate::from_kde(
+                        div,
+                        kde_e,
+                        &kde_a,
+                        &agent.obs,
+                        OBS_DIM,
+                        &OBS_TIP,
+                        n_traj,
+                        horizon,
+                        DEFAULT_DENSITY_EPS,
+                    )
+                }
+            }
+            .map_err(|e| e.to_string())?;
+            Ok(Coefficients {
+                obs: agent.obs.clone(),
+                states: Vec::new(),
+                coeffs: surrogate.coefficients,
+            })
+        }
+        Loss::MaxEnt => {
+            let n_expert = expert.n_states();
+            let c =
+                MaxEntCoefficients::new(n_agent, n_expert, horizon).map_err(|e| e.to_string())?;
+            let mut coeffs = vec![c.agent; n_agent];
+            coeffs.extend(std::iter::repeat(c.expert).take(n_expert));
+            Ok(Coefficients {
+                obs: [agent.obs.as_slice(), &expert.obs].concat(),
+                states: Vec::new(),
+                coeffs,
+            })
+        }
+    }
+}
+
+/// The baselines' reward model: the paper's (64, 64) MLP on the fingertip, clamped to ±10.
+pub fn reward_model(settings: &IrlRunConfig, seed: u64) -> Result<MlpReward, RewardError> {
+    let mut cfg = MlpRewardConfig::paper(OBS_TIP.to_vec(), settings.mlp_reward_lr, seed);
+    cfg.optim.l2 = settings.mlp_reward_l2;
+    MlpReward::new(cfg, OBS_DIM)
+}
+
+/// The saved reward of a baseline job (`rewards/<algo>_seed<k>.bin`) at fingertip positions
+/// (x, y).
+pub fn baseline_reward_at(path: &Path, points: &[[f64; 2]]) -> Result<Vec<f32>, RewardError> {
+    let mut model = MlpReward::new(MlpRewardConfig::paper(OBS_TIP.to_vec(), 1e-3, 0), OBS_DIM)?;
+    model.load(path)?;
+    let mut obs = vec![0.0f32; points.len() * OBS_DIM];
+    for (row, p) in obs.chunks_exact_mut(OBS_DIM).zip(points) {
+        row[OBS_TIP[0]] = p[0] as f32;
+        row[OBS_TIP[1]] = p[1] as f32;
+    }
+    let mut r = vec![0.0f32; points.len()];
+    model.reward_batch(&obs, &[], &mut r)?;
+    Ok(r)
+}
+
+/// SAC's reward: r(o_{t+1}) of every sampled transition, computed when the batch is sampled
+/// so that old transitions follow the reward being optimised now.
+struct StateReward<'a> {
+    model: &'a mut MlpReward,
+    obs: Vec<f32>,
+    error: Option<RewardError>,
+}
+
+impl RewardFn for StateReward<'_> {
+    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) {
+        let d = batch.obs.nrows();
+        self.obs.clear();
+        for next in batch.next_obs.as_slice().chunks_exact(d) {
+            self.obs.extend_from_slice(&next[..OBS_DIM]);
+        }
+        if let Err(e) = self.model.reward_batch(&self.obs, &[], out) {
+            out.fill(0.0);
+            self.error.get_or_insert(e);
+        }
+    }
+}
+
+/// One baseline job.
+pub struct BaselineJob<'a> {
+    pub loss: Loss,
+    pub seed: u64,
+    pub settings: &'a IrlRunConfig,
+    pub expert: &'a ExpertData,
+    /// Where the learned reward is saved at the end.
+    pub reward_path: Option<&'a Path>,
+}
+
+/// f-IRL's loop (see the module docs).
+pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<(), String> {
+    let s = job.settings;
+    let mut env = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let mut reward = reward_model(s, job.seed).map_err(|e| e.to_string())?;
+    // f-IRL's ρ_E/ρ_θ: the expert's fingertip KDE, or a classifier on its own random stream.
+    let expert_kde = Kde::fit_columns(&job.expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
+        .map_err(|e| format!("expert KDE: {e}"))?;
+    let mut ratio = match (job.loss, s.firl_density_ratio) {
+        (Loss::MaxEnt, _) => None,
+        (Loss::FDivergence(_), DensityRatio::Kde) => Some(Ratio::Kde {
+            expert: &expert_kde,
+            bandwidth: s.kde_bandwidth,
+        }),
+        (Loss::FDivergence(_), DensityRatio::Discriminator) => {
+            Some(Ratio::Discriminator(Box::new(
+                Discriminator::new(
+                    DiscriminatorConfig::firl(),
+                    &OBS_TIP,
+                    episode_seed(job.seed, 0xd15c),
+                )
+                .map_err(|e| e.to_string())?,
+            )))
+        }
+    };
+    let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)
+        .map_err(|e| e.to_string())?;
+    let mut rollouts = RolloutStream::new(job.seed);
+
+    watch.iteration_done(0, 0, &mut sac.agent, &mut env, None)?;
+    for iteration in 1..=s.irl_iterations {
+        // 1. SAC on the current reward.
+        let mut sac_reward = StateReward {
+            model: &mut reward,
+            obs: Vec::new(),
+            error: None,
+        };
+        train_sac(
+            &mut sac,
+            &mut env,
+            &mut sac_reward,
+            s.sac_steps_per_iteration,
+            iteration,
+            watch,
+        )?;
+        if let Some(e) = sac_reward.error {
+            return Err(format!("learned reward: {e}"));
+        }
+
+        // 2. Rollouts of the stochastic policy.
+        let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
+        watch.rollouts(&batch)?;
+
+        // 3. The loss coefficients.
+        let c = coefficients(job.loss, job.expert, &batch, ratio.as_mut())?;
+
+        // 4. Reward steps, at lr · k^(−reward_lr_decay).
+        let mut r = vec![0.0f32; c.coeffs.len()];
+        reward
+            .reward_batch(&c.obs, &c.states, &mut r)
+            .map_err(|e| e.to_string())?;
+        let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
+        reward.set_lr(reward_lr(s.mlp_reward_lr, s, iteration));
+        for _ in 0..s.reward_steps_per_iteration.max(1) {
+            reward
+                .update(&c.obs, &c.states, &c.coeffs)
+                .map_err(|e| format!("reward update: {e}"))?;
+        }
+
+        watch.iteration_done(
+            iteration,
+            sac.env_steps(),
+            &mut sac.agent,
+            &mut env,
+            Some(facts),
+        )?;
+    }
+    if let Some(path) = job.reward_path {
+        reward
+            .save(path)
+            .map_err(|e| format!("saving the reward: {e}"))?;
+    }
+    Ok(())
+}

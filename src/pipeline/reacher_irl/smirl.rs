@@ -1,0 +1,349 @@
+//! Continuous SMIRL on ReacherDelivery (paper section 3, Algorithm 1), the algorithm in one
+//! place:
+//!
+//! 1. **Learn the machine** ([`learn_machine`]): LRM's Tabu search on the demonstrations' label
+//!    traces, without rewards (rewards are what IRL learns).
+//! 2. **Annotate** ([`annotate`]): every expert observation o_t gets the learned state
+//!    u_{t−1} its labels are read in (demonstrations held at their final state to the
+//!    horizon, so expert and agent are compared over one T).
+//! 3. **IRL on U × O** ([`train`]), per iteration:
+//!    1. SAC on the product ReacherDelivery × learned machine (observation ⊕ one-hot u) with
+//!       the current reward δ_r(u, o) = w_uᵀ φ(o), a share of every batch moved to
+//!       counterfactual machine states (CRM);
+//!    2. fresh rollouts of the stochastic policy, each observation with its learned state;
+//!    3. feature expectations: the loss coefficients whose gradient is μ_π − μ_D per (u, o)
+//!       ([`coefficients`]);
+//!    4. reward step(s) on w (Adam, L2).
+//!
+//! Steps 1–2 run once per task in `reacher prepare` (every SMIRL job of a run shares the
+//! machine); `train` is one (variant, seed) job. Ground-truth evaluation, logging and progress
+//! watch the loop from outside ([`JobWatch`]).
+
+use super::config::IrlRunConfig;
+use super::episodes::{train_sac, AgentBatch, RolloutStream};
+use super::evaluation::{JobWatch, UpdateFacts};
+use super::job::{reward_lr, Coefficients, ExpertData, RewardTraceRow};
+use crate::env::product::ProductEnv;
+use crate::env::reacher::{ReacherDelivery, EVENTS, OBS_CANCEL, OBS_DIM, VOCABULARY};
+use crate::env::ContinuousEnv;
+use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
+use crate::irl::smirl::{
+    maxent_coefficients, maxent_coefficients_by_visits, AnnotatedTrajectories, FeatureMap,
+    LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
+};
+use crate::pipeline::reacher_expert::Demo;
+use crate::rl::crm::{hot_index, CounterfactualRm};
+use crate::rl::replay::ReplayBatch;
+use crate::rl::sac::{RewardFn, SacTrainer};
+use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
+use crate::rm::{LabelSet, RewardMachine, Vocabulary};
+use std::path::Path;
+
+/// Observation columns of the two joint velocities (see `env::reacher`).
+const OBS_JOINT_VEL: [usize; 2] = [4, 5];
+
+/// Step 1: the machine learned from the demonstrations' label traces, with its LRM cost and
+/// search time.
+pub fn learn_machine(
+    demos: &[Demo],
+    config: &IrlRunConfig,
+    seed: u64,
+) -> Result<(RewardMachine, f64, f64), String> {
+    let vocab = Vocabulary::new(VOCABULARY);
+    let traces: Vec<LabelTrace> = demos
+        .iter()
+        .map(|d| LabelTrace {
+            labels: d.labels(),
+            rewards: None,
+        })
+        .collect();
+    let cfg = LrmConfig {
+        max_states: config.lrm_max_states,
+        tabu_len: config.lrm_tabu_len,
+        max_steps: config.lrm_steps,
+        seed,
+        threads: config.threads,
+        // Merging joins states by observed rewards; demos carry none (rewards are what IRL
+        // learns), so merging would collapse the machine to one state.
+        merge: false,
+        fill_unobserved: false,
+        reward_weight: 0.0,
+        guards: config.lrm_guards,
+        events: EVENTS,
+        // Restarts, split moves and patience keep the learner's defaults.
+        ..LrmConfig::default()
+    };
+    let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
+    Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
+}
+
+/// Step 2: the demonstrations as the IRL jobs read them, every observation annotated with the
+/// learned machine's state before the step (the state its labels are read in); with no
+/// machine, the plain observations the baselines read. With `hold_to` = Some(T), a
+/// demonstration shorter than T is extended to T steps by holding its final state: the last
+/// observation with zero joint velocities and no cancel event, its labels recomputed by the
+/// labelling rule, the learned machine stepped on them as on any other step. (The
+/// demonstrator has finished the task; staying put is what it does in the goal, and MaxEnt
+/// IRL and f-IRL compare expert and agent over one fixed horizon T.)
+pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usize>) -> ExpertData {
+    let labelling = FeatureMap::reacher_labels();
+    let mut data = ExpertData {
+        obs: Vec::new(),
+        lengths: Vec::new(),
+        learned_states: Vec::new(),
+    };
+    for d in demos {
+        let mut u = rm.map(|m| m.initial());
+        let mut push = |data: &mut ExpertData, obs: &[f32], labels: LabelSet| {
+            data.obs.extend_from_slice(obs);
+            if let (Some(m), Some(state)) = (rm, u) {
+                data.learned_states.push(state as u32);
+                u = Some(m.next_state(state, labels));
+            }
+        };
+        for s in &d.steps {
+            push(&mut data, &s.next_obs, s.labels);
+        }
+        let mut len = d.steps.len();
+        if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
+            let mut held = last.next_obs;
+            held[OBS_JOINT_VEL[0]] = 0.0;
+            held[OBS_JOINT_VEL[1]] = 0.0;
+            held[OBS_CANCEL] = 0.0;
+            let labels = labelling.labels_of(&held);
+            while len < horizon {
+                push(&mut data, &held, labels);
+                len += 1;
+            }
+        }
+        data.lengths.push(len);
+    }
+    data
+}
+
+/// Which features φ(o) δ_r reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Features {
+    /// The paper's label bits L(o) (`smirl`).
+    Labels,
+    /// exp(−d_k²/2σ²) per ball plus the cancel flag (`smirl-smooth`, a documented variant).
+    Smooth,
+}
+
+impl Features {
+    pub fn map(self, settings: &IrlRunConfig) -> Result<FeatureMap, RewardError> {
+        match self {
+            Features::Labels => Ok(FeatureMap::reacher_labels()),
+            Features::Smooth => FeatureMap::reacher_smooth(settings.smooth_sigma),
+        }
+    }
+}
+
+/// Step 3.3: the rows, learned states and loss coefficients of one reward update — MaxEnt on
+/// U × O, whose parameter gradient is μ_π − μ_D (the negated expert-minus-agent feature
+/// expectation), normalised per trajectory or per trajectory visiting each state
+/// (`smirl_normalisation`). Agent rows first, then expert rows.
+pub fn coefficients(
+    expert: &ExpertData,
+    agent: &AgentBatch,
+    normalisation: SmirlNormalisation,
+) -> Coefficients {
+    let agent_t = AnnotatedTrajectories {
+        obs: &agent.obs,
+        rm_state: &agent.states,
+        lengths: &agent.lengths,
+    };
+    let expert_t = AnnotatedTrajectories {
+        obs: &expert.obs,
+        rm_state: &expert.learned_states,
+        lengths: &expert.lengths,
+    };
+    let (mut coeffs, expert_c) = match normalisation {
+        SmirlNormalisation::Trajectories => maxent_coefficients(&expert_t, &agent_t),
+        SmirlNormalisation::Visits => maxent_coefficients_by_visits(&expert_t, &agent_t),
+    };
+    coeffs.extend(expert_c);
+    Coefficients {
+        obs: [agent.obs.as_slice(), &expert.obs].concat(),
+        states: [agent.states.as_slice(), &expert.learned_states].concat(),
+        coeffs,
+    }
+}
+
+/// SAC's reward on U × O, computed when a batch is sampled so that old transitions follow the
+/// reward being optimised now: δ_r(u_t, o_{t+1}) with u_t read from the stored observation's
+/// one-hot block. With `counterfactual`, a share of each batch is first moved to other learned
+/// states (CRM), so SAC learns every state's values from every step. With `shaping`, plus
+/// γ Φ(u_{t+1}, o_{t+1}) − Φ(u_t, o_t) (Φ = 0 after a terminating step).
+struct ProductReward<'a> {
+    model: &'a mut LinearRmReward,
+    counterfactual: Option<&'a CounterfactualRm>,
+    shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
+    obs: Vec<f32>,
+    states: Vec<u32>,
+    error: Option<RewardError>,
+}
+
+impl RewardFn for ProductReward<'_> {
+    fn relabel(&mut self, batch: &mut ReplayBatch, rng: &mut dyn rand::RngCore) {
+        if let Some(crm) = self.counterfactual {
+            crm.relabel(batch, rng);
+        }
+    }
+
+    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) {
+        let d = batch.obs.nrows();
+        self.obs.clear();
+        self.states.clear();
+        let rows = batch.next_obs.as_slice().chunks_exact(d);
+        for (next, prev) in rows.zip(batch.obs.as_slice().chunks_exact(d)) {
+            self.obs.extend_from_slice(&next[..OBS_DIM]);
+            self.states.push(hot_index(&prev[OBS_DIM..]) as u32);
+        }
+        if let Err(e) = self.model.reward_batch(&self.obs, &self.states, out) {
+            out.fill(0.0);
+            self.error.get_or_insert(e);
+            return;
+        }
+        if let Some((potential, gamma)) = self.shaping {
+            let rows = batch.next_obs.as_slice().chunks_exact(d);
+            let prev_rows = batch.obs.as_slice().chunks_exact(d);
+            for (((next, prev), &terminated), r) in rows
+                .zip(prev_rows)
+                .zip(&batch.terminated)
+                .zip(out.iter_mut())
+            {
+                let u = hot_index(&prev[OBS_DIM..]);
+                let u_next = hot_index(&next[OBS_DIM..]);
+                let after = if terminated > 0.5 {
+                    0.0
+                } else {
+                    gamma * potential.potential(next, u_next)
+                };
+                *r += (after - potential.potential(prev, u)) as f32;
+            }
+        }
+    }
+}
+
+/// One SMIRL job.
+pub struct SmirlJob<'a> {
+    pub features: Features,
+    pub seed: u64,
+    pub settings: &'a IrlRunConfig,
+    /// The machine of step 1.
+    pub machine: &'a RewardMachine,
+    /// The demonstrations of step 2.
+    pub expert: &'a ExpertData,
+    /// Where the learned weights are saved at the end.
+    pub reward_path: Option<&'a Path>,
+}
+
+/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver. Returns the reward trace: per
+/// iteration, the data gradient μ_π − μ_D before the update and the weights after it.
+pub fn train(
+    job: &SmirlJob<'_>,
+    watch: &mut JobWatch<'_, '_>,
+) -> Result<Vec<RewardTraceRow>, String> {
+    let s = job.settings;
+    let n_states = job.machine.n_states();
+    let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let mut env = ProductEnv::new(inner, job.machine.clone());
+    let features = job.features.map(s).map_err(|e| e.to_string())?;
+    let optim = RewardOptimConfig {
+        adam: true,
+        lr: s.smirl_reward_lr,
+        l2: s.smirl_reward_l2,
+    };
+    let mut reward =
+        LinearRmReward::new(features.clone(), n_states, optim).map_err(|e| e.to_string())?;
+    let counterfactual = (s.smirl_counterfactual > 0.0)
+        .then(|| CounterfactualRm::new(job.machine.clone(), OBS_DIM, s.smirl_counterfactual))
+        .transpose()
+        .map_err(|e| e.to_string())?;
+    let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)
+        .map_err(|e| e.to_string())?;
+    let mut rollouts = RolloutStream::new(job.seed);
+    let mut trace = Vec::with_capacity(s.irl_iterations);
+
+    watch.iteration_done(0, 0, &mut sac.agent, &mut env, None)?;
+    for iteration in 1..=s.irl_iterations {
+        // 1. SAC on the product with the current δ_r (shaped by the potential of the current
+        //    weights when `smirl_shaping` > 0), counterfactual states in every batch.
+        let potential = (s.smirl_shaping > 0.0)
+            .then(|| {
+                LearnedSubgoalPotential::from_weights(
+                    &features,
+                    n_states,
+                    &reward.params(),
+                    s.smirl_shaping,
+                )
+            })
+            .transpose()
+            .map_err(|e| e.to_string())?;
+        let mut sac_reward = ProductReward {
+            model: &mut reward,
+            counterfactual: counterfactual.as_ref(),
+            shaping: potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
+            obs: Vec::new(),
+            states: Vec::new(),
+            error: None,
+        };
+        train_sac(
+            &mut sac,
+            &mut env,
+            &mut sac_reward,
+            s.sac_steps_per_iteration,
+            iteration,
+            watch,
+        )?;
+        if let Some(e) = sac_reward.error {
+            return Err(format!("learned reward: {e}"));
+        }
+
+        // 2. Rollouts of the stochastic policy, each observation with its learned state.
+        let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
+        watch.rollouts(&batch)?;
+
+        // 3. Feature expectations: coefficients of μ_π − μ_D per (u, o).
+        let c = coefficients(job.expert, &batch, s.smirl_normalisation);
+
+        // 4. Reward steps, at lr · k^(−reward_lr_decay); the first step's gradient (before
+        //    any step) is the traced data gradient.
+        let mut r = vec![0.0f32; c.coeffs.len()];
+        reward
+            .reward_batch(&c.obs, &c.states, &mut r)
+            .map_err(|e| e.to_string())?;
+        let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
+        reward.set_lr(reward_lr(s.smirl_reward_lr, s, iteration));
+        reward
+            .backward(&c.obs, &c.states, &c.coeffs)
+            .map_err(|e| format!("reward update: {e}"))?;
+        let data_gradient = reward.grad();
+        reward.step();
+        for _ in 1..s.reward_steps_per_iteration {
+            reward
+                .update(&c.obs, &c.states, &c.coeffs)
+                .map_err(|e| format!("reward update: {e}"))?;
+        }
+        trace.push(RewardTraceRow {
+            iteration,
+            data_gradient,
+            weights: reward.params(),
+        });
+
+        watch.iteration_done(
+            iteration,
+            sac.env_steps(),
+            &mut sac.agent,
+            &mut env,
+            Some(facts),
+        )?;
+    }
+    if let Some(path) = job.reward_path {
+        reward
+            .save(path)
+            .map_err(|e| format!("saving the reward: {e}"))?;
+    }
+    Ok(trace)
+}
