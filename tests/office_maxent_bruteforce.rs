@@ -238,8 +238,8 @@ fn long_discounted_backward_pass_reaches_the_soft_value_iteration_fixed_point() 
     let v = soft_value_iteration(&mdp, &r, gamma);
     let mut pol = FiniteSoftPolicy::default();
     soft_backward(&mdp, &r, gamma, 300, &mut pol).unwrap();
-    for s in 0..S {
-        assert!((pol.v0()[s] - v[s]).abs() < 1e-9);
+    for (finite, infinite) in pol.v0().iter().zip(&v) {
+        assert!((finite - infinite).abs() < 1e-9);
     }
 }
 
