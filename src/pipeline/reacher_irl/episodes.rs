@@ -204,22 +204,22 @@ pub fn train_sac<E: JobEnv, R: RewardFn>(
     let chunk = 1_000u64;
     let mut done = 0;
     let perfect = watch.perfect();
+    let (logger, report_progress) = watch.sac_phase(iteration);
+    // One observer for the whole phase: it holds the logged episode in progress across chunks.
+    let mut train_log = logger.map(|l| TrainingLog::new(l, perfect, "train"));
     while done < steps || !sac.at_episode_boundary() {
         let n = if done < steps {
             chunk.min(steps - done)
         } else {
             1
         };
-        let mut train_log = watch
-            .logger()
-            .map(|l| TrainingLog::new(l, perfect, "train"));
         let observer = train_log
             .as_mut()
             .map(|t| t as &mut dyn TrainingObserver<E>);
         sac.train_observed(env, reward, n, observer, |_| {})
             .map_err(|e| format!("SAC: {e}"))?;
         done += n;
-        watch.sac_progress(iteration, before + done);
+        report_progress(before + done);
     }
     Ok(())
 }

@@ -218,15 +218,27 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         self.logger.as_deref_mut()
     }
 
-    /// SAC has taken `env_steps` environment steps in all, during `iteration`.
-    pub fn sac_progress(&self, iteration: usize, env_steps: u64) {
-        (self.progress)(JobProgress {
-            iteration: iteration - 1,
-            iterations: self.iterations,
-            env_steps,
-            total_env_steps: self.total_env_steps,
-            success_rate: self.rows.last().map_or(0.0, |r| r.success_rate),
-        });
+    /// The job's rollout log (if it keeps one) together with a progress report for the SAC
+    /// phase of `iteration`: called with SAC's environment steps in all, it reports them with
+    /// the last evaluation's success rate. (One borrow of the watch, so that SAC's episodes can
+    /// be logged while its progress is reported.)
+    pub fn sac_phase(
+        &mut self,
+        iteration: usize,
+    ) -> (Option<&mut RolloutLogger>, impl Fn(u64) + 'l) {
+        let progress = self.progress;
+        let (iterations, total_env_steps) = (self.iterations, self.total_env_steps);
+        let success_rate = self.rows.last().map_or(0.0, |r| r.success_rate);
+        let report = move |env_steps| {
+            progress(JobProgress {
+                iteration: iteration - 1,
+                iterations,
+                env_steps,
+                total_env_steps,
+                success_rate,
+            })
+        };
+        (self.logger.as_deref_mut(), report)
     }
 
     /// The agent's rollouts of this iteration: the share of their fingertip states inside the
