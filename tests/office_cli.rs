@@ -148,3 +148,49 @@ fn a_small_run_writes_complete_results() {
         .collect();
     assert_eq!(names.len(), 2, "{names:?}");
 }
+
+/// One list of algorithms serves both domains; each command takes only its own: Office
+/// refuses the ReacherDelivery baselines, `reacher` refuses apprenticeship learning.
+#[test]
+fn each_domain_accepts_only_its_algorithms() {
+    use smirl::irl::Algo;
+    for (name, office, reacher) in [
+        ("smirl", true, true),
+        ("maxent", true, true),
+        ("apprenticeship", true, false),
+        ("smirl-smooth", false, true),
+        ("fkl", false, true),
+        ("rkl", false, true),
+        ("js", false, true),
+    ] {
+        assert_eq!(
+            Algo::parse_in(name, &Algo::OFFICE).is_ok(),
+            office,
+            "{name}"
+        );
+        assert_eq!(Algo::parse_reacher(name).is_ok(), reacher, "{name}");
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    assert_rejected(
+        &[
+            "--task",
+            "1",
+            "--algo",
+            "fkl",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &out,
+        "unknown algorithm \"fkl\"",
+    );
+    let reacher = std::process::Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args(["draw", "--algo", "apprenticeship", "--quick"])
+        .args(["--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(reacher.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&reacher.stderr);
+    assert!(err.contains("unknown algorithm 'apprenticeship'"), "{err}");
+    assert!(!out.exists());
+}

@@ -94,7 +94,7 @@ struct RewardArgs {
 #[derive(Args)]
 struct DrawArgs {
     /// maxent, fkl, rkl or js.
-    #[arg(long)]
+    #[arg(long, value_parser = Algo::parse_reacher)]
     algo: Algo,
     /// Target density: gaussian or mixture (overrides the config's `target`).
     #[arg(long)]
@@ -294,7 +294,7 @@ struct JobArgs {
     #[arg(long, conflicts_with_all = ["algo", "seed"], required_unless_present = "algo")]
     index: Option<usize>,
     /// The job's algorithm (with --seed).
-    #[arg(long, requires = "seed")]
+    #[arg(long, requires = "seed", value_parser = Algo::parse_reacher)]
     algo: Option<Algo>,
     #[arg(long, requires = "algo")]
     seed: Option<u64>,

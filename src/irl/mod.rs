@@ -35,6 +35,7 @@
 //! milliseconds (see `kde_bench`), the MLP backward over 30 000 states is a few tens of ms;
 //! SAC's steps and the rollouts' physics dominate.
 
+pub mod algo;
 pub mod discriminator;
 pub mod firl;
 pub mod kde;
@@ -42,3 +43,5 @@ pub mod knn_divergence;
 pub mod reward;
 pub mod smirl;
 pub mod tabular;
+
+pub use algo::Algo;

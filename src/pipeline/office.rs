@@ -23,38 +23,8 @@ use crate::rl::tabular::finite_horizon_greedy;
 use crate::rm::RewardMachine;
 use std::time::Instant;
 
-/// The algorithms of the Office experiments.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Algo {
-    Smirl,
-    MaxEnt,
-    Apprenticeship,
-}
-
-impl Algo {
-    pub const ALL: [Algo; 3] = [Algo::Smirl, Algo::MaxEnt, Algo::Apprenticeship];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Algo::Smirl => "smirl",
-            Algo::MaxEnt => "maxent",
-            Algo::Apprenticeship => "apprenticeship",
-        }
-    }
-
-    /// Name for plots and tables.
-    pub fn label(self) -> &'static str {
-        match self {
-            Algo::Smirl => "SMIRL",
-            Algo::MaxEnt => "MaxEnt IRL",
-            Algo::Apprenticeship => "Apprenticeship IRL",
-        }
-    }
-
-    pub fn parse(name: &str) -> Option<Algo> {
-        Algo::ALL.into_iter().find(|a| a.name() == name)
-    }
-}
+/// The algorithms of the comparison (`Algo::OFFICE` runs here).
+pub use crate::irl::Algo;
 
 /// Where SMIRL's reward machine comes from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -555,6 +525,11 @@ pub fn run(
             if algo == Algo::Smirl {
                 run.rm = Some(product.model_rm.clone());
             }
+        }
+        Algo::SmirlSmooth | Algo::Fkl | Algo::Rkl | Algo::Js => {
+            return Err(OfficeError::Config(format!(
+                "{algo} is not an Office algorithm (smirl, maxent, apprenticeship)"
+            )));
         }
         Algo::Apprenticeship => {
             let t_irl = Instant::now();

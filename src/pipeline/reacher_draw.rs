@@ -354,7 +354,7 @@ pub fn run_draw(
     seed: u64,
     mut on_row: impl FnMut(&DrawRow),
 ) -> Result<DrawResult, DrawError> {
-    if algo.uses_rm() {
+    if !matches!(algo, Algo::MaxEnt | Algo::Fkl | Algo::Rkl | Algo::Js) {
         return Err(DrawError::Algo { algo });
     }
     config.validate("ReacherDraw config")?;

@@ -38,7 +38,7 @@ pub fn run(args: DrawRequest) -> Result<()> {
     if let Some(target) = args.target {
         config.target = target;
     }
-    if args.algo.uses_rm() {
+    if !matches!(args.algo, Algo::MaxEnt | Algo::Fkl | Algo::Rkl | Algo::Js) {
         return Err(UsageError(format!(
             "--algo {}: ReacherDraw runs maxent, fkl, rkl or js (no labelled events for SMIRL)",
             args.algo

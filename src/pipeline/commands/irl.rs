@@ -22,7 +22,7 @@ use std::sync::Mutex;
 pub struct IrlRequest {
     /// The task; `None` is refused (nothing to do).
     pub task: Option<ReacherTask>,
-    /// Algorithms, comma-separated (see [`Algo::parse_list`]); `None`: [`Algo::DEFAULT`].
+    /// Algorithms, comma-separated (see [`Algo::parse_list`]); `None`: [`Algo::REACHER_DEFAULT`].
     pub algo: Option<String>,
     /// Seeds per algorithm: `seed`, `seed + 1`, …
     pub seeds: u64,
@@ -138,8 +138,8 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
         ));
     };
     let algos = match &args.algo {
-        Some(s) => Algo::parse_list(s).map_err(usage)?,
-        None => Algo::DEFAULT.to_vec(),
+        Some(s) => Algo::parse_list(s, &Algo::REACHER).map_err(usage)?,
+        None => Algo::REACHER_DEFAULT.to_vec(),
     };
     let config = match (&args.config, args.quick) {
         (Some(path), _) => IrlRunConfig::load(path).map_err(usage)?,

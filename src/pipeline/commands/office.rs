@@ -66,11 +66,11 @@ struct Plan {
 fn plan(args: &OfficeRequest) -> Result<Plan> {
     let task = OfficeTask::from_index(args.task)?;
     let algos = if args.algo == "all" {
-        Algo::ALL.to_vec()
+        Algo::OFFICE.to_vec()
     } else {
-        match Algo::parse(&args.algo) {
-            Some(a) => vec![a],
-            None => bail!(
+        match Algo::parse_in(&args.algo, &Algo::OFFICE) {
+            Ok(a) => vec![a],
+            Err(_) => bail!(
                 "unknown algorithm {:?} (expected smirl, maxent, apprenticeship or all)",
                 args.algo
             ),

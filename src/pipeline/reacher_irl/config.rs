@@ -570,7 +570,7 @@ impl IrlRunConfig {
         // Each schedule: a known algorithm, and the settings it resolves to pass the same
         // checks (an error names the schedule's key).
         for name in self.schedule.keys() {
-            let algo: Algo = match name.parse() {
+            let algo = match Algo::parse_in(name, &Algo::REACHER) {
                 Ok(a) => a,
                 Err(e) => return bad(&format!("schedule.{name}"), &e),
             };

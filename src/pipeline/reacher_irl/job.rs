@@ -282,6 +282,7 @@ pub fn run_job(
             let div = algo.divergence().expect("f-IRL algorithm");
             firl::train(&baseline(Loss::FDivergence(div)), &mut watch).map(|()| Vec::new())
         }
+        Algo::Apprenticeship => Err("apprenticeship learning is an Office algorithm".into()),
     }
     .map_err(fail)?;
     Ok(JobResult {

@@ -187,7 +187,7 @@ impl Prepared {
         let algos = self
             .algos
             .iter()
-            .map(|a| a.parse::<Algo>())
+            .map(|a| Algo::parse_in(a, &Algo::REACHER))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(algos
             .iter()

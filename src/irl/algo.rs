@@ -1,0 +1,128 @@
+//! The IRL algorithms of the paper's comparison: one list for both domains, each domain
+//! running its subset ([`Algo::REACHER`], [`Algo::OFFICE`]).
+
+use super::firl::Divergence;
+use std::fmt;
+
+/// An IRL algorithm.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Algo {
+    /// SMIRL with the paper's label features.
+    Smirl,
+    /// SMIRL with smooth distance features (a documented variant, ReacherDelivery).
+    SmirlSmooth,
+    /// MaxEnt IRL (tabular on Office, continuous on ReacherDelivery).
+    MaxEnt,
+    /// f-IRL, forward KL.
+    Fkl,
+    /// f-IRL, reverse KL.
+    Rkl,
+    /// f-IRL, Jensen–Shannon.
+    Js,
+    /// Apprenticeship learning (projection method, Office).
+    Apprenticeship,
+}
+
+impl Algo {
+    /// The ReacherDelivery comparison (paper figure 7).
+    pub const REACHER: [Algo; 6] = [
+        Algo::Smirl,
+        Algo::SmirlSmooth,
+        Algo::MaxEnt,
+        Algo::Fkl,
+        Algo::Rkl,
+        Algo::Js,
+    ];
+
+    /// The default set of `reacher --task` (README.md, "ReacherDelivery IRL").
+    pub const REACHER_DEFAULT: [Algo; 4] =
+        [Algo::Smirl, Algo::SmirlSmooth, Algo::MaxEnt, Algo::Fkl];
+
+    /// The Office Gridworld comparison (paper figures 4 and 5).
+    pub const OFFICE: [Algo; 3] = [Algo::Smirl, Algo::MaxEnt, Algo::Apprenticeship];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Algo::Smirl => "smirl",
+            Algo::SmirlSmooth => "smirl-smooth",
+            Algo::MaxEnt => "maxent",
+            Algo::Fkl => "fkl",
+            Algo::Rkl => "rkl",
+            Algo::Js => "js",
+            Algo::Apprenticeship => "apprenticeship",
+        }
+    }
+
+    /// Name for plots and tables.
+    pub fn label(self) -> &'static str {
+        match self {
+            Algo::Smirl => "SMIRL",
+            Algo::SmirlSmooth => "SMIRL (smooth features)",
+            Algo::MaxEnt => "MaxEnt IRL",
+            Algo::Fkl => "f-IRL (fkl)",
+            Algo::Rkl => "f-IRL (rkl)",
+            Algo::Js => "f-IRL (js)",
+            Algo::Apprenticeship => "Apprenticeship IRL",
+        }
+    }
+
+    /// SMIRL variants act on the product with a learned machine.
+    pub fn uses_rm(self) -> bool {
+        matches!(self, Algo::Smirl | Algo::SmirlSmooth)
+    }
+
+    /// The f-divergence of an f-IRL algorithm.
+    pub fn divergence(self) -> Option<Divergence> {
+        match self {
+            Algo::Fkl => Some(Divergence::Fkl),
+            Algo::Rkl => Some(Divergence::Rkl),
+            Algo::Js => Some(Divergence::Js),
+            _ => None,
+        }
+    }
+
+    /// The algorithm called `name` among `domain`'s.
+    pub fn parse_in(name: &str, domain: &[Algo]) -> Result<Algo, String> {
+        domain
+            .iter()
+            .copied()
+            .find(|a| a.name() == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = domain.iter().map(|a| a.name()).collect();
+                format!(
+                    "unknown algorithm '{name}' (expected one of: {}, all)",
+                    names.join(", ")
+                )
+            })
+    }
+
+    /// A ReacherDelivery algorithm by name (a command-line value parser).
+    pub fn parse_reacher(name: &str) -> Result<Algo, String> {
+        Algo::parse_in(name, &Algo::REACHER)
+    }
+
+    /// A comma-separated list of `domain`'s algorithms (`all` = every one of them);
+    /// duplicates are dropped.
+    pub fn parse_list(s: &str, domain: &[Algo]) -> Result<Vec<Algo>, String> {
+        let mut out = Vec::new();
+        for part in s.split(',').map(str::trim) {
+            let algos: Vec<Algo> = if part == "all" {
+                domain.to_vec()
+            } else {
+                vec![Algo::parse_in(part, domain)?]
+            };
+            for a in algos {
+                if !out.contains(&a) {
+                    out.push(a);
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+impl fmt::Display for Algo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
