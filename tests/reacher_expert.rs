@@ -353,3 +353,64 @@ fn expert_config_uses_the_expert_preset_and_names_bad_keys() {
         "{msg}"
     );
 }
+
+/// `reacher expert-curve` draws the success and return plots from a training-curve CSV (long
+/// curves stay small), refuses to replace plots without --force, and names the bad line of a
+/// malformed CSV; bad input exits 2 and writes nothing.
+#[test]
+fn expert_curve_redraws_the_plots_from_the_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("curve.csv");
+    let mut text = String::from("env_steps,episode,env_return,length,success\n");
+    for k in 0..5_000u64 {
+        let success = u8::from(k % 7 != 0 && k > 1_000);
+        text.push_str(&format!(
+            "{},{k},{},100,{success}\n",
+            100 * (k + 1),
+            k as f64 * 1e-3
+        ));
+    }
+    std::fs::write(&csv, &text).unwrap();
+    let (success, ret) = (dir.path().join("s.svg"), dir.path().join("r.svg"));
+    let run = |csv: &std::path::Path, extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_reacher"))
+            .args(["expert-curve", "--task", "or", "--csv"])
+            .arg(csv)
+            .arg("--out")
+            .arg(&success)
+            .arg("--out-return")
+            .arg(&ret)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = run(&csv, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for plot in [&success, &ret] {
+        let svg = std::fs::read_to_string(plot).unwrap();
+        assert!(
+            svg.starts_with("<svg") || svg.starts_with("<?xml"),
+            "{svg:.80}"
+        );
+        assert!(svg.len() < 60_000, "{} bytes", svg.len());
+    }
+    let before = std::fs::read(&success).unwrap();
+    let o = run(&csv, &[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--force"));
+    assert_eq!(std::fs::read(&success).unwrap(), before);
+    assert!(run(&csv, &["--force"]).status.success());
+
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(
+        &bad,
+        "env_steps,episode,env_return,length,success\n100,0,0.5,100,2\n",
+    )
+    .unwrap();
+    std::fs::remove_file(&success).unwrap();
+    std::fs::remove_file(&ret).unwrap();
+    let o = run(&bad, &[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("line 2"));
+    assert!(!success.exists() && !ret.exists());
+}

@@ -6,7 +6,8 @@
 # copies the actor-only policy files into experiments/experts/cache/, copies the training
 # curves (SVG + CSV) next to this script and writes results.md from the runs' summary.json.
 # The curve CSVs are not tracked (experiments/README.md); the SVGs are, and
-# `cargo run --release --example expert_curves -- experiments/experts TASK...` redraws them from the CSVs.
+# `reacher expert-curve --task T --csv experiments/experts/curve_T.csv --out experiments/experts/curve_T.svg
+# --out-return experiments/experts/curve_return_T.svg --force` redraws them from the CSVs.
 #
 # usage: experiments/experts/train_all.sh [SEED] [JOBS]
 #   SEED  training seed of every task (default 0)

@@ -22,8 +22,14 @@
 use clap::{Args, Parser, Subcommand};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::pipeline::commands::{
-    self, draw::DrawRequest, expert::ExpertRequest, irl::IrlRequest, irl::JobRequest,
-    logs::DemoRequest, logs::LearnRmRequest, logs::RenderRequest,
+    self,
+    draw::DrawRequest,
+    expert::{CurveRequest, ExpertRequest},
+    irl::IrlRequest,
+    irl::JobRequest,
+    logs::DemoRequest,
+    logs::LearnRmRequest,
+    logs::RenderRequest,
 };
 use smirl::pipeline::reacher_draw::DrawTarget;
 use smirl::pipeline::reacher_irl::Algo;
@@ -67,6 +73,9 @@ enum Command {
     Demo(DemoArgs),
     /// Train a task's SAC expert, evaluate it, save it and log 16 demonstrations.
     Expert(ExpertArgs),
+    /// Draw an expert's training-curve plots (success and return, moving averages) from the
+    /// curve CSV `reacher expert` wrote.
+    ExpertCurve(ExpertCurveArgs),
     /// Step 1 of a run: demonstrations, learned machine and config into a run directory
     /// (takes the same options as `reacher --task`); prints the number of jobs.
     Prepare(PipelineArgs),
@@ -116,6 +125,28 @@ struct DrawArgs {
     /// No per-estimate lines.
     #[arg(long)]
     quiet: bool,
+}
+
+#[derive(Args)]
+struct ExpertCurveArgs {
+    /// The expert's task (names the plots).
+    #[arg(long)]
+    task: ReacherTask,
+    /// The training-curve CSV (`curve.csv` of an expert run directory).
+    #[arg(long)]
+    csv: PathBuf,
+    /// The success plot (SVG).
+    #[arg(long)]
+    out: PathBuf,
+    /// The return plot (SVG).
+    #[arg(long)]
+    out_return: PathBuf,
+    /// Moving-average window in episodes (the expert config's progress_window).
+    #[arg(long, default_value_t = 100)]
+    window: usize,
+    /// Replace existing plots.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -373,6 +404,14 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             cache: a.cache,
             train_log_every: a.train_log_every,
             quiet: a.quiet,
+        }),
+        Some(Command::ExpertCurve(a)) => expert::redraw_curve(CurveRequest {
+            task: a.task,
+            csv: a.csv,
+            out: a.out,
+            out_return: a.out_return,
+            window: a.window,
+            force: a.force,
         }),
         Some(Command::Prepare(a)) => irl::prepare(a.into()),
         Some(Command::Job(a)) => irl::job(JobRequest {

@@ -727,10 +727,11 @@ pub fn write_run_summary(path: &Path, summary: &ExpertRunSummary) -> Result<(), 
 }
 
 /// Writes the training curve of a task expert as SVG: the success rate and the mean
-/// (shaped) training return over the last `window` episodes, against environment steps.
-/// The return plot goes next to `path` with `_return` added to its stem.
+/// (shaped) training return over the last `window` episodes, against environment steps, to
+/// `path` and `return_path`.
 pub fn write_curve_svg(
     path: &Path,
+    return_path: &Path,
     task: ReacherTask,
     curve: &[CurvePoint],
     window: usize,
@@ -774,12 +775,7 @@ pub fn write_curve_svg(
         name: task.name().into(),
         points: moving(&|p| p.env_return),
     });
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let return_path = path.with_file_name(format!("{stem}_return.svg"));
-    for (p, plot) in [(path, &success), (return_path.as_path(), &ret)] {
+    for (p, plot) in [(path, &success), (return_path, &ret)] {
         write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| ExpertError::Write {
             path: p.display().to_string(),
             problem: e.to_string(),

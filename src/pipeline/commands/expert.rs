@@ -5,7 +5,7 @@
 use super::usage;
 use crate::env::reacher_task::ReacherTask;
 use crate::log::{LogOptions, RolloutLogger};
-use crate::output::OutputDir;
+use crate::output::{check_file, OutputDir};
 use crate::pipeline::reacher_expert::{self as rx, ExpertConfig};
 use crate::rl::sac::ActMode;
 use anyhow::{Context, Result};
@@ -148,7 +148,13 @@ pub fn run(args: ExpertRequest) -> Result<()> {
     };
 
     let curve_svg = out.join("curve.svg");
-    rx::write_curve_svg(&curve_svg, task, &outcome.curve, config.progress_window)?;
+    rx::write_curve_svg(
+        &curve_svg,
+        &out.join("curve_return.svg"),
+        task,
+        &outcome.curve,
+        config.progress_window,
+    )?;
 
     let demos_path = out.join("demos.mcap");
     let header = rx::demo_log_header(&policy, &config.env, args.seed)?;
@@ -242,4 +248,45 @@ fn free_log_path(dir: &Path, stem: &str) -> PathBuf {
         .map(|k| dir.join(format!("{stem}.{k}.mcap")))
         .find(|p| !taken(p))
         .expect("some index is free")
+}
+
+/// The arguments of `reacher expert-curve`.
+#[derive(Clone, Debug)]
+pub struct CurveRequest {
+    pub task: ReacherTask,
+    /// A training-curve CSV that `reacher expert` wrote (`curve.csv`, one row per episode).
+    pub csv: PathBuf,
+    /// The success plot.
+    pub out: PathBuf,
+    /// The return plot.
+    pub out_return: PathBuf,
+    /// Moving-average window in episodes (the expert config's `progress_window`).
+    pub window: usize,
+    /// Replace existing plots.
+    pub force: bool,
+}
+
+/// `reacher expert-curve`: draws a training curve's success and return plots from its CSV,
+/// with the function `reacher expert` draws them with (so a plot can be redrawn, e.g. after a
+/// change to the plotting code, without retraining). Existing plots are replaced only with
+/// `force`.
+pub fn redraw_curve(args: CurveRequest) -> Result<()> {
+    if args.window == 0 {
+        return Err(usage("--window must be at least 1"));
+    }
+    if args.out == args.out_return {
+        return Err(usage("--out and --out-return name the same file"));
+    }
+    for path in [&args.out, &args.out_return] {
+        check_file(path, args.force).map_err(usage)?;
+    }
+    let curve = crate::pipeline::expert::read_curve(&args.csv, u64::MAX).map_err(usage)?;
+    rx::write_curve_svg(&args.out, &args.out_return, args.task, &curve, args.window)?;
+    println!(
+        "{} and {} ({} episodes)",
+        args.out.display(),
+        args.out_return.display(),
+        curve.len()
+    );
+    Ok(())
 }
