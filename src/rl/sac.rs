@@ -23,8 +23,8 @@ pub(crate) use config::{deserialize_table, load_toml, parse_table};
 pub use config::{ConfigError, SacConfig};
 pub use episode::{EpisodeSummary, RolloutStep};
 pub use trainer::{
-    episode_seed, CheckpointError, EnvReward, ObserverError, RewardFn, SacTrainer, StepOutcome,
-    TrainingObserver,
+    episode_seed, CheckpointError, EnvReward, ObserverError, RewardFn, RewardFnError, SacTrainer,
+    StepOutcome, TrainingObserver,
 };
 
 use crate::env::EnvError;
@@ -49,6 +49,12 @@ pub enum SacError {
         step: u64,
         #[source]
         source: ObserverError,
+    },
+    #[error("rewards of the batch sampled at environment step {step}: {source}")]
+    Reward {
+        step: u64,
+        #[source]
+        source: RewardFnError,
     },
     #[error("environment has {what} {got}, the agent was built for {expected}")]
     Dimension {

@@ -260,7 +260,8 @@ impl RolloutStream {
     }
 
     /// Phase 2 of an IRL iteration: `n` episodes to the time limit, each observation with the
-    /// learned state its labels are read in (SMIRL), logged under "agent".
+    /// learned state its labels are read in (SMIRL), logged under "agent" and shown to the
+    /// watch.
     pub fn collect<E: JobEnv>(
         &mut self,
         agent: &mut SacAgent,
@@ -298,6 +299,7 @@ impl RolloutStream {
             )?;
             batch.lengths.push(len);
         }
+        watch.rollouts(&batch)?;
         Ok(batch)
     }
 }

@@ -5,6 +5,7 @@
 //! computes flows back into training (its episodes use their own random streams and reset
 //! seeds).
 
+use super::config::IrlRunConfig;
 use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::job::{JobProgress, MetricsRow};
 use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
@@ -186,15 +187,17 @@ pub struct JobWatch<'r, 'l> {
 }
 
 impl<'r, 'l> JobWatch<'r, 'l> {
+    /// Watches a job of `settings`' length, judged by `ground_truth` on the task's `perfect`
+    /// machine.
     pub fn new(
+        settings: &IrlRunConfig,
         ground_truth: GroundTruth<'r>,
         perfect: &'r RewardMachine,
         expert_kde: Kde,
         logger: Option<&'l mut RolloutLogger>,
         progress: &'l (dyn Fn(JobProgress) + Sync),
-        iterations: usize,
-        total_env_steps: u64,
     ) -> JobWatch<'r, 'l> {
+        let iterations = settings.irl_iterations;
         JobWatch {
             ground_truth,
             perfect,
@@ -202,7 +205,7 @@ impl<'r, 'l> JobWatch<'r, 'l> {
             logger,
             progress,
             iterations,
-            total_env_steps,
+            total_env_steps: settings.sac_steps_per_iteration * iterations as u64,
             expert_support: None,
             rows: Vec::with_capacity(iterations + 1),
         }

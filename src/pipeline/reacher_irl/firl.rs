@@ -29,7 +29,7 @@ use crate::irl::firl::{
 use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel};
 use crate::rl::replay::ReplayBatch;
-use crate::rl::sac::{episode_seed, RewardFn, SacTrainer};
+use crate::rl::sac::{episode_seed, RewardFn, RewardFnError, SacTrainer};
 use std::path::Path;
 
 /// Which baseline.
@@ -148,20 +148,16 @@ pub fn baseline_reward_at(path: &Path, points: &[[f64; 2]]) -> Result<Vec<f32>, 
 struct StateReward<'a> {
     model: &'a mut MlpReward,
     obs: Vec<f32>,
-    error: Option<RewardError>,
 }
 
 impl RewardFn for StateReward<'_> {
-    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) {
+    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
         self.obs.clear();
         for next in batch.next_obs.as_slice().chunks_exact(d) {
             self.obs.extend_from_slice(&next[..OBS_DIM]);
         }
-        if let Err(e) = self.model.reward_batch(&self.obs, &[], out) {
-            out.fill(0.0);
-            self.error.get_or_insert(e);
-        }
+        Ok(self.model.reward_batch(&self.obs, &[], out)?)
     }
 }
 
@@ -171,12 +167,10 @@ pub struct BaselineJob<'a> {
     pub seed: u64,
     pub settings: &'a IrlRunConfig,
     pub expert: &'a ExpertData,
-    /// Where the learned reward is saved at the end.
-    pub reward_path: Option<&'a Path>,
 }
 
-/// f-IRL's loop (see the module docs).
-pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<(), String> {
+/// f-IRL's loop (see the module docs); returns the learned reward.
+pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpReward, String> {
     let s = job.settings;
     let mut env = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
     let mut reward = reward_model(s, job.seed).map_err(|e| e.to_string())?;
@@ -210,23 +204,12 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<(), 
         let mut sac_reward = StateReward {
             model: &mut reward,
             obs: Vec::new(),
-            error: None,
         };
-        train_sac(
-            &mut sac,
-            &mut env,
-            &mut sac_reward,
-            s.sac_steps_per_iteration,
-            iteration,
-            watch,
-        )?;
-        if let Some(e) = sac_reward.error {
-            return Err(format!("learned reward: {e}"));
-        }
+        let steps = s.sac_steps_per_iteration;
+        train_sac(&mut sac, &mut env, &mut sac_reward, steps, iteration, watch)?;
 
         // 2. Rollouts of the stochastic policy.
         let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
-        watch.rollouts(&batch)?;
 
         // 3. The loss coefficients.
         let c = coefficients(job.loss, job.expert, &batch, ratio.as_mut())?;
@@ -252,10 +235,5 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<(), 
             Some(facts),
         )?;
     }
-    if let Some(path) = job.reward_path {
-        reward
-            .save(path)
-            .map_err(|e| format!("saving the reward: {e}"))?;
-    }
-    Ok(())
+    Ok(reward)
 }

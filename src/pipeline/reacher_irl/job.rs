@@ -12,6 +12,7 @@ use super::Algo;
 use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
 use crate::env::reacher_task::BranchTally;
 use crate::irl::kde::Kde;
+use crate::irl::reward::{MlpReward, RewardModel};
 use crate::log::RolloutLogger;
 use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
 use crate::rm::RewardMachine;
@@ -241,23 +242,15 @@ pub fn run_job(
         .map_err(|e| fail(format!("expert KDE: {e}")))?;
     let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| fail(e.to_string()))?;
     let ground_truth = GroundTruth::new(perfect_rm, &mut schedule, seed, s.eval_episodes);
-    let mut watch = JobWatch::new(
-        ground_truth,
-        perfect_rm,
-        expert_kde,
-        logger,
-        progress,
-        s.irl_iterations,
-        s.sac_steps_per_iteration * s.irl_iterations as u64,
-    );
+    let mut watch = JobWatch::new(s, ground_truth, perfect_rm, expert_kde, logger, progress);
     let baseline = |loss| BaselineJob {
         loss,
         seed,
         settings: s,
         expert,
-        reward_path,
     };
-    let reward_trace = match algo {
+    let boxed = |r: MlpReward| (Box::new(r) as Box<dyn RewardModel>, Vec::new());
+    let (reward, reward_trace) = match algo {
         Algo::Smirl | Algo::SmirlSmooth => {
             let machine = inputs
                 .learned_rm
@@ -273,18 +266,23 @@ pub fn run_job(
                 settings: s,
                 machine,
                 expert,
-                reward_path,
             };
             smirl::train(&job, &mut watch)
+                .map(|(r, trace)| (Box::new(r) as Box<dyn RewardModel>, trace))
         }
-        Algo::MaxEnt => firl::train(&baseline(Loss::MaxEnt), &mut watch).map(|()| Vec::new()),
+        Algo::MaxEnt => firl::train(&baseline(Loss::MaxEnt), &mut watch).map(boxed),
         Algo::Fkl | Algo::Rkl | Algo::Js => {
             let div = algo.divergence().expect("f-IRL algorithm");
-            firl::train(&baseline(Loss::FDivergence(div)), &mut watch).map(|()| Vec::new())
+            firl::train(&baseline(Loss::FDivergence(div)), &mut watch).map(boxed)
         }
         Algo::Apprenticeship => Err("apprenticeship learning is an Office algorithm".into()),
     }
     .map_err(fail)?;
+    if let Some(path) = reward_path {
+        reward
+            .save(path)
+            .map_err(|e| fail(format!("saving the reward: {e}")))?;
+    }
     Ok(JobResult {
         algo,
         seed,

@@ -34,10 +34,9 @@ use crate::irl::smirl::{
 use crate::pipeline::reacher_expert::Demo;
 use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
-use crate::rl::sac::{RewardFn, SacTrainer};
+use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
 use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
 use crate::rm::{LabelSet, RewardMachine, Vocabulary};
-use std::path::Path;
 
 /// Observation columns of the two joint velocities (see `env::reacher`).
 const OBS_JOINT_VEL: [usize; 2] = [4, 5];
@@ -181,7 +180,6 @@ struct ProductReward<'a> {
     shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
     obs: Vec<f32>,
     states: Vec<u32>,
-    error: Option<RewardError>,
 }
 
 impl RewardFn for ProductReward<'_> {
@@ -191,7 +189,7 @@ impl RewardFn for ProductReward<'_> {
         }
     }
 
-    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) {
+    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
         self.obs.clear();
         self.states.clear();
@@ -200,11 +198,7 @@ impl RewardFn for ProductReward<'_> {
             self.obs.extend_from_slice(&next[..OBS_DIM]);
             self.states.push(hot_index(&prev[OBS_DIM..]) as u32);
         }
-        if let Err(e) = self.model.reward_batch(&self.obs, &self.states, out) {
-            out.fill(0.0);
-            self.error.get_or_insert(e);
-            return;
-        }
+        self.model.reward_batch(&self.obs, &self.states, out)?;
         if let Some((potential, gamma)) = self.shaping {
             let rows = batch.next_obs.as_slice().chunks_exact(d);
             let prev_rows = batch.obs.as_slice().chunks_exact(d);
@@ -223,6 +217,7 @@ impl RewardFn for ProductReward<'_> {
                 *r += (after - potential.potential(prev, u)) as f32;
             }
         }
+        Ok(())
     }
 }
 
@@ -235,16 +230,15 @@ pub struct SmirlJob<'a> {
     pub machine: &'a RewardMachine,
     /// The demonstrations of step 2.
     pub expert: &'a ExpertData,
-    /// Where the learned weights are saved at the end.
-    pub reward_path: Option<&'a Path>,
 }
 
-/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver. Returns the reward trace: per
-/// iteration, the data gradient μ_π − μ_D before the update and the weights after it.
+/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver. Returns the learned reward and
+/// its trace: per iteration, the data gradient μ_π − μ_D before the update and the weights
+/// after it.
 pub fn train(
     job: &SmirlJob<'_>,
     watch: &mut JobWatch<'_, '_>,
-) -> Result<Vec<RewardTraceRow>, String> {
+) -> Result<(LinearRmReward, Vec<RewardTraceRow>), String> {
     let s = job.settings;
     let n_states = job.machine.n_states();
     let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
@@ -287,23 +281,12 @@ pub fn train(
             shaping: potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
             obs: Vec::new(),
             states: Vec::new(),
-            error: None,
         };
-        train_sac(
-            &mut sac,
-            &mut env,
-            &mut sac_reward,
-            s.sac_steps_per_iteration,
-            iteration,
-            watch,
-        )?;
-        if let Some(e) = sac_reward.error {
-            return Err(format!("learned reward: {e}"));
-        }
+        let steps = s.sac_steps_per_iteration;
+        train_sac(&mut sac, &mut env, &mut sac_reward, steps, iteration, watch)?;
 
         // 2. Rollouts of the stochastic policy, each observation with its learned state.
         let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
-        watch.rollouts(&batch)?;
 
         // 3. Feature expectations: coefficients of μ_π − μ_D per (u, o).
         let c = coefficients(job.expert, &batch, s.smirl_normalisation);
@@ -340,10 +323,5 @@ pub fn train(
             Some(facts),
         )?;
     }
-    if let Some(path) = job.reward_path {
-        reward
-            .save(path)
-            .map_err(|e| format!("saving the reward: {e}"))?;
-    }
-    Ok(trace)
+    Ok((reward, trace))
 }

@@ -16,7 +16,8 @@ const CHECKPOINT_VERSION: u32 = 1;
 /// Supplies the rewards of a sampled batch (see the module notes on sample-time rewards).
 pub trait RewardFn {
     /// Writes one reward per transition of `batch` into `out` (`out.len() == batch.len()`).
-    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]);
+    /// An error (e.g. a learned reward that cannot read the batch) stops training.
+    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError>;
 
     /// Rewrites sampled transitions before their rewards are filled (e.g. counterfactual
     /// reward-machine states, `rl::crm`), drawing from SAC's own stream. Default: none, and no
@@ -29,16 +30,22 @@ pub trait RewardFn {
 pub struct EnvReward;
 
 impl RewardFn for EnvReward {
-    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) {
+    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         out.copy_from_slice(&batch.env_rewards);
+        Ok(())
     }
 }
 
+/// A closure that cannot fail.
 impl<F: FnMut(&ReplayBatch, &mut [f32])> RewardFn for F {
-    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) {
-        self(batch, out)
+    fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
+        self(batch, out);
+        Ok(())
     }
 }
+
+/// What a [`RewardFn`] reports when it cannot compute a batch's rewards.
+pub type RewardFnError = Box<dyn std::error::Error + Send + Sync>;
 
 /// Sees the episodes the trainer plays, step by step, with the environment's state after
 /// each event (e.g. to log them for replay). Training does not depend on it: the trainer
@@ -291,7 +298,12 @@ impl SacTrainer {
             for _ in 0..cfg.updates_per_step {
                 self.replay.sample_into(&mut self.rng, &mut self.batch);
                 reward.relabel(&mut self.batch, &mut self.rng);
-                reward.fill_rewards(&self.batch, &mut self.rewards);
+                reward
+                    .fill_rewards(&self.batch, &mut self.rewards)
+                    .map_err(|source| SacError::Reward {
+                        step: self.env_steps,
+                        source,
+                    })?;
                 update = Some(
                     self.agent
                         .update(&self.batch, &self.rewards, &mut self.rng)?,
