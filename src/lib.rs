@@ -6,16 +6,31 @@
 //! higher one):
 //!
 //! ```text
-//! mujoco (safe MuJoCo wrapper)     rm (reward machines: type, formats, product, learning)
+//! mujoco (safe MuJoCo wrapper)     rm (reward machines: type, formats, product, LRM learning)
 //!            \                      /
-//!             env (ReacherDelivery, OfficeWorld, labelling functions)
+//!             env (ReacherDelivery, OfficeWorld, labelling functions, tasks)
 //!                        |
-//!  nn (MLP, Adam)  ->  rl (SAC, tabular solvers, replay buffer)
+//!  nn (MLP, Adam)  ->  rl (SAC, tabular solvers, replay buffer, counterfactual RM states)
 //!                        |
-//!                  irl (apprenticeship, maxent, f-IRL, kde, smirl)
+//!                  irl (the algorithms' pieces: Algo, apprenticeship, MaxEnt, f-IRL
+//!                       losses, KDE, kNN divergence, SMIRL's linear reward)
 //!                        |
-//!     log (MCAP)  ->  pipeline  ->  report (plots, tables)
+//!     log (MCAP)  ->  pipeline (the experiments; `commands` under the binaries)  ->  report
 //! ```
+//!
+//! Where to start reading:
+//! - **continuous SMIRL**: `pipeline/reacher_irl/smirl.rs` — learn the machine, annotate the
+//!   demonstrations, then per iteration SAC on the product with counterfactual states,
+//!   rollouts, feature expectations, reward step; **f-IRL and continuous MaxEnt**:
+//!   `pipeline/reacher_irl/firl.rs`, the same loop shape; what both loops share (the
+//!   environment, an episode, the SAC phase, the rollouts) is `pipeline/reacher_irl/episodes.rs`
+//!   and what watches them (ground truth, logs, progress) `pipeline/reacher_irl/evaluation.rs`.
+//! - **SAC**: `rl/sac/agent.rs` (one update, top to bottom) and `rl/sac/trainer.rs` (the
+//!   training loop, rewards computed when a batch is sampled).
+//! - **Office SMIRL, MaxEnt and apprenticeship**: `pipeline/office.rs` over `irl/tabular`.
+//! - **LRM**: `rm/lrm/mod.rs` (the Tabu search in `rm/lrm/search.rs`).
+//! - **The binaries** (`src/bin/reacher.rs`, `src/bin/office.rs`) only parse arguments and
+//!   call `pipeline::commands`.
 //!
 //! `atomic_file` (the atomic write every saved file goes through), `config_text` (size
 //! limit of text inputs, line of a TOML key for errors), `output` (where a command

@@ -1,4 +1,10 @@
-//! End-to-end pipelines behind the binaries (experts, demonstrations, IRL, evaluation).
+//! The experiments behind the binaries, one module per pipeline: `commands` (one entry point
+//! per command line, what the binaries call), `reacher_irl` (figure 7: SMIRL and the baselines
+//! on ReacherDelivery, one file per algorithm's loop), `reacher_expert` and `expert` (the SAC
+//! experts and their demonstrations), `reacher_draw` (f-IRL's own ReacherDraw control),
+//! `office` (figures 4–5), `offline_rm` (LRM on logged label traces), `replay`, `render`,
+//! `foxglove_scene` and `training_log` (rollout logs: replay, pictures, Foxglove, SAC's own
+//! episodes).
 
 pub mod commands;
 pub mod expert;
