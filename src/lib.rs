@@ -15,7 +15,8 @@
 //!                  irl (the algorithms' pieces: Algo, apprenticeship, MaxEnt, f-IRL
 //!                       losses, KDE, kNN divergence, SMIRL's linear reward)
 //!                        |
-//!     log (MCAP)  ->  pipeline (the experiments; `commands` under the binaries)  ->  report
+//!   log (MCAP), report (plots, tables)  ->  pipeline (the experiments; `commands` serves the
+//!                                                 binaries)
 //! ```
 //!
 //! Where to start reading:
