@@ -70,6 +70,11 @@ pub enum DensityRatio {
     /// A classifier's logit, u = exp(z) (f-IRL's code for an expert given by samples; see
     /// [`super::discriminator`]).
     Discriminator,
+    /// A Gaussian KDE of the expert's states (bandwidth σ = the KDE bandwidth; no zero
+    /// anywhere, so log ρ_E grades a state by its distance to the demonstrations, see
+    /// [`super::gaussian_kde`]) against the agent's Epanechnikov KDE: u = ρ_E/ρ_θ with no ε.
+    #[serde(rename = "gaussian_expert")]
+    GaussianExpert,
 }
 
 impl DensityRatio {

@@ -10,6 +10,8 @@
 //! - [`kde`]: exact Epanechnikov KDE on a bandwidth-sized cell grid (state marginals).
 //! - [`knn_divergence`]: the k-nearest-neighbour KL estimate between two sample sets, f-IRL's
 //!   measure of how well an agent's state marginal matches a target density.
+//! - [`gaussian_kde`]: a Gaussian KDE with an exact log-density everywhere (f-IRL's expert
+//!   density without zeros, for reverse KL on demonstrations).
 //! - [`discriminator`]: a logistic classifier of expert vs agent states whose logit estimates
 //!   log(ρ_E/ρ_θ), f-IRL's density ratio for an expert given by demonstrations.
 //! - [`firl`]: f-IRL (fkl, rkl, js) and continuous MaxEnt IRL as per-state loss coefficients.
@@ -38,6 +40,7 @@
 pub mod algo;
 pub mod discriminator;
 pub mod firl;
+pub mod gaussian_kde;
 pub mod kde;
 pub mod knn_divergence;
 pub mod reward;

@@ -116,7 +116,8 @@ pub struct IrlRunConfig {
     pub kde_bandwidth: f64,
     /// f-IRL's density ratio: `"kde"` (KDEs of both state sets, the SMIRL paper's baselines)
     /// or `"discriminator"` (a classifier, f-IRL's code for an expert given by samples;
-    /// `irl::discriminator`). Omitted from written configs when `"kde"`, so configs from
+    /// `irl::discriminator`), or `"gaussian_expert"` (the expert's density a Gaussian KDE of
+    /// bandwidth `kde_bandwidth`, no zeros; `irl::gaussian_kde`). Omitted from written configs when `"kde"`, so configs from
     /// before the key existed read and write unchanged.
     #[serde(default, skip_serializing_if = "DensityRatio::is_kde")]
     pub firl_density_ratio: DensityRatio,

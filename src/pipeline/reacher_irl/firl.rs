@@ -10,7 +10,8 @@
 //! 3. the loss coefficients ([`coefficients`]): for f-IRL the covariance surrogate
 //!    Cov_i(Σ_t h_f(ρ_E/ρ_θ), Σ_t r)/T, the density ratio from an Epanechnikov KDE of the
 //!    agent's fingertip states against the expert's (or from a classifier,
-//!    `firl_density_ratio = "discriminator"`); for MaxEnt T·(mean r over agent states − mean r
+//!    `firl_density_ratio = "discriminator"`, or against a Gaussian KDE of the expert's,
+//!    `"gaussian_expert"`); for MaxEnt T·(mean r over agent states − mean r
 //!    over expert states);
 //! 4. reward steps (Adam).
 //!
@@ -26,6 +27,7 @@ use crate::irl::discriminator::{Discriminator, DiscriminatorConfig};
 use crate::irl::firl::{
     DensityRatio, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS,
 };
+use crate::irl::gaussian_kde::GaussianKde;
 use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel};
 use crate::rl::replay::ReplayBatch;
@@ -47,6 +49,12 @@ pub enum Ratio<'a> {
     Kde { expert: &'a Kde, bandwidth: f64 },
     /// A classifier of expert vs agent fingertip states, trained further every iteration.
     Discriminator(Box<Discriminator>),
+    /// The expert's Gaussian KDE (fitted once, no zeros) against a KDE of each iteration's
+    /// agent states.
+    GaussianExpert {
+        expert: Box<GaussianKde>,
+        bandwidth: f64,
+    },
 }
 
 /// Step 3: the rows and loss coefficients of one reward update (see the module docs). f-IRL:
@@ -77,6 +85,23 @@ pub fn coefficients(
                         .map_err(|e| format!("discriminator: {e}"))?
                         .into_iter()
                         .map(f64::exp)
+                        .collect();
+                    FirlSurrogate::new(div, &ratios, n_traj, horizon)
+                }
+                Ratio::GaussianExpert { expert, bandwidth } => {
+                    let log_e = expert
+                        .log_density_columns(&agent.obs, OBS_DIM, &OBS_TIP)
+                        .map_err(|e| e.to_string())?;
+                    let kde_a = Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, *bandwidth)
+                        .map_err(|e| e.to_string())?;
+                    let rho_a = kde_a
+                        .density_columns(&agent.obs, OBS_DIM, &OBS_TIP)
+                        .map_err(|e| e.to_string())?;
+                    // ρ_θ > 0 at the agent's own states (each is a fitted point).
+                    let ratios: Vec<f64> = log_e
+                        .iter()
+                        .zip(&rho_a)
+                        .map(|(&le, &a)| (le - a.ln()).exp())
                         .collect();
                     FirlSurrogate::new(div, &ratios, n_traj, horizon)
                 }
@@ -181,6 +206,13 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
         (Loss::MaxEnt, _) => None,
         (Loss::FDivergence(_), DensityRatio::Kde) => Some(Ratio::Kde {
             expert: &expert_kde,
+            bandwidth: s.kde_bandwidth,
+        }),
+        (Loss::FDivergence(_), DensityRatio::GaussianExpert) => Some(Ratio::GaussianExpert {
+            expert: Box::new(
+                GaussianKde::fit_columns(&job.expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
+                    .map_err(|e| format!("expert density: {e}"))?,
+            ),
             bandwidth: s.kde_bandwidth,
         }),
         (Loss::FDivergence(_), DensityRatio::Discriminator) => {
