@@ -360,3 +360,71 @@ fn configs_print_shortest_decimals_and_read_back_the_same() {
     .unwrap();
     assert!(!long_decimal(&shipped), "{shipped}");
 }
+
+/// `reacher retrain`: a fresh SAC agent on a finished job's final reward, judged on the ground
+/// truth; the table is written once (again only with --force), the same seed gives the same
+/// table, and bad input — a job that has not run, zero steps, more evaluations than steps, an
+/// Office algorithm — exits 2 before any training, writing nothing.
+#[test]
+fn retrain_judges_a_fresh_policy_on_the_final_reward() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let mut prepare: Vec<&str> = vec!["prepare"];
+    prepare.extend_from_slice(&PLAN);
+    prepare.extend_from_slice(&["--quick", "--out", "run"]);
+    ok(&run(&bin(), dir, &prepare));
+    let (algo, seed) = ("smirl", "5");
+    let retrain = |extra: &[&str]| {
+        let mut v = vec!["retrain", "--run", "run", "--algo", algo, "--seed", seed];
+        v.extend_from_slice(extra);
+        run(&bin(), dir, &v)
+    };
+    usage_error(&retrain(&["--steps", "400"]), "no learned reward");
+    ok(&run(
+        &bin(),
+        dir,
+        &[
+            "job", "--run", "run", "--algo", algo, "--seed", seed, "--quiet",
+        ],
+    ));
+    usage_error(&retrain(&["--steps", "0"]), "--steps must be in 1..=");
+    usage_error(
+        &retrain(&["--steps", "300", "--evaluations", "301"]),
+        "--evaluations must be in 1..=300",
+    );
+    let office = run(
+        &bin(),
+        dir,
+        &[
+            "retrain",
+            "--run",
+            "run",
+            "--algo",
+            "apprenticeship",
+            "--seed",
+            seed,
+        ],
+    );
+    assert_eq!(office.status.code(), Some(2));
+    assert!(!dir.join("run/retrain").exists());
+
+    let table = dir.join("run/retrain/smirl_seed5_sac1000.csv");
+    let out = ok(&retrain(&["--steps", "400", "--evaluations", "2"]));
+    let written = std::fs::read_to_string(&table).unwrap();
+    assert_eq!(out, written);
+    let lines: Vec<&str> = written.lines().collect();
+    assert_eq!(lines.len(), 3, "{written}");
+    assert!(lines[0].starts_with("env_steps,success_rate"));
+    usage_error(
+        &retrain(&["--steps", "400", "--evaluations", "2"]),
+        "--force",
+    );
+    ok(&retrain(&[
+        "--steps",
+        "400",
+        "--evaluations",
+        "2",
+        "--force",
+    ]));
+    assert_eq!(std::fs::read_to_string(&table).unwrap(), written);
+}

@@ -27,6 +27,7 @@ use smirl::pipeline::commands::{
     expert::{CurveRequest, ExpertRequest},
     irl::IrlRequest,
     irl::JobRequest,
+    irl::RetrainRequest,
     logs::DemoRequest,
     logs::LearnRmRequest,
     logs::RenderRequest,
@@ -83,12 +84,40 @@ enum Command {
     Job(JobArgs),
     /// Step 3: metrics, summary and plots of a run's finished jobs.
     Aggregate(AggregateArgs),
+    /// Train a fresh SAC agent on a finished job's final learned reward (held fixed) and judge
+    /// it on the ground truth: does the reward solve the task once it stops moving?
+    Retrain(RetrainArgs),
     /// f-IRL's own Reacher experiment (ReacherDraw): match a fingertip density with one
     /// baseline (maxent, fkl, rkl, js); forward and reverse KL per iteration.
     Draw(DrawArgs),
     /// Print a baseline's saved reward (rewards/<algo>_seed<k>.bin of maxent, fkl, rkl, js)
     /// at fingertip positions.
     Reward(RewardArgs),
+}
+
+#[derive(Args)]
+struct RetrainArgs {
+    /// A prepared run directory.
+    #[arg(long)]
+    run: PathBuf,
+    /// The job's algorithm.
+    #[arg(long, value_parser = Algo::parse_reacher)]
+    algo: Algo,
+    /// The job's seed (its reward is rewards/<algo>_seed<seed>.*).
+    #[arg(long)]
+    seed: u64,
+    /// SAC environment steps (default: the job's own, IRL iterations x SAC steps per iteration).
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Seed of the fresh SAC agent.
+    #[arg(long, default_value_t = 1_000)]
+    sac_seed: u64,
+    /// Ground-truth evaluations during training, evenly spaced, the last at the end.
+    #[arg(long, default_value_t = 5)]
+    evaluations: u64,
+    /// Replace an existing retrain/<algo>_seed<S>_sac<K>.csv.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -422,6 +451,15 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             quiet: a.quiet,
         }),
         Some(Command::Aggregate(a)) => irl::aggregate(&a.dir, a.partial),
+        Some(Command::Retrain(a)) => irl::retrain(RetrainRequest {
+            run: a.run,
+            algo: a.algo,
+            seed: a.seed,
+            steps: a.steps,
+            sac_seed: a.sac_seed,
+            evaluations: a.evaluations,
+            force: a.force,
+        }),
         Some(Command::Draw(a)) => draw::run(DrawRequest {
             algo: a.algo,
             target: a.target,

@@ -357,3 +357,72 @@ pub fn reward(file: &Path, at: &[String]) -> Result<()> {
     }
     Ok(())
 }
+
+/// The arguments of `reacher retrain`.
+#[derive(Clone, Debug)]
+pub struct RetrainRequest {
+    /// A prepared run whose job (`algo`, `seed`) has finished.
+    pub run: PathBuf,
+    pub algo: Algo,
+    pub seed: u64,
+    /// SAC steps; `None`: the job's own budget.
+    pub steps: Option<u64>,
+    pub sac_seed: u64,
+    pub evaluations: u64,
+    /// Replace an existing `retrain/<algo>_seed<S>_sac<K>.csv`.
+    pub force: bool,
+}
+
+/// `reacher retrain`: a fresh SAC agent on a finished job's final learned reward, judged on
+/// the ground truth every `steps / evaluations` steps; the table goes to
+/// `<run>/retrain/<algo>_seed<S>_sac<K>.csv` and standard output.
+pub fn retrain(args: RetrainRequest) -> Result<()> {
+    use crate::env::reacher_task::Branch;
+    use crate::pipeline::reacher_irl::retrain::{load, retrain, Retraining};
+    let run = open_run(&args.run).map_err(usage)?;
+    run.job(args.algo, args.seed).map_err(usage)?;
+    let request = Retraining {
+        algo: args.algo,
+        seed: args.seed,
+        steps: args.steps,
+        sac_seed: args.sac_seed,
+        evaluations: args.evaluations,
+    };
+    let loaded = load(&run, &request).map_err(usage)?;
+    let out = args.run.join("retrain").join(format!(
+        "{}_seed{}_sac{}.csv",
+        args.algo, args.seed, args.sac_seed
+    ));
+    crate::output::check_file(&out, args.force).map_err(usage)?;
+    let header =
+        "env_steps,success_rate,success_normal,success_cancel,progress,final_ball,task_return";
+    println!("{header}");
+    let mut table = format!("{header}\n");
+    retrain(loaded, |p| {
+        let e = &p.evaluation;
+        let branch = |b: Branch| {
+            e.branches
+                .and_then(|t| t.rate(b))
+                .map_or(String::new(), |r| format!("{r}"))
+        };
+        let line = format!(
+            "{},{},{},{},{},{},{}",
+            p.env_steps,
+            e.success_rate,
+            branch(Branch::Normal),
+            branch(Branch::Cancelled),
+            e.progress,
+            e.final_ball,
+            e.task_return
+        );
+        println!("{line}");
+        table.push_str(&line);
+        table.push('\n');
+    })
+    .map_err(|e| anyhow::anyhow!(e))?;
+    std::fs::create_dir_all(out.parent().expect("a file in retrain/"))
+        .with_context(|| format!("cannot create {}", out.display()))?;
+    crate::atomic_file::write_atomic(&out, table.as_bytes())
+        .with_context(|| format!("cannot write {}", out.display()))?;
+    Ok(())
+}

@@ -170,9 +170,18 @@ pub fn baseline_reward_at(path: &Path, points: &[[f64; 2]]) -> Result<Vec<f32>, 
 
 /// SAC's reward: r(o_{t+1}) of every sampled transition, computed when the batch is sampled
 /// so that old transitions follow the reward being optimised now.
-struct StateReward<'a> {
+pub(super) struct StateReward<'a> {
     model: &'a mut MlpReward,
     obs: Vec<f32>,
+}
+
+impl<'a> StateReward<'a> {
+    pub(super) fn new(model: &'a mut MlpReward) -> StateReward<'a> {
+        StateReward {
+            model,
+            obs: Vec::new(),
+        }
+    }
 }
 
 impl RewardFn for StateReward<'_> {
@@ -233,10 +242,7 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
     watch.iteration_done(0, 0, &mut sac.agent, &mut env, None)?;
     for iteration in 1..=s.irl_iterations {
         // 1. SAC on the current reward.
-        let mut sac_reward = StateReward {
-            model: &mut reward,
-            obs: Vec::new(),
-        };
+        let mut sac_reward = StateReward::new(&mut reward);
         let steps = s.sac_steps_per_iteration;
         train_sac(&mut sac, &mut env, &mut sac_reward, steps, iteration, watch)?;
 

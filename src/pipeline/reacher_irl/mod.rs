@@ -29,6 +29,7 @@ pub mod episodes;
 pub mod evaluation;
 pub mod firl;
 pub mod job;
+pub mod retrain;
 pub mod run;
 pub mod smirl;
 

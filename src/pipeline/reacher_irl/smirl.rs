@@ -174,12 +174,28 @@ pub fn coefficients(
 /// one-hot block. With `counterfactual`, a share of each batch is first moved to other learned
 /// states (CRM), so SAC learns every state's values from every step. With `shaping`, plus
 /// γ Φ(u_{t+1}, o_{t+1}) − Φ(u_t, o_t) (Φ = 0 after a terminating step).
-struct ProductReward<'a> {
+pub(super) struct ProductReward<'a> {
     model: &'a mut LinearRmReward,
     counterfactual: Option<&'a CounterfactualRm>,
     shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
     obs: Vec<f32>,
     states: Vec<u32>,
+}
+
+impl<'a> ProductReward<'a> {
+    pub(super) fn new(
+        model: &'a mut LinearRmReward,
+        counterfactual: Option<&'a CounterfactualRm>,
+        shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
+    ) -> ProductReward<'a> {
+        ProductReward {
+            model,
+            counterfactual,
+            shaping,
+            obs: Vec::new(),
+            states: Vec::new(),
+        }
+    }
 }
 
 impl RewardFn for ProductReward<'_> {
@@ -275,13 +291,11 @@ pub fn train(
             })
             .transpose()
             .map_err(|e| e.to_string())?;
-        let mut sac_reward = ProductReward {
-            model: &mut reward,
-            counterfactual: counterfactual.as_ref(),
-            shaping: potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
-            obs: Vec::new(),
-            states: Vec::new(),
-        };
+        let mut sac_reward = ProductReward::new(
+            &mut reward,
+            counterfactual.as_ref(),
+            potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
+        );
         let steps = s.sac_steps_per_iteration;
         train_sac(&mut sac, &mut env, &mut sac_reward, steps, iteration, watch)?;
 

@@ -1,0 +1,275 @@
+//! Re-optimising a learned reward (`reacher retrain`): a fresh SAC agent trained on a finished
+//! job's final learned reward, held fixed, and judged on the ground truth as the jobs are.
+//!
+//! Why: an IRL job's metrics judge the policy that learned *along with* a moving reward. When
+//! that policy fails, the reward may be wrong, or right with the policy lagging behind it. A
+//! policy trained from scratch on the final reward, which no longer moves, tells the two
+//! apart — it is what "the learned reward solves the task" means. The SAC settings, the
+//! environment (the product with the learned machine for SMIRL, with counterfactual states as
+//! configured) and the evaluation episodes are the job's own; only SAC's seed is new.
+
+use super::config::IrlRunConfig;
+use super::episodes::JobEnv;
+use super::evaluation::{Evaluation, GroundTruth};
+use super::firl::{self, StateReward};
+use super::run::PreparedRun;
+use super::smirl::{Features, ProductReward};
+use super::Algo;
+use crate::env::product::ProductEnv;
+use crate::env::reacher::{ReacherDelivery, OBS_DIM};
+use crate::irl::reward::MlpReward;
+use crate::irl::reward::{RewardModel, RewardOptimConfig};
+use crate::irl::smirl::{LearnedSubgoalPotential, LinearRmReward};
+use crate::rl::crm::CounterfactualRm;
+use crate::rl::sac::{RewardFn, SacTrainer};
+use std::path::{Path, PathBuf};
+
+/// Most SAC steps of one retraining.
+pub const MAX_RETRAIN_STEPS: u64 = 100_000_000;
+
+/// One retraining: which job's reward, how long, with which SAC seed.
+#[derive(Clone, Debug)]
+pub struct Retraining {
+    pub algo: Algo,
+    /// The job's seed (its reward file is `rewards/<algo>_seed<seed>.*`).
+    pub seed: u64,
+    /// SAC environment steps; `None`: the job's own (IRL iterations × SAC steps per iteration).
+    pub steps: Option<u64>,
+    /// Seed of the fresh SAC agent.
+    pub sac_seed: u64,
+    /// Ground-truth evaluations during training (the last at the end).
+    pub evaluations: u64,
+}
+
+/// One ground-truth evaluation of the retrained policy.
+#[derive(Clone, Copy, Debug)]
+pub struct RetrainPoint {
+    pub env_steps: u64,
+    pub evaluation: Evaluation,
+}
+
+/// The reward file of a job.
+pub fn reward_path(dir: &Path, algo: Algo, seed: u64) -> PathBuf {
+    let ext = if algo.uses_rm() { "json" } else { "bin" };
+    dir.join("rewards")
+        .join(format!("{}_seed{seed}.{ext}", algo.name()))
+}
+
+/// Why a retraining cannot run: bad input, found before any training.
+#[derive(Debug, thiserror::Error)]
+pub enum RetrainError {
+    #[error("{0}")]
+    Usage(String),
+}
+
+/// A job's final reward, loaded and checked against its run: everything a retraining needs
+/// before it trains.
+pub struct LoadedReward<'a> {
+    run: &'a PreparedRun,
+    settings: IrlRunConfig,
+    request: Retraining,
+    steps: u64,
+    reward: Reward,
+}
+
+enum Reward {
+    /// SMIRL's δ_r(u, o) = w_uᵀ φ(o) on the run's learned machine.
+    Linear(LinearRmReward),
+    /// A baseline's reward net on the fingertip.
+    Mlp(MlpReward),
+}
+
+/// Step 1 (no training, nothing written): checks the request and loads the job's reward. Every
+/// error here is bad input.
+pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>, RetrainError> {
+    let usage = RetrainError::Usage;
+    if !Algo::REACHER.contains(&r.algo) {
+        return Err(usage(format!(
+            "{} is not a ReacherDelivery algorithm",
+            r.algo
+        )));
+    }
+    let s = run
+        .config
+        .for_algo(r.algo)
+        .map_err(|e| usage(e.to_string()))?;
+    let steps = r
+        .steps
+        .unwrap_or(s.sac_steps_per_iteration * s.irl_iterations as u64);
+    if steps == 0 || steps > MAX_RETRAIN_STEPS {
+        return Err(usage(format!(
+            "--steps must be in 1..={MAX_RETRAIN_STEPS}, got {steps}"
+        )));
+    }
+    if r.evaluations == 0 || r.evaluations > steps {
+        return Err(usage(format!(
+            "--evaluations must be in 1..={steps} (the steps), got {}",
+            r.evaluations
+        )));
+    }
+    let path = reward_path(&run.dir, r.algo, r.seed);
+    if !path.is_file() {
+        return Err(usage(format!(
+            "{}: no learned reward (has job {} seed {} finished?)",
+            path.display(),
+            r.algo,
+            r.seed
+        )));
+    }
+    let reward = if r.algo.uses_rm() {
+        let machine = run
+            .learned
+            .as_ref()
+            .ok_or_else(|| usage("the run has no learned machine".into()))?;
+        let features = if r.algo == Algo::Smirl {
+            Features::Labels
+        } else {
+            Features::Smooth
+        };
+        let optim = RewardOptimConfig {
+            adam: true,
+            lr: s.smirl_reward_lr,
+            l2: s.smirl_reward_l2,
+        };
+        let reward = LinearRmReward::load(&path, optim).map_err(|e| usage(e.to_string()))?;
+        let expected = features.map(&s).map_err(|e| usage(e.to_string()))?;
+        if reward.features() != &expected || reward.n_states() != machine.n_states() {
+            return Err(usage(format!(
+                "{}: not a {} reward of this run's {}-state machine",
+                path.display(),
+                r.algo,
+                machine.n_states()
+            )));
+        }
+        Reward::Linear(reward)
+    } else {
+        let mut reward = firl::reward_model(&s, 0).map_err(|e| usage(e.to_string()))?;
+        reward.load(&path).map_err(|e| usage(e.to_string()))?;
+        Reward::Mlp(reward)
+    };
+    Ok(LoadedReward {
+        run,
+        settings: s,
+        request: r.clone(),
+        steps,
+        reward,
+    })
+}
+
+/// Step 2: trains a fresh SAC agent on the loaded reward; `on_point` sees every evaluation.
+pub fn retrain(
+    loaded: LoadedReward<'_>,
+    mut on_point: impl FnMut(&RetrainPoint),
+) -> Result<Vec<RetrainPoint>, String> {
+    let LoadedReward {
+        run,
+        settings: s,
+        request: r,
+        steps,
+        reward,
+    } = loaded;
+    let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let judge = GroundTruth::new(&run.perfect, &mut schedule, r.seed, s.eval_episodes);
+    let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let segments = Segments::new(steps, r.evaluations);
+    match reward {
+        Reward::Linear(mut reward) => {
+            let machine = run
+                .learned
+                .as_ref()
+                .ok_or("the run has no learned machine")?;
+            let counterfactual = (s.smirl_counterfactual > 0.0)
+                .then(|| CounterfactualRm::new(machine.clone(), OBS_DIM, s.smirl_counterfactual))
+                .transpose()
+                .map_err(|e| e.to_string())?;
+            let weights = reward.params();
+            let potential = (s.smirl_shaping > 0.0)
+                .then(|| {
+                    LearnedSubgoalPotential::from_weights(
+                        reward.features(),
+                        machine.n_states(),
+                        &weights,
+                        s.smirl_shaping,
+                    )
+                })
+                .transpose()
+                .map_err(|e| e.to_string())?;
+            let mut env = ProductEnv::new(inner, machine.clone());
+            let mut sac_reward = ProductReward::new(
+                &mut reward,
+                counterfactual.as_ref(),
+                potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
+            );
+            train_and_judge(
+                &s.sac,
+                r.sac_seed,
+                &mut env,
+                &mut sac_reward,
+                &segments,
+                &judge,
+                &mut on_point,
+            )
+        }
+        Reward::Mlp(mut reward) => {
+            let mut env = inner;
+            let mut sac_reward = StateReward::new(&mut reward);
+            train_and_judge(
+                &s.sac,
+                r.sac_seed,
+                &mut env,
+                &mut sac_reward,
+                &segments,
+                &judge,
+                &mut on_point,
+            )
+        }
+    }
+}
+
+/// `steps` split into `evaluations` nearly equal training segments.
+struct Segments {
+    steps: u64,
+    evaluations: u64,
+}
+
+impl Segments {
+    fn new(steps: u64, evaluations: u64) -> Segments {
+        Segments { steps, evaluations }
+    }
+
+    /// Environment steps at the end of segment `k` (1-based).
+    fn end(&self, k: u64) -> u64 {
+        self.steps * k / self.evaluations
+    }
+}
+
+fn train_and_judge<E: JobEnv, R: RewardFn>(
+    sac_config: &crate::rl::sac::SacConfig,
+    sac_seed: u64,
+    env: &mut E,
+    reward: &mut R,
+    segments: &Segments,
+    judge: &GroundTruth<'_>,
+    on_point: &mut impl FnMut(&RetrainPoint),
+) -> Result<Vec<RetrainPoint>, String> {
+    let mut sac = SacTrainer::new(sac_config, env.obs_dim(), env.act_dim(), sac_seed)
+        .map_err(|e| e.to_string())?;
+    let mut points = Vec::new();
+    for k in 1..=segments.evaluations {
+        let n = segments.end(k).saturating_sub(sac.env_steps());
+        sac.train_observed(env, reward, n, None, |_| {})
+            .map_err(|e| format!("SAC: {e}"))?;
+        // Evaluation resets the environment: finish SAC's episode first.
+        while !sac.at_episode_boundary() {
+            sac.train_observed(env, reward, 1, None, |_| {})
+                .map_err(|e| format!("SAC: {e}"))?;
+        }
+        let point = RetrainPoint {
+            env_steps: sac.env_steps(),
+            evaluation: judge.evaluate(&mut sac.agent, env, None)?,
+        };
+        on_point(&point);
+        points.push(point);
+    }
+    Ok(points)
+}
