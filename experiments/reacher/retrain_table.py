@@ -1,0 +1,110 @@
+"""The learned rewards re-optimised (experiments/reacher/retrain.sh, `reacher retrain`).
+
+`python3 experiments/reacher/retrain_table.py --write RUN_DIR...` collects, for every retrained
+job of the run directories, the job's own final evaluation (the policy that learned along with
+the reward; metrics.csv) and the last evaluation of the fresh SAC agent trained on the job's
+final reward (<run>/retrain/<algo>_seed<S>_sac<K>.csv, not tracked) into
+experiments/reacher/retrain.csv (tracked; rows of runs not given are kept).
+`python3 experiments/reacher/retrain_table.py` prints the markdown table from retrain.csv.
+Success is the ground truth's; for IF and Composite each branch (normal / cancel), and the
+headline is the lower.
+"""
+import csv
+import glob
+import os
+import re
+import sys
+
+here = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, here)
+import rundata  # noqa: E402
+
+CSV = os.path.join(here, "retrain.csv")
+FIELDS = ["run", "algo", "seed", "sac_seed", "retrain_steps",
+          "own_success", "own_normal", "own_cancel",
+          "retrained_success", "retrained_normal", "retrained_cancel",
+          "retrained_progress", "retrained_final_ball"]
+ORDER = ["or", "sequential", "if", "composite", "blue"]
+
+
+def rel(run):
+    return os.path.relpath(os.path.abspath(run), here)
+
+
+def collect(run):
+    try:
+        metrics = rundata.table(run, "metrics.csv")
+    except FileNotFoundError:
+        metrics = []
+    out = []
+    for path in sorted(glob.glob(os.path.join(run, "retrain", "*.csv"))):
+        m = re.match(r"(.+)_seed(\d+)_sac(\d+)\.csv$", os.path.basename(path))
+        if not m:
+            continue
+        algo, seed, sac = m.groups()
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+        if not rows:
+            continue
+        last = rows[-1]
+        own = [r for r in metrics if r["algo"] == algo and r["seed"] == seed]
+        o = max(own, key=lambda r: int(r["iteration"])) if own else {}
+        out.append({
+            "run": rel(run), "algo": algo, "seed": seed, "sac_seed": sac,
+            "retrain_steps": last["env_steps"],
+            "own_success": o.get("success_rate", ""), "own_normal": o.get("success_normal", ""),
+            "own_cancel": o.get("success_cancel", ""),
+            "retrained_success": last["success_rate"], "retrained_normal": last["success_normal"],
+            "retrained_cancel": last["success_cancel"], "retrained_progress": last["progress"],
+            "retrained_final_ball": last["final_ball"],
+        })
+    return out
+
+
+def key(r):
+    task = os.path.basename(r["run"]).split("-")[-1] if "heldout" in r["run"] else os.path.basename(r["run"]).split("-")[0]
+    return (ORDER.index(task) if task in ORDER else 9, r["run"], r["algo"], int(r["seed"]), int(r["sac_seed"]))
+
+
+def read():
+    if not os.path.exists(CSV):
+        return []
+    with open(CSV, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def write(runs):
+    given = {rel(r) for r in runs}
+    rows = [r for r in read() if r["run"] not in given]
+    for run in runs:
+        rows.extend(collect(run))
+    rows.sort(key=key)
+    with open(CSV, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=FIELDS, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def fmt(x):
+    return "" if x in ("", None) else f"{float(x):.2f}"
+
+
+def cell(success, normal, cancel):
+    if normal not in ("", None) and cancel not in ("", None):
+        return f"{fmt(normal)} / {fmt(cancel)}"
+    return fmt(success)
+
+
+def table():
+    print("| run | algorithm | seed | job's own policy, final | fresh SAC on the final reward | retrain steps | SAC seed |")
+    print("|---|---|---|---|---|---|---|")
+    for r in read():
+        print(f"| {r['run']} | {r['algo']} | {r['seed']} | {cell(r['own_success'], r['own_normal'], r['own_cancel'])} "
+              f"| {cell(r['retrained_success'], r['retrained_normal'], r['retrained_cancel'])} | {r['retrain_steps']} | {r['sac_seed']} |")
+
+
+if __name__ == "__main__":
+    if sys.argv[1:2] == ["--write"]:
+        write(sys.argv[2:])
+    else:
+        table()
