@@ -395,7 +395,7 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
     ));
     crate::output::check_file(&out, args.force).map_err(usage)?;
     let header =
-        "env_steps,success_rate,success_normal,success_cancel,progress,final_ball,task_return";
+        "env_steps,success_rate,success_normal,success_cancel,progress,final_ball,task_return,learned_return";
     println!("{header}");
     let mut table = format!("{header}\n");
     retrain(loaded, |p| {
@@ -406,14 +406,15 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
                 .map_or(String::new(), |r| format!("{r}"))
         };
         let line = format!(
-            "{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{}",
             p.env_steps,
             e.success_rate,
             branch(Branch::Normal),
             branch(Branch::Cancelled),
             e.progress,
             e.final_ball,
-            e.task_return
+            e.task_return,
+            p.learned_return
         );
         println!("{line}");
         table.push_str(&line);

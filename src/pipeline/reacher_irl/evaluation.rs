@@ -100,6 +100,16 @@ impl<'r> GroundTruth<'r> {
         }
     }
 
+    /// The reset seeds of the evaluation episodes.
+    pub fn reset_seeds(&self) -> &[u64] {
+        &self.eval_seeds
+    }
+
+    /// The task's ground truth.
+    pub fn task(&self) -> &GroundTruthTask<'r> {
+        &self.task
+    }
+
     /// Plays the evaluation episodes with `agent`'s mean action in `env`.
     pub fn evaluate<E: JobEnv>(
         &self,

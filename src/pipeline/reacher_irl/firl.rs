@@ -195,6 +195,14 @@ impl RewardFn for StateReward<'_> {
     }
 }
 
+impl super::retrain::ScoredReward for StateReward<'_> {
+    fn score(&mut self, next_obs: &[f32], _states: &[u32], out: &mut [f32]) -> Result<(), String> {
+        self.model
+            .reward_batch(next_obs, &[], out)
+            .map_err(|e| e.to_string())
+    }
+}
+
 /// One baseline job.
 pub struct BaselineJob<'a> {
     pub loss: Loss,

@@ -9,7 +9,7 @@
 //! configured) and the evaluation episodes are the job's own; only SAC's seed is new.
 
 use super::config::IrlRunConfig;
-use super::episodes::JobEnv;
+use super::episodes::{play_episode, EpisodeSpec, JobEnv};
 use super::evaluation::{Evaluation, GroundTruth};
 use super::firl::{self, StateReward};
 use super::run::PreparedRun;
@@ -21,7 +21,9 @@ use crate::irl::reward::MlpReward;
 use crate::irl::reward::{RewardModel, RewardOptimConfig};
 use crate::irl::smirl::{LearnedSubgoalPotential, LinearRmReward};
 use crate::rl::crm::CounterfactualRm;
-use crate::rl::sac::{RewardFn, SacTrainer};
+use crate::rl::sac::{ActMode, RewardFn, SacAgent, SacTrainer};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use std::path::{Path, PathBuf};
 
 /// Most SAC steps of one retraining.
@@ -41,11 +43,22 @@ pub struct Retraining {
     pub evaluations: u64,
 }
 
-/// One ground-truth evaluation of the retrained policy.
+/// One evaluation of the retrained policy.
 #[derive(Clone, Copy, Debug)]
 pub struct RetrainPoint {
     pub env_steps: u64,
+    /// On the ground truth, as the jobs are judged.
     pub evaluation: Evaluation,
+    /// The mean learned return of the mean-action policy over the evaluation's reset seeds,
+    /// each episode played to the time limit: how well the agent optimises the reward it was
+    /// given, known without the ground truth (so a choice among agents may use it).
+    pub learned_return: f64,
+}
+
+/// A SAC reward that can also score logged steps: the learned reward of each row
+/// (`next_obs`, the learned state the step started in; empty for the baselines).
+pub(super) trait ScoredReward: RewardFn {
+    fn score(&mut self, next_obs: &[f32], states: &[u32], out: &mut [f32]) -> Result<(), String>;
 }
 
 /// The reward file of a job.
@@ -243,7 +256,7 @@ impl Segments {
     }
 }
 
-fn train_and_judge<E: JobEnv, R: RewardFn>(
+fn train_and_judge<E: JobEnv, R: ScoredReward>(
     sac_config: &crate::rl::sac::SacConfig,
     sac_seed: u64,
     env: &mut E,
@@ -267,9 +280,41 @@ fn train_and_judge<E: JobEnv, R: RewardFn>(
         let point = RetrainPoint {
             env_steps: sac.env_steps(),
             evaluation: judge.evaluate(&mut sac.agent, env, None)?,
+            learned_return: learned_return(&mut sac.agent, env, reward, judge)?,
         };
         on_point(&point);
         points.push(point);
     }
     Ok(points)
+}
+
+/// The mean learned return of `agent`'s mean action over the judge's reset seeds, every
+/// episode to the time limit.
+fn learned_return<E: JobEnv, R: ScoredReward>(
+    agent: &mut SacAgent,
+    env: &mut E,
+    reward: &mut R,
+    judge: &GroundTruth<'_>,
+) -> Result<f64, String> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let (mut obs, mut states) = (Vec::new(), Vec::new());
+    for &reset_seed in judge.reset_seeds() {
+        let spec = EpisodeSpec {
+            mode: ActMode::Mean,
+            reset_seed,
+            stop_when_decided: false,
+            with_branch: false,
+            phase: "retrain",
+        };
+        play_episode(agent, env, judge.task(), spec, &mut rng, None, |o, u| {
+            obs.extend_from_slice(o);
+            if let Some(u) = u {
+                states.push(u as u32);
+            }
+        })?;
+    }
+    let mut r = vec![0.0f32; obs.len() / OBS_DIM];
+    reward.score(&obs, &states, &mut r)?;
+    let episodes = judge.reset_seeds().len().max(1) as f64;
+    Ok(r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes)
 }

@@ -237,6 +237,14 @@ impl RewardFn for ProductReward<'_> {
     }
 }
 
+impl super::retrain::ScoredReward for ProductReward<'_> {
+    fn score(&mut self, next_obs: &[f32], states: &[u32], out: &mut [f32]) -> Result<(), String> {
+        self.model
+            .reward_batch(next_obs, states, out)
+            .map_err(|e| e.to_string())
+    }
+}
+
 /// One SMIRL job.
 pub struct SmirlJob<'a> {
     pub features: Features,
