@@ -18,7 +18,7 @@
 //! with m = max_i(−‖x − x_i‖²/(2σ²)), so the log-density is finite and exact wherever x is
 //! (no underflow far from the data). Exact sum over all fitted points: O(n) per query.
 
-use super::kde::{select_columns, KdeError};
+use super::kde::{check_shape, select_columns, KdeError};
 
 /// A fitted Gaussian KDE (isotropic, bandwidth σ).
 #[derive(Clone, Debug, PartialEq)]
@@ -32,24 +32,7 @@ pub struct GaussianKde {
 impl GaussianKde {
     /// Fits `points` (row-major, `dim` wide) with standard deviation `sigma`.
     pub fn fit(points: &[f64], dim: usize, sigma: f64) -> Result<GaussianKde, KdeError> {
-        if dim == 0 {
-            return Err(KdeError::ZeroDimension);
-        }
-        if !(sigma.is_finite() && sigma > 0.0) {
-            return Err(KdeError::BadBandwidth(sigma));
-        }
-        if points.is_empty() {
-            return Err(KdeError::NoPoints);
-        }
-        if points.len() % dim != 0 {
-            return Err(KdeError::RaggedPoints {
-                len: points.len(),
-                dim,
-            });
-        }
-        if let Some(i) = points.iter().position(|v| !v.is_finite()) {
-            return Err(KdeError::NonFinitePoint { index: i / dim });
-        }
+        check_shape(points, dim, sigma)?;
         Ok(GaussianKde {
             dim,
             sigma,

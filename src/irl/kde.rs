@@ -332,7 +332,8 @@ fn kernel_sum(points: &[f64], x: &[f64], inv_h: f64) -> f64 {
     sum
 }
 
-fn check_shape(points: &[f64], dim: usize, bandwidth: f64) -> Result<(), KdeError> {
+/// Checks fitted points (row-major, `dim` wide, finite) and a bandwidth (positive, finite).
+pub(crate) fn check_shape(points: &[f64], dim: usize, bandwidth: f64) -> Result<(), KdeError> {
     if dim == 0 {
         return Err(KdeError::ZeroDimension);
     }

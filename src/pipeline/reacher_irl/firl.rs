@@ -196,10 +196,8 @@ impl RewardFn for StateReward<'_> {
 }
 
 impl super::retrain::ScoredReward for StateReward<'_> {
-    fn score(&mut self, next_obs: &[f32], _states: &[u32], out: &mut [f32]) -> Result<(), String> {
+    fn model(&mut self) -> &mut dyn RewardModel {
         self.model
-            .reward_batch(next_obs, &[], out)
-            .map_err(|e| e.to_string())
     }
 }
 

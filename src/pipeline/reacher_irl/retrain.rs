@@ -13,15 +13,14 @@ use super::episodes::{play_episode, EpisodeSpec, JobEnv};
 use super::evaluation::{Evaluation, GroundTruth};
 use super::firl::{self, StateReward};
 use super::run::PreparedRun;
-use super::smirl::{Features, ProductReward};
+use super::smirl::{counterfactual_states, shaping_potential, Features, ProductReward};
 use super::Algo;
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherDelivery, OBS_DIM};
 use crate::irl::reward::MlpReward;
 use crate::irl::reward::{RewardModel, RewardOptimConfig};
-use crate::irl::smirl::{LearnedSubgoalPotential, LinearRmReward};
-use crate::rl::crm::CounterfactualRm;
-use crate::rl::sac::{ActMode, RewardFn, SacAgent, SacTrainer};
+use crate::irl::smirl::LinearRmReward;
+use crate::rl::sac::{ActMode, RewardFn, SacAgent, SacConfig, SacTrainer};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::path::{Path, PathBuf};
@@ -55,10 +54,9 @@ pub struct RetrainPoint {
     pub learned_return: f64,
 }
 
-/// A SAC reward that can also score logged steps: the learned reward of each row
-/// (`next_obs`, the learned state the step started in; empty for the baselines).
+/// A SAC reward whose model can also score logged steps.
 pub(super) trait ScoredReward: RewardFn {
-    fn score(&mut self, next_obs: &[f32], states: &[u32], out: &mut [f32]) -> Result<(), String>;
+    fn model(&mut self) -> &mut dyn RewardModel;
 }
 
 /// The reward file of a job.
@@ -183,58 +181,31 @@ pub fn retrain(
     } = loaded;
     let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
     let judge = GroundTruth::new(&run.perfect, &mut schedule, r.seed, s.eval_episodes);
-    let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
-    let segments = Segments::new(steps, r.evaluations);
+    let mut inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let training = Training {
+        sac: &s.sac,
+        sac_seed: r.sac_seed,
+        segments: Segments::new(steps, r.evaluations),
+        judge: &judge,
+    };
     match reward {
         Reward::Linear(mut reward) => {
             let machine = run
                 .learned
                 .as_ref()
                 .ok_or("the run has no learned machine")?;
-            let counterfactual = (s.smirl_counterfactual > 0.0)
-                .then(|| CounterfactualRm::new(machine.clone(), OBS_DIM, s.smirl_counterfactual))
-                .transpose()
-                .map_err(|e| e.to_string())?;
-            let weights = reward.params();
-            let potential = (s.smirl_shaping > 0.0)
-                .then(|| {
-                    LearnedSubgoalPotential::from_weights(
-                        reward.features(),
-                        machine.n_states(),
-                        &weights,
-                        s.smirl_shaping,
-                    )
-                })
-                .transpose()
-                .map_err(|e| e.to_string())?;
+            let counterfactual = counterfactual_states(machine, &s)?;
+            let potential =
+                shaping_potential(reward.features(), machine.n_states(), &reward.params(), &s)?;
             let mut env = ProductEnv::new(inner, machine.clone());
-            let mut sac_reward = ProductReward::new(
-                &mut reward,
-                counterfactual.as_ref(),
-                potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
-            );
-            train_and_judge(
-                &s.sac,
-                r.sac_seed,
-                &mut env,
-                &mut sac_reward,
-                &segments,
-                &judge,
-                &mut on_point,
-            )
+            let gamma = f64::from(s.sac.gamma);
+            let shaping = potential.as_ref().map(|p| (p, gamma));
+            let mut sac_reward = ProductReward::new(&mut reward, counterfactual.as_ref(), shaping);
+            training.run(&mut env, &mut sac_reward, &mut on_point)
         }
         Reward::Mlp(mut reward) => {
-            let mut env = inner;
             let mut sac_reward = StateReward::new(&mut reward);
-            train_and_judge(
-                &s.sac,
-                r.sac_seed,
-                &mut env,
-                &mut sac_reward,
-                &segments,
-                &judge,
-                &mut on_point,
-            )
+            training.run(&mut inner, &mut sac_reward, &mut on_point)
         }
     }
 }
@@ -256,36 +227,43 @@ impl Segments {
     }
 }
 
-fn train_and_judge<E: JobEnv, R: ScoredReward>(
-    sac_config: &crate::rl::sac::SacConfig,
+/// A fresh agent's training and its judging, whatever the environment and reward.
+struct Training<'a> {
+    sac: &'a SacConfig,
     sac_seed: u64,
-    env: &mut E,
-    reward: &mut R,
-    segments: &Segments,
-    judge: &GroundTruth<'_>,
-    on_point: &mut impl FnMut(&RetrainPoint),
-) -> Result<Vec<RetrainPoint>, String> {
-    let mut sac = SacTrainer::new(sac_config, env.obs_dim(), env.act_dim(), sac_seed)
-        .map_err(|e| e.to_string())?;
-    let mut points = Vec::new();
-    for k in 1..=segments.evaluations {
-        let n = segments.end(k).saturating_sub(sac.env_steps());
-        sac.train_observed(env, reward, n, None, |_| {})
-            .map_err(|e| format!("SAC: {e}"))?;
-        // Evaluation resets the environment: finish SAC's episode first.
-        while !sac.at_episode_boundary() {
-            sac.train_observed(env, reward, 1, None, |_| {})
+    segments: Segments,
+    judge: &'a GroundTruth<'a>,
+}
+
+impl Training<'_> {
+    fn run<E: JobEnv, R: ScoredReward>(
+        &self,
+        env: &mut E,
+        reward: &mut R,
+        on_point: &mut impl FnMut(&RetrainPoint),
+    ) -> Result<Vec<RetrainPoint>, String> {
+        let mut sac = SacTrainer::new(self.sac, env.obs_dim(), env.act_dim(), self.sac_seed)
+            .map_err(|e| e.to_string())?;
+        let mut points = Vec::new();
+        for k in 1..=self.segments.evaluations {
+            let n = self.segments.end(k).saturating_sub(sac.env_steps());
+            sac.train_observed(env, reward, n, None, |_| {})
                 .map_err(|e| format!("SAC: {e}"))?;
+            // Evaluation resets the environment: finish SAC's episode first.
+            while !sac.at_episode_boundary() {
+                sac.train_observed(env, reward, 1, None, |_| {})
+                    .map_err(|e| format!("SAC: {e}"))?;
+            }
+            let point = RetrainPoint {
+                env_steps: sac.env_steps(),
+                evaluation: self.judge.evaluate(&mut sac.agent, env, None)?,
+                learned_return: learned_return(&mut sac.agent, env, reward, self.judge)?,
+            };
+            on_point(&point);
+            points.push(point);
         }
-        let point = RetrainPoint {
-            env_steps: sac.env_steps(),
-            evaluation: judge.evaluate(&mut sac.agent, env, None)?,
-            learned_return: learned_return(&mut sac.agent, env, reward, judge)?,
-        };
-        on_point(&point);
-        points.push(point);
+        Ok(points)
     }
-    Ok(points)
 }
 
 /// The mean learned return of `agent`'s mean action over the judge's reset seeds, every
@@ -314,7 +292,10 @@ fn learned_return<E: JobEnv, R: ScoredReward>(
         })?;
     }
     let mut r = vec![0.0f32; obs.len() / OBS_DIM];
-    reward.score(&obs, &states, &mut r)?;
+    reward
+        .model()
+        .reward_batch(&obs, &states, &mut r)
+        .map_err(|e| e.to_string())?;
     let episodes = judge.reset_seeds().len().max(1) as f64;
     Ok(r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes)
 }

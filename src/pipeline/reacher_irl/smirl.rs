@@ -238,11 +238,33 @@ impl RewardFn for ProductReward<'_> {
 }
 
 impl super::retrain::ScoredReward for ProductReward<'_> {
-    fn score(&mut self, next_obs: &[f32], states: &[u32], out: &mut [f32]) -> Result<(), String> {
+    fn model(&mut self) -> &mut dyn RewardModel {
         self.model
-            .reward_batch(next_obs, states, out)
-            .map_err(|e| e.to_string())
     }
+}
+
+/// SMIRL's counterfactual relabelling of SAC batches (`smirl_counterfactual` > 0).
+pub(super) fn counterfactual_states(
+    machine: &RewardMachine,
+    s: &IrlRunConfig,
+) -> Result<Option<CounterfactualRm>, String> {
+    (s.smirl_counterfactual > 0.0)
+        .then(|| CounterfactualRm::new(machine.clone(), OBS_DIM, s.smirl_counterfactual))
+        .transpose()
+        .map_err(|e| e.to_string())
+}
+
+/// The shaping potential of the weights `w` (`smirl_shaping` > 0, an ablation).
+pub(super) fn shaping_potential(
+    features: &FeatureMap,
+    n_states: usize,
+    w: &[f32],
+    s: &IrlRunConfig,
+) -> Result<Option<LearnedSubgoalPotential>, String> {
+    (s.smirl_shaping > 0.0)
+        .then(|| LearnedSubgoalPotential::from_weights(features, n_states, w, s.smirl_shaping))
+        .transpose()
+        .map_err(|e| e.to_string())
 }
 
 /// One SMIRL job.
@@ -275,10 +297,7 @@ pub fn train(
     };
     let mut reward =
         LinearRmReward::new(features.clone(), n_states, optim).map_err(|e| e.to_string())?;
-    let counterfactual = (s.smirl_counterfactual > 0.0)
-        .then(|| CounterfactualRm::new(job.machine.clone(), OBS_DIM, s.smirl_counterfactual))
-        .transpose()
-        .map_err(|e| e.to_string())?;
+    let counterfactual = counterfactual_states(job.machine, s)?;
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)
         .map_err(|e| e.to_string())?;
     let mut rollouts = RolloutStream::new(job.seed);
@@ -288,17 +307,7 @@ pub fn train(
     for iteration in 1..=s.irl_iterations {
         // 1. SAC on the product with the current δ_r (shaped by the potential of the current
         //    weights when `smirl_shaping` > 0), counterfactual states in every batch.
-        let potential = (s.smirl_shaping > 0.0)
-            .then(|| {
-                LearnedSubgoalPotential::from_weights(
-                    &features,
-                    n_states,
-                    &reward.params(),
-                    s.smirl_shaping,
-                )
-            })
-            .transpose()
-            .map_err(|e| e.to_string())?;
+        let potential = shaping_potential(&features, n_states, &reward.params(), s)?;
         let mut sac_reward = ProductReward::new(
             &mut reward,
             counterfactual.as_ref(),
