@@ -18,7 +18,7 @@
 //! with m = max_i(−‖x − x_i‖²/(2σ²)), so the log-density is finite and exact wherever x is
 //! (no underflow far from the data). Exact sum over all fitted points: O(n) per query.
 
-use super::kde::{check_shape, select_columns, KdeError};
+use super::kde::{check_shape, query_columns, select_columns, KdeError};
 
 /// A fitted Gaussian KDE (isotropic, bandwidth σ).
 #[derive(Clone, Debug, PartialEq)]
@@ -80,13 +80,7 @@ impl GaussianKde {
         obs_dim: usize,
         columns: &[usize],
     ) -> Result<Vec<f64>, KdeError> {
-        if columns.len() != self.dim {
-            return Err(KdeError::RaggedPoints {
-                len: columns.len(),
-                dim: self.dim,
-            });
-        }
-        let queries = select_columns(obs, obs_dim, columns)?;
+        let queries = query_columns(obs, obs_dim, columns, self.dim)?;
         Ok(queries
             .chunks_exact(self.dim)
             .map(|x| self.log_density(x))

@@ -272,13 +272,7 @@ impl Kde {
         obs_dim: usize,
         columns: &[usize],
     ) -> Result<Vec<f64>, KdeError> {
-        if columns.len() != self.dim {
-            return Err(KdeError::RaggedPoints {
-                len: columns.len(),
-                dim: self.dim,
-            });
-        }
-        let q = select_columns(obs, obs_dim, columns)?;
+        let q = query_columns(obs, obs_dim, columns, self.dim)?;
         let mut out = vec![0.0; q.len() / self.dim];
         self.density_batch(&q, &mut out);
         Ok(out)
@@ -356,6 +350,22 @@ pub(crate) fn check_shape(points: &[f64], dim: usize, bandwidth: f64) -> Result<
         return Err(KdeError::NonFinitePoint { index: i / dim });
     }
     Ok(())
+}
+
+/// [`select_columns`] for queries of a density fitted in `dim` dimensions: as many columns.
+pub(crate) fn query_columns(
+    obs: &[f32],
+    obs_dim: usize,
+    columns: &[usize],
+    dim: usize,
+) -> Result<Vec<f64>, KdeError> {
+    if columns.len() != dim {
+        return Err(KdeError::RaggedPoints {
+            len: columns.len(),
+            dim,
+        });
+    }
+    select_columns(obs, obs_dim, columns)
 }
 
 /// Copies `columns` of row-major `f32` rows of width `obs_dim` into row-major `f64` points.
