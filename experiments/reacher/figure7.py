@@ -1,0 +1,79 @@
+"""Figure 7 with every algorithm on its own schedule (experiments/reacher/figure7_schedules.sh,
+config_schedules.toml): one table per run directory given, one row per algorithm, over its
+finished seeds — the final ground-truth success (IF and Composite: the lower branch, and each
+branch), the mean success over the last quarter of the IRL iterations (the policies of
+SMIRL's iterations 16-20, of the baselines' 601-800), the partial progress the paper's figure
+credits (sub-goals completed along the perfect machine, a ball that can end the task touched)
+at the end, and the median wall time per job. Markdown on standard output; numbers from the runs'
+metrics.csv(.gz) and run.json.
+
+Usage: python3 experiments/reacher/figure7.py RUN_DIR...
+"""
+import json
+import os
+import statistics
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import rundata  # noqa: E402
+
+ORDER = ["smirl", "smirl-smooth", "maxent", "fkl", "js", "rkl"]
+
+
+def ms(xs):
+    if not xs:
+        return "-"
+    if len(xs) == 1:
+        return f"{xs[0]:.2f}"
+    return f"{statistics.mean(xs):.2f} ± {statistics.pstdev(xs):.2f}"
+
+
+def per_seed(xs):
+    return ", ".join(f"{x:.2f}" for x in xs)
+
+
+def main(runs):
+    for run in runs:
+        rows = rundata.table(run, "metrics.csv")
+        info = json.load(open(os.path.join(run, "run.json")))
+        walls = {}
+        for j in info.get("jobs", []):
+            walls.setdefault(j["algo"], []).append(j["wall_secs"])
+        jobs = {}
+        for r in rows:
+            jobs.setdefault((r["algo"], int(r["seed"])), []).append(r)
+        branches = any(r.get("success_normal", "") != "" for r in rows)
+        print(f"\n**{os.path.basename(os.path.normpath(run))}**\n")
+        head = "| algorithm | seeds | final success | per seed |"
+        if branches:
+            head += " final normal / cancel |"
+        head += " last quarter | final sub-goals | final end ball | wall per job (s) |"
+        print(head)
+        print("|" + "---|" * (head.count("|") - 1))
+        algos = sorted({a for a, _ in jobs}, key=lambda a: ORDER.index(a) if a in ORDER else 9)
+        for algo in algos:
+            seeds = sorted(s for a, s in jobs if a == algo)
+            final, normal, cancel, quarter, prog, ball = [], [], [], [], [], []
+            for s in seeds:
+                it = sorted(jobs[(algo, s)], key=lambda r: int(r["iteration"]))
+                last = it[-1]
+                final.append(float(last["success_rate"]))
+                if branches:
+                    normal.append(float(last["success_normal"]))
+                    cancel.append(float(last["success_cancel"]))
+                n = len(it) - 1
+                tail = [float(r["success_rate"]) for r in it[1:] if int(r["iteration"]) > n - n // 4]
+                quarter.append(statistics.mean(tail))
+                prog.append(float(last["progress"]) if last.get("progress") else float("nan"))
+                ball.append(float(last["final_ball"]) if last.get("final_ball") else float("nan"))
+            line = f"| {algo} | {len(seeds)} | {ms(final)} | {per_seed(final)} |"
+            if branches:
+                line += f" {ms(normal)} / {ms(cancel)} |"
+            wall = walls.get(algo, [])
+            wall_txt = f"{statistics.median(wall):.0f}" if wall else "-"
+            line += f" {ms(quarter)} | {ms(prog)} | {ms(ball)} | {wall_txt} |"
+            print(line)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
