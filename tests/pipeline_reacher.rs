@@ -363,7 +363,7 @@ fn shipped_configs_parse() {
     }
     assert!(
         parsed >= 20,
-        "config, config_schedules, quick, config_scripted, the three ablations and the controls"
+        "config, config_uniform, quick, config_scripted, the three ablations and the controls"
     );
 }
 
@@ -516,18 +516,59 @@ fn counterfactual_share_must_be_in_the_unit_interval() {
     }
 }
 
+/// The standard profile without its per-algorithm schedules (`config_uniform.toml`'s settings).
+fn uniform() -> IrlRunConfig {
+    let mut c = IrlRunConfig::standard();
+    c.schedule.clear();
+    c
+}
+
+/// The standard profile gives the baselines f-IRL's schedule (800 × 300 SAC steps, 300
+/// trajectories, 2 reward steps, SAC lr 3e-3 with α = 1 fixed, replay 12 000) and SMIRL the
+/// run's own (20 × 5 000), and `config_uniform.toml` is it without the schedules.
+#[test]
+fn standard_profile_gives_each_algorithm_its_schedule() {
+    let standard = IrlRunConfig::standard();
+    for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
+        let c = standard.for_algo(algo).unwrap();
+        assert_eq!(
+            (
+                c.irl_iterations,
+                c.sac_steps_per_iteration,
+                c.agent_trajectories
+            ),
+            (800, 300, 300),
+            "{algo}"
+        );
+        assert_eq!(c.reward_steps_per_iteration, 2);
+        assert_eq!(c.mlp_reward_l2, 0.0);
+        assert_eq!(
+            (c.sac.lr, c.sac.alpha, c.sac.auto_alpha),
+            (0.003, 1.0, false)
+        );
+        assert_eq!(c.sac.replay_capacity, 12_000);
+    }
+    for algo in [Algo::Smirl, Algo::SmirlSmooth] {
+        assert_eq!(standard.for_algo(algo).unwrap(), uniform(), "{algo}");
+    }
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher/config_uniform.toml");
+    assert_eq!(IrlRunConfig::load(&path).unwrap(), uniform());
+    assert!(IrlRunConfig::quick().schedule.is_empty());
+}
+
 /// `[schedule.<algo>]`: an algorithm's own IRL schedule replaces exactly the fields it names
 /// (the SAC keys on top of the run's `[sac]`); the other algorithms keep the run's; the
 /// config prints and parses back unchanged.
 #[test]
 fn per_algorithm_schedules_replace_only_their_fields() {
     use smirl::rl::sac::SacConfig;
-    let text = IrlRunConfig::standard().to_toml()
+    let text = uniform().to_toml()
         + "\n[schedule.fkl]\nirl_iterations = 800\nsac_steps_per_iteration = 300\n\
            agent_trajectories = 300\nreward_steps_per_iteration = 2\nmlp_reward_l2 = 0.0\n\
            \n[schedule.fkl.sac]\nlr = 0.003\nalpha = 1.0\nauto_alpha = false\n";
     let c = IrlRunConfig::from_toml(&text, "c.toml").unwrap();
-    let standard = IrlRunConfig::standard();
+    let standard = uniform();
     let fkl = c.for_algo(Algo::Fkl).unwrap();
     assert_eq!(
         (
@@ -565,7 +606,7 @@ fn per_algorithm_schedules_replace_only_their_fields() {
 /// naming the schedule's key and its line, before any work.
 #[test]
 fn bad_schedules_name_the_key_and_line() {
-    let base = IrlRunConfig::standard().to_toml();
+    let base = uniform().to_toml();
     let base_lines = base.lines().count();
     for (table, expected_key, expected_line) in [
         ("[schedule.fkx]\nirl_iterations = 3\n", "schedule.fkx", 2),

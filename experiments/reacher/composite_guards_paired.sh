@@ -10,9 +10,9 @@ if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
 BIN=${REACHER_BIN:-./target/release/reacher}
 D=experiments/reacher/diagnostics
 EXACT=$(mktemp --suffix=.toml)
-sed 's/^lrm_guards = .*/lrm_guards = "exact"/' experiments/reacher/config.toml > "$EXACT"
+sed 's/^lrm_guards = .*/lrm_guards = "exact"/' experiments/reacher/config_uniform.toml > "$EXACT"
 for g in tree exact; do
-  config=experiments/reacher/config.toml
+  config=experiments/reacher/config_uniform.toml
   [ "$g" = exact ] && config=$EXACT
   [ -f "$D/composite_guards_$g/prepare.json" ] || "$BIN" prepare --task composite --algo smirl --seed 0 --seeds 9 \
     --config "$config" --out "$D/composite_guards_$g" --quiet

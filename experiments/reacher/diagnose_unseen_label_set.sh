@@ -16,7 +16,7 @@ BIN=${REACHER_BIN:-target/release/reacher}
 # The machine of the exact-guard run (LRM's reading of unseen label sets: stay), which
 # runs/if-exact_guards used; the default config now says lrm_guards = "tree".
 CONFIG=$(mktemp --suffix=.toml)
-sed 's/^lrm_guards = .*/lrm_guards = "exact"/' experiments/reacher/config.toml > "$CONFIG"
+sed 's/^lrm_guards = .*/lrm_guards = "exact"/' experiments/reacher/config_uniform.toml > "$CONFIG"
 "$BIN" prepare --task if --algo smirl --seeds 3 --config "$CONFIG" --out "$OUT"
 rm -f "$CONFIG"
 cmp "$OUT/rm/learned.txt" experiments/reacher/runs/if-exact_guards/rm/learned.txt

@@ -1,5 +1,5 @@
 """Figure 7 with every algorithm on its own schedule (experiments/reacher/figure7_schedules.sh,
-config_schedules.toml): one table per run directory given, one row per algorithm, over its
+config.toml): one table per run directory given, one row per algorithm, over its
 finished seeds — the final ground-truth success (IF and Composite: the lower branch, and each
 branch), the mean success over the last quarter of the IRL iterations (the policies of
 SMIRL's iterations 16-20, of the baselines' 601-800), the partial progress the paper's figure

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Figure 7 with each baseline on the schedule of its positive control (issue 14):
-# experiments/reacher/config_schedules.toml, every algorithm, SAC seeds BASE..BASE+2, into
+# experiments/reacher/config.toml (the standard profile), every algorithm, SAC seeds BASE..BASE+2, into
 # experiments/reacher/runs/<task>-schedules (BASE = 0, the figure's demonstrations and learned
 # machines; another BASE gives held-out demonstrations and machines, into
 # experiments/reacher/heldout/schedules-seed<BASE>-<task>).
@@ -21,7 +21,7 @@ cd "$(dirname "$0")/../.."
 TASKS=${1:-"or sequential if composite"}
 ALGOS=${2:-"fkl js maxent smirl smirl-smooth rkl"}
 BASE=${3:-0}
-CONFIG=experiments/reacher/config_schedules.toml
+CONFIG=experiments/reacher/config.toml
 if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
 BIN=${REACHER_BIN:-./target/release/reacher}
 

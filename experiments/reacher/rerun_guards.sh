@@ -11,7 +11,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
 BIN=${REACHER_BIN:-./target/release/reacher}
-CONFIG=experiments/reacher/config.toml
+CONFIG=experiments/reacher/config_uniform.toml
 R=experiments/reacher
 prep() { # dir task base-seed algos
   [ -f "$1/prepare.json" ] || "$BIN" prepare --task "$2" --seed "$3" --seeds 3 --algo "$4" \

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # SMIRL ablations on ReacherDelivery, 3 seeds, expert demonstrations. Usage:
 #   experiments/reacher/ablations/run.sh
-# paper_sac.toml is experiments/reacher/config.toml with the paper's IRL SAC ([sac] lr 3e-3,
+# paper_sac.toml is experiments/reacher/config_uniform.toml with the paper's IRL SAC ([sac] lr 3e-3,
 # replay_capacity 10000; the default before this session's change; all six algorithms, so its
 # run directories are the whole figure 7 of that default; held-out seeds:
 # experiments/reacher/heldout.sh experiments/reacher/ablations/paper_sac.toml paper_sac-).

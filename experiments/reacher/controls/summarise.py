@@ -16,7 +16,7 @@ import rundata  # noqa: E402
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "runs")
 CONFIGS = {
-    "blue": "experiments/reacher/config.toml (figure 7: 20 x 5 000 SAC steps, 20 trajectories, 5 reward steps, bandwidth 0.02)",
+    "blue": "experiments/reacher/config_uniform.toml (SMIRL's schedule for every algorithm, figure 7 before issue 14: 20 x 5 000 SAC steps, 20 trajectories, 5 reward steps, bandwidth 0.02)",
     "blue-bandwidth_0.1": "experiments/reacher/controls/bandwidth_0.1.toml (figure 7's, KDE bandwidth 0.1)",
     "blue-firl_schedule": "experiments/reacher/controls/firl_schedule.toml (500 x 200 SAC steps, 100 trajectories, 2 reward steps)",
     "blue-firl_reacherdraw": "experiments/reacher/controls/firl_reacherdraw.toml (f-IRL's ReacherDraw settings: 30-step episodes, 800 x 300 SAC steps, 1 000 trajectories, 2 reward steps, SAC lr 3e-3, alpha 1 fixed, replay 12 000)",
