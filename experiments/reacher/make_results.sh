@@ -1,11 +1,30 @@
 #!/usr/bin/env bash
 # Builds experiments/reacher/results.md from the run directories (every number from a script):
-# the prose of results_header.md, the figure-7 table (results.py), the held-out table
-# (heldout.py), the partial-progress tables of OR and Sequential (progress.py) and the
-# earlier sessions' notes (results_notes.md).
+# this session's figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
+# figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>,
+# progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised),
+# then the earlier material: the prose of results_header.md, the table of every run
+# directory (results.py), the held-out table (heldout.py), the partial-progress tables of
+# the uniform-schedule OR and Sequential runs (progress.py) and the earlier sessions' notes
+# (results_notes.md).
 set -euo pipefail
 cd "$(dirname "$0")"
 {
+  cat results_figure7.md
+  printf '\n### Figure 7 tables (`python3 experiments/reacher/figure7.py runs/<task>-schedules`)\n'
+  python3 figure7.py runs/or-schedules runs/sequential-schedules runs/if-schedules runs/composite-schedules
+  held=$(ls -d heldout/schedules-seed3-* 2>/dev/null || true)
+  if [ -n "$held" ]; then
+    printf '\n### Held-out demonstrations and machines (base seed 3; `python3 experiments/reacher/figure7.py heldout/schedules-seed3-<task>`)\n'
+    python3 figure7.py $held
+  fi
+  for t in or sequential if composite; do
+    printf '\n#### Partial progress per seed: %s (`python3 progress.py runs/%s-schedules`)\n\n' "$t" "$t"
+    python3 progress.py "runs/$t-schedules"
+  done
+  printf '\n### The learned rewards re-optimised (`python3 experiments/reacher/retrain_table.py`)\n\n'
+  python3 retrain_table.py
+  echo
   cat results_header.md
   python3 results.py
   python3 heldout.py
