@@ -13,7 +13,7 @@ cd "$(dirname "$0")"
   cat results_figure7.md
   printf '\n### Figure 7 tables (`python3 experiments/reacher/figure7.py runs/<task>-schedules`)\n'
   python3 figure7.py runs/or-schedules runs/sequential-schedules runs/if-schedules runs/composite-schedules
-  held=$(ls -d heldout/schedules-seed3-* 2>/dev/null || true)
+  held=$(ls -d heldout/schedules-seed3-*/ 2>/dev/null || true)
   if [ -n "$held" ]; then
     printf '\n### Held-out demonstrations and machines (base seed 3; `python3 experiments/reacher/figure7.py heldout/schedules-seed3-<task>`)\n'
     python3 figure7.py $held
