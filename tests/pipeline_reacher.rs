@@ -34,6 +34,7 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     // and red in u1, one trajectory.
     let mut expert = ExpertData {
         obs: Vec::new(),
+        labels_before: vec![smirl::rm::LabelSet::EMPTY; 5],
         lengths: vec![3, 2],
         learned_states: vec![0, 0, 1, 0, 1],
     };
@@ -48,7 +49,9 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     for b in [Some(1), Some(0), None] {
         agent.obs.extend(row(b));
     }
+    agent.labels_before = vec![smirl::rm::LabelSet::EMPTY; 3];
     let c = smirl::pipeline::reacher_irl::smirl::coefficients(
+        &FeatureMap::reacher_labels(),
         &expert,
         &agent,
         SmirlNormalisation::Trajectories,
@@ -375,6 +378,45 @@ fn shipped_config_is_the_default_profile() {
     assert_eq!(IrlRunConfig::load(&path).unwrap(), IrlRunConfig::standard());
 }
 
+/// `smirl_label_features`: a config without the key reads as the paper's state labels (what
+/// every run before the key used); `"entries"` selects label entries and is written back; a
+/// bad value names the key.
+#[test]
+fn smirl_label_features_key_reads_old_configs_as_state_labels() {
+    use smirl::irl::smirl::LabelFeatures;
+    use smirl::pipeline::reacher_irl::smirl::Features;
+    let text = IrlRunConfig::standard().to_toml();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("smirl_label_features"))
+        .expect("the key is written")
+        .to_string();
+    let without = IrlRunConfig::from_toml(&text.replace(&line, ""), "c.toml").unwrap();
+    assert_eq!(without.smirl_label_features, LabelFeatures::State);
+    assert_eq!(
+        Features::Labels.map(&without).unwrap(),
+        FeatureMap::reacher_labels()
+    );
+    let entries = text.replace(&line, "smirl_label_features = \"entries\"");
+    let c = IrlRunConfig::from_toml(&entries, "c.toml").unwrap();
+    assert_eq!(c.smirl_label_features, LabelFeatures::Entries);
+    assert_eq!(
+        Features::Labels.map(&c).unwrap(),
+        FeatureMap::reacher_label_entries()
+    );
+    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
+    // smirl-smooth reads its smooth features either way.
+    assert_eq!(
+        Features::Smooth.map(&c).unwrap(),
+        FeatureMap::reacher_smooth(c.smooth_sigma).unwrap()
+    );
+    let bad = text.replace(&line, "smirl_label_features = \"edges\"");
+    let err = IrlRunConfig::from_toml(&bad, "c.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("c.toml") && err.contains("edges"), "{err}");
+}
+
 /// Keys missing from `[sac]` come from the IRL runs' SAC, not from the paper's preset; a
 /// `preset` key switches the base.
 #[test]
@@ -447,11 +489,18 @@ fn annotate_holds_the_final_state_to_the_horizon() {
             task_reward: 0.0,
         }
     };
+    // Each step starts where the one before ended; the first from an untouched observation.
+    let mut steps = vec![step(None, false), step(Some(0), false), step(Some(2), true)];
+    let mut before: [f32; OBS_DIM] = row(None).try_into().unwrap();
+    for s in &mut steps {
+        s.obs = before;
+        before = s.next_obs;
+    }
     let demo = Demo {
         seed: 0,
         initial_rm_state: 0,
         initial_labels: smirl::rm::LabelSet::EMPTY,
-        steps: vec![step(None, false), step(Some(0), false), step(Some(2), true)],
+        steps,
         success: true,
         task_return: 1.0,
         env_return: 0.0,
@@ -459,9 +508,26 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     let plain = annotate(std::slice::from_ref(&demo), Some(&rm), None);
     assert_eq!(plain.lengths, vec![3]);
     assert_eq!(plain.learned_states, vec![0, 0, 1]);
+    // The labels before each step: the first step's observation (here nothing touched), then
+    // each step's predecessor.
+    let labels = |s: &str| vocab.parse_labels(s).unwrap();
+    assert_eq!(
+        plain.labels_before,
+        vec![labels(""), labels(""), labels("r")]
+    );
 
     let held = annotate(std::slice::from_ref(&demo), Some(&rm), Some(6));
     assert_eq!(held.lengths, vec![6]);
+    // The last recorded step touched blue with the cancel; the held steps stay on blue.
+    let after_blue = vec![
+        labels(""),
+        labels(""),
+        labels("r"),
+        labels("bc"),
+        labels("b"),
+        labels("b"),
+    ];
+    assert_eq!(held.labels_before, after_blue);
     // After the final (blue) step the machine is in u2, where the held blue touch is read.
     assert_eq!(held.learned_states, vec![0, 0, 1, 2, 2, 2]);
     assert_eq!(&held.obs[..3 * OBS_DIM], &plain.obs[..]);
@@ -479,6 +545,31 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     // A demonstration already at the horizon is not extended.
     let full = annotate(std::slice::from_ref(&demo), Some(&rm), Some(2));
     assert_eq!(full.lengths, vec![3]);
+}
+
+/// `expert_data.bin`: what `reacher prepare` hands the jobs reads back exactly, and a file
+/// whose arrays disagree is refused.
+#[test]
+fn expert_data_round_trips_and_checks_its_arrays() {
+    use smirl::rm::LabelSet;
+    let mut data = ExpertData {
+        obs: (0..3 * OBS_DIM).map(|i| i as f32 * 0.01).collect(),
+        labels_before: vec![LabelSet::EMPTY, LabelSet(1), LabelSet(0b10001)],
+        lengths: vec![2, 1],
+        learned_states: vec![0, 1, 0],
+    };
+    let back = ExpertData::from_bytes(&data.to_bytes()).unwrap();
+    assert_eq!(back.obs, data.obs);
+    assert_eq!(back.labels_before, data.labels_before);
+    assert_eq!(back.lengths, data.lengths);
+    assert_eq!(back.learned_states, data.learned_states);
+    data.labels_before.pop();
+    let err = ExpertData::from_bytes(&data.to_bytes())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("labels before"), "{err}");
+    let bytes = data.to_bytes();
+    assert!(ExpertData::from_bytes(&bytes[..bytes.len() - 3]).is_err());
 }
 
 /// The reward learning-rate schedule lr · k^(−p) of a base rate (SMIRL's or the reward

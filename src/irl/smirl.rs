@@ -49,16 +49,21 @@ use super::reward::{
     RewardOptimConfig, TensorOptimizer,
 };
 use crate::env::reacher::{OBS_CANCEL, OBS_DIM, TOUCH_RADIUS};
+use crate::rm::LabelSet;
 use std::path::Path;
 
-/// Which features φ(o) the linear reward reads.
+/// Which features φ the linear reward reads.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(tag = "kind", rename_all = "lowercase")]
+#[serde(tag = "kind", rename_all = "snake_case")]
 pub enum FeatureKind {
     /// φ = L(o), the label bits (the paper's choice).
     Labels,
     /// φ_k = exp(−d_k²/(2σ²)) per ball, plus the cancel flag (documented variant).
     Smooth { sigma: f64 },
+    /// φ = L(o_{t+1}) \ L(o_t): the label bits that became true on the step (a ball entered,
+    /// the cancel fired). The row carries the labels before the step in the layout's
+    /// `labels_before` column.
+    LabelEntries,
 }
 
 /// Where a feature map finds things in an observation row.
@@ -71,6 +76,12 @@ pub struct ObsLayout {
     pub cancel: usize,
     /// A ball's label is true when the fingertip is strictly closer than this.
     pub touch_radius: f64,
+    /// Column holding the bit mask of the labels *before* the step (`LabelSet::0` as an
+    /// `f32`, exact for the few bits there are), for features of the step rather than of the
+    /// state ([`FeatureKind::LabelEntries`]); rows are then one column wider than the
+    /// observation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub labels_before: Option<usize>,
 }
 
 impl ObsLayout {
@@ -81,6 +92,16 @@ impl ObsLayout {
             ball_deltas: (0..4).map(|k| [8 + 2 * k, 9 + 2 * k]).collect(),
             cancel: OBS_CANCEL,
             touch_radius: TOUCH_RADIUS,
+            labels_before: None,
+        }
+    }
+
+    /// ReacherDelivery's observation followed by the labels before the step.
+    pub fn reacher_with_labels_before() -> ObsLayout {
+        ObsLayout {
+            obs_dim: OBS_DIM + 1,
+            labels_before: Some(OBS_DIM),
+            ..ObsLayout::reacher()
         }
     }
 }
@@ -101,8 +122,14 @@ impl FeatureMap {
                 )));
             }
         }
+        if (kind == FeatureKind::LabelEntries) != layout.labels_before.is_some() {
+            return Err(RewardError::Config(
+                "label-entry features need the labels-before column, and only they read it".into(),
+            ));
+        }
         let bad = (layout.ball_deltas.iter().flatten())
             .chain([&layout.cancel])
+            .chain(layout.labels_before.as_ref())
             .find(|&&c| c >= layout.obs_dim)
             .copied();
         if let Some(column) = bad {
@@ -119,6 +146,15 @@ impl FeatureMap {
         FeatureMap {
             kind: FeatureKind::Labels,
             layout: ObsLayout::reacher(),
+        }
+    }
+
+    /// Label entries on ReacherDelivery: rows are the observation after the step and the
+    /// labels before it ([`FeatureMap::step_rows`]).
+    pub fn reacher_label_entries() -> FeatureMap {
+        FeatureMap {
+            kind: FeatureKind::LabelEntries,
+            layout: ObsLayout::reacher_with_labels_before(),
         }
     }
 
@@ -141,21 +177,49 @@ impl FeatureMap {
         self.layout.obs_dim
     }
 
-    /// Writes φ(o) for one observation row into `out` (length [`FeatureMap::len`]).
+    /// Whether rows carry the labels before the step after the observation (see
+    /// [`FeatureMap::step_rows`]).
+    pub fn reads_labels_before(&self) -> bool {
+        self.layout.labels_before.is_some()
+    }
+
+    /// The rows this map reads for steps whose observations after the step are `obs`
+    /// (row-major, [`FeatureMap::obs_dim`] wide without the labels-before column) and whose
+    /// labels before the step are `labels_before` (one per step; ignored, and may be empty,
+    /// when the map does not read them): `obs` itself, or each observation followed by its
+    /// labels-before column.
+    pub fn step_rows(&self, obs: &[f32], labels_before: &[LabelSet], out: &mut Vec<f32>) {
+        out.clear();
+        if self.layout.labels_before.is_none() {
+            out.extend_from_slice(obs);
+            return;
+        }
+        let d = self.layout.obs_dim - 1;
+        for (o, before) in obs.chunks_exact(d).zip(labels_before) {
+            out.extend_from_slice(o);
+            out.push(before.0 as f32);
+        }
+    }
+
+    /// Writes φ for one row into `out` (length [`FeatureMap::len`]).
     pub fn features(&self, row: &[f32], out: &mut [f64]) {
         let nb = self.layout.ball_deltas.len();
+        let before = match self.layout.labels_before {
+            Some(c) => LabelSet(row[c] as u32),
+            None => LabelSet::EMPTY,
+        };
         for (k, [cx, cy]) in self.layout.ball_deltas.iter().enumerate() {
             let (dx, dy) = (f64::from(row[*cx]), f64::from(row[*cy]));
             let d2 = dx * dx + dy * dy;
+            let r = self.layout.touch_radius;
             out[k] = match self.kind {
-                FeatureKind::Labels => {
-                    let r = self.layout.touch_radius;
-                    f64::from(u8::from(d2 < r * r))
-                }
+                FeatureKind::Labels => f64::from(u8::from(d2 < r * r)),
+                FeatureKind::LabelEntries => f64::from(u8::from(d2 < r * r && !before.contains(k))),
                 FeatureKind::Smooth { sigma } => (-d2 / (2.0 * sigma * sigma)).exp(),
             };
         }
-        out[nb] = f64::from(u8::from(row[self.layout.cancel] > 0.5));
+        let cancel = row[self.layout.cancel] > 0.5 && !before.contains(nb);
+        out[nb] = f64::from(u8::from(cancel));
     }
 
     /// The label set of a row by the labelling rule: bit k for ball k, bit `balls` (the
@@ -163,9 +227,9 @@ impl FeatureMap {
     /// the same rule as the environment's labelling function. The environment decides on the
     /// `f64` positions and the observation carries `f32` offsets, so the two can disagree
     /// only for a fingertip within ~1e-9 m of a touch circle.
-    pub fn labels_of(&self, row: &[f32]) -> crate::rm::LabelSet {
+    pub fn labels_of(&self, row: &[f32]) -> LabelSet {
         let r = self.layout.touch_radius;
-        let mut labels = crate::rm::LabelSet::EMPTY;
+        let mut labels = LabelSet::EMPTY;
         for (k, [cx, cy]) in self.layout.ball_deltas.iter().enumerate() {
             let (dx, dy) = (f64::from(row[*cx]), f64::from(row[*cy]));
             if dx * dx + dy * dy < r * r {
@@ -265,6 +329,28 @@ pub fn maxent_coefficients_by_visits(
             .collect::<Vec<f64>>()
     };
     (per(agent, 1.0), per(expert, -1.0))
+}
+
+/// Which label features SMIRL's reward δ_r(u, ·) = w_uᵀ φ reads (`smirl_label_features`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LabelFeatures {
+    /// φ = L(o_{t+1}), the labels of the state reached — the paper's eq. 5, paid on every
+    /// step the label holds ([`FeatureMap::reacher_labels`]).
+    #[default]
+    State,
+    /// φ = L(o_{t+1}) \ L(o_t), the labels that became true on the step — paid once per
+    /// entry into a ball ([`FeatureMap::reacher_label_entries`]).
+    Entries,
+}
+
+impl LabelFeatures {
+    pub fn name(self) -> &'static str {
+        match self {
+            LabelFeatures::State => "state",
+            LabelFeatures::Entries => "entries",
+        }
+    }
 }
 
 /// Weights are `n_states × n_features` row-major.

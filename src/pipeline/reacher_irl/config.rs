@@ -6,7 +6,7 @@
 use super::Algo;
 use crate::env::reacher::ReacherConfig;
 use crate::irl::firl::DensityRatio;
-use crate::irl::smirl::SmirlNormalisation;
+use crate::irl::smirl::{LabelFeatures, SmirlNormalisation};
 use crate::rl::sac::SacConfig;
 use crate::rm::lrm::Guards;
 use serde::{Deserialize, Serialize};
@@ -97,6 +97,12 @@ pub struct IrlRunConfig {
     /// `"visits"` (feature counts of each RM state averaged over the trajectories that visit
     /// it) or `"trajectories"` (the plain MaxEnt average over all trajectories).
     pub smirl_normalisation: SmirlNormalisation,
+    /// `smirl`'s label features: `"state"` (L(o) of the state reached, paid on every step a
+    /// label holds: the paper's eq. 5) or `"entries"` (the labels that became true on the
+    /// step, paid once per entry into a ball). A config without the key is read as
+    /// `"state"`, what every run before the key existed used.
+    #[serde(default)]
+    pub smirl_label_features: LabelFeatures,
     /// Strength β of SMIRL's potential-based shaping of SAC's reward (per metre, relative to
     /// the RM state's largest ball weight; see `irl::smirl::LearnedSubgoalPotential`); 0 = the
     /// learned reward alone.
@@ -356,6 +362,7 @@ impl IrlRunConfig {
             smirl_reward_lr: 0.1,
             smirl_reward_l2: 0.05,
             smirl_normalisation: SmirlNormalisation::Visits,
+            smirl_label_features: LabelFeatures::State,
             smirl_shaping: 0.0,
             smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,

@@ -10,10 +10,11 @@ use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherDelivery, OBS_DIM};
 use crate::env::reacher_task::{Branch, CancelBranch, TaskProgress};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
+use crate::irl::smirl::FeatureMap;
 use crate::log::RolloutLogger;
 use crate::pipeline::training_log::{ReacherView, TrainingLog};
 use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer, TrainingObserver};
-use crate::rm::RewardMachine;
+use crate::rm::{LabelSet, RewardMachine};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -109,7 +110,7 @@ pub struct EpisodeSpec<'p> {
 }
 
 /// Plays one episode. The perfect machine is tracked on the labels for the ground truth;
-/// `on_step(inner o_{t+1}, learned u_t)` sees every step.
+/// `on_step(inner o_t, inner o_{t+1}, learned u_t)` sees every step.
 pub fn play_episode<E: JobEnv>(
     agent: &mut SacAgent,
     env: &mut E,
@@ -117,7 +118,7 @@ pub fn play_episode<E: JobEnv>(
     spec: EpisodeSpec<'_>,
     rng: &mut ChaCha8Rng,
     mut logger: Option<&mut RolloutLogger>,
-    mut on_step: impl FnMut(&[f32], Option<usize>),
+    mut on_step: impl FnMut(&[f32], &[f32], Option<usize>),
 ) -> Result<EpisodeOutcome, String> {
     let perfect = task.perfect;
     let branches = task.branches.as_ref().filter(|_| spec.with_branch);
@@ -164,7 +165,7 @@ pub fn play_episode<E: JobEnv>(
             )
             .map_err(|e| e.to_string())?;
         }
-        on_step(&next[..OBS_DIM], u_before);
+        on_step(&obs[..OBS_DIM], &next[..OBS_DIM], u_before);
         std::mem::swap(&mut obs, &mut next);
         let decided = perfect.is_terminal(up) || perfect.is_failure(up);
         if step.terminated || step.truncated || (spec.stop_when_decided && decided) {
@@ -229,6 +230,10 @@ pub fn train_sac<E: JobEnv, R: RewardFn>(
 pub struct AgentBatch {
     /// o_1..o_T of every trajectory, row-major, `OBS_DIM` wide.
     pub obs: Vec<f32>,
+    /// The labels of o_0..o_{T−1}, the observation before each step, by the labelling rule
+    /// on the observation (`FeatureMap::labels_of`), for rewards of the step rather than of
+    /// the state (SMIRL's label entries).
+    pub labels_before: Vec<LabelSet>,
     /// The learned machine's state paired with each observation (SMIRL; else empty).
     pub states: Vec<u32>,
     pub lengths: Vec<usize>,
@@ -238,6 +243,22 @@ impl AgentBatch {
     /// Number of observation rows.
     pub fn n_states(&self) -> usize {
         self.obs.len() / OBS_DIM
+    }
+
+    /// Appends one step: the observations before and after it, and the learned state;
+    /// `labelling` reads the labels before the step.
+    pub fn push_step(
+        &mut self,
+        labelling: &FeatureMap,
+        before: &[f32],
+        after: &[f32],
+        learned_state: Option<usize>,
+    ) {
+        self.obs.extend_from_slice(after);
+        self.labels_before.push(labelling.labels_of(before));
+        if let Some(u) = learned_state {
+            self.states.push(u as u32);
+        }
     }
 }
 
@@ -271,6 +292,7 @@ impl RolloutStream {
     ) -> Result<AgentBatch, String> {
         let mut batch = AgentBatch::default();
         let task = GroundTruthTask::of(watch.perfect());
+        let labelling = FeatureMap::reacher_labels();
         for _ in 0..n {
             let reset_seed = episode_seed(self.seed, self.next);
             self.next += 1;
@@ -289,11 +311,8 @@ impl RolloutStream {
                 spec,
                 &mut self.rng,
                 watch.logger(),
-                |o, u| {
-                    batch.obs.extend_from_slice(o);
-                    if let Some(u) = u {
-                        batch.states.push(u as u32);
-                    }
+                |before, after, u| {
+                    batch.push_step(&labelling, before, after, u);
                     len += 1;
                 },
             )?;

@@ -136,7 +136,7 @@ impl<'r> GroundTruth<'r> {
                 spec,
                 &mut rng,
                 logger.as_deref_mut(),
-                |_, _| {},
+                |_, _, _| {},
             )?;
             succ += f64::from(u8::from(o.success));
             progress += o.progress;

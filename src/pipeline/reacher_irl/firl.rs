@@ -196,8 +196,12 @@ impl RewardFn for StateReward<'_> {
 }
 
 impl super::retrain::ScoredReward for StateReward<'_> {
-    fn model(&mut self) -> &mut dyn RewardModel {
-        self.model
+    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String> {
+        let mut r = vec![0.0f32; steps.n_states()];
+        (self.model)
+            .reward_batch(&steps.obs, &[], &mut r)
+            .map_err(|e| e.to_string())?;
+        Ok(r)
     }
 }
 

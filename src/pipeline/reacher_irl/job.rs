@@ -15,7 +15,7 @@ use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, RewardModel};
 use crate::log::RolloutLogger;
 use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
-use crate::rm::RewardMachine;
+use crate::rm::{LabelSet, RewardMachine};
 use std::path::Path;
 use std::time::Instant;
 
@@ -27,6 +27,9 @@ pub struct ExpertData {
     /// Observations o_1..o_T of every demonstration step (row-major, `OBS_DIM` wide): the
     /// states visited, as the agent's rollouts record them.
     pub obs: Vec<f32>,
+    /// The labels of the observation before each step (the reset observation's for a
+    /// demonstration's first step), by the labelling rule on the observation.
+    pub labels_before: Vec<LabelSet>,
     /// Demonstration lengths, in order.
     pub lengths: Vec<usize>,
     /// The learned machine's state each observation's labels are read in (u_{t−1}); empty
@@ -46,6 +49,7 @@ impl ExpertData {
         w.raw(EXPERT_DATA_MAGIC);
         w.u32(EXPERT_DATA_VERSION);
         w.f32s(&self.obs);
+        w.u32s(&self.labels_before.iter().map(|l| l.0).collect::<Vec<_>>());
         w.usize(self.lengths.len());
         for &len in &self.lengths {
             w.usize(len);
@@ -60,6 +64,10 @@ impl ExpertData {
         let mut r = ByteReader::new(bytes);
         r.header(EXPERT_DATA_MAGIC, "smirl expert data", EXPERT_DATA_VERSION)?;
         let obs = r.f32s("observations")?;
+        let labels_before: Vec<LabelSet> = (r.u32s("labels before each step")?)
+            .into_iter()
+            .map(LabelSet)
+            .collect();
         let n = r.usize("demonstration count")?;
         if n > bytes.len() / 8 {
             return Err(CodecError::Invalid {
@@ -83,6 +91,12 @@ impl ExpertData {
                     obs.len()
                 ),
             })?;
+        if labels_before.len() != steps {
+            return Err(CodecError::Invalid {
+                what: "labels before each step",
+                problem: format!("{} label sets for {steps} steps", labels_before.len()),
+            });
+        }
         if !learned_states.is_empty() && learned_states.len() != steps {
             return Err(CodecError::Invalid {
                 what: "learned machine states",
@@ -91,6 +105,7 @@ impl ExpertData {
         }
         Ok(ExpertData {
             obs,
+            labels_before,
             lengths,
             learned_states,
         })
@@ -98,7 +113,8 @@ impl ExpertData {
 }
 
 const EXPERT_DATA_MAGIC: &[u8] = b"SMIRLXD\0";
-const EXPERT_DATA_VERSION: u32 = 1;
+/// 2: the labels before each step.
+const EXPERT_DATA_VERSION: u32 = 2;
 
 /// One row of the metrics table: the ground-truth evaluation after `iteration` IRL
 /// iterations (0 = the untrained policy).

@@ -9,17 +9,17 @@
 //! configured) and the evaluation episodes are the job's own; only SAC's seed is new.
 
 use super::config::IrlRunConfig;
-use super::episodes::{play_episode, EpisodeSpec, JobEnv};
+use super::episodes::{play_episode, AgentBatch, EpisodeSpec, JobEnv};
 use super::evaluation::{Evaluation, GroundTruth};
 use super::firl::{self, StateReward};
 use super::run::PreparedRun;
 use super::smirl::{counterfactual_states, shaping_potential, Features, ProductReward};
 use super::Algo;
 use crate::env::product::ProductEnv;
-use crate::env::reacher::{ReacherDelivery, OBS_DIM};
+use crate::env::reacher::ReacherDelivery;
 use crate::irl::reward::MlpReward;
 use crate::irl::reward::{RewardModel, RewardOptimConfig};
-use crate::irl::smirl::LinearRmReward;
+use crate::irl::smirl::{FeatureMap, LinearRmReward};
 use crate::rl::sac::{ActMode, RewardFn, SacAgent, SacConfig, SacTrainer};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -54,9 +54,10 @@ pub struct RetrainPoint {
     pub learned_return: f64,
 }
 
-/// A SAC reward whose model can also score logged steps.
+/// A SAC reward that can also score recorded steps.
 pub(super) trait ScoredReward: RewardFn {
-    fn model(&mut self) -> &mut dyn RewardModel;
+    /// The learned reward of every step of `steps`.
+    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String>;
 }
 
 /// The reward file of a job.
@@ -275,7 +276,8 @@ fn learned_return<E: JobEnv, R: ScoredReward>(
     judge: &GroundTruth<'_>,
 ) -> Result<f64, String> {
     let mut rng = ChaCha8Rng::seed_from_u64(0);
-    let (mut obs, mut states) = (Vec::new(), Vec::new());
+    let labelling = FeatureMap::reacher_labels();
+    let mut steps = AgentBatch::default();
     for &reset_seed in judge.reset_seeds() {
         let spec = EpisodeSpec {
             mode: ActMode::Mean,
@@ -284,18 +286,19 @@ fn learned_return<E: JobEnv, R: ScoredReward>(
             with_branch: false,
             phase: "retrain",
         };
-        play_episode(agent, env, judge.task(), spec, &mut rng, None, |o, u| {
-            obs.extend_from_slice(o);
-            if let Some(u) = u {
-                states.push(u as u32);
-            }
-        })?;
+        play_episode(
+            agent,
+            env,
+            judge.task(),
+            spec,
+            &mut rng,
+            None,
+            |o, next, u| {
+                steps.push_step(&labelling, o, next, u);
+            },
+        )?;
     }
-    let mut r = vec![0.0f32; obs.len() / OBS_DIM];
-    reward
-        .model()
-        .reward_batch(&obs, &states, &mut r)
-        .map_err(|e| e.to_string())?;
+    let r = reward.score(&steps)?;
     let episodes = judge.reset_seeds().len().max(1) as f64;
     Ok(r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes)
 }

@@ -910,6 +910,7 @@ fn write_reports(
         "demo_source": config.demo_source.name(),
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
+        "smirl_label_features": config.smirl_label_features.name(),
         "smirl_shaping": config.smirl_shaping,
         "smirl_counterfactual": config.smirl_counterfactual,
         "reward_lr_decay": config.reward_lr_decay,

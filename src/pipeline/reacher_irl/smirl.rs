@@ -29,7 +29,7 @@ use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::smirl::{
     maxent_coefficients, maxent_coefficients_by_visits, AnnotatedTrajectories, FeatureMap,
-    LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
+    LabelFeatures, LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
 };
 use crate::pipeline::reacher_expert::Demo;
 use crate::rl::crm::{hot_index, CounterfactualRm};
@@ -88,20 +88,22 @@ pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usiz
     let labelling = FeatureMap::reacher_labels();
     let mut data = ExpertData {
         obs: Vec::new(),
+        labels_before: Vec::new(),
         lengths: Vec::new(),
         learned_states: Vec::new(),
     };
     for d in demos {
         let mut u = rm.map(|m| m.initial());
-        let mut push = |data: &mut ExpertData, obs: &[f32], labels: LabelSet| {
+        let mut push = |data: &mut ExpertData, before: &[f32], obs: &[f32], labels: LabelSet| {
             data.obs.extend_from_slice(obs);
+            data.labels_before.push(labelling.labels_of(before));
             if let (Some(m), Some(state)) = (rm, u) {
                 data.learned_states.push(state as u32);
                 u = Some(m.next_state(state, labels));
             }
         };
         for s in &d.steps {
-            push(&mut data, &s.next_obs, s.labels);
+            push(&mut data, &s.obs, &s.next_obs, s.labels);
         }
         let mut len = d.steps.len();
         if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
@@ -110,8 +112,10 @@ pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usiz
             held[OBS_JOINT_VEL[1]] = 0.0;
             held[OBS_CANCEL] = 0.0;
             let labels = labelling.labels_of(&held);
+            let mut before = last.next_obs;
             while len < horizon {
-                push(&mut data, &held, labels);
+                push(&mut data, &before, &held, labels);
+                before = held;
                 len += 1;
             }
         }
@@ -120,10 +124,11 @@ pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usiz
     data
 }
 
-/// Which features φ(o) δ_r reads.
+/// Which features δ_r reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Features {
-    /// The paper's label bits L(o) (`smirl`).
+    /// Label bits (`smirl`): of the state, L(o), as in the paper, or of the step, the labels
+    /// that became true on it, as `smirl_label_features` says.
     Labels,
     /// exp(−d_k²/2σ²) per ball plus the cancel flag (`smirl-smooth`, a documented variant).
     Smooth,
@@ -131,9 +136,10 @@ pub enum Features {
 
 impl Features {
     pub fn map(self, settings: &IrlRunConfig) -> Result<FeatureMap, RewardError> {
-        match self {
-            Features::Labels => Ok(FeatureMap::reacher_labels()),
-            Features::Smooth => FeatureMap::reacher_smooth(settings.smooth_sigma),
+        match (self, settings.smirl_label_features) {
+            (Features::Labels, LabelFeatures::State) => Ok(FeatureMap::reacher_labels()),
+            (Features::Labels, LabelFeatures::Entries) => Ok(FeatureMap::reacher_label_entries()),
+            (Features::Smooth, _) => FeatureMap::reacher_smooth(settings.smooth_sigma),
         }
     }
 }
@@ -141,8 +147,10 @@ impl Features {
 /// Step 3.3: the rows, learned states and loss coefficients of one reward update — MaxEnt on
 /// U × O, whose parameter gradient is μ_π − μ_D (the negated expert-minus-agent feature
 /// expectation), normalised per trajectory or per trajectory visiting each state
-/// (`smirl_normalisation`). Agent rows first, then expert rows.
+/// (`smirl_normalisation`). Agent rows first, then expert rows, each as `features` reads a
+/// step ([`FeatureMap::step_rows`]).
 pub fn coefficients(
+    features: &FeatureMap,
     expert: &ExpertData,
     agent: &AgentBatch,
     normalisation: SmirlNormalisation,
@@ -162,8 +170,12 @@ pub fn coefficients(
         SmirlNormalisation::Visits => maxent_coefficients_by_visits(&expert_t, &agent_t),
     };
     coeffs.extend(expert_c);
+    let (mut obs, mut expert_rows) = (Vec::new(), Vec::new());
+    features.step_rows(&agent.obs, &agent.labels_before, &mut obs);
+    features.step_rows(&expert.obs, &expert.labels_before, &mut expert_rows);
+    obs.extend_from_slice(&expert_rows);
     Coefficients {
-        obs: [agent.obs.as_slice(), &expert.obs].concat(),
+        obs,
         states: [agent.states.as_slice(), &expert.learned_states].concat(),
         coeffs,
     }
@@ -178,7 +190,9 @@ pub(super) struct ProductReward<'a> {
     model: &'a mut LinearRmReward,
     counterfactual: Option<&'a CounterfactualRm>,
     shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
-    obs: Vec<f32>,
+    next_obs: Vec<f32>,
+    labels_before: Vec<LabelSet>,
+    rows: Vec<f32>,
     states: Vec<u32>,
 }
 
@@ -192,7 +206,9 @@ impl<'a> ProductReward<'a> {
             model,
             counterfactual,
             shaping,
-            obs: Vec::new(),
+            next_obs: Vec::new(),
+            labels_before: Vec::new(),
+            rows: Vec::new(),
             states: Vec::new(),
         }
     }
@@ -207,14 +223,22 @@ impl RewardFn for ProductReward<'_> {
 
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
-        self.obs.clear();
+        self.next_obs.clear();
+        self.labels_before.clear();
         self.states.clear();
+        let features = self.model.features();
+        let reads_before = features.reads_labels_before();
         let rows = batch.next_obs.as_slice().chunks_exact(d);
         for (next, prev) in rows.zip(batch.obs.as_slice().chunks_exact(d)) {
-            self.obs.extend_from_slice(&next[..OBS_DIM]);
+            self.next_obs.extend_from_slice(&next[..OBS_DIM]);
+            if reads_before {
+                self.labels_before
+                    .push(features.labels_of(&prev[..OBS_DIM]));
+            }
             self.states.push(hot_index(&prev[OBS_DIM..]) as u32);
         }
-        self.model.reward_batch(&self.obs, &self.states, out)?;
+        features.step_rows(&self.next_obs, &self.labels_before, &mut self.rows);
+        self.model.reward_batch(&self.rows, &self.states, out)?;
         if let Some((potential, gamma)) = self.shaping {
             let rows = batch.next_obs.as_slice().chunks_exact(d);
             let prev_rows = batch.obs.as_slice().chunks_exact(d);
@@ -238,8 +262,14 @@ impl RewardFn for ProductReward<'_> {
 }
 
 impl super::retrain::ScoredReward for ProductReward<'_> {
-    fn model(&mut self) -> &mut dyn RewardModel {
-        self.model
+    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String> {
+        let features = self.model.features();
+        features.step_rows(&steps.obs, &steps.labels_before, &mut self.rows);
+        let mut r = vec![0.0f32; steps.n_states()];
+        (self.model)
+            .reward_batch(&self.rows, &steps.states, &mut r)
+            .map_err(|e| e.to_string())?;
+        Ok(r)
     }
 }
 
@@ -320,7 +350,7 @@ pub fn train(
         let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
 
         // 3. Feature expectations: coefficients of μ_π − μ_D per (u, o).
-        let c = coefficients(job.expert, &batch, s.smirl_normalisation);
+        let c = coefficients(&features, job.expert, &batch, s.smirl_normalisation);
 
         // 4. Reward steps, at lr · k^(−reward_lr_decay); the first step's gradient (before
         //    any step) is the traced data gradient.
