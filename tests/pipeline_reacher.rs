@@ -607,11 +607,21 @@ fn counterfactual_share_must_be_in_the_unit_interval() {
     }
 }
 
-/// The standard profile without its per-algorithm schedules (`config_uniform.toml`'s settings).
-fn uniform() -> IrlRunConfig {
+/// The standard profile without its per-algorithm schedules: what SMIRL runs with.
+fn without_schedules() -> IrlRunConfig {
     let mut c = IrlRunConfig::standard();
     c.schedule.clear();
     c
+}
+
+/// `config_uniform.toml`'s settings: the standard profile without its schedules, with SMIRL's
+/// settings from before issue 13 (20 IRL iterations, no shaping), as the runs made with it.
+fn uniform() -> IrlRunConfig {
+    IrlRunConfig {
+        irl_iterations: 20,
+        smirl_shaping: 0.0,
+        ..without_schedules()
+    }
 }
 
 /// The standard profile gives the baselines f-IRL's schedule (800 × 300 SAC steps, 300
@@ -640,11 +650,34 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
         assert_eq!(c.sac.replay_capacity, 12_000);
     }
     for algo in [Algo::Smirl, Algo::SmirlSmooth] {
-        assert_eq!(standard.for_algo(algo).unwrap(), uniform(), "{algo}");
+        let c = standard.for_algo(algo).unwrap();
+        assert_eq!(c, without_schedules(), "{algo}");
+        assert_eq!((c.irl_iterations, c.smirl_shaping), (30, 1.0), "{algo}");
     }
-    let path =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher/config_uniform.toml");
-    assert_eq!(IrlRunConfig::load(&path).unwrap(), uniform());
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
+    assert_eq!(
+        IrlRunConfig::load(&dir.join("config_uniform.toml")).unwrap(),
+        uniform()
+    );
+    // config_unshaped.toml, which prepared the figure-7 runs of issue 14: the standard profile
+    // with SMIRL's earlier settings; the baselines' schedules are the same.
+    let unshaped = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
+    assert_eq!(
+        unshaped,
+        IrlRunConfig {
+            irl_iterations: 20,
+            smirl_shaping: 0.0,
+            ..IrlRunConfig::standard()
+        }
+    );
+    // The baselines' resolved settings differ only in smirl_shaping, which only SMIRL reads.
+    for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
+        let before = IrlRunConfig {
+            smirl_shaping: 1.0,
+            ..unshaped.for_algo(algo).unwrap()
+        };
+        assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");
+    }
     assert!(IrlRunConfig::quick().schedule.is_empty());
 }
 

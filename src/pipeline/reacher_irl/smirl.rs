@@ -284,7 +284,7 @@ pub(super) fn counterfactual_states(
         .map_err(|e| e.to_string())
 }
 
-/// The shaping potential of the weights `w` (`smirl_shaping` > 0, an ablation).
+/// The shaping potential of the weights `w` (`smirl_shaping` > 0; 1 in the standard profile).
 pub(super) fn shaping_potential(
     features: &FeatureMap,
     n_states: usize,

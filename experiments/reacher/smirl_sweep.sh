@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# SMIRL on OR, Sequential, IF and Composite with one config: per task one run directory with
+# demonstrations and learned machine from base seed BASE and SAC seeds BASE, BASE+1, BASE+2.
+# SMIRL's own rows of figure 7 and its held-out checks (issue 13):
+#
+#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/runs/{task}-shaped' 0
+#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/shaped-{task}' 3
+#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/shaped-seeds6-{task}' 6
+#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/shaped-seeds9-{task}' 9
+#
+# Base seed 0 gives figure 7's demonstrations and machines (those of runs/<task>-schedules,
+# whose baseline rows it completes: the baselines read none of SMIRL's settings). {task} in
+# OUT is replaced by the task. A directory the program did not write is never replaced
+# (`--force` replaces only its own output). Then `python3 experiments/consolidate.py` for the
+# held-out rows, `python3 experiments/reacher/figure7.py RUN...` or `heldout.py` for tables.
+# Environment: ALGOS (default "smirl,smirl-smooth"), TASKS (default all four), CONFIG
+# (default experiments/reacher/config.toml, the standard profile), REACHER_BIN (another build,
+# e.g. a copy, so that rebuilding the checkout during the sweep does not change the binary).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+OUT=${1:?usage: smirl_sweep.sh OUT_WITH_{task} [BASE]}
+BASE=${2:-0}
+ALGOS=${ALGOS:-smirl,smirl-smooth}
+CONFIG=${CONFIG:-experiments/reacher/config.toml}
+if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
+BIN=${REACHER_BIN:-./target/release/reacher}
+for task in ${TASKS:-or sequential if composite}; do
+  out=${OUT//\{task\}/$task}
+  mkdir -p "$(dirname "$out")"
+  "$BIN" --task "$task" --algo "$ALGOS" --seed "$BASE" --seeds 3 --config "$CONFIG" \
+    --out "$out" --force --quiet > "$out.log"
+done
