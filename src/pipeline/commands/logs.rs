@@ -153,6 +153,9 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
         max_steps: args.steps,
         seed: args.seed,
         merge: !args.no_merge,
+        // ReacherDelivery's label sets hold over several steps, and the machine is read on
+        // every step (as SMIRL's learner reads it).
+        stutter_invariant: true,
         ..LrmConfig::default()
     };
     // Every input and output is checked before the search runs.

@@ -69,6 +69,8 @@ pub fn learn_machine(
         reward_weight: 0.0,
         guards: config.lrm_guards,
         events: EVENTS,
+        // The product reads the machine on every step, and a label set holds for many.
+        stutter_invariant: true,
         // Restarts, split moves and patience keep the learner's defaults.
         ..LrmConfig::default()
     };

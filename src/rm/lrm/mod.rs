@@ -140,6 +140,14 @@ pub struct LrmConfig {
     /// Propositions the domain declares instantaneous (true on one step by construction),
     /// which [`Guards::Tree`] reads first; empty = none.
     pub events: LabelSet,
+    /// Make the learned machine read raw traces as the search read the compressed ones
+    /// (`search::stutter_invariant`): for domains whose label sets hold over several steps
+    /// and whose machine is read on every step (ReacherDelivery: the fingertip stays inside a
+    /// ball, and between balls the label set is empty for many steps). Off by default, the
+    /// learner's behaviour before the option existed: Office's restart-on-goal targets pay
+    /// on every step the goal is read, which no stutter invariant machine expresses, and its
+    /// experiments were made without it.
+    pub stutter_invariant: bool,
 }
 
 impl Default for LrmConfig {
@@ -161,6 +169,7 @@ impl Default for LrmConfig {
             split_initial: true,
             guards: Guards::Exact,
             events: LabelSet::EMPTY,
+            stutter_invariant: false,
         }
     }
 }
@@ -270,8 +279,23 @@ pub fn learn_rm(
         }
         None => (final_searcher.widen(&outcome.best), outcome.best_cost),
     };
-    let table = &table;
     let l_n = data.n_labels().max(1);
+    // With `stutter_invariant`, read on raw traces as on the compressed ones the search
+    // scored (see `search::stutter_invariant`); the cost on compressed traces can only drop.
+    let invariant = if cfg.stutter_invariant {
+        search::stutter_invariant(&table, l_n)
+    } else {
+        table.clone()
+    };
+    let rows = invariant.n_used.max(cfg.max_states + 1);
+    let (table, best_cost, final_searcher) = if invariant.n_used == table.n_used {
+        (table, best_cost, final_searcher)
+    } else {
+        let wide = search::Searcher::new(&data, rows, cfg.reward_weight);
+        let cost = wide.cost(&wide.widen(&invariant).delta);
+        (invariant, cost, wide)
+    };
+    let table = &table;
     let n = table.n_used;
 
     // Observed targets and mean rewards along the raw traces.
@@ -326,7 +350,7 @@ pub fn learn_rm(
         let (blocks, merged) = merge_states(n, l_n, defined, cfg.fill_unobserved);
         let (quotient_cells, q_n) = renumber_blocks(&blocks, &merged, l_n);
         let rm = machine_from_cells(vocab, &data.labels, q_n, &quotient_cells);
-        let delta: Vec<u16> = (0..(cfg.max_states + 1) * l_n)
+        let delta: Vec<u16> = (0..rows * l_n)
             .map(|cell| {
                 let u = cell / l_n;
                 match quotient_cells.get(cell).copied().flatten() {

@@ -11,8 +11,9 @@
 //! makes it go to `j`; like the reference implementation, adding `(i,l) -> j` also removes
 //! every `(k,l) -> i` and makes `j` stay on `l`, which keeps every machine *stutter
 //! invariant* (`delta(delta(u,l),l) = delta(u,l)`): running it on a raw trace and on the
-//! compressed trace visits the same states. Only the used states and one fresh state are
-//! tried as targets (all fresh states are alike).
+//! compressed trace visits the same states. The split move can break that; the search's
+//! result is made stutter invariant afterwards ([`stutter_invariant`]). Only the used states
+//! and one fresh state are tried as targets (all fresh states are alike).
 //!
 //! A neighbour's cost is computed incrementally: it differs from the current machine only in
 //! column `l`, so its run can diverge only where the current run reads `l` in a changed
@@ -52,6 +53,56 @@ struct Current {
     cost: f64,
     /// Positions read in state `u` (before the step) with label `l`, per cell `u * L + l`.
     pos: Vec<Vec<u32>>,
+}
+
+/// The machine of `t` made to read raw traces as it reads compressed ones.
+///
+/// The search scores machines on compressed traces (a run of one label set is one entry),
+/// but every machine is then read step by step on raw traces, where a label set is read
+/// again on every step it holds. The two readings agree when the machine is *stutter
+/// invariant*: a state entered on `l` stays on `l`. The reference moves keep that, the split
+/// moves do not always: splitting a stay `(i, l)` of a state that another state enters on
+/// `l` gives `i` a transition on `l` that a raw trace takes one step after entering `i`,
+/// where the compressed trace reads the next, different label first (measured: on the
+/// Sequential demonstrations of base seed 3 the state reached on leaving red left again on
+/// the next empty step, and the machine no longer waited for green).
+///
+/// For each state `i` entered on `l` with `delta(i, l) != i`, a new state `f` ("`i`, just
+/// entered on `l`") takes every transition into `i` on `l`; `f` stays on `l` and reads any
+/// other label as `i` does (a stay of `i` becomes a move to `i`). A compressed trace visits
+/// `f` where it visited `i` and then continues exactly as before, so the machine reads every
+/// compressed trace as `t` does and a raw trace the same way. A stutter invariant table is
+/// returned unchanged. The result has `n_used` rows and may have more states than the
+/// search's `u_max`.
+pub(crate) fn stutter_invariant(t: &Table, l_n: usize) -> Table {
+    let mut n = t.n_used;
+    let mut delta = t.delta[..n * l_n].to_vec();
+    loop {
+        let violation = (0..n * l_n).find(|&cell| {
+            let (k, l) = (cell / l_n, cell % l_n);
+            let i = delta[cell] as usize;
+            i != k && delta[i * l_n + l] as usize != i
+        });
+        let Some(cell) = violation else {
+            return Table { delta, n_used: n };
+        };
+        let (i, l) = (delta[cell] as usize, cell % l_n);
+        let f = n;
+        for x in 0..l_n {
+            let target = if x == l {
+                f
+            } else {
+                delta[i * l_n + x] as usize
+            };
+            delta.push(target as u16);
+        }
+        for k in 0..n {
+            if k != i && delta[k * l_n + l] as usize == i {
+                delta[k * l_n + l] = f as u16;
+            }
+        }
+        n += 1;
+    }
 }
 
 /// A move of the neighbourhood.
