@@ -9,6 +9,8 @@ It writes
   reacher/heldout/metrics.csv.gz       every held-out run's metrics.csv (heldout/<run>/) in one
                                        file, with a first column `run`
   reacher/ablations/runs/summary.csv   every ablation run's summary.csv, with a first column `run`
+  reacher/ablations/runs/metrics.csv.gz  every ablation run's metrics.csv since issue 13 (the
+                                       earlier ones were not kept), the same way
   office/runs<TAG>/summary.csv         the five tasks' runs<TAG>/t<N>/summary.csv of each Office
                                        experiment (their first column is already `task`)
   <run>/metrics.csv.gz                 `gzip -n -9` of <run>/metrics.csv for the long runs in
@@ -86,6 +88,8 @@ def outputs(excluded):
     ablations = os.path.join(HERE, "reacher/ablations/runs")
     target = os.path.join(ablations, "summary.csv")
     yield target, merged(target, sources(ablations, "summary.csv")).encode()
+    target = os.path.join(ablations, "metrics.csv.gz")
+    yield target, gzip_bytes(merged(target, sources(ablations, "metrics.csv")).encode())
     for runs in sorted(glob.glob(os.path.join(HERE, "office/runs*/"))):
         tasks = sorted(glob.glob(os.path.join(runs, "t[0-9]/summary.csv")))
         target = os.path.join(runs, "summary.csv")

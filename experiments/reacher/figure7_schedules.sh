@@ -14,6 +14,8 @@
 #
 # Usage: experiments/reacher/figure7_schedules.sh [TASKS] [ALGOS] [BASE]
 #   defaults: "or sequential if composite", "fkl js maxent smirl smirl-smooth rkl", 0
+#   CONFIG=<file> (default experiments/reacher/config.toml; the runs of issue 14 used what is now
+#   config_unshaped.toml, whose baseline settings are the same);
 #   REACHER_BIN=<binary> runs another build (e.g. a copy, so that rebuilding the checkout
 #   during the sweep does not change the binary); JOBS=<n>; SEEDS="0 1 2" (offsets from BASE).
 set -euo pipefail
@@ -21,7 +23,7 @@ cd "$(dirname "$0")/../.."
 TASKS=${1:-"or sequential if composite"}
 ALGOS=${2:-"fkl js maxent smirl smirl-smooth rkl"}
 BASE=${3:-0}
-CONFIG=experiments/reacher/config.toml
+CONFIG=${CONFIG:-experiments/reacher/config.toml}
 if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
 BIN=${REACHER_BIN:-./target/release/reacher}
 

@@ -18,7 +18,7 @@
 # e.g. a copy, so that rebuilding the checkout during the sweep does not change the binary).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-OUT=${1:?usage: smirl_sweep.sh OUT_WITH_{task} [BASE]}
+OUT=${1:?usage: smirl_sweep.sh OUT [BASE], OUT with the text {task\}}
 BASE=${2:-0}
 ALGOS=${ALGOS:-smirl,smirl-smooth}
 CONFIG=${CONFIG:-experiments/reacher/config.toml}

@@ -3,7 +3,9 @@
 change one setting of, read from their summary.csv files: paper_sac and demos_32 against the
 figure-7 runs with the default config (experiments/reacher/runs/<task>); no_crm, crm_lr_decay and replay_100k
 against paper_sac (the default they were run against); shaping, lr_decay and no_l2 against
-no_crm (see run.sh). The ablation runs' summaries are the consolidated runs/summary.csv (a
+no_crm; issue 13's shaping_crm, shaping_2 and label_entries against the standard profile
+before shaping (runs/<task>-schedules), shaped_lr_decay against today's (runs/<task>-shaped)
+(see run.sh). The ablation runs' summaries are the consolidated runs/summary.csv (a
 run directory on disk wins: rundata.py)."""
 import os, sys
 here = os.path.dirname(os.path.abspath(__file__))
@@ -16,6 +18,10 @@ def final(path):
             for r in rundata.summary(path)}
 
 def reference(ablation, task):
+    if ablation in ("shaping_crm", "shaping_2", "label_entries"):
+        return "unshaped", os.path.join(here, "..", "runs", task + "-schedules")
+    if ablation == "shaped_lr_decay":
+        return "default", os.path.join(here, "..", "runs", task + "-shaped")
     if ablation in ("paper_sac", "demos_32"):
         return "default", os.path.join(here, "..", "runs", task)
     if ablation in ("no_crm", "crm_lr_decay", "replay_100k"):

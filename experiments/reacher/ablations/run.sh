@@ -40,3 +40,14 @@ run lr_decay if smirl
 run lr_decay composite smirl
 run no_l2 or smirl                          # smirl_reward_l2 = 0
 run no_l2 composite smirl
+# Issue 13: against config_unshaped.toml (the standard profile before SMIRL's shaping) ...
+run shaping_crm or smirl                    # smirl_shaping = 1.0 (with CRM)
+run shaping_crm sequential smirl
+run shaping_crm if smirl
+run shaping_crm composite smirl
+run shaping_2 sequential smirl              # smirl_shaping = 2.0
+run label_entries composite smirl           # smirl_label_features = "entries"
+# ... and against config.toml (30 iterations with shaping)
+for task in or sequential if composite; do
+  run shaped_lr_decay "$task" smirl         # reward_lr_decay = 0.5
+done

@@ -1,0 +1,88 @@
+#!/usr/bin/env python3
+"""SMIRL's settings (issue 13): `smirl` per task under each setting tried, and the standard
+profile on held-out demonstrations. Per run: the final ground-truth success of each SAC seed
+(IF and Composite: the lower branch; the branches as normal/cancel), the mean success over the
+last quarter of the IRL iterations per seed, and how many seeds end at >= 0.9. Numbers from
+the runs' metrics (rundata.py: the run directory on disk, else the committed consolidated
+rows). Markdown on standard output.
+
+Usage: python3 experiments/reacher/smirl_settings.py"""
+import os
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+import rundata  # noqa: E402
+
+TASKS = ["or", "sequential", "if", "composite"]
+# (setting, what it is, run directory pattern relative to experiments/reacher)
+TUNING = [
+    ("before", "config_unshaped.toml: 20 IRL iterations, no shaping", "runs/{task}-schedules"),
+    ("shaping_crm", "+ smirl_shaping = 1.0", "ablations/runs/shaping_crm-{task}"),
+    ("shaping_2", "+ smirl_shaping = 2.0", "ablations/runs/shaping_2-{task}"),
+    ("label_entries", "+ smirl_label_features = \"entries\"", "ablations/runs/label_entries-{task}"),
+    ("standard", "config.toml: 30 IRL iterations, smirl_shaping = 1.0", "runs/{task}-shaped"),
+    ("shaped_lr_decay", "+ reward_lr_decay = 0.5", "ablations/runs/shaped_lr_decay-{task}"),
+]
+HELDOUT = [
+    ("base 3", "heldout/shaped-{task}"),
+    ("base 6", "heldout/shaped-seeds6-{task}"),
+    ("base 9", "heldout/shaped-seeds9-{task}"),
+]
+
+
+def jobs(run):
+    """{seed: rows in iteration order} of `smirl` in the run, or None when there is no run."""
+    try:
+        rows = rundata.metrics(os.path.join(HERE, run))
+    except FileNotFoundError:
+        return None
+    out = {}
+    for r in rows:
+        if r["algo"] == "smirl":
+            out.setdefault(int(r["seed"]), []).append(r)
+    for seed in out:
+        out[seed].sort(key=lambda r: int(r["iteration"]))
+    return out or None
+
+
+def cell(run):
+    j = jobs(run)
+    if j is None:
+        return "not run"
+    finals, quarters, branches = [], [], []
+    for seed in sorted(j):
+        it = j[seed]
+        last = it[-1]
+        finals.append(float(last["success_rate"]))
+        q = it[-max(1, (len(it) - 1) // 4):]
+        quarters.append(sum(float(r["success_rate"]) for r in q) / len(q))
+        if last.get("success_normal"):
+            branches.append(f"{float(last['success_normal']):.2f}/{float(last['success_cancel']):.2f}")
+    good = sum(f >= 0.9 for f in finals)
+    text = ", ".join(f"{f:.2f}" for f in finals)
+    if branches:
+        text += " (" + ", ".join(branches) + ")"
+    text += "; last quarter " + ", ".join(f"{q:.2f}" for q in quarters)
+    return f"{text}; **{good}/{len(finals)}**"
+
+
+def main():
+    print("Per cell: final success per seed (IF, Composite: normal/cancel in brackets); mean")
+    print("success over the last quarter of the iterations per seed; seeds ending at >= 0.9.\n")
+    print("**Tuning seeds** (base seed 0, SAC seeds 0, 1, 2: figure 7's demonstrations and machines)\n")
+    print("| setting | what | " + " | ".join(TASKS) + " |")
+    print("|---|---|" + "---|" * len(TASKS))
+    for name, what, pattern in TUNING:
+        cells = [cell(pattern.format(task=t)) for t in TASKS]
+        print(f"| {name} | {what} | " + " | ".join(cells) + " |")
+    print("\n**Held out** (the standard profile; new demonstrations and learned machines from base")
+    print("seed B, SAC seeds B, B+1, B+2)\n")
+    print("| base seed | " + " | ".join(TASKS) + " |")
+    print("|---|" + "---|" * len(TASKS))
+    for name, pattern in HELDOUT:
+        print(f"| {name} | " + " | ".join(cell(pattern.format(task=t)) for t in TASKS) + " |")
+
+
+if __name__ == "__main__":
+    main()
