@@ -116,6 +116,19 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
     ] {
         assert!(dir.join(f).is_file(), "missing {f}");
     }
+    // The report sets the learned machine's LRM cost beside the perfect machine's.
+    let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
+    let line = report
+        .lines()
+        .find(|l| l.starts_with("LRM cost "))
+        .expect("LRM cost line");
+    let perfect_cost: f64 = line
+        .split("same traces: ")
+        .nth(1)
+        .and_then(|rest| rest.split(')').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no perfect machine's cost in {line:?}"));
+    assert!(perfect_cost.is_finite() && perfect_cost > 0.0, "{line}");
     for a in algos {
         assert!(
             dir.join(format!("logs/{a}_seed{seed}.mcap")).is_file(),

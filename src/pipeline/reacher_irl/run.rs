@@ -37,6 +37,7 @@ use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
 use crate::rm::format::parse_rm;
 use crate::rm::format::write_rm;
+use crate::rm::lrm::{trace_cost, LabelTrace};
 use crate::rm::{LabelSet, RewardMachine};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -362,7 +363,22 @@ pub fn prepare(
             facts.ambiguous_steps,
             facts.total_steps
         );
-        let _ = writeln!(report, "LRM cost {:.3}, {:.2} s", cost, secs);
+        // The perfect machine's cost on the same traces says whether a machine that fails to
+        // refine the task lost the search or won it (LRM's objective prefers it).
+        let label_traces: Vec<LabelTrace> = traces
+            .iter()
+            .map(|labels| LabelTrace {
+                labels: labels.clone(),
+                rewards: None,
+            })
+            .collect();
+        let perfect_cost = trace_cost(&perfect, &label_traces)
+            .map_err(|e| PipelineError::Run(format!("LRM cost of the perfect machine: {e}")))?;
+        let _ = writeln!(
+            report,
+            "LRM cost {:.3} (the perfect machine's on the same traces: {:.3}), {:.2} s",
+            cost, perfect_cost, secs
+        );
         let _ = writeln!(
             report,
             "guards for label sets unseen in a state: {} (events read first: \"{}\")",
