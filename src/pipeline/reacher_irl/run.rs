@@ -23,7 +23,7 @@
 use super::config::{DemoPadding, DemoSource, IrlRunConfig};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
-use super::smirl::{annotate, learn_machine};
+use super::smirl::{annotate, label_traces, learn_machine};
 use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::{EVENTS, VOCABULARY};
@@ -37,7 +37,7 @@ use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
 use crate::rm::format::parse_rm;
 use crate::rm::format::write_rm;
-use crate::rm::lrm::{trace_cost, LabelTrace};
+use crate::rm::lrm::trace_cost;
 use crate::rm::{LabelSet, RewardMachine};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -365,14 +365,7 @@ pub fn prepare(
         );
         // The perfect machine's cost on the same traces says whether a machine that fails to
         // refine the task lost the search or won it (LRM's objective prefers it).
-        let label_traces: Vec<LabelTrace> = traces
-            .iter()
-            .map(|labels| LabelTrace {
-                labels: labels.clone(),
-                rewards: None,
-            })
-            .collect();
-        let perfect_cost = trace_cost(&perfect, &label_traces)
+        let perfect_cost = trace_cost(&perfect, &label_traces(&demos))
             .map_err(|e| PipelineError::Run(format!("LRM cost of the perfect machine: {e}")))?;
         let _ = writeln!(
             report,

@@ -49,13 +49,7 @@ pub fn learn_machine(
     seed: u64,
 ) -> Result<(RewardMachine, f64, f64), String> {
     let vocab = Vocabulary::new(VOCABULARY);
-    let traces: Vec<LabelTrace> = demos
-        .iter()
-        .map(|d| LabelTrace {
-            labels: d.labels(),
-            rewards: None,
-        })
-        .collect();
+    let traces = label_traces(demos);
     let cfg = LrmConfig {
         max_states: config.lrm_max_states,
         tabu_len: config.lrm_tabu_len,
@@ -76,6 +70,17 @@ pub fn learn_machine(
     };
     let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
+}
+
+/// The demonstrations' label traces as LRM reads them (no rewards: those are what IRL learns).
+pub fn label_traces(demos: &[Demo]) -> Vec<LabelTrace> {
+    demos
+        .iter()
+        .map(|d| LabelTrace {
+            labels: d.labels(),
+            rewards: None,
+        })
+        .collect()
 }
 
 /// Step 2: the demonstrations as the IRL jobs read them, every observation annotated with the
