@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Builds experiments/reacher/results.md from the run directories (every number from a script):
-# this session's figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
+# SMIRL's settings of issue 13 (results_smirl.md's prose, figure7.py's tables of
+# runs/<task>-shaped, smirl_settings.py's table of every setting tried and the held-out runs),
+# figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
 # figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>,
 # progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised),
 # then the earlier material: the prose of results_header.md, the table of every run
@@ -10,6 +12,12 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 {
+  cat results_smirl.md
+  printf '\n### SMIRL in figure 7 (`python3 experiments/reacher/figure7.py runs/<task>-shaped`)\n'
+  python3 figure7.py runs/or-shaped runs/sequential-shaped runs/if-shaped runs/composite-shaped
+  printf '\n### Every SMIRL setting tried, and held out (`python3 experiments/reacher/smirl_settings.py`)\n\n'
+  python3 smirl_settings.py
+  echo
   cat results_figure7.md
   printf '\n### Figure 7 tables (`python3 experiments/reacher/figure7.py runs/<task>-schedules`)\n'
   python3 figure7.py runs/or-schedules runs/sequential-schedules runs/if-schedules runs/composite-schedules
