@@ -627,19 +627,27 @@ fn without_schedules() -> IrlRunConfig {
     c
 }
 
-/// `config_uniform.toml`'s settings: the standard profile without its schedules, with SMIRL's
-/// settings from before issue 13 (20 IRL iterations, no shaping), as the runs made with it.
-fn uniform() -> IrlRunConfig {
+/// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
+/// issue 13 (20 IRL iterations, no shaping), as the runs made with it.
+fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
         irl_iterations: 20,
         smirl_shaping: 0.0,
-        ..without_schedules()
+        ..IrlRunConfig::standard()
     }
+}
+
+/// `config_uniform.toml`'s settings: `unshaped()` without the per-algorithm schedules.
+fn uniform() -> IrlRunConfig {
+    let mut c = unshaped();
+    c.schedule.clear();
+    c
 }
 
 /// The standard profile gives the baselines f-IRL's schedule (800 × 300 SAC steps, 300
 /// trajectories, 2 reward steps, SAC lr 3e-3 with α = 1 fixed, replay 12 000) and SMIRL the
-/// run's own (20 × 5 000), and `config_uniform.toml` is it without the schedules.
+/// run's own (30 × 5 000 with shaping); `config_unshaped.toml` is it with SMIRL's earlier
+/// settings (20 × 5 000, no shaping), and `config_uniform.toml` that without the schedules.
 #[test]
 fn standard_profile_gives_each_algorithm_its_schedule() {
     let standard = IrlRunConfig::standard();
@@ -674,20 +682,13 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     );
     // config_unshaped.toml, which prepared the figure-7 runs of issue 14: the standard profile
     // with SMIRL's earlier settings; the baselines' schedules are the same.
-    let unshaped = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
-    assert_eq!(
-        unshaped,
-        IrlRunConfig {
-            irl_iterations: 20,
-            smirl_shaping: 0.0,
-            ..IrlRunConfig::standard()
-        }
-    );
+    let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
+    assert_eq!(unshaped_file, unshaped());
     // The baselines' resolved settings differ only in smirl_shaping, which only SMIRL reads.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let before = IrlRunConfig {
             smirl_shaping: 1.0,
-            ..unshaped.for_algo(algo).unwrap()
+            ..unshaped_file.for_algo(algo).unwrap()
         };
         assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");
     }

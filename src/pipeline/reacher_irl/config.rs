@@ -163,7 +163,7 @@ pub struct IrlRunConfig {
 /// (episode length, cancel schedule) and the ground-truth evaluation.
 ///
 /// Why: f-IRL's own code runs many short IRL iterations (800 × 300 SAC steps, 2 reward steps,
-/// SAC with fixed α = 1) and fails even a one-ball control task under SMIRL's 20 × 5 000
+/// SAC with fixed α = 1) and fails even a one-ball control task under SMIRL's earlier 20 × 5 000
 /// (README, "Positive controls"); each algorithm gets the schedule its positive control needs.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -204,7 +204,7 @@ pub struct AlgoSchedule {
 /// states) per reward update, 2 reward steps per iteration, no weight decay on the reward, SAC
 /// lr 3e-3 with a fixed temperature of 1, replay 12 000, 150 random steps first; every 100th
 /// episode logged. Chosen on the Markovian positive control "blue" (seeds 0–2), never on the
-/// paper's tasks: with it fkl, js and MaxEnt solve "blue" in 3 of 3 seeds, with SMIRL's 20 × 5 000
+/// paper's tasks: with it fkl, js and MaxEnt solve "blue" in 3 of 3 seeds, with SMIRL's earlier 20 × 5 000
 /// schedule the f-IRL variants in none (README, "Positive controls of the baselines").
 pub fn firl_schedule() -> AlgoSchedule {
     let mut sac = toml::Table::new();

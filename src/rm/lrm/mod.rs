@@ -282,19 +282,21 @@ pub fn learn_rm(
     let l_n = data.n_labels().max(1);
     // With `stutter_invariant`, read on raw traces as on the compressed ones the search
     // scored (see `search::stutter_invariant`); the cost on compressed traces can only drop.
-    let invariant = if cfg.stutter_invariant {
-        search::stutter_invariant(&table, l_n)
-    } else {
-        table.clone()
+    // A repaired table has new states, possibly more than the final searcher's rows.
+    let rows = |t: &search::Table| t.n_used.max(cfg.max_states + 1);
+    let repaired = cfg
+        .stutter_invariant
+        .then(|| search::stutter_invariant(&table, l_n))
+        .filter(|t| t.n_used > table.n_used);
+    let (table, best_cost, final_searcher) = match repaired {
+        None => (table, best_cost, final_searcher),
+        Some(t) => {
+            let wide = search::Searcher::new(&data, rows(&t), cfg.reward_weight);
+            let cost = wide.cost(&wide.widen(&t).delta);
+            (t, cost, wide)
+        }
     };
-    let rows = invariant.n_used.max(cfg.max_states + 1);
-    let (table, best_cost, final_searcher) = if invariant.n_used == table.n_used {
-        (table, best_cost, final_searcher)
-    } else {
-        let wide = search::Searcher::new(&data, rows, cfg.reward_weight);
-        let cost = wide.cost(&wide.widen(&invariant).delta);
-        (invariant, cost, wide)
-    };
+    let rows = rows(&table);
     let table = &table;
     let n = table.n_used;
 
