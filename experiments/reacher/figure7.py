@@ -61,9 +61,7 @@ def main(runs):
                 if branches:
                     normal.append(float(last["success_normal"]))
                     cancel.append(float(last["success_cancel"]))
-                n = len(it) - 1
-                tail = [float(r["success_rate"]) for r in it[1:] if int(r["iteration"]) > n - n // 4]
-                quarter.append(statistics.mean(tail))
+                quarter.append(rundata.last_quarter(it))
                 prog.append(float(last["progress"]) if last.get("progress") else float("nan"))
                 ball.append(float(last["final_ball"]) if last.get("final_ball") else float("nan"))
             line = f"| {algo} | {len(seeds)} | {ms(final)} | {per_seed(final)} |"

@@ -70,3 +70,11 @@ def metrics(run_dir):
 
 def summary(run_dir):
     return table(run_dir, "summary.csv")
+
+
+def last_quarter(job_rows):
+    """Mean ground-truth success of one job over the last quarter of its IRL iterations: the
+    iterations k > n - n // 4 of a job with iterations 0..n (iteration 0 is the untrained policy)."""
+    n = max(int(r["iteration"]) for r in job_rows)
+    tail = [float(r["success_rate"]) for r in job_rows if int(r["iteration"]) > n - n // 4]
+    return sum(tail) / len(tail)

@@ -55,8 +55,7 @@ def cell(run):
         it = j[seed]
         last = it[-1]
         finals.append(float(last["success_rate"]))
-        q = it[-max(1, (len(it) - 1) // 4):]
-        quarters.append(sum(float(r["success_rate"]) for r in q) / len(q))
+        quarters.append(rundata.last_quarter(it))
         if last.get("success_normal"):
             branches.append(f"{float(last['success_normal']):.2f}/{float(last['success_cancel']):.2f}")
     good = sum(f >= 0.9 for f in finals)
