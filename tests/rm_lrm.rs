@@ -319,6 +319,27 @@ fn bad_input_is_an_error() {
         learn_rm(&v, &[], &zero_states).unwrap_err(),
         LrmError::Config(_)
     ));
+    // The stutter-invariant repair may add a state per (state, label set) cell: a bound that
+    // would overflow the u16 tables is refused before the search.
+    let four_sets = [LabelTrace {
+        labels: (0..4).map(LabelSet).collect(),
+        rewards: None,
+    }];
+    let too_wide = LrmConfig {
+        max_states: 20_000,
+        stutter_invariant: true,
+        ..cfg(1)
+    };
+    let e = learn_rm(&v, &four_sets, &too_wide).unwrap_err();
+    assert!(
+        matches!(&e, LrmError::Config(m) if m.contains("stutter_invariant") && m.contains("(20000 + 1) x (1 + 4)")),
+        "{e}"
+    );
+    let narrow = LrmConfig {
+        stutter_invariant: true,
+        ..cfg(1)
+    };
+    assert!(learn_rm(&v, &four_sets, &narrow).is_ok());
     // No traces at all: the one-state machine, cost 0.
     let empty = learn_rm(&v, &[], &cfg(1)).unwrap();
     assert_eq!((empty.rm.n_states(), empty.cost), (1, 0.0));

@@ -248,6 +248,18 @@ pub fn learn_rm(
         )));
     }
     let data = Data::new(vocab, traces)?;
+    let l_n = data.n_labels().max(1);
+    // The stutter-invariant repair adds at most one state per (state, label set) cell, and
+    // the tables store states as u16.
+    if cfg.stutter_invariant && (cfg.max_states + 1) * (1 + l_n) > u16::MAX as usize {
+        return Err(LrmError::Config(format!(
+            "with stutter_invariant, (max_states + 1) x (1 + label sets) must be at most {}, \
+             got ({} + 1) x (1 + {})",
+            u16::MAX,
+            cfg.max_states,
+            l_n
+        )));
+    }
     if !(cfg.reward_weight >= 0.0 && cfg.reward_weight.is_finite()) {
         return Err(LrmError::Config(format!(
             "reward_weight must be a finite number >= 0, got {}",
@@ -279,7 +291,6 @@ pub fn learn_rm(
         }
         None => (final_searcher.widen(&outcome.best), outcome.best_cost),
     };
-    let l_n = data.n_labels().max(1);
     // With `stutter_invariant`, read on raw traces as on the compressed ones the search
     // scored (see `search::stutter_invariant`); the cost on compressed traces can only drop.
     // A repaired table has new states, possibly more than the final searcher's rows.

@@ -73,7 +73,8 @@ struct Current {
 /// `f` where it visited `i` and then continues exactly as before, so the machine reads every
 /// compressed trace as `t` does and a raw trace the same way. A stutter invariant table is
 /// returned unchanged. The result has `n_used` rows and may have more states than the
-/// search's `u_max`.
+/// search's `u_max`: at most one more per (state, label) cell of `t`, since a repair removes
+/// the violations of one (target, label) pair for good and the new state adds none.
 pub(crate) fn stutter_invariant(t: &Table, l_n: usize) -> Table {
     let mut n = t.n_used;
     let mut delta = t.delta[..n * l_n].to_vec();
