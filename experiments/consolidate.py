@@ -8,6 +8,9 @@ give the same bytes. Run it after a sweep, before `git add`:
 It writes
   reacher/heldout/metrics.csv.gz       every held-out run's metrics.csv (heldout/<run>/) in one
                                        file, with a first column `run`
+  reacher/heldout/final_policy.csv.gz  every held-out run's final_policy.csv (SMIRL's
+                                       final-policy phase) the same way
+  reacher/runs/final_policy.csv        every reacher/runs/<run>/final_policy.csv, the same way
   reacher/ablations/runs/summary.csv   every ablation run's summary.csv, with a first column `run`
   reacher/ablations/runs/metrics.csv.gz  every ablation run's metrics.csv since issue 13 (the
                                        earlier ones were not kept), the same way
@@ -85,6 +88,11 @@ def outputs(excluded):
     heldout = os.path.join(HERE, "reacher/heldout")
     target = os.path.join(heldout, "metrics.csv.gz")
     yield target, gzip_bytes(merged(target, sources(heldout, "metrics.csv")).encode())
+    target = os.path.join(heldout, "final_policy.csv.gz")
+    yield target, gzip_bytes(merged(target, sources(heldout, "final_policy.csv")).encode())
+    runs = os.path.join(HERE, "reacher/runs")
+    target = os.path.join(runs, "final_policy.csv")
+    yield target, merged(target, sources(runs, "final_policy.csv")).encode()
     ablations = os.path.join(HERE, "reacher/ablations/runs")
     target = os.path.join(ablations, "summary.csv")
     yield target, merged(target, sources(ablations, "summary.csv")).encode()

@@ -147,6 +147,7 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
             check_reward_trace(dir, a, seed);
         }
     }
+    check_final_policy(dir, algos, seed);
     let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
     // Header + (iterations + 1) rows per job.
     assert_eq!(metrics.lines().count(), 1 + algos.len() * 3, "{metrics}");
@@ -164,6 +165,14 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
             assert!(
                 log.episodes.iter().any(|e| e.start.phase == phase),
                 "{a}: no {phase} episode"
+            );
+        }
+        // SMIRL's final-policy phase logs its selection and ground-truth episodes too.
+        for phase in ["select", "final"] {
+            assert_eq!(
+                log.episodes.iter().any(|e| e.start.phase == phase),
+                a.starts_with("smirl"),
+                "{a}: {phase} episodes"
             );
         }
         assert!(log.episodes.iter().all(|e| e.start.episode % 2 == 0));
@@ -186,6 +195,48 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
         let report = smirl::pipeline::replay::replay(&log).unwrap();
         assert!(report.all_match(), "{a}: {report}");
         assert!(report.episodes.iter().all(|e| e.rm_checked), "{a}");
+    }
+}
+
+/// `final_policy.csv`: per SMIRL job the co-trained policy and `smirl_final_checkpoints`
+/// candidates, the chosen one the first of highest learned return; the co-trained candidate is
+/// the policy of the last metrics row, judged on the same episodes, so its success is that row's.
+fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
+    let table = std::fs::read_to_string(dir.join("final_policy.csv")).unwrap();
+    let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    let mut lines = table.lines();
+    assert_eq!(
+        lines.next(),
+        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let config = tiny_config();
+    let per_job = config.smirl_final_checkpoints as usize + 1;
+    let smirl: Vec<&&str> = algos.iter().filter(|a| a.starts_with("smirl")).collect();
+    assert_eq!(rows.len(), smirl.len() * per_job, "{table}");
+    for a in smirl {
+        let job: Vec<&Vec<&str>> = rows
+            .iter()
+            .filter(|r| r[0] == *a && r[1] == seed.to_string())
+            .collect();
+        assert_eq!(job.len(), per_job, "{table}");
+        let returns: Vec<f64> = job.iter().map(|r| r[4].parse().unwrap()).collect();
+        let best = returns.iter().cloned().fold(f64::MIN, f64::max);
+        let first_best = returns.iter().position(|&x| x == best).unwrap();
+        let chosen: Vec<usize> = (0..per_job).filter(|&i| job[i][5] == "1").collect();
+        assert_eq!(chosen, vec![first_best], "{table}");
+        // Candidates 140 SAC steps apart (two 70-step episodes), the first at the end of the
+        // IRL loop: the last metrics row's policy, with its success.
+        let last_row: Vec<&str> = metrics
+            .lines()
+            .rfind(|l| l.starts_with(&format!("{a},{seed},")))
+            .unwrap()
+            .split(',')
+            .collect();
+        let loop_end: u64 = last_row[3].parse().unwrap();
+        let steps: Vec<u64> = job.iter().map(|r| r[3].parse().unwrap()).collect();
+        assert_eq!(steps, [loop_end, loop_end + 140, loop_end + 280], "{table}");
+        assert_eq!(job[0][6], last_row[4], "{last_row:?}");
     }
 }
 
@@ -620,6 +671,65 @@ fn counterfactual_share_must_be_in_the_unit_interval() {
     }
 }
 
+/// The final-policy phase's keys: checkpoints need steps, lie in 1..=steps and under the
+/// limit; the error names the field.
+#[test]
+fn final_policy_settings_are_checked() {
+    let mut c = IrlRunConfig::standard();
+    for (steps, checkpoints, ok) in [
+        (0, 0, true),
+        (20_000, 4, true),
+        (5, 5, true),
+        (0, 4, false),
+        (20_000, 0, false),
+        (3, 4, false),
+        (20_000, 1_001, false),
+        (100_000_001, 4, false),
+    ] {
+        c.smirl_final_sac_steps = steps;
+        c.smirl_final_checkpoints = checkpoints;
+        match c.validate("test") {
+            Ok(()) => assert!(ok, "{steps} steps, {checkpoints} checkpoints accepted"),
+            Err(e) => {
+                assert!(!ok, "{steps}, {checkpoints}: {e}");
+                assert!(e.to_string().contains("smirl_final_"), "{e}");
+            }
+        }
+    }
+    // A config without the keys (every run before them) has no final phase.
+    let old = IrlRunConfig::standard()
+        .to_toml()
+        .lines()
+        .filter(|l| !l.starts_with("smirl_final_"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let c = IrlRunConfig::from_toml(&old, "old.toml").unwrap();
+    assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
+}
+
+/// The reported candidate is the first of highest learned return, whatever its ground truth.
+#[test]
+fn final_policy_is_the_first_candidate_of_highest_learned_return() {
+    use smirl::pipeline::reacher_irl::final_policy::{choose, FinalCandidate};
+    let candidate = |learned_return: f64, success_rate: f64| FinalCandidate {
+        env_steps: 0,
+        learned_return,
+        success_rate,
+        branches: None,
+        progress: 0.0,
+        final_ball: 0.0,
+    };
+    let c = [
+        candidate(10.0, 1.0),
+        candidate(42.0, 0.0),
+        candidate(42.0, 1.0),
+        candidate(-5.0, 1.0),
+    ];
+    assert_eq!(choose(&c), 1);
+    assert_eq!(choose(&c[..1]), 0);
+    assert_eq!(choose(&c[2..]), 0);
+}
+
 /// The standard profile without its per-algorithm schedules: what SMIRL runs with.
 fn without_schedules() -> IrlRunConfig {
     let mut c = IrlRunConfig::standard();
@@ -633,6 +743,8 @@ fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
         irl_iterations: 20,
         smirl_shaping: 0.0,
+        smirl_final_sac_steps: 0,
+        smirl_final_checkpoints: 0,
         ..IrlRunConfig::standard()
     }
 }
@@ -684,10 +796,13 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     // with SMIRL's earlier settings; the baselines' schedules are the same.
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
-    // The baselines' resolved settings differ only in smirl_shaping, which only SMIRL reads.
+    // The baselines' resolved settings differ only in SMIRL's shaping and final policy, which
+    // only SMIRL reads.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let before = IrlRunConfig {
             smirl_shaping: 1.0,
+            smirl_final_sac_steps: standard.smirl_final_sac_steps,
+            smirl_final_checkpoints: standard.smirl_final_checkpoints,
             ..unshaped_file.for_algo(algo).unwrap()
         };
         assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");

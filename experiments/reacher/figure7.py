@@ -4,8 +4,11 @@ finished seeds — the final ground-truth success (IF and Composite: the lower b
 branch), the mean success over the last quarter of the IRL iterations (the policies of
 SMIRL's iterations 16-20, of the baselines' 601-800), the partial progress the paper's figure
 credits (sub-goals completed along the perfect machine, a ball that can end the task touched)
-at the end, and the median wall time per job. Markdown on standard output; numbers from the runs'
-metrics.csv(.gz) and run.json.
+at the end, and the median wall time per job. For SMIRL jobs with a final-policy phase
+(final_policy.csv: SAC on the final reward held fixed, the candidate of highest learned return
+reported), a second table: that policy's success per seed (and per branch), beside the
+co-trained policy's and the phase's last checkpoint's. Markdown on standard output; numbers
+from the runs' metrics.csv(.gz), final_policy.csv and run.json.
 
 Usage: python3 experiments/reacher/figure7.py RUN_DIR...
 """
@@ -71,6 +74,36 @@ def main(runs):
             wall_txt = f"{statistics.median(wall):.0f}" if wall else "-"
             line += f" {ms(quarter)} | {ms(prog)} | {ms(ball)} | {wall_txt} |"
             print(line)
+        final_policies(run, branches)
+
+
+def final_policies(run, branches):
+    """The table of the run's final-policy phases, if it has any."""
+    jobs = rundata.final_policy(run)
+    if not jobs:
+        return
+    print("\nFinal policy (`final_policy.csv`): the reported policy (highest learned return), the"
+          " co-trained one (candidate 0, the last iteration's) and the phase's last checkpoint.\n")
+    head = "| algorithm | seeds | reported policy | per seed |"
+    if branches:
+        head += " reported normal / cancel per seed |"
+    head += " co-trained per seed | last checkpoint per seed | candidate reported per seed |"
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+    algos = sorted({a for a, _ in jobs}, key=lambda a: ORDER.index(a) if a in ORDER else 9)
+    for algo in algos:
+        seeds = sorted(s for a, s in jobs if a == algo)
+        cands = [jobs[(algo, s)] for s in seeds]
+        picked = [rundata.chosen(c) for c in cands]
+        reported = [float(c["success_rate"]) for c in picked]
+        line = f"| {algo} | {len(seeds)} | {ms(reported)} | {per_seed(reported)} |"
+        if branches:
+            line += " " + ", ".join(f"{float(c['success_normal']):.2f} / {float(c['success_cancel']):.2f}"
+                                    for c in picked) + " |"
+        line += f" {per_seed([float(c[0]['success_rate']) for c in cands])} |"
+        line += f" {per_seed([float(c[-1]['success_rate']) for c in cands])} |"
+        line += " " + ", ".join(c["candidate"] for c in picked) + " |"
+        print(line)
 
 
 if __name__ == "__main__":

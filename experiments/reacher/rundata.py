@@ -78,3 +78,22 @@ def last_quarter(job_rows):
     n = max(int(r["iteration"]) for r in job_rows)
     tail = [float(r["success_rate"]) for r in job_rows if int(r["iteration"]) > n - n // 4]
     return sum(tail) / len(tail)
+
+
+def final_policy(run_dir):
+    """{(algo, seed): candidate rows in order} of the run's final-policy phase
+    (`final_policy.csv`, SMIRL with `smirl_final_sac_steps` > 0; candidate 0 is the co-trained
+    policy, the reported one has chosen = 1); {} for a run without one."""
+    try:
+        rows = table(run_dir, "final_policy.csv")
+    except FileNotFoundError:
+        return {}
+    jobs = {}
+    for r in rows:
+        jobs.setdefault((r["algo"], int(r["seed"])), []).append(r)
+    return jobs
+
+
+def chosen(candidates):
+    """The reported candidate of one job's final-policy phase."""
+    return next(r for r in candidates if r["chosen"] == "1")

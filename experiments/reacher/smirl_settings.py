@@ -2,8 +2,10 @@
 """SMIRL's settings (issue 13): `smirl` per task under each setting tried, and the standard
 profile on held-out demonstrations. Per run: the final ground-truth success of each SAC seed
 (IF and Composite: the lower branch; the branches as normal/cancel), the mean success over the
-last quarter of the IRL iterations per seed, and how many seeds end at >= 0.9. Numbers from
-the runs' metrics (rundata.py: the run directory on disk, else the committed consolidated
+last quarter of the IRL iterations per seed, and how many seeds end at >= 0.9; for the runs with
+a final-policy phase (final_policy.csv) the reported policy's success per seed instead, with
+the candidate reported (0 = the co-trained policy). Numbers from the runs' metrics and
+final-policy tables (rundata.py: the run directory on disk, else the committed consolidated
 rows). Markdown on standard output.
 
 Usage: python3 experiments/reacher/smirl_settings.py"""
@@ -24,10 +26,19 @@ TUNING = [
     ("standard", "config.toml: 30 IRL iterations, smirl_shaping = 1.0", "runs/{task}-shaped"),
     ("shaped_lr_decay", "+ reward_lr_decay = 0.5", "ablations/runs/shaped_lr_decay-{task}"),
 ]
+# The standard profile with its final-policy phase (smirl_final_sac_steps = 20 000 in 4
+# checkpoints): the same IRL loops as "standard", then the reported policy.
+FINAL_TUNING = ("final policy", "config.toml + smirl_final_sac_steps = 20000, 4 checkpoints",
+                "runs/{task}-final")
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
     ("base 6", "heldout/shaped-seeds6-{task}"),
     ("base 9", "heldout/shaped-seeds9-{task}"),
+]
+FINAL_HELDOUT = [
+    ("base 3, final policy", "heldout/final-{task}"),
+    ("base 6, final policy", "heldout/final-seeds6-{task}"),
+    ("base 9, final policy", "heldout/final-seeds9-{task}"),
 ]
 
 
@@ -66,6 +77,26 @@ def cell(run):
     return f"{text}; **{good}/{len(finals)}**"
 
 
+def final_cell(run):
+    j = {seed: c for (algo, seed), c in rundata.final_policy(os.path.join(HERE, run)).items()
+         if algo == "smirl"}
+    if not j:
+        return "not run"
+    finals, branches, picks = [], [], []
+    for seed in sorted(j):
+        c = rundata.chosen(j[seed])
+        finals.append(float(c["success_rate"]))
+        picks.append(c["candidate"])
+        if c.get("success_normal"):
+            branches.append(f"{float(c['success_normal']):.2f}/{float(c['success_cancel']):.2f}")
+    good = sum(f >= 0.9 for f in finals)
+    text = ", ".join(f"{f:.2f}" for f in finals)
+    if branches:
+        text += " (" + ", ".join(branches) + ")"
+    text += "; candidate " + ", ".join(picks)
+    return f"{text}; **{good}/{len(finals)}**"
+
+
 def main():
     print("Per cell: final success per seed (IF, Composite: normal/cancel in brackets); mean")
     print("success over the last quarter of the iterations per seed; seeds ending at >= 0.9.\n")
@@ -75,12 +106,16 @@ def main():
     for name, what, pattern in TUNING:
         cells = [cell(pattern.format(task=t)) for t in TASKS]
         print(f"| {name} | {what} | " + " | ".join(cells) + " |")
+    name, what, pattern = FINAL_TUNING
+    print(f"| {name} | {what} | " + " | ".join(final_cell(pattern.format(task=t)) for t in TASKS) + " |")
     print("\n**Held out** (the standard profile; new demonstrations and learned machines from base")
     print("seed B, SAC seeds B, B+1, B+2)\n")
     print("| base seed | " + " | ".join(TASKS) + " |")
     print("|---|" + "---|" * len(TASKS))
     for name, pattern in HELDOUT:
         print(f"| {name} | " + " | ".join(cell(pattern.format(task=t)) for t in TASKS) + " |")
+    for name, pattern in FINAL_HELDOUT:
+        print(f"| {name} | " + " | ".join(final_cell(pattern.format(task=t)) for t in TASKS) + " |")
 
 
 if __name__ == "__main__":

@@ -222,7 +222,7 @@ pub struct EpisodeStartMsg {
     pub episode: u64,
     /// The reset seed.
     pub seed: u64,
-    /// `"expert"`, `"train"`, `"eval"`, `"demo"`, …
+    /// `"expert"`, `"demo"`, `"train"`, `"agent"`, `"eval"`, `"select"`, `"final"`, …
     pub phase: String,
     pub qpos: Vec<f64>,
     pub qvel: Vec<f64>,

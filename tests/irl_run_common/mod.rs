@@ -15,6 +15,9 @@ pub fn tiny_config() -> IrlRunConfig {
     c.lrm_steps = 20;
     c.lrm_tabu_len = 100;
     c.log_every_nth_episode = 2;
+    // SMIRL's final policy: two candidates after the co-trained one, 140 steps apart.
+    c.smirl_final_sac_steps = 280;
+    c.smirl_final_checkpoints = 2;
     // 300 SAC steps are not a whole number of 70-step episodes: each iteration has to finish
     // SAC's episode in progress before the rollouts reset the environment.
     c.env.max_steps = 70;

@@ -107,6 +107,15 @@ pub struct IrlRunConfig {
     /// the RM state's largest ball weight; see `irl::smirl::LearnedSubgoalPotential`); 0 = the
     /// learned reward alone.
     pub smirl_shaping: f64,
+    /// SMIRL's final-policy phase (`final_policy`): SAC environment steps on the final learned
+    /// reward, held fixed, after the last IRL iteration; 0 = none (every run before the key
+    /// existed). Omitted from written configs when 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub smirl_final_sac_steps: u64,
+    /// Candidates taken along the final-policy phase (evenly spaced, the last at its end),
+    /// besides the co-trained policy.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub smirl_final_checkpoints: u64,
     /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
     /// state (CRM, see `rl::crm`): 0 = only the states the agent was in, 1 = every sampled
     /// transition from a uniformly drawn state.
@@ -343,6 +352,8 @@ pub const MAX_LRM_STATES: usize = crate::rm::lrm::MAX_STATES;
 pub const MAX_LRM_STEPS: usize = crate::rm::lrm::MAX_SEARCH_STEPS;
 /// Most worker threads.
 pub const MAX_THREADS: usize = 256;
+/// Most candidates of SMIRL's final-policy phase (each is two evaluations).
+pub const MAX_FINAL_CHECKPOINTS: u64 = 1_000;
 
 impl IrlRunConfig {
     /// The default profile: sized so that `reacher --task <t>` with the default algorithm set
@@ -368,6 +379,10 @@ impl IrlRunConfig {
             smirl_normalisation: SmirlNormalisation::Visits,
             smirl_label_features: LabelFeatures::State,
             smirl_shaping: 1.0,
+            // SMIRL's final policy: four candidates 5 000 SAC steps apart on the final reward
+            // (README, "SMIRL's final policy").
+            smirl_final_sac_steps: 20_000,
+            smirl_final_checkpoints: 4,
             smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,
@@ -401,6 +416,8 @@ impl IrlRunConfig {
             eval_episodes: 8,
             lrm_steps: 50,
             log_every_nth_episode: 4,
+            smirl_final_sac_steps: 2_000,
+            smirl_final_checkpoints: 2,
             // One short schedule for every algorithm: a smoke run, not the baselines' 800
             // iterations.
             schedule: BTreeMap::new(),
@@ -588,6 +605,36 @@ impl IrlRunConfig {
         if !(self.smirl_shaping.is_finite() && self.smirl_shaping >= 0.0) {
             return bad("smirl_shaping", "must be a non-negative number");
         }
+        if self.smirl_final_sac_steps > MAX_SAC_STEPS_PER_ITERATION {
+            return over(
+                "smirl_final_sac_steps",
+                self.smirl_final_sac_steps,
+                MAX_SAC_STEPS_PER_ITERATION,
+            );
+        }
+        if self.smirl_final_checkpoints > MAX_FINAL_CHECKPOINTS {
+            return over(
+                "smirl_final_checkpoints",
+                self.smirl_final_checkpoints,
+                MAX_FINAL_CHECKPOINTS,
+            );
+        }
+        match (self.smirl_final_sac_steps, self.smirl_final_checkpoints) {
+            (0, 0) => {}
+            (0, _) => {
+                return bad(
+                    "smirl_final_checkpoints",
+                    "needs smirl_final_sac_steps > 0 (there is no final-policy phase to take them from)",
+                )
+            }
+            (steps, k) if k == 0 || k > steps => {
+                return bad(
+                    "smirl_final_checkpoints",
+                    &format!("must be in 1..={steps} (smirl_final_sac_steps), got {k}"),
+                )
+            }
+            _ => {}
+        }
         if !(0.0..=1.0).contains(&self.smirl_counterfactual) {
             return bad("smirl_counterfactual", "must be a number in [0, 1]");
         }
@@ -637,4 +684,8 @@ impl IrlRunConfig {
         }
         Ok(())
     }
+}
+
+fn is_zero(x: &u64) -> bool {
+    *x == 0
 }

@@ -115,7 +115,18 @@ impl<'r> GroundTruth<'r> {
         &self,
         agent: &mut SacAgent,
         env: &mut E,
+        logger: Option<&mut RolloutLogger>,
+    ) -> Result<Evaluation, String> {
+        self.evaluate_logged_as(agent, env, logger, "eval")
+    }
+
+    /// [`GroundTruth::evaluate`], the episodes logged under `phase`.
+    pub fn evaluate_logged_as<E: JobEnv>(
+        &self,
+        agent: &mut SacAgent,
+        env: &mut E,
         mut logger: Option<&mut RolloutLogger>,
+        phase: &str,
     ) -> Result<Evaluation, String> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.eval_seed);
         let (mut succ, mut ret, mut env_ret) = (0.0, 0.0, 0.0);
@@ -127,7 +138,7 @@ impl<'r> GroundTruth<'r> {
                 reset_seed,
                 stop_when_decided: true,
                 with_branch: true,
-                phase: "eval",
+                phase,
             };
             let o = play_episode(
                 agent,
@@ -197,10 +208,11 @@ pub struct JobWatch<'r, 'l> {
 }
 
 impl<'r, 'l> JobWatch<'r, 'l> {
-    /// Watches a job of `settings`' length, judged by `ground_truth` on the task's `perfect`
-    /// machine.
+    /// Watches a job of `settings`' length plus `final_steps` SAC steps of a final-policy
+    /// phase, judged by `ground_truth` on the task's `perfect` machine.
     pub fn new(
         settings: &IrlRunConfig,
+        final_steps: u64,
         ground_truth: GroundTruth<'r>,
         perfect: &'r RewardMachine,
         expert_kde: Kde,
@@ -215,7 +227,7 @@ impl<'r, 'l> JobWatch<'r, 'l> {
             logger,
             progress,
             iterations,
-            total_env_steps: settings.sac_steps_per_iteration * iterations as u64,
+            total_env_steps: settings.sac_steps_per_iteration * iterations as u64 + final_steps,
             expert_support: None,
             rows: Vec::with_capacity(iterations + 1),
         }
@@ -308,6 +320,23 @@ impl<'r, 'l> JobWatch<'r, 'l> {
             success_rate: ev.success_rate,
         });
         Ok(())
+    }
+
+    /// Episodes of one ground-truth evaluation.
+    pub fn evaluation_episodes(&self) -> usize {
+        self.ground_truth.reset_seeds().len()
+    }
+
+    /// Judges a candidate of the final-policy phase on the ground truth (episodes logged
+    /// under "final"); no metrics row.
+    pub fn judge_final<E: JobEnv>(
+        &mut self,
+        agent: &mut SacAgent,
+        env: &mut E,
+    ) -> Result<Evaluation, String> {
+        let logger = self.logger.as_deref_mut();
+        self.ground_truth
+            .evaluate_logged_as(agent, env, logger, "final")
     }
 
     /// The metrics rows, iteration 0 first.

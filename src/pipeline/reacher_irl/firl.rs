@@ -195,7 +195,7 @@ impl RewardFn for StateReward<'_> {
     }
 }
 
-impl super::retrain::ScoredReward for StateReward<'_> {
+impl super::final_policy::ScoredReward for StateReward<'_> {
     fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String> {
         let mut r = vec![0.0f32; steps.n_states()];
         (self.model)

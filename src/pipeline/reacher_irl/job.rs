@@ -6,6 +6,7 @@
 
 use super::config::IrlRunConfig;
 use super::evaluation::{GroundTruth, JobWatch};
+use super::final_policy::FinalPolicy;
 use super::firl::{self, BaselineJob, Loss};
 use super::smirl::{self, Features, SmirlJob};
 use super::Algo;
@@ -161,6 +162,8 @@ pub struct JobResult {
     /// μ_π − μ_D of each iteration's reward update, one entry per IRL iteration; empty for the
     /// MLP rewards (too many parameters to trace).
     pub reward_trace: Vec<RewardTraceRow>,
+    /// SMIRL with a final-policy phase: its candidates and the reported one.
+    pub final_policy: Option<FinalPolicy>,
     pub wall_secs: f64,
 }
 
@@ -258,15 +261,28 @@ pub fn run_job(
         .map_err(|e| fail(format!("expert KDE: {e}")))?;
     let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| fail(e.to_string()))?;
     let ground_truth = GroundTruth::new(perfect_rm, &mut schedule, seed, s.eval_episodes);
-    let mut watch = JobWatch::new(s, ground_truth, perfect_rm, expert_kde, logger, progress);
+    let final_steps = if algo.uses_rm() {
+        s.smirl_final_sac_steps
+    } else {
+        0
+    };
+    let mut watch = JobWatch::new(
+        s,
+        final_steps,
+        ground_truth,
+        perfect_rm,
+        expert_kde,
+        logger,
+        progress,
+    );
     let baseline = |loss| BaselineJob {
         loss,
         seed,
         settings: s,
         expert,
     };
-    let boxed = |r: MlpReward| (Box::new(r) as Box<dyn RewardModel>, Vec::new());
-    let (reward, reward_trace) = match algo {
+    let boxed = |r: MlpReward| (Box::new(r) as Box<dyn RewardModel>, Vec::new(), None);
+    let (reward, reward_trace, final_policy) = match algo {
         Algo::Smirl | Algo::SmirlSmooth => {
             let machine = inputs
                 .learned_rm
@@ -283,8 +299,10 @@ pub fn run_job(
                 machine,
                 expert,
             };
-            smirl::train(&job, &mut watch)
-                .map(|(r, trace)| (Box::new(r) as Box<dyn RewardModel>, trace))
+            smirl::train(&job, &mut watch).map(|o| {
+                let reward = Box::new(o.reward) as Box<dyn RewardModel>;
+                (reward, o.trace, o.final_policy)
+            })
         }
         Algo::MaxEnt => firl::train(&baseline(Loss::MaxEnt), &mut watch).map(boxed),
         Algo::Fkl | Algo::Rkl | Algo::Js => {
@@ -304,6 +322,7 @@ pub fn run_job(
         seed,
         rows: watch.into_rows(),
         reward_trace,
+        final_policy,
         wall_secs: started.elapsed().as_secs_f64(),
     })
 }

@@ -18,7 +18,8 @@
 //!    the plain 17-dim observation, a (64, 64) reward net on the fingertip clamped ±10). What
 //!    every loop shares is in [`episodes`] (the environment, an episode, the SAC phase, the
 //!    rollouts); [`evaluation`] watches each job from outside (ground truth after every
-//!    iteration, logs, progress).
+//!    iteration, logs, progress); SMIRL's jobs end with [`final_policy`], SAC on the final
+//!    reward held fixed and the policy of highest learned return reported beside the loop's.
 //! 4. **Reports** ([`run`]): metrics CSV, mean ± std plots over seeds, learned RM (text +
 //!    DOT), reward parameters, MCAP logs, a summary table. Everything is written into
 //!    `<out>.partial` and renamed to `<out>` at the end.
@@ -27,6 +28,7 @@ pub mod config;
 pub mod demos;
 pub mod episodes;
 pub mod evaluation;
+pub mod final_policy;
 pub mod firl;
 pub mod job;
 pub mod retrain;

@@ -9,8 +9,9 @@
 //! configured) and the evaluation episodes are the job's own; only SAC's seed is new.
 
 use super::config::IrlRunConfig;
-use super::episodes::{play_episode, AgentBatch, EpisodeSpec, JobEnv};
+use super::episodes::JobEnv;
 use super::evaluation::{Evaluation, GroundTruth};
+use super::final_policy::{learned_return, ScoredReward};
 use super::firl::{self, StateReward};
 use super::run::PreparedRun;
 use super::smirl::{counterfactual_states, shaping_potential, Features, ProductReward};
@@ -19,10 +20,8 @@ use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
 use crate::irl::reward::MlpReward;
 use crate::irl::reward::{RewardModel, RewardOptimConfig};
-use crate::irl::smirl::{FeatureMap, LinearRmReward};
-use crate::rl::sac::{ActMode, RewardFn, SacAgent, SacConfig, SacTrainer};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
+use crate::irl::smirl::LinearRmReward;
+use crate::rl::sac::{SacConfig, SacTrainer};
 use std::path::{Path, PathBuf};
 
 /// Most SAC steps of one retraining.
@@ -52,12 +51,6 @@ pub struct RetrainPoint {
     /// each episode played to the time limit: how well the agent optimises the reward it was
     /// given, known without the ground truth (so a choice among agents may use it).
     pub learned_return: f64,
-}
-
-/// A SAC reward that can also score recorded steps.
-pub(super) trait ScoredReward: RewardFn {
-    /// The learned reward of every step of `steps`.
-    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String>;
 }
 
 /// The reward file of a job.
@@ -258,47 +251,18 @@ impl Training<'_> {
             let point = RetrainPoint {
                 env_steps: sac.env_steps(),
                 evaluation: self.judge.evaluate(&mut sac.agent, env, None)?,
-                learned_return: learned_return(&mut sac.agent, env, reward, self.judge)?,
+                learned_return: learned_return(
+                    &mut sac.agent,
+                    env,
+                    reward,
+                    self.judge.task(),
+                    self.judge.reset_seeds(),
+                    None,
+                )?,
             };
             on_point(&point);
             points.push(point);
         }
         Ok(points)
     }
-}
-
-/// The mean learned return of `agent`'s mean action over the judge's reset seeds, every
-/// episode to the time limit.
-fn learned_return<E: JobEnv, R: ScoredReward>(
-    agent: &mut SacAgent,
-    env: &mut E,
-    reward: &mut R,
-    judge: &GroundTruth<'_>,
-) -> Result<f64, String> {
-    let mut rng = ChaCha8Rng::seed_from_u64(0);
-    let labelling = FeatureMap::reacher_labels();
-    let mut steps = AgentBatch::default();
-    for &reset_seed in judge.reset_seeds() {
-        let spec = EpisodeSpec {
-            mode: ActMode::Mean,
-            reset_seed,
-            stop_when_decided: false,
-            with_branch: false,
-            phase: "retrain",
-        };
-        play_episode(
-            agent,
-            env,
-            judge.task(),
-            spec,
-            &mut rng,
-            None,
-            |o, next, u| {
-                steps.push_step(&labelling, o, next, u);
-            },
-        )?;
-    }
-    let r = reward.score(&steps)?;
-    let episodes = judge.reset_seeds().len().max(1) as f64;
-    Ok(r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes)
 }

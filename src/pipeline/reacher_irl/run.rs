@@ -22,6 +22,7 @@
 
 use super::config::{DemoPadding, DemoSource, IrlRunConfig};
 use super::demos::{load_expert, make_demos, DemoError};
+use super::final_policy::FinalPolicy;
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
 use super::smirl::{annotate, label_traces, learn_machine};
 use super::Algo;
@@ -112,6 +113,13 @@ pub struct AlgoSummary {
     /// Conditional tasks: final success on each branch's evaluation episodes, mean and std
     /// over seeds, in [`Branch::ALL`] order.
     pub final_branch_success: Option<[(f64, f64); 2]>,
+    /// Jobs with a final-policy phase (SMIRL): the reported policy's success (the lower
+    /// branch for a conditional task), mean and std over seeds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub final_policy_success: Option<(f64, f64)>,
+    /// ... and per branch of a conditional task, in [`Branch::ALL`] order.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub final_policy_branch_success: Option<[(f64, f64); 2]>,
     /// Mean wall time of a job (seconds).
     pub job_secs_mean: f64,
 }
@@ -214,6 +222,9 @@ pub struct JobRecord {
     pub algo: String,
     pub seed: u64,
     pub rows: Vec<super::MetricsRow>,
+    /// SMIRL's final-policy phase (`final_policy.csv`); absent in jobs without one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub final_policy: Option<FinalPolicy>,
     pub wall_secs: f64,
 }
 
@@ -548,6 +559,7 @@ impl PreparedRun {
             algo: algo.name().into(),
             seed,
             rows: result.rows,
+            final_policy: result.final_policy,
             wall_secs: result.wall_secs,
         };
         write_file(
@@ -738,6 +750,12 @@ fn write_reports(
         }
     }
     write_file(&dir.join("metrics.csv"), &metrics.to_csv())?;
+    if records.iter().any(|(_, r)| r.final_policy.is_some()) {
+        write_file(
+            &dir.join("final_policy.csv"),
+            &final_policy_table(records).to_csv(),
+        )?;
+    }
 
     let algos: Vec<Algo> = {
         let mut seen = Vec::new();
@@ -843,6 +861,23 @@ fn write_reports(
         } else {
             None
         };
+        // The reported policies of the final-policy phase, when every seed has one.
+        let chosen: Option<Vec<_>> = runs
+            .iter()
+            .map(|r| r.final_policy.as_ref().map(FinalPolicy::chosen))
+            .collect();
+        let final_policy_success = chosen
+            .as_ref()
+            .map(|c| mean_std(&c.iter().map(|c| c.success_rate).collect::<Vec<_>>()));
+        let final_policy_branch_success = chosen.as_ref().filter(|_| conditional).map(|c| {
+            Branch::ALL.map(|b| {
+                let rates: Vec<f64> = c
+                    .iter()
+                    .map(|c| c.branches.and_then(|t| t.rate(b)).unwrap_or(0.0))
+                    .collect();
+                mean_std(&rates)
+            })
+        });
         let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
         summaries.push(AlgoSummary {
             algo: algo.name().into(),
@@ -852,6 +887,8 @@ fn write_reports(
             final_return_mean: rm_,
             final_return_std: rs,
             final_branch_success,
+            final_policy_success,
+            final_policy_branch_success,
             job_secs_mean: wm,
         });
     }
@@ -995,6 +1032,48 @@ fn run_one(
     Ok(result)
 }
 
+/// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
+/// co-trained policy of the last IRL iteration, `chosen` marks the reported one.
+fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
+    let mut table = CsvTable::new([
+        "algo",
+        "seed",
+        "candidate",
+        "env_steps",
+        "learned_return",
+        "chosen",
+        "success_rate",
+        "success_normal",
+        "success_cancel",
+        "progress",
+        "final_ball",
+    ]);
+    for (_, r) in records {
+        let Some(f) = &r.final_policy else { continue };
+        for (i, c) in f.candidates.iter().enumerate() {
+            let rate = |b: Branch| {
+                c.branches
+                    .and_then(|t| t.rate(b))
+                    .map_or(String::new(), |x| format!("{x}"))
+            };
+            table.push([
+                r.algo.clone(),
+                r.seed.to_string(),
+                i.to_string(),
+                c.env_steps.to_string(),
+                format!("{:.6}", c.learned_return),
+                u8::from(i == f.chosen).to_string(),
+                format!("{}", c.success_rate),
+                rate(Branch::Normal),
+                rate(Branch::Cancelled),
+                format!("{}", c.progress),
+                format!("{}", c.final_ball),
+            ]);
+        }
+    }
+    table
+}
+
 /// A SMIRL reward trace as a long table: one row per (iteration, RM state, feature), the
 /// feature named by its proposition (label bit k is feature k).
 fn reward_trace_csv(trace: &[RewardTraceRow]) -> CsvTable {
@@ -1058,6 +1137,44 @@ pub fn summary_markdown(
             a.final_return_std,
             a.job_secs_mean
         );
+    }
+    let with_final: Vec<&AlgoSummary> = summaries
+        .iter()
+        .filter(|a| a.final_policy_success.is_some())
+        .collect();
+    if !with_final.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nFinal policy (SAC on the final reward held fixed; of the co-trained policy and \
+             the checkpoints, the one of highest learned return):\n"
+        );
+        let _ = writeln!(
+            s,
+            "| task | algorithm | seeds | success{} |",
+            if conditional {
+                " (lower branch) | normal branch | cancel branch"
+            } else {
+                ""
+            }
+        );
+        let _ = writeln!(
+            s,
+            "|---|---|---|---|{}",
+            if conditional { "---|---|" } else { "" }
+        );
+        for a in with_final {
+            let (m, sd) = a.final_policy_success.unwrap_or_default();
+            let branches = match a.final_policy_branch_success {
+                Some([(nm, ns), (cm, cs)]) => format!(" {nm:.2} ± {ns:.2} | {cm:.2} ± {cs:.2} |"),
+                None if conditional => " | |".to_string(),
+                None => String::new(),
+            };
+            let _ = writeln!(
+                s,
+                "| {task} | {} | {} | {m:.2} ± {sd:.2} |{branches}",
+                a.algo, a.seeds
+            );
+        }
     }
     if let Some(f) = rm {
         let _ = writeln!(

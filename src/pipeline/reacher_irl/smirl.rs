@@ -14,6 +14,8 @@
 //!    3. feature expectations: the loss coefficients whose gradient is μ_π − μ_D per (u, o)
 //!       ([`coefficients`]);
 //!    4. reward step(s) on w (Adam, L2).
+//! 4. **Final policy** (`smirl_final_sac_steps` > 0, [`super::final_policy`]): SAC goes on with
+//!    the final reward held fixed; the candidate of highest learned return is reported.
 //!
 //! Steps 1–2 run once per task in `reacher prepare` (every SMIRL job of a run shares the
 //! machine); `train` is one (variant, seed) job. Ground-truth evaluation, logging and progress
@@ -22,6 +24,7 @@
 use super::config::IrlRunConfig;
 use super::episodes::{train_sac, AgentBatch, RolloutStream};
 use super::evaluation::{JobWatch, UpdateFacts};
+use super::final_policy::{self, FinalPhase, FinalPolicy};
 use super::job::{reward_lr, Coefficients, ExpertData, RewardTraceRow};
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherDelivery, EVENTS, OBS_CANCEL, OBS_DIM, VOCABULARY};
@@ -268,7 +271,7 @@ impl RewardFn for ProductReward<'_> {
     }
 }
 
-impl super::retrain::ScoredReward for ProductReward<'_> {
+impl super::final_policy::ScoredReward for ProductReward<'_> {
     fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String> {
         let features = self.model.features();
         features.step_rows(&steps.obs, &steps.labels_before, &mut self.rows);
@@ -315,13 +318,17 @@ pub struct SmirlJob<'a> {
     pub expert: &'a ExpertData,
 }
 
-/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver. Returns the learned reward and
-/// its trace: per iteration, the data gradient μ_π − μ_D before the update and the weights
-/// after it.
-pub fn train(
-    job: &SmirlJob<'_>,
-    watch: &mut JobWatch<'_, '_>,
-) -> Result<(LinearRmReward, Vec<RewardTraceRow>), String> {
+/// What a SMIRL job returns: the learned reward, its trace (per iteration, the data gradient
+/// μ_π − μ_D before the update and the weights after it) and the final-policy phase, if any.
+pub struct SmirlOutcome {
+    pub reward: LinearRmReward,
+    pub trace: Vec<RewardTraceRow>,
+    pub final_policy: Option<FinalPolicy>,
+}
+
+/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver, then (`smirl_final_sac_steps` > 0)
+/// the final policy on the final reward ([`final_policy`](super::final_policy)).
+pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOutcome, String> {
     let s = job.settings;
     let n_states = job.machine.n_states();
     let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
@@ -391,5 +398,36 @@ pub fn train(
             Some(facts),
         )?;
     }
-    Ok((reward, trace))
+
+    // Step 4, the final policy: SAC goes on with the final reward, now fixed (shaped by its
+    //    potential), and the candidate of highest learned return is the job's policy.
+    let final_policy = if s.smirl_final_sac_steps > 0 {
+        let potential = shaping_potential(&features, n_states, &reward.params(), s)?;
+        let mut sac_reward = ProductReward::new(
+            &mut reward,
+            counterfactual.as_ref(),
+            potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
+        );
+        let phase = FinalPhase {
+            steps: s.smirl_final_sac_steps,
+            checkpoints: s.smirl_final_checkpoints,
+            seed: job.seed,
+        };
+        let iterations = s.irl_iterations;
+        Some(final_policy::train(
+            &mut sac,
+            &mut env,
+            &mut sac_reward,
+            phase,
+            iterations,
+            watch,
+        )?)
+    } else {
+        None
+    };
+    Ok(SmirlOutcome {
+        reward,
+        trace,
+        final_policy,
+    })
 }

@@ -1,0 +1,177 @@
+//! SMIRL's final policy (`smirl_final_sac_steps` > 0): after the last reward update, SAC goes on
+//! training on the job's final learned reward, now held fixed, and the policy the job reports is
+//! the one of highest learned return among the co-trained policy and the checkpoints of that
+//! phase.
+//!
+//! Why: the IRL loop's policy learns along with a moving reward; the one evaluated after the
+//! last iteration trained on the weights before the last update, and on held-out seeds it can
+//! sit in a dip of the loop's oscillation while the reward it leaves behind is right (a fresh
+//! agent on that reward solves the task: README, "Retraining"). The policy a user takes away
+//! should optimise the reward the job returns. The choice reads only that reward — the mean
+//! learned return of each candidate's mean action over selection episodes with reset seeds of
+//! their own — never the ground truth; every candidate is also judged on the ground truth, so
+//! the choice can be checked against the co-trained policy and the last checkpoint.
+
+use super::episodes::{play_episode, train_sac, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
+use super::evaluation::{Evaluation, JobWatch};
+use crate::env::reacher_task::BranchTally;
+use crate::irl::smirl::FeatureMap;
+use crate::log::RolloutLogger;
+use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+/// A SAC reward that can also score recorded steps.
+pub(super) trait ScoredReward: RewardFn {
+    /// The learned reward of every step of `steps`.
+    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String>;
+}
+
+/// One candidate for the final policy, after `env_steps` SAC steps of the job.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FinalCandidate {
+    pub env_steps: u64,
+    /// Mean learned return (the final reward, unshaped) of the mean action over the selection
+    /// episodes, each played to the time limit: what the choice reads.
+    pub learned_return: f64,
+    /// On the ground truth, as the iterations are judged (for a conditional task the lower
+    /// branch rate).
+    pub success_rate: f64,
+    pub branches: Option<BranchTally>,
+    pub progress: f64,
+    pub final_ball: f64,
+}
+
+/// The final-policy phase of a job: its candidates, the co-trained policy first, and which
+/// one the job reports.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FinalPolicy {
+    pub candidates: Vec<FinalCandidate>,
+    /// Index into `candidates`: the first of highest learned return.
+    pub chosen: usize,
+}
+
+impl FinalPolicy {
+    /// The reported policy.
+    pub fn chosen(&self) -> &FinalCandidate {
+        &self.candidates[self.chosen]
+    }
+}
+
+/// The length of the phase.
+#[derive(Clone, Copy, Debug)]
+pub struct FinalPhase {
+    /// SAC environment steps on the fixed final reward.
+    pub steps: u64,
+    /// Candidates taken along them (evenly spaced, the last at the end), besides the co-trained
+    /// policy.
+    pub checkpoints: u64,
+    /// The job's seed (selection episodes draw their reset seeds from it).
+    pub seed: u64,
+}
+
+/// Runs the phase: `sac`, fresh from the IRL loop, trains on `reward` (the final reward, fixed)
+/// and is scored at each checkpoint. `iterations` is the loop's length (for progress reports).
+pub(super) fn train<E: JobEnv, R: ScoredReward>(
+    sac: &mut SacTrainer,
+    env: &mut E,
+    reward: &mut R,
+    phase: FinalPhase,
+    iterations: usize,
+    watch: &mut JobWatch<'_, '_>,
+) -> Result<FinalPolicy, String> {
+    let selection_stream = episode_seed(phase.seed, 0x5e1e_c7ed);
+    let selection_seeds: Vec<u64> = (0..watch.evaluation_episodes() as u64)
+        .map(|i| episode_seed(selection_stream, i))
+        .collect();
+    let task = GroundTruthTask::of(watch.perfect());
+    let seeds = &selection_seeds;
+    let mut candidates = vec![candidate(sac, env, reward, &task, seeds, watch)?];
+    let start = sac.env_steps();
+    for k in 1..=phase.checkpoints {
+        let end = start + phase.steps * k / phase.checkpoints;
+        let n = end.saturating_sub(sac.env_steps());
+        train_sac(sac, env, reward, n, iterations + 1, watch)?;
+        candidates.push(candidate(sac, env, reward, &task, seeds, watch)?);
+    }
+    let chosen = choose(&candidates);
+    Ok(FinalPolicy { candidates, chosen })
+}
+
+/// Scores the current policy of `sac`: its learned return on the selection episodes, then its
+/// ground-truth evaluation.
+fn candidate<E: JobEnv, R: ScoredReward>(
+    sac: &mut SacTrainer,
+    env: &mut E,
+    reward: &mut R,
+    task: &GroundTruthTask<'_>,
+    selection_seeds: &[u64],
+    watch: &mut JobWatch<'_, '_>,
+) -> Result<FinalCandidate, String> {
+    let learned_return = learned_return(
+        &mut sac.agent,
+        env,
+        reward,
+        task,
+        selection_seeds,
+        watch.logger(),
+    )?;
+    let ev: Evaluation = watch.judge_final(&mut sac.agent, env)?;
+    Ok(FinalCandidate {
+        env_steps: sac.env_steps(),
+        learned_return,
+        success_rate: ev.success_rate,
+        branches: ev.branches,
+        progress: ev.progress,
+        final_ball: ev.final_ball,
+    })
+}
+
+/// The first candidate of highest learned return.
+pub fn choose(candidates: &[FinalCandidate]) -> usize {
+    let mut best = 0;
+    for (i, c) in candidates.iter().enumerate() {
+        if c.learned_return > candidates[best].learned_return {
+            best = i;
+        }
+    }
+    best
+}
+
+/// The mean learned return of `agent`'s mean action over the episodes of `reset_seeds`, every
+/// episode played to the time limit (logged under "select" when a logger is given).
+pub(super) fn learned_return<E: JobEnv, R: ScoredReward>(
+    agent: &mut SacAgent,
+    env: &mut E,
+    reward: &mut R,
+    task: &GroundTruthTask<'_>,
+    reset_seeds: &[u64],
+    mut logger: Option<&mut RolloutLogger>,
+) -> Result<f64, String> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let labelling = FeatureMap::reacher_labels();
+    let mut steps = AgentBatch::default();
+    for &reset_seed in reset_seeds {
+        let spec = EpisodeSpec {
+            mode: ActMode::Mean,
+            reset_seed,
+            stop_when_decided: false,
+            with_branch: false,
+            phase: "select",
+        };
+        play_episode(
+            agent,
+            env,
+            task,
+            spec,
+            &mut rng,
+            logger.as_deref_mut(),
+            |o, next, u| {
+                steps.push_step(&labelling, o, next, u);
+            },
+        )?;
+    }
+    let r = reward.score(&steps)?;
+    let episodes = reset_seeds.len().max(1) as f64;
+    Ok(r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes)
+}
