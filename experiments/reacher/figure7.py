@@ -2,7 +2,9 @@
 config.toml): one table per run directory given, one row per algorithm, over its
 finished seeds — the final ground-truth success (IF and Composite: the lower branch, and each
 branch), the mean success over the last quarter of the IRL iterations (the policies of
-SMIRL's iterations 16-20, of the baselines' 601-800), the partial progress the paper's figure
+SMIRL's iterations 16-20, of the baselines' 601-800), the best success any iteration's policy
+reached (an upper bound, read off the ground truth, on what choosing among a job's policies
+could report), the partial progress the paper's figure
 credits (sub-goals completed along the perfect machine, a ball that can end the task touched)
 at the end, and the median wall time per job. For SMIRL jobs with a final-policy phase
 (final_policy.csv: SAC on the final reward held fixed, the candidate of highest learned return
@@ -10,7 +12,8 @@ reported), a second table: that policy's success per seed (and per branch), besi
 co-trained policy's and the phase's last checkpoint's. Markdown on standard output; numbers
 from the runs' metrics.csv(.gz), final_policy.csv and run.json.
 
-Usage: python3 experiments/reacher/figure7.py RUN_DIR...
+Usage: python3 experiments/reacher/figure7.py [--final-only] RUN_DIR...
+  --final-only  only the final-policy tables (for runs whose IRL loops another table shows)
 """
 import json
 import os
@@ -35,8 +38,12 @@ def per_seed(xs):
     return ", ".join(f"{x:.2f}" for x in xs)
 
 
-def main(runs):
+def main(runs, final_only=False):
     for run in runs:
+        if final_only:
+            print(f"\n**{os.path.basename(os.path.normpath(run))}**")
+            final_policies(run)
+            continue
         rows = rundata.table(run, "metrics.csv")
         info = json.load(open(os.path.join(run, "run.json")))
         walls = {}
@@ -50,13 +57,13 @@ def main(runs):
         head = "| algorithm | seeds | final success | per seed |"
         if branches:
             head += " final normal / cancel |"
-        head += " last quarter | final sub-goals | final end ball | wall per job (s) |"
+        head += " last quarter | best iteration per seed | final sub-goals | final end ball | wall per job (s) |"
         print(head)
         print("|" + "---|" * (head.count("|") - 1))
         algos = sorted({a for a, _ in jobs}, key=lambda a: ORDER.index(a) if a in ORDER else 9)
         for algo in algos:
             seeds = sorted(s for a, s in jobs if a == algo)
-            final, normal, cancel, quarter, prog, ball = [], [], [], [], [], []
+            final, normal, cancel, quarter, best, prog, ball = [], [], [], [], [], [], []
             for s in seeds:
                 it = sorted(jobs[(algo, s)], key=lambda r: int(r["iteration"]))
                 last = it[-1]
@@ -65,6 +72,7 @@ def main(runs):
                     normal.append(float(last["success_normal"]))
                     cancel.append(float(last["success_cancel"]))
                 quarter.append(rundata.last_quarter(it))
+                best.append(max(float(r["success_rate"]) for r in it if int(r["iteration"]) > 0))
                 prog.append(float(last["progress"]) if last.get("progress") else float("nan"))
                 ball.append(float(last["final_ball"]) if last.get("final_ball") else float("nan"))
             line = f"| {algo} | {len(seeds)} | {ms(final)} | {per_seed(final)} |"
@@ -72,16 +80,18 @@ def main(runs):
                 line += f" {ms(normal)} / {ms(cancel)} |"
             wall = walls.get(algo, [])
             wall_txt = f"{statistics.median(wall):.0f}" if wall else "-"
-            line += f" {ms(quarter)} | {ms(prog)} | {ms(ball)} | {wall_txt} |"
+            line += f" {ms(quarter)} | {per_seed(best)} | {ms(prog)} | {ms(ball)} | {wall_txt} |"
             print(line)
-        final_policies(run, branches)
+        final_policies(run)
 
 
-def final_policies(run, branches):
-    """The table of the run's final-policy phases, if it has any."""
+def final_policies(run):
+    """The table of the run's final-policy phases, if it has any (from final_policy.csv, or
+    the consolidated rows of its parent directory)."""
     jobs = rundata.final_policy(run)
     if not jobs:
         return
+    branches = any(r.get("success_normal", "") != "" for c in jobs.values() for r in c)
     print("\nFinal policy (`final_policy.csv`): the reported policy (highest learned return), the"
           " co-trained one (candidate 0, the last iteration's) and the phase's last checkpoint.\n")
     head = "| algorithm | seeds | reported policy | per seed |"
@@ -107,4 +117,6 @@ def final_policies(run, branches):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    args = sys.argv[1:]
+    final_only = "--final-only" in args
+    main([a for a in args if a != "--final-only"], final_only)

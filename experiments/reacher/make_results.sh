@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds experiments/reacher/results.md from the run directories (every number from a script):
 # SMIRL's settings of issue 13 (results_smirl.md's prose, figure7.py's tables of
-# runs/<task>-shaped, smirl_settings.py's table of every setting tried and the held-out runs),
+# runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final, smirl_settings.py's
+# table of every setting tried and the held-out runs),
 # figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
 # figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>,
 # progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised),
@@ -15,6 +16,8 @@ cd "$(dirname "$0")"
   cat results_smirl.md
   printf '\n### SMIRL in figure 7 (`python3 experiments/reacher/figure7.py runs/<task>-shaped`)\n'
   python3 figure7.py runs/or-shaped runs/sequential-shaped runs/if-shaped runs/composite-shaped
+  printf '\n### SMIRL'"'"'s final policy on figure 7'"'"'s seeds (`python3 experiments/reacher/figure7.py --final-only runs/<task>-final`)\n'
+  python3 figure7.py --final-only runs/or-final runs/sequential-final runs/if-final runs/composite-final
   printf '\n### Every SMIRL setting tried, and held out (`python3 experiments/reacher/smirl_settings.py`)\n\n'
   python3 smirl_settings.py
   echo
