@@ -9,7 +9,11 @@ here = os.path.dirname(os.path.abspath(__file__))
 runs = os.path.join(here, "runs")
 rows = []
 order = ["or", "sequential", "if", "composite"]
-names = sorted((n for n in os.listdir(runs) if os.path.isdir(os.path.join(runs, n)) and not n.endswith(".partial")),
+# runs/<task>-final are not committed (their IRL loops are runs/<task>-shaped's, byte for byte;
+# their final policies are in figure7.py's tables), so they are left out here too: the same
+# results.md from a clone as from the machine that ran them.
+names = sorted((n for n in os.listdir(runs) if os.path.isdir(os.path.join(runs, n))
+                and not n.endswith(".partial") and not n.endswith("-final")),
                key=lambda n: (order.index(n.split("-")[0]) if n.split("-")[0] in order else 9, n))
 for task in names:
     d = os.path.join(runs, task)
