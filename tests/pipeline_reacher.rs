@@ -707,6 +707,36 @@ fn final_policy_settings_are_checked() {
     assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
 }
 
+/// LRM's optional search keys: absent from written configs unless set, read back as set,
+/// bounded, and a zero start count refused; the error names the field.
+#[test]
+fn lrm_search_settings_are_checked() {
+    let standard = IrlRunConfig::standard();
+    let text = standard.to_toml();
+    assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
+    let text = text.replace(
+        "lrm_steps = 100\n",
+        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\n",
+    );
+    let c = IrlRunConfig::from_toml(&text, "search.toml").unwrap();
+    assert_eq!((c.lrm_starts, c.lrm_patience), (Some(32), Some(0)));
+    assert_eq!(
+        IrlRunConfig::from_toml(&c.to_toml(), "again.toml").unwrap(),
+        c
+    );
+    for (starts, patience, field) in [
+        (Some(0), None, "lrm_starts"),
+        (Some(1_001), None, "lrm_starts"),
+        (None, Some(1_000_001), "lrm_patience"),
+    ] {
+        let mut c = IrlRunConfig::standard();
+        c.lrm_starts = starts;
+        c.lrm_patience = patience;
+        let e = c.validate("test").unwrap_err().to_string();
+        assert!(e.contains(field), "{e}");
+    }
+}
+
 /// The reported candidate is the first of highest learned return, whatever its ground truth.
 #[test]
 fn final_policy_is_the_first_candidate_of_highest_learned_return() {

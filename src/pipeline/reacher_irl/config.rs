@@ -142,6 +142,16 @@ pub struct IrlRunConfig {
     pub lrm_tabu_len: usize,
     /// LRM: search steps.
     pub lrm_steps: usize,
+    /// LRM: independent Tabu searches (`rm::lrm::LrmConfig::starts`); absent = the learner's
+    /// default, what every run before the key existed used. Omitted from written configs
+    /// when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lrm_starts: Option<usize>,
+    /// LRM: a start ends after this many steps without improving its best machine
+    /// (`rm::lrm::LrmConfig::patience`; 0 = run all `lrm_steps`); absent = the learner's
+    /// default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lrm_patience: Option<usize>,
     /// LRM: how the learned machine reads label sets the demonstrations never showed in a
     /// state (`rm::lrm::Guards`): `"tree"` (events first) or `"exact"` (stay, LRM's
     /// reading). A config without the key is read as `"exact"`, which is what every run
@@ -350,6 +360,8 @@ pub const MAX_REWARD_STEPS: usize = 100_000;
 pub const MAX_LRM_STATES: usize = crate::rm::lrm::MAX_STATES;
 /// Most LRM search steps and tabu-list entries.
 pub const MAX_LRM_STEPS: usize = crate::rm::lrm::MAX_SEARCH_STEPS;
+/// Most independent LRM searches (each holds its own tables and tabu list).
+pub const MAX_LRM_STARTS: usize = 1_000;
 /// Most worker threads.
 pub const MAX_THREADS: usize = 256;
 /// Most candidates of SMIRL's final-policy phase (each is two evaluations).
@@ -392,6 +404,8 @@ impl IrlRunConfig {
             lrm_max_states: 10,
             lrm_tabu_len: 10_000,
             lrm_steps: 100,
+            lrm_starts: None,
+            lrm_patience: None,
             lrm_guards: Guards::Tree,
             log_every_nth_episode: 10,
             threads: 2,
@@ -540,6 +554,16 @@ impl IrlRunConfig {
                 self.lrm_tabu_len as u64,
                 MAX_LRM_STEPS as u64,
             ),
+            (
+                "lrm_starts",
+                self.lrm_starts.unwrap_or(0) as u64,
+                MAX_LRM_STARTS as u64,
+            ),
+            (
+                "lrm_patience",
+                self.lrm_patience.unwrap_or(0) as u64,
+                MAX_LRM_STEPS as u64,
+            ),
             ("threads", self.threads as u64, MAX_THREADS as u64),
         ] {
             if value > limit {
@@ -649,6 +673,9 @@ impl IrlRunConfig {
                 "lrm_max_states/lrm_steps/lrm_tabu_len",
                 "must be at least 1",
             );
+        }
+        if self.lrm_starts == Some(0) {
+            return bad("lrm_starts", "must be at least 1");
         }
         if self.threads == 0 {
             return bad("threads", "must be at least 1");

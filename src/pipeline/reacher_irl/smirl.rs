@@ -68,8 +68,13 @@ pub fn learn_machine(
         events: EVENTS,
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
-        // Restarts, split moves and patience keep the learner's defaults.
+        // Split moves keep the learner's default; starts and patience too unless set.
         ..LrmConfig::default()
+    };
+    let cfg = LrmConfig {
+        starts: config.lrm_starts.unwrap_or(cfg.starts),
+        patience: config.lrm_patience.unwrap_or(cfg.patience),
+        ..cfg
     };
     let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
