@@ -3,10 +3,11 @@
 # demonstrations and learned machine from base seed BASE and SAC seeds BASE, BASE+1, BASE+2.
 # SMIRL's own rows of figure 7 and its held-out checks (issue 13):
 #
-#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/runs/{task}-shaped' 0
-#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/shaped-{task}' 3
-#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/shaped-seeds6-{task}' 6
-#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/shaped-seeds9-{task}' 9
+#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/runs/{task}-final' 0     (with the final policy;
+#     runs/{task}-shaped: the same IRL loops, made before it)
+#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/final-{task}' 3
+#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/final-seeds6-{task}' 6
+#   experiments/reacher/smirl_sweep.sh 'experiments/reacher/heldout/final-seeds9-{task}' 9
 #
 # Base seed 0 gives figure 7's demonstrations and machines (those of runs/<task>-schedules,
 # whose baseline rows it completes: the baselines read none of SMIRL's settings). {task} in

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Does a longer LRM search change SMIRL's learned machines? For each task and base seed, the
+# machine learned by `reacher prepare` (demonstrations and LRM only, no IRL) with the standard
+# config and with a stronger search (lrm_steps = 1000, lrm_starts = 32, lrm_patience = 50;
+# the standard: 100 steps, the learner's 4 starts and patience 5). Prints a markdown table:
+# learned states, LRM cost (and the perfect machine's on the same traces), and which perfect
+# states each learned state was seen with (`rm/report.txt`). Nothing here reads an IRL result.
+# Usage: experiments/reacher/lrm_search.sh ["TASKS"] ["BASES"]
+#   defaults: all four tasks, base seeds 0 3 6 9 (figure 7's and the held-out ones)
+#   REACHER_BIN=<binary>; the prepared directories go to a temporary directory this script
+#   creates and removes.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+TASKS=${1:-or sequential if composite}
+BASES=${2:-0 3 6 9}
+if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher >&2; fi
+BIN=${REACHER_BIN:-./target/release/reacher}
+TMP=$(mktemp -d)
+trap 'rm -rf "$TMP"' EXIT
+STANDARD=experiments/reacher/config.toml
+STRONG=$TMP/strong.toml
+grep -q '^lrm_steps = 100$' "$STANDARD"
+sed 's/^lrm_steps = 100$/lrm_steps = 1000\nlrm_starts = 32\nlrm_patience = 50/' "$STANDARD" > "$STRONG"
+echo "LRM's search, standard against stronger (\`experiments/reacher/lrm_search.sh > experiments/reacher/lrm_search.md\`)."
+echo
+echo "| task | base seed | search | learned states | LRM cost (perfect machine's) | perfect states per learned state |"
+echo "|---|---|---|---|---|---|"
+for task in $TASKS; do
+  for base in $BASES; do
+    for search in standard strong; do
+      cfg=$STANDARD
+      [ "$search" = strong ] && cfg=$STRONG
+      out=$TMP/$task-$base-$search
+      "$BIN" prepare --task "$task" --algo smirl --seed "$base" --seeds 1 --config "$cfg" \
+        --out "$out" > /dev/null
+      report=$out/rm/report.txt
+      states=$(sed -n 's/^learned machine: \([0-9]*\) states.*/\1/p' "$report")
+      cost=$(sed -n 's/^LRM cost \([0-9.]*\) (the perfect machine.s on the same traces: \([0-9.]*\)).*/\1 (\2)/p' "$report")
+      seen=$(sed -n 's/^learned state \([0-9]*\) seen with perfect states \(.*\)/\1: \2/p' "$report" | paste -sd ';' - | sed 's/;/; /g')
+      echo "| $task | $base | $search | $states | $cost | $seen |"
+    done
+  done
+done
