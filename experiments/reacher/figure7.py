@@ -38,6 +38,18 @@ def per_seed(xs):
     return ", ".join(f"{x:.2f}" for x in xs)
 
 
+def print_head(before, branch_column, after):
+    """A markdown table's header and rule; the branch column only for IF and Composite."""
+    columns = before + ([branch_column] if branch_column else []) + after
+    print("| " + " | ".join(columns) + " |")
+    print("|" + "---|" * len(columns))
+
+
+def algorithms(jobs):
+    """The algorithms of {(algo, seed): ...} in figure 7's order."""
+    return sorted({a for a, _ in jobs}, key=lambda a: ORDER.index(a) if a in ORDER else 9)
+
+
 def main(runs, final_only=False):
     for run in runs:
         if final_only:
@@ -54,14 +66,11 @@ def main(runs, final_only=False):
             jobs.setdefault((r["algo"], int(r["seed"])), []).append(r)
         branches = any(r.get("success_normal", "") != "" for r in rows)
         print(f"\n**{os.path.basename(os.path.normpath(run))}**\n")
-        head = "| algorithm | seeds | final success | per seed |"
-        if branches:
-            head += " final normal / cancel |"
-        head += " last quarter | best iteration per seed | final sub-goals | final end ball | wall per job (s) |"
-        print(head)
-        print("|" + "---|" * (head.count("|") - 1))
-        algos = sorted({a for a, _ in jobs}, key=lambda a: ORDER.index(a) if a in ORDER else 9)
-        for algo in algos:
+        print_head(["algorithm", "seeds", "final success", "per seed"],
+                   "final normal / cancel" if branches else None,
+                   ["last quarter", "best iteration per seed", "final sub-goals", "final end ball",
+                    "wall per job (s)"])
+        for algo in algorithms(jobs):
             seeds = sorted(s for a, s in jobs if a == algo)
             final, normal, cancel, quarter, best, prog, ball = [], [], [], [], [], [], []
             for s in seeds:
@@ -94,14 +103,10 @@ def final_policies(run):
     branches = any(r.get("success_normal", "") != "" for c in jobs.values() for r in c)
     print("\nFinal policy (`final_policy.csv`): the reported policy (highest learned return), the"
           " co-trained one (candidate 0, the last iteration's) and the phase's last checkpoint.\n")
-    head = "| algorithm | seeds | reported policy | per seed |"
-    if branches:
-        head += " reported normal / cancel per seed |"
-    head += " co-trained per seed | last checkpoint per seed | candidate reported per seed |"
-    print(head)
-    print("|" + "---|" * (head.count("|") - 1))
-    algos = sorted({a for a, _ in jobs}, key=lambda a: ORDER.index(a) if a in ORDER else 9)
-    for algo in algos:
+    print_head(["algorithm", "seeds", "reported policy", "per seed"],
+               "reported normal / cancel per seed" if branches else None,
+               ["co-trained per seed", "last checkpoint per seed", "candidate reported per seed"])
+    for algo in algorithms(jobs):
         seeds = sorted(s for a, s in jobs if a == algo)
         cands = [jobs[(algo, s)] for s in seeds]
         picked = [rundata.chosen(c) for c in cands]

@@ -61,20 +61,8 @@ def cell(run):
     j = jobs(run)
     if j is None:
         return "not run"
-    finals, quarters, branches = [], [], []
-    for seed in sorted(j):
-        it = j[seed]
-        last = it[-1]
-        finals.append(float(last["success_rate"]))
-        quarters.append(rundata.last_quarter(it))
-        if last.get("success_normal"):
-            branches.append(f"{float(last['success_normal']):.2f}/{float(last['success_cancel']):.2f}")
-    good = sum(f >= 0.9 for f in finals)
-    text = ", ".join(f"{f:.2f}" for f in finals)
-    if branches:
-        text += " (" + ", ".join(branches) + ")"
-    text += "; last quarter " + ", ".join(f"{q:.2f}" for q in quarters)
-    return f"{text}; **{good}/{len(finals)}**"
+    quarters = ", ".join(f"{rundata.last_quarter(j[seed]):.2f}" for seed in sorted(j))
+    return seeds_text([j[seed][-1] for seed in sorted(j)], f"last quarter {quarters}")
 
 
 def final_cell(run):
@@ -82,19 +70,20 @@ def final_cell(run):
          if algo == "smirl"}
     if not j:
         return "not run"
-    finals, branches, picks = [], [], []
-    for seed in sorted(j):
-        c = rundata.chosen(j[seed])
-        finals.append(float(c["success_rate"]))
-        picks.append(c["candidate"])
-        if c.get("success_normal"):
-            branches.append(f"{float(c['success_normal']):.2f}/{float(c['success_cancel']):.2f}")
-    good = sum(f >= 0.9 for f in finals)
+    picked = [rundata.chosen(j[seed]) for seed in sorted(j)]
+    return seeds_text(picked, "candidate " + ", ".join(c["candidate"] for c in picked))
+
+
+def seeds_text(results, note):
+    """Per seed the success (and branches) of one metrics or final_policy row, a note, and how
+    many seeds reach 0.9."""
+    finals = [float(r["success_rate"]) for r in results]
     text = ", ".join(f"{f:.2f}" for f in finals)
-    if branches:
-        text += " (" + ", ".join(branches) + ")"
-    text += "; candidate " + ", ".join(picks)
-    return f"{text}; **{good}/{len(finals)}**"
+    if results and results[0].get("success_normal"):
+        text += " (" + ", ".join(f"{float(r['success_normal']):.2f}/{float(r['success_cancel']):.2f}"
+                                 for r in results) + ")"
+    good = sum(f >= 0.9 for f in finals)
+    return f"{text}; {note}; **{good}/{len(finals)}**"
 
 
 def main():

@@ -1099,6 +1099,16 @@ fn reward_trace_csv(trace: &[RewardTraceRow]) -> CsvTable {
     table
 }
 
+/// The per-branch cells of a summary row: mean ± std of the normal and the cancel branch; empty
+/// cells in a conditional task's table for a row without them, none for other tasks.
+fn branch_cells(branches: Option<[(f64, f64); 2]>, conditional: bool) -> String {
+    match branches {
+        Some([(nm, ns), (cm, cs)]) => format!(" {nm:.2} ± {ns:.2} | {cm:.2} ± {cs:.2} |"),
+        None if conditional => " | |".to_string(),
+        None => String::new(),
+    }
+}
+
 /// The summary table as Markdown (also printed by the binary).
 pub fn summary_markdown(
     task: ReacherTask,
@@ -1121,11 +1131,7 @@ pub fn summary_markdown(
         let _ = writeln!(s, "|---|---|---|---|---|---|");
     }
     for a in summaries {
-        let branches = match a.final_branch_success {
-            Some([(nm, ns), (cm, cs)]) => format!(" {nm:.2} ± {ns:.2} | {cm:.2} ± {cs:.2} |"),
-            None if conditional => " | |".to_string(),
-            None => String::new(),
-        };
+        let branches = branch_cells(a.final_branch_success, conditional);
         let _ = writeln!(
             s,
             "| {task} | {} | {} | {:.2} ± {:.2} |{branches} {:.2} ± {:.2} | {:.0} |",
@@ -1164,11 +1170,7 @@ pub fn summary_markdown(
         );
         for a in with_final {
             let (m, sd) = a.final_policy_success.unwrap_or_default();
-            let branches = match a.final_policy_branch_success {
-                Some([(nm, ns), (cm, cs)]) => format!(" {nm:.2} ± {ns:.2} | {cm:.2} ± {cs:.2} |"),
-                None if conditional => " | |".to_string(),
-                None => String::new(),
-            };
+            let branches = branch_cells(a.final_policy_branch_success, conditional);
             let _ = writeln!(
                 s,
                 "| {task} | {} | {} | {m:.2} ± {sd:.2} |{branches}",
