@@ -457,3 +457,91 @@ fn stutter_invariant_machine_reads_raw_traces_as_compressed_ones() {
         assert!(fixed.cost <= plain.cost + 1e-9, "{guards:?}");
     }
 }
+
+/// The demonstrations of held-out IF (base seed 9) as `reacher replay` lists them: blue then
+/// red, or a cancel then red.
+const IF_BASE9: [(usize, &str); 16] = [
+    (6, "c@2 r@6"),
+    (22, "b@13-15 r@22"),
+    (22, "r@6 b@13-15 r@22"),
+    (14, "r@6 c@7 r@14"),
+    (13, "rc@6 r@13"),
+    (21, "b@13-15 r@21"),
+    (6, "c@4 r@6"),
+    (21, "b@12-15 r@21"),
+    (22, "b@13-15 r@22"),
+    (22, "r@6 b@13-15 r@22"),
+    (22, "r@6 b@13-15 r@22"),
+    (12, "rc@6 r@12"),
+    (21, "r@5 b@12-14 r@21"),
+    (17, "c@8 r@17"),
+    (13, "r@5 c@6 r@13"),
+    (22, "r@6 b@13-15 r@22"),
+];
+
+/// After blue and after a cancel the IF expert goes to red, so LRM's objective has no reason
+/// to tell the two apart and SMIRL's learned machine merges them; only "blue after a cancel
+/// fails" differs, which no demonstration shows. With `remember_events` the machine is the
+/// product with "cancel seen", which separates them at no cost (a finer partition), keeps
+/// the raw and compressed readings alike and at most doubles the states. Regression for
+/// held-out IF base 9 seed 9, whose reward paid blue in the merged state.
+#[test]
+fn remembering_the_cancel_separates_if_branches_that_lrm_merges() {
+    use smirl::rm::lrm::Guards;
+    let vocab = Vocabulary::new("rgbyc");
+    let traces = episode_traces(&vocab, &IF_BASE9);
+    let perfect = perfect::load("reacher_if").unwrap();
+    // The perfect machine's states after blue (no cancel) and after a cancel.
+    let (after_blue, after_cancel) = (1, 2);
+    let learn = |remember_events| {
+        learn_rm(
+            &vocab,
+            &traces,
+            &LrmConfig {
+                seed: 9,
+                merge: false,
+                reward_weight: 0.0,
+                guards: Guards::Tree,
+                events: vocab.parse_labels("c").unwrap(),
+                stutter_invariant: true,
+                remember_events,
+                ..cfg(2)
+            },
+        )
+        .unwrap()
+    };
+    let merged_with_both = |rm: &smirl::rm::RewardMachine| {
+        refines(rm, &perfect, read_prefixes(&traces))
+            .seen_with
+            .iter()
+            .any(|s| s.contains(&after_blue) && s.contains(&after_cancel))
+    };
+    let plain = learn(false);
+    assert!(merged_with_both(&plain.rm));
+    let remembered = learn(true);
+    assert!(!merged_with_both(&remembered.rm));
+    assert!(remembered.cost <= plain.cost + 1e-9);
+    assert!(runs_alike(&remembered.rm, &traces).iter().all(|&a| a));
+    assert!(remembered.rm.n_states() <= 2 * plain.rm.n_states());
+}
+
+/// The event memory multiplies the states by 2^events: more than 4 events are refused.
+#[test]
+fn remembering_more_than_four_events_is_refused() {
+    let vocab = Vocabulary::new("abcde");
+    let traces = episode_traces(&vocab, &[(4, "a@2 b@3")]);
+    let e = learn_rm(
+        &vocab,
+        &traces,
+        &LrmConfig {
+            events: vocab.parse_labels("abcde").unwrap(),
+            remember_events: true,
+            ..cfg(1)
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, LrmError::Config(m) if m.contains("remember_events") && m.contains("5 events")),
+        "{e}"
+    );
+}

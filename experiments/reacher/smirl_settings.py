@@ -34,11 +34,14 @@ HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
     ("base 6", "heldout/shaped-seeds6-{task}"),
     ("base 9", "heldout/shaped-seeds9-{task}"),
+    # Base 12 was run only with the final-policy phase; its IRL loops give the co-trained row.
+    ("base 12", "heldout/final-seeds12-{task}"),
 ]
 FINAL_HELDOUT = [
     ("base 3, final policy", "heldout/final-{task}"),
     ("base 6, final policy", "heldout/final-seeds6-{task}"),
     ("base 9, final policy", "heldout/final-seeds9-{task}"),
+    ("base 12, final policy", "heldout/final-seeds12-{task}"),
 ]
 
 

@@ -152,6 +152,12 @@ pub struct IrlRunConfig {
     /// default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lrm_patience: Option<usize>,
+    /// LRM: remember events (`rm::lrm::LrmConfig::remember_events`): every learned state
+    /// entered both on the cancel and otherwise gets a copy for "entered on the cancel". A
+    /// config without the key is read as false, what every run before the key existed used.
+    /// Omitted from written configs when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub lrm_remember_events: bool,
     /// LRM: how the learned machine reads label sets the demonstrations never showed in a
     /// state (`rm::lrm::Guards`): `"tree"` (events first) or `"exact"` (stay, LRM's
     /// reading). A config without the key is read as `"exact"`, which is what every run
@@ -406,6 +412,7 @@ impl IrlRunConfig {
             lrm_steps: 100,
             lrm_starts: None,
             lrm_patience: None,
+            lrm_remember_events: false,
             lrm_guards: Guards::Tree,
             log_every_nth_episode: 10,
             threads: 2,
@@ -715,4 +722,8 @@ impl IrlRunConfig {
 
 fn is_zero(x: &u64) -> bool {
     *x == 0
+}
+
+fn is_false(x: &bool) -> bool {
+    !*x
 }

@@ -68,6 +68,7 @@ pub fn learn_machine(
         events: EVENTS,
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
+        remember_events: config.lrm_remember_events,
         // Split moves keep the learner's default; starts and patience too unless set.
         ..LrmConfig::default()
     };

@@ -148,6 +148,13 @@ pub struct LrmConfig {
     /// on every step the goal is read, which no stutter invariant machine expresses, and its
     /// experiments were made without it.
     pub stutter_invariant: bool,
+    /// After the search, make the machine the product of the learned one with the set of
+    /// events (`events`) seen so far (`search::remember_events`), so it remembers that an
+    /// event happened even where the demonstrations' next labels do not depend on it. LRM's
+    /// objective keeps a memory only if it predicts the next label; an event that changes
+    /// what is *forbidden* afterwards (ReacherDelivery IF: blue after a cancel) but not what
+    /// the expert does next is otherwise merged away. At most 4 events. Off by default.
+    pub remember_events: bool,
 }
 
 impl Default for LrmConfig {
@@ -170,6 +177,7 @@ impl Default for LrmConfig {
             guards: Guards::Exact,
             events: LabelSet::EMPTY,
             stutter_invariant: false,
+            remember_events: false,
         }
     }
 }
@@ -249,8 +257,8 @@ pub fn learn_rm(
     }
     let data = Data::new(vocab, traces)?;
     let l_n = data.n_labels().max(1);
-    // The stutter-invariant repair adds at most one state per (state, label set) cell, and
-    // the tables store states as u16.
+    // The stutter-invariant repair adds at most one state per (state, label set) cell, the
+    // event memory at most doubles the states, and the tables store states as u16.
     if cfg.stutter_invariant && (cfg.max_states + 1) * (1 + l_n) > u16::MAX as usize {
         return Err(LrmError::Config(format!(
             "with stutter_invariant, (max_states + 1) x (1 + label sets) must be at most {}, \
@@ -258,6 +266,19 @@ pub fn learn_rm(
             u16::MAX,
             cfg.max_states,
             l_n
+        )));
+    }
+    let grown = if cfg.stutter_invariant {
+        (cfg.max_states + 1) * (1 + l_n)
+    } else {
+        cfg.max_states + 1
+    };
+    let events = cfg.events.0.count_ones();
+    if cfg.remember_events && (events > 4 || (grown << events) > u16::MAX as usize) {
+        return Err(LrmError::Config(format!(
+            "with remember_events, at most 4 events and 2^events x the most states the search \
+             and its repair can reach at most {}, got {events} events and {grown} states",
+            u16::MAX
         )));
     }
     if !(cfg.reward_weight >= 0.0 && cfg.reward_weight.is_finite()) {
@@ -300,6 +321,19 @@ pub fn learn_rm(
         .then(|| search::stutter_invariant(&table, l_n))
         .filter(|t| t.n_used > table.n_used);
     let (table, best_cost, final_searcher) = match repaired {
+        None => (table, best_cost, final_searcher),
+        Some(t) => {
+            let wide = search::Searcher::new(&data, rows(&t), cfg.reward_weight);
+            let cost = wide.cost(&wide.widen(&t).delta);
+            (t, cost, wide)
+        }
+    };
+    // With `remember_events`, the copies that keep an event in memory (see the field).
+    let event_bits: Vec<u32> = data.labels.iter().map(|l| l.0 & cfg.events.0).collect();
+    let remembered = (cfg.remember_events && !cfg.events.is_empty())
+        .then(|| search::remember_events(&table, l_n, &event_bits))
+        .filter(|t| t.n_used > table.n_used);
+    let (table, best_cost, final_searcher) = match remembered {
         None => (table, best_cost, final_searcher),
         Some(t) => {
             let wide = search::Searcher::new(&data, rows(&t), cfg.reward_weight);
