@@ -14,6 +14,7 @@ It writes
   reacher/ablations/runs/summary.csv   every ablation run's summary.csv, with a first column `run`
   reacher/ablations/runs/metrics.csv.gz  every ablation run's metrics.csv since issue 13 (the
                                        earlier ones were not kept), the same way
+  reacher/ablations/runs/final_policy.csv  every ablation run's final_policy.csv, the same way
   office/runs<TAG>/summary.csv         the five tasks' runs<TAG>/t<N>/summary.csv of each Office
                                        experiment (their first column is already `task`)
   <run>/metrics.csv.gz                 `gzip -n -9` of <run>/metrics.csv for the long runs in
@@ -98,6 +99,8 @@ def outputs(excluded):
     yield target, merged(target, sources(ablations, "summary.csv")).encode()
     target = os.path.join(ablations, "metrics.csv.gz")
     yield target, gzip_bytes(merged(target, sources(ablations, "metrics.csv")).encode())
+    target = os.path.join(ablations, "final_policy.csv")
+    yield target, merged(target, sources(ablations, "final_policy.csv")).encode()
     for runs in sorted(glob.glob(os.path.join(HERE, "office/runs*/"))):
         tasks = sorted(glob.glob(os.path.join(runs, "t[0-9]/summary.csv")))
         target = os.path.join(runs, "summary.csv")

@@ -25,23 +25,37 @@ TUNING = [
     ("label_entries", "+ smirl_label_features = \"entries\"", "ablations/runs/label_entries-{task}"),
     ("standard", "config.toml: 30 IRL iterations, smirl_shaping = 1.0", "runs/{task}-shaped"),
     ("shaped_lr_decay", "+ reward_lr_decay = 0.5", "ablations/runs/shaped_lr_decay-{task}"),
+    ("remember_events", "+ lrm_remember_events = true (its IRL loop; the final policy below)",
+     "ablations/runs/remember_events-{task}"),
 ]
 # The standard profile with its final-policy phase (smirl_final_sac_steps = 20 000 in 4
 # checkpoints): the same IRL loops as "standard", then the reported policy.
-FINAL_TUNING = ("final policy", "config.toml + smirl_final_sac_steps = 20000, 4 checkpoints",
-                "runs/{task}-final")
+FINAL_TUNING = [
+    ("final policy", "config.toml + smirl_final_sac_steps = 20000, 4 checkpoints",
+     "runs/{task}-final"),
+    ("remember_events, final policy", "final policy + lrm_remember_events = true",
+     "ablations/runs/remember_events-{task}"),
+]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
     ("base 6", "heldout/shaped-seeds6-{task}"),
     ("base 9", "heldout/shaped-seeds9-{task}"),
     # Base 12 was run only with the final-policy phase; its IRL loops give the co-trained row.
     ("base 12", "heldout/final-seeds12-{task}"),
+    ("base 3, remember_events", "heldout/remember-{task}"),
+    ("base 6, remember_events", "heldout/remember-seeds6-{task}"),
+    ("base 9, remember_events", "heldout/remember-seeds9-{task}"),
+    ("base 12, remember_events", "heldout/remember-seeds12-{task}"),
 ]
 FINAL_HELDOUT = [
     ("base 3, final policy", "heldout/final-{task}"),
     ("base 6, final policy", "heldout/final-seeds6-{task}"),
     ("base 9, final policy", "heldout/final-seeds9-{task}"),
     ("base 12, final policy", "heldout/final-seeds12-{task}"),
+    ("base 3, remember_events, final policy", "heldout/remember-{task}"),
+    ("base 6, remember_events, final policy", "heldout/remember-seeds6-{task}"),
+    ("base 9, remember_events, final policy", "heldout/remember-seeds9-{task}"),
+    ("base 12, remember_events, final policy", "heldout/remember-seeds12-{task}"),
 ]
 
 
@@ -98,8 +112,9 @@ def main():
     for name, what, pattern in TUNING:
         cells = [cell(pattern.format(task=t)) for t in TASKS]
         print(f"| {name} | {what} | " + " | ".join(cells) + " |")
-    name, what, pattern = FINAL_TUNING
-    print(f"| {name} | {what} | " + " | ".join(final_cell(pattern.format(task=t)) for t in TASKS) + " |")
+    for name, what, pattern in FINAL_TUNING:
+        cells = [final_cell(pattern.format(task=t)) for t in TASKS]
+        print(f"| {name} | {what} | " + " | ".join(cells) + " |")
     print("\n**Held out** (the standard profile; new demonstrations and learned machines from base")
     print("seed B, SAC seeds B, B+1, B+2)\n")
     print("| base seed | " + " | ".join(TASKS) + " |")
