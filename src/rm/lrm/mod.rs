@@ -320,26 +320,24 @@ pub fn learn_rm(
         .stutter_invariant
         .then(|| search::stutter_invariant(&table, l_n))
         .filter(|t| t.n_used > table.n_used);
+    // A grown table is scored by a searcher with enough rows.
+    let rescored = |t: search::Table| {
+        let wide = search::Searcher::new(&data, rows(&t), cfg.reward_weight);
+        let cost = wide.cost(&wide.widen(&t).delta);
+        (t, cost, wide)
+    };
     let (table, best_cost, final_searcher) = match repaired {
         None => (table, best_cost, final_searcher),
-        Some(t) => {
-            let wide = search::Searcher::new(&data, rows(&t), cfg.reward_weight);
-            let cost = wide.cost(&wide.widen(&t).delta);
-            (t, cost, wide)
-        }
+        Some(t) => rescored(t),
     };
-    // With `remember_events`, the copies that keep an event in memory (see the field).
+    // With `remember_events`, the product with the events seen so far (see the field).
     let event_bits: Vec<u32> = data.labels.iter().map(|l| l.0 & cfg.events.0).collect();
     let remembered = (cfg.remember_events && !cfg.events.is_empty())
         .then(|| search::remember_events(&table, l_n, &event_bits))
         .filter(|t| t.n_used > table.n_used);
     let (table, best_cost, final_searcher) = match remembered {
         None => (table, best_cost, final_searcher),
-        Some(t) => {
-            let wide = search::Searcher::new(&data, rows(&t), cfg.reward_weight);
-            let cost = wide.cost(&wide.widen(&t).delta);
-            (t, cost, wide)
-        }
+        Some(t) => rescored(t),
     };
     let rows = rows(&table);
     let table = &table;
