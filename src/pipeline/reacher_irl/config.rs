@@ -152,10 +152,9 @@ pub struct IrlRunConfig {
     /// default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lrm_patience: Option<usize>,
-    /// LRM: remember events (`rm::lrm::LrmConfig::remember_events`): every learned state
-    /// entered both on the cancel and otherwise gets a copy for "entered on the cancel". A
-    /// config without the key is read as false, what every run before the key existed used.
-    /// Omitted from written configs when false.
+    /// LRM: remember events (`rm::lrm::LrmConfig::remember_events`): the learned machine made
+    /// the product with "cancel seen so far". A config without the key is read as false, what
+    /// every run before the key existed used. Omitted from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_remember_events: bool,
     /// LRM: how the learned machine reads label sets the demonstrations never showed in a

@@ -38,7 +38,7 @@ use crate::pipeline::reacher_expert::Demo;
 use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
-use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
+use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig, DEFAULT_PATIENCE, DEFAULT_STARTS};
 use crate::rm::{LabelSet, RewardMachine, Vocabulary};
 
 /// Observation columns of the two joint velocities (see `env::reacher`).
@@ -69,13 +69,10 @@ pub fn learn_machine(
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
         remember_events: config.lrm_remember_events,
-        // Split moves keep the learner's default; starts and patience too unless set.
+        // Starts and patience keep the learner's defaults unless set; split moves always.
+        starts: config.lrm_starts.unwrap_or(DEFAULT_STARTS),
+        patience: config.lrm_patience.unwrap_or(DEFAULT_PATIENCE),
         ..LrmConfig::default()
-    };
-    let cfg = LrmConfig {
-        starts: config.lrm_starts.unwrap_or(cfg.starts),
-        patience: config.lrm_patience.unwrap_or(cfg.patience),
-        ..cfg
     };
     let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))

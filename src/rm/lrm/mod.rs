@@ -258,7 +258,8 @@ pub fn learn_rm(
     let data = Data::new(vocab, traces)?;
     let l_n = data.n_labels().max(1);
     // The stutter-invariant repair adds at most one state per (state, label set) cell, the
-    // event memory at most doubles the states, and the tables store states as u16.
+    // event memory multiplies the states by at most 2^events, and the tables store states as
+    // u16.
     if cfg.stutter_invariant && (cfg.max_states + 1) * (1 + l_n) > u16::MAX as usize {
         return Err(LrmError::Config(format!(
             "with stutter_invariant, (max_states + 1) x (1 + label sets) must be at most {}, \

@@ -108,7 +108,7 @@ pub(crate) fn stutter_invariant(t: &Table, l_n: usize) -> Table {
 
 /// The machine of `t` with a memory of events (see [`LrmConfig::remember_events`]): the
 /// product of `t` with the set of events seen so far, `(u, seen)` reading `l` going to
-/// `(delta(u, l), seen | event_bits[l])`, keeping the states reachable from `(0, {})` in
+/// `(delta(u, l), seen | event_bits[l])` (no bits past the end of `event_bits`), keeping the states reachable from `(0, {})` in
 /// breadth-first order. A finer partition of the traces' histories, so the cost can only drop;
 /// stutter invariance is kept (reading `l` again changes neither part).
 ///
@@ -121,7 +121,8 @@ pub(crate) fn remember_events(t: &Table, l_n: usize, event_bits: &[u32]) -> Tabl
     let mut k = 0;
     while k < states.len() {
         let (u, seen) = states[k];
-        for (l, &bits) in event_bits.iter().enumerate().take(l_n) {
+        for l in 0..l_n {
+            let bits = event_bits.get(l).copied().unwrap_or(0);
             let next = (t.delta[u as usize * l_n + l], seen | bits);
             let id = *index.entry(next).or_insert_with(|| {
                 states.push(next);
