@@ -1,5 +1,6 @@
 //! `reacher render`: a logged episode drawn as PNG (decodes, right size, the balls where the
-//! log puts them, touches and cancel found); bad input is an error and leaves no file.
+//! log puts them, touches and cancel found); bad input is an error and leaves no file; a
+//! closed output pipe ends `replay` quietly.
 
 use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
@@ -143,4 +144,25 @@ fn bad_input_is_an_error_and_writes_nothing() {
         String::from_utf8_lossy(&run.stderr)
     );
     assert_eq!(decode(&out).0, 480);
+}
+
+/// `reacher replay LOG | head -0`: a reader that closes the pipe first ends the command the way
+/// it ends `cat` (SIGPIPE), not with a panic in `println!` (regression: exit status 101 and
+/// "failed printing to stdout" on stderr).
+#[test]
+fn replay_into_a_closed_pipe_ends_quietly() {
+    use std::process::Stdio;
+    let (_dir, log_path, _log) = logged_demos();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .arg("replay")
+        .arg(&log_path)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_ne!(out.status.code(), Some(101), "{stderr}");
 }

@@ -53,6 +53,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
+    smirl::pipeline::commands::exit_quietly_on_closed_pipe();
     let args = match Args::try_parse() {
         Ok(a) => a,
         Err(e) => {

@@ -373,6 +373,7 @@ struct AggregateArgs {
 }
 
 fn main() -> ExitCode {
+    commands::exit_quietly_on_closed_pipe();
     match try_main(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

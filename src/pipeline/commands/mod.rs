@@ -35,6 +35,16 @@ impl std::fmt::Display for UsageError {
 
 impl std::error::Error for UsageError {}
 
+/// Lets a closed standard output end the process quietly, as it ends `cat` or `grep`: Rust
+/// ignores SIGPIPE, so `reacher replay LOG | head` would otherwise panic in `println!` once
+/// `head` exits. Called first thing by the binaries.
+pub fn exit_quietly_on_closed_pipe() {
+    // SAFETY: restores the default action of one signal before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 /// Whether `error` (or an error it wraps) is a [`UsageError`].
 pub fn is_usage(error: &anyhow::Error) -> bool {
     error.downcast_ref::<UsageError>().is_some()
