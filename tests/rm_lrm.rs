@@ -525,6 +525,80 @@ fn remembering_the_cancel_separates_if_branches_that_lrm_merges() {
     assert!(remembered.rm.n_states() <= 2 * plain.rm.n_states());
 }
 
+/// The demonstrations of held-out IF (base seed 12): the normal branch passes red on its way
+/// to blue, and no cancel comes after that pass.
+const IF_BASE12: [(usize, &str); 16] = [
+    (21, "r@5 b@12-14 r@21"),
+    (6, "c@5 r@6"),
+    (15, "c@7 r@15"),
+    (21, "b@12-14 r@21"),
+    (21, "r@5 b@12-15 r@21"),
+    (6, "c@3 r@6"),
+    (22, "r@6 b@13-15 r@22"),
+    (21, "r@6 b@13-15 r@21"),
+    (6, "c@1 r@6"),
+    (6, "c@4 r@6"),
+    (16, "c@7 r@16"),
+    (22, "r@6 b@13-15 r@22"),
+    (22, "b@13-15 r@22"),
+    (18, "c@8 r@18"),
+    (21, "r@6 b@13-15 r@21"),
+    (6, "c@5 r@6"),
+];
+
+/// LRM splits "before blue" by the route (IF base 12: a state for "passing red"), and a
+/// cancel seen only in some of those states is ignored in the others: after passing red, a
+/// cancel left the machine where blue still leads on to red's reward (held-out IF base 12
+/// seed 12's failures, `r@5 c@8 b@20`). With `borrow_events` a cancel never seen in a state
+/// is read as in a state of the same task stage that saw one, so "pass red, then cancel" ends
+/// where "cancel" does; the demonstrations' paths and the cost are unchanged.
+#[test]
+fn borrowed_events_read_a_cancel_after_passing_red_as_a_cancel() {
+    use smirl::rm::lrm::Guards;
+    let vocab = Vocabulary::new("rgbyc");
+    let traces = episode_traces(&vocab, &IF_BASE12);
+    let learn = |borrow_events| {
+        learn_rm(
+            &vocab,
+            &traces,
+            &LrmConfig {
+                seed: 12,
+                merge: false,
+                reward_weight: 0.0,
+                guards: Guards::Tree,
+                events: vocab.parse_labels("c").unwrap(),
+                stutter_invariant: true,
+                remember_events: true,
+                borrow_events,
+                ..cfg(2)
+            },
+        )
+        .unwrap()
+    };
+    let state_after = |rm: &smirl::rm::RewardMachine, spans: &str| {
+        let t = &episode_traces(&vocab, &[(10, spans)])[0];
+        (t.labels.iter()).fold(rm.initial(), |u, &l| rm.next_state(u, l))
+    };
+    let (plain, borrowed) = (learn(false), learn(true));
+    // No demonstration shows a cancel on red (`rc`) or after leaving it.
+    let cancelled = state_after(&borrowed.rm, "c@8");
+    assert_eq!(state_after(&borrowed.rm, "r@5-6 c@8"), cancelled);
+    assert_ne!(
+        state_after(&plain.rm, "r@5-6 c@8"),
+        state_after(&plain.rm, "c@8")
+    );
+    assert_eq!(borrowed.rm.n_states(), plain.rm.n_states());
+    assert!((borrowed.cost - plain.cost).abs() < 1e-9);
+    assert!(runs_alike(&borrowed.rm, &traces).iter().all(|&a| a));
+    for t in &traces {
+        let (mut a, mut b) = (plain.rm.initial(), borrowed.rm.initial());
+        for &l in &t.labels {
+            (a, b) = (plain.rm.next_state(a, l), borrowed.rm.next_state(b, l));
+            assert_eq!(a, b, "a demonstration's path changed");
+        }
+    }
+}
+
 /// The event memory multiplies the states by 2^events: more than 4 events are refused.
 #[test]
 fn remembering_more_than_four_events_is_refused() {

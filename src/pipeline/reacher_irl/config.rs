@@ -157,6 +157,11 @@ pub struct IrlRunConfig {
     /// every run before the key existed used. Omitted from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_remember_events: bool,
+    /// LRM: borrow events (`rm::lrm::LrmConfig::borrow_events`): a cancel the demonstrations
+    /// never show in a learned state is read as in the most similar state that saw one. A
+    /// config without the key is read as false. Omitted from written configs when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub lrm_borrow_events: bool,
     /// LRM: how the learned machine reads label sets the demonstrations never showed in a
     /// state (`rm::lrm::Guards`): `"tree"` (events first) or `"exact"` (stay, LRM's
     /// reading). A config without the key is read as `"exact"`, which is what every run
@@ -412,6 +417,7 @@ impl IrlRunConfig {
             lrm_starts: None,
             lrm_patience: None,
             lrm_remember_events: false,
+            lrm_borrow_events: false,
             lrm_guards: Guards::Tree,
             log_every_nth_episode: 10,
             threads: 2,

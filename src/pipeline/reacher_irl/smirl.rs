@@ -69,6 +69,7 @@ pub fn learn_machine(
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
         remember_events: config.lrm_remember_events,
+        borrow_events: config.lrm_borrow_events,
         // Starts and patience keep the learner's defaults unless set; split moves always.
         starts: config.lrm_starts.unwrap_or(DEFAULT_STARTS),
         patience: config.lrm_patience.unwrap_or(DEFAULT_PATIENCE),

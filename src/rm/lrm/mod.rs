@@ -155,6 +155,14 @@ pub struct LrmConfig {
     /// what is *forbidden* afterwards (ReacherDelivery IF: blue after a cancel) but not what
     /// the expert does next is otherwise merged away. At most 4 events. Off by default.
     pub remember_events: bool,
+    /// After the search, read an event (a proposition of `events`) that the traces never show
+    /// in a state as the traces show it in the most similar state (`merge::borrow_events`: a
+    /// state that could be merged with it if unobserved cells were "don't care", the one that
+    /// saw the event most). The search splits states by what the expert does next (e.g.
+    /// "before blue" and "after passing red, before blue"); an exogenous event seen in only
+    /// one of them would otherwise be ignored in the others (ReacherDelivery IF: a cancel
+    /// after passing red). Traces' paths and the cost are unchanged. Off by default.
+    pub borrow_events: bool,
 }
 
 impl Default for LrmConfig {
@@ -178,6 +186,7 @@ impl Default for LrmConfig {
             events: LabelSet::EMPTY,
             stutter_invariant: false,
             remember_events: false,
+            borrow_events: false,
         }
     }
 }
@@ -390,6 +399,13 @@ pub fn learn_rm(
                 weight: 0.0,
             });
         }
+    }
+
+    if cfg.borrow_events {
+        let event_ids: Vec<usize> = (0..l_n)
+            .filter(|&l| event_bits.get(l).is_some_and(|&b| b != 0))
+            .collect();
+        merge::borrow_events(n, l_n, &mut defined, &event_ids);
     }
 
     let (exact_rm, final_cells, final_n, final_cost) = if cfg.merge {
