@@ -458,6 +458,21 @@ fn stutter_invariant_machine_reads_raw_traces_as_compressed_ones() {
     }
 }
 
+/// LRM as SMIRL runs it on ReacherDelivery (`pipeline::reacher_irl::smirl`): no merging and no
+/// rewards (demonstrations carry none), tree guards reading the cancel first, stutter
+/// invariant; seeded by `seed`, two threads.
+fn smirl_reacher_cfg(vocab: &Vocabulary, seed: u64) -> LrmConfig {
+    LrmConfig {
+        seed,
+        merge: false,
+        reward_weight: 0.0,
+        guards: smirl::rm::lrm::Guards::Tree,
+        events: vocab.parse_labels("c").unwrap(),
+        stutter_invariant: true,
+        ..cfg(2)
+    }
+}
+
 /// The demonstrations of held-out IF (base seed 9) as `reacher replay` lists them: blue then
 /// red, or a cancel then red.
 const IF_BASE9: [(usize, &str); 16] = [
@@ -487,28 +502,17 @@ const IF_BASE9: [(usize, &str); 16] = [
 /// held-out IF base 9 seed 9, whose reward paid blue in the merged state.
 #[test]
 fn remembering_the_cancel_separates_if_branches_that_lrm_merges() {
-    use smirl::rm::lrm::Guards;
     let vocab = Vocabulary::new("rgbyc");
     let traces = episode_traces(&vocab, &IF_BASE9);
     let perfect = perfect::load("reacher_if").unwrap();
     // The perfect machine's states after blue (no cancel) and after a cancel.
     let (after_blue, after_cancel) = (1, 2);
     let learn = |remember_events| {
-        learn_rm(
-            &vocab,
-            &traces,
-            &LrmConfig {
-                seed: 9,
-                merge: false,
-                reward_weight: 0.0,
-                guards: Guards::Tree,
-                events: vocab.parse_labels("c").unwrap(),
-                stutter_invariant: true,
-                remember_events,
-                ..cfg(2)
-            },
-        )
-        .unwrap()
+        let cfg = LrmConfig {
+            remember_events,
+            ..smirl_reacher_cfg(&vocab, 9)
+        };
+        learn_rm(&vocab, &traces, &cfg).unwrap()
     };
     let merged_with_both = |rm: &smirl::rm::RewardMachine| {
         refines(rm, &perfect, read_prefixes(&traces))
@@ -554,26 +558,15 @@ const IF_BASE12: [(usize, &str); 16] = [
 /// where "cancel" does; the demonstrations' paths and the cost are unchanged.
 #[test]
 fn borrowed_events_read_a_cancel_after_passing_red_as_a_cancel() {
-    use smirl::rm::lrm::Guards;
     let vocab = Vocabulary::new("rgbyc");
     let traces = episode_traces(&vocab, &IF_BASE12);
     let learn = |borrow_events| {
-        learn_rm(
-            &vocab,
-            &traces,
-            &LrmConfig {
-                seed: 12,
-                merge: false,
-                reward_weight: 0.0,
-                guards: Guards::Tree,
-                events: vocab.parse_labels("c").unwrap(),
-                stutter_invariant: true,
-                remember_events: true,
-                borrow_events,
-                ..cfg(2)
-            },
-        )
-        .unwrap()
+        let cfg = LrmConfig {
+            remember_events: true,
+            borrow_events,
+            ..smirl_reacher_cfg(&vocab, 12)
+        };
+        learn_rm(&vocab, &traces, &cfg).unwrap()
     };
     let state_after = |rm: &smirl::rm::RewardMachine, spans: &str| {
         let t = &episode_traces(&vocab, &[(10, spans)])[0];

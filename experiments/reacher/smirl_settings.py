@@ -71,9 +71,10 @@ FINAL_HELDOUT = [
     ("base 15, remember + borrow_events, final policy", "heldout/borrow-seeds15-{task}"),
     ("base 18, remember + borrow_events, final policy", "heldout/borrow-seeds18-{task}"),
     # borrow_events alone (ablations/borrow_only.toml): only where it changes the standard
-    # machine (IF at bases 9 and 12, Sequential at 12); elsewhere the jobs are the standard's.
+    # machine (IF at bases 9, 12 and 18, Sequential at 12); elsewhere the jobs are the standard's.
     ("base 9, borrow_events alone, final policy", "heldout/borrow-only-seeds9-{task}"),
     ("base 12, borrow_events alone, final policy", "heldout/borrow-only-seeds12-{task}"),
+    ("base 18, borrow_events alone, final policy", "heldout/borrow-only-seeds18-{task}"),
 ]
 
 
