@@ -158,8 +158,8 @@ pub struct IrlRunConfig {
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_remember_events: bool,
     /// LRM: borrow events (`rm::lrm::LrmConfig::borrow_events`): a cancel the demonstrations
-    /// never show in a learned state is read as in the most similar state that saw one. A
-    /// config without the key is read as false. Omitted from written configs when false.
+    /// never show in a learned state is read as in a state of the same task stage that saw
+    /// one. A config without the key is read as false. Omitted from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_borrow_events: bool,
     /// LRM: how the learned machine reads label sets the demonstrations never showed in a

@@ -127,11 +127,7 @@ pub(crate) fn borrow_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], ev
             };
             let lender = (0..n)
                 .filter(|&v| v != u)
-                .filter_map(|v| {
-                    observed[v * l_n + l]
-                        .filter(|c| c.weight > 0.0)
-                        .map(|c| (v, c))
-                })
+                .filter_map(|v| seen(v, l).map(|c| (v, c)))
                 .filter(|&(v, _)| same_stage(v))
                 .filter(|&(v, _)| try_merge(&part, l_n, u.min(v), u.max(v), true).is_some())
                 .max_by(|a, b| a.1.weight.total_cmp(&b.1.weight).then(b.0.cmp(&a.0)));

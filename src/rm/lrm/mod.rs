@@ -156,9 +156,10 @@ pub struct LrmConfig {
     /// the expert does next is otherwise merged away. At most 4 events. Off by default.
     pub remember_events: bool,
     /// After the search, read an event (a proposition of `events`) that the traces never show
-    /// in a state as the traces show it in the most similar state (`merge::borrow_events`: a
-    /// state that could be merged with it if unobserved cells were "don't care", the one that
-    /// saw the event most). The search splits states by what the expert does next (e.g.
+    /// in a state as the traces show it in a state of the same task stage
+    /// (`merge::borrow_events`: one observed to leave for the same state on the same
+    /// non-event label, that nothing observed keeps from merging with it, of those the one
+    /// that saw the event most). The search splits states by what the expert does next (e.g.
     /// "before blue" and "after passing red, before blue"); an exogenous event seen in only
     /// one of them would otherwise be ignored in the others (ReacherDelivery IF: a cancel
     /// after passing red). Traces' paths and the cost are unchanged. Off by default.
