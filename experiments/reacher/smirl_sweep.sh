@@ -17,6 +17,12 @@
 # Environment: ALGOS (default "smirl,smirl-smooth"), TASKS (default all four), CONFIG
 # (default experiments/reacher/config.toml, the standard profile), REACHER_BIN (another build,
 # e.g. a copy, so that rebuilding the checkout during the sweep does not change the binary).
+# SAC_SEEDS (e.g. "3 4 5"): SAC seeds other than BASE..BASE+2 on BASE's demonstrations and
+# machine — more tuning seeds on base 0 — run as `prepare`, one `job` per seed (JOBS at once,
+# default 2) and `aggregate --partial`; the plan counts seeds from BASE, so the run's
+# prepare.json lists seeds the sweep did not run.
+#
+#   SAC_SEEDS="3 4 5" ALGOS=smirl experiments/reacher/smirl_sweep.sh 'experiments/reacher/runs/{task}-seeds3to5' 0
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${1:?usage: smirl_sweep.sh OUT [BASE], OUT with the text {task\}}
@@ -28,6 +34,16 @@ BIN=${REACHER_BIN:-./target/release/reacher}
 for task in ${TASKS:-or sequential if composite}; do
   out=${OUT//\{task\}/$task}
   mkdir -p "$(dirname "$out")"
+  if [ -n "${SAC_SEEDS:-}" ]; then
+    last=$(printf '%s\n' $SAC_SEEDS | sort -n | tail -1)
+    if [ "$last" -lt "$BASE" ]; then echo "SAC_SEEDS must be >= BASE ($BASE)" >&2; exit 2; fi
+    "$BIN" prepare --task "$task" --algo "$ALGOS" --seed "$BASE" --seeds $((last - BASE + 1)) \
+      --config "$CONFIG" --out "$out" --force --quiet > "$out.log"
+    for algo in ${ALGOS//,/ }; do for seed in $SAC_SEEDS; do echo "$algo $seed"; done; done |
+      xargs -P "${JOBS:-2}" -L 1 sh -c '"$0" job --run "$1" --algo "$2" --seed "$3" --quiet' "$BIN" "$out" >> "$out.log"
+    "$BIN" aggregate "$out" --partial >> "$out.log"
+    continue
+  fi
   "$BIN" --task "$task" --algo "$ALGOS" --seed "$BASE" --seeds 3 --config "$CONFIG" \
     --out "$out" --force --quiet > "$out.log"
 done
