@@ -27,6 +27,11 @@ TUNING = [
     ("shaped_lr_decay", "+ reward_lr_decay = 0.5", "ablations/runs/shaped_lr_decay-{task}"),
     ("remember_events", "+ lrm_remember_events = true (its IRL loop; the final policy below)",
      "ablations/runs/remember_events-{task}"),
+    ("standard, SAC seeds 3-5", "config.toml, SAC seeds 3, 4, 5 (its IRL loop; the final policy below)",
+     "ablations/runs/standard-seeds3to5-{task}"),
+    ("remember + borrow_events, SAC seeds 3-5",
+     "ablations/borrow_events.toml, SAC seeds 3, 4, 5 (its IRL loop; the final policy below)",
+     "ablations/runs/borrow_events-seeds3to5-{task}"),
 ]
 # The standard profile with its final-policy phase (smirl_final_sac_steps = 20 000 in 4
 # checkpoints): the same IRL loops as "standard", then the reported policy.
@@ -35,6 +40,14 @@ FINAL_TUNING = [
      "runs/{task}-final"),
     ("remember_events, final policy", "final policy + lrm_remember_events = true",
      "ablations/runs/remember_events-{task}"),
+    # More tuning seeds (SAC seeds 3-5 on base 0's demonstrations and machines), for the
+    # decision between the standard and memory + borrowing fixed before these runs (README,
+    # "Borrowing the cancel").
+    ("final policy, SAC seeds 3-5", "config.toml, SAC seeds 3, 4, 5",
+     "ablations/runs/standard-seeds3to5-{task}"),
+    ("remember + borrow_events, final policy, SAC seeds 3-5",
+     "ablations/borrow_events.toml, SAC seeds 3, 4, 5",
+     "ablations/runs/borrow_events-seeds3to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -121,7 +134,8 @@ def seeds_text(results, note):
 def main():
     print("Per cell: final success per seed (IF, Composite: normal/cancel in brackets); mean")
     print("success over the last quarter of the iterations per seed; seeds ending at >= 0.9.\n")
-    print("**Tuning seeds** (base seed 0, SAC seeds 0, 1, 2: figure 7's demonstrations and machines)\n")
+    print("**Tuning seeds** (base seed 0: figure 7's demonstrations and machines; SAC seeds 0, 1, 2")
+    print("unless the row says otherwise)\n")
     print("| setting | what | " + " | ".join(TASKS) + " |")
     print("|---|---|" + "---|" * len(TASKS))
     for name, what, pattern in TUNING:
