@@ -57,6 +57,9 @@ HELDOUT = [
     ("base 12", "heldout/final-seeds12-{task}"),
     # Base 15: run after borrow_events was built, on seeds no setting had seen.
     ("base 15", "heldout/final-seeds15-{task}"),
+    # Bases 18 and 21: run after the standard was confirmed on tuning seeds 0-5.
+    ("base 18", "heldout/final-seeds18-{task}"),
+    ("base 21", "heldout/final-seeds21-{task}"),
     ("base 3, remember_events", "heldout/remember-{task}"),
     ("base 6, remember_events", "heldout/remember-seeds6-{task}"),
     ("base 9, remember_events", "heldout/remember-seeds9-{task}"),
@@ -68,22 +71,27 @@ FINAL_HELDOUT = [
     ("base 9, final policy", "heldout/final-seeds9-{task}"),
     ("base 12, final policy", "heldout/final-seeds12-{task}"),
     ("base 15, final policy", "heldout/final-seeds15-{task}"),
+    ("base 18, final policy", "heldout/final-seeds18-{task}"),
+    ("base 21, final policy", "heldout/final-seeds21-{task}"),
     ("base 3, remember_events, final policy", "heldout/remember-{task}"),
     ("base 6, remember_events, final policy", "heldout/remember-seeds6-{task}"),
     ("base 9, remember_events, final policy", "heldout/remember-seeds9-{task}"),
     ("base 12, remember_events, final policy", "heldout/remember-seeds12-{task}"),
     # remember_events + borrow_events (ablations/borrow_events.toml). At bases 3-12 only the
     # machines that borrowing changes were rerun (IF at bases 9 and 12); elsewhere the machine,
-    # and so every job, is remember_events' (README). Base 15: every task.
+    # and so every job, is remember_events' (README). Base 15: every task; base 18: IF.
     ("base 3, remember + borrow_events, final policy", "heldout/borrow-{task}"),
     ("base 6, remember + borrow_events, final policy", "heldout/borrow-seeds6-{task}"),
     ("base 9, remember + borrow_events, final policy", "heldout/borrow-seeds9-{task}"),
     ("base 12, remember + borrow_events, final policy", "heldout/borrow-seeds12-{task}"),
     ("base 15, remember + borrow_events, final policy", "heldout/borrow-seeds15-{task}"),
+    ("base 18, remember + borrow_events, final policy", "heldout/borrow-seeds18-{task}"),
     # borrow_events alone (ablations/borrow_only.toml): only where it changes the standard
-    # machine (IF at bases 9 and 12, Sequential at 12; of base 15's none); elsewhere the jobs are the standard's.
+    # machine (IF at bases 9, 12 and 18, Sequential at 12; of base 15's none); elsewhere the jobs
+    # are the standard's.
     ("base 9, borrow_events alone, final policy", "heldout/borrow-only-seeds9-{task}"),
     ("base 12, borrow_events alone, final policy", "heldout/borrow-only-seeds12-{task}"),
+    ("base 18, borrow_events alone, final policy", "heldout/borrow-only-seeds18-{task}"),
 ]
 
 
