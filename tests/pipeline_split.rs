@@ -428,3 +428,34 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
     ]));
     assert_eq!(std::fs::read_to_string(&table).unwrap(), written);
 }
+
+/// Regression: `reacher job` printed the last IRL iteration's success as the job's "final
+/// success" (0.00 for a SMIRL job whose final policy reports 0.65). The reported success is
+/// the chosen final-policy candidate's; without a final phase, the last iteration's.
+#[test]
+fn a_job_reports_its_final_policy_success() {
+    use smirl::pipeline::reacher_irl::run::JobRecord;
+    let row = |iteration: usize, success: f64| {
+        serde_json::json!({
+            "iteration": iteration, "env_steps": iteration * 100, "success_rate": success,
+            "branches": null, "task_return": 0.0, "env_return": 0.0, "learned_reward": 0.0,
+            "surrogate_loss": 0.0
+        })
+    };
+    let candidate = |success: f64, learned_return: f64| {
+        serde_json::json!({
+            "env_steps": 3000, "learned_return": learned_return, "success_rate": success,
+            "branches": null, "progress": success, "final_ball": success
+        })
+    };
+    let mut record = serde_json::json!({
+        "algo": "smirl", "seed": 20, "rows": [row(0, 0.0), row(30, 0.0)], "wall_secs": 1.0,
+        "final_policy": {"candidates": [candidate(0.0, 106.1), candidate(0.65, 431.4)], "chosen": 1}
+    });
+    let with_final: JobRecord = serde_json::from_value(record.clone()).unwrap();
+    assert_eq!(with_final.reported_success(), 0.65);
+    record.as_object_mut().unwrap().remove("final_policy");
+    record["rows"][1]["success_rate"] = 0.8.into();
+    let without: JobRecord = serde_json::from_value(record).unwrap();
+    assert_eq!(without.reported_success(), 0.8);
+}

@@ -95,8 +95,7 @@ impl RunObserver for Bars {
     }
     fn job_done(&self, job: usize, r: &JobRecord) {
         if let Some(bar) = self.jobs.lock().expect("bars lock").get(job) {
-            let last = r.rows.last().map_or(0.0, |x| x.success_rate);
-            bar.finish_with_message(format!("done, final success {last:.2}"));
+            bar.finish_with_message(format!("done, {}", success_text(r)));
         }
     }
     fn message(&self, text: &str) {
@@ -257,16 +256,33 @@ pub fn job(args: JobRequest) -> Result<()> {
         .map_err(|e| anyhow::anyhow!(e))
         .with_context(|| format!("{algo} seed {seed} in {}", args.run.display()))?;
     bar.finish_and_clear();
-    let last = record.rows.last().map_or(0.0, |r| r.success_rate);
     if ran {
         println!(
-            "{algo} seed {seed}: final success {last:.2} ({:.0} s)",
+            "{algo} seed {seed}: {} ({:.0} s)",
+            success_text(&record),
             record.wall_secs
         );
     } else {
-        println!("{algo} seed {seed}: already done (final success {last:.2})");
+        println!(
+            "{algo} seed {seed}: already done, {}",
+            success_text(&record)
+        );
     }
     Ok(())
+}
+
+/// "final success X" of the policy a job reports, and the last IRL iteration's where a final
+/// policy was chosen (reading only the last iteration once printed 0.00 for a job reporting
+/// 0.65).
+fn success_text(record: &JobRecord) -> String {
+    let reported = record.reported_success();
+    match (&record.final_policy, record.rows.last()) {
+        (Some(_), Some(last)) => format!(
+            "final success {reported:.2} (final policy; last IRL iteration {:.2})",
+            last.success_rate
+        ),
+        _ => format!("final success {reported:.2}"),
+    }
 }
 
 /// `reacher aggregate`: metrics, summary and plots of a prepared run's finished jobs (all of

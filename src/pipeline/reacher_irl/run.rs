@@ -228,6 +228,18 @@ pub struct JobRecord {
     pub wall_secs: f64,
 }
 
+impl JobRecord {
+    /// The success rate the job reports: its final policy's where it has one (SMIRL), else the
+    /// last IRL iteration's. The two differ when the final phase picked a checkpoint over a
+    /// co-trained policy that dipped at the last iteration.
+    pub fn reported_success(&self) -> f64 {
+        match &self.final_policy {
+            Some(final_policy) => final_policy.chosen().success_rate,
+            None => self.rows.last().map_or(0.0, |r| r.success_rate),
+        }
+    }
+}
+
 const PREPARED_FILE: &str = "prepare.json";
 const EXPERT_DATA_FILE: &str = "expert_data.bin";
 
