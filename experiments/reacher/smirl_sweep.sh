@@ -22,7 +22,7 @@
 # default 2) and `aggregate --partial`; the plan counts seeds from BASE, so the run's
 # prepare.json lists seeds the sweep did not run.
 #
-#   SAC_SEEDS="3 4 5" ALGOS=smirl experiments/reacher/smirl_sweep.sh 'experiments/reacher/runs/{task}-seeds3to5' 0
+#   SAC_SEEDS="3 4 5" ALGOS=smirl experiments/reacher/smirl_sweep.sh 'experiments/reacher/ablations/runs/standard-seeds3to5-{task}' 0
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${1:?usage: smirl_sweep.sh OUT [BASE], OUT with the text {task\}}
@@ -31,12 +31,17 @@ ALGOS=${ALGOS:-smirl,smirl-smooth}
 CONFIG=${CONFIG:-experiments/reacher/config.toml}
 if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
 BIN=${REACHER_BIN:-./target/release/reacher}
+if [ -n "${SAC_SEEDS:-}" ]; then
+  for seed in $SAC_SEEDS; do
+    case $seed in '' | *[!0-9]*) echo "SAC_SEEDS: '$seed' is not a seed (a non-negative integer)" >&2; exit 2 ;; esac
+  done
+  last=$(printf '%s\n' $SAC_SEEDS | sort -n | tail -1)
+  if [ "$last" -lt "$BASE" ]; then echo "SAC_SEEDS must be >= BASE ($BASE)" >&2; exit 2; fi
+fi
 for task in ${TASKS:-or sequential if composite}; do
   out=${OUT//\{task\}/$task}
   mkdir -p "$(dirname "$out")"
   if [ -n "${SAC_SEEDS:-}" ]; then
-    last=$(printf '%s\n' $SAC_SEEDS | sort -n | tail -1)
-    if [ "$last" -lt "$BASE" ]; then echo "SAC_SEEDS must be >= BASE ($BASE)" >&2; exit 2; fi
     "$BIN" prepare --task "$task" --algo "$ALGOS" --seed "$BASE" --seeds $((last - BASE + 1)) \
       --config "$CONFIG" --out "$out" --force --quiet > "$out.log"
     for algo in ${ALGOS//,/ }; do for seed in $SAC_SEEDS; do echo "$algo $seed"; done; done |
