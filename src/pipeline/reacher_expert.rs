@@ -412,7 +412,8 @@ pub fn evaluate_expert(
     mode: ActMode,
     seed: u64,
 ) -> Result<EvalSummary, ExpertError> {
-    let demos = run_episodes(policy, env_config, episodes, mode, seed, None)?;
+    let resets: Vec<u64> = (0..episodes).map(|i| episode_seed(seed, i)).collect();
+    let demos = run_episodes(policy, env_config, &resets, mode, seed, None)?;
     let n = demos.len().max(1) as f64;
     let successes = demos.iter().filter(|d| d.success).count() as u64;
     Ok(EvalSummary {
@@ -580,7 +581,7 @@ pub fn record_episode<P: Potential>(
 fn run_episodes(
     policy: &mut ExpertPolicy,
     env_config: &ReacherConfig,
-    n: u64,
+    reset_seeds: &[u64],
     mode: ActMode,
     seed: u64,
     mut logger: Option<&mut RolloutLogger>,
@@ -598,11 +599,11 @@ fn run_episodes(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(noise_seed(seed));
     let mut action = [0.0f32; ACT_DIM];
-    let mut demos = Vec::with_capacity(n as usize);
-    for i in 0..n {
+    let mut demos = Vec::with_capacity(reset_seeds.len());
+    for &reset_seed in reset_seeds {
         let demo = record_episode(
             &mut env,
-            episode_seed(seed, i),
+            reset_seed,
             "expert",
             logger.as_deref_mut(),
             |obs, _labels, _rm_state| {
@@ -632,13 +633,27 @@ pub fn generate_demos(
     seed: u64,
     logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, ExpertError> {
+    let resets: Vec<u64> = (0..n as u64).map(|i| episode_seed(seed, i)).collect();
+    generate_demos_from(policy, task, env_config, &resets, seed, logger)
+}
+
+/// [`generate_demos`] from given reset seeds (one demonstration each, in order); action noise
+/// seeded from `seed`.
+pub fn generate_demos_from(
+    policy: &mut ExpertPolicy,
+    task: ReacherTask,
+    env_config: &ReacherConfig,
+    reset_seeds: &[u64],
+    seed: u64,
+    logger: Option<&mut RolloutLogger>,
+) -> Result<Vec<Demo>, ExpertError> {
     if task != policy.task() {
         return Err(ExpertError::Task {
             task: task.name().into(),
             problem: format!("the expert policy is for task '{}'", policy.task()),
         });
     }
-    run_episodes(policy, env_config, n as u64, ActMode::Sample, seed, logger)
+    run_episodes(policy, env_config, &reset_seeds, ActMode::Sample, seed, logger)
 }
 
 /// The `/run` header of a demonstration log of `policy` (model XML, task, perfect machine).

@@ -3,14 +3,15 @@
 //! expert helper's [`Demo`] type with the same episode rule: an episode ends when the perfect
 //! machine reaches its goal or failure sink, or at the time limit.
 
-use super::config::{DemoSource, IrlRunConfig};
+use super::config::{DemoCancel, DemoSource, IrlRunConfig, MIN_STRATIFIED_DRAW};
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, BALLS, OBS_DIM};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::{ReacherTask, SubgoalPotential};
+use crate::env::ContinuousEnv;
 use crate::log::{LogError, RolloutLogger};
 use crate::pipeline::reacher_expert::{
-    committed_expert, expert_cache_path, generate_demos, record_episode, Demo, ExpertPolicy,
+    committed_expert, expert_cache_path, generate_demos_from, record_episode, Demo, ExpertPolicy,
     RecordError,
 };
 use crate::rl::sac::episode_seed;
@@ -59,8 +60,9 @@ pub fn load_expert(task: ReacherTask, cache_dir: Option<&Path>) -> Result<Expert
 }
 
 /// The demonstrations of a run: `config.demo_episodes` episodes from `config.demo_source`,
-/// seeded by `seed`, each logged to `logger` when given. `expert` must be the loaded expert
-/// when the source is `expert` (load it first with [`load_expert`] to fail early).
+/// reset as [`demo_reset_seeds`] says, seeded by `seed`, each logged to `logger` when given.
+/// `expert` must be the loaded expert when the source is `expert` (load it first with
+/// [`load_expert`] to fail early).
 pub fn make_demos(
     task: ReacherTask,
     config: &IrlRunConfig,
@@ -68,33 +70,74 @@ pub fn make_demos(
     seed: u64,
     logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, DemoError> {
+    let resets = demo_reset_seeds(&config.env, config.demo_cancel, config.demo_episodes, seed)?;
     match (config.demo_source, expert) {
-        (DemoSource::Expert, Some(policy)) => generate_demos(
-            policy,
-            task,
-            &config.env,
-            config.demo_episodes,
-            seed,
-            logger,
-        )
-        .map_err(|e| DemoError::Run(e.to_string())),
+        (DemoSource::Expert, Some(policy)) => {
+            generate_demos_from(policy, task, &config.env, &resets, seed, logger)
+                .map_err(|e| DemoError::Run(e.to_string()))
+        }
         (DemoSource::Expert, None) => Err(DemoError::Run(
             "demo_source is \"expert\" but no expert policy was loaded".into(),
         )),
-        (DemoSource::Scripted, _) => {
-            scripted_demos(task, &config.env, config.demo_episodes, seed, logger)
-        }
+        (DemoSource::Scripted, _) => scripted_demos(task, &config.env, &resets, seed, logger),
     }
 }
 
-/// `n` scripted demonstrations: at every step the controller aims at a ball that advances
-/// the task's perfect machine (for a choice such as OR's red-or-green, one option drawn per
-/// episode from the seed), holds still once the machine is done. Episode `i` is reset with
-/// `episode_seed(seed, i)`.
+/// The reset seeds of `n` demonstrations. `Drawn`: `episode_seed(seed, i)` for
+/// demonstration `i`. `Stratified`: demonstration `i` wants no cancel event when `i` is even
+/// and one on step `earliest_step + (i / 2) mod window` when odd; each takes the first unused
+/// seed of the same stream (`episode_seed(seed, j)`, j = 0, 1, …) whose reset draws that, so
+/// the arm start and ball layout stay draws of the environment and a logged demonstration
+/// replays from its seed like any episode.
+pub fn demo_reset_seeds(
+    env_config: &ReacherConfig,
+    demo_cancel: DemoCancel,
+    n: usize,
+    seed: u64,
+) -> Result<Vec<u64>, DemoError> {
+    if demo_cancel == DemoCancel::Drawn {
+        return Ok((0..n as u64).map(|i| episode_seed(seed, i)).collect());
+    }
+    let cancel = &env_config.cancel;
+    let window = cancel.latest_step - cancel.earliest_step + 1;
+    let wanted: Vec<Option<usize>> = (0..n)
+        .map(|i| (i % 2 == 1).then(|| cancel.earliest_step + (i / 2) % window))
+        .collect();
+    let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| DemoError::Run(e.to_string()))?;
+    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut resets: Vec<Option<u64>> = vec![None; n];
+    let mut open = n;
+    // Config validation bounds each wanted draw's chance below by MIN_STRATIFIED_DRAW, so
+    // the rarest one's n/2 hits take about n / (2 · MIN_STRATIFIED_DRAW) resets at worst.
+    let limit = (n as u64).saturating_mul((4.0 / MIN_STRATIFIED_DRAW) as u64);
+    let mut j = 0u64;
+    while open > 0 {
+        if j == limit {
+            return Err(DemoError::Run(format!(
+                "demo_cancel = \"stratified\": {open} of {n} demonstrations found no reset \
+                 with their cancel schedule in the first {limit} seeds of seed {seed}"
+            )));
+        }
+        let reset_seed = episode_seed(seed, j);
+        env.reset(reset_seed, &mut obs);
+        let drawn = env.cancel_step();
+        if let Some(slot) = (0..n).find(|&i| resets[i].is_none() && wanted[i] == drawn) {
+            resets[slot] = Some(reset_seed);
+            open -= 1;
+        }
+        j += 1;
+    }
+    Ok(resets.into_iter().flatten().collect())
+}
+
+/// Scripted demonstrations, one from each of `reset_seeds`: at every step the controller aims
+/// at a ball that advances the task's perfect machine (for a choice such as OR's
+/// red-or-green, one option drawn per episode from `seed`), holds still once the machine is
+/// done.
 pub fn scripted_demos(
     task: ReacherTask,
     env_config: &ReacherConfig,
-    n: usize,
+    reset_seeds: &[u64],
     seed: u64,
     mut logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, DemoError> {
@@ -104,8 +147,8 @@ pub fn scripted_demos(
     let inner = ReacherDelivery::new(env_config.clone()).map_err(|e| run(e.to_string()))?;
     let mut env = ProductEnv::new(inner, rm);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5c41_97ed_de30_0000);
-    let mut demos = Vec::with_capacity(n);
-    for i in 0..n {
+    let mut demos = Vec::with_capacity(reset_seeds.len());
+    for (i, &reset_seed) in reset_seeds.iter().enumerate() {
         let pick: usize = rng.gen_range(0..BALLS.len());
         let choices: Vec<Vec<usize>> = (0..env.rm().n_states())
             .map(|u| potential.progress_balls(u).to_vec())
@@ -118,7 +161,7 @@ pub fn scripted_demos(
             ScriptedController::with_chooser(Box::new(choose), ControllerGains::default());
         let demo = record_episode(
             &mut env,
-            episode_seed(seed, i as u64),
+            reset_seed,
             "demo",
             logger.as_deref_mut(),
             |obs, labels, rm_state| ctl.act(&obs[..OBS_DIM], labels, Some(rm_state)),
