@@ -653,7 +653,14 @@ pub fn generate_demos_from(
             problem: format!("the expert policy is for task '{}'", policy.task()),
         });
     }
-    run_episodes(policy, env_config, &reset_seeds, ActMode::Sample, seed, logger)
+    run_episodes(
+        policy,
+        env_config,
+        reset_seeds,
+        ActMode::Sample,
+        seed,
+        logger,
+    )
 }
 
 /// The `/run` header of a demonstration log of `policy` (model XML, task, perfect machine).

@@ -103,7 +103,8 @@ pub fn demo_reset_seeds(
     let wanted: Vec<Option<usize>> = (0..n)
         .map(|i| (i % 2 == 1).then(|| cancel.earliest_step + (i / 2) % window))
         .collect();
-    let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| DemoError::Run(e.to_string()))?;
+    let mut env =
+        ReacherDelivery::new(env_config.clone()).map_err(|e| DemoError::Run(e.to_string()))?;
     let mut obs = vec![0.0f32; OBS_DIM];
     let mut resets: Vec<Option<u64>> = vec![None; n];
     let mut open = n;
