@@ -48,6 +48,12 @@ FINAL_TUNING = [
     ("remember + borrow_events, final policy, SAC seeds 3-5",
      "ablations/borrow_events.toml, SAC seeds 3, 4, 5",
      "ablations/runs/borrow_events-seeds3to5-{task}"),
+    # Stratified demonstrations (ablations/stratified_demos.toml), SAC seeds 0-5 on base 0 under
+    # the rule fixed in commit 496ffef before the runs (README, "Stratified demonstrations");
+    # IF and Composite only.
+    ("stratified demonstrations, final policy, SAC seeds 0-5",
+     "ablations/stratified_demos.toml, SAC seeds 0-5",
+     "ablations/runs/stratified-seeds0to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -92,7 +98,9 @@ FINAL_HELDOUT = [
     ("base 9, borrow_events alone, final policy", "heldout/borrow-only-seeds9-{task}"),
     ("base 12, borrow_events alone, final policy", "heldout/borrow-only-seeds12-{task}"),
     ("base 18, borrow_events alone, final policy", "heldout/borrow-only-seeds18-{task}"),
-]
+    # Stratified demonstrations (ablations/stratified_demos.toml): IF and Composite at every base.
+] + [(f"base {b}, stratified demonstrations, final policy", f"heldout/stratified-seeds{b}-{{task}}")
+     for b in (3, 6, 9, 12, 15, 18, 21)]
 
 
 def jobs(run):
