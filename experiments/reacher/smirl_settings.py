@@ -66,6 +66,9 @@ HELDOUT = [
     # Bases 18 and 21: run after the standard was confirmed on tuning seeds 0-5.
     ("base 18", "heldout/final-seeds18-{task}"),
     ("base 21", "heldout/final-seeds21-{task}"),
+    # Bases 24 and 27: run after the cancel probe's prediction for them was committed (16473b8).
+    ("base 24", "heldout/final-seeds24-{task}"),
+    ("base 27", "heldout/final-seeds27-{task}"),
     ("base 3, remember_events", "heldout/remember-{task}"),
     ("base 6, remember_events", "heldout/remember-seeds6-{task}"),
     ("base 9, remember_events", "heldout/remember-seeds9-{task}"),
@@ -79,6 +82,8 @@ FINAL_HELDOUT = [
     ("base 15, final policy", "heldout/final-seeds15-{task}"),
     ("base 18, final policy", "heldout/final-seeds18-{task}"),
     ("base 21, final policy", "heldout/final-seeds21-{task}"),
+    ("base 24, final policy", "heldout/final-seeds24-{task}"),
+    ("base 27, final policy", "heldout/final-seeds27-{task}"),
     ("base 3, remember_events, final policy", "heldout/remember-{task}"),
     ("base 6, remember_events, final policy", "heldout/remember-seeds6-{task}"),
     ("base 9, remember_events, final policy", "heldout/remember-seeds9-{task}"),
