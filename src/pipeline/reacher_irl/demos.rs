@@ -99,7 +99,8 @@ pub fn demo_reset_seeds(
         return Ok((0..n as u64).map(|i| episode_seed(seed, i)).collect());
     }
     let cancel = &env_config.cancel;
-    let window = cancel.latest_step - cancel.earliest_step + 1;
+    // A window the config check refuses (latest < earliest) is one step here, not a panic.
+    let window = cancel.latest_step.saturating_sub(cancel.earliest_step) + 1;
     let wanted: Vec<Option<usize>> = (0..n)
         .map(|i| (i % 2 == 1).then(|| cancel.earliest_step + (i / 2) % window))
         .collect();
