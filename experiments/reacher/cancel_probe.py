@@ -70,19 +70,19 @@ def parse_guard(text):
         pos += 1
         return t
 
+    def chain(op, operand, combine):
+        """operand (op operand)*, its values combined by `combine` (any for |, all for &)."""
+        terms = [operand()]
+        while peek() == op:
+            take(op)
+            terms.append(operand())
+        return lambda l: combine(t(l) for t in terms)
+
     def formula():
-        terms = [conj()]
-        while peek() == "|":
-            take("|")
-            terms.append(conj())
-        return lambda l: any(t(l) for t in terms)
+        return chain("|", conj, any)
 
     def conj():
-        terms = [unary()]
-        while peek() == "&":
-            take("&")
-            terms.append(unary())
-        return lambda l: all(t(l) for t in terms)
+        return chain("&", unary, all)
 
     def unary():
         t = take()

@@ -101,13 +101,18 @@ pub fn demo_reset_seeds(
     let cancel = &env_config.cancel;
     // A window the config check refuses (latest < earliest) is one step here, not a panic.
     let window = cancel.latest_step.saturating_sub(cancel.earliest_step) + 1;
-    let wanted: Vec<Option<usize>> = (0..n)
-        .map(|i| (i % 2 == 1).then(|| cancel.earliest_step + (i / 2) % window))
-        .collect();
+    // Draw key: 0 = no cancel, 1 + k = a cancel on step earliest_step + k. Per key, the
+    // demonstrations that want it, in order; a reset fills the first still open.
+    let key = |draw: Option<usize>| draw.map_or(0, |step| 1 + step - cancel.earliest_step);
+    let mut slots: Vec<Vec<usize>> = vec![Vec::new(); window + 1];
+    for i in (0..n).rev() {
+        let wanted = (i % 2 == 1).then(|| cancel.earliest_step + (i / 2) % window);
+        slots[key(wanted)].push(i);
+    }
     let mut env =
         ReacherDelivery::new(env_config.clone()).map_err(|e| DemoError::Run(e.to_string()))?;
     let mut obs = vec![0.0f32; OBS_DIM];
-    let mut resets: Vec<Option<u64>> = vec![None; n];
+    let mut resets = vec![0u64; n];
     let mut open = n;
     // Config validation bounds each wanted draw's chance below by MIN_STRATIFIED_DRAW, so
     // the rarest one's n/2 hits take about n / (2 · MIN_STRATIFIED_DRAW) resets at worst.
@@ -122,14 +127,13 @@ pub fn demo_reset_seeds(
         }
         let reset_seed = episode_seed(seed, j);
         env.reset(reset_seed, &mut obs);
-        let drawn = env.cancel_step();
-        if let Some(slot) = (0..n).find(|&i| resets[i].is_none() && wanted[i] == drawn) {
-            resets[slot] = Some(reset_seed);
+        if let Some(slot) = slots.get_mut(key(env.cancel_step())).and_then(Vec::pop) {
+            resets[slot] = reset_seed;
             open -= 1;
         }
         j += 1;
     }
-    Ok(resets.into_iter().flatten().collect())
+    Ok(resets)
 }
 
 /// Scripted demonstrations, one from each of `reset_seeds`: at every step the controller aims
