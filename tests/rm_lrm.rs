@@ -108,7 +108,7 @@ fn refines_office_without_rewards(task: i64) {
     .unwrap();
     let r = refines(&learned.raw, &target, read_prefixes(&traces));
     assert!(r.refines, "office task {task}: {r:?}");
-    assert!(learned.cost < trace_cost(&target, &traces).unwrap());
+    assert!(learned.cost < trace_cost(&target, &traces, LabelSet::EMPTY).unwrap());
 }
 
 #[test]
@@ -256,7 +256,7 @@ fn learned_rewards_are_observed_means_on_a_hand_made_trace() {
 fn trace_cost_of_the_perfect_machine_is_positive_and_learning_does_not_do_worse_on_labels() {
     let p = perfect::load("reacher_sequential").unwrap();
     let traces = expert_like_traces(&p, &ExpertStyle::reacher(), 10_000, 3);
-    let perfect_cost = trace_cost(&p, &traces).unwrap();
+    let perfect_cost = trace_cost(&p, &traces, LabelSet::EMPTY).unwrap();
     assert!(perfect_cost > 0.0);
     let learned = learn_rm(
         p.vocab(),
@@ -268,7 +268,9 @@ fn trace_cost_of_the_perfect_machine_is_positive_and_learning_does_not_do_worse_
         },
     )
     .unwrap();
-    assert!((trace_cost(&learned.raw, &traces).unwrap() - learned.cost).abs() < 1e-6);
+    assert!(
+        (trace_cost(&learned.raw, &traces, LabelSet::EMPTY).unwrap() - learned.cost).abs() < 1e-6
+    );
     assert!(learned.cost <= perfect_cost + 1e-9);
 }
 

@@ -244,7 +244,7 @@ fn main() -> Result<()> {
                 yn(with_rewards),
                 median(times),
                 learned.cost,
-                trace_cost(target, &traces)?,
+                trace_cost(target, &traces, LabelSet::EMPTY)?,
                 learned.raw.n_states(),
                 learned.rm.n_states(),
                 perf_u,

@@ -24,7 +24,7 @@ use super::config::{DemoPadding, DemoSource, IrlRunConfig};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::final_policy::FinalPolicy;
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
-use super::smirl::{annotate, label_traces, learn_machine};
+use super::smirl::{annotate, label_traces, learn_machine, lrm_config};
 use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::{EVENTS, VOCABULARY};
@@ -38,7 +38,7 @@ use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
 use crate::rm::format::parse_rm;
 use crate::rm::format::write_rm;
-use crate::rm::lrm::trace_cost;
+use crate::rm::lrm::{stutter_events, trace_cost};
 use crate::rm::{LabelSet, RewardMachine};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -388,7 +388,8 @@ pub fn prepare(
         );
         // The perfect machine's cost on the same traces says whether a machine that fails to
         // refine the task lost the search or won it (LRM's objective prefers it).
-        let perfect_cost = trace_cost(&perfect, &label_traces(&demos))
+        let lrm = lrm_config(config, seed);
+        let perfect_cost = trace_cost(&perfect, &label_traces(&demos), stutter_events(&lrm))
             .map_err(|e| PipelineError::Run(format!("LRM cost of the perfect machine: {e}")))?;
         let _ = writeln!(
             report,

@@ -53,7 +53,14 @@ pub fn learn_machine(
 ) -> Result<(RewardMachine, f64, f64), String> {
     let vocab = Vocabulary::new(VOCABULARY);
     let traces = label_traces(demos);
-    let cfg = LrmConfig {
+    let cfg = lrm_config(config, seed);
+    let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
+    Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
+}
+
+/// The learner's settings of a run (`seed`: the search's).
+pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
+    LrmConfig {
         max_states: config.lrm_max_states,
         tabu_len: config.lrm_tabu_len,
         max_steps: config.lrm_steps,
@@ -68,15 +75,14 @@ pub fn learn_machine(
         events: EVENTS,
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
+        event_stutter: config.lrm_event_stutter,
         remember_events: config.lrm_remember_events,
         borrow_events: config.lrm_borrow_events,
         // Starts and patience keep the learner's defaults unless set; split moves always.
         starts: config.lrm_starts.unwrap_or(DEFAULT_STARTS),
         patience: config.lrm_patience.unwrap_or(DEFAULT_PATIENCE),
         ..LrmConfig::default()
-    };
-    let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
-    Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
+    }
 }
 
 /// The demonstrations' label traces as LRM reads them (no rewards: those are what IRL learns).

@@ -1,7 +1,8 @@
 //! Label traces turned into compact integer arrays for the LRM cost.
 //!
 //! Traces are compressed (runs of one label set become one entry, since the objective is
-//! about which *different* label comes next), identical compressed traces are stored once
+//! about which *different* label comes next; with event stutter, see [`Data::new`], a step
+//! that only drops an event from the previous entry's label set joins that entry), identical compressed traces are stored once
 //! with a multiplicity, label sets are renumbered `0..L` in the order of their bit masks, and
 //! everything is concatenated into flat arrays so that running a machine is a tight loop over
 //! `u16`s.
@@ -35,10 +36,25 @@ pub(crate) struct Data {
     pub trace_of: Vec<u32>,
     /// Transitions in the raw traces.
     pub raw_len: usize,
+    /// Compact label id -> id of the label set without the stutter events, when that is a
+    /// different, nonempty, observed label set (the entry such a step joins); `u16::MAX`
+    /// otherwise (always, without event stutter).
+    pub stutter_of: Vec<u16>,
 }
 
 impl Data {
-    pub fn new(vocab: &Vocabulary, traces: &[LabelTrace]) -> Result<Data, LrmError> {
+    /// `stutter_events`: the propositions whose dropping is a stutter ([`LrmConfig::event_stutter`]
+    /// with the domain's events; empty = plain compression): a step whose label set is the
+    /// previous entry's without these propositions, and not empty, joins that entry — the
+    /// event is over, the lasting propositions it came with still hold (the fingertip is
+    /// still on the ball it touched when the cancel fired).
+    ///
+    /// [`LrmConfig::event_stutter`]: super::LrmConfig::event_stutter
+    pub fn new(
+        vocab: &Vocabulary,
+        traces: &[LabelTrace],
+        stutter_events: LabelSet,
+    ) -> Result<Data, LrmError> {
         let n_sets = vocab.n_label_sets();
         let mut raw_len = 0;
         let mut seen = vec![false; n_sets];
@@ -82,6 +98,17 @@ impl Data {
         for (k, l) in labels.iter().enumerate() {
             id_of[l.index()] = k as u16;
         }
+        let stutter_of: Vec<u16> = labels
+            .iter()
+            .map(|l| {
+                let kept = LabelSet(l.0 & !stutter_events.0);
+                if kept == *l || kept.is_empty() {
+                    u16::MAX
+                } else {
+                    id_of[kept.index()]
+                }
+            })
+            .collect();
         // Distinct rewards (at most 256 ids are kept apart; more is not a reward machine's
         // output anyway, and the reward term is then dropped).
         let mut reward_values: Vec<f64> = traces
@@ -102,7 +129,8 @@ impl Data {
         };
         // Compress and deduplicate (BTreeMap: a deterministic order). A run of one label set
         // is one position, whose reward is that of the run's first step; a repeated step with
-        // a nonzero reward starts a new position so that no reward is lost.
+        // a nonzero reward starts a new position so that no reward is lost. With event
+        // stutter, a step reading the previous entry's label set without its events joins it.
         let mut distinct: BTreeMap<(Vec<u16>, Vec<u8>), u64> = BTreeMap::new();
         for t in traces {
             let mut c: Vec<u16> = Vec::new();
@@ -110,7 +138,10 @@ impl Data {
             for (k, l) in t.labels.iter().enumerate() {
                 let id = id_of[l.index()];
                 let reward = t.rewards.as_ref().map_or(0.0, |rs| rs[k]);
-                if c.last() != Some(&id) || reward != 0.0 {
+                let joins = c
+                    .last()
+                    .is_some_and(|&last| last == id || stutter_of[last as usize] == id);
+                if !joins || reward != 0.0 {
                     c.push(id);
                     r.push(reward_id(reward));
                 }
@@ -148,6 +179,7 @@ impl Data {
             starts,
             trace_of,
             raw_len,
+            stutter_of,
         })
     }
 

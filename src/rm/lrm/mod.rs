@@ -148,6 +148,15 @@ pub struct LrmConfig {
     /// on every step the goal is read, which no stutter invariant machine expresses, and its
     /// experiments were made without it.
     pub stutter_invariant: bool,
+    /// Read a step that only drops an event as a stutter (`Data::new`): after a label set
+    /// holding an event (`events`), the same label set without it, when not empty, continues
+    /// that entry of the compressed trace, and the learned machine stays on it (the repair of
+    /// `stutter_invariant`, which this needs). Reason: the cancel fires on one step while the
+    /// fingertip is on a ball (`{r, c}`), and the next steps read `{r}` — the same touch, not
+    /// a new one. Read as a new label, it gives the objective a "red, then red" it can send
+    /// anywhere at no cost (ReacherDelivery Composite, base seed 24: the learned machine,
+    /// costing what the perfect one does, took a second red for blue). Off by default.
+    pub event_stutter: bool,
     /// After the search, make the machine the product of the learned one with the set of
     /// events (`events`) seen so far (`search::remember_events`), so it remembers that an
     /// event happened even where the demonstrations' next labels do not depend on it. LRM's
@@ -186,6 +195,7 @@ impl Default for LrmConfig {
             guards: Guards::Exact,
             events: LabelSet::EMPTY,
             stutter_invariant: false,
+            event_stutter: false,
             remember_events: false,
             borrow_events: false,
         }
@@ -265,7 +275,14 @@ pub fn learn_rm(
             cfg.max_states
         )));
     }
-    let data = Data::new(vocab, traces)?;
+    if cfg.event_stutter && !cfg.stutter_invariant {
+        return Err(LrmError::Config(
+            "event_stutter needs stutter_invariant (the repair that makes the machine stay on \
+             a stutter)"
+                .to_string(),
+        ));
+    }
+    let data = Data::new(vocab, traces, stutter_events(cfg))?;
     let l_n = data.n_labels().max(1);
     // The stutter-invariant repair adds at most one state per (state, label set) cell, the
     // event memory multiplies the states by at most 2^events, and the tables store states as
@@ -329,7 +346,7 @@ pub fn learn_rm(
     let rows = |t: &search::Table| t.n_used.max(cfg.max_states + 1);
     let repaired = cfg
         .stutter_invariant
-        .then(|| search::stutter_invariant(&table, l_n))
+        .then(|| search::stutter_invariant(&table, l_n, &data.stutter_of))
         .filter(|t| t.n_used > table.n_used);
     // A grown table is scored by a searcher with enough rows.
     let rescored = |t: search::Table| {
@@ -386,19 +403,26 @@ pub fn learn_rm(
         .collect();
     let raw = machine_from_cells(vocab, &data.labels, n, &raw_cells);
 
-    // Defined cells: observed ones, and the stays implied by stutter invariance.
+    // Defined cells: observed ones, and the stays implied by stutter invariance (on the
+    // label set a state was entered on, and with event stutter on that set without its event).
     let mut defined: Vec<Option<Cell>> = (0..n * l_n)
         .map(|cell| (count[cell] > 0).then(|| raw_cells[cell].unwrap()))
         .collect();
     for (cell, &seen) in count.iter().enumerate() {
         let (u, l) = (cell / l_n, cell % l_n);
         let v = table.delta[cell] as usize;
-        if seen > 0 && v != u && defined[v * l_n + l].is_none() {
-            defined[v * l_n + l] = Some(Cell {
-                target: v,
-                reward: 0.0,
-                weight: 0.0,
-            });
+        if seen == 0 || v == u {
+            continue;
+        }
+        let event_gone = data.stutter_of[l];
+        for stay in [l as u16, event_gone] {
+            if stay != u16::MAX && defined[v * l_n + stay as usize].is_none() {
+                defined[v * l_n + stay as usize] = Some(Cell {
+                    target: v,
+                    reward: 0.0,
+                    weight: 0.0,
+                });
+            }
         }
     }
 
@@ -456,10 +480,24 @@ pub fn learn_rm(
     })
 }
 
+/// The propositions whose dropping [`LrmConfig::event_stutter`] reads as a stutter.
+pub fn stutter_events(cfg: &LrmConfig) -> LabelSet {
+    if cfg.event_stutter {
+        cfg.events
+    } else {
+        LabelSet::EMPTY
+    }
+}
+
 /// The LRM objective of any machine on `traces` (e.g. of a perfect machine, to compare with
-/// a learned one's cost).
-pub fn trace_cost(rm: &RewardMachine, traces: &[LabelTrace]) -> Result<f64, LrmError> {
-    let data = Data::new(rm.vocab(), traces)?;
+/// a learned one's cost), the traces compressed as the learner does with `stutter_events`
+/// ([`stutter_events`]; empty = plain compression).
+pub fn trace_cost(
+    rm: &RewardMachine,
+    traces: &[LabelTrace],
+    stutter_events: LabelSet,
+) -> Result<f64, LrmError> {
+    let data = Data::new(rm.vocab(), traces, stutter_events)?;
     let l_n = data.n_labels().max(1);
     let searcher = search::Searcher::new(&data, rm.n_states().min(u16::MAX as usize), 0.0);
     let delta: Vec<u16> = (0..rm.n_states() * l_n)

@@ -67,42 +67,59 @@ struct Current {
 /// Sequential demonstrations of base seed 3 the state reached on leaving red left again on
 /// the next empty step, and the machine no longer waited for green).
 ///
-/// For each state `i` entered on `l` with `delta(i, l) != i`, a new state `f` ("`i`, just
-/// entered on `l`") takes every transition into `i` on `l`; `f` stays on `l` and reads any
-/// other label as `i` does (a stay of `i` becomes a move to `i`). A compressed trace visits
-/// `f` where it visited `i` and then continues exactly as before, so the machine reads every
-/// compressed trace as `t` does and a raw trace the same way. A stutter invariant table is
-/// returned unchanged. The result has `n_used` rows and may have more states than the
-/// search's `u_max`: at most one more per (state, label) cell of `t`, since a repair removes
-/// the violations of one (target, label) pair for good and the new state adds none.
-pub(crate) fn stutter_invariant(t: &Table, l_n: usize) -> Table {
+/// With event stutter (`stutter_of[l]` = the label id a step after `l` reads when only `l`'s
+/// event is gone, see `Data::stutter_of`), a state entered on `l` must also stay on
+/// `stutter_of[l]`, which the compressed traces joined to `l` and no move keeps.
+///
+/// For each state `i` entered on `l` that leaves on `l` or on `stutter_of[l]`, a state `f`
+/// ("`i`, just entered on `l`") takes every transition into `i` on `l`; `f` stays on `l` and
+/// `stutter_of[l]` and reads any other label as `i` does (a stay of `i` becomes a move to
+/// `i`). A compressed trace visits `f` where it visited `i` and then continues exactly as
+/// before, so the machine reads every compressed trace as `t` does and a raw trace the same
+/// way. There is one `f` per (`i`, `l`), reused when a later `f` (a copy of `i`'s row, moving
+/// to `i` where `i` stays) enters `i` on `l` again; an `f` is entered on its own `l` only and
+/// never needs one. So the result has at most one more state per (state, label) cell of `t`
+/// (and may have more states than the search's `u_max`); a stutter invariant table is
+/// returned unchanged.
+pub(crate) fn stutter_invariant(t: &Table, l_n: usize, stutter_of: &[u16]) -> Table {
     let mut n = t.n_used;
     let mut delta = t.delta[..n * l_n].to_vec();
+    let also = |l: usize| stutter_of.get(l).copied().filter(|&s| s != u16::MAX);
+    let mut just_entered: std::collections::HashMap<(usize, usize), usize> = Default::default();
     loop {
         let violation = (0..n * l_n).find(|&cell| {
             let (k, l) = (cell / l_n, cell % l_n);
             let i = delta[cell] as usize;
-            i != k && delta[i * l_n + l] as usize != i
+            i != k
+                && (delta[i * l_n + l] as usize != i
+                    || also(l).is_some_and(|s| delta[i * l_n + s as usize] as usize != i))
         });
         let Some(cell) = violation else {
             return Table { delta, n_used: n };
         };
         let (i, l) = (delta[cell] as usize, cell % l_n);
-        let f = n;
-        for x in 0..l_n {
-            let target = if x == l {
+        let f = match just_entered.get(&(i, l)) {
+            Some(&f) => f,
+            None => {
+                let f = n;
+                for x in 0..l_n {
+                    let target = if x == l || also(l) == Some(x as u16) {
+                        f
+                    } else {
+                        delta[i * l_n + x] as usize
+                    };
+                    delta.push(target as u16);
+                }
+                n += 1;
+                just_entered.insert((i, l), f);
                 f
-            } else {
-                delta[i * l_n + x] as usize
-            };
-            delta.push(target as u16);
-        }
+            }
+        };
         for k in 0..n {
-            if k != i && delta[k * l_n + l] as usize == i {
+            if k != i && k != f && delta[k * l_n + l] as usize == i {
                 delta[k * l_n + l] = f as u16;
             }
         }
-        n += 1;
     }
 }
 
@@ -897,7 +914,7 @@ struct Scratch {
 mod tests {
     use super::*;
     use crate::rm::lrm::synthetic::office_traces;
-    use crate::rm::Vocabulary;
+    use crate::rm::{LabelSet, Vocabulary};
     use rand::SeedableRng;
 
     /// The incremental neighbour cost equals a full run of the neighbour, for every move
@@ -905,7 +922,7 @@ mod tests {
     #[test]
     fn incremental_cost_matches_full_run() {
         let traces = office_traces(3, 3000, 5).unwrap();
-        let data = Data::new(&Vocabulary::new("ABCDcmo*"), &traces).unwrap();
+        let data = Data::new(&Vocabulary::new("ABCDcmo*"), &traces, LabelSet::EMPTY).unwrap();
         for weight in [0.0, 100.0] {
             let s = Searcher::new(&data, 5, weight);
             let mut rng = ChaCha8Rng::seed_from_u64(3);
