@@ -707,7 +707,7 @@ fn final_policy_settings_are_checked() {
     assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
 }
 
-/// LRM's optional keys (search, event memory, borrowed events): absent from written configs unless set, read back as set,
+/// LRM's optional keys (search, event memory, borrowed events, event stutter): absent from written configs unless set, read back as set,
 /// bounded, and a zero start count refused; the error names the field.
 #[test]
 fn lrm_search_settings_are_checked() {
@@ -715,13 +715,14 @@ fn lrm_search_settings_are_checked() {
     let text = standard.to_toml();
     assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
     assert!(!text.contains("lrm_remember_events") && !text.contains("lrm_borrow_events"));
+    assert!(!text.contains("lrm_event_stutter"));
     let text = text.replace(
         "lrm_steps = 100\n",
-        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_remember_events = true\nlrm_borrow_events = true\n",
+        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_event_stutter = true\n",
     );
     let c = IrlRunConfig::from_toml(&text, "search.toml").unwrap();
     assert_eq!((c.lrm_starts, c.lrm_patience), (Some(32), Some(0)));
-    assert!(c.lrm_remember_events && c.lrm_borrow_events);
+    assert!(c.lrm_remember_events && c.lrm_borrow_events && c.lrm_event_stutter);
     assert_eq!(
         IrlRunConfig::from_toml(&c.to_toml(), "again.toml").unwrap(),
         c

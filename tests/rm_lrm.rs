@@ -614,3 +614,102 @@ fn remembering_more_than_four_events_is_refused() {
         "{e}"
     );
 }
+
+/// The demonstrations of held-out Composite (base seed 24) as `reacher replay` lists them: red,
+/// then blue, then yellow, or red and a cancel, then yellow; in three of them the cancel fires
+/// while the fingertip is on red (`rc`), which stays on red for a step or two after.
+const COMPOSITE_BASE24: [(usize, &str); 16] = [
+    (24, "r@6-7 b@16 y@24"),
+    (19, "r@6-7 c@8 y@19"),
+    (17, "r@7 rc@8 r@9-10 y@17"),
+    (13, "rc@6 r@7-8 y@13"),
+    (12, "c@1 r@6-7 y@12"),
+    (23, "r@6-7 b@16 y@23"),
+    (13, "c@6 r@7-8 y@13"),
+    (13, "c@3 r@6-7 y@13"),
+    (23, "r@6-7 b@15 y@23"),
+    (23, "r@6-7 b@16 y@23"),
+    (13, "rc@6 r@7 y@13"),
+    (25, "r@7-8 b@17 y@25"),
+    (23, "r@6-7 b@16 y@23"),
+    (13, "c@4 r@7-8 y@13"),
+    (23, "r@6 b@15-16 y@23"),
+    (24, "r@7-8 b@16-17 y@24"),
+];
+
+/// The state a machine reaches on `spans` (the `episode_traces` notation) read step by step.
+fn state_after(rm: &smirl::rm::RewardMachine, vocab: &Vocabulary, n: usize, spans: &str) -> usize {
+    let trace = &episode_traces(vocab, &[(n, spans)])[0];
+    trace
+        .labels
+        .iter()
+        .fold(rm.initial(), |u, &l| rm.next_state(u, l))
+}
+
+/// Read as a new label, `{r}` after `{r, c}` is a "red, then red" that LRM's objective may
+/// send anywhere: on held-out Composite base 24 the learned machine, costing exactly what the
+/// perfect one does, sent a second touch of red where blue goes, and every SMIRL job failed
+/// the normal branch by touching red twice. With `event_stutter` the step after `{r, c}` that
+/// only loses the cancel joins that entry (the two distinct compressed traces with `rc` lose
+/// their `r` entry: 2 positions), the learned machine stays on red after `{r, c}` wherever the
+/// cancel caught the fingertip, and red touched again is no longer blue.
+#[test]
+fn event_stutter_keeps_a_second_red_from_reading_as_blue() {
+    let vocab = Vocabulary::new("rgbyc");
+    let traces = episode_traces(&vocab, &COMPOSITE_BASE24);
+    let learn = |event_stutter| {
+        let cfg = LrmConfig {
+            event_stutter,
+            ..smirl_reacher_cfg(&vocab, 24)
+        };
+        learn_rm(&vocab, &traces, &cfg).unwrap()
+    };
+    let (plain, stutter) = (learn(false), learn(true));
+    let red_twice = |rm| state_after(rm, &vocab, 12, "r@3 r@8");
+    let red_blue = |rm| state_after(rm, &vocab, 12, "r@3 b@8");
+    assert_eq!(red_twice(&plain.rm), red_blue(&plain.rm));
+    assert_ne!(red_twice(&stutter.rm), red_blue(&stutter.rm));
+    assert_eq!(
+        red_twice(&stutter.rm),
+        state_after(&stutter.rm, &vocab, 12, "r@3")
+    );
+    assert_eq!(
+        stutter.stats.compressed_positions + 2,
+        plain.stats.compressed_positions
+    );
+    // After `{r, c}`, `{r}` is a stay, wherever the cancel caught the fingertip.
+    for spans in ["rc@3", "r@2 rc@3", "c@1 r@2 rc@3"] {
+        let caught = state_after(&stutter.rm, &vocab, 3, spans);
+        assert_eq!(
+            state_after(&stutter.rm, &vocab, 6, &format!("{spans} r@4-6")),
+            caught
+        );
+    }
+    // The perfect machine's cost, compressed the same way, is what the learned one is
+    // compared with in the run report.
+    let perfect = perfect::load("reacher_composite").unwrap();
+    let c = vocab.parse_labels("c").unwrap();
+    assert!(stutter.cost <= trace_cost(&perfect, &traces, c).unwrap() + 1e-9);
+    assert!((trace_cost(&stutter.raw, &traces, c).unwrap() - stutter.cost).abs() < 1e-6);
+}
+
+/// Event stutter needs the repair that makes the machine stay on the joined steps.
+#[test]
+fn event_stutter_without_stutter_invariance_is_refused() {
+    let vocab = Vocabulary::new("rgbyc");
+    let traces = episode_traces(&vocab, &COMPOSITE_BASE24);
+    let e = learn_rm(
+        &vocab,
+        &traces,
+        &LrmConfig {
+            event_stutter: true,
+            events: vocab.parse_labels("c").unwrap(),
+            ..cfg(1)
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, LrmError::Config(m) if m.contains("event_stutter")),
+        "{e}"
+    );
+}

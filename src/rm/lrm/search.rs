@@ -945,4 +945,42 @@ mod tests {
             }
         }
     }
+
+    /// The repair ends on any table and stutter map, within its bound of one state per
+    /// (state, label) cell, with every state entered on `l` staying on `l` and on
+    /// `stutter_of[l]`.
+    /// Random tables include ones where two event labels enter the same state and each
+    /// "just entered" copy enters it on the other (the case the per-(state, label) reuse ends).
+    #[test]
+    fn stutter_repair_ends_within_its_bound_and_is_invariant() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..2000 {
+            let (n, l_n) = (rng.gen_range(1..6usize), rng.gen_range(1..6usize));
+            let delta: Vec<u16> = (0..n * l_n).map(|_| rng.gen_range(0..n) as u16).collect();
+            let stutter_of: Vec<u16> = (0..l_n)
+                .map(|l| match rng.gen_range(0..3) {
+                    0 => u16::MAX,
+                    _ => ((l + rng.gen_range(1..l_n.max(2))) % l_n) as u16,
+                })
+                .map(|s| if l_n == 1 { u16::MAX } else { s })
+                .collect();
+            let fixed = stutter_invariant(&Table { delta, n_used: n }, l_n, &stutter_of);
+            assert!(
+                fixed.n_used <= n + n * l_n,
+                "{} states from {n} x {l_n}",
+                fixed.n_used
+            );
+            let d = &fixed.delta;
+            for cell in 0..fixed.n_used * l_n {
+                let (k, l, i) = (cell / l_n, cell % l_n, d[cell] as usize);
+                if i == k {
+                    continue;
+                }
+                assert_eq!(d[i * l_n + l] as usize, i);
+                if let Some(&s) = stutter_of.get(l).filter(|&&s| s != u16::MAX) {
+                    assert_eq!(d[i * l_n + s as usize] as usize, i);
+                }
+            }
+        }
+    }
 }
