@@ -715,7 +715,15 @@ fn lrm_search_settings_are_checked() {
     let text = standard.to_toml();
     assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
     assert!(!text.contains("lrm_remember_events") && !text.contains("lrm_borrow_events"));
-    assert!(!text.contains("lrm_event_stutter"));
+    // Event stutter is on in the standard; a config without the key reads false.
+    assert!(text.contains("lrm_event_stutter = true\n"));
+    let without = text.replace("lrm_event_stutter = true\n", "");
+    assert!(
+        !IrlRunConfig::from_toml(&without, "old.toml")
+            .unwrap()
+            .lrm_event_stutter
+    );
+    let text = without;
     let text = text.replace(
         "lrm_steps = 100\n",
         "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_event_stutter = true\n",
@@ -771,13 +779,14 @@ fn without_schedules() -> IrlRunConfig {
 }
 
 /// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
-/// issue 13 (20 IRL iterations, no shaping), as the runs made with it.
+/// issue 13 (20 IRL iterations, no shaping, no event stutter), as the runs made with it.
 fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
         irl_iterations: 20,
         smirl_shaping: 0.0,
         smirl_final_sac_steps: 0,
         smirl_final_checkpoints: 0,
+        lrm_event_stutter: false,
         ..IrlRunConfig::standard()
     }
 }
@@ -829,13 +838,14 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     // with SMIRL's earlier settings; the baselines' schedules are the same.
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
-    // The baselines' resolved settings differ only in SMIRL's shaping and final policy, which
-    // only SMIRL reads.
+    // The baselines' resolved settings differ only in SMIRL's shaping, final policy and
+    // learned machine, which only SMIRL reads.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let before = IrlRunConfig {
             smirl_shaping: 1.0,
             smirl_final_sac_steps: standard.smirl_final_sac_steps,
             smirl_final_checkpoints: standard.smirl_final_checkpoints,
+            lrm_event_stutter: true,
             ..unshaped_file.for_algo(algo).unwrap()
         };
         assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");

@@ -200,8 +200,10 @@ pub struct IrlRunConfig {
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_borrow_events: bool,
     /// LRM: event stutter (`rm::lrm::LrmConfig::event_stutter`): a step that only drops the
-    /// cancel from the previous label set (`{r}` after `{r, c}`) continues that touch. A
-    /// config without the key is read as false. Omitted from written configs when false.
+    /// cancel from the previous label set (`{r}` after `{r, c}`) continues that touch. On in
+    /// the standard profile (adopted on its tuning seeds, README "Event stutter"); a config
+    /// without the key is read as false, what every run before the key existed used. Omitted
+    /// from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_event_stutter: bool,
     /// LRM: how the learned machine reads label sets the demonstrations never showed in a
@@ -463,7 +465,7 @@ impl IrlRunConfig {
             lrm_patience: None,
             lrm_remember_events: false,
             lrm_borrow_events: false,
-            lrm_event_stutter: false,
+            lrm_event_stutter: true,
             lrm_guards: Guards::Tree,
             log_every_nth_episode: 10,
             threads: 2,
