@@ -54,6 +54,12 @@ FINAL_TUNING = [
     ("stratified demonstrations, final policy, SAC seeds 0-5",
      "ablations/stratified_demos.toml, SAC seeds 0-5",
      "ablations/runs/stratified-seeds0to5-{task}"),
+    # Event stutter (ablations/event_stutter.toml, the standard since), SAC seeds 0-5 on base 0
+    # under the rule in that file, fixed in commit 0e183fa before the runs (README, "Event
+    # stutter"); Composite only (no other task's machine changes).
+    ("event stutter, final policy, SAC seeds 0-5",
+     "ablations/event_stutter.toml, SAC seeds 0-5",
+     "ablations/runs/event_stutter-seeds0to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -69,6 +75,11 @@ HELDOUT = [
     # Bases 24 and 27: run after the cancel probe's prediction for them was committed (16473b8).
     ("base 24", "heldout/final-seeds24-{task}"),
     ("base 27", "heldout/final-seeds27-{task}"),
+    # Bases 30 and 33, run after event stutter's rule was fixed: the previous standard (config.toml
+    # without lrm_event_stutter), every task; event stutter changes only Composite's machines and
+    # IF 33's there (its rows below), so the others are the new standard's jobs too.
+    ("base 30, previous standard", "heldout/final-seeds30-{task}"),
+    ("base 33, previous standard", "heldout/final-seeds33-{task}"),
     ("base 3, remember_events", "heldout/remember-{task}"),
     ("base 6, remember_events", "heldout/remember-seeds6-{task}"),
     ("base 9, remember_events", "heldout/remember-seeds9-{task}"),
@@ -84,6 +95,8 @@ FINAL_HELDOUT = [
     ("base 21, final policy", "heldout/final-seeds21-{task}"),
     ("base 24, final policy", "heldout/final-seeds24-{task}"),
     ("base 27, final policy", "heldout/final-seeds27-{task}"),
+    ("base 30, previous standard, final policy", "heldout/final-seeds30-{task}"),
+    ("base 33, previous standard, final policy", "heldout/final-seeds33-{task}"),
     ("base 3, remember_events, final policy", "heldout/remember-{task}"),
     ("base 6, remember_events, final policy", "heldout/remember-seeds6-{task}"),
     ("base 9, remember_events, final policy", "heldout/remember-seeds9-{task}"),
@@ -105,7 +118,12 @@ FINAL_HELDOUT = [
     ("base 18, borrow_events alone, final policy", "heldout/borrow-only-seeds18-{task}"),
     # Stratified demonstrations (ablations/stratified_demos.toml): IF and Composite at every base.
 ] + [(f"base {b}, stratified demonstrations, final policy", f"heldout/stratified-seeds{b}-{{task}}")
-     for b in (3, 6, 9, 12, 15, 18, 21)]
+     for b in (3, 6, 9, 12, 15, 18, 21)] + [
+    # Event stutter (ablations/event_stutter.toml, the standard since): Composite at every base
+    # where it changes the machine (all but 18, whose jobs are the previous standard's), and IF
+    # at 33 (the only other machine it changes at bases 0-33).
+    (f"base {b}, event stutter, final policy", f"heldout/event-stutter-seeds{b}-{{task}}")
+    for b in (3, 6, 9, 12, 15, 21, 24, 27, 30, 33)]
 
 
 def jobs(run):
