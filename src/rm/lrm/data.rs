@@ -2,8 +2,8 @@
 //!
 //! Traces are compressed (runs of one label set become one entry, since the objective is
 //! about which *different* label comes next; with event stutter, see [`Data::new`], a step
-//! that only drops an event from the previous entry's label set joins that entry), identical compressed traces are stored once
-//! with a multiplicity, label sets are renumbered `0..L` in the order of their bit masks, and
+//! that only drops an event from the previous entry's label set joins that entry), identical
+//! compressed traces are stored once with a multiplicity, label sets are renumbered `0..L` in the order of their bit masks, and
 //! everything is concatenated into flat arrays so that running a machine is a tight loop over
 //! `u16`s.
 
@@ -37,9 +37,9 @@ pub(crate) struct Data {
     /// Transitions in the raw traces.
     pub raw_len: usize,
     /// Compact label id -> id of the label set without the stutter events, when that is a
-    /// different, nonempty, observed label set (the entry such a step joins); `u16::MAX`
+    /// different, nonempty, observed label set (a step reading it joins the entry); `None`
     /// otherwise (always, without event stutter).
-    pub stutter_of: Vec<u16>,
+    pub stutter_of: Vec<Option<u16>>,
 }
 
 impl Data {
@@ -98,15 +98,11 @@ impl Data {
         for (k, l) in labels.iter().enumerate() {
             id_of[l.index()] = k as u16;
         }
-        let stutter_of: Vec<u16> = labels
+        let stutter_of: Vec<Option<u16>> = labels
             .iter()
             .map(|l| {
                 let kept = LabelSet(l.0 & !stutter_events.0);
-                if kept == *l || kept.is_empty() {
-                    u16::MAX
-                } else {
-                    id_of[kept.index()]
-                }
+                (kept != *l && !kept.is_empty()).then(|| id_of[kept.index()])
             })
             .collect();
         // Distinct rewards (at most 256 ids are kept apart; more is not a reward machine's
@@ -140,7 +136,7 @@ impl Data {
                 let reward = t.rewards.as_ref().map_or(0.0, |rs| rs[k]);
                 let joins = c
                     .last()
-                    .is_some_and(|&last| last == id || stutter_of[last as usize] == id);
+                    .is_some_and(|&last| last == id || stutter_of[last as usize] == Some(id));
                 if !joins || reward != 0.0 {
                     c.push(id);
                     r.push(reward_id(reward));

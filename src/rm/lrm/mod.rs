@@ -414,10 +414,9 @@ pub fn learn_rm(
         if seen == 0 || v == u {
             continue;
         }
-        let event_gone = data.stutter_of[l];
-        for stay in [l as u16, event_gone] {
-            if stay != u16::MAX && defined[v * l_n + stay as usize].is_none() {
-                defined[v * l_n + stay as usize] = Some(Cell {
+        for stay in std::iter::once(l).chain(data.stutter_of[l].map(usize::from)) {
+            if defined[v * l_n + stay].is_none() {
+                defined[v * l_n + stay] = Some(Cell {
                     target: v,
                     reward: 0.0,
                     weight: 0.0,

@@ -25,7 +25,7 @@ use super::data::{cost_of_hist, ln_table, Data};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::collections::{HashSet, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
 
 /// A canonical machine on compact labels.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -81,11 +81,11 @@ struct Current {
 /// never needs one. So the result has at most one more state per (state, label) cell of `t`
 /// (and may have more states than the search's `u_max`); a stutter invariant table is
 /// returned unchanged.
-pub(crate) fn stutter_invariant(t: &Table, l_n: usize, stutter_of: &[u16]) -> Table {
+pub(crate) fn stutter_invariant(t: &Table, l_n: usize, stutter_of: &[Option<u16>]) -> Table {
     let mut n = t.n_used;
     let mut delta = t.delta[..n * l_n].to_vec();
-    let also = |l: usize| stutter_of.get(l).copied().filter(|&s| s != u16::MAX);
-    let mut just_entered: std::collections::HashMap<(usize, usize), usize> = Default::default();
+    let also = |l: usize| stutter_of[l];
+    let mut just_entered: HashMap<(usize, usize), usize> = HashMap::new();
     loop {
         let violation = (0..n * l_n).find(|&cell| {
             let (k, l) = (cell / l_n, cell % l_n);
@@ -948,21 +948,20 @@ mod tests {
 
     /// The repair ends on any table and stutter map, within its bound of one state per
     /// (state, label) cell, with every state entered on `l` staying on `l` and on
-    /// `stutter_of[l]`.
-    /// Random tables include ones where two event labels enter the same state and each
-    /// "just entered" copy enters it on the other (the case the per-(state, label) reuse ends).
+    /// `stutter_of[l]`. Random tables include ones where two event labels enter the same
+    /// state and each "just entered" copy enters it on the other (the case the per-(state,
+    /// label) reuse ends).
     #[test]
     fn stutter_repair_ends_within_its_bound_and_is_invariant() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         for _ in 0..2000 {
             let (n, l_n) = (rng.gen_range(1..6usize), rng.gen_range(1..6usize));
             let delta: Vec<u16> = (0..n * l_n).map(|_| rng.gen_range(0..n) as u16).collect();
-            let stutter_of: Vec<u16> = (0..l_n)
-                .map(|l| match rng.gen_range(0..3) {
-                    0 => u16::MAX,
-                    _ => ((l + rng.gen_range(1..l_n.max(2))) % l_n) as u16,
+            let stutter_of: Vec<Option<u16>> = (0..l_n)
+                .map(|l| {
+                    (l_n > 1 && rng.gen_range(0..3) > 0)
+                        .then(|| ((l + rng.gen_range(1..l_n)) % l_n) as u16)
                 })
-                .map(|s| if l_n == 1 { u16::MAX } else { s })
                 .collect();
             let fixed = stutter_invariant(&Table { delta, n_used: n }, l_n, &stutter_of);
             assert!(
@@ -977,7 +976,7 @@ mod tests {
                     continue;
                 }
                 assert_eq!(d[i * l_n + l] as usize, i);
-                if let Some(&s) = stutter_of.get(l).filter(|&&s| s != u16::MAX) {
+                if let Some(s) = stutter_of[l] {
                     assert_eq!(d[i * l_n + s as usize] as usize, i);
                 }
             }
