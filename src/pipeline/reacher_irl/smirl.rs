@@ -31,8 +31,9 @@ use crate::env::reacher::{ReacherDelivery, EVENTS, OBS_CANCEL, OBS_DIM, VOCABULA
 use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::smirl::{
-    maxent_coefficients, maxent_coefficients_by_visits, AnnotatedTrajectories, FeatureMap,
-    LabelFeatures, LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
+    maxent_coefficients, maxent_coefficients_by_shared_visits, maxent_coefficients_by_visits,
+    AnnotatedTrajectories, FeatureMap, LabelFeatures, LearnedSubgoalPotential, LinearRmReward,
+    SmirlNormalisation,
 };
 use crate::pipeline::reacher_expert::Demo;
 use crate::rl::crm::{hot_index, CounterfactualRm};
@@ -188,6 +189,9 @@ pub fn coefficients(
     let (mut coeffs, expert_c) = match normalisation {
         SmirlNormalisation::Trajectories => maxent_coefficients(&expert_t, &agent_t),
         SmirlNormalisation::Visits => maxent_coefficients_by_visits(&expert_t, &agent_t),
+        SmirlNormalisation::SharedVisits => {
+            maxent_coefficients_by_shared_visits(&expert_t, &agent_t)
+        }
     };
     coeffs.extend(expert_c);
     let (mut obs, mut expert_rows) = (Vec::new(), Vec::new());
