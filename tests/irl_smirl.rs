@@ -502,6 +502,48 @@ fn visit_normalised_coefficients_divide_by_trajectories_visiting_the_state() {
     );
 }
 
+/// `SmirlNormalisation::SharedVisits`: where the agent's batch visits a state the coefficients
+/// are the visit-normalised ones; an expert row in a state no agent trajectory reaches gets 0,
+/// so that state's weights are not raised for want of an agent estimate (the regression of
+/// held-out Composite base 24, README "Shared visits").
+#[test]
+fn shared_visit_coefficients_leave_states_the_agent_never_reaches_alone() {
+    let obs = vec![0.0f32; 17 * 7];
+    // Expert: 2 trajectories, the first through u1, the second through u3. Agent: 2
+    // trajectories, both through u1, one also through u2; none reaches u3.
+    let e_states = [0u32, 1, 1, 0, 3, 3];
+    let e = AnnotatedTrajectories {
+        obs: &obs[..17 * 6],
+        rm_state: &e_states,
+        lengths: &[3, 3],
+    };
+    let a_states = [0u32, 1, 2, 0, 1, 1, 1];
+    let a = AnnotatedTrajectories {
+        obs: &obs,
+        rm_state: &a_states,
+        lengths: &[3, 4],
+    };
+    let (va, ve) = maxent_coefficients_by_visits(&e, &a);
+    assert_eq!(ve, vec![-0.5, -1.0, -1.0, -0.5, -1.0, -1.0]);
+    let (sa, se) = maxent_coefficients_by_shared_visits(&e, &a, &[]);
+    assert_eq!(sa, va, "the agent's side is unchanged");
+    assert_eq!(se, vec![-0.5, -1.0, -1.0, -0.5, 0.0, 0.0]);
+    // An agent batch that visits only u0 (its states never exceed the expert's range) leaves
+    // only the expert's u0 rows.
+    let only_start = [0u32; 7];
+    let a0 = AnnotatedTrajectories {
+        obs: &obs,
+        rm_state: &only_start,
+        lengths: &[3, 4],
+    };
+    let (_, se0) = maxent_coefficients_by_shared_visits(&e, &a0, &[]);
+    assert_eq!(se0, vec![-0.5, 0.0, 0.0, -0.5, 0.0, 0.0]);
+    // States marked as keeping their pull (event_gated_visits: reachable without the event)
+    // keep the expert's coefficient though the agent never came.
+    let (_, sg) = maxent_coefficients_by_shared_visits(&e, &a0, &[true, true, false, false]);
+    assert_eq!(sg, vec![-0.5, -1.0, -1.0, -0.5, 0.0, 0.0]);
+}
+
 #[test]
 fn learned_subgoal_potential_pulls_towards_the_best_paid_balls_of_each_state() {
     let f = FeatureMap::reacher_labels();

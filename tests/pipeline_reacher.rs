@@ -55,6 +55,10 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
         &expert,
         &agent,
         SmirlNormalisation::Trajectories,
+        &smirl::rm::format::read_rm(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm/reacher_blue.txt"),
+        )
+        .unwrap(),
     );
     let mut model = LinearRmReward::new(
         FeatureMap::reacher_labels(),
@@ -746,6 +750,37 @@ fn lrm_search_settings_are_checked() {
         let e = c.validate("test").unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
     }
+}
+
+/// `smirl_normalisation`'s three values read back as written; a misspelt one is refused with
+/// the file and the key named.
+#[test]
+fn smirl_normalisation_values_round_trip() {
+    let text = IrlRunConfig::standard().to_toml();
+    let current = "smirl_normalisation = \"visits\"\n";
+    assert!(text.contains(current), "the standard's value moved");
+    for (value, expected) in [
+        ("visits", SmirlNormalisation::Visits),
+        ("trajectories", SmirlNormalisation::Trajectories),
+        ("shared_visits", SmirlNormalisation::SharedVisits),
+    ] {
+        let t = text.replace(current, &format!("smirl_normalisation = \"{value}\"\n"));
+        let c = IrlRunConfig::from_toml(&t, "n.toml").unwrap();
+        assert_eq!(c.smirl_normalisation, expected);
+        assert_eq!(c.smirl_normalisation.name(), value);
+        assert_eq!(
+            IrlRunConfig::from_toml(&c.to_toml(), "again.toml").unwrap(),
+            c
+        );
+    }
+    let t = text.replace(current, "smirl_normalisation = \"shared\"\n");
+    let e = IrlRunConfig::from_toml(&t, "bad.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bad.toml") && e.contains("smirl_normalisation"),
+        "{e}"
+    );
 }
 
 /// The reported candidate is the first of highest learned return, whatever its ground truth.

@@ -364,7 +364,8 @@ fn configs_print_shortest_decimals_and_read_back_the_same() {
 /// `reacher retrain`: a fresh SAC agent on a finished job's final reward, judged on the ground
 /// truth; the table is written once (again only with --force), the same seed gives the same
 /// table, and bad input — a job that has not run, zero steps, more evaluations than steps, an
-/// Office algorithm — exits 2 before any training, writing nothing.
+/// Office algorithm, a learned state the machine lacks — exits 2 before any training, writing
+/// nothing; zeroed states write a table of their own.
 #[test]
 fn retrain_judges_a_fresh_policy_on_the_final_reward() {
     let tmp = tempfile::tempdir().unwrap();
@@ -426,6 +427,25 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
         "2",
         "--force",
     ]));
+    assert_eq!(std::fs::read_to_string(&table).unwrap(), written);
+    // With a learned state's weights zeroed: a table of its own, the job's left as it was; a
+    // state the machine does not have is refused before any training.
+    usage_error(
+        &retrain(&["--steps", "400", "--zero-state", "999"]),
+        "--zero-state 999",
+    );
+    ok(&retrain(&[
+        "--steps",
+        "400",
+        "--evaluations",
+        "2",
+        "--zero-state",
+        "0",
+        "--zero-state",
+        "1",
+    ]));
+    let zeroed = dir.join("run/retrain/smirl_seed5_sac1000_zero0-1.csv");
+    assert_eq!(std::fs::read_to_string(&zeroed).unwrap().lines().count(), 3);
     assert_eq!(std::fs::read_to_string(&table).unwrap(), written);
 }
 

@@ -64,6 +64,22 @@ fn state_counts_match_the_paper() {
     assert_eq!((c.reachable, c.minimal), (4, 4));
 }
 
+/// The states reachable without the cancel: Composite's normal branch (start, red/green,
+/// blue, goal), not its cancelled states or the failure sink they lead to; with no event
+/// excluded, every state.
+#[test]
+fn states_reachable_without_an_event() {
+    let rm = perfect::load("reacher_composite").unwrap();
+    let cancel = rm.vocab().parse_labels("c").unwrap();
+    let free = rm.reachable_without(cancel);
+    let states: Vec<usize> = (0..rm.n_states()).filter(|&u| free[u]).collect();
+    assert_eq!(states, vec![0, 1, 2, 5]);
+    assert!(rm.reachable_without(LabelSet::EMPTY).iter().all(|&r| r));
+    let if_rm = perfect::load("reacher_if").unwrap();
+    let free = if_rm.reachable_without(cancel);
+    assert_eq!(free.iter().filter(|&&r| r).count(), 3, "{free:?}");
+}
+
 fn labels(rm: &RewardMachine, trace: &str) -> Vec<LabelSet> {
     trace
         .split(',')

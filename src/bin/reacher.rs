@@ -115,6 +115,11 @@ struct RetrainArgs {
     /// Ground-truth evaluations during training, evenly spaced, the last at the end.
     #[arg(long, default_value_t = 5)]
     evaluations: u64,
+    /// Set this learned-machine state's weights to zero first (repeatable; smirl and
+    /// smirl-smooth): does that state's reward mislead the agent? The table is then
+    /// retrain/<algo>_seed<S>_sac<K>_zero<U>[-<V>...].csv.
+    #[arg(long, value_name = "U")]
+    zero_state: Vec<usize>,
     /// Replace an existing retrain/<algo>_seed<S>_sac<K>.csv.
     #[arg(long)]
     force: bool,
@@ -459,6 +464,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             steps: a.steps,
             sac_seed: a.sac_seed,
             evaluations: a.evaluations,
+            zero_states: a.zero_state,
             force: a.force,
         }),
         Some(Command::Draw(a)) => draw::run(DrawRequest {

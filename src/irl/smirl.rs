@@ -282,6 +282,12 @@ pub enum SmirlNormalisation {
     /// ([`maxent_coefficients_by_shared_visits`]).
     #[serde(rename = "shared_visits")]
     SharedVisits,
+    /// As `Visits`, but a state the agent's batch does not visit *and* cannot reach without an
+    /// exogenous event gets no update ([`maxent_coefficients_by_shared_visits`] with the
+    /// learned machine's [`reachable_without`](crate::rm::RewardMachine::reachable_without)
+    /// the events as the states that keep their pull).
+    #[serde(rename = "event_gated_visits")]
+    EventGatedVisits,
 }
 
 impl SmirlNormalisation {
@@ -290,6 +296,7 @@ impl SmirlNormalisation {
             SmirlNormalisation::Trajectories => "trajectories",
             SmirlNormalisation::Visits => "visits",
             SmirlNormalisation::SharedVisits => "shared_visits",
+            SmirlNormalisation::EventGatedVisits => "event_gated_visits",
         }
     }
 }
@@ -321,7 +328,8 @@ pub fn maxent_coefficients_by_visits(
 }
 
 /// [`maxent_coefficients_by_visits`] restricted to the states the agent's batch visits: an
-/// expert row in a state no agent trajectory reaches gets coefficient 0. Why: the visit
+/// expert row in a state no agent trajectory reaches gets coefficient 0 unless
+/// `pull_unvisited[u]` (a state beyond the slice keeps no pull). Why: the visit
 /// normalisation compares conditional feature expectations, and where the agent never goes
 /// its side is missing, not zero. Taking it as zero raises the expert's features in that state
 /// on every iteration, by the expert's full conditional count however few demonstrations go
@@ -334,14 +342,24 @@ pub fn maxent_coefficients_by_visits(
 /// reward: normal branch 0.00; with that state's weights set to 0: 1.00). Whether the agent
 /// should enter such a state is still learned where the choice is made: in the parent state,
 /// whose transition label is compared as before.
+///
+/// But that pull is also what draws an agent into a sub-task it has not reached yet (the
+/// expert's counts there raise the state's weights until the agent comes): with no pull at
+/// all (`shared_visits`, every `pull_unvisited` false) IF and Composite tuning jobs never
+/// solved the normal branch (9 of 12, README "Shared visits"). `event_gated_visits` keeps
+/// the pull where the agent can enter the state by its own moves and drops it only where
+/// every way in needs the exogenous event, which no policy can bring about.
 pub fn maxent_coefficients_by_shared_visits(
     expert: &AnnotatedTrajectories<'_>,
     agent: &AnnotatedTrajectories<'_>,
+    pull_unvisited: &[bool],
 ) -> (Vec<f64>, Vec<f64>) {
     let (agent_c, mut expert_c) = maxent_coefficients_by_visits(expert, agent);
     let agent_visits = trajectories_visiting(agent);
     for (c, &u) in expert_c.iter_mut().zip(expert.rm_state) {
-        if agent_visits.get(u as usize).copied().unwrap_or(0) == 0 {
+        let u = u as usize;
+        let visited = agent_visits.get(u).copied().unwrap_or(0) > 0;
+        if !visited && !pull_unvisited.get(u).copied().unwrap_or(false) {
             *c = 0.0;
         }
     }
@@ -465,6 +483,15 @@ impl LinearRmReward {
     pub fn weights(&self, u: usize) -> &[f32] {
         let k = self.features.len();
         &self.weights[u * k..(u + 1) * k]
+    }
+
+    /// Sets w_u to zero: the state pays nothing (a diagnostic: does this state's reward mislead
+    /// the agent?).
+    pub fn zero_state(&mut self, u: usize) -> Result<(), RewardError> {
+        let u = check_state(u as u32, self.n_states)?;
+        let k = self.features.len();
+        self.weights[u * k..(u + 1) * k].fill(0.0);
+        Ok(())
     }
 
     /// Loads a reward saved by [`RewardModel::save`].

@@ -208,6 +208,31 @@ impl RewardMachine {
         (self.next[cell] as usize, self.reward[cell])
     }
 
+    /// Per state, whether it is reachable from the initial state reading only label sets that
+    /// hold none of `events`: the states an agent can reach by its own moves, without an
+    /// exogenous event (every label set of the vocabulary counts, including ones no trace
+    /// holds, so this errs towards "reachable").
+    pub fn reachable_without(&self, events: LabelSet) -> Vec<bool> {
+        let letters: Vec<LabelSet> = self
+            .vocab
+            .all_label_sets()
+            .filter(|l| l.0 & events.0 == 0)
+            .collect();
+        let mut seen = vec![false; self.n_states()];
+        seen[self.initial] = true;
+        let mut stack = vec![self.initial];
+        while let Some(u) = stack.pop() {
+            for &l in &letters {
+                let v = self.next_state(u, l);
+                if !seen[v] {
+                    seen[v] = true;
+                    stack.push(v);
+                }
+            }
+        }
+        seen
+    }
+
     /// Runs the machine from its initial state along a label trace; returns the state and
     /// reward after each step (same length as `trace`).
     pub fn run(&self, trace: &[LabelSet]) -> Vec<(usize, f64)> {

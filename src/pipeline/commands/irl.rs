@@ -385,6 +385,9 @@ pub struct RetrainRequest {
     pub steps: Option<u64>,
     pub sac_seed: u64,
     pub evaluations: u64,
+    /// Learned-machine states whose weights are zeroed first (the table's name then ends in
+    /// `_zero<U>-<V>…`).
+    pub zero_states: Vec<usize>,
     /// Replace an existing `retrain/<algo>_seed<S>_sac<K>.csv`.
     pub force: bool,
 }
@@ -403,10 +406,17 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
         steps: args.steps,
         sac_seed: args.sac_seed,
         evaluations: args.evaluations,
+        zero_states: args.zero_states.clone(),
     };
     let loaded = load(&run, &request).map_err(usage)?;
+    let zeroed = if args.zero_states.is_empty() {
+        String::new()
+    } else {
+        let states: Vec<String> = args.zero_states.iter().map(|u| u.to_string()).collect();
+        format!("_zero{}", states.join("-"))
+    };
     let out = args.run.join("retrain").join(format!(
-        "{}_seed{}_sac{}.csv",
+        "{}_seed{}_sac{}{zeroed}.csv",
         args.algo, args.seed, args.sac_seed
     ));
     crate::output::check_file(&out, args.force).map_err(usage)?;

@@ -39,6 +39,9 @@ pub struct Retraining {
     pub sac_seed: u64,
     /// Ground-truth evaluations during training (the last at the end).
     pub evaluations: u64,
+    /// Learned-machine states whose weights are set to zero before training (`smirl` and
+    /// `smirl-smooth` only): whether those states' rewards are what misleads the agent.
+    pub zero_states: Vec<usize>,
 }
 
 /// One evaluation of the retrained policy.
@@ -136,7 +139,7 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
             lr: s.smirl_reward_lr,
             l2: s.smirl_reward_l2,
         };
-        let reward = LinearRmReward::load(&path, optim).map_err(|e| usage(e.to_string()))?;
+        let mut reward = LinearRmReward::load(&path, optim).map_err(|e| usage(e.to_string()))?;
         let expected = features.map(&s).map_err(|e| usage(e.to_string()))?;
         if reward.features() != &expected || reward.n_states() != machine.n_states() {
             return Err(usage(format!(
@@ -146,8 +149,22 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
                 machine.n_states()
             )));
         }
+        for &u in &r.zero_states {
+            reward.zero_state(u).map_err(|e| {
+                usage(format!(
+                    "--zero-state {u}: {e} (the learned machine has {} states)",
+                    machine.n_states()
+                ))
+            })?;
+        }
         Reward::Linear(reward)
     } else {
+        if !r.zero_states.is_empty() {
+            return Err(usage(format!(
+                "--zero-state needs a reward per learned-machine state (smirl, smirl-smooth), not {}",
+                r.algo
+            )));
+        }
         let mut reward = firl::reward_model(&s, 0).map_err(|e| usage(e.to_string()))?;
         reward.load(&path).map_err(|e| usage(e.to_string()))?;
         Reward::Mlp(reward)

@@ -175,6 +175,7 @@ pub fn coefficients(
     expert: &ExpertData,
     agent: &AgentBatch,
     normalisation: SmirlNormalisation,
+    machine: &RewardMachine,
 ) -> Coefficients {
     let agent_t = AnnotatedTrajectories {
         obs: &agent.obs,
@@ -190,7 +191,11 @@ pub fn coefficients(
         SmirlNormalisation::Trajectories => maxent_coefficients(&expert_t, &agent_t),
         SmirlNormalisation::Visits => maxent_coefficients_by_visits(&expert_t, &agent_t),
         SmirlNormalisation::SharedVisits => {
-            maxent_coefficients_by_shared_visits(&expert_t, &agent_t)
+            maxent_coefficients_by_shared_visits(&expert_t, &agent_t, &[])
+        }
+        SmirlNormalisation::EventGatedVisits => {
+            let free = machine.reachable_without(EVENTS);
+            maxent_coefficients_by_shared_visits(&expert_t, &agent_t, &free)
         }
     };
     coeffs.extend(expert_c);
@@ -378,7 +383,13 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
         let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
 
         // 3. Feature expectations: coefficients of μ_π − μ_D per (u, o).
-        let c = coefficients(&features, job.expert, &batch, s.smirl_normalisation);
+        let c = coefficients(
+            &features,
+            job.expert,
+            &batch,
+            s.smirl_normalisation,
+            job.machine,
+        );
 
         // 4. Reward steps, at lr · k^(−reward_lr_decay); the first step's gradient (before
         //    any step) is the traced data gradient.
