@@ -446,6 +446,14 @@ fn shipped_config_is_the_default_profile() {
     assert_eq!(IrlRunConfig::load(&path).unwrap(), IrlRunConfig::standard());
 }
 
+/// Regression: `quick.toml` lagged the quick profile (no `lrm_event_stutter` after event stutter
+/// became the standard), though the README calls it that profile.
+#[test]
+fn shipped_quick_config_is_the_quick_profile() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher/quick.toml");
+    assert_eq!(IrlRunConfig::load(&path).unwrap(), IrlRunConfig::quick());
+}
+
 /// `smirl_label_features`: a config without the key reads as the paper's state labels (what
 /// every run before the key used); `"entries"` selects label entries and is written back; a
 /// bad value names the key.
@@ -763,6 +771,7 @@ fn smirl_normalisation_values_round_trip() {
         ("visits", SmirlNormalisation::Visits),
         ("trajectories", SmirlNormalisation::Trajectories),
         ("shared_visits", SmirlNormalisation::SharedVisits),
+        ("event_gated_visits", SmirlNormalisation::EventGatedVisits),
     ] {
         let t = text.replace(current, &format!("smirl_normalisation = \"{value}\"\n"));
         let c = IrlRunConfig::from_toml(&t, "n.toml").unwrap();

@@ -3,7 +3,7 @@
 `python3 experiments/reacher/retrain_table.py --write RUN_DIR...` collects, for every retrained
 job of the run directories, the job's own final evaluation (the policy that learned along with
 the reward; metrics.csv) and the last evaluation of the fresh SAC agent trained on the job's
-final reward (<run>/retrain/<algo>_seed<S>_sac<K>.csv, not tracked) into
+final reward (<run>/retrain/<algo>_seed<S>_sac<K>[_zero<U>...].csv, not tracked) into
 experiments/reacher/retrain.csv (tracked; rows of runs not given are kept).
 `python3 experiments/reacher/retrain_table.py` prints two markdown tables from retrain.csv:
 every fresh agent, and per job over its fresh agents (SAC seeds) the share that solve the task
@@ -25,7 +25,8 @@ CSV = os.path.join(here, "retrain.csv")
 FIELDS = ["run", "algo", "seed", "sac_seed", "retrain_steps",
           "own_success", "own_normal", "own_cancel",
           "retrained_success", "retrained_normal", "retrained_cancel",
-          "retrained_progress", "retrained_final_ball", "retrained_learned_return"]
+          "retrained_progress", "retrained_final_ball", "retrained_learned_return",
+          "zeroed_states"]
 ORDER = ["or", "sequential", "if", "composite", "blue"]
 
 
@@ -40,10 +41,10 @@ def collect(run):
         metrics = []
     out = []
     for path in sorted(glob.glob(os.path.join(run, "retrain", "*.csv"))):
-        m = re.match(r"(.+)_seed(\d+)_sac(\d+)\.csv$", os.path.basename(path))
+        m = re.match(r"(.+)_seed(\d+)_sac(\d+)(?:_zero([\d-]+))?\.csv$", os.path.basename(path))
         if not m:
             continue
-        algo, seed, sac = m.groups()
+        algo, seed, sac, zeroed = m.groups()
         with open(path, newline="") as f:
             rows = list(csv.DictReader(f))
         if not rows:
@@ -60,13 +61,15 @@ def collect(run):
             "retrained_cancel": last["success_cancel"], "retrained_progress": last["progress"],
             "retrained_final_ball": last["final_ball"],
             "retrained_learned_return": last.get("learned_return", ""),
+            "zeroed_states": (zeroed or "").replace("-", " "),
         })
     return out
 
 
 def key(r):
     task = os.path.basename(r["run"]).split("-")[-1] if "heldout" in r["run"] else os.path.basename(r["run"]).split("-")[0]
-    return (ORDER.index(task) if task in ORDER else 9, r["run"], r["algo"], int(r["seed"]), int(r["sac_seed"]))
+    return (ORDER.index(task) if task in ORDER else 9, r["run"], r["algo"], int(r["seed"]),
+            r.get("zeroed_states") or "", int(r["sac_seed"]))
 
 
 def read():
@@ -106,13 +109,16 @@ def table():
     rows = read()
     jobs = {}
     for r in rows:
-        jobs.setdefault((r["run"], r["algo"], r["seed"]), []).append(r)
+        jobs.setdefault((r["run"], r["algo"], r["seed"], r.get("zeroed_states") or ""), []).append(r)
     print("Per job: the job's own final policy, and its fresh agents (one per SAC seed) on the")
     print("final reward — how many solve the task (>= 0.9 on every branch), and the ground truth of")
-    print("the one with the highest learned return.\n")
+    print("the one with the highest learned return. `reacher retrain --zero-state U` rows train on")
+    print("the final reward with the weights of learned states U set to 0 (\"seed 25, zeroed 7\").\n")
     print("| run | algorithm | seed | job's own policy, final | fresh agents solving | agent of highest learned return | its learned return |")
     print("|---|---|---|---|---|---|---|")
-    for (run, algo, seed), rs in jobs.items():
+    for (run, algo, seed, zeroed), rs in jobs.items():
+        if zeroed:
+            seed = f"{seed}, zeroed {zeroed}"
         own = cell(rs[0]["own_success"], rs[0]["own_normal"], rs[0]["own_cancel"])
         n = sum(solved(r, "retrained_") for r in rs)
         scored = [r for r in rs if r["retrained_learned_return"] != ""]
@@ -128,7 +134,8 @@ def table():
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         lr = r["retrained_learned_return"]
-        print(f"| {r['run']} | {r['algo']} | {r['seed']} | {r['sac_seed']} "
+        seed = r["seed"] + (f", zeroed {r['zeroed_states']}" if r.get("zeroed_states") else "")
+        print(f"| {r['run']} | {r['algo']} | {seed} | {r['sac_seed']} "
               f"| {cell(r['retrained_success'], r['retrained_normal'], r['retrained_cancel'])} "
               f"| {'' if lr == '' else f'{float(lr):.1f}'} | {r['retrain_steps']} |")
 

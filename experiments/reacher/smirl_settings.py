@@ -60,6 +60,16 @@ FINAL_TUNING = [
     ("event stutter, final policy, SAC seeds 0-5",
      "ablations/event_stutter.toml, SAC seeds 0-5",
      "ablations/runs/event_stutter-seeds0to5-{task}"),
+    # Shared visits and event-gated visits (ablations/shared_visits.toml, event_gated_visits.toml),
+    # SAC seeds 0-5 on base 0 under the rules in those files, fixed in commits 05af371 and
+    # a3f9f04 before their runs (README, "Shared visits"); shared visits stopped after IF and
+    # Composite had vetoed it.
+    ("shared visits, final policy, SAC seeds 0-5",
+     "ablations/shared_visits.toml, SAC seeds 0-5",
+     "ablations/runs/shared_visits-seeds0to5-{task}"),
+    ("event-gated visits, final policy, SAC seeds 0-5",
+     "ablations/event_gated_visits.toml, SAC seeds 0-5",
+     "ablations/runs/event_gated_visits-seeds0to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -123,7 +133,14 @@ FINAL_HELDOUT = [
     # where it changes the machine (all but 18, whose jobs are the previous standard's), and IF
     # at 33 (the only other machine it changes at bases 0-33).
     (f"base {b}, event stutter, final policy", f"heldout/event-stutter-seeds{b}-{{task}}")
-    for b in (3, 6, 9, 12, 15, 21, 24, 27, 30, 33)]
+    for b in (3, 6, 9, 12, 15, 21, 24, 27, 30, 33)] + [
+    # Shared visits (ablations/shared_visits.toml): Composite at bases 3 and 6 only (stopped
+    # once its tuning rule had failed). Event-gated visits (ablations/event_gated_visits.toml):
+    # Composite at every base 3-33.
+    (f"base {b}, shared visits, final policy", f"heldout/shared-visits-seeds{b}-{{task}}")
+    for b in (3, 6)] + [
+    (f"base {b}, event-gated visits, final policy", f"heldout/event-gated-seeds{b}-{{task}}")
+    for b in range(3, 34, 3)]
 
 
 def jobs(run):

@@ -132,7 +132,10 @@ pub struct IrlRunConfig {
     #[serde(serialize_with = "crate::short_float::f32")]
     pub smirl_reward_l2: f32,
     /// `"visits"` (feature counts of each RM state averaged over the trajectories that visit
-    /// it) or `"trajectories"` (the plain MaxEnt average over all trajectories).
+    /// it), `"trajectories"` (the plain MaxEnt average over all trajectories), or
+    /// `"shared_visits"` / `"event_gated_visits"` (as `"visits"`, without the expert's pull on
+    /// a state the agent's batch does not visit: every such state / only those that need the
+    /// cancel to enter; see `irl::smirl::maxent_coefficients_by_shared_visits`).
     pub smirl_normalisation: SmirlNormalisation,
     /// `smirl`'s label features: `"state"` (L(o) of the state reached, paid on every step a
     /// label holds: the paper's eq. 5) or `"entries"` (the labels that became true on the
