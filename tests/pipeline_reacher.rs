@@ -765,7 +765,7 @@ fn lrm_search_settings_are_checked() {
 #[test]
 fn smirl_normalisation_values_round_trip() {
     let text = IrlRunConfig::standard().to_toml();
-    let current = "smirl_normalisation = \"visits\"\n";
+    let current = "smirl_normalisation = \"event_gated_visits\"\n";
     assert!(text.contains(current), "the standard's value moved");
     for (value, expected) in [
         ("visits", SmirlNormalisation::Visits),
@@ -831,6 +831,7 @@ fn unshaped() -> IrlRunConfig {
         smirl_final_sac_steps: 0,
         smirl_final_checkpoints: 0,
         lrm_event_stutter: false,
+        smirl_normalisation: SmirlNormalisation::Visits,
         ..IrlRunConfig::standard()
     }
 }
@@ -882,13 +883,14 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     // with SMIRL's earlier settings; the baselines' schedules are the same.
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
-    // The baselines' resolved settings differ only in SMIRL's shaping, final policy and
-    // learned machine, which only SMIRL reads.
+    // The baselines' resolved settings differ only in SMIRL's shaping, final policy,
+    // normalisation and learned machine, which only SMIRL reads.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let before = IrlRunConfig {
             smirl_shaping: 1.0,
             smirl_final_sac_steps: standard.smirl_final_sac_steps,
             smirl_final_checkpoints: standard.smirl_final_checkpoints,
+            smirl_normalisation: standard.smirl_normalisation,
             lrm_event_stutter: true,
             ..unshaped_file.for_algo(algo).unwrap()
         };

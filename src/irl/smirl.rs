@@ -285,7 +285,8 @@ pub enum SmirlNormalisation {
     /// As `Visits`, but a state the agent's batch does not visit *and* cannot reach without an
     /// exogenous event gets no update ([`maxent_coefficients_by_shared_visits`] with the
     /// learned machine's [`reachable_without`](crate::rm::RewardMachine::reachable_without)
-    /// the events as the states that keep their pull).
+    /// the events as the states that keep their pull). The standard profile's (README,
+    /// "Shared visits").
     #[serde(rename = "event_gated_visits")]
     EventGatedVisits,
 }

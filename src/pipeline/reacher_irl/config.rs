@@ -448,7 +448,7 @@ impl IrlRunConfig {
             mlp_reward_l2: 1e-3,
             smirl_reward_lr: 0.1,
             smirl_reward_l2: 0.05,
-            smirl_normalisation: SmirlNormalisation::Visits,
+            smirl_normalisation: SmirlNormalisation::EventGatedVisits,
             smirl_label_features: LabelFeatures::State,
             smirl_shaping: 1.0,
             // SMIRL's final policy: four candidates 5 000 SAC steps apart on the final reward
