@@ -150,12 +150,9 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
             )));
         }
         for &u in &r.zero_states {
-            reward.zero_state(u).map_err(|e| {
-                usage(format!(
-                    "--zero-state {u}: {e} (the learned machine has {} states)",
-                    machine.n_states()
-                ))
-            })?;
+            reward
+                .zero_state(u)
+                .map_err(|e| usage(format!("--zero-state {u}: {e}")))?;
         }
         Reward::Linear(reward)
     } else {
