@@ -434,6 +434,11 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
         &retrain(&["--steps", "400", "--zero-state", "999"]),
         "--zero-state 999",
     );
+    // Regression: a state past u32 was cast down and wrapped onto state 1.
+    usage_error(
+        &retrain(&["--steps", "400", "--zero-state", "4294967297"]),
+        "--zero-state 4294967297",
+    );
     ok(&retrain(&[
         "--steps",
         "400",

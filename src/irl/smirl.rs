@@ -489,7 +489,8 @@ impl LinearRmReward {
     /// Sets w_u to zero: the state pays nothing (a diagnostic: does this state's reward mislead
     /// the agent?).
     pub fn zero_state(&mut self, u: usize) -> Result<(), RewardError> {
-        let u = check_state(u as u32, self.n_states)?;
+        // A state beyond u32 is out of range too: no cast may wrap it onto a real one.
+        let u = check_state(u32::try_from(u).unwrap_or(u32::MAX), self.n_states)?;
         let k = self.features.len();
         self.weights[u * k..(u + 1) * k].fill(0.0);
         Ok(())
