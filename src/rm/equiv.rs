@@ -189,18 +189,7 @@ pub fn state_counts(
 }
 
 fn reachable_states(rm: &RewardMachine, letters: &[LabelSet]) -> Vec<usize> {
-    let mut seen = vec![false; rm.n_states()];
-    seen[rm.initial()] = true;
-    let mut stack = vec![rm.initial()];
-    while let Some(u) = stack.pop() {
-        for &l in letters {
-            let v = rm.next_state(u, l);
-            if !seen[v] {
-                seen[v] = true;
-                stack.push(v);
-            }
-        }
-    }
+    let seen = rm.reachable_on(letters);
     (0..rm.n_states()).filter(|&u| seen[u]).collect()
 }
 

@@ -218,11 +218,16 @@ impl RewardMachine {
             .all_label_sets()
             .filter(|l| l.0 & events.0 == 0)
             .collect();
+        self.reachable_on(&letters)
+    }
+
+    /// Per state, whether it is reachable from the initial state reading only `letters`.
+    pub fn reachable_on(&self, letters: &[LabelSet]) -> Vec<bool> {
         let mut seen = vec![false; self.n_states()];
         seen[self.initial] = true;
         let mut stack = vec![self.initial];
         while let Some(u) = stack.pop() {
-            for &l in &letters {
+            for &l in letters {
                 let v = self.next_state(u, l);
                 if !seen[v] {
                     seen[v] = true;
