@@ -135,8 +135,8 @@ FINAL_HELDOUT = [
     (f"base {b}, event stutter, final policy", f"heldout/event-stutter-seeds{b}-{{task}}")
     for b in (3, 6, 9, 12, 15, 21, 24, 27, 30, 33)] + [
     # Shared visits (ablations/shared_visits.toml): Composite at bases 3 and 6 only (stopped
-    # once its tuning rule had failed). Event-gated visits (ablations/event_gated_visits.toml):
-    # Composite at every base 3-33.
+    # once its tuning rule had failed). Event-gated visits (ablations/event_gated_visits.toml,
+    # the standard since): every task at every base 3-33.
     (f"base {b}, shared visits, final policy", f"heldout/shared-visits-seeds{b}-{{task}}")
     for b in (3, 6)] + [
     (f"base {b}, event-gated visits, final policy", f"heldout/event-gated-seeds{b}-{{task}}")
