@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Builds experiments/reacher/results.md from the run directories (every number from a script):
 # SMIRL's settings of issue 13 (results_smirl.md's prose, figure7.py's tables of
-# runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final, smirl_settings.py's
-# table of every setting tried and the held-out runs),
+# runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final (the standards before
+# event-gated visits) and of the current standard's tuning runs, smirl_settings.py's
+# table of every setting tried and the held-out runs, half_plateaus.py's OR plateaus, which
+# prepares machines with REACHER_BIN, default target/release/reacher),
 # figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
 # figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>,
 # progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised),
@@ -16,10 +18,15 @@ cd "$(dirname "$0")"
   cat results_smirl.md
   printf '\n### SMIRL in figure 7 (`python3 experiments/reacher/figure7.py runs/<task>-shaped`)\n'
   python3 figure7.py runs/or-shaped runs/sequential-shaped runs/if-shaped runs/composite-shaped
-  printf '\n### SMIRL'"'"'s final policy on figure 7'"'"'s seeds (`python3 experiments/reacher/figure7.py --final-only runs/<task>-final`)\n'
+  printf '\n### SMIRL'"'"'s final policy on figure 7'"'"'s seeds, the standard of *SMIRL'"'"'s final policy* (before event stutter and event-gated visits; `python3 experiments/reacher/figure7.py --final-only runs/<task>-final`)\n'
   python3 figure7.py --final-only runs/or-final runs/sequential-final runs/if-final runs/composite-final
+  printf '\n### SMIRL'"'"'s final policy under the current standard (event-gated visits; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; `python3 experiments/reacher/figure7.py --final-only ablations/runs/event_gated_visits-seeds0to5-<task>`)\n'
+  python3 figure7.py --final-only ablations/runs/event_gated_visits-seeds0to5-or ablations/runs/event_gated_visits-seeds0to5-sequential \
+    ablations/runs/event_gated_visits-seeds0to5-if ablations/runs/event_gated_visits-seeds0to5-composite
   printf '\n### Every SMIRL setting tried, and held out (`python3 experiments/reacher/smirl_settings.py`)\n\n'
   python3 smirl_settings.py
+  printf '\n### Half plateaus of SMIRL'"'"'s OR jobs, held out (`python3 experiments/reacher/half_plateaus.py --heldout`)\n\n'
+  python3 half_plateaus.py --heldout "${REACHER_BIN:-../../target/release/reacher}"
   echo
   cat results_figure7.md
   printf '\n### Figure 7 tables (`python3 experiments/reacher/figure7.py runs/<task>-schedules`)\n'

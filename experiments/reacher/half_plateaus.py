@@ -1,0 +1,162 @@
+#!/usr/bin/env python3
+"""Where does an OR job sit at about half success, and does its learned machine split the task
+by the cancel?
+
+Usage: python3 experiments/reacher/half_plateaus.py RUN_DIR... [--write FILE]
+       python3 experiments/reacher/half_plateaus.py --heldout [REACHER_BIN]
+         (OR held out at bases 3-33, the previous standard's runs and event-gated visits';
+         each base's machine from `reacher prepare` with config.toml, well under a second, the
+         one its sweeps learned; make_results.sh puts it in results.md. REACHER_BIN
+         defaults to target/release/reacher.)
+
+OR's perfect machine ignores the cancel, but a learned machine may keep "red touched" before
+and after a cancel in two states, each with its own reward weights. A policy that has lost the
+no-cancel copy and kept the other succeeds in exactly the evaluation episodes whose cancel
+fires, about half of them (`reacher replay <run>/logs/smirl_seed<S>.mcap`: failing episodes
+touch nothing, `labels []`). This script only counts, from each job's ground-truth success per
+IRL iteration (metrics.csv, on disk or in the consolidated heldout/metrics.csv.gz):
+
+  solved    iterations with success >= 0.9
+  half      iterations with success in [0.40, 0.60] after the first solved one
+  last      success of the last iteration
+  reported  success of the reported final policy (final_policy.csv, the chosen candidate)
+
+and, where the run's machine is on disk (rm/learned.txt), its state count and whether it
+splits: red touched alone on step 5 ends in another state than the same touch after a cancel
+on step 2. The last lines count per setting (the run name without its `-seeds<B>` part).
+"""
+import collections
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cancel_probe  # noqa: E402
+import rundata  # noqa: E402
+
+SOLVED = 0.9
+HALF = (0.40, 0.60)
+HERE = os.path.dirname(os.path.abspath(__file__))
+BASES = range(3, 34, 3)
+# The previous standard's OR runs (event stutter changed no OR machine, so these are its jobs)
+# and the standard's.
+HELDOUT = ([os.path.join(HERE, "heldout", "final-or")]
+           + [os.path.join(HERE, "heldout", f"final-seeds{b}-or") for b in BASES if b != 3]
+           + [os.path.join(HERE, "heldout", f"event-gated-seeds{b}-or") for b in BASES])
+HEADER = """`final-…` are the previous standard's jobs, `event-gated-…` the standard's (the script's doc
+says what each column counts). The machine columns are each base's OR machine, prepared
+afresh: the same at a base under both standards (neither change touches LRM).
+
+"""
+
+
+def machine(run):
+    """(learned states, splits red by the cancel) of run/rm/learned.txt, None when it is not on
+    disk."""
+    path = os.path.join(run, "rm", "learned.txt")
+    if not os.path.isfile(path):
+        return None
+    learned = cancel_probe.load_machine(path)
+    states = 1 + max([u for e in learned[1] for u in e[:2]] + [0])
+    plain = [""] * 12
+    plain[4] = "r"
+    cancelled = list(plain)
+    cancelled[1] = "c"
+    return states, cancel_probe.end_state(learned, plain) != cancel_probe.end_state(learned, cancelled)
+
+
+def reported(run, seed):
+    try:
+        rows = rundata.table(run, "final_policy.csv")
+    except FileNotFoundError:
+        return None
+    chosen = [r for r in rows if r["algo"] == "smirl" and r["seed"] == seed and r["chosen"] == "1"]
+    return float(chosen[0]["success_rate"]) if chosen else None
+
+
+def setting(run):
+    name = os.path.basename(os.path.normpath(run))
+    parts = name.split("-")
+    return "-".join(p for p in parts if not p.startswith("seeds"))
+
+
+def base_seed(run):
+    m = re.search(r"seeds(\d+)", os.path.basename(os.path.normpath(run)))
+    return int(m[1]) if m else 3
+
+
+def prepared_machines(binary, tmp):
+    """{base: its OR machine's prepared run directory} for the held-out bases."""
+    dirs = {}
+    for b in BASES:
+        out = os.path.join(tmp, f"or-{b}")
+        subprocess.run([binary, "prepare", "--task", "or", "--algo", "smirl", "--seed", str(b),
+                        "--seeds", "1", "--config", os.path.join(HERE, "config.toml"),
+                        "--out", out, "--quiet"], check=True, stdout=subprocess.DEVNULL)
+        dirs[b] = out
+    return dirs
+
+
+def main(argv):
+    if argv and argv[0] == "--heldout":
+        binary = argv[1] if len(argv) > 1 else os.path.join(HERE, "..", "..", "target", "release", "reacher")
+        if not os.path.isfile(binary):
+            sys.exit(f"half_plateaus.py: {binary}: no such program (cargo build --release, or pass REACHER_BIN)")
+        with tempfile.TemporaryDirectory() as tmp:
+            machines = prepared_machines(binary, tmp)
+            out = report(HELDOUT, lambda run: machine(machines[base_seed(run)]))
+        print(HEADER + out, end="")
+        return
+    write = None
+    if "--write" in argv:
+        i = argv.index("--write")
+        if i + 1 >= len(argv):
+            sys.exit("half_plateaus.py: --write needs a FILE")
+        write = argv[i + 1]
+        argv = argv[:i] + argv[i + 2:]
+    if not argv:
+        sys.exit(__doc__)
+    out = report(argv, machine)
+    if write:
+        with open(write, "w") as f:
+            f.write(out)
+    print(out, end="")
+
+
+def report(runs, machine_of):
+    """The per-job table and the per-setting counts of `runs`, as markdown."""
+    lines = ["| run | seed | learned states | splits red by the cancel | solved | half | last | reported |",
+             "|---|---|---|---|---|---|---|---|"]
+    totals = collections.OrderedDict()
+    for run in runs:
+        rows = [r for r in rundata.metrics(run) if r["algo"] == "smirl"]
+        shape = machine_of(run)
+        for seed in sorted({r["seed"] for r in rows}, key=int):
+            success = [float(r["success_rate"]) for r in
+                       sorted((r for r in rows if r["seed"] == seed), key=lambda r: int(r["iteration"]))]
+            first = next((i for i, s in enumerate(success) if s >= SOLVED), len(success))
+            solved = sum(s >= SOLVED for s in success)
+            half = sum(HALF[0] <= s <= HALF[1] for s in success[first:])
+            final = reported(run, seed)
+            t = totals.setdefault(setting(run), [0, 0, 0, 0, 0])
+            t[0] += 1
+            t[1] += half > 0
+            t[2] += HALF[0] <= success[-1] <= HALF[1]
+            t[3] += final is not None and HALF[0] <= final <= HALF[1]
+            t[4] += final is not None and final < SOLVED
+            lines.append(f"| {os.path.basename(os.path.normpath(run))} | {seed} | "
+                         f"{shape[0] if shape else '–'} | "
+                         f"{('yes' if shape[1] else 'no') if shape else '–'} | {solved} | {half} | "
+                         f"{success[-1]:.2f} | {'–' if final is None else f'{final:.2f}'} |")
+    lines.append("")
+    lines.append("| setting | jobs | with a half plateau | last iteration on one | reported policy on one | reported < 0.9 |")
+    lines.append("|---|---|---|---|---|---|")
+    for name, (jobs, any_half, last_half, reported_half, failed) in totals.items():
+        lines.append(f"| {name} | {jobs} | {any_half} | {last_half} | {reported_half} | {failed} |")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
