@@ -493,6 +493,103 @@ fn smirl_label_features_key_reads_old_configs_as_state_labels() {
     assert!(err.contains("c.toml") && err.contains("edges"), "{err}");
 }
 
+/// `smirl_machine`: a config without the key reads as LRM's machine (what every run before the
+/// key used) and is written without it; `"task"` is written back; a bad value names the file
+/// and the value.
+#[test]
+fn smirl_machine_key_reads_old_configs_as_the_learned_machine() {
+    use smirl::pipeline::reacher_irl::SmirlMachine;
+    let standard = IrlRunConfig::standard();
+    let text = standard.to_toml();
+    assert!(
+        !text.contains("smirl_machine"),
+        "the default is not written"
+    );
+    assert_eq!(standard.smirl_machine, SmirlMachine::Learned);
+    let task = format!("smirl_machine = \"task\"\n{text}");
+    let c = IrlRunConfig::from_toml(&task, "c.toml").unwrap();
+    assert_eq!(c.smirl_machine, SmirlMachine::Task);
+    assert_eq!(c.smirl_machine.name(), "task");
+    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
+    let bad = format!("smirl_machine = \"perfect\"\n{text}");
+    let err = IrlRunConfig::from_toml(&bad, "c.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("c.toml") && err.contains("perfect"), "{err}");
+}
+
+/// `smirl_machine = "task"`: the machine SMIRL reads is the task's own with no goal, no failure
+/// sink and no rewards — every task's perfect machine's states along any trace until it ends,
+/// then it stays — and a run prepared with it writes that machine, says so in its report, and
+/// its SMIRL job runs on it.
+#[test]
+fn task_machine_is_the_perfect_machine_without_its_ends() {
+    use smirl::pipeline::reacher_irl::smirl::task_machine;
+    use smirl::rm::format::parse_rm;
+    use smirl::rm::LabelSet;
+    for task in [
+        ReacherTask::Or,
+        ReacherTask::Sequential,
+        ReacherTask::If,
+        ReacherTask::Composite,
+    ] {
+        let perfect = task.perfect_rm().unwrap();
+        let m = task_machine(&perfect).unwrap();
+        assert_eq!(m.n_states(), perfect.n_states(), "{task}");
+        assert!(m.terminal_states().is_empty() && m.failure_states().is_empty());
+        // Every label-set sequence of length 3 over the vocabulary: the same states while the
+        // perfect machine runs, no reward anywhere.
+        let sets: Vec<LabelSet> = perfect.vocab().all_label_sets().collect();
+        for &a in &sets {
+            for &b in &sets {
+                for &c in &sets {
+                    let (mut u, mut v) = (perfect.initial(), m.initial());
+                    for l in [a, b, c] {
+                        if perfect.is_absorbing(u) {
+                            assert_eq!(m.next_state(v, l), v, "{task}: an end state stays");
+                            continue;
+                        }
+                        assert_eq!(m.reward(v, l), 0.0);
+                        u = perfect.next_state(u, l);
+                        v = m.next_state(v, l);
+                        assert_eq!(u, v, "{task}");
+                    }
+                }
+            }
+        }
+    }
+
+    let tmp = tempfile::tempdir().unwrap();
+    let mut config = tiny_config();
+    config.smirl_machine = smirl::pipeline::reacher_irl::SmirlMachine::Task;
+    let request = RunRequest {
+        task: ReacherTask::Or,
+        algos: vec![Algo::Smirl],
+        seeds: 1,
+        seed: 3,
+        config,
+        out: tmp.path().join("run"),
+        force: false,
+    };
+    let summary = run_pipeline(&request, &Silent).unwrap();
+    assert_eq!(summary.rm.as_ref().unwrap().learned_states, 3);
+    assert!(summary.rm.as_ref().unwrap().refines_perfect);
+    let dir = tmp.path().join("run");
+    let text = std::fs::read_to_string(dir.join("rm/learned.txt")).unwrap();
+    let written = parse_rm(&text, "learned.txt").unwrap();
+    assert_eq!(
+        written,
+        task_machine(&ReacherTask::Or.perfect_rm().unwrap()).unwrap()
+    );
+    let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
+    assert!(report.contains("smirl_machine = \"task\""), "{report}");
+    let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    assert!(
+        metrics.lines().skip(1).any(|l| l.starts_with("smirl,3,")),
+        "{metrics}"
+    );
+}
+
 /// Keys missing from `[sac]` come from the IRL runs' SAC, not from the paper's preset; a
 /// `preset` key switches the base.
 #[test]

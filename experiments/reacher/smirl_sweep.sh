@@ -23,6 +23,9 @@
 # prepare.json lists seeds the sweep did not run.
 #
 #   SAC_SEEDS="3 4 5" ALGOS=smirl experiments/reacher/smirl_sweep.sh 'experiments/reacher/ablations/runs/standard-seeds3to5-{task}' 0
+#
+# MACHINE=task: CONFIG with `smirl_machine = "task"` (a copy in a temporary file): SMIRL reads
+# the task's own machine instead of LRM's — an oracle for diagnosis, not the method.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${1:?usage: smirl_sweep.sh OUT [BASE], OUT with the text {task\}}
@@ -38,6 +41,15 @@ if [ -n "${SAC_SEEDS:-}" ]; then
   last=$(printf '%s\n' $SAC_SEEDS | sort -n | tail -1)
   if [ "$last" -lt "$BASE" ]; then echo "SAC_SEEDS must be >= BASE ($BASE)" >&2; exit 2; fi
 fi
+case ${MACHINE:-learned} in
+  learned) ;;
+  task)
+    task_config=$(mktemp)
+    trap 'rm -f "$task_config"' EXIT
+    { echo 'smirl_machine = "task"'; cat "$CONFIG"; } > "$task_config"
+    CONFIG=$task_config ;;
+  *) echo "MACHINE: '$MACHINE' is neither 'learned' nor 'task'" >&2; exit 2 ;;
+esac
 for task in ${TASKS:-or sequential if composite}; do
   out=${OUT//\{task\}/$task}
   mkdir -p "$(dirname "$out")"

@@ -34,6 +34,32 @@ impl DemoSource {
     }
 }
 
+/// The reward machine SMIRL's jobs read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SmirlMachine {
+    /// LRM's, learned from the demonstrations: the method.
+    #[default]
+    Learned,
+    /// The task's own machine (`rm::perfect`) with its goal and failure states made ordinary
+    /// absorbing states and its rewards zero, so that episodes run on as with a learned
+    /// machine: an oracle for diagnosis, telling what the learned machine's shape costs.
+    Task,
+}
+
+impl SmirlMachine {
+    pub fn name(self) -> &'static str {
+        match self {
+            SmirlMachine::Learned => "learned",
+            SmirlMachine::Task => "task",
+        }
+    }
+
+    pub fn is_learned(&self) -> bool {
+        *self == SmirlMachine::Learned
+    }
+}
+
 /// When the demonstrations' cancel events fire.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -137,6 +163,11 @@ pub struct IrlRunConfig {
     /// a state the agent's batch does not visit: every such state / only those that need the
     /// cancel to enter; see `irl::smirl::maxent_coefficients_by_shared_visits`).
     pub smirl_normalisation: SmirlNormalisation,
+    /// The machine SMIRL reads: `"learned"` (LRM's) or `"task"` (the task's own, an oracle
+    /// for diagnosis; see [`SmirlMachine`]). A config without the key is read as
+    /// `"learned"`. Omitted from written configs when `"learned"`.
+    #[serde(default, skip_serializing_if = "SmirlMachine::is_learned")]
+    pub smirl_machine: SmirlMachine,
     /// `smirl`'s label features: `"state"` (L(o) of the state reached, paid on every step a
     /// label holds: the paper's eq. 5) or `"entries"` (the labels that became true on the
     /// step, paid once per entry into a ball). A config without the key is read as
@@ -449,6 +480,7 @@ impl IrlRunConfig {
             smirl_reward_lr: 0.1,
             smirl_reward_l2: 0.05,
             smirl_normalisation: SmirlNormalisation::EventGatedVisits,
+            smirl_machine: SmirlMachine::Learned,
             smirl_label_features: LabelFeatures::State,
             smirl_shaping: 1.0,
             // SMIRL's final policy: four candidates 5 000 SAC steps apart on the final reward

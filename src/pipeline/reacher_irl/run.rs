@@ -20,11 +20,11 @@
 //!   `rewards/<algo>_seed<S>.trace.csv`, the weights and data gradient of every IRL iteration.
 //! - `logs/demos.mcap`, `logs/<algo>_seed<S>.mcap` — demos and sampled agent/eval episodes.
 
-use super::config::{DemoPadding, DemoSource, IrlRunConfig};
+use super::config::{DemoPadding, DemoSource, IrlRunConfig, SmirlMachine};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::final_policy::FinalPolicy;
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
-use super::smirl::{annotate, label_traces, learn_machine, lrm_config};
+use super::smirl::{annotate, label_traces, learn_machine, lrm_config, task_machine};
 use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::{EVENTS, VOCABULARY};
@@ -358,7 +358,20 @@ pub fn prepare(
     let mut rm_facts = None;
     let learned = if algos.iter().any(|a| a.uses_rm()) {
         observer.phase("lrm");
-        let (rm, cost, secs) = learn_machine(&demos, config, seed).map_err(PipelineError::Run)?;
+        let lrm = lrm_config(config, seed);
+        let (rm, cost, secs) = match config.smirl_machine {
+            SmirlMachine::Learned => {
+                learn_machine(&demos, config, seed).map_err(PipelineError::Run)?
+            }
+            SmirlMachine::Task => {
+                let rm = task_machine(&perfect).map_err(PipelineError::Run)?;
+                let cost =
+                    trace_cost(&rm, &label_traces(&demos), stutter_events(&lrm)).map_err(|e| {
+                        PipelineError::Run(format!("LRM cost of the task's machine: {e}"))
+                    })?;
+                (rm, cost, 0.0)
+            }
+        };
         let traces: Vec<Vec<LabelSet>> = demos.iter().map(|d| d.labels()).collect();
         let r = refines(&rm, &perfect, traces.iter().map(|t| t.as_slice()));
         let counts = state_counts(&rm, None).map_err(|e| PipelineError::Run(e.to_string()))?;
@@ -373,6 +386,13 @@ pub fn prepare(
             lrm_secs: secs,
         };
         let mut report = String::new();
+        if config.smirl_machine == SmirlMachine::Task {
+            let _ = writeln!(
+                report,
+                "smirl_machine = \"task\": the \"learned\" machine below is the task's own \
+                 (goal and failure states made ordinary, rewards 0), not LRM's: an oracle"
+            );
+        }
         let _ = writeln!(
             report,
             "learned machine: {} states ({} reachable); perfect machine: {} states",
@@ -388,7 +408,6 @@ pub fn prepare(
         );
         // The perfect machine's cost on the same traces says whether a machine that fails to
         // refine the task lost the search or won it (LRM's objective prefers it).
-        let lrm = lrm_config(config, seed);
         let perfect_cost = trace_cost(&perfect, &label_traces(&demos), stutter_events(&lrm))
             .map_err(|e| PipelineError::Run(format!("LRM cost of the perfect machine: {e}")))?;
         let _ = writeln!(
@@ -970,6 +989,7 @@ fn write_reports(
         "demo_cancel": config.demo_cancel.name(),
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
+        "smirl_machine": config.smirl_machine.name(),
         "smirl_label_features": config.smirl_label_features.name(),
         "smirl_shaping": config.smirl_shaping,
         "smirl_counterfactual": config.smirl_counterfactual,

@@ -2,7 +2,8 @@
 //! place:
 //!
 //! 1. **Learn the machine** ([`learn_machine`]): LRM's Tabu search on the demonstrations' label
-//!    traces, without rewards (rewards are what IRL learns).
+//!    traces, without rewards (rewards are what IRL learns). (`smirl_machine = "task"`: the
+//!    task's own machine instead, [`task_machine`], an oracle for diagnosis.)
 //! 2. **Annotate** ([`annotate`]): every expert observation o_t gets the learned state
 //!    u_{t−1} its labels are read in (demonstrations held at their final state to the
 //!    horizon, so expert and agent are compared over one T).
@@ -40,7 +41,7 @@ use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
 use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig, DEFAULT_PATIENCE, DEFAULT_STARTS};
-use crate::rm::{LabelSet, RewardMachine, Vocabulary};
+use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
 
 /// Observation columns of the two joint velocities (see `env::reacher`).
 const OBS_JOINT_VEL: [usize; 2] = [4, 5];
@@ -57,6 +58,30 @@ pub fn learn_machine(
     let cfg = lrm_config(config, seed);
     let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
+}
+
+/// The task's own machine as SMIRL reads it under `smirl_machine = "task"`: the perfect
+/// machine's states and guards with no goal or failure state and no rewards — what a learned
+/// machine looks like — so that episodes run on past the goal as they do with LRM's machine
+/// and only the machine's shape differs.
+pub fn task_machine(perfect: &RewardMachine) -> Result<RewardMachine, String> {
+    let transitions = perfect
+        .transitions()
+        .iter()
+        .map(|t| Transition {
+            reward: 0.0,
+            ..t.clone()
+        })
+        .collect();
+    RewardMachine::new(
+        perfect.vocab().clone(),
+        perfect.n_states(),
+        perfect.initial(),
+        &[],
+        &[],
+        transitions,
+    )
+    .map_err(|e| format!("the task's machine: {e}"))
 }
 
 /// The learner's settings of a run (`seed`: the search's).
