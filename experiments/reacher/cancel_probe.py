@@ -26,7 +26,14 @@ touches) flags nearly every machine, including the ones whose jobs all succeed.
 
 Prints one row per run: run, task, learned states, holes / separated probes, and the holes
 as X@s:c.
+
+       python3 experiments/reacher/cancel_probe.py --demos RUN_DIR...
+         (the other side of a hole: how many of the run's demonstrations, logs/demos.mcap read
+         by `reacher replay` — REACHER_BIN, default target/release/reacher — show a cancel
+         after their first touch of red or green and before their first touch of blue, the
+         history a hole would have to be learned from. One row per run.)
 """
+import os
 import re
 import subprocess
 import sys
@@ -186,7 +193,40 @@ def prepare_all(binary):
         return table(runs, names)
 
 
+def touches(labels):
+    """{proposition: first step} of a `reacher replay` label list such as `c@2 r@6–7 b@15`."""
+    first = {}
+    for token in labels.split():
+        props, at = token.split("@", 1)
+        step = int(re.split(r"[–-]", at)[0])
+        for p in props:
+            first.setdefault(p, step)
+    return first
+
+
+def demos_table(runs):
+    binary = os.environ.get("REACHER_BIN", str(REPO / "target/release/reacher"))
+    rows = ["| run | demonstrations | cancel after red/green, before blue |", "|---|---|---|"]
+    for run in runs:
+        log = Path(run) / "logs" / "demos.mcap"
+        out = subprocess.run([binary, "replay", str(log)], check=True, capture_output=True, text=True).stdout
+        episodes = re.findall(r"^episode .*labels \[([^\]]*)\]", out, re.M)
+        late = 0
+        for labels in episodes:
+            t = touches(labels)
+            ball = min([t[b] for b in "rg" if b in t], default=None)
+            blue = t.get("b", float("inf"))
+            late += ball is not None and "c" in t and ball < t["c"] < blue
+        rows.append(f"| {run} | {len(episodes)} | {late} |")
+    return "\n".join(rows) + "\n"
+
+
 def main(argv):
+    if argv and argv[0] == "--demos":
+        if len(argv) < 2:
+            sys.exit(__doc__)
+        print(demos_table(argv[1:]), end="")
+        return
     if argv and argv[0] == "--all":
         binary = argv[1] if len(argv) > 1 else str(REPO / "target/release/reacher")
         out = HEADER + prepare_all(binary)
