@@ -2,7 +2,7 @@
 """Where does an OR job sit at about half success, and does its learned machine split the task
 by the cancel?
 
-Usage: python3 experiments/reacher/half_plateaus.py RUN_DIR... [--write FILE]
+Usage: python3 experiments/reacher/half_plateaus.py RUN_DIR...
        python3 experiments/reacher/half_plateaus.py --heldout [REACHER_BIN]
          (OR held out at bases 3-33, the previous standard's runs and event-gated visits';
          each base's machine from `reacher prepare` with config.toml, well under a second, the
@@ -109,20 +109,9 @@ def main(argv):
             out = report(HELDOUT, lambda run: machine(machines[base_seed(run)]))
         print(HEADER + out, end="")
         return
-    write = None
-    if "--write" in argv:
-        i = argv.index("--write")
-        if i + 1 >= len(argv):
-            sys.exit("half_plateaus.py: --write needs a FILE")
-        write = argv[i + 1]
-        argv = argv[:i] + argv[i + 2:]
-    if not argv:
+    if not argv or argv[0].startswith("-"):
         sys.exit(__doc__)
-    out = report(argv, machine)
-    if write:
-        with open(write, "w") as f:
-            f.write(out)
-    print(out, end="")
+    print(report(argv, machine), end="")
 
 
 def report(runs, machine_of):

@@ -140,7 +140,12 @@ FINAL_HELDOUT = [
     (f"base {b}, shared visits, final policy", f"heldout/shared-visits-seeds{b}-{{task}}")
     for b in (3, 6)] + [
     (f"base {b}, event-gated visits, final policy", f"heldout/event-gated-seeds{b}-{{task}}")
-    for b in range(3, 34, 3)]
+    for b in range(3, 34, 3)] + [
+    # The task's own machine (smirl_machine = "task", smirl_sweep.sh MACHINE=task): an oracle
+    # for diagnosis, not a setting to choose — OR at its half-plateau bases, IF and Composite
+    # at their cancel-hole bases, Sequential at its unrefined-machine bases.
+    (f"base {b}, task machine (oracle), final policy", f"heldout/task-machine-seeds{b}-{{task}}")
+    for b in (6, 9, 12, 18, 21, 30, 33)]
 
 
 def jobs(run):
