@@ -13,7 +13,15 @@
 # the uniform-schedule OR and Sequential runs (progress.py) and the earlier sessions' notes
 # (results_notes.md).
 set -euo pipefail
+# REACHER_BIN as given from the caller's directory (before the cd below); the default is the
+# checkout's build.
+bin=${REACHER_BIN:-$(dirname "$0")/../../target/release/reacher}
+case $bin in /*) ;; */*) bin=$PWD/$bin ;; esac
 cd "$(dirname "$0")"
+# Written beside results.md and moved over it only when every script succeeded, so a failing
+# script leaves the previous results.md whole.
+out=$(mktemp results.md.XXXXXX)
+trap 'rm -f "$out"' EXIT
 {
   cat results_smirl.md
   printf '\n### SMIRL in figure 7 (`python3 experiments/reacher/figure7.py runs/<task>-shaped`)\n'
@@ -26,7 +34,7 @@ cd "$(dirname "$0")"
   printf '\n### Every SMIRL setting tried, and held out (`python3 experiments/reacher/smirl_settings.py`)\n\n'
   python3 smirl_settings.py
   printf '\n### Half plateaus of SMIRL'"'"'s OR jobs, held out (`python3 experiments/reacher/half_plateaus.py --heldout`)\n\n'
-  python3 half_plateaus.py --heldout "${REACHER_BIN:-../../target/release/reacher}"
+  python3 half_plateaus.py --heldout "$bin"
   echo
   cat results_figure7.md
   printf '\n### Figure 7 tables (`python3 experiments/reacher/figure7.py runs/<task>-schedules`)\n'
@@ -52,4 +60,6 @@ cd "$(dirname "$0")"
   done
   echo
   cat results_notes.md
-} > results.md
+} > "$out"
+chmod 644 "$out"
+mv "$out" results.md
