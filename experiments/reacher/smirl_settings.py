@@ -136,11 +136,12 @@ FINAL_HELDOUT = [
     for b in (3, 6, 9, 12, 15, 21, 24, 27, 30, 33)] + [
     # Shared visits (ablations/shared_visits.toml): Composite at bases 3 and 6 only (stopped
     # once its tuning rule had failed). Event-gated visits (ablations/event_gated_visits.toml,
-    # the standard since): every task at every base 3-33.
+    # the standard since): every task at every base 3-33; IF and Composite at 36-45 and OR and
+    # Sequential at 36 were run after the whole study (bases never looked at before).
     (f"base {b}, shared visits, final policy", f"heldout/shared-visits-seeds{b}-{{task}}")
     for b in (3, 6)] + [
     (f"base {b}, event-gated visits, final policy", f"heldout/event-gated-seeds{b}-{{task}}")
-    for b in range(3, 34, 3)] + [
+    for b in range(3, 46, 3)] + [
     # The task's own machine (smirl_machine = "task", smirl_sweep.sh MACHINE=task): an oracle
     # for diagnosis, not a setting to choose — OR at its half-plateau bases, IF and Composite
     # at their cancel-hole bases, Sequential at its unrefined-machine bases.
