@@ -487,10 +487,7 @@ fn smirl_label_features_key_reads_old_configs_as_state_labels() {
         FeatureMap::reacher_smooth(c.smooth_sigma).unwrap()
     );
     let bad = text.replace(&line, "smirl_label_features = \"edges\"");
-    let err = IrlRunConfig::from_toml(&bad, "c.toml")
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("c.toml") && err.contains("edges"), "{err}");
+    assert_config_error_names(&bad, "edges");
 }
 
 /// `smirl_machine`: a config without the key reads as LRM's machine (what every run before the
@@ -512,10 +509,16 @@ fn smirl_machine_key_reads_old_configs_as_the_learned_machine() {
     assert_eq!(c.smirl_machine.name(), "task");
     assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
     let bad = format!("smirl_machine = \"perfect\"\n{text}");
-    let err = IrlRunConfig::from_toml(&bad, "c.toml")
+    assert_config_error_names(&bad, "perfect");
+}
+
+/// `text`, read as the config file `c.toml`, is refused with an error naming the file and
+/// `value`.
+fn assert_config_error_names(text: &str, value: &str) {
+    let err = IrlRunConfig::from_toml(text, "c.toml")
         .unwrap_err()
         .to_string();
-    assert!(err.contains("c.toml") && err.contains("perfect"), "{err}");
+    assert!(err.contains("c.toml") && err.contains(value), "{err}");
 }
 
 /// `smirl_machine = "task"`: the machine SMIRL reads is the task's own with no goal, no failure
