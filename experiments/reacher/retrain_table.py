@@ -140,27 +140,24 @@ def table():
               f"| {'' if lr == '' else f'{float(lr):.1f}'} | {r['retrain_steps']} |")
 
 
-
 def fresh_candidate():
     """SMIRL's final-policy choice if the fresh agent (SAC seed 1000, no zeroed state) were one
     more candidate, chosen by the same learned return: for every retrained job whose final-policy
     candidates are on record. A simulation from the tables: the fresh agent's learned return is
     scored on its evaluation episodes, the candidates' on their selection episodes (the same
     reward and protocol: mean action, every episode to the time limit, 20 episodes)."""
-    fresh = {}
-    for r in read():
-        if r["sac_seed"] == "1000" and not r.get("zeroed_states") and r["retrained_learned_return"]:
-            fresh[(r["run"], r["algo"], int(r["seed"]))] = r
-    rows = []
-    for (run, algo, seed), f in fresh.items():
-        candidates = rundata.final_policy(os.path.join(here, run)).get((algo, seed))
-        if candidates:
-            rows.append((run, algo, seed, rundata.chosen(candidates), f))
     print("\nThe final policy with the fresh agent as one more candidate (SAC seed 1000; chosen,")
     print("as the job's own, by the highest learned return):\n")
     print("| run | algorithm | seed | reported policy (learned return) | fresh agent (learned return) | choice with the fresh agent |")
     print("|---|---|---|---|---|---|")
-    for run, algo, seed, c, f in rows:
+    for f in read():
+        if f["sac_seed"] != "1000" or f.get("zeroed_states") or not f["retrained_learned_return"]:
+            continue
+        run, algo, seed = f["run"], f["algo"], int(f["seed"])
+        candidates = rundata.final_policy(os.path.join(here, run)).get((algo, seed))
+        if not candidates:
+            continue
+        c = rundata.chosen(candidates)
         own = cell(c["success_rate"], c["success_normal"], c["success_cancel"])
         new = cell(f["retrained_success"], f["retrained_normal"], f["retrained_cancel"])
         lc, lf = float(c["learned_return"]), float(f["retrained_learned_return"])

@@ -137,7 +137,7 @@ FINAL_HELDOUT = [
     # Shared visits (ablations/shared_visits.toml): Composite at bases 3 and 6 only (stopped
     # once its tuning rule had failed). Event-gated visits (ablations/event_gated_visits.toml,
     # the standard since): every task at every base 3-33; IF and Composite at 36-45 and OR and
-    # Sequential at 36 were run after the whole study (bases never looked at before).
+    # Sequential at 36-42 were run after the whole study (bases never looked at before).
     (f"base {b}, shared visits, final policy", f"heldout/shared-visits-seeds{b}-{{task}}")
     for b in (3, 6)] + [
     (f"base {b}, event-gated visits, final policy", f"heldout/event-gated-seeds{b}-{{task}}")
