@@ -5,7 +5,9 @@ use smirl::env::office::{OfficeTask, OfficeWorld};
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines};
 use smirl::rm::lrm::synthetic::{expert_like_traces, ExpertStyle};
-use smirl::rm::lrm::{learn_rm, observed_label_sets, trace_cost, LabelTrace, LrmConfig, LrmError};
+use smirl::rm::lrm::{
+    learn_rm, observed_label_sets, trace_cost, LabelTrace, LrmConfig, LrmError, TraceReading,
+};
 use smirl::rm::transform::restart_on_goal;
 use smirl::rm::{perfect, LabelSet, Vocabulary};
 
@@ -108,7 +110,7 @@ fn refines_office_without_rewards(task: i64) {
     .unwrap();
     let r = refines(&learned.raw, &target, read_prefixes(&traces));
     assert!(r.refines, "office task {task}: {r:?}");
-    assert!(learned.cost < trace_cost(&target, &traces, LabelSet::EMPTY).unwrap());
+    assert!(learned.cost < trace_cost(&target, &traces, TraceReading::default()).unwrap());
 }
 
 #[test]
@@ -256,7 +258,7 @@ fn learned_rewards_are_observed_means_on_a_hand_made_trace() {
 fn trace_cost_of_the_perfect_machine_is_positive_and_learning_does_not_do_worse_on_labels() {
     let p = perfect::load("reacher_sequential").unwrap();
     let traces = expert_like_traces(&p, &ExpertStyle::reacher(), 10_000, 3);
-    let perfect_cost = trace_cost(&p, &traces, LabelSet::EMPTY).unwrap();
+    let perfect_cost = trace_cost(&p, &traces, TraceReading::default()).unwrap();
     assert!(perfect_cost > 0.0);
     let learned = learn_rm(
         p.vocab(),
@@ -269,7 +271,8 @@ fn trace_cost_of_the_perfect_machine_is_positive_and_learning_does_not_do_worse_
     )
     .unwrap();
     assert!(
-        (trace_cost(&learned.raw, &traces, LabelSet::EMPTY).unwrap() - learned.cost).abs() < 1e-6
+        (trace_cost(&learned.raw, &traces, TraceReading::default()).unwrap() - learned.cost).abs()
+            < 1e-6
     );
     assert!(learned.cost <= perfect_cost + 1e-9);
 }
@@ -688,9 +691,14 @@ fn event_stutter_keeps_a_second_red_from_reading_as_blue() {
     // The perfect machine's cost, compressed the same way, is what the learned one is
     // compared with in the run report.
     let perfect = perfect::load("reacher_composite").unwrap();
-    let c = vocab.parse_labels("c").unwrap();
-    assert!(stutter.cost <= trace_cost(&perfect, &traces, c).unwrap() + 1e-9);
-    assert!((trace_cost(&stutter.raw, &traces, c).unwrap() - stutter.cost).abs() < 1e-6);
+    let stutter_reading = TraceReading {
+        stutter_events: vocab.parse_labels("c").unwrap(),
+        ..TraceReading::default()
+    };
+    assert!(stutter.cost <= trace_cost(&perfect, &traces, stutter_reading).unwrap() + 1e-9);
+    assert!(
+        (trace_cost(&stutter.raw, &traces, stutter_reading).unwrap() - stutter.cost).abs() < 1e-6
+    );
 }
 
 /// Event stutter needs the repair that makes the machine stay on the joined steps.

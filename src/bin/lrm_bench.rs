@@ -32,7 +32,7 @@ use smirl::env::office::{OfficeTask, OfficeWorld};
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines, state_counts};
 use smirl::rm::lrm::synthetic::reacher_traces;
-use smirl::rm::lrm::{learn_rm, trace_cost, LabelTrace, LrmConfig};
+use smirl::rm::lrm::{learn_rm, trace_cost, LabelTrace, LrmConfig, TraceReading};
 use smirl::rm::transform::restart_on_goal;
 use smirl::rm::{perfect, LabelSet, RewardMachine};
 use std::time::Instant;
@@ -244,7 +244,7 @@ fn main() -> Result<()> {
                 yn(with_rewards),
                 median(times),
                 learned.cost,
-                trace_cost(target, &traces, LabelSet::EMPTY)?,
+                trace_cost(target, &traces, TraceReading::default())?,
                 learned.raw.n_states(),
                 learned.rm.n_states(),
                 perf_u,

@@ -240,6 +240,13 @@ pub struct IrlRunConfig {
     /// from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_event_stutter: bool,
+    /// LRM: whether its objective predicts the cancel among the next label sets
+    /// (`rm::lrm::LrmConfig::predict_events`). False: a learned state pays for itself only by
+    /// predicting which ball comes next, not by remembering that the once-per-episode cancel
+    /// has fired. A config without the key is read as true, LRM's objective and what every
+    /// run before the key existed used. Omitted from written configs when true.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub lrm_predict_events: bool,
     /// LRM: how the learned machine reads label sets the demonstrations never showed in a
     /// state (`rm::lrm::Guards`): `"tree"` (events first) or `"exact"` (stay, LRM's
     /// reading). A config without the key is read as `"exact"`, which is what every run
@@ -501,6 +508,7 @@ impl IrlRunConfig {
             lrm_remember_events: false,
             lrm_borrow_events: false,
             lrm_event_stutter: true,
+            lrm_predict_events: true,
             lrm_guards: Guards::Tree,
             log_every_nth_episode: 10,
             threads: 2,
@@ -828,6 +836,14 @@ impl IrlRunConfig {
 
 fn is_zero(x: &u64) -> bool {
     *x == 0
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn is_true(x: &bool) -> bool {
+    *x
 }
 
 fn is_false(x: &bool) -> bool {

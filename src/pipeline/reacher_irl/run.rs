@@ -38,7 +38,7 @@ use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
 use crate::rm::format::parse_rm;
 use crate::rm::format::write_rm;
-use crate::rm::lrm::{stutter_events, trace_cost};
+use crate::rm::lrm::{trace_cost, trace_reading};
 use crate::rm::{LabelSet, RewardMachine};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -366,7 +366,7 @@ pub fn prepare(
             SmirlMachine::Task => {
                 let rm = task_machine(&perfect).map_err(PipelineError::Run)?;
                 let cost =
-                    trace_cost(&rm, &label_traces(&demos), stutter_events(&lrm)).map_err(|e| {
+                    trace_cost(&rm, &label_traces(&demos), trace_reading(&lrm)).map_err(|e| {
                         PipelineError::Run(format!("LRM cost of the task's machine: {e}"))
                     })?;
                 (rm, cost, 0.0)
@@ -408,7 +408,7 @@ pub fn prepare(
         );
         // The perfect machine's cost on the same traces says whether a machine that fails to
         // refine the task lost the search or won it (LRM's objective prefers it).
-        let perfect_cost = trace_cost(&perfect, &label_traces(&demos), stutter_events(&lrm))
+        let perfect_cost = trace_cost(&perfect, &label_traces(&demos), trace_reading(&lrm))
             .map_err(|e| PipelineError::Run(format!("LRM cost of the perfect machine: {e}")))?;
         let _ = writeln!(
             report,

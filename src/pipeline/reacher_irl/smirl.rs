@@ -102,6 +102,7 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
         event_stutter: config.lrm_event_stutter,
+        predict_events: config.lrm_predict_events,
         remember_events: config.lrm_remember_events,
         borrow_events: config.lrm_borrow_events,
         // Starts and patience keep the learner's defaults unless set; split moves always.

@@ -40,11 +40,31 @@ pub(crate) struct Data {
     /// different, nonempty, observed label set (a step reading it joins the entry); `None`
     /// otherwise (always, without event stutter).
     pub stutter_of: Vec<Option<u16>>,
+    /// What the prediction made at each position counts as the next label: `lab[t + 1]`, or,
+    /// with unpredicted events, the next entry whose label set differs from this one's once
+    /// both leave the events out, as the first label id of that set (the position's own when
+    /// no such entry follows; unused at a trace's last position, which predicts nothing).
+    pub next: Vec<u16>,
+}
+
+/// How the learner reads the traces (both empty: LRM's reading).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraceReading {
+    /// Propositions whose dropping is a stutter ([`LrmConfig::event_stutter`]).
+    ///
+    /// [`LrmConfig::event_stutter`]: super::LrmConfig::event_stutter
+    pub stutter_events: LabelSet,
+    /// Propositions the objective does not ask a machine to predict
+    /// ([`LrmConfig::predict_events`]): the next label set is compared without them.
+    ///
+    /// [`LrmConfig::predict_events`]: super::LrmConfig::predict_events
+    pub unpredicted_events: LabelSet,
 }
 
 impl Data {
-    /// `stutter_events`: the propositions whose dropping is a stutter ([`LrmConfig::event_stutter`]
-    /// with the domain's events; empty = plain compression): a step whose label set is the
+    /// `reading.stutter_events`: the propositions whose dropping is a stutter
+    /// ([`LrmConfig::event_stutter`] with the domain's events; empty = plain compression): a
+    /// step whose label set is the
     /// previous entry's without these propositions, and not empty, joins that entry — the
     /// event is over, the lasting propositions it came with still hold (the fingertip is
     /// still on the ball it touched when the cancel fired).
@@ -53,8 +73,9 @@ impl Data {
     pub fn new(
         vocab: &Vocabulary,
         traces: &[LabelTrace],
-        stutter_events: LabelSet,
+        reading: TraceReading,
     ) -> Result<Data, LrmError> {
+        let stutter_events = reading.stutter_events;
         let n_sets = vocab.n_label_sets();
         let mut raw_len = 0;
         let mut seen = vec![false; n_sets];
@@ -164,6 +185,32 @@ impl Data {
             trace_of.extend(std::iter::repeat(k as u32).take(c.len()));
         }
         starts.push(lab.len());
+        let unpredicted = reading.unpredicted_events.0;
+        let class_of: Vec<u16> = labels
+            .iter()
+            .map(|l| {
+                let kept = l.0 & !unpredicted;
+                labels
+                    .iter()
+                    .position(|m| m.0 & !unpredicted == kept)
+                    .unwrap_or(0) as u16
+            })
+            .collect();
+        // The first later entry of the trace that differs from this one once the events are
+        // left out: an entry that only adds or drops an event ("{}, {c}, {}") is no news.
+        // Without unpredicted events that is `lab[t + 1]` (compressed entries differ).
+        let mut next = Vec::with_capacity(lab.len());
+        for k in 0..starts.len() - 1 {
+            let trace = &lab[starts[k]..starts[k + 1]];
+            for (i, &here) in trace.iter().enumerate() {
+                let own = class_of[here as usize];
+                let news = trace[i + 1..]
+                    .iter()
+                    .map(|&l| class_of[l as usize])
+                    .find(|&c| c != own);
+                next.push(news.unwrap_or(own));
+            }
+        }
         Ok(Data {
             labels,
             id_of,
@@ -176,6 +223,7 @@ impl Data {
             trace_of,
             raw_len,
             stutter_of,
+            next,
         })
     }
 

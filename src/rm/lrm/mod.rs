@@ -68,7 +68,7 @@ mod merge;
 mod search;
 pub mod synthetic;
 
-pub use data::MAX_OBSERVED_LABEL_SETS;
+pub use data::{TraceReading, MAX_OBSERVED_LABEL_SETS};
 pub use guards::Guards;
 
 use crate::rm::formula::Formula;
@@ -157,6 +157,15 @@ pub struct LrmConfig {
     /// anywhere at no cost (ReacherDelivery Composite, base seed 24: the learned machine,
     /// costing what the perfect one does, took a second red for blue). Off by default.
     pub event_stutter: bool,
+    /// Ask the machine to predict the events (`events`) among the next label sets, as LRM
+    /// does (true, the default). False: the objective compares next label sets without them,
+    /// so a state pays for itself only by predicting the *other* propositions. Reason: an
+    /// exogenous event that fires at most once per episode (ReacherDelivery's cancel) is
+    /// predicted better by a machine that remembers it fired — "no second cancel" — whatever
+    /// the expert does, and LRM then splits states by it on tasks that never condition on it
+    /// (ReacherDelivery OR and Sequential: "red touched" in two states, before and after the
+    /// cancel). Transitions still read the events; the cost changes, the traces do not.
+    pub predict_events: bool,
     /// After the search, make the machine the product of the learned one with the set of
     /// events (`events`) seen so far (`search::remember_events`), so it remembers that an
     /// event happened even where the demonstrations' next labels do not depend on it. LRM's
@@ -196,6 +205,7 @@ impl Default for LrmConfig {
             events: LabelSet::EMPTY,
             stutter_invariant: false,
             event_stutter: false,
+            predict_events: true,
             remember_events: false,
             borrow_events: false,
         }
@@ -282,7 +292,7 @@ pub fn learn_rm(
                 .to_string(),
         ));
     }
-    let data = Data::new(vocab, traces, stutter_events(cfg))?;
+    let data = Data::new(vocab, traces, trace_reading(cfg))?;
     let l_n = data.n_labels().max(1);
     // The stutter-invariant repair adds at most one state per (state, label set) cell, the
     // event memory multiplies the states by at most 2^events, and the tables store states as
@@ -479,24 +489,26 @@ pub fn learn_rm(
     })
 }
 
-/// The propositions whose dropping [`LrmConfig::event_stutter`] reads as a stutter.
-pub fn stutter_events(cfg: &LrmConfig) -> LabelSet {
-    if cfg.event_stutter {
-        cfg.events
-    } else {
-        LabelSet::EMPTY
+/// How the learner with `cfg` reads traces: the propositions whose dropping
+/// [`LrmConfig::event_stutter`] reads as a stutter, and those [`LrmConfig::predict_events`]
+/// leaves out of the prediction.
+pub fn trace_reading(cfg: &LrmConfig) -> TraceReading {
+    let events_if = |on: bool| if on { cfg.events } else { LabelSet::EMPTY };
+    TraceReading {
+        stutter_events: events_if(cfg.event_stutter),
+        unpredicted_events: events_if(!cfg.predict_events),
     }
 }
 
 /// The LRM objective of any machine on `traces` (e.g. of a perfect machine, to compare with
-/// a learned one's cost), the traces compressed as the learner does with `stutter_events`
-/// ([`stutter_events`]; empty = plain compression).
+/// a learned one's cost), the traces read as the learner reads them with `reading`
+/// ([`trace_reading`]; the default is LRM's plain compression and prediction).
 pub fn trace_cost(
     rm: &RewardMachine,
     traces: &[LabelTrace],
-    stutter_events: LabelSet,
+    reading: TraceReading,
 ) -> Result<f64, LrmError> {
-    let data = Data::new(rm.vocab(), traces, stutter_events)?;
+    let data = Data::new(rm.vocab(), traces, reading)?;
     let l_n = data.n_labels().max(1);
     let searcher = search::Searcher::new(&data, rm.n_states().min(u16::MAX as usize), 0.0);
     let delta: Vec<u16> = (0..rm.n_states() * l_n)

@@ -330,7 +330,7 @@ impl<'a> Searcher<'a> {
                 s = delta[s as usize * l_n + l];
                 after[t] = s;
                 if d.w[t] > 0 {
-                    cnt[(s as usize * l_n + l) * l_n + d.lab[t + 1] as usize] += d.w[t] as u64;
+                    cnt[(s as usize * l_n + l) * l_n + d.next[t] as usize] += d.w[t] as u64;
                 }
             }
         }
@@ -557,7 +557,7 @@ impl<'a> Searcher<'a> {
                 }
                 let wt = d.w[t] as i64;
                 if wt > 0 {
-                    let nl = d.lab[t + 1] as usize;
+                    let nl = d.next[t] as usize;
                     sc.labels.moved(so * l_n + lt, sn * l_n + lt, nl, wt);
                 }
                 s = sn;
@@ -913,8 +913,9 @@ struct Scratch {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rm::lrm::data::TraceReading;
     use crate::rm::lrm::synthetic::office_traces;
-    use crate::rm::{LabelSet, Vocabulary};
+    use crate::rm::Vocabulary;
     use rand::SeedableRng;
 
     /// The incremental neighbour cost equals a full run of the neighbour, for every move
@@ -922,7 +923,12 @@ mod tests {
     #[test]
     fn incremental_cost_matches_full_run() {
         let traces = office_traces(3, 3000, 5).unwrap();
-        let data = Data::new(&Vocabulary::new("ABCDcmo*"), &traces, LabelSet::EMPTY).unwrap();
+        let data = Data::new(
+            &Vocabulary::new("ABCDcmo*"),
+            &traces,
+            TraceReading::default(),
+        )
+        .unwrap();
         for weight in [0.0, 100.0] {
             let s = Searcher::new(&data, 5, weight);
             let mut rng = ChaCha8Rng::seed_from_u64(3);
