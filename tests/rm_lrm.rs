@@ -721,3 +721,67 @@ fn event_stutter_without_stutter_invariance_is_refused() {
         "{e}"
     );
 }
+
+/// The demonstrations of held-out OR (base seed 33) as `reacher replay` lists them: red, then
+/// blue, with a cancel wherever its draw put it; the expert does the same either way.
+const OR_BASE33: [(usize, &str); 16] = [
+    (10, "r@5 c@7 b@10"),
+    (10, "rc@5 b@10"),
+    (10, "r@5 c@8 b@10"),
+    (10, "c@4 r@5 b@10"),
+    (10, "c@1 r@5 b@10"),
+    (11, "rc@6 b@11"),
+    (10, "c@3 r@5 b@10"),
+    (10, "r@5 b@10"),
+    (10, "c@3 r@5 b@10"),
+    (11, "r@6 b@11"),
+    (10, "r@5 c@7 b@10"),
+    (10, "r@5 b@10"),
+    (10, "r@5 b@10"),
+    (10, "r@5 b@10"),
+    (10, "c@3 r@5 b@10"),
+    (10, "r@5 c@8 b@10"),
+];
+
+/// LRM's objective asks a machine to predict the cancel, which fires at most once per episode,
+/// so remembering that it fired pays even where the expert ignores it: on OR base 33 the
+/// learned machine keeps "red touched" before and after a cancel in two states (the split
+/// behind held-out OR's half plateaus). With `predict_events = false` the next label is read
+/// without the cancel (an entry that only adds or drops it is no news), the split earns
+/// nothing and the machine is "start, red touched" whatever the cancel did; its cost is the
+/// cost `trace_cost` gives it under the same reading, and no more than the perfect machine's.
+#[test]
+fn unpredicted_events_keep_an_ignored_cancel_from_splitting_the_machine() {
+    let vocab = Vocabulary::new("rgbyc");
+    let traces = episode_traces(&vocab, &OR_BASE33);
+    let learn = |predict_events| {
+        let cfg = LrmConfig {
+            event_stutter: true,
+            predict_events,
+            ..smirl_reacher_cfg(&vocab, 33)
+        };
+        learn_rm(&vocab, &traces, &cfg).unwrap()
+    };
+    let (predicted, unpredicted) = (learn(true), learn(false));
+    let red = |rm| state_after(rm, &vocab, 5, "r@5");
+    let cancel_then_red = |rm| state_after(rm, &vocab, 5, "c@2 r@5");
+    assert_ne!(red(&predicted.rm), cancel_then_red(&predicted.rm));
+    assert_eq!(red(&unpredicted.rm), cancel_then_red(&unpredicted.rm));
+    assert_ne!(red(&unpredicted.rm), unpredicted.rm.initial());
+    assert_eq!(unpredicted.rm.n_states(), 2);
+    let reading = TraceReading {
+        stutter_events: vocab.parse_labels("c").unwrap(),
+        unpredicted_events: vocab.parse_labels("c").unwrap(),
+    };
+    let perfect = perfect::load("reacher_or").unwrap();
+    assert!(unpredicted.cost <= trace_cost(&perfect, &traces, reading).unwrap() + 1e-9);
+    assert!(
+        (trace_cost(&unpredicted.raw, &traces, reading).unwrap() - unpredicted.cost).abs() < 1e-6
+    );
+    // Under LRM's own reading the cancel is worth predicting: the split machine costs less.
+    let lrm_reading = TraceReading {
+        unpredicted_events: LabelSet::EMPTY,
+        ..reading
+    };
+    assert!(predicted.cost < trace_cost(&unpredicted.raw, &traces, lrm_reading).unwrap() - 1e-9);
+}

@@ -919,18 +919,24 @@ mod tests {
     use rand::SeedableRng;
 
     /// The incremental neighbour cost equals a full run of the neighbour, for every move
-    /// from a sequence of machines visited by the search.
+    /// from a sequence of machines visited by the search, with LRM's reading of the traces
+    /// and with one proposition (here coffee, `c`) left out of the prediction.
     #[test]
     fn incremental_cost_matches_full_run() {
         let traces = office_traces(3, 3000, 5).unwrap();
-        let data = Data::new(
-            &Vocabulary::new("ABCDcmo*"),
-            &traces,
-            TraceReading::default(),
-        )
-        .unwrap();
+        let vocab = Vocabulary::new("ABCDcmo*");
+        let unpredicted = TraceReading {
+            unpredicted_events: vocab.parse_labels("c").unwrap(),
+            ..TraceReading::default()
+        };
+        for reading in [TraceReading::default(), unpredicted] {
+            incremental_cost_matches_full_run_on(&Data::new(&vocab, &traces, reading).unwrap());
+        }
+    }
+
+    fn incremental_cost_matches_full_run_on(data: &Data) {
         for weight in [0.0, 100.0] {
-            let s = Searcher::new(&data, 5, weight);
+            let s = Searcher::new(data, 5, weight);
             let mut rng = ChaCha8Rng::seed_from_u64(3);
             let mut table = s.canonical(&s.identity());
             for round in 0..6 {
