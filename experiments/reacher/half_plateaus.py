@@ -8,6 +8,11 @@ Usage: python3 experiments/reacher/half_plateaus.py RUN_DIR...
          each base's machine from `reacher prepare` with config.toml, well under a second, the
          one its sweeps learned; make_results.sh puts it in results.md. REACHER_BIN
          defaults to target/release/reacher.)
+       python3 experiments/reacher/half_plateaus.py --machines [REACHER_BIN]
+         (machines only, no job: every task at bases 0-45 under config.toml and under
+         ablations/unpredicted_events.toml (LRM not asked to predict the cancel), prepared the
+         same way; per task and setting the bases whose machine splits red by the cancel and,
+         for IF and Composite, the bases with cancel holes (cancel_probe.py's probe).)
 
 OR's perfect machine ignores the cancel, but a learned machine may keep "red touched" before
 and after a cancel in two states, each with its own reward weights. A policy that has lost the
@@ -45,6 +50,10 @@ BASES = range(3, 34, 3)
 HELDOUT = ([os.path.join(HERE, "heldout", "final-or")]
            + [os.path.join(HERE, "heldout", f"final-seeds{b}-or") for b in BASES if b != 3]
            + [os.path.join(HERE, "heldout", f"event-gated-seeds{b}-or") for b in BASES])
+# --machines: the bases and settings whose machines it compares.
+MACHINE_BASES = range(0, 46, 3)
+MACHINE_SETTINGS = [("standard", "config.toml"),
+                    ("unpredicted events", "ablations/unpredicted_events.toml")]
 HEADER = """`final-…` are the previous standard's jobs, `event-gated-…` the standard's (the script's doc
 says what each column counts). The machine columns are each base's OR machine, prepared
 afresh: the same at a base under both standards (neither change touches LRM).
@@ -99,11 +108,40 @@ def prepared_machines(binary, tmp):
     return dirs
 
 
+def machines_table(binary, tmp):
+    """Per task and setting: learned states, the bases whose machine splits red by the cancel,
+    and (IF, Composite) the bases with cancel holes, over MACHINE_BASES; markdown."""
+    lines = ["| task | setting | learned states | splits red by the cancel | with cancel holes |",
+             "|---|---|---|---|---|"]
+    for task in ["or", "sequential", "if", "composite"]:
+        for name, config in MACHINE_SETTINGS:
+            states, splits, holed = [], [], []
+            for b in MACHINE_BASES:
+                out = os.path.join(tmp, f"{name}-{task}-{b}")
+                subprocess.run([binary, "prepare", "--task", task, "--algo", "smirl", "--seed", str(b),
+                                "--seeds", "1", "--config", os.path.join(HERE, config), "--out", out,
+                                "--quiet"], check=True, stdout=subprocess.DEVNULL)
+                n, split = machine(out)
+                states.append(n)
+                if split:
+                    splits.append(b)
+                if task in ("if", "composite") and cancel_probe.probe(out)[2]:
+                    holed.append(b)
+            count = lambda bases: f"{len(bases)} of {len(MACHINE_BASES)}" + (f": {' '.join(map(str, bases))}" if bases else "")
+            lines.append(f"| {task} | {name} | {min(states)}–{max(states)} | {count(splits)} | "
+                         f"{count(holed) if task in ('if', 'composite') else '–'} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv):
-    if argv and argv[0] == "--heldout":
+    if argv and argv[0] in ("--heldout", "--machines"):
         binary = argv[1] if len(argv) > 1 else os.path.join(HERE, "..", "..", "target", "release", "reacher")
         if not os.path.isfile(binary):
             sys.exit(f"half_plateaus.py: {binary}: no such program (cargo build --release, or pass REACHER_BIN)")
+        if argv[0] == "--machines":
+            with tempfile.TemporaryDirectory() as tmp:
+                print(machines_table(binary, tmp), end="")
+            return
         with tempfile.TemporaryDirectory() as tmp:
             machines = prepared_machines(binary, tmp)
             out = report(HELDOUT, lambda run: machine(machines[base_seed(run)]))
