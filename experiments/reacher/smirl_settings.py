@@ -70,6 +70,12 @@ FINAL_TUNING = [
     ("event-gated visits, final policy, SAC seeds 0-5",
      "ablations/event_gated_visits.toml, SAC seeds 0-5",
      "ablations/runs/event_gated_visits-seeds0to5-{task}"),
+    # Unpredicted events (ablations/unpredicted_events.toml: LRM not asked to predict the
+    # cancel), SAC seeds 0-5 on base 0 under the rule in that file, fixed in commit d6fce19
+    # before the runs (README, "Not predicting the cancel").
+    ("unpredicted events, final policy, SAC seeds 0-5",
+     "ablations/unpredicted_events.toml, SAC seeds 0-5",
+     "ablations/runs/unpredicted_events-seeds0to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -146,7 +152,11 @@ FINAL_HELDOUT = [
     # for diagnosis, not a setting to choose — OR at its half-plateau bases, IF and Composite
     # at their cancel-hole bases, Sequential at its unrefined-machine bases.
     (f"base {b}, task machine (oracle), final policy", f"heldout/task-machine-seeds{b}-{{task}}")
-    for b in (6, 9, 12, 18, 21, 30, 33)]
+    for b in (6, 9, 12, 18, 21, 30, 33)] + [
+    # Unpredicted events (ablations/unpredicted_events.toml) at the bases run last, 36-45
+    # (OR and Sequential 36-42, as the standard).
+    (f"base {b}, unpredicted events, final policy", f"heldout/unpredicted-seeds{b}-{{task}}")
+    for b in (36, 39, 42, 45)]
 
 
 def jobs(run):
