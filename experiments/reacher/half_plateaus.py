@@ -4,15 +4,23 @@ by the cancel?
 
 Usage: python3 experiments/reacher/half_plateaus.py RUN_DIR...
        python3 experiments/reacher/half_plateaus.py --heldout [REACHER_BIN]
-         (OR held out at bases 3-33, the previous standard's runs and event-gated visits';
-         each base's machine from `reacher prepare` with config.toml, well under a second, the
-         one its sweeps learned; make_results.sh puts it in results.md. REACHER_BIN
-         defaults to target/release/reacher.)
+         (OR held out at bases 3-33, the runs of the two standards before unpredicted events
+         (`final-…`, `event-gated-…`); each base's machine from `reacher prepare` with
+         ablations/event_gated_visits.toml, well under a second, the one their sweeps learned;
+         make_results.sh puts it in results.md. REACHER_BIN defaults to
+         target/release/reacher.)
+       python3 experiments/reacher/half_plateaus.py --fresh [REACHER_BIN]
+         (OR at bases 36-42, run after everything else: event-gated visits' runs and
+         unpredicted events', each machine prepared with its own config.)
+       python3 experiments/reacher/half_plateaus.py --tuning [REACHER_BIN]
+         (OR and Sequential at the tuning seeds, base 0, SAC seeds 0-5: event-gated visits'
+         runs and unpredicted events' (the standard since), each machine prepared with its
+         own config.)
        python3 experiments/reacher/half_plateaus.py --machines [REACHER_BIN]
-         (machines only, no job: every task at bases 0-45 under config.toml and under
-         ablations/unpredicted_events.toml (LRM not asked to predict the cancel), prepared the
-         same way; per task and setting the bases whose machine splits red by the cancel and,
-         for IF and Composite, the bases with cancel holes (cancel_probe.py's probe).)
+         (machines only, no job: every task at bases 0-45 under event-gated visits (LRM
+         predicting the cancel) and under unpredicted events, prepared the same way; per task
+         and setting the bases whose machine splits red by the cancel and, for IF and
+         Composite, the bases with cancel holes (cancel_probe.py's probe).)
 
 OR's perfect machine ignores the cancel, but a learned machine may keep "red touched" before
 and after a cancel in two states, each with its own reward weights. A policy that has lost the
@@ -50,13 +58,26 @@ BASES = range(3, 34, 3)
 HELDOUT = ([os.path.join(HERE, "heldout", "final-or")]
            + [os.path.join(HERE, "heldout", f"final-seeds{b}-or") for b in BASES if b != 3]
            + [os.path.join(HERE, "heldout", f"event-gated-seeds{b}-or") for b in BASES])
+# LRM predicting the cancel (every standard before unpredicted events: neither event stutter
+# nor event-gated visits changed an OR machine) and not predicting it (the standard since).
+PREDICTED = "ablations/event_gated_visits.toml"
+UNPREDICTED = "ablations/unpredicted_events.toml"
+# --tuning: (run, its config) at base 0.
+TUNING = [(os.path.join(HERE, "ablations", "runs", f"{name}-seeds0to5-{task}"), config)
+          for task in ("or", "sequential")
+          for name, config in (("event_gated_visits", PREDICTED), ("unpredicted_events", UNPREDICTED))]
+# --fresh: (run, its config) at the bases run last.
+FRESH = [(os.path.join(HERE, "heldout", f"{name}-seeds{b}-or"), config)
+         for name, config in (("event-gated", PREDICTED), ("unpredicted", UNPREDICTED))
+         for b in (36, 39, 42)]
 # --machines: the bases and settings whose machines it compares.
 MACHINE_BASES = range(0, 46, 3)
-MACHINE_SETTINGS = [("standard", "config.toml"),
-                    ("unpredicted events", "ablations/unpredicted_events.toml")]
-HEADER = """`final-…` are the previous standard's jobs, `event-gated-…` the standard's (the script's doc
-says what each column counts). The machine columns are each base's OR machine, prepared
-afresh: the same at a base under both standards (neither change touches LRM).
+MACHINE_SETTINGS = [("cancel predicted (event-gated visits)", PREDICTED),
+                    ("unpredicted events (the standard)", UNPREDICTED)]
+HEADER = """`final-…` and `event-gated-…` are the jobs of the two standards before unpredicted events
+(the script's doc says what each column counts). The machine columns are each base's OR
+machine, prepared afresh with LRM predicting the cancel: the same at a base under both (neither
+change touches an OR machine).
 
 """
 
@@ -96,16 +117,18 @@ def base_seed(run):
     return int(m[1]) if m else 3
 
 
+def prepare(binary, task, base, config, out):
+    """`reacher prepare` of `task` at `base` with `config` (relative to this directory) into
+    `out`: the demonstrations and learned machine of every sweep with them."""
+    subprocess.run([binary, "prepare", "--task", task, "--algo", "smirl", "--seed", str(base),
+                    "--seeds", "1", "--config", os.path.join(HERE, config), "--out", out,
+                    "--quiet"], check=True, stdout=subprocess.DEVNULL)
+    return out
+
+
 def prepared_machines(binary, tmp):
     """{base: its OR machine's prepared run directory} for the held-out bases."""
-    dirs = {}
-    for b in BASES:
-        out = os.path.join(tmp, f"or-{b}")
-        subprocess.run([binary, "prepare", "--task", "or", "--algo", "smirl", "--seed", str(b),
-                        "--seeds", "1", "--config", os.path.join(HERE, "config.toml"),
-                        "--out", out, "--quiet"], check=True, stdout=subprocess.DEVNULL)
-        dirs[b] = out
-    return dirs
+    return {b: prepare(binary, "or", b, PREDICTED, os.path.join(tmp, f"or-{b}")) for b in BASES}
 
 
 def machines_table(binary, tmp):
@@ -117,10 +140,7 @@ def machines_table(binary, tmp):
         for name, config in MACHINE_SETTINGS:
             states, splits, holed = [], [], []
             for b in MACHINE_BASES:
-                out = os.path.join(tmp, f"{name}-{task}-{b}")
-                subprocess.run([binary, "prepare", "--task", task, "--algo", "smirl", "--seed", str(b),
-                                "--seeds", "1", "--config", os.path.join(HERE, config), "--out", out,
-                                "--quiet"], check=True, stdout=subprocess.DEVNULL)
+                out = prepare(binary, task, b, config, os.path.join(tmp, f"{len(lines)}-{b}"))
                 n, split = machine(out)
                 states.append(n)
                 if split:
@@ -134,13 +154,22 @@ def machines_table(binary, tmp):
 
 
 def main(argv):
-    if argv and argv[0] in ("--heldout", "--machines"):
+    if argv and argv[0] in ("--heldout", "--fresh", "--tuning", "--machines"):
         binary = argv[1] if len(argv) > 1 else os.path.join(HERE, "..", "..", "target", "release", "reacher")
         if not os.path.isfile(binary):
             sys.exit(f"half_plateaus.py: {binary}: no such program (cargo build --release, or pass REACHER_BIN)")
         if argv[0] == "--machines":
             with tempfile.TemporaryDirectory() as tmp:
                 print(machines_table(binary, tmp), end="")
+            return
+        if argv[0] in ("--tuning", "--fresh"):
+            runs = TUNING if argv[0] == "--tuning" else FRESH
+            with tempfile.TemporaryDirectory() as tmp:
+                machines = {run: machine(prepare(binary, os.path.basename(run).rsplit("-", 1)[1],
+                                                 base_seed(run) if argv[0] == "--fresh" else 0, config,
+                                                 os.path.join(tmp, os.path.basename(run))))
+                            for run, config in runs}
+                print(report([run for run, _ in runs], machines.get), end="")
             return
         with tempfile.TemporaryDirectory() as tmp:
             machines = prepared_machines(binary, tmp)
