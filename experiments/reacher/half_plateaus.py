@@ -35,8 +35,9 @@ IRL iteration (metrics.csv, on disk or in the consolidated heldout/metrics.csv.g
   reported  success of the reported final policy (final_policy.csv, the chosen candidate)
 
 and, where the run's machine is on disk (rm/learned.txt), its state count and whether it
-splits: red touched alone on step 5 ends in another state than the same touch after a cancel
-on step 2. The last lines count per setting (the run name without its `-seeds<B>` part).
+splits: red touched alone on step 5 ends in another state than the same touch with a cancel
+on step 2 (before it) or on step 7 (after it). The last lines count per setting (the run name
+without its `-seeds<B>` part).
 """
 import collections
 import os
@@ -84,7 +85,8 @@ change touches an OR machine).
 
 def machine(run):
     """(learned states, splits red by the cancel) of run/rm/learned.txt, None when it is not on
-    disk."""
+    disk: red touched alone on step 5 ends in another state when a cancel fires on step 2 or
+    on step 7."""
     path = os.path.join(run, "rm", "learned.txt")
     if not os.path.isfile(path):
         return None
@@ -92,9 +94,14 @@ def machine(run):
     states = 1 + max([u for e in learned[1] for u in e[:2]] + [0])
     plain = [""] * 12
     plain[4] = "r"
-    cancelled = list(plain)
-    cancelled[1] = "c"
-    return states, cancel_probe.end_state(learned, plain) != cancel_probe.end_state(learned, cancelled)
+    after = cancel_probe.end_state(learned, plain)
+    # A cancel on step 2 (before red) or on step 7 (after it).
+    split = False
+    for step in (1, 6):
+        cancelled = list(plain)
+        cancelled[step] = "c"
+        split |= cancel_probe.end_state(learned, cancelled) != after
+    return states, split
 
 
 def reported(run, seed):
