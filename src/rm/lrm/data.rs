@@ -185,6 +185,8 @@ impl Data {
             trace_of.extend(std::iter::repeat(k as u32).take(c.len()));
         }
         starts.push(lab.len());
+        // Each label id's class: the first id whose set is the same once the unpredicted
+        // events are left out (its own, without any).
         let unpredicted = reading.unpredicted_events.0;
         let class_of: Vec<u16> = labels
             .iter()
@@ -193,7 +195,7 @@ impl Data {
                 labels
                     .iter()
                     .position(|m| m.0 & !unpredicted == kept)
-                    .unwrap_or(0) as u16
+                    .unwrap_or(0) as u16 // `l` itself matches: never the fallback
             })
             .collect();
         // The first later entry of the trace that differs from this one once the events are
