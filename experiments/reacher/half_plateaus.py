@@ -63,12 +63,12 @@ HELDOUT = ([os.path.join(HERE, "heldout", "final-or")]
 # nor event-gated visits changed an OR machine) and not predicting it (the standard since).
 PREDICTED = "ablations/event_gated_visits.toml"
 UNPREDICTED = "ablations/unpredicted_events.toml"
-# --tuning: (run, its config) at base 0.
-TUNING = [(os.path.join(HERE, "ablations", "runs", f"{name}-seeds0to5-{task}"), config)
+# --tuning: (run, task, base, its config) at base 0.
+TUNING = [(os.path.join(HERE, "ablations", "runs", f"{name}-seeds0to5-{task}"), task, 0, config)
           for task in ("or", "sequential")
           for name, config in (("event_gated_visits", PREDICTED), ("unpredicted_events", UNPREDICTED))]
-# --fresh: (run, its config) at the bases run last.
-FRESH = [(os.path.join(HERE, "heldout", f"{name}-seeds{b}-or"), config)
+# --fresh: (run, task, base, its config) at the bases run last.
+FRESH = [(os.path.join(HERE, "heldout", f"{name}-seeds{b}-or"), "or", b, config)
          for name, config in (("event-gated", PREDICTED), ("unpredicted", UNPREDICTED))
          for b in (36, 39, 42)]
 # --machines: the bases and settings whose machines it compares.
@@ -172,11 +172,10 @@ def main(argv):
         if argv[0] in ("--tuning", "--fresh"):
             runs = TUNING if argv[0] == "--tuning" else FRESH
             with tempfile.TemporaryDirectory() as tmp:
-                machines = {run: machine(prepare(binary, os.path.basename(run).rsplit("-", 1)[1],
-                                                 base_seed(run) if argv[0] == "--fresh" else 0, config,
+                machines = {run: machine(prepare(binary, task, base, config,
                                                  os.path.join(tmp, os.path.basename(run))))
-                            for run, config in runs}
-                print(report([run for run, _ in runs], machines.get), end="")
+                            for run, task, base, config in runs}
+                print(report([run for run, *_ in runs], machines.get), end="")
             return
         with tempfile.TemporaryDirectory() as tmp:
             machines = prepared_machines(binary, tmp)
