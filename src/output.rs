@@ -47,6 +47,17 @@ pub fn is_marked(dir: &Path) -> bool {
     dir.join(MARKER).is_file()
 }
 
+/// `dir` is the `<out>.partial` working directory of an output (marked, named `*.partial`):
+/// still being written, or left by a run that stopped. It is renamed to `<out>` when the run
+/// ends, so a command that adds files to it loses them or recreates a stray directory.
+pub fn is_work_in_progress(dir: &Path) -> bool {
+    let partial_name = dir
+        .file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| n.ends_with(".partial"));
+    partial_name && is_marked(dir)
+}
+
 /// The absolute form of `path` with `.` and `..` resolved through the real directories
 /// where they exist (symlinks included), lexically below the deepest existing ancestor.
 fn resolve(path: &Path) -> Result<PathBuf, OutputError> {

@@ -364,8 +364,8 @@ fn configs_print_shortest_decimals_and_read_back_the_same() {
 /// `reacher retrain`: a fresh SAC agent on a finished job's final reward, judged on the ground
 /// truth; the table is written once (again only with --force), the same seed gives the same
 /// table, and bad input — a job that has not run, zero steps, more evaluations than steps, an
-/// Office algorithm, a learned state the machine lacks — exits 2 before any training, writing
-/// nothing; zeroed states write a table of their own.
+/// Office algorithm, a learned state the machine lacks, a run's `.partial` working directory —
+/// exits 2 before any training, writing nothing; zeroed states write a table of their own.
 #[test]
 fn retrain_judges_a_fresh_policy_on_the_final_reward() {
     let tmp = tempfile::tempdir().unwrap();
@@ -408,6 +408,31 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
     );
     assert_eq!(office.status.code(), Some(2));
     assert!(!dir.join("run/retrain").exists());
+    // A run's `.partial` working directory is renamed when its run ends: job, aggregate and
+    // retrain refuse to add to it (a retrain started in one recreated it after the rename).
+    std::fs::rename(dir.join("run"), dir.join("run.partial")).unwrap();
+    for args in [
+        vec![
+            "retrain",
+            "--run",
+            "run.partial",
+            "--algo",
+            algo,
+            "--seed",
+            seed,
+            "--steps",
+            "400",
+        ],
+        vec!["job", "--run", "run.partial", "--index", "0", "--quiet"],
+        vec!["aggregate", "run.partial"],
+    ] {
+        usage_error(
+            &run(&bin(), dir, &args),
+            "still being written (or one that stopped): use run once",
+        );
+    }
+    assert!(!dir.join("run.partial/retrain").exists());
+    std::fs::rename(dir.join("run.partial"), dir.join("run")).unwrap();
 
     let table = dir.join("run/retrain/smirl_seed5_sac1000.csv");
     let out = ok(&retrain(&["--steps", "400", "--evaluations", "2"]));

@@ -220,10 +220,26 @@ pub fn prepare(args: IrlRequest) -> Result<()> {
     Ok(())
 }
 
+/// Opens a prepared run for `job`, `aggregate` or `retrain`, refusing the `<out>.partial`
+/// working directory of a `reacher --task` run: it is renamed to `<out>` when that run ends,
+/// and a retrain started on it once recreated the `.partial` directory after the rename.
+fn open_finished_run(dir: &Path) -> Result<PreparedRun> {
+    if crate::output::is_work_in_progress(dir) {
+        let out = dir.with_extension("");
+        return Err(usage(format!(
+            "{}: the working directory of a run still being written (or one that stopped): \
+             use {} once the run has finished",
+            dir.display(),
+            out.display()
+        )));
+    }
+    open_run(dir).map_err(pipeline_error)
+}
+
 /// `reacher job`: runs one job of a prepared run (a finished job is not rerun) and prints its
 /// final success rate.
 pub fn job(args: JobRequest) -> Result<()> {
-    let run: PreparedRun = open_run(&args.run).map_err(pipeline_error)?;
+    let run: PreparedRun = open_finished_run(&args.run)?;
     let (algo, seed) = match (args.index, args.algo, args.seed) {
         (Some(i), _, _) => run.job_at(i),
         (None, Some(a), Some(s)) => run.job(a, s),
@@ -288,7 +304,7 @@ fn success_text(record: &JobRecord) -> String {
 /// `reacher aggregate`: metrics, summary and plots of a prepared run's finished jobs (all of
 /// them unless `partial`); prints the summary table.
 pub fn aggregate(dir: &Path, partial: bool) -> Result<()> {
-    let run = open_run(dir).map_err(pipeline_error)?;
+    let run = open_finished_run(dir)?;
     let summary = run::aggregate(&run, partial, None).map_err(pipeline_error)?;
     println!(
         "{}",
@@ -398,7 +414,7 @@ pub struct RetrainRequest {
 pub fn retrain(args: RetrainRequest) -> Result<()> {
     use crate::env::reacher_task::Branch;
     use crate::pipeline::reacher_irl::retrain::{load, retrain, Retraining};
-    let run = open_run(&args.run).map_err(usage)?;
+    let run = open_finished_run(&args.run)?;
     run.job(args.algo, args.seed).map_err(usage)?;
     let request = Retraining {
         algo: args.algo,
@@ -447,8 +463,15 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
         table.push('\n');
     })
     .map_err(|e| anyhow::anyhow!(e))?;
-    std::fs::create_dir_all(out.parent().expect("a file in retrain/"))
-        .with_context(|| format!("cannot create {}", out.display()))?;
+    // Only `retrain/` itself is created: a run directory that went away while the agent
+    // trained is not recreated around the table (the table is on standard output).
+    let retrain_dir = out.parent().expect("a file in retrain/");
+    match std::fs::create_dir(retrain_dir) {
+        Err(e) if e.kind() != std::io::ErrorKind::AlreadyExists => {
+            return Err(e).with_context(|| format!("cannot create {}", retrain_dir.display()));
+        }
+        _ => {}
+    }
     crate::atomic_file::write_atomic(&out, table.as_bytes())
         .with_context(|| format!("cannot write {}", out.display()))?;
     Ok(())
