@@ -233,6 +233,12 @@ pub struct IrlRunConfig {
     /// one. A config without the key is read as false. Omitted from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_borrow_events: bool,
+    /// LRM: commute events (`rm::lrm::LrmConfig::commute_events`): a cancel the
+    /// demonstrations never show in a learned state is read as if it had come just before the
+    /// touch that entered it. A config without the key is read as false. Omitted from written
+    /// configs when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub lrm_commute_events: bool,
     /// LRM: event stutter (`rm::lrm::LrmConfig::event_stutter`): a step that only drops the
     /// cancel from the previous label set (`{r}` after `{r, c}`) continues that touch. On in
     /// the standard profile (adopted on its tuning seeds, README "Event stutter"); a config
@@ -508,6 +514,7 @@ impl IrlRunConfig {
             lrm_patience: None,
             lrm_remember_events: false,
             lrm_borrow_events: false,
+            lrm_commute_events: false,
             lrm_event_stutter: true,
             // LRM is not asked to predict the cancel: otherwise it splits OR's and Sequential's
             // machines by a cancel they ignore (24 of 24 tuning jobs; README, "Not predicting

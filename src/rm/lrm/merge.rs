@@ -142,6 +142,50 @@ pub(crate) fn borrow_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], ev
     }
 }
 
+/// Gives each event cell that no trace reads the state the traces reach when the event comes
+/// *before* the touch that entered the state (see [`LrmConfig::commute_events`]): for a state
+/// `u` entered from `p` on an observed label `k` without an event, and an event label `l`
+/// undefined in `u`, the candidate is `delta(delta(p, l), k)`, where `(p, l)` is observed
+/// and `(delta(p, l), k)` defined (observed, or a stay the stutter invariance implies). The
+/// cell is filled only when every entry into `u` that gives a candidate gives the same one.
+/// Decided on the cells as given, so the order of states does not matter; observed cells and
+/// every trace's path are unchanged.
+///
+/// [`LrmConfig::commute_events`]: super::LrmConfig::commute_events
+pub(crate) fn commute_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], is_event: &[bool]) {
+    let given_cells = cells.to_vec();
+    let given = &given_cells;
+    let observed = move |w: usize, k: usize| given[w * l_n + k].filter(|c| c.weight > 0.0);
+    for u in 0..n {
+        for l in (0..l_n).filter(|&l| is_event[l]) {
+            if given[u * l_n + l].is_some() {
+                continue;
+            }
+            let mut candidates = (0..n).filter(|&p| p != u).flat_map(|p| {
+                (0..l_n)
+                    .filter(|&k| !is_event[k])
+                    .filter(move |&k| observed(p, k).is_some_and(|c| c.target == u))
+                    .filter_map(move |k| {
+                        let q = observed(p, l)?.target;
+                        given[q * l_n + k].map(|c| c.target)
+                    })
+            });
+            let Some(first) = candidates.next() else {
+                continue;
+            };
+            // A stay is what an undefined cell already does; defining it would only take the
+            // cell away from the guards' generalisation.
+            if first != u && candidates.all(|v| v == first) {
+                cells[u * l_n + l] = Some(Cell {
+                    target: first,
+                    reward: 0.0,
+                    weight: 0.0,
+                });
+            }
+        }
+    }
+}
+
 fn try_merge(
     part: &Partition,
     l_n: usize,

@@ -182,6 +182,15 @@ pub struct LrmConfig {
     /// one of them would otherwise be ignored in the others (ReacherDelivery IF: a cancel
     /// after passing red). Traces' paths and the cost are unchanged. Off by default.
     pub borrow_events: bool,
+    /// After the search, read an event (a proposition of `events`) that the traces never show
+    /// in a state as if it had come just before the touch that entered the state
+    /// (`merge::commute_events`: "red, then cancel" ends where "cancel, then red" does, when
+    /// every way into the state agrees). An exogenous event that fires at most once is seen
+    /// only at some stages of the task; where the demonstrations never show it (ReacherDelivery
+    /// Composite: a cancel after red, before blue, at bases whose experts reach red late), the
+    /// machine would otherwise ignore it there. Traces' paths and the cost are unchanged. Off
+    /// by default.
+    pub commute_events: bool,
 }
 
 impl Default for LrmConfig {
@@ -208,6 +217,7 @@ impl Default for LrmConfig {
             predict_events: true,
             remember_events: false,
             borrow_events: false,
+            commute_events: false,
         }
     }
 }
@@ -440,6 +450,12 @@ pub fn learn_rm(
             .filter(|&l| event_bits.get(l).is_some_and(|&b| b != 0))
             .collect();
         merge::borrow_events(n, l_n, &mut defined, &event_ids);
+    }
+    if cfg.commute_events {
+        let is_event: Vec<bool> = (0..l_n)
+            .map(|l| event_bits.get(l).is_some_and(|&b| b != 0))
+            .collect();
+        merge::commute_events(n, l_n, &mut defined, &is_event);
     }
 
     let (exact_rm, final_cells, final_n, final_cost) = if cfg.merge {
