@@ -820,8 +820,8 @@ fn final_policy_settings_are_checked() {
     assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
 }
 
-/// LRM's optional keys (search, event memory, borrowed events, event stutter, event
-/// prediction): absent from written configs unless set, read back as set,
+/// LRM's optional keys (search, event memory, borrowed events, commuted events, event
+/// stutter, event prediction): absent from written configs unless set, read back as set,
 /// bounded, and a zero start count refused; the error names the field.
 #[test]
 fn lrm_search_settings_are_checked() {
@@ -846,11 +846,16 @@ fn lrm_search_settings_are_checked() {
     let text = without;
     let text = text.replace(
         "lrm_steps = 100\n",
-        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
+        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
     );
     let c = IrlRunConfig::from_toml(&text, "search.toml").unwrap();
     assert_eq!((c.lrm_starts, c.lrm_patience), (Some(32), Some(0)));
     assert!(c.lrm_remember_events && c.lrm_borrow_events && c.lrm_event_stutter);
+    assert!(c.lrm_commute_events && c.to_toml().contains("lrm_commute_events = true\n"));
+    assert_config_error_names(
+        &text.replace("lrm_commute_events = true", "lrm_commute_events = 1"),
+        "lrm_commute_events",
+    );
     assert!(!c.lrm_predict_events && c.to_toml().contains("lrm_predict_events = false\n"));
     assert_config_error_names(
         &text.replace("lrm_predict_events = false", "lrm_predict_events = \"no\""),

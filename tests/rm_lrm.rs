@@ -785,3 +785,62 @@ fn unpredicted_events_keep_an_ignored_cancel_from_splitting_the_machine() {
     };
     assert!(predicted.cost < trace_cost(&unpredicted.raw, &traces, lrm_reading).unwrap() - 1e-9);
 }
+
+/// The demonstrations of held-out Composite (base seed 36) as `reacher replay` lists them: red,
+/// blue, yellow; or a cancel before red (once on red, `rc`), then red and yellow. None shows a
+/// cancel after the fingertip left red.
+const COMPOSITE_BASE36: [(usize, &str); 16] = [
+    (24, "r@6-7 b@15 y@24"),
+    (23, "r@6 b@15 y@23"),
+    (12, "c@4 r@6-7 y@12"),
+    (23, "r@6 b@16 y@23"),
+    (24, "r@7-8 b@16-17 y@24"),
+    (23, "r@6 b@15 y@23"),
+    (13, "c@3 r@6-7 y@13"),
+    (24, "r@7-8 b@16 y@24"),
+    (13, "rc@7 r@8 y@13"),
+    (23, "r@6-7 b@15-16 y@23"),
+    (23, "r@6-7 b@15-16 y@23"),
+    (24, "r@7-9 b@16-17 y@24"),
+    (23, "r@6-7 b@15-16 y@23"),
+    (23, "r@6-7 b@16 y@23"),
+    (23, "r@6-7 b@15 y@23"),
+    (13, "c@5 r@6-7 y@13"),
+];
+
+/// A cancel hole (held-out Composite base 36, whose SMIRL jobs lost the cancel branch): no
+/// demonstration shows a cancel after red, so the learned state "red touched" reads one as a
+/// stay and blue still pays. With `commute_events` that cancel is read as if it had come just
+/// before red, and "red, then cancel" ends where "cancel, then red" does; the demonstrations'
+/// paths, the state count and the cost are unchanged.
+#[test]
+fn commuted_events_read_a_cancel_after_red_as_a_cancel_before_it() {
+    let vocab = Vocabulary::new("rgbyc");
+    let traces = episode_traces(&vocab, &COMPOSITE_BASE36);
+    let learn = |commute_events| {
+        let cfg = LrmConfig {
+            event_stutter: true,
+            predict_events: false,
+            commute_events,
+            ..smirl_reacher_cfg(&vocab, 36)
+        };
+        learn_rm(&vocab, &traces, &cfg).unwrap()
+    };
+    let (plain, commuted) = (learn(false), learn(true));
+    let red_then_cancel = |rm| state_after(rm, &vocab, 9, "r@5 c@8");
+    let cancel_then_red = |rm| state_after(rm, &vocab, 9, "c@4 r@6");
+    let red = |rm| state_after(rm, &vocab, 9, "r@5");
+    assert_eq!(red_then_cancel(&plain.rm), red(&plain.rm), "the hole");
+    assert_ne!(red(&plain.rm), cancel_then_red(&plain.rm));
+    assert_eq!(red_then_cancel(&commuted.rm), cancel_then_red(&commuted.rm));
+    assert_eq!(commuted.rm.n_states(), plain.rm.n_states());
+    assert!((commuted.cost - plain.cost).abs() < 1e-9);
+    assert!(runs_alike(&commuted.rm, &traces).iter().all(|&a| a));
+    for t in &traces {
+        let (mut a, mut b) = (plain.rm.initial(), commuted.rm.initial());
+        for &l in &t.labels {
+            (a, b) = (plain.rm.next_state(a, l), commuted.rm.next_state(b, l));
+            assert_eq!(a, b, "a demonstration's path changed");
+        }
+    }
+}

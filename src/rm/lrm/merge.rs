@@ -245,3 +245,65 @@ fn try_merge(
     }
     Some(part)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // Labels: 0 = {r}, 1 = {c} (the event), 2 = {g}.
+    const L_N: usize = 3;
+    const IS_EVENT: [bool; L_N] = [false, true, false];
+
+    fn seen(target: usize) -> Option<Cell> {
+        Some(Cell {
+            target,
+            reward: 0.0,
+            weight: 1.0,
+        })
+    }
+
+    fn cells(n: usize, observed: &[(usize, usize, usize)]) -> Vec<Option<Cell>> {
+        let mut cells = vec![None; n * L_N];
+        for &(u, l, v) in observed {
+            cells[u * L_N + l] = seen(v);
+        }
+        cells
+    }
+
+    /// 0 -r-> 1, 0 -c-> 2, 2 -r-> 3: "r, then c" is read as "c, then r".
+    #[test]
+    fn an_unseen_event_goes_where_the_event_before_the_touch_goes() {
+        let mut c = cells(5, &[(0, 0, 1), (0, 1, 2), (2, 0, 3)]);
+        commute_events(5, L_N, &mut c, &IS_EVENT);
+        assert_eq!(c[L_N + 1].map(|c| (c.target, c.weight)), Some((3, 0.0)));
+        // Observed cells and cells of other labels are untouched; state 3 has no entry whose
+        // commuted path is defined.
+        assert_eq!(c[0], seen(1));
+        assert_eq!(c[L_N + 2], None);
+        assert_eq!(c[3 * L_N + 1], None);
+    }
+
+    /// Two entries into 1 (on r and on g) whose commuted paths end in different states: no
+    /// evidence which one holds, the cell stays undefined.
+    #[test]
+    fn entries_that_disagree_leave_the_cell_undefined() {
+        let observed = [(0, 0, 1), (0, 2, 1), (0, 1, 2), (2, 0, 3), (2, 2, 4)];
+        let mut c = cells(5, &observed);
+        commute_events(5, L_N, &mut c, &IS_EVENT);
+        assert_eq!(c[L_N + 1], None);
+        // When they agree, it is filled.
+        let observed = [(0, 0, 1), (0, 2, 1), (0, 1, 2), (2, 0, 3), (2, 2, 3)];
+        let mut c = cells(5, &observed);
+        commute_events(5, L_N, &mut c, &IS_EVENT);
+        assert_eq!(c[L_N + 1].map(|c| c.target), Some(3));
+    }
+
+    /// An event that stays where it was seen (0 -c-> 0) commutes to a stay in 1: what an
+    /// undefined cell already does, so it is not defined (the guards stay free there).
+    #[test]
+    fn a_commuted_stay_is_not_written() {
+        let mut c = cells(2, &[(0, 0, 1), (0, 1, 0)]);
+        commute_events(2, L_N, &mut c, &IS_EVENT);
+        assert_eq!(c[L_N + 1], None);
+    }
+}
