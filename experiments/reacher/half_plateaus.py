@@ -18,8 +18,8 @@ Usage: python3 experiments/reacher/half_plateaus.py RUN_DIR...
          own config.)
        python3 experiments/reacher/half_plateaus.py --machines [REACHER_BIN]
          (machines only, no job: every task at bases 0-45 under event-gated visits (LRM
-         predicting the cancel) and under unpredicted events, prepared the same way; per task
-         and setting the bases whose machine splits red by the cancel and, for IF and
+         predicting the cancel), under unpredicted events and under unpredicted and commuted
+         events (ablations/commute_events.toml), prepared the same way; per task and setting the bases whose machine splits red by the cancel and, for IF and
          Composite, the bases with cancel holes (cancel_probe.py's probe).)
 
 OR's perfect machine ignores the cancel, but a learned machine may keep "red touched" before
@@ -73,8 +73,10 @@ FRESH = [(os.path.join(HERE, "heldout", f"{name}-seeds{b}-or"), "or", b, config)
          for b in (36, 39, 42)]
 # --machines: the bases and settings whose machines it compares.
 MACHINE_BASES = range(0, 46, 3)
+COMMUTED = "ablations/commute_events.toml"
 MACHINE_SETTINGS = [("cancel predicted (event-gated visits)", PREDICTED),
-                    ("unpredicted events (the standard)", UNPREDICTED)]
+                    ("unpredicted events (the standard)", UNPREDICTED),
+                    ("unpredicted and commuted events", COMMUTED)]
 HEADER = """`final-…` and `event-gated-…` are the jobs of the two standards before unpredicted events
 (the script's doc says what each column counts). The machine columns are each base's OR
 machine, prepared afresh with LRM predicting the cancel: the same at a base under both (neither
