@@ -153,8 +153,9 @@ pub(crate) fn borrow_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], ev
 ///
 /// [`LrmConfig::commute_events`]: super::LrmConfig::commute_events
 pub(crate) fn commute_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], is_event: &[bool]) {
-    let given_cells = cells.to_vec();
-    let given = &given_cells;
+    // Read from the cells as given, so a filled cell never feeds another fill.
+    let given = cells.to_vec();
+    let given = &given;
     let observed = move |w: usize, k: usize| given[w * l_n + k].filter(|c| c.weight > 0.0);
     for u in 0..n {
         for l in (0..l_n).filter(|&l| is_event[l]) {
