@@ -835,6 +835,14 @@ fn lrm_search_settings_are_checked() {
     let text = text.replace("lrm_predict_events = false\n", "");
     let plain = IrlRunConfig::from_toml(&text, "old.toml").unwrap();
     assert!(plain.lrm_predict_events && !plain.to_toml().contains("lrm_predict_events"));
+    // Commuted events are on in the standard; a config without the key reads false.
+    assert!(standard.lrm_commute_events && text.contains("lrm_commute_events = true\n"));
+    let text = text.replace("lrm_commute_events = true\n", "");
+    assert!(
+        !IrlRunConfig::from_toml(&text, "old.toml")
+            .unwrap()
+            .lrm_commute_events
+    );
     // Event stutter is on in the standard; a config without the key reads false.
     assert!(text.contains("lrm_event_stutter = true\n"));
     let without = text.replace("lrm_event_stutter = true\n", "");
@@ -941,8 +949,8 @@ fn without_schedules() -> IrlRunConfig {
 }
 
 /// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
-/// issue 13 (20 IRL iterations, no shaping, no event stutter, LRM predicting the cancel), as
-/// the runs made with it.
+/// issue 13 (20 IRL iterations, no shaping, no event stutter, LRM predicting the cancel, no
+/// commuted events), as the runs made with it.
 fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
         irl_iterations: 20,
@@ -951,6 +959,7 @@ fn unshaped() -> IrlRunConfig {
         smirl_final_checkpoints: 0,
         lrm_event_stutter: false,
         lrm_predict_events: true,
+        lrm_commute_events: false,
         smirl_normalisation: SmirlNormalisation::Visits,
         ..IrlRunConfig::standard()
     }
@@ -1013,6 +1022,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             smirl_normalisation: standard.smirl_normalisation,
             lrm_event_stutter: true,
             lrm_predict_events: false,
+            lrm_commute_events: true,
             ..unshaped_file.for_algo(algo).unwrap()
         };
         assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");

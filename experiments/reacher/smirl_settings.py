@@ -76,6 +76,12 @@ FINAL_TUNING = [
     ("unpredicted events, final policy, SAC seeds 0-5",
      "ablations/unpredicted_events.toml, SAC seeds 0-5",
      "ablations/runs/unpredicted_events-seeds0to5-{task}"),
+    # Commuted events (ablations/commute_events.toml), SAC seeds 0-5 on base 0 under the rule in
+    # that file, fixed in commit c0efbd2 before the runs (README, "Commuted events"); Composite
+    # only (no other task's base-0 machine changes).
+    ("commuted events, final policy, SAC seeds 0-5",
+     "ablations/commute_events.toml, SAC seeds 0-5",
+     "ablations/runs/commute_events-seeds0to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -153,10 +159,15 @@ FINAL_HELDOUT = [
     # at their cancel-hole bases, Sequential at its unrefined-machine bases.
     (f"base {b}, task machine (oracle), final policy", f"heldout/task-machine-seeds{b}-{{task}}")
     for b in (6, 9, 12, 18, 21, 30, 33)] + [
-    # Unpredicted events (ablations/unpredicted_events.toml) at the bases run last, 36-45
-    # (OR and Sequential 36-42, as the standard).
+    # Unpredicted events (ablations/unpredicted_events.toml, the standard since) at the bases
+    # run last, 36-45, every task; then Composite at 3-18 and IF at 12, and the fresh bases
+    # whose machines have cancel holes (69, 72, 93: probed before any job ran there).
     (f"base {b}, unpredicted events, final policy", f"heldout/unpredicted-seeds{b}-{{task}}")
-    for b in (36, 39, 42, 45)]
+    for b in (3, 6, 9, 12, 15, 18, 36, 39, 42, 45, 69, 72, 93)] + [
+    # Commuted events (ablations/commute_events.toml): the hole bases, old (IF 12, Composite 18
+    # and 36) and fresh (IF 69, 72, Composite 69, 93).
+    (f"base {b}, commuted events, final policy", f"heldout/commute-seeds{b}-{{task}}")
+    for b in (12, 18, 36, 69, 72, 93)]
 
 
 def jobs(run):

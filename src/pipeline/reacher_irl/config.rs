@@ -235,8 +235,9 @@ pub struct IrlRunConfig {
     pub lrm_borrow_events: bool,
     /// LRM: commute events (`rm::lrm::LrmConfig::commute_events`): a cancel the
     /// demonstrations never show in a learned state is read as if it had come just before the
-    /// touch that entered it. A config without the key is read as false. Omitted from written
-    /// configs when false.
+    /// touch that entered it. True in the standard profile (adopted on its tuning seeds, README
+    /// "Commuted events"); a config without the key is read as false, what every run before
+    /// the key existed used. Omitted from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_commute_events: bool,
     /// LRM: event stutter (`rm::lrm::LrmConfig::event_stutter`): a step that only drops the
@@ -514,7 +515,10 @@ impl IrlRunConfig {
             lrm_patience: None,
             lrm_remember_events: false,
             lrm_borrow_events: false,
-            lrm_commute_events: false,
+            // A cancel never seen in a learned state is read as if it came before the touch
+            // that entered the state: closes the cancel holes (Composite 6 of 6 tuning jobs, as
+            // before; README, "Commuted events").
+            lrm_commute_events: true,
             lrm_event_stutter: true,
             // LRM is not asked to predict the cancel: otherwise it splits OR's and Sequential's
             // machines by a cancel they ignore (24 of 24 tuning jobs; README, "Not predicting
