@@ -28,7 +28,10 @@ trap 'rm -f "$out"' EXIT
   python3 figure7.py runs/or-shaped runs/sequential-shaped runs/if-shaped runs/composite-shaped
   printf '\n### SMIRL'"'"'s final policy on figure 7'"'"'s seeds, the standard of *SMIRL'"'"'s final policy* (before event stutter and event-gated visits; `python3 experiments/reacher/figure7.py --final-only runs/<task>-final`)\n'
   python3 figure7.py --final-only runs/or-final runs/sequential-final runs/if-final runs/composite-final
-  printf '\n### SMIRL'"'"'s final policy under the current standard (LRM not asked to predict the cancel; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-<task>`)\n'
+  printf '\n### SMIRL'"'"'s final policy under the current standard (commuted events; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; OR, Sequential and IF are the runs of unpredicted events, whose base-0 machines commuted events leave unchanged; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-{or,sequential,if} ablations/runs/commute_events-seeds0to5-composite`)\n'
+  python3 figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-or ablations/runs/unpredicted_events-seeds0to5-sequential \
+    ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/commute_events-seeds0to5-composite
+  printf '\n### SMIRL'"'"'s final policy before commuted events (LRM not asked to predict the cancel; base 0, SAC seeds 0-5; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-<task>`)\n'
   python3 figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-or ablations/runs/unpredicted_events-seeds0to5-sequential \
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/unpredicted_events-seeds0to5-composite
   printf '\n### SMIRL'"'"'s final policy under the previous standard (event-gated visits, LRM predicting the cancel; base 0, SAC seeds 0-5; `python3 experiments/reacher/figure7.py --final-only ablations/runs/event_gated_visits-seeds0to5-<task>`)\n'
@@ -42,7 +45,7 @@ trap 'rm -f "$out"' EXIT
   python3 half_plateaus.py --fresh "$bin"
   printf '\n### Half plateaus on the tuning seeds, LRM predicting the cancel and not (`python3 experiments/reacher/half_plateaus.py --tuning`)\n\n'
   python3 half_plateaus.py --tuning "$bin"
-  printf '\n### Learned machines with and without LRM predicting the cancel, bases 0-45 (`python3 experiments/reacher/half_plateaus.py --machines`)\n\n'
+  printf '\n### Learned machines with and without LRM predicting the cancel, and with commuted events, bases 0-45 (`python3 experiments/reacher/half_plateaus.py --machines`)\n\n'
   python3 half_plateaus.py --machines "$bin"
   echo
   cat results_figure7.md

@@ -160,14 +160,16 @@ FINAL_HELDOUT = [
     (f"base {b}, task machine (oracle), final policy", f"heldout/task-machine-seeds{b}-{{task}}")
     for b in (6, 9, 12, 18, 21, 30, 33)] + [
     # Unpredicted events (ablations/unpredicted_events.toml, the standard since) at the bases
-    # run last, 36-45, every task; then Composite at 3-18 and IF at 12, and the fresh bases
-    # whose machines have cancel holes (69, 72, 93: probed before any job ran there).
+    # run last, 36-45, every task; then Composite at 3 and 6, the old hole bases (IF 12,
+    # Composite 18), the fresh bases whose machines have cancel holes (IF 69, 72, Composite 69,
+    # 93: probed before any job ran there; IF 93, the same kind, run after them) and Composite 54
+    # (no hole; commuted events change its machine).
     (f"base {b}, unpredicted events, final policy", f"heldout/unpredicted-seeds{b}-{{task}}")
-    for b in (3, 6, 9, 12, 15, 18, 36, 39, 42, 45, 69, 72, 93)] + [
-    # Commuted events (ablations/commute_events.toml): the hole bases, old (IF 12, Composite 18
-    # and 36) and fresh (IF 69, 72, Composite 69, 93).
+    for b in (3, 6, 12, 18, 36, 39, 42, 45, 54, 69, 72, 93)] + [
+    # Commuted events (ablations/commute_events.toml, the standard since): the hole bases, old
+    # (IF 12, Composite 18 and 36) and fresh (IF 69, 72, 93, Composite 69, 93), and Composite 54.
     (f"base {b}, commuted events, final policy", f"heldout/commute-seeds{b}-{{task}}")
-    for b in (12, 18, 36, 69, 72, 93)]
+    for b in (12, 18, 36, 54, 69, 72, 93)]
 
 
 def jobs(run):
