@@ -19,8 +19,9 @@ Usage: python3 experiments/reacher/half_plateaus.py RUN_DIR...
        python3 experiments/reacher/half_plateaus.py --machines [REACHER_BIN]
          (machines only, no job: every task at bases 0-45 under event-gated visits (LRM
          predicting the cancel), under unpredicted events and under unpredicted and commuted
-         events (ablations/commute_events.toml), prepared the same way; per task and setting the bases whose machine splits red by the cancel and, for IF and
-         Composite, the bases with cancel holes (cancel_probe.py's probe).)
+         events (ablations/commute_events.toml), prepared the same way; per task and setting
+         the bases whose machine splits red by the cancel and, for IF and Composite, the bases
+         with cancel holes (cancel_probe.py's probe).)
 
 OR's perfect machine ignores the cancel, but a learned machine may keep "red touched" before
 and after a cancel in two states, each with its own reward weights. A policy that has lost the
@@ -63,6 +64,8 @@ HELDOUT = ([os.path.join(HERE, "heldout", "final-or")]
 # nor event-gated visits changed an OR machine) and not predicting it (the standard since).
 PREDICTED = "ablations/event_gated_visits.toml"
 UNPREDICTED = "ablations/unpredicted_events.toml"
+# Unpredicted and commuted events (the standard since): --machines only.
+COMMUTED = "ablations/commute_events.toml"
 # --tuning: (run, task, base, its config) at base 0.
 TUNING = [(os.path.join(HERE, "ablations", "runs", f"{name}-seeds0to5-{task}"), task, 0, config)
           for task in ("or", "sequential")
@@ -73,10 +76,9 @@ FRESH = [(os.path.join(HERE, "heldout", f"{name}-seeds{b}-or"), "or", b, config)
          for b in (36, 39, 42)]
 # --machines: the bases and settings whose machines it compares.
 MACHINE_BASES = range(0, 46, 3)
-COMMUTED = "ablations/commute_events.toml"
 MACHINE_SETTINGS = [("cancel predicted (event-gated visits)", PREDICTED),
-                    ("unpredicted events (the standard)", UNPREDICTED),
-                    ("unpredicted and commuted events", COMMUTED)]
+                    ("unpredicted events (the previous standard)", UNPREDICTED),
+                    ("unpredicted and commuted events (the standard)", COMMUTED)]
 HEADER = """`final-…` and `event-gated-…` are the jobs of the two standards before unpredicted events
 (the script's doc says what each column counts). The machine columns are each base's OR
 machine, prepared afresh with LRM predicting the cancel: the same at a base under both (neither

@@ -152,19 +152,19 @@ pub(crate) fn borrow_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], ev
 /// every trace's path are unchanged.
 ///
 /// [`LrmConfig::commute_events`]: super::LrmConfig::commute_events
-pub(crate) fn commute_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], is_event: &[bool]) {
+pub(crate) fn commute_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], events: &[usize]) {
     // Read from the cells as given, so a filled cell never feeds another fill.
     let given = cells.to_vec();
     let given = &given;
     let observed = move |w: usize, k: usize| given[w * l_n + k].filter(|c| c.weight > 0.0);
     for u in 0..n {
-        for l in (0..l_n).filter(|&l| is_event[l]) {
+        for &l in events {
             if given[u * l_n + l].is_some() {
                 continue;
             }
             let mut candidates = (0..n).filter(|&p| p != u).flat_map(|p| {
                 (0..l_n)
-                    .filter(|&k| !is_event[k])
+                    .filter(|k| !events.contains(k))
                     .filter(move |&k| observed(p, k).is_some_and(|c| c.target == u))
                     .filter_map(move |k| {
                         let q = observed(p, l)?.target;
@@ -253,7 +253,7 @@ mod tests {
 
     // Labels: 0 = {r}, 1 = {c} (the event), 2 = {g}.
     const L_N: usize = 3;
-    const IS_EVENT: [bool; L_N] = [false, true, false];
+    const EVENTS: [usize; 1] = [1];
 
     fn seen(target: usize) -> Option<Cell> {
         Some(Cell {
@@ -275,7 +275,7 @@ mod tests {
     #[test]
     fn an_unseen_event_goes_where_the_event_before_the_touch_goes() {
         let mut c = cells(5, &[(0, 0, 1), (0, 1, 2), (2, 0, 3)]);
-        commute_events(5, L_N, &mut c, &IS_EVENT);
+        commute_events(5, L_N, &mut c, &EVENTS);
         assert_eq!(c[L_N + 1].map(|c| (c.target, c.weight)), Some((3, 0.0)));
         // Observed cells and cells of other labels are untouched; state 3 has no entry whose
         // commuted path is defined.
@@ -290,12 +290,12 @@ mod tests {
     fn entries_that_disagree_leave_the_cell_undefined() {
         let observed = [(0, 0, 1), (0, 2, 1), (0, 1, 2), (2, 0, 3), (2, 2, 4)];
         let mut c = cells(5, &observed);
-        commute_events(5, L_N, &mut c, &IS_EVENT);
+        commute_events(5, L_N, &mut c, &EVENTS);
         assert_eq!(c[L_N + 1], None);
         // When they agree, it is filled.
         let observed = [(0, 0, 1), (0, 2, 1), (0, 1, 2), (2, 0, 3), (2, 2, 3)];
         let mut c = cells(5, &observed);
-        commute_events(5, L_N, &mut c, &IS_EVENT);
+        commute_events(5, L_N, &mut c, &EVENTS);
         assert_eq!(c[L_N + 1].map(|c| c.target), Some(3));
     }
 
@@ -304,7 +304,7 @@ mod tests {
     #[test]
     fn a_commuted_stay_is_not_written() {
         let mut c = cells(2, &[(0, 0, 1), (0, 1, 0)]);
-        commute_events(2, L_N, &mut c, &IS_EVENT);
+        commute_events(2, L_N, &mut c, &EVENTS);
         assert_eq!(c[L_N + 1], None);
     }
 }

@@ -445,17 +445,15 @@ pub fn learn_rm(
         }
     }
 
+    // Label ids whose set holds an event: the cells borrowing and commuting may fill.
+    let event_ids: Vec<usize> = (0..l_n)
+        .filter(|&l| event_bits.get(l).is_some_and(|&b| b != 0))
+        .collect();
     if cfg.borrow_events {
-        let event_ids: Vec<usize> = (0..l_n)
-            .filter(|&l| event_bits.get(l).is_some_and(|&b| b != 0))
-            .collect();
         merge::borrow_events(n, l_n, &mut defined, &event_ids);
     }
     if cfg.commute_events {
-        let is_event: Vec<bool> = (0..l_n)
-            .map(|l| event_bits.get(l).is_some_and(|&b| b != 0))
-            .collect();
-        merge::commute_events(n, l_n, &mut defined, &is_event);
+        merge::commute_events(n, l_n, &mut defined, &event_ids);
     }
 
     let (exact_rm, final_cells, final_n, final_cost) = if cfg.merge {
