@@ -2,7 +2,8 @@
 # Builds experiments/reacher/results.md from the run directories (every number from a script):
 # SMIRL's settings of issue 13 (results_smirl.md's prose, figure7.py's tables of
 # runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final (the standards before
-# event-gated visits) and of the current standard's tuning runs, smirl_settings.py's
+# event-gated visits) and of the current standard's tuning runs, standard_heldout.py's table
+# of the current standard's held-out jobs, smirl_settings.py's
 # table of every setting tried and the held-out runs, half_plateaus.py's OR plateaus, which
 # prepares machines with REACHER_BIN, default target/release/reacher),
 # figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
@@ -31,6 +32,8 @@ trap 'rm -f "$out"' EXIT
   printf '\n### SMIRL'"'"'s final policy under the current standard (commuted events; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; OR, Sequential and IF are the runs of unpredicted events, whose base-0 machines commuted events leave unchanged; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-{or,sequential,if} ablations/runs/commute_events-seeds0to5-composite`)\n'
   python3 figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-or ablations/runs/unpredicted_events-seeds0to5-sequential \
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/commute_events-seeds0to5-composite
+  printf '\n### SMIRL held out under the current standard (every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py`)\n\n'
+  python3 standard_heldout.py "$bin"
   printf '\n### SMIRL'"'"'s final policy before commuted events (LRM not asked to predict the cancel; base 0, SAC seeds 0-5; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-<task>`)\n'
   python3 figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-or ablations/runs/unpredicted_events-seeds0to5-sequential \
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/unpredicted_events-seeds0to5-composite

@@ -1,0 +1,135 @@
+#!/usr/bin/env python3
+"""SMIRL's held-out check under the current standard (issue 13), in one table: per task and
+held-out base seed B, the reported policy of each SAC seed B, B+1, B+2, from whichever run is
+the standard's job there.
+
+Usage: python3 experiments/reacher/standard_heldout.py [REACHER_BIN]
+  (REACHER_BIN defaults to target/release/reacher; it only runs `reacher prepare`, well under a
+  second per machine. make_results.sh puts the table in results.md.)
+
+Which run is the standard's job at base B:
+  1. heldout/commute-seedsB-<task>, run with ablations/commute_events.toml: config.toml key
+     for key (the comments aside).
+  2. Else a run of an earlier setting whose config differs from config.toml only in LRM keys —
+     heldout/unpredicted-seedsB-<task> (ablations/unpredicted_events.toml: no commuted
+     events), then heldout/event-gated-seedsB-<task> (ablations/event_gated_visits.toml: also
+     predicting the cancel) — when `reacher prepare` learns, at B, the same machine under that
+     config as under config.toml. LRM runs in `prepare` alone and a job reads the machine from
+     rm/learned.txt, so such a job is the standard's, seed for seed (the code after `prepare`
+     is the same since those runs: from their commit, d6fce19, to commuted events `git log
+     -- src` touches LRM, config keys and the commands' refusal of unfinished runs only).
+  A base where no run qualifies is left out of the table and listed below it, with the runs
+  that exist there but learned another machine.
+
+A job counts as solved when its reported policy (the final policy's chosen candidate) reaches
+0.9 on the ground truth — for IF and Composite on each branch (the lower branch rate).
+"""
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import rundata  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+HELDOUT = os.path.join(HERE, "heldout")
+STANDARD = "config.toml"
+# (run name prefix, its config): the standard's own runs first, then earlier settings that
+# differ from it only in how LRM learns the machine.
+SETTINGS = [("commute", None),
+            ("unpredicted", "ablations/unpredicted_events.toml"),
+            ("event-gated", "ablations/event_gated_visits.toml")]
+TASKS = ["or", "sequential", "if", "composite"]
+SOLVED = 0.9
+
+
+def prepare(binary, task, base, config, tmp):
+    """The text of the machine `reacher prepare` learns for `task` at `base` under `config`."""
+    out = os.path.join(tmp, f"{task}-{base}-{os.path.basename(config)}")
+    if not os.path.isdir(out):
+        subprocess.run([binary, "prepare", "--task", task, "--algo", "smirl", "--seed", str(base),
+                        "--seeds", "1", "--config", os.path.join(HERE, config), "--out", out,
+                        "--quiet"], check=True, stdout=subprocess.DEVNULL)
+    with open(os.path.join(out, "rm", "learned.txt")) as f:
+        return f.read()
+
+
+def held_out_runs():
+    """{(task, base): {setting: run name}} of the held-out runs with a final policy."""
+    found = {}
+    for name in rundata.runs(HELDOUT, "final_policy.csv"):
+        m = re.fullmatch(r"(.+)-seeds(\d+)-(or|sequential|if|composite)", name)
+        if m and m[1] in dict(SETTINGS):
+            found.setdefault((m[3], int(m[2])), {})[m[1]] = name
+    return found
+
+
+def standard_run(binary, tmp, task, base, runs):
+    """(run name, setting) of the standard's job at `base`, or (None, [settings whose machine
+    differs])."""
+    differs = []
+    for setting, config in SETTINGS:
+        name = runs.get(setting)
+        if name is None:
+            continue
+        if config is None:
+            return name, setting
+        if prepare(binary, task, base, config, tmp) == prepare(binary, task, base, STANDARD, tmp):
+            return name, setting
+        differs.append(setting)
+    return None, differs
+
+
+def cell(task, candidates):
+    """'1.00 (1.00/1.00)' of one job's reported policy and whether it is solved."""
+    c = rundata.chosen(candidates)
+    rate = float(c["success_rate"])
+    text = f"{rate:.2f}"
+    if task in ("if", "composite"):
+        text += f" ({float(c['success_normal']):.2f}/{float(c['success_cancel']):.2f})"
+    return text, rate >= SOLVED
+
+
+def table(binary):
+    found = held_out_runs()
+    lines = ["| task | base | run (setting) | reported policy per SAC seed (IF, Composite: normal/cancel) | solved |",
+             "|---|---|---|---|---|"]
+    totals, missing = {}, {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for task in TASKS:
+            for base in sorted(b for t, b in found if t == task):
+                name, setting = standard_run(binary, tmp, task, base, found[(task, base)])
+                if name is None:
+                    missing.setdefault(task, []).append(f"{base} ({', '.join(setting)})")
+                    continue
+                jobs = rundata.final_policy(os.path.join(HELDOUT, name))
+                seeds = [s for a, s in sorted(jobs) if a == "smirl"]
+                cells = [cell(task, jobs[("smirl", s)]) for s in seeds]
+                solved = sum(ok for _, ok in cells)
+                done, total = totals.get(task, (0, 0))
+                totals[task] = (done + solved, total + len(cells))
+                lines.append(f"| {task} | {base} | {name} ({setting}) | "
+                             f"{', '.join(text for text, _ in cells)} | {solved}/{len(cells)} |")
+    out = "\n".join(lines) + "\n\n"
+    out += "Jobs solved per task: " + "; ".join(
+        f"{t} {totals[t][0]} of {totals[t][1]}" for t in TASKS if t in totals) + ".\n"
+    if missing:
+        out += ("\nHeld-out bases whose runs are not the standard's job (the setting of each run "
+                "there, which learns another machine): "
+                + "; ".join(f"{t} {', '.join(missing[t])}" for t in TASKS if t in missing) + ".\n")
+    return out
+
+
+def main(argv):
+    if argv and argv[0].startswith("-"):
+        sys.exit(__doc__)
+    binary = argv[0] if argv else os.path.join(HERE, "..", "..", "target", "release", "reacher")
+    if not os.path.isfile(binary):
+        sys.exit(f"standard_heldout.py: {binary}: no such program (cargo build --release, or pass REACHER_BIN)")
+    print(table(binary), end="")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
