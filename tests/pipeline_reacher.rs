@@ -212,7 +212,7 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
     let mut lines = table.lines();
     assert_eq!(
         lines.next(),
-        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball")
+        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let config = tiny_config();
@@ -242,6 +242,7 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
         let steps: Vec<u64> = job.iter().map(|r| r[3].parse().unwrap()).collect();
         assert_eq!(steps, [loop_end, loop_end + 140, loop_end + 280], "{table}");
         assert_eq!(job[0][6], last_row[4], "{last_row:?}");
+        assert!(job.iter().all(|r| r[11] == "co-trained"), "{table}");
     }
 }
 
@@ -809,6 +810,29 @@ fn final_policy_settings_are_checked() {
             }
         }
     }
+    // The fresh agent needs the phase's checkpoints, at least one step per checkpoint and at
+    // most the step limit.
+    for (fresh, steps, checkpoints, ok) in [
+        (150_000, 20_000, 4, true),
+        (4, 20_000, 4, true),
+        (3, 20_000, 4, false),
+        (150_000, 0, 0, false),
+        (100_000_001, 20_000, 4, false),
+    ] {
+        c.smirl_final_fresh_steps = fresh;
+        c.smirl_final_sac_steps = steps;
+        c.smirl_final_checkpoints = checkpoints;
+        match c.validate("test") {
+            Ok(()) => assert!(ok, "fresh {fresh} accepted"),
+            Err(e) => {
+                assert!(!ok, "fresh {fresh}: {e}");
+                assert!(e.to_string().contains("smirl_final_fresh_steps"), "{e}");
+            }
+        }
+    }
+    let standard = IrlRunConfig::standard();
+    assert_eq!(standard.smirl_final_fresh_steps, 0);
+    assert!(!standard.to_toml().contains("smirl_final_fresh_steps"));
     // A config without the keys (every run before them) has no final phase.
     let old = IrlRunConfig::standard()
         .to_toml()
@@ -921,8 +945,9 @@ fn smirl_normalisation_values_round_trip() {
 /// The reported candidate is the first of highest learned return, whatever its ground truth.
 #[test]
 fn final_policy_is_the_first_candidate_of_highest_learned_return() {
-    use smirl::pipeline::reacher_irl::final_policy::{choose, FinalCandidate};
+    use smirl::pipeline::reacher_irl::final_policy::{choose, FinalAgent, FinalCandidate};
     let candidate = |learned_return: f64, success_rate: f64| FinalCandidate {
+        agent: FinalAgent::CoTrained,
         env_steps: 0,
         learned_return,
         success_rate,
@@ -1128,6 +1153,69 @@ fn bad_schedules_name_the_key_and_line() {
 
 /// A job runs with its algorithm's schedule: one IRL iteration for `maxent`, the run's two
 /// for `smirl`, in the same run.
+/// `smirl_final_fresh_steps`: after the co-trained agent's final phase a fresh agent learns the
+/// final reward from scratch, and its checkpoints join the candidates (`agent` = fresh, its
+/// own step count); the IRL loop and the co-trained candidates are those of the same run
+/// without it, the choice is still the first of highest learned return, and the rollout log
+/// with the fresh agent's episodes replays bit for bit.
+#[test]
+fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
+    let tmp = tempfile::tempdir().unwrap();
+    let request = |out: &str, fresh_steps: u64| {
+        let mut config = tiny_config();
+        config.smirl_final_fresh_steps = fresh_steps;
+        RunRequest {
+            task: ReacherTask::Or,
+            algos: vec![Algo::Smirl],
+            seeds: 1,
+            seed: 3,
+            config,
+            out: tmp.path().join(out),
+            force: false,
+        }
+    };
+    run_pipeline(&request("without", 0), &Silent).unwrap();
+    run_pipeline(&request("with", 280), &Silent).unwrap();
+    let read =
+        |run: &str, file: &str| std::fs::read_to_string(tmp.path().join(run).join(file)).unwrap();
+    assert_eq!(read("without", "metrics.csv"), read("with", "metrics.csv"));
+    let rows = |run: &str| -> Vec<Vec<String>> {
+        read(run, "final_policy.csv")
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(String::from).collect())
+            .collect()
+    };
+    let (without, with) = (rows("without"), rows("with"));
+    assert_eq!(with.len(), 5, "{with:?}");
+    // The co-trained candidates are unchanged but for `chosen`.
+    for (a, b) in without.iter().zip(&with) {
+        assert_eq!((&a[..5], &a[6..]), (&b[..5], &b[6..]));
+    }
+    let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
+    assert_eq!(
+        agents,
+        ["co-trained", "co-trained", "co-trained", "fresh", "fresh"]
+    );
+    let fresh_steps: Vec<&str> = with[3..].iter().map(|r| r[3].as_str()).collect();
+    assert_eq!(fresh_steps, ["140", "280"]);
+    let returns: Vec<f64> = with.iter().map(|r| r[4].parse().unwrap()).collect();
+    let best = returns.iter().cloned().fold(f64::MIN, f64::max);
+    let chosen: Vec<usize> = (0..5).filter(|&i| with[i][5] == "1").collect();
+    assert_eq!(
+        chosen,
+        vec![returns.iter().position(|&x| x == best).unwrap()]
+    );
+    let log = smirl::log::read_log(&tmp.path().join("with/logs/smirl_seed3.mcap")).unwrap();
+    let report = smirl::pipeline::replay::replay(&log).unwrap();
+    assert!(report.all_match(), "{report}");
+    let written = read("with", "config.toml");
+    assert!(
+        written.contains("smirl_final_fresh_steps = 280"),
+        "{written}"
+    );
+}
+
 #[test]
 fn jobs_run_with_their_algorithms_schedule() {
     let tmp = tempfile::tempdir().unwrap();

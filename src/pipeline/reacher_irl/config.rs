@@ -187,6 +187,13 @@ pub struct IrlRunConfig {
     /// besides the co-trained policy.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub smirl_final_checkpoints: u64,
+    /// SAC environment steps of a fresh agent (new networks and replay, its own seed) on the
+    /// same final reward after the co-trained agent's final phase, with as many checkpoints,
+    /// each one more candidate for the reported policy; 0 = none (every run before the key
+    /// existed). Why: a job whose co-trained agent is stuck can leave a reward that a fresh
+    /// agent solves (`reacher retrain`). Omitted from written configs when 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub smirl_final_fresh_steps: u64,
     /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
     /// state (CRM, see `rl::crm`): 0 = only the states the agent was in, 1 = every sampled
     /// transition from a uniformly drawn state.
@@ -502,6 +509,7 @@ impl IrlRunConfig {
             // (README, "SMIRL's final policy").
             smirl_final_sac_steps: 20_000,
             smirl_final_checkpoints: 4,
+            smirl_final_fresh_steps: 0,
             smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,
@@ -791,6 +799,29 @@ impl IrlRunConfig {
                 return bad(
                     "smirl_final_checkpoints",
                     &format!("must be in 1..={steps} (smirl_final_sac_steps), got {k}"),
+                )
+            }
+            _ => {}
+        }
+        if self.smirl_final_fresh_steps > MAX_SAC_STEPS_PER_ITERATION {
+            return over(
+                "smirl_final_fresh_steps",
+                self.smirl_final_fresh_steps,
+                MAX_SAC_STEPS_PER_ITERATION,
+            );
+        }
+        match (self.smirl_final_fresh_steps, self.smirl_final_checkpoints) {
+            (0, _) => {}
+            (_, 0) => {
+                return bad(
+                    "smirl_final_fresh_steps",
+                    "needs the final-policy phase (smirl_final_sac_steps and smirl_final_checkpoints > 0)",
+                )
+            }
+            (steps, k) if k > steps => {
+                return bad(
+                    "smirl_final_fresh_steps",
+                    &format!("must be at least smirl_final_checkpoints ({k}), got {steps}"),
                 )
             }
             _ => {}

@@ -1,7 +1,8 @@
 //! SMIRL's final policy (`smirl_final_sac_steps` > 0): after the last reward update, SAC goes on
 //! training on the job's final learned reward, now held fixed, and the policy the job reports is
 //! the one of highest learned return among the co-trained policy and the checkpoints of that
-//! phase.
+//! phase — and, with `smirl_final_fresh_steps` > 0, the checkpoints of a fresh agent trained on
+//! the same reward after it.
 //!
 //! Why: the IRL loop's policy learns along with a moving reward; the one evaluated after the
 //! last iteration trained on the weights before the last update, and on held-out seeds it can
@@ -11,13 +12,20 @@
 //! learned return of each candidate's mean action over selection episodes with reset seeds of
 //! their own — never the ground truth; every candidate is also judged on the ground truth, so
 //! the choice can be checked against the co-trained policy and the last checkpoint.
+//!
+//! The fresh agent: a co-trained agent that never found the task during the loop (or lost it)
+//! carries its habit into the phase, while the reward it leaves can be right — a SAC agent
+//! started afresh on it solves the task (`reacher retrain`, README "Commuted events"). The
+//! fresh agent has its own networks, replay buffer and seed, the co-trained agent's SAC
+//! settings, environment and reward; its checkpoints are scored like the others, so the
+//! choice still reads the learned reward alone.
 
 use super::episodes::{play_episode, train_sac, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::evaluation::{Evaluation, JobWatch};
 use crate::env::reacher_task::BranchTally;
 use crate::irl::smirl::FeatureMap;
 use crate::log::RolloutLogger;
-use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
+use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacConfig, SacTrainer};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -27,9 +35,32 @@ pub(super) trait ScoredReward: RewardFn {
     fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String>;
 }
 
-/// One candidate for the final policy, after `env_steps` SAC steps of the job.
+/// Which agent a candidate is a policy of.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FinalAgent {
+    /// The agent of the IRL loop, trained on in the phase (every record before the fresh
+    /// agent existed).
+    #[default]
+    CoTrained,
+    /// The fresh agent of `smirl_final_fresh_steps`.
+    Fresh,
+}
+
+impl FinalAgent {
+    pub fn name(self) -> &'static str {
+        match self {
+            FinalAgent::CoTrained => "co-trained",
+            FinalAgent::Fresh => "fresh",
+        }
+    }
+}
+
+/// One candidate for the final policy, after `env_steps` SAC steps of its agent.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FinalCandidate {
+    #[serde(default)]
+    pub agent: FinalAgent,
     pub env_steps: u64,
     /// Mean learned return (the final reward, unshaped) of the mean action over the selection
     /// episodes, each played to the time limit: what the choice reads.
@@ -42,8 +73,8 @@ pub struct FinalCandidate {
     pub final_ball: f64,
 }
 
-/// The final-policy phase of a job: its candidates, the co-trained policy first, and which
-/// one the job reports.
+/// The final-policy phase of a job: its candidates — the co-trained policy first, then its
+/// checkpoints, then the fresh agent's — and which one the job reports.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FinalPolicy {
     pub candidates: Vec<FinalCandidate>,
@@ -66,14 +97,24 @@ pub struct FinalPhase {
     /// Candidates taken along them (evenly spaced, the last at the end), besides the co-trained
     /// policy.
     pub checkpoints: u64,
-    /// The job's seed (selection episodes draw their reset seeds from it).
+    /// The job's seed (selection episodes draw their reset seeds from it, and the fresh agent
+    /// its SAC seed).
     pub seed: u64,
+    /// SAC environment steps of the fresh agent (0: none), with `checkpoints` candidates
+    /// along them.
+    pub fresh_steps: u64,
 }
 
+/// The stream of the fresh agent's SAC seed within the job's seed.
+const FRESH_AGENT_STREAM: u64 = 0xf7e5_a9e7;
+
 /// Runs the phase: `sac`, fresh from the IRL loop, trains on `reward` (the final reward, fixed)
-/// and is scored at each checkpoint. `iterations` is the loop's length (for progress reports).
+/// and is scored at each checkpoint; then, with `phase.fresh_steps` > 0, a new agent with
+/// `sac_config` does the same from scratch. `iterations` is the loop's length (for progress
+/// reports).
 pub(super) fn train<E: JobEnv, R: ScoredReward>(
     sac: &mut SacTrainer,
+    sac_config: &SacConfig,
     env: &mut E,
     reward: &mut R,
     phase: FinalPhase,
@@ -86,22 +127,42 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         .collect();
     let task = GroundTruthTask::of(watch.perfect());
     let seeds = &selection_seeds;
-    let mut candidates = vec![candidate(sac, env, reward, &task, seeds, watch)?];
+    let co_trained = FinalAgent::CoTrained;
+    let mut candidates = vec![candidate(
+        sac, co_trained, env, reward, &task, seeds, watch,
+    )?];
     let start = sac.env_steps();
     for k in 1..=phase.checkpoints {
         let end = start + phase.steps * k / phase.checkpoints;
         let n = end.saturating_sub(sac.env_steps());
         train_sac(sac, env, reward, n, iterations + 1, watch)?;
-        candidates.push(candidate(sac, env, reward, &task, seeds, watch)?);
+        candidates.push(candidate(
+            sac, co_trained, env, reward, &task, seeds, watch,
+        )?);
+    }
+    if phase.fresh_steps > 0 {
+        let fresh_seed = episode_seed(phase.seed, FRESH_AGENT_STREAM);
+        let mut fresh = SacTrainer::new(sac_config, env.obs_dim(), env.act_dim(), fresh_seed)
+            .map_err(|e| format!("the fresh agent: {e}"))?;
+        for k in 1..=phase.checkpoints {
+            let end = phase.fresh_steps * k / phase.checkpoints;
+            let n = end.saturating_sub(fresh.env_steps());
+            train_sac(&mut fresh, env, reward, n, iterations + 1, watch)?;
+            let agent = FinalAgent::Fresh;
+            candidates.push(candidate(
+                &mut fresh, agent, env, reward, &task, seeds, watch,
+            )?);
+        }
     }
     let chosen = choose(&candidates);
     Ok(FinalPolicy { candidates, chosen })
 }
 
-/// Scores the current policy of `sac`: its learned return on the selection episodes, then its
-/// ground-truth evaluation.
+/// Scores the current policy of `sac` (a policy of `agent`): its learned return on the
+/// selection episodes, then its ground-truth evaluation.
 fn candidate<E: JobEnv, R: ScoredReward>(
     sac: &mut SacTrainer,
+    agent: FinalAgent,
     env: &mut E,
     reward: &mut R,
     task: &GroundTruthTask<'_>,
@@ -118,6 +179,7 @@ fn candidate<E: JobEnv, R: ScoredReward>(
     )?;
     let ev: Evaluation = watch.judge_final(&mut sac.agent, env)?;
     Ok(FinalCandidate {
+        agent,
         env_steps: sac.env_steps(),
         learned_return,
         success_rate: ev.success_rate,

@@ -1067,7 +1067,8 @@ fn run_one(
 }
 
 /// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
-/// co-trained policy of the last IRL iteration, `chosen` marks the reported one.
+/// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `agent` says
+/// whose policy it is (`co-trained`, or `fresh` with `smirl_final_fresh_steps`).
 fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
     let mut table = CsvTable::new([
         "algo",
@@ -1081,6 +1082,7 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
         "success_cancel",
         "progress",
         "final_ball",
+        "agent",
     ]);
     for (_, r) in records {
         let Some(f) = &r.final_policy else { continue };
@@ -1102,6 +1104,7 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 rate(Branch::Cancelled),
                 format!("{}", c.progress),
                 format!("{}", c.final_ball),
+                c.agent.name().to_string(),
             ]);
         }
     }
@@ -1185,8 +1188,9 @@ pub fn summary_markdown(
     if !with_final.is_empty() {
         let _ = writeln!(
             s,
-            "\nFinal policy (SAC on the final reward held fixed; of the co-trained policy and \
-             the checkpoints, the one of highest learned return):\n"
+            "\nFinal policy (SAC on the final reward held fixed; of the candidates in \
+             final_policy.csv — the co-trained policy, its checkpoints and any fresh agent's — \
+             the one of highest learned return):\n"
         );
         let _ = writeln!(
             s,

@@ -16,7 +16,8 @@
 //!       ([`coefficients`]);
 //!    4. reward step(s) on w (Adam, L2).
 //! 4. **Final policy** (`smirl_final_sac_steps` > 0, [`super::final_policy`]): SAC goes on with
-//!    the final reward held fixed; the candidate of highest learned return is reported.
+//!    the final reward held fixed (and, with `smirl_final_fresh_steps` > 0, a fresh agent
+//!    learns it from scratch); the candidate of highest learned return is reported.
 //!
 //! Steps 1–2 run once per task in `reacher prepare` (every SMIRL job of a run shares the
 //! machine); `train` is one (variant, seed) job. Ground-truth evaluation, logging and progress
@@ -452,7 +453,8 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     }
 
     // Step 4, the final policy: SAC goes on with the final reward, now fixed (shaped by its
-    //    potential), and the candidate of highest learned return is the job's policy.
+    //    potential), then (`smirl_final_fresh_steps`) a fresh agent learns it from scratch,
+    //    and the candidate of highest learned return is the job's policy.
     let final_policy = if s.smirl_final_sac_steps > 0 {
         let potential = shaping_potential(&features, n_states, &reward.params(), s)?;
         let mut sac_reward = ProductReward::new(
@@ -464,10 +466,12 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
             steps: s.smirl_final_sac_steps,
             checkpoints: s.smirl_final_checkpoints,
             seed: job.seed,
+            fresh_steps: s.smirl_final_fresh_steps,
         };
         let iterations = s.irl_iterations;
         Some(final_policy::train(
             &mut sac,
+            &s.sac,
             &mut env,
             &mut sac_reward,
             phase,
