@@ -87,6 +87,7 @@ def main():
             "|---|---|---|---|---|---|"]
     screen, others = list(head), list(head)
     screened = lost = 0
+    other_gained = other_lost = 0
     for (run, seed), fresh in sorted(agents.items(), key=lambda kv: (kv[0][0] not in TUNING, kv[0])):
         r = row(run, seed, fresh)
         if r is None:
@@ -98,12 +99,15 @@ def main():
             lost += reported_ok and not chosen_ok
         else:
             others.append(text)
+            other_gained += chosen_ok and not reported_ok
+            other_lost += reported_ok and not chosen_ok
     print("Screen (the current standard's tuning jobs with a retrain):\n")
     print("\n".join(screen))
     verdict = "passes" if screened and not lost else "fails" if lost else "has no job yet"
     print(f"\n{screened} tuning jobs screened, {lost} lost: the screen {verdict}.\n")
     print("Every other retrained job with a final policy (not a test):\n")
     print("\n".join(others))
+    print(f"\n{len(others) - 2} other jobs: the rule gains {other_gained} and loses {other_lost}.")
 
 
 if __name__ == "__main__":

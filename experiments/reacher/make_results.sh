@@ -8,7 +8,8 @@
 # prepares machines with REACHER_BIN, default target/release/reacher),
 # figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
 # figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>,
-# progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised),
+# progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised,
+# fresh_agent_screen.py's offline screen of a fresh agent as a final-policy candidate),
 # then the earlier material: the prose of results_header.md, the table of every run
 # directory (results.py), the held-out table (heldout.py), the partial-progress tables of
 # the uniform-schedule OR and Sequential runs (progress.py) and the earlier sessions' notes
@@ -65,6 +66,8 @@ trap 'rm -f "$out"' EXIT
   done
   printf '\n### The learned rewards re-optimised (`python3 experiments/reacher/retrain_table.py`)\n\n'
   python3 retrain_table.py
+  printf '\n### A fresh agent as one more final-policy candidate, screened offline (`python3 experiments/reacher/fresh_agent_screen.py`)\n\n'
+  python3 fresh_agent_screen.py
   echo
   cat results_header.md
   python3 results.py

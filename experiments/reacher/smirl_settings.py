@@ -167,9 +167,15 @@ FINAL_HELDOUT = [
     (f"base {b}, unpredicted events, final policy", f"heldout/unpredicted-seeds{b}-{{task}}")
     for b in (3, 6, 12, 18, 36, 39, 42, 45, 54, 69, 72, 93)] + [
     # Commuted events (ablations/commute_events.toml, the standard since): the hole bases, old
-    # (IF 12, Composite 18 and 36) and fresh (IF 69, 72, 93, Composite 69, 93), and Composite 54.
+    # (IF 12, Composite 18 and 36) and fresh (IF 69, 72, 93, Composite 69, 93), and Composite 54;
+    # then the held-out bases whose machines it changes (Composite 9, 12, 21, 30, 33, 45;
+    # Sequential 42, OR 45), Composite's other bases without a job of the standard (15, 24, 27)
+    # and IF 3 (standard_heldout.py).
     (f"base {b}, commuted events, final policy", f"heldout/commute-seeds{b}-{{task}}")
-    for b in (12, 18, 36, 54, 69, 72, 93)]
+    for b in (3, 9, 12, 15, 18, 21, 24, 27, 30, 33, 36, 42, 45, 54, 69, 72, 93)] + [
+    # The fresh agent (ablations/fresh_agent.toml): Composite 30, a held-out miss of the standard.
+    (f"base {b}, fresh agent, final policy", f"heldout/fresh-agent-seeds{b}-{{task}}")
+    for b in (30,)]
 
 
 def jobs(run):
