@@ -1151,8 +1151,6 @@ fn bad_schedules_name_the_key_and_line() {
     }
 }
 
-/// A job runs with its algorithm's schedule: one IRL iteration for `maxent`, the run's two
-/// for `smirl`, in the same run.
 /// `smirl_final_fresh_steps`: after the co-trained agent's final phase a fresh agent learns the
 /// final reward from scratch, and its checkpoints join the candidates (`agent` = fresh, its
 /// own step count); the IRL loop and the co-trained candidates are those of the same run
@@ -1216,6 +1214,8 @@ fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
     );
 }
 
+/// A job runs with its algorithm's schedule: one IRL iteration for `maxent`, the run's two
+/// for `smirl`, in the same run.
 #[test]
 fn jobs_run_with_their_algorithms_schedule() {
     let tmp = tempfile::tempdir().unwrap();

@@ -127,32 +127,34 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         .collect();
     let task = GroundTruthTask::of(watch.perfect());
     let seeds = &selection_seeds;
+    let (obs_dim, act_dim) = (env.obs_dim(), env.act_dim());
     let co_trained = FinalAgent::CoTrained;
     let mut candidates = vec![candidate(
         sac, co_trained, env, reward, &task, seeds, watch,
     )?];
-    let start = sac.env_steps();
-    for k in 1..=phase.checkpoints {
-        let end = start + phase.steps * k / phase.checkpoints;
-        let n = end.saturating_sub(sac.env_steps());
-        train_sac(sac, env, reward, n, iterations + 1, watch)?;
-        candidates.push(candidate(
-            sac, co_trained, env, reward, &task, seeds, watch,
-        )?);
-    }
+    // `steps` more SAC steps of `sac` in `phase.checkpoints` even segments, each ending in a
+    // scored candidate: the co-trained agent's, then the fresh one's.
+    let mut checkpoints = |sac: &mut SacTrainer, agent: FinalAgent, steps: u64| {
+        let start = sac.env_steps();
+        let mut scored = Vec::new();
+        for k in 1..=phase.checkpoints {
+            let end = start + steps * k / phase.checkpoints;
+            let n = end.saturating_sub(sac.env_steps());
+            train_sac(sac, env, reward, n, iterations + 1, watch)?;
+            scored.push(candidate(sac, agent, env, reward, &task, seeds, watch)?);
+        }
+        Ok::<_, String>(scored)
+    };
+    candidates.extend(checkpoints(sac, co_trained, phase.steps)?);
     if phase.fresh_steps > 0 {
         let fresh_seed = episode_seed(phase.seed, FRESH_AGENT_STREAM);
-        let mut fresh = SacTrainer::new(sac_config, env.obs_dim(), env.act_dim(), fresh_seed)
+        let mut fresh = SacTrainer::new(sac_config, obs_dim, act_dim, fresh_seed)
             .map_err(|e| format!("the fresh agent: {e}"))?;
-        for k in 1..=phase.checkpoints {
-            let end = phase.fresh_steps * k / phase.checkpoints;
-            let n = end.saturating_sub(fresh.env_steps());
-            train_sac(&mut fresh, env, reward, n, iterations + 1, watch)?;
-            let agent = FinalAgent::Fresh;
-            candidates.push(candidate(
-                &mut fresh, agent, env, reward, &task, seeds, watch,
-            )?);
-        }
+        candidates.extend(checkpoints(
+            &mut fresh,
+            FinalAgent::Fresh,
+            phase.fresh_steps,
+        )?);
     }
     let chosen = choose(&candidates);
     Ok(FinalPolicy { candidates, chosen })
