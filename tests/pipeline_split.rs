@@ -364,8 +364,9 @@ fn configs_print_shortest_decimals_and_read_back_the_same() {
 /// `reacher retrain`: a fresh SAC agent on a finished job's final reward, judged on the ground
 /// truth; the table is written once (again only with --force), the same seed gives the same
 /// table, and bad input — a job that has not run, zero steps, more evaluations than steps, an
-/// Office algorithm, a learned state the machine lacks, a run's `.partial` working directory —
-/// exits 2 before any training, writing nothing; zeroed states write a table of their own.
+/// Office algorithm, a learned state the machine lacks, a run's `.partial` working directory, a
+/// bad agent settings file — exits 2 before any training, writing nothing; zeroed states and
+/// other agent settings write tables of their own.
 #[test]
 fn retrain_judges_a_fresh_policy_on_the_final_reward() {
     let tmp = tempfile::tempdir().unwrap();
@@ -477,6 +478,74 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
     let zeroed = dir.join("run/retrain/smirl_seed5_sac1000_zero0-1.csv");
     assert_eq!(std::fs::read_to_string(&zeroed).unwrap().lines().count(), 3);
     assert_eq!(std::fs::read_to_string(&table).unwrap(), written);
+
+    // Other agent settings (--agent FILE): a table named after the file, the job's left as it
+    // was; a file that asks for the same settings as the job's gives the job's table; an
+    // unknown key, a bad value (named with its line) or a stem that cannot name a table is
+    // refused before any training.
+    let agent = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let same = agent("same.toml", "# the job's own settings\n");
+    ok(&retrain(&[
+        "--steps",
+        "400",
+        "--evaluations",
+        "2",
+        "--agent",
+        &same,
+    ]));
+    let same_table = dir.join("run/retrain/smirl_seed5_sac1000_same.csv");
+    assert_eq!(std::fs::read_to_string(&same_table).unwrap(), written);
+    let slower = agent("slower.toml", "smirl_shaping = 0.0\n[sac]\nlr = 0.0003\n");
+    ok(&retrain(&[
+        "--steps",
+        "400",
+        "--evaluations",
+        "2",
+        "--agent",
+        &slower,
+    ]));
+    let slower_table = dir.join("run/retrain/smirl_seed5_sac1000_slower.csv");
+    assert_eq!(
+        std::fs::read_to_string(&slower_table)
+            .unwrap()
+            .lines()
+            .count(),
+        3
+    );
+    assert_eq!(std::fs::read_to_string(&table).unwrap(), written);
+    let unknown = agent("unknown.toml", "smirl_reward_lr = 0.5\n");
+    usage_error(
+        &retrain(&["--steps", "400", "--agent", &unknown]),
+        "smirl_reward_lr",
+    );
+    let negative = agent("negative.toml", "# a typo\n[sac]\nlr = -0.001\n");
+    usage_error(
+        &retrain(&["--steps", "400", "--agent", &negative]),
+        "line 3: field `sac.lr`",
+    );
+    let oversized = agent("oversized.toml", "[sac]\nreplay_capacity = 999999999999\n");
+    usage_error(
+        &retrain(&["--steps", "400", "--agent", &oversized]),
+        "replay_capacity",
+    );
+    let odd_name = agent("two words.toml", "");
+    usage_error(
+        &retrain(&["--steps", "400", "--agent", &odd_name]),
+        "the file's stem names the table",
+    );
+    let missing = dir.join("missing.toml");
+    usage_error(
+        &retrain(&["--steps", "400", "--agent", missing.to_str().unwrap()]),
+        "missing.toml",
+    );
+    for name in ["unknown", "negative", "oversized"] {
+        let refused = format!("run/retrain/smirl_seed5_sac1000_{name}.csv");
+        assert!(!dir.join(refused).exists());
+    }
 }
 
 /// Regression: `reacher job` printed the last IRL iteration's success as the job's "final

@@ -120,6 +120,11 @@ struct RetrainArgs {
     /// retrain/<algo>_seed<S>_sac<K>_zero<U>[-<V>...].csv.
     #[arg(long, value_name = "U")]
     zero_state: Vec<usize>,
+    /// A TOML file of agent settings in place of the job's: a [sac] table and/or
+    /// smirl_shaping (never the reward, the machine or the environment): is the reward
+    /// optimised better another way? The table's name then ends in _<the file's stem>.
+    #[arg(long, value_name = "FILE")]
+    agent: Option<PathBuf>,
     /// Replace an existing retrain/<algo>_seed<S>_sac<K>.csv.
     #[arg(long)]
     force: bool,
@@ -465,6 +470,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             sac_seed: a.sac_seed,
             evaluations: a.evaluations,
             zero_states: a.zero_state,
+            agent: a.agent,
             force: a.force,
         }),
         Some(Command::Draw(a)) => draw::run(DrawRequest {

@@ -404,6 +404,9 @@ pub struct RetrainRequest {
     /// Learned-machine states whose weights are zeroed first (the table's name then ends in
     /// `_zero<U>-<V>…`).
     pub zero_states: Vec<usize>,
+    /// A file of agent settings in place of the job's (the table's name then ends in
+    /// `_<its stem>`).
+    pub agent: Option<PathBuf>,
     /// Replace an existing `retrain/<algo>_seed<S>_sac<K>.csv`.
     pub force: bool,
 }
@@ -413,9 +416,16 @@ pub struct RetrainRequest {
 /// `<run>/retrain/<algo>_seed<S>_sac<K>.csv` and standard output.
 pub fn retrain(args: RetrainRequest) -> Result<()> {
     use crate::env::reacher_task::Branch;
-    use crate::pipeline::reacher_irl::retrain::{load, retrain, Retraining};
+    use crate::pipeline::reacher_irl::retrain::{load, retrain, AgentSettings, Retraining};
     let run = open_finished_run(&args.run)?;
     run.job(args.algo, args.seed).map_err(usage)?;
+    let agent = match &args.agent {
+        Some(path) => Some(AgentSettings::load(path).map_err(usage)?),
+        None => None,
+    };
+    let agent_name = agent
+        .as_ref()
+        .map_or(String::new(), |a| format!("_{}", a.name));
     let request = Retraining {
         algo: args.algo,
         seed: args.seed,
@@ -423,6 +433,7 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
         sac_seed: args.sac_seed,
         evaluations: args.evaluations,
         zero_states: args.zero_states.clone(),
+        agent,
     };
     let loaded = load(&run, &request).map_err(usage)?;
     let zeroed = if args.zero_states.is_empty() {
@@ -432,7 +443,7 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
         format!("_zero{}", states.join("-"))
     };
     let out = args.run.join("retrain").join(format!(
-        "{}_seed{}_sac{}{zeroed}.csv",
+        "{}_seed{}_sac{}{zeroed}{agent_name}.csv",
         args.algo, args.seed, args.sac_seed
     ));
     crate::output::check_file(&out, args.force).map_err(usage)?;

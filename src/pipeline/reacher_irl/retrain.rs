@@ -42,6 +42,75 @@ pub struct Retraining {
     /// Learned-machine states whose weights are set to zero before training (`smirl` and
     /// `smirl-smooth` only): whether those states' rewards are what misleads the agent.
     pub zero_states: Vec<usize>,
+    /// Settings of the agent other than the job's (`--agent FILE`): whether the reward is
+    /// optimised better another way.
+    pub agent: Option<AgentSettings>,
+}
+
+/// How a retraining's agent optimises, in place of the job's (`reacher retrain --agent FILE`):
+/// a `[sac]` table (any of its keys) and `smirl_shaping`. Nothing that defines the reward,
+/// the machine or the environment the agent is judged in can be changed, so the table still
+/// answers "does this reward solve the task" — with another optimiser.
+#[derive(Clone, Debug)]
+pub struct AgentSettings {
+    /// The file's stem, which names the retraining's table (`..._sac<K>_<name>.csv`).
+    pub name: String,
+    source: String,
+    text: String,
+    keys: AgentKeys,
+}
+
+#[derive(Clone, Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AgentKeys {
+    sac: Option<toml::Table>,
+    smirl_shaping: Option<f64>,
+}
+
+/// Longest name of an agent settings file (its stem).
+pub const MAX_AGENT_NAME: usize = 64;
+
+impl AgentSettings {
+    /// Reads and parses an agent settings file: an unknown key or a wrong type is an error
+    /// naming its line, and the stem must be a plain name (letters, digits, `-`, `_`).
+    pub fn load(path: &Path) -> Result<AgentSettings, RetrainError> {
+        let source = path.display().to_string();
+        let usage = |m: String| RetrainError::Usage(format!("{source}: {m}"));
+        let name = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or_default()
+            .to_string();
+        let plain = |c: char| c.is_ascii_alphanumeric() || c == '-' || c == '_';
+        if name.is_empty() || name.len() > MAX_AGENT_NAME || !name.chars().all(plain) {
+            return Err(usage(format!(
+                "the file's stem names the table: it must be 1 to {MAX_AGENT_NAME} letters, digits, '-' or '_'"
+            )));
+        }
+        let text = crate::config_text::read_text_file(path).map_err(|e| usage(e.to_string()))?;
+        let keys: AgentKeys = toml::from_str(&text)
+            .map_err(|e| usage(crate::config_text::toml_error_message(&text, &e)))?;
+        Ok(AgentSettings {
+            name,
+            source,
+            text,
+            keys,
+        })
+    }
+
+    /// `s` with these settings in place of its own, checked as a run's config is.
+    fn apply(&self, mut s: IrlRunConfig) -> Result<IrlRunConfig, RetrainError> {
+        if let Some(table) = &self.keys.sac {
+            s.sac = SacConfig::from_table(table.clone(), s.sac.clone(), &self.source)
+                .map_err(|e| RetrainError::Usage(e.to_string()))?;
+        }
+        if let Some(shaping) = self.keys.smirl_shaping {
+            s.smirl_shaping = shaping;
+        }
+        s.validate(&self.source)
+            .map_err(|e| RetrainError::Usage(e.at_key_line(&self.text).to_string()))?;
+        Ok(s)
+    }
 }
 
 /// One evaluation of the retrained policy.
@@ -97,10 +166,13 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
             r.algo
         )));
     }
-    let s = run
+    let mut s = run
         .config
         .for_algo(r.algo)
         .map_err(|e| usage(e.to_string()))?;
+    if let Some(agent) = &r.agent {
+        s = agent.apply(s)?;
+    }
     let steps = r
         .steps
         .unwrap_or(s.sac_steps_per_iteration * s.irl_iterations as u64);
