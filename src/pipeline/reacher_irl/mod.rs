@@ -20,9 +20,10 @@
 //!    rollouts); [`evaluation`] watches each job from outside (ground truth after every
 //!    iteration, logs, progress); SMIRL's jobs end with [`final_policy`], SAC on the final
 //!    reward held fixed and the policy of highest learned return reported beside the loop's.
-//! 4. **Reports** ([`run`]): metrics CSV, mean ± std plots over seeds, learned RM (text +
-//!    DOT), reward parameters, MCAP logs, a summary table. Everything is written into
-//!    `<out>.partial` and renamed to `<out>` at the end.
+//! 4. **Reports** ([`reports`], from the jobs' [`records`]): metrics CSV, mean ± std plots
+//!    over seeds, a summary table; beside them ([`run`]) the learned RM (text + DOT), reward
+//!    parameters and MCAP logs. Everything is written into `<out>.partial` and renamed to
+//!    `<out>` at the end.
 
 pub mod config;
 pub mod demos;
@@ -31,6 +32,8 @@ pub mod evaluation;
 pub mod final_policy;
 pub mod firl;
 pub mod job;
+pub mod records;
+pub mod reports;
 pub mod retrain;
 pub mod run;
 pub mod smirl;

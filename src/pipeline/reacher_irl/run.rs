@@ -22,18 +22,18 @@
 
 use super::config::{DemoPadding, DemoSource, IrlRunConfig, SmirlMachine};
 use super::demos::{load_expert, make_demos, DemoError};
-use super::final_policy::FinalPolicy;
-use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult, RewardTraceRow};
+use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
+use super::records::{io, write_file};
+use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{annotate, label_traces, learn_machine, lrm_config, task_machine};
 use super::Algo;
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::{EVENTS, VOCABULARY};
-use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
+use crate::env::reacher::EVENTS;
+use crate::env::reacher_task::{Branch, ReacherTask};
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
 use crate::output::OutputDir;
 use crate::pipeline::reacher_expert::Demo;
 use crate::pipeline::reacher_expert::{branch_tally, ExpertPolicy};
-use crate::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
 use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
 use crate::rm::format::parse_rm;
@@ -45,6 +45,11 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
+
+pub use super::records::{
+    AlgoSummary, JobRecord, PipelineError, Prepared, PreparedRun, RmFacts, RunSummary,
+};
+pub use super::reports::summary_markdown;
 
 /// What to run.
 #[derive(Clone, Debug)]
@@ -62,16 +67,6 @@ pub struct RunRequest {
     pub force: bool,
 }
 
-/// A run that could not start (bad input: nothing written) or failed while running.
-#[derive(Debug, thiserror::Error)]
-pub enum PipelineError {
-    /// Bad input, found before anything was written.
-    #[error("{0}")]
-    Usage(String),
-    #[error("{0}")]
-    Run(String),
-}
-
 /// Receives progress (the binary draws progress bars from it).
 pub trait RunObserver: Sync {
     /// A phase starts (`"demos"`, `"lrm"`, `"irl"`, `"reports"`).
@@ -87,74 +82,8 @@ pub trait RunObserver: Sync {
 pub struct Silent;
 impl RunObserver for Silent {}
 
-/// Facts about the learned machine.
-#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-pub struct RmFacts {
-    pub learned_states: usize,
-    pub learned_reachable: usize,
-    pub perfect_states: usize,
-    /// Along the demonstrations, the perfect machine's state is a function of the learned one.
-    pub refines_perfect: bool,
-    pub ambiguous_steps: usize,
-    pub total_steps: usize,
-    pub lrm_cost: f64,
-    pub lrm_secs: f64,
-}
-
-/// Final numbers of one algorithm over seeds.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct AlgoSummary {
-    pub algo: String,
-    pub seeds: usize,
-    pub final_success_mean: f64,
-    pub final_success_std: f64,
-    pub final_return_mean: f64,
-    pub final_return_std: f64,
-    /// Conditional tasks: final success on each branch's evaluation episodes, mean and std
-    /// over seeds, in [`Branch::ALL`] order.
-    pub final_branch_success: Option<[(f64, f64); 2]>,
-    /// Jobs with a final-policy phase (SMIRL): the reported policy's success (the lower
-    /// branch for a conditional task), mean and std over seeds.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub final_policy_success: Option<(f64, f64)>,
-    /// ... and per branch of a conditional task, in [`Branch::ALL`] order.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub final_policy_branch_success: Option<[(f64, f64); 2]>,
-    /// Mean wall time of a job (seconds).
-    pub job_secs_mean: f64,
-}
-
-/// What a finished run reports.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct RunSummary {
-    pub out: PathBuf,
-    pub task: String,
-    pub demos_kept: usize,
-    pub demos_generated: usize,
-    /// Conditional tasks: the kept demonstrations per branch.
-    pub demo_branches: Option<BranchTally>,
-    pub rm: Option<RmFacts>,
-    pub algos: Vec<AlgoSummary>,
-    pub wall_secs: f64,
-}
-
-fn mean_std(xs: &[f64]) -> (f64, f64) {
-    let n = xs.len().max(1) as f64;
-    let m = xs.iter().sum::<f64>() / n;
-    let v = xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n;
-    (m, v.sqrt())
-}
-
 /// Most seeds per algorithm in one run (each is a job of minutes to hours).
 pub const MAX_SEEDS: u64 = 1_000;
-
-fn io(path: &Path, e: impl std::fmt::Display) -> PipelineError {
-    PipelineError::Run(format!("{}: {e}", path.display()))
-}
-
-fn write_file(path: &Path, text: &str) -> Result<(), PipelineError> {
-    write_atomic(path, text.as_bytes()).map_err(|e| io(path, e))
-}
 
 fn log_header(
     task: ReacherTask,
@@ -168,76 +97,6 @@ fn log_header(
     let mut header = RunHeader::reacher_shipped(task.name(), seed, json);
     header.reward_machine = Some(write_rm(perfect));
     Ok(header)
-}
-
-/// What `reacher prepare` decided and measured, stored as `prepare.json` in the run directory.
-/// It is written last, so its presence means the directory is prepared.
-#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-pub struct Prepared {
-    pub task: ReacherTask,
-    /// Algorithm names, in job order.
-    pub algos: Vec<String>,
-    /// Job seeds, in job order.
-    pub seeds: Vec<u64>,
-    /// Base seed (demonstrations and LRM).
-    pub seed: u64,
-    pub demos_kept: usize,
-    pub demos_generated: usize,
-    pub demo_branches: Option<BranchTally>,
-    pub rm: Option<RmFacts>,
-    pub prepare_secs: f64,
-    pub git_commit: String,
-}
-
-impl Prepared {
-    /// The (algorithm, seed) jobs, in the order `--index` counts them: algorithms outer,
-    /// seeds inner.
-    pub fn jobs(&self) -> Result<Vec<(Algo, u64)>, String> {
-        let algos = self
-            .algos
-            .iter()
-            .map(|a| Algo::parse_in(a, &Algo::REACHER))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(algos
-            .iter()
-            .flat_map(|&a| self.seeds.iter().map(move |&s| (a, s)))
-            .collect())
-    }
-}
-
-/// A prepared run directory, read back: everything a job needs.
-pub struct PreparedRun {
-    pub dir: PathBuf,
-    pub prepared: Prepared,
-    pub config: IrlRunConfig,
-    pub perfect: RewardMachine,
-    pub learned: Option<RewardMachine>,
-    pub expert: ExpertData,
-}
-
-/// One finished job as `jobs/<algo>_seed<S>.json` (written last by the job: its presence
-/// means the job is done).
-#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-pub struct JobRecord {
-    pub algo: String,
-    pub seed: u64,
-    pub rows: Vec<super::MetricsRow>,
-    /// SMIRL's final-policy phase (`final_policy.csv`); absent in jobs without one.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub final_policy: Option<FinalPolicy>,
-    pub wall_secs: f64,
-}
-
-impl JobRecord {
-    /// The success rate the job reports: its final policy's where it has one (SMIRL), else the
-    /// last IRL iteration's. The two differ when the final phase picked a checkpoint over a
-    /// co-trained policy that dipped at the last iteration.
-    pub fn reported_success(&self) -> f64 {
-        match &self.final_policy {
-            Some(final_policy) => final_policy.chosen().success_rate,
-            None => self.rows.last().map_or(0.0, |r| r.success_rate),
-        }
-    }
 }
 
 const PREPARED_FILE: &str = "prepare.json";
@@ -725,288 +584,6 @@ pub fn run_pipeline(
     Ok(summary)
 }
 
-/// Writes metrics.csv, the summaries, the plots and run.json of `records` into the run
-/// directory.
-fn write_reports(
-    run: &PreparedRun,
-    records: &[(Algo, JobRecord)],
-    wall_secs: Option<f64>,
-) -> Result<RunSummary, PipelineError> {
-    let dir = &run.dir;
-    let task = run.prepared.task;
-    let mut metrics = CsvTable::new([
-        "algo",
-        "seed",
-        "iteration",
-        "env_steps",
-        "success_rate",
-        "task_return",
-        "env_return",
-        "learned_reward",
-        "surrogate_loss",
-        "success_normal",
-        "success_cancel",
-        "episodes_normal",
-        "episodes_cancel",
-        "progress",
-        "final_ball",
-        "expert_support",
-    ]);
-    let optional = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x}"));
-    for (_, r) in records {
-        for row in &r.rows {
-            let branch = |f: &dyn Fn(&BranchTally, Branch) -> String| -> [String; 2] {
-                Branch::ALL.map(|b| row.branches.as_ref().map_or(String::new(), |t| f(t, b)))
-            };
-            let [rate_normal, rate_cancel] =
-                branch(&|t, b| t.rate(b).map_or(String::new(), |x| format!("{x}")));
-            let [n_normal, n_cancel] = branch(&|t, b| t.episodes[b.index()].to_string());
-            metrics.push([
-                r.algo.clone(),
-                r.seed.to_string(),
-                row.iteration.to_string(),
-                row.env_steps.to_string(),
-                format!("{}", row.success_rate),
-                format!("{}", row.task_return),
-                format!("{:.6}", row.env_return),
-                format!("{:.6}", row.learned_reward),
-                format!("{:.6}", row.surrogate_loss),
-                rate_normal,
-                rate_cancel,
-                n_normal,
-                n_cancel,
-                optional(row.progress),
-                optional(row.final_ball),
-                optional(row.expert_support),
-            ]);
-        }
-    }
-    write_file(&dir.join("metrics.csv"), &metrics.to_csv())?;
-    if records.iter().any(|(_, r)| r.final_policy.is_some()) {
-        write_file(
-            &dir.join("final_policy.csv"),
-            &final_policy_table(records).to_csv(),
-        )?;
-    }
-
-    let algos: Vec<Algo> = {
-        let mut seen = Vec::new();
-        for &(a, _) in records {
-            if !seen.contains(&a) {
-                seen.push(a);
-            }
-        }
-        seen
-    };
-    let mut summaries = Vec::new();
-    let mut success_plot = LinePlot::new(
-        &format!("ReacherDelivery {task}: ground-truth success"),
-        "environment steps",
-        "success rate",
-    );
-    success_plot.y_range = Some((0.0, 1.0));
-    let mut return_plot = LinePlot::new(
-        &format!("ReacherDelivery {task}: task return"),
-        "environment steps",
-        "task return",
-    );
-    let conditional = CancelBranch::of(&run.perfect).is_some();
-    let mut branch_plot = LinePlot::new(
-        &format!("ReacherDelivery {task}: success per branch"),
-        "environment steps",
-        "success rate",
-    );
-    branch_plot.y_range = Some((0.0, 1.0));
-    let mut progress_plot = LinePlot::new(
-        &format!(
-            "ReacherDelivery {task}: sub-goals completed (solid) and end ball touched (dashed)"
-        ),
-        "environment steps",
-        "fraction",
-    );
-    progress_plot.y_range = Some((0.0, 1.0));
-    for &algo in &algos {
-        let runs: Vec<&JobRecord> = records
-            .iter()
-            .filter(|(a, _)| *a == algo)
-            .map(|(_, r)| r)
-            .collect();
-        let curve = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
-            runs.iter()
-                .map(|r| {
-                    r.rows
-                        .iter()
-                        .map(|row| (row.env_steps as f64, f(row)))
-                        .collect()
-                })
-                .collect()
-        };
-        // A branch without evaluation episodes counts as failed (it cannot be shown solved).
-        let branch_rate = |row: &super::MetricsRow, b: Branch| -> f64 {
-            row.branches.and_then(|t| t.rate(b)).unwrap_or(0.0)
-        };
-        if conditional {
-            for b in Branch::ALL {
-                branch_plot.series.push(Series {
-                    name: format!("{} ({b})", algo.name()),
-                    points: aggregate_over_seeds(&curve(&|r| branch_rate(r, b))),
-                });
-            }
-        }
-        success_plot.series.push(Series {
-            name: algo.name().into(),
-            points: aggregate_over_seeds(&curve(&|r| r.success_rate)),
-        });
-        // Jobs from before the progress metric have none: no curve for them.
-        if runs
-            .iter()
-            .all(|r| r.rows.iter().all(|row| row.progress.is_some()))
-        {
-            progress_plot.series.push(Series {
-                name: format!("{} sub-goals", algo.name()),
-                points: aggregate_over_seeds(&curve(&|r| r.progress.unwrap_or(0.0))),
-            });
-            progress_plot.series.push(Series {
-                name: format!("{} end ball", algo.name()),
-                points: aggregate_over_seeds(&curve(&|r| r.final_ball.unwrap_or(0.0))),
-            });
-        }
-        return_plot.series.push(Series {
-            name: algo.name().into(),
-            points: aggregate_over_seeds(&curve(&|r| r.task_return)),
-        });
-        let last = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Result<Vec<f64>, PipelineError> {
-            runs.iter()
-                .map(|r| {
-                    r.rows.last().map(f).ok_or_else(|| {
-                        PipelineError::Usage(format!("{algo} seed {}: no metrics rows", r.seed))
-                    })
-                })
-                .collect()
-        };
-        let (sm, ss) = mean_std(&last(&|r| r.success_rate)?);
-        let (rm_, rs) = mean_std(&last(&|r| r.task_return)?);
-        let final_branch_success = if conditional {
-            let normal = mean_std(&last(&|r| branch_rate(r, Branch::Normal))?);
-            let cancel = mean_std(&last(&|r| branch_rate(r, Branch::Cancelled))?);
-            Some([normal, cancel])
-        } else {
-            None
-        };
-        // The reported policies of the final-policy phase, when every seed has one.
-        let chosen: Option<Vec<_>> = runs
-            .iter()
-            .map(|r| r.final_policy.as_ref().map(FinalPolicy::chosen))
-            .collect();
-        let final_policy_success = chosen
-            .as_ref()
-            .map(|c| mean_std(&c.iter().map(|c| c.success_rate).collect::<Vec<_>>()));
-        let final_policy_branch_success = chosen.as_ref().filter(|_| conditional).map(|c| {
-            Branch::ALL.map(|b| {
-                let rates: Vec<f64> = c
-                    .iter()
-                    .map(|c| c.branches.and_then(|t| t.rate(b)).unwrap_or(0.0))
-                    .collect();
-                mean_std(&rates)
-            })
-        });
-        let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
-        summaries.push(AlgoSummary {
-            algo: algo.name().into(),
-            seeds: runs.len(),
-            final_success_mean: sm,
-            final_success_std: ss,
-            final_return_mean: rm_,
-            final_return_std: rs,
-            final_branch_success,
-            final_policy_success,
-            final_policy_branch_success,
-            job_secs_mean: wm,
-        });
-    }
-    write_file(&dir.join("success.svg"), &success_plot.to_svg())?;
-    write_file(&dir.join("task_return.svg"), &return_plot.to_svg())?;
-    if !progress_plot.series.is_empty() {
-        write_file(&dir.join("progress.svg"), &progress_plot.to_svg())?;
-    }
-    if conditional {
-        write_file(&dir.join("success_branches.svg"), &branch_plot.to_svg())?;
-    }
-    let mut table = CsvTable::new([
-        "task",
-        "algo",
-        "seeds",
-        "final_success_mean",
-        "final_success_std",
-        "final_return_mean",
-        "final_return_std",
-        "final_success_normal_mean",
-        "final_success_normal_std",
-        "final_success_cancel_mean",
-        "final_success_cancel_std",
-    ]);
-    for s in &summaries {
-        let branch_cells = match s.final_branch_success {
-            Some([(nm, ns), (cm, cs)]) => [nm, ns, cm, cs].map(|x| format!("{x:.3}")),
-            None => Default::default(),
-        };
-        let [nm, ns, cm, cs] = branch_cells;
-        table.push([
-            task.name().to_string(),
-            s.algo.clone(),
-            s.seeds.to_string(),
-            format!("{:.3}", s.final_success_mean),
-            format!("{:.3}", s.final_success_std),
-            format!("{:.3}", s.final_return_mean),
-            format!("{:.3}", s.final_return_std),
-            nm,
-            ns,
-            cm,
-            cs,
-        ]);
-    }
-    write_file(&dir.join("summary.csv"), &table.to_csv())?;
-    let p = &run.prepared;
-    write_file(
-        &dir.join("summary.md"),
-        &summary_markdown(task, &summaries, p.rm.as_ref()),
-    )?;
-    let summary = RunSummary {
-        out: dir.clone(),
-        task: task.name().into(),
-        demos_kept: p.demos_kept,
-        demos_generated: p.demos_generated,
-        demo_branches: p.demo_branches,
-        rm: p.rm.clone(),
-        algos: summaries,
-        wall_secs: wall_secs.unwrap_or(f64::NAN),
-    };
-    let config = &run.config;
-    let run_json = serde_json::json!({
-        "summary": summary,
-        "seeds": p.seeds,
-        "demo_source": config.demo_source.name(),
-        "demo_cancel": config.demo_cancel.name(),
-        "demo_padding": config.demo_padding.name(),
-        "smirl_normalisation": config.smirl_normalisation.name(),
-        "smirl_machine": config.smirl_machine.name(),
-        "smirl_label_features": config.smirl_label_features.name(),
-        "smirl_shaping": config.smirl_shaping,
-        "smirl_counterfactual": config.smirl_counterfactual,
-        "reward_lr_decay": config.reward_lr_decay,
-        "git_commit": crate::GIT_COMMIT,
-        "prepare_git_commit": p.git_commit,
-        "prepare_secs": p.prepare_secs,
-        "jobs": records.iter().map(|(_, r)| serde_json::json!({
-            "algo": r.algo, "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
-    });
-    write_file(
-        &dir.join("run.json"),
-        &serde_json::to_string_pretty(&run_json).expect("JSON serialises"),
-    )?;
-    Ok(summary)
-}
-
 /// One job with its MCAP logger, reward file and (SMIRL) reward trace, in run directory
 /// `dir`.
 #[allow(clippy::too_many_arguments)]
@@ -1064,165 +641,4 @@ fn run_one(
             .map_err(|e| e.to_string())?;
     }
     Ok(result)
-}
-
-/// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
-/// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `agent` says
-/// whose policy it is (`co-trained`, or `fresh` with `smirl_final_fresh_steps`).
-fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
-    let mut table = CsvTable::new([
-        "algo",
-        "seed",
-        "candidate",
-        "env_steps",
-        "learned_return",
-        "chosen",
-        "success_rate",
-        "success_normal",
-        "success_cancel",
-        "progress",
-        "final_ball",
-        "agent",
-    ]);
-    for (_, r) in records {
-        let Some(f) = &r.final_policy else { continue };
-        for (i, c) in f.candidates.iter().enumerate() {
-            let rate = |b: Branch| {
-                c.branches
-                    .and_then(|t| t.rate(b))
-                    .map_or(String::new(), |x| format!("{x}"))
-            };
-            table.push([
-                r.algo.clone(),
-                r.seed.to_string(),
-                i.to_string(),
-                c.env_steps.to_string(),
-                format!("{:.6}", c.learned_return),
-                u8::from(i == f.chosen).to_string(),
-                format!("{}", c.success_rate),
-                rate(Branch::Normal),
-                rate(Branch::Cancelled),
-                format!("{}", c.progress),
-                format!("{}", c.final_ball),
-                c.agent.name().to_string(),
-            ]);
-        }
-    }
-    table
-}
-
-/// A SMIRL reward trace as a long table: one row per (iteration, RM state, feature), the
-/// feature named by its proposition (label bit k is feature k).
-fn reward_trace_csv(trace: &[RewardTraceRow]) -> CsvTable {
-    let features: Vec<char> = VOCABULARY.chars().collect();
-    let mut table = CsvTable::new([
-        "iteration",
-        "rm_state",
-        "feature",
-        "weight",
-        "data_gradient",
-    ]);
-    for row in trace {
-        for (i, (w, g)) in row.weights.iter().zip(&row.data_gradient).enumerate() {
-            table.push([
-                row.iteration.to_string(),
-                (i / features.len()).to_string(),
-                features[i % features.len()].to_string(),
-                format!("{w:.6}"),
-                format!("{g:.6}"),
-            ]);
-        }
-    }
-    table
-}
-
-/// The per-branch cells of a summary row: mean ± std of the normal and the cancel branch; empty
-/// cells in a conditional task's table for a row without them, none for other tasks.
-fn branch_cells(branches: Option<[(f64, f64); 2]>, conditional: bool) -> String {
-    match branches {
-        Some([(nm, ns), (cm, cs)]) => format!(" {nm:.2} ± {ns:.2} | {cm:.2} ± {cs:.2} |"),
-        None if conditional => " | |".to_string(),
-        None => String::new(),
-    }
-}
-
-/// The summary table as Markdown (also printed by the binary).
-pub fn summary_markdown(
-    task: ReacherTask,
-    summaries: &[AlgoSummary],
-    rm: Option<&RmFacts>,
-) -> String {
-    let mut s = String::new();
-    let conditional = summaries.iter().any(|a| a.final_branch_success.is_some());
-    if conditional {
-        let _ = writeln!(
-            s,
-            "| task | algorithm | seeds | final success (lower branch) | normal branch | cancel branch | final task return | job wall time (s) |"
-        );
-        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
-    } else {
-        let _ = writeln!(
-            s,
-            "| task | algorithm | seeds | final success | final task return | job wall time (s) |"
-        );
-        let _ = writeln!(s, "|---|---|---|---|---|---|");
-    }
-    for a in summaries {
-        let branches = branch_cells(a.final_branch_success, conditional);
-        let _ = writeln!(
-            s,
-            "| {task} | {} | {} | {:.2} ± {:.2} |{branches} {:.2} ± {:.2} | {:.0} |",
-            a.algo,
-            a.seeds,
-            a.final_success_mean,
-            a.final_success_std,
-            a.final_return_mean,
-            a.final_return_std,
-            a.job_secs_mean
-        );
-    }
-    let with_final: Vec<&AlgoSummary> = summaries
-        .iter()
-        .filter(|a| a.final_policy_success.is_some())
-        .collect();
-    if !with_final.is_empty() {
-        let _ = writeln!(
-            s,
-            "\nFinal policy (SAC on the final reward held fixed; of the candidates in \
-             final_policy.csv — the co-trained policy, its checkpoints and any fresh agent's — \
-             the one of highest learned return):\n"
-        );
-        let _ = writeln!(
-            s,
-            "| task | algorithm | seeds | success{} |",
-            if conditional {
-                " (lower branch) | normal branch | cancel branch"
-            } else {
-                ""
-            }
-        );
-        let _ = writeln!(
-            s,
-            "|---|---|---|---|{}",
-            if conditional { "---|---|" } else { "" }
-        );
-        for a in with_final {
-            let (m, sd) = a.final_policy_success.unwrap_or_default();
-            let branches = branch_cells(a.final_policy_branch_success, conditional);
-            let _ = writeln!(
-                s,
-                "| {task} | {} | {} | {m:.2} ± {sd:.2} |{branches}",
-                a.algo, a.seeds
-            );
-        }
-    }
-    if let Some(f) = rm {
-        let _ = writeln!(
-            s,
-            "\nLearned RM: {} states ({} reachable; perfect: {}), refines the perfect machine \
-             along the demos: {}.",
-            f.learned_states, f.learned_reachable, f.perfect_states, f.refines_perfect
-        );
-    }
-    s
 }

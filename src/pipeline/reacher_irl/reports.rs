@@ -1,0 +1,464 @@
+//! The reports of a finished `reacher --task` run, written from its jobs' records into the run
+//! directory: `metrics.csv`, `final_policy.csv`, `summary.csv`, `summary.md`, the plots and
+//! `run.json`, and each SMIRL job's reward trace CSV.
+
+use super::final_policy::FinalPolicy;
+use super::job::RewardTraceRow;
+use super::records::{
+    write_file, AlgoSummary, JobRecord, PipelineError, PreparedRun, RmFacts, RunSummary,
+};
+use super::Algo;
+use crate::env::reacher::VOCABULARY;
+use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
+use crate::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
+use std::fmt::Write as _;
+
+fn mean_std(xs: &[f64]) -> (f64, f64) {
+    let n = xs.len().max(1) as f64;
+    let m = xs.iter().sum::<f64>() / n;
+    let v = xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n;
+    (m, v.sqrt())
+}
+
+/// Writes metrics.csv, the summaries, the plots and run.json of `records` into the run
+/// directory.
+pub(super) fn write_reports(
+    run: &PreparedRun,
+    records: &[(Algo, JobRecord)],
+    wall_secs: Option<f64>,
+) -> Result<RunSummary, PipelineError> {
+    let dir = &run.dir;
+    let task = run.prepared.task;
+    let mut metrics = CsvTable::new([
+        "algo",
+        "seed",
+        "iteration",
+        "env_steps",
+        "success_rate",
+        "task_return",
+        "env_return",
+        "learned_reward",
+        "surrogate_loss",
+        "success_normal",
+        "success_cancel",
+        "episodes_normal",
+        "episodes_cancel",
+        "progress",
+        "final_ball",
+        "expert_support",
+    ]);
+    let optional = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x}"));
+    for (_, r) in records {
+        for row in &r.rows {
+            let branch = |f: &dyn Fn(&BranchTally, Branch) -> String| -> [String; 2] {
+                Branch::ALL.map(|b| row.branches.as_ref().map_or(String::new(), |t| f(t, b)))
+            };
+            let [rate_normal, rate_cancel] =
+                branch(&|t, b| t.rate(b).map_or(String::new(), |x| format!("{x}")));
+            let [n_normal, n_cancel] = branch(&|t, b| t.episodes[b.index()].to_string());
+            metrics.push([
+                r.algo.clone(),
+                r.seed.to_string(),
+                row.iteration.to_string(),
+                row.env_steps.to_string(),
+                format!("{}", row.success_rate),
+                format!("{}", row.task_return),
+                format!("{:.6}", row.env_return),
+                format!("{:.6}", row.learned_reward),
+                format!("{:.6}", row.surrogate_loss),
+                rate_normal,
+                rate_cancel,
+                n_normal,
+                n_cancel,
+                optional(row.progress),
+                optional(row.final_ball),
+                optional(row.expert_support),
+            ]);
+        }
+    }
+    write_file(&dir.join("metrics.csv"), &metrics.to_csv())?;
+    if records.iter().any(|(_, r)| r.final_policy.is_some()) {
+        write_file(
+            &dir.join("final_policy.csv"),
+            &final_policy_table(records).to_csv(),
+        )?;
+    }
+
+    let algos: Vec<Algo> = {
+        let mut seen = Vec::new();
+        for &(a, _) in records {
+            if !seen.contains(&a) {
+                seen.push(a);
+            }
+        }
+        seen
+    };
+    let mut summaries = Vec::new();
+    let mut success_plot = LinePlot::new(
+        &format!("ReacherDelivery {task}: ground-truth success"),
+        "environment steps",
+        "success rate",
+    );
+    success_plot.y_range = Some((0.0, 1.0));
+    let mut return_plot = LinePlot::new(
+        &format!("ReacherDelivery {task}: task return"),
+        "environment steps",
+        "task return",
+    );
+    let conditional = CancelBranch::of(&run.perfect).is_some();
+    let mut branch_plot = LinePlot::new(
+        &format!("ReacherDelivery {task}: success per branch"),
+        "environment steps",
+        "success rate",
+    );
+    branch_plot.y_range = Some((0.0, 1.0));
+    let mut progress_plot = LinePlot::new(
+        &format!(
+            "ReacherDelivery {task}: sub-goals completed (solid) and end ball touched (dashed)"
+        ),
+        "environment steps",
+        "fraction",
+    );
+    progress_plot.y_range = Some((0.0, 1.0));
+    for &algo in &algos {
+        let runs: Vec<&JobRecord> = records
+            .iter()
+            .filter(|(a, _)| *a == algo)
+            .map(|(_, r)| r)
+            .collect();
+        let curve = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
+            runs.iter()
+                .map(|r| {
+                    r.rows
+                        .iter()
+                        .map(|row| (row.env_steps as f64, f(row)))
+                        .collect()
+                })
+                .collect()
+        };
+        // A branch without evaluation episodes counts as failed (it cannot be shown solved).
+        let branch_rate = |row: &super::MetricsRow, b: Branch| -> f64 {
+            row.branches.and_then(|t| t.rate(b)).unwrap_or(0.0)
+        };
+        if conditional {
+            for b in Branch::ALL {
+                branch_plot.series.push(Series {
+                    name: format!("{} ({b})", algo.name()),
+                    points: aggregate_over_seeds(&curve(&|r| branch_rate(r, b))),
+                });
+            }
+        }
+        success_plot.series.push(Series {
+            name: algo.name().into(),
+            points: aggregate_over_seeds(&curve(&|r| r.success_rate)),
+        });
+        // Jobs from before the progress metric have none: no curve for them.
+        if runs
+            .iter()
+            .all(|r| r.rows.iter().all(|row| row.progress.is_some()))
+        {
+            progress_plot.series.push(Series {
+                name: format!("{} sub-goals", algo.name()),
+                points: aggregate_over_seeds(&curve(&|r| r.progress.unwrap_or(0.0))),
+            });
+            progress_plot.series.push(Series {
+                name: format!("{} end ball", algo.name()),
+                points: aggregate_over_seeds(&curve(&|r| r.final_ball.unwrap_or(0.0))),
+            });
+        }
+        return_plot.series.push(Series {
+            name: algo.name().into(),
+            points: aggregate_over_seeds(&curve(&|r| r.task_return)),
+        });
+        let last = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Result<Vec<f64>, PipelineError> {
+            runs.iter()
+                .map(|r| {
+                    r.rows.last().map(f).ok_or_else(|| {
+                        PipelineError::Usage(format!("{algo} seed {}: no metrics rows", r.seed))
+                    })
+                })
+                .collect()
+        };
+        let (sm, ss) = mean_std(&last(&|r| r.success_rate)?);
+        let (rm_, rs) = mean_std(&last(&|r| r.task_return)?);
+        let final_branch_success = if conditional {
+            let normal = mean_std(&last(&|r| branch_rate(r, Branch::Normal))?);
+            let cancel = mean_std(&last(&|r| branch_rate(r, Branch::Cancelled))?);
+            Some([normal, cancel])
+        } else {
+            None
+        };
+        // The reported policies of the final-policy phase, when every seed has one.
+        let chosen: Option<Vec<_>> = runs
+            .iter()
+            .map(|r| r.final_policy.as_ref().map(FinalPolicy::chosen))
+            .collect();
+        let final_policy_success = chosen
+            .as_ref()
+            .map(|c| mean_std(&c.iter().map(|c| c.success_rate).collect::<Vec<_>>()));
+        let final_policy_branch_success = chosen.as_ref().filter(|_| conditional).map(|c| {
+            Branch::ALL.map(|b| {
+                let rates: Vec<f64> = c
+                    .iter()
+                    .map(|c| c.branches.and_then(|t| t.rate(b)).unwrap_or(0.0))
+                    .collect();
+                mean_std(&rates)
+            })
+        });
+        let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
+        summaries.push(AlgoSummary {
+            algo: algo.name().into(),
+            seeds: runs.len(),
+            final_success_mean: sm,
+            final_success_std: ss,
+            final_return_mean: rm_,
+            final_return_std: rs,
+            final_branch_success,
+            final_policy_success,
+            final_policy_branch_success,
+            job_secs_mean: wm,
+        });
+    }
+    write_file(&dir.join("success.svg"), &success_plot.to_svg())?;
+    write_file(&dir.join("task_return.svg"), &return_plot.to_svg())?;
+    if !progress_plot.series.is_empty() {
+        write_file(&dir.join("progress.svg"), &progress_plot.to_svg())?;
+    }
+    if conditional {
+        write_file(&dir.join("success_branches.svg"), &branch_plot.to_svg())?;
+    }
+    let mut table = CsvTable::new([
+        "task",
+        "algo",
+        "seeds",
+        "final_success_mean",
+        "final_success_std",
+        "final_return_mean",
+        "final_return_std",
+        "final_success_normal_mean",
+        "final_success_normal_std",
+        "final_success_cancel_mean",
+        "final_success_cancel_std",
+    ]);
+    for s in &summaries {
+        let branch_cells = match s.final_branch_success {
+            Some([(nm, ns), (cm, cs)]) => [nm, ns, cm, cs].map(|x| format!("{x:.3}")),
+            None => Default::default(),
+        };
+        let [nm, ns, cm, cs] = branch_cells;
+        table.push([
+            task.name().to_string(),
+            s.algo.clone(),
+            s.seeds.to_string(),
+            format!("{:.3}", s.final_success_mean),
+            format!("{:.3}", s.final_success_std),
+            format!("{:.3}", s.final_return_mean),
+            format!("{:.3}", s.final_return_std),
+            nm,
+            ns,
+            cm,
+            cs,
+        ]);
+    }
+    write_file(&dir.join("summary.csv"), &table.to_csv())?;
+    let p = &run.prepared;
+    write_file(
+        &dir.join("summary.md"),
+        &summary_markdown(task, &summaries, p.rm.as_ref()),
+    )?;
+    let summary = RunSummary {
+        out: dir.clone(),
+        task: task.name().into(),
+        demos_kept: p.demos_kept,
+        demos_generated: p.demos_generated,
+        demo_branches: p.demo_branches,
+        rm: p.rm.clone(),
+        algos: summaries,
+        wall_secs: wall_secs.unwrap_or(f64::NAN),
+    };
+    let config = &run.config;
+    let run_json = serde_json::json!({
+        "summary": summary,
+        "seeds": p.seeds,
+        "demo_source": config.demo_source.name(),
+        "demo_cancel": config.demo_cancel.name(),
+        "demo_padding": config.demo_padding.name(),
+        "smirl_normalisation": config.smirl_normalisation.name(),
+        "smirl_machine": config.smirl_machine.name(),
+        "smirl_label_features": config.smirl_label_features.name(),
+        "smirl_shaping": config.smirl_shaping,
+        "smirl_counterfactual": config.smirl_counterfactual,
+        "reward_lr_decay": config.reward_lr_decay,
+        "git_commit": crate::GIT_COMMIT,
+        "prepare_git_commit": p.git_commit,
+        "prepare_secs": p.prepare_secs,
+        "jobs": records.iter().map(|(_, r)| serde_json::json!({
+            "algo": r.algo, "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
+    });
+    write_file(
+        &dir.join("run.json"),
+        &serde_json::to_string_pretty(&run_json).expect("JSON serialises"),
+    )?;
+    Ok(summary)
+}
+
+/// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
+/// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `agent` says
+/// whose policy it is (`co-trained`, or `fresh` with `smirl_final_fresh_steps`).
+fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
+    let mut table = CsvTable::new([
+        "algo",
+        "seed",
+        "candidate",
+        "env_steps",
+        "learned_return",
+        "chosen",
+        "success_rate",
+        "success_normal",
+        "success_cancel",
+        "progress",
+        "final_ball",
+        "agent",
+    ]);
+    for (_, r) in records {
+        let Some(f) = &r.final_policy else { continue };
+        for (i, c) in f.candidates.iter().enumerate() {
+            let rate = |b: Branch| {
+                c.branches
+                    .and_then(|t| t.rate(b))
+                    .map_or(String::new(), |x| format!("{x}"))
+            };
+            table.push([
+                r.algo.clone(),
+                r.seed.to_string(),
+                i.to_string(),
+                c.env_steps.to_string(),
+                format!("{:.6}", c.learned_return),
+                u8::from(i == f.chosen).to_string(),
+                format!("{}", c.success_rate),
+                rate(Branch::Normal),
+                rate(Branch::Cancelled),
+                format!("{}", c.progress),
+                format!("{}", c.final_ball),
+                c.agent.name().to_string(),
+            ]);
+        }
+    }
+    table
+}
+
+/// A SMIRL reward trace as a long table: one row per (iteration, RM state, feature), the
+/// feature named by its proposition (label bit k is feature k).
+pub(super) fn reward_trace_csv(trace: &[RewardTraceRow]) -> CsvTable {
+    let features: Vec<char> = VOCABULARY.chars().collect();
+    let mut table = CsvTable::new([
+        "iteration",
+        "rm_state",
+        "feature",
+        "weight",
+        "data_gradient",
+    ]);
+    for row in trace {
+        for (i, (w, g)) in row.weights.iter().zip(&row.data_gradient).enumerate() {
+            table.push([
+                row.iteration.to_string(),
+                (i / features.len()).to_string(),
+                features[i % features.len()].to_string(),
+                format!("{w:.6}"),
+                format!("{g:.6}"),
+            ]);
+        }
+    }
+    table
+}
+
+/// The per-branch cells of a summary row: mean ± std of the normal and the cancel branch; empty
+/// cells in a conditional task's table for a row without them, none for other tasks.
+fn branch_cells(branches: Option<[(f64, f64); 2]>, conditional: bool) -> String {
+    match branches {
+        Some([(nm, ns), (cm, cs)]) => format!(" {nm:.2} ± {ns:.2} | {cm:.2} ± {cs:.2} |"),
+        None if conditional => " | |".to_string(),
+        None => String::new(),
+    }
+}
+
+/// The summary table as Markdown (also printed by the binary).
+pub fn summary_markdown(
+    task: ReacherTask,
+    summaries: &[AlgoSummary],
+    rm: Option<&RmFacts>,
+) -> String {
+    let mut s = String::new();
+    let conditional = summaries.iter().any(|a| a.final_branch_success.is_some());
+    if conditional {
+        let _ = writeln!(
+            s,
+            "| task | algorithm | seeds | final success (lower branch) | normal branch | cancel branch | final task return | job wall time (s) |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    } else {
+        let _ = writeln!(
+            s,
+            "| task | algorithm | seeds | final success | final task return | job wall time (s) |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|---|---|");
+    }
+    for a in summaries {
+        let branches = branch_cells(a.final_branch_success, conditional);
+        let _ = writeln!(
+            s,
+            "| {task} | {} | {} | {:.2} ± {:.2} |{branches} {:.2} ± {:.2} | {:.0} |",
+            a.algo,
+            a.seeds,
+            a.final_success_mean,
+            a.final_success_std,
+            a.final_return_mean,
+            a.final_return_std,
+            a.job_secs_mean
+        );
+    }
+    let with_final: Vec<&AlgoSummary> = summaries
+        .iter()
+        .filter(|a| a.final_policy_success.is_some())
+        .collect();
+    if !with_final.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nFinal policy (SAC on the final reward held fixed; of the candidates in \
+             final_policy.csv — the co-trained policy, its checkpoints and any fresh agent's — \
+             the one of highest learned return):\n"
+        );
+        let _ = writeln!(
+            s,
+            "| task | algorithm | seeds | success{} |",
+            if conditional {
+                " (lower branch) | normal branch | cancel branch"
+            } else {
+                ""
+            }
+        );
+        let _ = writeln!(
+            s,
+            "|---|---|---|---|{}",
+            if conditional { "---|---|" } else { "" }
+        );
+        for a in with_final {
+            let (m, sd) = a.final_policy_success.unwrap_or_default();
+            let branches = branch_cells(a.final_policy_branch_success, conditional);
+            let _ = writeln!(
+                s,
+                "| {task} | {} | {} | {m:.2} ± {sd:.2} |{branches}",
+                a.algo, a.seeds
+            );
+        }
+    }
+    if let Some(f) = rm {
+        let _ = writeln!(
+            s,
+            "\nLearned RM: {} states ({} reachable; perfect: {}), refines the perfect machine \
+             along the demos: {}.",
+            f.learned_states, f.learned_reachable, f.perfect_states, f.refines_perfect
+        );
+    }
+    s
+}
