@@ -499,7 +499,10 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
     ]));
     let same_table = dir.join("run/retrain/smirl_seed5_sac1000_same.csv");
     assert_eq!(std::fs::read_to_string(&same_table).unwrap(), written);
-    let slower = agent("slower.toml", "smirl_shaping = 0.0\n[sac]\nlr = 0.0003\n");
+    let slower = agent(
+        "slower.toml",
+        "smirl_shaping = 0.0\n[sac]\nlr = 0.0003\nwarmup_steps = 100\nupdate_after = 100\n",
+    );
     ok(&retrain(&[
         "--steps",
         "400",
@@ -509,12 +512,25 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
         &slower,
     ]));
     let slower_table = dir.join("run/retrain/smirl_seed5_sac1000_slower.csv");
-    assert_eq!(
-        std::fs::read_to_string(&slower_table)
-            .unwrap()
-            .lines()
-            .count(),
-        3
+    let slower_text = std::fs::read_to_string(&slower_table).unwrap();
+    assert_eq!(slower_text.lines().count(), 3);
+    // SAC's own state per segment, the last four columns: none before the first update (the
+    // job's 400 steps are all warm-up), a positive temperature and critic loss once updating
+    // (the second segment: the first update waits for a batch of 256 transitions too).
+    let agent_columns = |line: &str| -> Vec<f64> {
+        let cells: Vec<&str> = line.split(',').collect();
+        assert_eq!(cells.len(), 12, "{line}");
+        cells[8..].iter().map(|c| c.parse().unwrap()).collect()
+    };
+    assert_eq!(agent_columns(lines[2]), vec![0.0; 4]);
+    let last = slower_text.lines().last().unwrap();
+    let [alpha, entropy, critic_loss, value] = agent_columns(last)[..] else {
+        unreachable!()
+    };
+    assert!(alpha > 0.0 && critic_loss > 0.0, "{last}");
+    assert!(
+        entropy.is_finite() && value.is_finite() && value != 0.0,
+        "{last}"
     );
     assert_eq!(std::fs::read_to_string(&table).unwrap(), written);
     let unknown = agent("unknown.toml", "smirl_reward_lr = 0.5\n");

@@ -448,7 +448,7 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
     ));
     crate::output::check_file(&out, args.force).map_err(usage)?;
     let header =
-        "env_steps,success_rate,success_normal,success_cancel,progress,final_ball,task_return,learned_return";
+        "env_steps,success_rate,success_normal,success_cancel,progress,final_ball,task_return,learned_return,alpha,entropy,critic_loss,policy_value";
     println!("{header}");
     let mut table = format!("{header}\n");
     retrain(loaded, |p| {
@@ -458,8 +458,9 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
                 .and_then(|t| t.rate(b))
                 .map_or(String::new(), |r| format!("{r}"))
         };
+        let a = &p.agent;
         let line = format!(
-            "{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
             p.env_steps,
             e.success_rate,
             branch(Branch::Normal),
@@ -467,7 +468,11 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
             e.progress,
             e.final_ball,
             e.task_return,
-            p.learned_return
+            p.learned_return,
+            a.alpha,
+            a.entropy,
+            a.critic_loss,
+            a.policy_value
         );
         println!("{line}");
         table.push_str(&line);

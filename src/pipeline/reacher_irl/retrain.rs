@@ -21,7 +21,7 @@ use crate::env::reacher::ReacherDelivery;
 use crate::irl::reward::MlpReward;
 use crate::irl::reward::{RewardModel, RewardOptimConfig};
 use crate::irl::smirl::LinearRmReward;
-use crate::rl::sac::{SacConfig, SacTrainer};
+use crate::rl::sac::{SacConfig, SacTrainer, StepOutcome, UpdateStats};
 use std::path::{Path, PathBuf};
 
 /// Most SAC steps of one retraining.
@@ -123,6 +123,56 @@ pub struct RetrainPoint {
     /// each episode played to the time limit: how well the agent optimises the reward it was
     /// given, known without the ground truth (so a choice among agents may use it).
     pub learned_return: f64,
+    /// SAC's own state over the segment before this evaluation: whether a collapse shows in
+    /// the critics, the temperature or the policy's entropy before it shows in the task.
+    pub agent: SegmentStats,
+}
+
+/// Means over one training segment's gradient updates (zeros when it had none).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SegmentStats {
+    /// The temperature α at the segment's last update.
+    pub alpha: f64,
+    /// The policy's entropy estimate, −mean log π of the batches' fresh actions.
+    pub entropy: f64,
+    /// The first critic's loss, ½ mean (Q − y)².
+    pub critic_loss: f64,
+    /// The critics' value of the policy's actions, min(Q1, Q2) averaged over the batches
+    /// (read off the actor's loss, α log π − min Q).
+    pub policy_value: f64,
+}
+
+/// Running sums of a segment's updates (a segment may be millions of steps long).
+#[derive(Default)]
+struct SegmentSums {
+    updates: u64,
+    last_alpha: f32,
+    entropy: f64,
+    critic_loss: f64,
+    policy_value: f64,
+}
+
+impl SegmentSums {
+    fn add(&mut self, u: &UpdateStats) {
+        self.updates += 1;
+        self.last_alpha = u.alpha;
+        self.entropy -= f64::from(u.mean_log_prob);
+        self.critic_loss += f64::from(u.q1_loss);
+        self.policy_value += f64::from(u.alpha * u.mean_log_prob - u.actor_loss);
+    }
+
+    fn means(&self) -> SegmentStats {
+        if self.updates == 0 {
+            return SegmentStats::default();
+        }
+        let n = self.updates as f64;
+        SegmentStats {
+            alpha: f64::from(self.last_alpha),
+            entropy: self.entropy / n,
+            critic_loss: self.critic_loss / n,
+            policy_value: self.policy_value / n,
+        }
+    }
 }
 
 /// The reward file of a job.
@@ -326,12 +376,18 @@ impl Training<'_> {
             .map_err(|e| e.to_string())?;
         let mut points = Vec::new();
         for k in 1..=self.segments.evaluations {
+            let mut sums = SegmentSums::default();
+            let mut keep = |o: &StepOutcome| {
+                if let Some(u) = &o.update {
+                    sums.add(u);
+                }
+            };
             let n = self.segments.end(k).saturating_sub(sac.env_steps());
-            sac.train_observed(env, reward, n, None, |_| {})
+            sac.train_observed(env, reward, n, None, &mut keep)
                 .map_err(|e| format!("SAC: {e}"))?;
             // Evaluation resets the environment: finish SAC's episode first.
             while !sac.at_episode_boundary() {
-                sac.train_observed(env, reward, 1, None, |_| {})
+                sac.train_observed(env, reward, 1, None, &mut keep)
                     .map_err(|e| format!("SAC: {e}"))?;
             }
             let point = RetrainPoint {
@@ -345,6 +401,7 @@ impl Training<'_> {
                     self.judge.reset_seeds(),
                     None,
                 )?,
+                agent: sums.means(),
             };
             on_point(&point);
             points.push(point);
