@@ -6,8 +6,8 @@
 # Usage: experiments/lean_check.sh      (from anywhere in the repository)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-MAX_FILES=350
-MAX_BYTES=4200000
+MAX_FILES=360
+MAX_BYTES=4300000
 files=$(git ls-files experiments | wc -l)
 # Summed per file (xargs may split a long list over several `du -c` calls, each with its own total).
 bytes=$(git ls-files -z experiments | xargs -0 -r stat --format=%s | awk '{s += $1} END {print s + 0}')

@@ -612,7 +612,7 @@ fn sac_table_defaults_to_the_irl_run_sac() {
             ..irl_run_sac()
         }
     );
-    assert_eq!(c.sac.replay_capacity, 100_000);
+    assert_eq!(c.sac.replay_capacity, 200_000);
     let c = IrlRunConfig::from_toml(&format!("{text}[sac]\npreset = \"irl\"\n"), "c.toml").unwrap();
     assert_eq!(c.sac, SacConfig::irl());
     let without = IrlRunConfig::from_toml(&text, "c.toml").unwrap();

@@ -2,14 +2,15 @@
 # Builds experiments/reacher/results.md from the run directories (every number from a script):
 # SMIRL's settings of issue 13 (results_smirl.md's prose, figure7.py's tables of
 # runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final (the standards before
-# event-gated visits) and of the current standard's tuning runs, standard_heldout.py's table
-# of the current standard's held-out jobs, smirl_settings.py's
+# event-gated visits) and of the current and previous standards' tuning runs, standard_heldout.py's table
+# of the current and the previous standard's held-out jobs, smirl_settings.py's
 # table of every setting tried and the held-out runs, half_plateaus.py's OR plateaus, which
 # prepares machines with REACHER_BIN, default target/release/reacher),
 # figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
 # figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>,
 # progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised,
-# fresh_agent_screen.py's offline screen of a fresh agent as a final-policy candidate),
+# fresh_agent_screen.py's offline screen of a fresh agent as a final-policy candidate,
+# retrain_agents.py's fresh agents with other SAC settings on fixed rewards),
 # then the earlier material: the prose of results_header.md, the table of every run
 # directory (results.py), the held-out table (heldout.py), the partial-progress tables of
 # the uniform-schedule OR and Sequential runs (progress.py) and the earlier sessions' notes
@@ -30,15 +31,20 @@ trap 'rm -f "$out"' EXIT
   python3 figure7.py runs/or-shaped runs/sequential-shaped runs/if-shaped runs/composite-shaped
   printf '\n### SMIRL'"'"'s final policy on figure 7'"'"'s seeds, the standard of *SMIRL'"'"'s final policy* (before event stutter and event-gated visits; `python3 experiments/reacher/figure7.py --final-only runs/<task>-final`)\n'
   python3 figure7.py --final-only runs/or-final runs/sequential-final runs/if-final runs/composite-final
-  printf '\n### SMIRL'"'"'s final policy under the current standard (commuted events; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; OR, Sequential and IF are the runs of unpredicted events, whose base-0 machines commuted events leave unchanged; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-{or,sequential,if} ablations/runs/commute_events-seeds0to5-composite`)\n'
+  printf '\n### SMIRL'"'"'s final policy under the current standard (a replay buffer of 200 000; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; `python3 experiments/reacher/figure7.py --final-only ablations/runs/replay_all-seeds0to5-<task>`)\n'
+  python3 figure7.py --final-only ablations/runs/replay_all-seeds0to5-or ablations/runs/replay_all-seeds0to5-sequential \
+    ablations/runs/replay_all-seeds0to5-if ablations/runs/replay_all-seeds0to5-composite
+  printf '\n### SMIRL'"'"'s final policy under the previous standard (commuted events, a replay buffer of 100 000; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; OR, Sequential and IF are the runs of unpredicted events, whose base-0 machines commuted events leave unchanged; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-{or,sequential,if} ablations/runs/commute_events-seeds0to5-composite`)\n'
   python3 figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-or ablations/runs/unpredicted_events-seeds0to5-sequential \
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/commute_events-seeds0to5-composite
-  printf '\n### SMIRL held out under the current standard (every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py`)\n\n'
+  printf '\n### SMIRL held out under the current standard (a replay buffer of 200 000; every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py`)\n\n'
   python3 standard_heldout.py "$bin"
+  printf '\n### SMIRL held out under the previous standard (commuted events, a replay buffer of 100 000; `python3 experiments/reacher/standard_heldout.py --previous`)\n\n'
+  python3 standard_heldout.py --previous "$bin"
   printf '\n### SMIRL'"'"'s final policy before commuted events (LRM not asked to predict the cancel; base 0, SAC seeds 0-5; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-<task>`)\n'
   python3 figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-or ablations/runs/unpredicted_events-seeds0to5-sequential \
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/unpredicted_events-seeds0to5-composite
-  printf '\n### SMIRL'"'"'s final policy under the previous standard (event-gated visits, LRM predicting the cancel; base 0, SAC seeds 0-5; `python3 experiments/reacher/figure7.py --final-only ablations/runs/event_gated_visits-seeds0to5-<task>`)\n'
+  printf '\n### SMIRL'"'"'s final policy under an earlier standard (event-gated visits, LRM predicting the cancel; base 0, SAC seeds 0-5; `python3 experiments/reacher/figure7.py --final-only ablations/runs/event_gated_visits-seeds0to5-<task>`)\n'
   python3 figure7.py --final-only ablations/runs/event_gated_visits-seeds0to5-or ablations/runs/event_gated_visits-seeds0to5-sequential \
     ablations/runs/event_gated_visits-seeds0to5-if ablations/runs/event_gated_visits-seeds0to5-composite
   printf '\n### Every SMIRL setting tried, and held out (`python3 experiments/reacher/smirl_settings.py`)\n\n'
@@ -68,6 +74,8 @@ trap 'rm -f "$out"' EXIT
   python3 retrain_table.py
   printf '\n### A fresh agent as one more final-policy candidate, screened offline (`python3 experiments/reacher/fresh_agent_screen.py`)\n\n'
   python3 fresh_agent_screen.py
+  printf '\n### Fresh agents with other settings on fixed learned rewards (`experiments/reacher/retrain_agents.sh`; `python3 experiments/reacher/retrain_agents.py`)\n\n'
+  python3 retrain_agents.py
   echo
   cat results_header.md
   python3 results.py

@@ -71,6 +71,11 @@ def table():
     curves = {}
     for r in rows:
         curves.setdefault((r["run"], r["seed"], r["sac_seed"], r["setting"]), []).append(r)
+    print("A fresh SAC agent (seed 1000, 150 000 steps) on a finished job's final reward, held fixed,")
+    print("judged every 10 000 steps: `#` solved (>= 0.9 on every branch), a digit the lower branch's")
+    print("tenths, `.` below 0.1; kept: solved at each of the last three. Settings")
+    print("(experiments/reacher/retrain_agents/): job = the job's own; lr3e-4 = SAC lr 3e-4 (1e-3);")
+    print("no_shaping = smirl_shaping 0 (1); replay_all = replay 200 000 (100 000).\n")
     print("| reward (run, job seed) | setting | 15 evaluations | solved | kept | last learned return |")
     print("|---|---|---|---|---|---|")
     totals = {}

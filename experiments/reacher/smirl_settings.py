@@ -82,6 +82,11 @@ FINAL_TUNING = [
     ("commuted events, final policy, SAC seeds 0-5",
      "ablations/commute_events.toml, SAC seeds 0-5",
      "ablations/runs/commute_events-seeds0to5-{task}"),
+    # Replay 200 000 (ablations/replay_all.toml), SAC seeds 0-5 on base 0 under the rule in that
+    # file, fixed in commit 9f96a09 before the runs (README, "Why agents forget").
+    ("replay 200 000, final policy, SAC seeds 0-5",
+     "ablations/replay_all.toml, SAC seeds 0-5",
+     "ablations/runs/replay_all-seeds0to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -175,7 +180,12 @@ FINAL_HELDOUT = [
     for b in (3, 9, 12, 15, 18, 21, 24, 27, 30, 33, 36, 42, 45, 54, 69, 72, 93)] + [
     # The fresh agent (ablations/fresh_agent.toml): Composite 30, a held-out miss of the standard.
     (f"base {b}, fresh agent, final policy", f"heldout/fresh-agent-seeds{b}-{{task}}")
-    for b in (30,)]
+    for b in (30,)] + [
+    # Replay 200 000 (ablations/replay_all.toml, the standard since): Composite at the held-out
+    # bases with misses under the previous standard (3, 27, 30, 36, 39), then bases it solved
+    # (Composite 9 and 12, IF 36 and 39) and Sequential 42 (1 of 3 under it).
+    (f"base {b}, replay 200 000, final policy", f"heldout/replay-all-seeds{b}-{{task}}")
+    for b in (3, 9, 12, 27, 30, 36, 39, 42)]
 
 
 def jobs(run):

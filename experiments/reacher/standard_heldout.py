@@ -1,23 +1,28 @@
 #!/usr/bin/env python3
 """SMIRL's held-out check under the current standard (issue 13), in one table: per task and
 held-out base seed B, the reported policy of each SAC seed B, B+1, B+2, from whichever run is
-the standard's job there.
+the standard's job there. With --previous, the same for the previous standard (commuted
+events with a 100 000-transition replay buffer, ablations/commute_events.toml).
 
-Usage: python3 experiments/reacher/standard_heldout.py [REACHER_BIN]
+Usage: python3 experiments/reacher/standard_heldout.py [--previous] [REACHER_BIN]
   (REACHER_BIN defaults to target/release/reacher; it only runs `reacher prepare`, well under a
-  second per machine. make_results.sh puts the table in results.md.)
+  second per machine. make_results.sh puts both tables in results.md.)
 
-Which run is the standard's job at base B:
-  1. heldout/commute-seedsB-<task>, run with ablations/commute_events.toml: config.toml key
-     for key (the comments aside).
-  2. Else a run of an earlier setting whose config differs from config.toml only in LRM keys —
-     heldout/unpredicted-seedsB-<task> (ablations/unpredicted_events.toml: no commuted
-     events), then heldout/event-gated-seedsB-<task> (ablations/event_gated_visits.toml: also
-     predicting the cancel) — when `reacher prepare` learns, at B, the same machine under that
-     config as under config.toml. LRM runs in `prepare` alone and a job reads the machine from
-     rm/learned.txt, so such a job is the standard's, seed for seed (the code after `prepare`
+Which run is a standard's job at base B:
+  1. Its own runs: heldout/replay-all-seedsB-<task> (ablations/replay_all.toml: config.toml
+     key for key, the comments aside) for the current standard; heldout/commute-seedsB-<task>
+     (ablations/commute_events.toml) for the previous one.
+  2. Else, for the previous standard only, a run of an earlier setting whose config differs
+     from commute_events.toml only in LRM keys — heldout/unpredicted-seedsB-<task>
+     (ablations/unpredicted_events.toml: no commuted events), then
+     heldout/event-gated-seedsB-<task> (ablations/event_gated_visits.toml: also predicting the
+     cancel) — when `reacher prepare` learns, at B, the same machine under that config as
+     under commute_events.toml. LRM runs in `prepare` alone and a job reads the machine from
+     rm/learned.txt, so such a job is that standard's, seed for seed (the code after `prepare`
      is the same since those runs: from their commit, d6fce19, to commuted events `git log
-     -- src` touches LRM, config keys and the commands' refusal of unfinished runs only).
+     -- src` touches LRM, config keys and the commands' refusal of unfinished runs only). The
+     current standard's SAC keeps a larger buffer than any earlier setting's, so only its own
+     runs are its jobs.
   A base where no run qualifies is left out of the table and listed below it, with the runs
   that exist there but learned another machine.
 
@@ -35,12 +40,13 @@ import rundata  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 HELDOUT = os.path.join(HERE, "heldout")
-STANDARD = "config.toml"
-# (run name prefix, its config): the standard's own runs first, then earlier settings that
-# differ from it only in how LRM learns the machine.
-SETTINGS = [("commute", None),
-            ("unpredicted", "ablations/unpredicted_events.toml"),
-            ("event-gated", "ablations/event_gated_visits.toml")]
+# Per standard: its config and (run name prefix, config) of its own runs first (config None),
+# then of earlier settings that differ from it only in how LRM learns the machine.
+CURRENT = ("config.toml", [("replay-all", None)])
+PREVIOUS = ("ablations/commute_events.toml",
+            [("commute", None),
+             ("unpredicted", "ablations/unpredicted_events.toml"),
+             ("event-gated", "ablations/event_gated_visits.toml")])
 TASKS = ["or", "sequential", "if", "composite"]
 SOLVED = 0.9
 
@@ -54,27 +60,28 @@ def prepare(binary, task, base, config, tmp):
         return f.read()
 
 
-def held_out_runs():
+def held_out_runs(settings):
     """{(task, base): {setting: run name}} of the held-out runs with a final policy."""
     found = {}
     for name in rundata.runs(HELDOUT, "final_policy.csv"):
         m = re.fullmatch(r"(.+)-seeds(\d+)-(or|sequential|if|composite)", name)
-        if m and m[1] in dict(SETTINGS):
+        if m and m[1] in dict(settings):
             found.setdefault((m[3], int(m[2])), {})[m[1]] = name
     return found
 
 
-def standard_run(binary, tmp, task, base, runs):
+def standard_run(binary, tmp, standard, task, base, runs):
     """(run name, setting) of the standard's job at `base`, or (None, [settings whose machine
     differs])."""
+    config_file, settings = standard
     differs = []
-    for setting, config in SETTINGS:
+    for setting, config in settings:
         name = runs.get(setting)
         if name is None:
             continue
         if config is None:
             return name, setting
-        if prepare(binary, task, base, config, tmp) == prepare(binary, task, base, STANDARD, tmp):
+        if prepare(binary, task, base, config, tmp) == prepare(binary, task, base, config_file, tmp):
             return name, setting
         differs.append(setting)
     return None, differs
@@ -90,15 +97,15 @@ def cell(task, candidates):
     return text, rate >= SOLVED
 
 
-def table(binary):
-    found = held_out_runs()
+def table(binary, standard):
+    found = held_out_runs(standard[1])
     lines = ["| task | base | run (setting) | reported policy per SAC seed (IF, Composite: normal/cancel) | solved |",
              "|---|---|---|---|---|"]
     totals, missing = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         for task in TASKS:
             for base in sorted(b for t, b in found if t == task):
-                name, setting = standard_run(binary, tmp, task, base, found[(task, base)])
+                name, setting = standard_run(binary, tmp, standard, task, base, found[(task, base)])
                 if name is None:
                     missing.setdefault(task, []).append(f"{base} ({', '.join(setting)})")
                     continue
@@ -121,12 +128,15 @@ def table(binary):
 
 
 def main(argv):
+    standard = CURRENT
+    if argv and argv[0] == "--previous":
+        standard, argv = PREVIOUS, argv[1:]
     if argv and argv[0].startswith("-"):
         sys.exit(__doc__)
     binary = argv[0] if argv else os.path.join(HERE, "..", "..", "target", "release", "reacher")
     if not os.path.isfile(binary):
         sys.exit(f"standard_heldout.py: {binary}: no such program (cargo build --release, or pass REACHER_BIN)")
-    print(table(binary), end="")
+    print(table(binary, standard), end="")
 
 
 if __name__ == "__main__":
