@@ -975,9 +975,13 @@ fn without_schedules() -> IrlRunConfig {
 
 /// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
 /// issue 13 (20 IRL iterations, no shaping, no event stutter, LRM predicting the cancel, no
-/// commuted events), as the runs made with it.
+/// commuted events, a replay buffer of 100 000), as the runs made with it.
 fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
+        sac: smirl::rl::sac::SacConfig {
+            replay_capacity: 100_000,
+            ..IrlRunConfig::standard().sac
+        },
         irl_iterations: 20,
         smirl_shaping: 0.0,
         smirl_final_sac_steps: 0,

@@ -533,26 +533,24 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
         "{last}"
     );
     assert_eq!(std::fs::read_to_string(&table).unwrap(), written);
-    let unknown = agent("unknown.toml", "smirl_reward_lr = 0.5\n");
-    usage_error(
-        &retrain(&["--steps", "400", "--agent", &unknown]),
-        "smirl_reward_lr",
-    );
-    let negative = agent("negative.toml", "# a typo\n[sac]\nlr = -0.001\n");
-    usage_error(
-        &retrain(&["--steps", "400", "--agent", &negative]),
-        "line 3: field `sac.lr`",
-    );
-    let oversized = agent("oversized.toml", "[sac]\nreplay_capacity = 999999999999\n");
-    usage_error(
-        &retrain(&["--steps", "400", "--agent", &oversized]),
-        "replay_capacity",
-    );
-    let odd_name = agent("two words.toml", "");
-    usage_error(
-        &retrain(&["--steps", "400", "--agent", &odd_name]),
-        "the file's stem names the table",
-    );
+    let refused = [
+        ("unknown.toml", "smirl_reward_lr = 0.5\n", "smirl_reward_lr"),
+        (
+            "negative.toml",
+            "# a typo\n[sac]\nlr = -0.001\n",
+            "line 3: field `sac.lr`",
+        ),
+        (
+            "oversized.toml",
+            "[sac]\nreplay_capacity = 999999999999\n",
+            "replay_capacity",
+        ),
+        ("two words.toml", "", "the file's stem names the table"),
+    ];
+    for (name, text, needle) in refused {
+        let path = agent(name, text);
+        usage_error(&retrain(&["--steps", "400", "--agent", &path]), needle);
+    }
     let missing = dir.join("missing.toml");
     usage_error(
         &retrain(&["--steps", "400", "--agent", missing.to_str().unwrap()]),
