@@ -25,7 +25,7 @@ use super::evaluation::{Evaluation, JobWatch};
 use crate::env::reacher_task::BranchTally;
 use crate::irl::smirl::FeatureMap;
 use crate::log::RolloutLogger;
-use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacConfig, SacTrainer};
+use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -109,12 +109,11 @@ pub struct FinalPhase {
 const FRESH_AGENT_STREAM: u64 = 0xf7e5_a9e7;
 
 /// Runs the phase: `sac`, fresh from the IRL loop, trains on `reward` (the final reward, fixed)
-/// and is scored at each checkpoint; then, with `phase.fresh_steps` > 0, a new agent with
-/// `sac_config` does the same from scratch. `iterations` is the loop's length (for progress
-/// reports).
+/// and is scored at each checkpoint; then, with `phase.fresh_steps` > 0, a new agent with the
+/// same SAC settings does the same from scratch. `iterations` is the loop's length (for
+/// progress reports).
 pub(super) fn train<E: JobEnv, R: ScoredReward>(
     sac: &mut SacTrainer,
-    sac_config: &SacConfig,
     env: &mut E,
     reward: &mut R,
     phase: FinalPhase,
@@ -128,6 +127,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     let task = GroundTruthTask::of(watch.perfect());
     let seeds = &selection_seeds;
     let (obs_dim, act_dim) = (env.obs_dim(), env.act_dim());
+    let sac_config = sac.config().clone();
     let co_trained = FinalAgent::CoTrained;
     let mut candidates = vec![candidate(
         sac, co_trained, env, reward, &task, seeds, watch,
@@ -148,7 +148,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     candidates.extend(checkpoints(sac, co_trained, phase.steps)?);
     if phase.fresh_steps > 0 {
         let fresh_seed = episode_seed(phase.seed, FRESH_AGENT_STREAM);
-        let mut fresh = SacTrainer::new(sac_config, obs_dim, act_dim, fresh_seed)
+        let mut fresh = SacTrainer::new(&sac_config, obs_dim, act_dim, fresh_seed)
             .map_err(|e| format!("the fresh agent: {e}"))?;
         candidates.extend(checkpoints(
             &mut fresh,

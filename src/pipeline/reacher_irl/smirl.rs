@@ -471,7 +471,6 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
         let iterations = s.irl_iterations;
         Some(final_policy::train(
             &mut sac,
-            &s.sac,
             &mut env,
             &mut sac_reward,
             phase,
