@@ -154,7 +154,7 @@ pub trait RewardModel {
         out: &mut [f32],
     ) -> Result<(), RewardError>;
 
-    /// Computes and stores ∇θ L = Σ_i coeffs[i] · ∇θ r_θ(obs_i, rm_state_i), replacing the
+    /// Computes and stores ∇θ L = Σ_i `coeffs[i]` · ∇θ r_θ(obs_i, rm_state_i), replacing the
     /// previously stored gradient.
     fn backward(
         &mut self,
@@ -270,7 +270,7 @@ impl MlpRewardConfig {
 /// Largest batch pushed through the network at once (bounds the workspace memory).
 const MLP_CHUNK: usize = 4096;
 
-/// r_θ(o) = clamp(MLP(o[input_columns]), ±clamp); ignores the RM state.
+/// r_θ(o) = clamp(MLP(`o[input_columns]`), ±clamp); ignores the RM state.
 pub struct MlpReward {
     config: MlpRewardConfig,
     obs_dim: usize,

@@ -374,7 +374,7 @@ pub struct SmirlOutcome {
 }
 
 /// Step 3: MaxEnt IRL on U × O with SAC as the inner solver, then (`smirl_final_sac_steps` > 0)
-/// the final policy on the final reward ([`final_policy`](super::final_policy)).
+/// the final policy on the final reward ([`final_policy`]).
 pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOutcome, String> {
     let s = job.settings;
     let n_states = job.machine.n_states();

@@ -14,7 +14,7 @@
 //! `tabu_len` visited machines) becomes current, and when every neighbour is tabu the search
 //! restarts from a random machine. The best machine seen in `max_steps` steps is returned.
 //! Ties are broken by a seeded shuffle, so the result depends on the seed, never on the
-//! thread count. See [`search`] for the incremental cost evaluation and the canonical form
+//! thread count. See the `search` module for the incremental cost evaluation and the canonical form
 //! that makes the tabu list effective.
 //!
 //! **Beyond the reference: search additions** (each measured on the real Office expert
@@ -116,7 +116,7 @@ pub struct LrmConfig {
     /// Merge reward-indistinguishable states after the search.
     pub merge: bool,
     /// When merging, let an unobserved cell take the behaviour of the state it merges with
-    /// (more merging, may over-generalise; see [`merge`]).
+    /// (more merging, may over-generalise; see the `merge` module).
     pub fill_unobserved: bool,
     /// Weight of the reward term of the cost (see the module docs); 0 gives the reference
     /// objective. Ignored when the traces carry no rewards.
