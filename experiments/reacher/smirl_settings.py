@@ -185,7 +185,7 @@ FINAL_HELDOUT = [
     # bases with misses under the previous standard (3, 27, 30, 36, 39), then bases it solved
     # (Composite 9, 12, 15 and 33, IF 36 and 39) and Sequential 42 (1 of 3 under it).
     (f"base {b}, replay 200 000, final policy", f"heldout/replay-all-seeds{b}-{{task}}")
-    for b in (3, 9, 12, 15, 27, 30, 33, 36, 39, 42)]
+    for b in (3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 33, 36, 39, 42, 45, 54, 69, 72, 93)]
 
 
 def jobs(run):
