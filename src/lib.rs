@@ -33,17 +33,19 @@
 //! - **The binaries** (`src/bin/reacher.rs`, `src/bin/office.rs`) only parse arguments and
 //!   call `pipeline::commands`.
 //!
-//! `atomic_file` (the atomic write every saved file goes through), `config_text` (size
-//! limit of text inputs, line of a TOML key for errors), `output` (where a command
-//! may write: output directories and files are checked, never replaced unless ours),
+//! `atomic_file` (the atomic write every saved file goes through), `input_file` (every input
+//! file is read under a size limit), `config_text` (the limit of text inputs, line of a
+//! TOML key for errors), `output` (where a command may write: output directories and files
+//! are checked, never replaced unless ours),
 //! `assets` (the model, reward machines and committed experts built into the binaries) and
-//! `short_float` (serde helpers for readable configs) import nothing of the crate and serve
-//! every layer.
+//! `short_float` (serde helpers for readable configs) import nothing of the crate but each
+//! other and serve every layer.
 
 pub mod assets;
 pub mod atomic_file;
 pub mod config_text;
 pub mod env;
+pub mod input_file;
 pub mod irl;
 pub mod log;
 pub mod mujoco;

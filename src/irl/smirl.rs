@@ -49,6 +49,7 @@ use super::reward::{
     RewardOptimConfig, TensorOptimizer,
 };
 use crate::env::reacher::{OBS_CANCEL, OBS_DIM, TOUCH_RADIUS};
+use crate::input_file::{read_text, MAX_DATA_FILE_BYTES};
 use crate::rm::LabelSet;
 use std::path::Path;
 
@@ -499,7 +500,7 @@ impl LinearRmReward {
     /// Loads a reward saved by [`RewardModel::save`].
     pub fn load(path: &Path, optim: RewardOptimConfig) -> Result<LinearRmReward, RewardError> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| RewardError::Io {
+        let text = read_text(path, MAX_DATA_FILE_BYTES).map_err(|source| RewardError::Io {
             path: name.clone(),
             source,
         })?;

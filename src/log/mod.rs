@@ -22,7 +22,7 @@ pub mod reader;
 pub mod schema;
 pub mod writer;
 
-pub use reader::{read_log, read_log_bytes, LoggedEpisode, Recovery, RolloutLog};
+pub use reader::{read_log, read_log_bytes, read_log_file, LoggedEpisode, Recovery, RolloutLog};
 pub use schema::{EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHEMA_VERSION};
 pub use writer::{LogOptions, LogSummary, RolloutLogger, RunHeader, StepRecord};
 
@@ -53,6 +53,8 @@ pub enum LogError {
         found: String,
         supported: u32,
     },
+    #[error("{path}: the log is too large to read: {problem}")]
+    TooLarge { path: PathBuf, problem: String },
     #[error("{path}: corrupt log: {problem}")]
     Corrupt { path: PathBuf, problem: String },
     #[error("{path}: {problem}")]

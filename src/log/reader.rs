@@ -13,6 +13,11 @@ use std::path::{Path, PathBuf};
 /// [`super::LogOptions::chunk_size`]).
 pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
+/// Largest memory the decoded episodes of one log may take (estimated per message): 1 GiB,
+/// ~4 million steps, what a log of [`MAX_LOG_FILE_BYTES`] holds. A compressed chunk can
+/// expand a thousandfold, so the file's size alone does not bound what it decodes to.
+pub const MAX_DECODED_BYTES: u64 = 1 << 30;
+
 /// One logged episode.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoggedEpisode {
@@ -95,15 +100,23 @@ impl RolloutLog {
     }
 }
 
-/// Reads a rollout log. A truncated file is read up to its last complete chunk (see
+/// Largest log file read: 256 MiB (a job's log, ~40 000 steps, is ~3 MB).
+pub const MAX_LOG_FILE_BYTES: u64 = 256 << 20;
+
+/// Reads a rollout log of at most [`MAX_LOG_FILE_BYTES`]. A truncated file is read up to its last complete chunk (see
 /// [`RolloutLog::recovery`]); a non-MCAP, corrupt or foreign file, or one with another
 /// schema version, is an error naming the file.
 pub fn read_log(path: &Path) -> Result<RolloutLog, LogError> {
-    let bytes = std::fs::read(path).map_err(|source| LogError::Io {
+    let bytes = read_log_file(path)?;
+    read_log_bytes(&bytes, path)
+}
+
+/// The bytes of the log file at `path`, at most [`MAX_LOG_FILE_BYTES`].
+pub fn read_log_file(path: &Path) -> Result<Vec<u8>, LogError> {
+    crate::input_file::read_bytes(path, MAX_LOG_FILE_BYTES).map_err(|source| LogError::Io {
         path: path.into(),
         source,
-    })?;
-    read_log_bytes(&bytes, path)
+    })
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -138,6 +151,8 @@ struct Reading<'p> {
     messages: u64,
     /// (messages, chunks) of the summary's statistics record, when the file has one.
     statistics: Option<(u64, u32)>,
+    /// Estimated memory of the decoded episodes so far (limit [`MAX_DECODED_BYTES`]).
+    decoded_bytes: u64,
 }
 
 impl Reading<'_> {
@@ -243,6 +258,12 @@ impl Reading<'_> {
             Kind::Start => {
                 let m = EpisodeStartMsg::decode(data)
                     .map_err(|e| self.corrupt(format!("/episode/start message: {e}")))?;
+                self.charge(
+                    std::mem::size_of::<LoggedEpisode>()
+                        + m.phase.len()
+                        + 8 * (m.qpos.len() + m.qvel.len() + m.balls.len())
+                        + 4 * m.obs.len(),
+                )?;
                 self.episodes.push(LoggedEpisode {
                     start: m,
                     steps: Vec::new(),
@@ -252,6 +273,12 @@ impl Reading<'_> {
             Kind::Step => {
                 let m = StepMsg::decode(data)
                     .map_err(|e| self.corrupt(format!("/step message: {e}")))?;
+                self.charge(
+                    std::mem::size_of::<StepMsg>()
+                        + 4 * (m.action.len() + m.obs.len())
+                        + 8 * (m.qpos.len() + m.qvel.len())
+                        + m.label_text.len(),
+                )?;
                 let ep = self.open_episode(m.episode, "/step")?;
                 ep.steps.push(m);
             }
@@ -262,6 +289,22 @@ impl Reading<'_> {
                 ep.end = Some(m);
             }
             Kind::Other => {}
+        }
+        Ok(())
+    }
+
+    /// Counts `bytes` more of decoded episodes against [`MAX_DECODED_BYTES`].
+    fn charge(&mut self, bytes: usize) -> Result<(), LogError> {
+        self.decoded_bytes += bytes as u64;
+        if self.decoded_bytes > MAX_DECODED_BYTES {
+            return Err(LogError::TooLarge {
+                path: self.path.into(),
+                problem: format!(
+                    "its episodes decode to more than the limit of {MAX_DECODED_BYTES} bytes \
+                     (after {} messages)",
+                    self.messages
+                ),
+            });
         }
         Ok(())
     }
@@ -297,6 +340,7 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
         episodes: Vec::new(),
         messages: 0,
         statistics: None,
+        decoded_bytes: 0,
     };
     let mut chunks = 0;
     let mut footer = false;

@@ -33,9 +33,15 @@ impl FileError {
     }
 }
 
-/// Reads the whole file at `path`.
+/// Largest file of this codec read: 4 GiB, the size of a SAC snapshot with a replay buffer of
+/// 4 million transitions of ~250 floats (the buffer's limit is 4 million,
+/// `rl::sac::config::MAX_REPLAY_CAPACITY`; the project's observations have under 40).
+pub const MAX_CODEC_FILE_BYTES: u64 = 4 << 30;
+
+/// Reads the whole file at `path`, at most [`MAX_CODEC_FILE_BYTES`] (the counts inside are
+/// checked against the bytes present when it is decoded).
 pub fn read_file(path: &Path) -> Result<Vec<u8>, FileError> {
-    std::fs::read(path).map_err(|source| FileError::Io {
+    crate::input_file::read_bytes(path, MAX_CODEC_FILE_BYTES).map_err(|source| FileError::Io {
         path: path.display().to_string(),
         source,
     })

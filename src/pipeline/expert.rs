@@ -128,7 +128,8 @@ pub fn read_curve(path: &Path, up_to_steps: u64) -> Result<Vec<CurvePoint>, Trai
         path: path.display().to_string(),
         problem,
     };
-    let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+    let text = crate::input_file::read_text(path, crate::input_file::MAX_DATA_FILE_BYTES)
+        .map_err(|e| bad(e.to_string()))?;
     let mut lines = text.lines();
     if lines.next() != Some(CURVE_HEADER) {
         return Err(bad(format!("first line is not `{CURVE_HEADER}`")));
@@ -143,7 +144,11 @@ pub fn read_curve(path: &Path, up_to_steps: u64) -> Result<Vec<CurvePoint>, Trai
         let p = CurvePoint {
             env_steps: f[0].parse().map_err(|_| row())?,
             episode: f[1].parse().map_err(|_| row())?,
-            env_return: f[2].parse().map_err(|_| row())?,
+            env_return: f[2]
+                .parse::<f64>()
+                .ok()
+                .filter(|r| r.is_finite())
+                .ok_or_else(row)?,
             length: f[3].parse().map_err(|_| row())?,
             success: match f[4] {
                 "0" => false,

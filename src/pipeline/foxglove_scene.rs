@@ -17,7 +17,7 @@
 
 use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
 use crate::log::schema::{EpisodeStartMsg, StepMsg, TOPIC_EPISODE_START, TOPIC_STEP};
-use crate::log::{read_log_bytes, LogError};
+use crate::log::{read_log_bytes, read_log_file, LogError};
 use crate::mujoco::{Data, Model, ObjectKind};
 use foxglove::schemas::{
     Color, CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms, Pose, Quaternion,
@@ -371,7 +371,7 @@ pub fn export_scene(
     allow_partial: bool,
 ) -> Result<SceneSummary, SceneError> {
     let (bad_input, bad_output) = (input_error(input), output_error(out));
-    let bytes = std::fs::read(input).map_err(|e| bad_input(e.to_string()))?;
+    let bytes = read_log_file(input)?;
     let log = read_log_bytes(&bytes, input)?;
     if let (Some(rec), false) = (&log.recovery, allow_partial) {
         return Err(bad_input(format!(

@@ -111,6 +111,33 @@ impl ExpertData {
             learned_states,
         })
     }
+
+    /// Checks the learned-machine states against `machine`, the one they were read in (the
+    /// run's `rm/learned.txt`): one per step and each a state of it, so that no index read
+    /// from the file reaches past the machine's arrays.
+    pub fn check_machine(&self, machine: Option<&RewardMachine>) -> Result<(), CodecError> {
+        let Some(machine) = machine else {
+            return Ok(());
+        };
+        let invalid = |problem: String| CodecError::Invalid {
+            what: "learned machine states",
+            problem,
+        };
+        if self.learned_states.len() != self.n_states() {
+            return Err(invalid(format!(
+                "{} states for {} steps of a run with a learned machine",
+                self.learned_states.len(),
+                self.n_states()
+            )));
+        }
+        let n = machine.n_states();
+        if let Some(&u) = self.learned_states.iter().find(|&&u| u as usize >= n) {
+            return Err(invalid(format!(
+                "state {u} is not a state of the learned machine ({n} states)"
+            )));
+        }
+        Ok(())
+    }
 }
 
 const EXPERT_DATA_MAGIC: &[u8] = b"SMIRLXD\0";

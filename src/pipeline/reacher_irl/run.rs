@@ -30,6 +30,7 @@ use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::EVENTS;
 use crate::env::reacher_task::{Branch, ReacherTask};
+use crate::input_file::{read_text, MAX_DATA_FILE_BYTES};
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
 use crate::output::OutputDir;
 use crate::pipeline::reacher_expert::Demo;
@@ -343,7 +344,8 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
     }
     let read = |name: &str| {
         let path = dir.join(name);
-        std::fs::read_to_string(&path).map_err(|e| usage(format!("{}: {e}", path.display())))
+        crate::config_text::read_text_file(&path)
+            .map_err(|e| usage(format!("{}: {e}", path.display())))
     };
     let prepared: Prepared = serde_json::from_str(&read(PREPARED_FILE)?)
         .map_err(|e| usage(format!("{}: {e}", marker.display())))?;
@@ -360,9 +362,10 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
         None
     };
     let data_path = dir.join(EXPERT_DATA_FILE);
-    let bytes =
-        std::fs::read(&data_path).map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
+    let bytes = crate::input_file::read_bytes(&data_path, crate::nn::codec::MAX_CODEC_FILE_BYTES)
+        .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
     let expert = ExpertData::from_bytes(&bytes)
+        .and_then(|e| e.check_machine(learned.as_ref()).map(|()| e))
         .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
     Ok(PreparedRun {
         dir: dir.to_path_buf(),
@@ -474,7 +477,8 @@ impl PreparedRun {
 }
 
 fn read_record(path: &Path) -> Result<JobRecord, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text =
+        read_text(path, MAX_DATA_FILE_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
     serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
 }
 
