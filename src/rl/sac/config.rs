@@ -76,6 +76,15 @@ pub const MAX_BATCH_SIZE: usize = 65_536;
 pub const MAX_REPLAY_CAPACITY: usize = 4_000_000;
 /// Most gradient updates per environment step.
 pub const MAX_UPDATES_PER_STEP: u32 = 64;
+/// Most weights between the hidden layers of a network (Σ wᵢ·wᵢ₊₁ of `hidden`): 2²⁵, 128 MiB
+/// of `f32`, of which SAC keeps ~14 copies (five networks, their gradients, Adam's moments).
+/// Each width within its own limit, eight layers of 4096 would need ~6 GiB.
+pub const MAX_HIDDEN_WEIGHTS: usize = 1 << 25;
+/// Most hidden units of a minibatch (`batch_size` × Σ `hidden`): 2²⁶ activations, 256 MiB,
+/// of which SAC's updates hold ~10 arrays (activations and their gradients per network).
+/// Each within its own limit, a batch of 65 536 through eight layers of 4096 would need
+/// ~80 GiB.
+pub const MAX_BATCH_HIDDEN_UNITS: usize = 1 << 26;
 
 /// A configuration that cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -182,10 +191,30 @@ impl SacConfig {
                 &format!("has a layer of width {w}, more than the limit of {MAX_LAYER_WIDTH}"),
             );
         }
+        let weights: usize = self.hidden.windows(2).map(|w| w[0] * w[1]).sum();
+        if weights > MAX_HIDDEN_WEIGHTS {
+            return bad(
+                "hidden",
+                &format!(
+                    "has {weights} weights between its layers, more than the limit of \
+                     {MAX_HIDDEN_WEIGHTS}"
+                ),
+            );
+        }
         if self.batch_size > MAX_BATCH_SIZE {
             return bad(
                 "batch_size",
                 &format!("is more than the limit of {MAX_BATCH_SIZE}"),
+            );
+        }
+        let units = self.batch_size * self.hidden.iter().sum::<usize>();
+        if units > MAX_BATCH_HIDDEN_UNITS {
+            return bad(
+                "batch_size",
+                &format!(
+                    "times the sum of the hidden widths is {units} activations, more than the \
+                     limit of {MAX_BATCH_HIDDEN_UNITS} (use a smaller batch or narrower layers)"
+                ),
             );
         }
         if self.replay_capacity > MAX_REPLAY_CAPACITY {
