@@ -74,7 +74,7 @@ fn main() -> ExitCode {
     match commands::office::run(request) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("office: error: {e:#}");
+            eprintln!("office: error: {}", commands::error_message(&e));
             ExitCode::from(if commands::is_usage(&e) { 2 } else { 1 })
         }
     }

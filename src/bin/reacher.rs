@@ -391,7 +391,7 @@ fn main() -> ExitCode {
     match try_main(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", commands::error_message(&e));
             ExitCode::from(if commands::is_usage(&e) { 2 } else { 1 })
         }
     }

@@ -47,9 +47,10 @@ pub fn log_scripted_demos(
     let mut header = RunHeader::reacher_shipped(&spec.task, spec.seed, config);
     let rm = spec.reward_machine.as_ref();
     header.reward_machine = rm.map(write_rm);
-    let mut logger = RolloutLogger::create(path, header, options)?;
+    // A bad sequence is refused before the log file exists.
     let mut ctl = ScriptedController::from_letters(&spec.sequence, ControllerGains::default())
         .map_err(usage)?;
+    let mut logger = RolloutLogger::create(path, header, options)?;
     let mut obs = vec![0.0f32; OBS_DIM];
     for i in 0..spec.episodes {
         let seed = spec.seed.wrapping_add(i);

@@ -26,6 +26,24 @@ pub struct RenderOptions {
     pub poses: usize,
 }
 
+impl RenderOptions {
+    /// Smallest and largest picture side accepted, in pixels.
+    pub const SIZES: std::ops::RangeInclusive<u32> = 64..=8192;
+
+    /// Checks the options on their own (before any log is read).
+    pub fn validate(&self) -> Result<(), String> {
+        if !Self::SIZES.contains(&self.size) {
+            return Err(format!(
+                "picture size {} must be between {} and {} pixels",
+                self.size,
+                Self::SIZES.start(),
+                Self::SIZES.end()
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for RenderOptions {
     fn default() -> RenderOptions {
         RenderOptions {
@@ -38,6 +56,8 @@ impl Default for RenderOptions {
 /// A picture that cannot be made.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
+    #[error("{problem}")]
+    Options { problem: String },
     #[error("{path}: {problem}")]
     Input { path: String, problem: String },
     #[error("{path}: cannot write: {source}")]
@@ -98,13 +118,10 @@ pub fn render_episode(
         path: path.clone(),
         problem,
     };
+    options
+        .validate()
+        .map_err(|problem| RenderError::Options { problem })?;
     let xml = log.reacher_model_xml().map_err(&bad)?;
-    if options.size < 64 || options.size > 8192 {
-        return Err(bad(format!(
-            "picture size {} must be between 64 and 8192 pixels",
-            options.size
-        )));
-    }
     let ep = pick_episode(log, episode).map_err(&bad)?;
     let model = Arc::new(
         Model::from_xml_str(xml, &format!("{path}:model.xml")).map_err(|e| bad(e.to_string()))?,

@@ -4,10 +4,11 @@
 
 use super::{usage, UsageError};
 use crate::env::reacher::ReacherConfig;
+use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::log::demo::{log_scripted_demos, DemoSpec};
 use crate::log::{read_log, LogOptions, RolloutLog};
 use crate::output::check_file;
-use crate::pipeline::offline_rm::{compare, learn_from_files};
+use crate::pipeline::offline_rm::{compare, traces_from_files, OfflineRm};
 use crate::pipeline::render::{render_episode, write_png, RenderOptions};
 use crate::rm::lrm::{LrmConfig, MAX_SEARCH_STEPS, MAX_STATES};
 use anyhow::{bail, Context, Result};
@@ -78,13 +79,16 @@ pub struct RenderRequest {
 
 /// `reacher render`: draws one logged episode top-down as PNG and prints what it shows.
 pub fn render(args: RenderRequest) -> Result<()> {
-    check_file(&args.out, args.force).map_err(usage)?;
-    let log = read_log(&args.file)?;
-    check_partial(&log, args.allow_partial)?;
     let options = RenderOptions {
         size: args.size,
         poses: args.poses,
     };
+    options
+        .validate()
+        .map_err(|problem| usage(format!("--size: {problem}")))?;
+    check_file(&args.out, args.force).map_err(usage)?;
+    let log = read_log(&args.file)?;
+    check_partial(&log, args.allow_partial)?;
     let picture = render_episode(&log, args.episode, &options)?;
     write_png(&args.out, &picture)?;
     let touches: Vec<String> = picture
@@ -177,7 +181,19 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
         )),
         None => None,
     };
-    let result = learn_from_files(&args.files, &cfg, args.allow_partial)?;
+    let traces = traces_from_files(&args.files, args.allow_partial)?;
+    if let Some((path, rm)) = &reference {
+        if rm.vocab() != &traces.vocabulary {
+            return Err(usage(format!(
+                "{}: vocabulary \"{}\" differs from the logs' \"{}\"",
+                path.display(),
+                rm.vocab(),
+                traces.vocabulary
+            )));
+        }
+    }
+    let learned = crate::rm::lrm::learn_rm(&traces.vocabulary, &traces.traces, &cfg)?;
+    let result = OfflineRm { learned, traces };
     for w in &result.traces.warnings {
         eprintln!("warning: {w}");
     }
@@ -243,18 +259,32 @@ pub struct DemoRequest {
     pub observations: bool,
 }
 
+/// Most episodes `reacher demo` writes: 10 000 episodes of up to a few hundred steps stay
+/// far below what a log may hold (`log::reader::MAX_LOG_FILE_BYTES`).
+pub const MAX_DEMO_EPISODES: u64 = 10_000;
+
 /// `reacher demo`: logs scripted demonstrations (a ball sequence) to an MCAP file.
 pub fn demo(args: DemoRequest) -> Result<()> {
+    // Every argument is checked before the log file is created.
+    if !(1..=MAX_DEMO_EPISODES).contains(&args.episodes) {
+        return Err(usage(format!(
+            "--episodes must be in 1..={MAX_DEMO_EPISODES}"
+        )));
+    }
+    ScriptedController::from_letters(&args.sequence, ControllerGains::default())
+        .map_err(|e| usage(format!("--sequence: {e}")))?;
+    let mut env = ReacherConfig::default();
+    if let Some(p) = args.cancel_probability {
+        env.cancel.probability = p;
+    }
+    env.validate()
+        .map_err(|e| usage(format!("--cancel-probability: {e}")))?;
     check_file(&args.out, args.force).map_err(usage)?;
     let rm_name = format!("reacher_{}", args.task);
     let reward_machine = match crate::rm::perfect::text(&rm_name) {
         Some(_) => Some(crate::rm::perfect::load(&rm_name)?),
         None => None,
     };
-    let mut env = ReacherConfig::default();
-    if let Some(p) = args.cancel_probability {
-        env.cancel.probability = p;
-    }
     let spec = DemoSpec {
         task: args.task,
         sequence: args.sequence,

@@ -50,6 +50,23 @@ pub fn is_usage(error: &anyhow::Error) -> bool {
     error.downcast_ref::<UsageError>().is_some()
 }
 
+/// The message of `error` and of the errors it wraps, joined by `: ` — each cause once: many
+/// errors name their cause in their own message already (`{path}: {source}`), and anyhow's
+/// `{:#}` would print it again.
+pub fn error_message(error: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in error.chain() {
+        let part = cause.to_string();
+        if text.is_empty() {
+            text = part;
+        } else if !text.ends_with(&part) {
+            text.push_str(": ");
+            text.push_str(&part);
+        }
+    }
+    text
+}
+
 /// A [`UsageError`] with `message`, as the commands return it.
 fn usage(message: impl std::fmt::Display) -> anyhow::Error {
     anyhow::Error::new(UsageError(message.to_string()))
