@@ -1,7 +1,6 @@
 //! Text input files (configs, reward machines): a size limit checked before reading, and
 //! the line of a TOML key, so that an error about a value names the line it is on.
 
-use std::io::Read;
 use std::path::Path;
 
 /// Largest text input file read (configs, reward machines): 1 MiB, far above any real one.
@@ -10,23 +9,7 @@ pub const MAX_TEXT_FILE_BYTES: u64 = 1 << 20;
 /// Reads a UTF-8 text file of at most [`MAX_TEXT_FILE_BYTES`]; a larger one is an
 /// `InvalidData` error naming the limit (checked before its content is read).
 pub fn read_text_file(path: &Path) -> std::io::Result<String> {
-    let file = std::fs::File::open(path)?;
-    let too_big = || {
-        std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("the file is larger than the limit of {MAX_TEXT_FILE_BYTES} bytes"),
-        )
-    };
-    if file.metadata()?.len() > MAX_TEXT_FILE_BYTES {
-        return Err(too_big());
-    }
-    let mut text = String::new();
-    file.take(MAX_TEXT_FILE_BYTES + 1)
-        .read_to_string(&mut text)?;
-    if text.len() as u64 > MAX_TEXT_FILE_BYTES {
-        return Err(too_big());
-    }
-    Ok(text)
+    crate::input_file::read_text(path, MAX_TEXT_FILE_BYTES)
 }
 
 /// The message of a TOML parse error of `text`, led by its line and, when the error is about
@@ -52,39 +35,54 @@ pub fn toml_error_message(text: &str, e: &toml::de::Error) -> String {
 }
 
 /// The 1-based line of the key `dotted` (`"lrm_steps"`, `"sac.batch_size"`,
-/// `"env.cancel.latest_step"`: table path, then key) in a TOML document written with one
-/// `[table]` header per table; the table's header line when the key is absent (its value
-/// is a default), `None` when neither is there.
+/// `"env.cancel.latest_step"`: table path, then key) in a TOML document: on its own line
+/// under its `[table]` header, as a dotted key (`sac.batch_size = 3`, or `cancel.latest_step`
+/// under `[env]`), or inside a one-line inline table (`sac = { batch_size = 3 }`: that line).
+/// When the key is absent (its value is a default), the line of the table it would be in;
+/// `None` when neither is there.
 pub fn key_line(text: &str, dotted: &str) -> Option<usize> {
-    let (table, key) = match dotted.rsplit_once('.') {
-        Some((t, k)) => (t, k),
-        None => ("", dotted),
-    };
-    let mut current = String::new();
-    let mut header = None;
+    let target = path_of(dotted);
+    let mut current: Vec<String> = Vec::new();
+    // The line where the deepest table enclosing `target` was opened, and its depth.
+    let mut enclosing: Option<(usize, usize)> = None;
     for (i, raw) in text.lines().enumerate() {
         let line = raw.split('#').next().unwrap_or("").trim();
-        if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
-            current = name.trim().to_string();
-            if current == dotted {
-                // The key names a table (`[schedule.fkl]`): its header.
+        let found = if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+            current = path_of(name);
+            current.clone()
+        } else if let Some((key, value)) = line.split_once('=') {
+            let mut path = current.clone();
+            path.extend(path_of(key));
+            if value.trim_start().starts_with('{') && target.starts_with(&path) {
+                // Inside a one-line inline table: the whole table is on this line.
                 return Some(i + 1);
             }
-            if current == table {
-                header = Some(i + 1);
-            }
+            path
+        } else {
             continue;
+        };
+        if found == target {
+            return Some(i + 1);
         }
-        if current != table {
-            continue;
-        }
-        if let Some((k, _)) = line.split_once('=') {
-            if k.trim().trim_matches('"') == key {
-                return Some(i + 1);
-            }
+        // A table (or dotted key) on the way to `target`: remember the deepest.
+        if found.len() < target.len()
+            && target.starts_with(&found)
+            && enclosing.is_none_or(|(_, depth)| found.len() > depth)
+            && line.starts_with('[')
+        {
+            enclosing = Some((i + 1, found.len()));
         }
     }
-    header
+    enclosing.map(|(line, _)| line)
+}
+
+/// The parts of a TOML key or table name (`env . "cancel"` → `["env", "cancel"]`; dots inside
+/// quotes are not expected in this project's keys).
+fn path_of(key: &str) -> Vec<String> {
+    key.split('.')
+        .map(|part| part.trim().trim_matches('"').trim_matches('\'').to_string())
+        .filter(|part| !part.is_empty())
+        .collect()
 }
 
 #[cfg(test)]
@@ -102,5 +100,20 @@ mod tests {
         assert_eq!(key_line(text, "env.cancel.latest_step"), Some(9));
         assert_eq!(key_line(text, "env.cancel"), Some(8));
         assert_eq!(key_line(text, "batch_size"), None);
+    }
+
+    #[test]
+    fn finds_dotted_keys_and_inline_tables() {
+        let text = "sac.batch_size = 3\nenv = { max_steps = 4, cancel = { latest_step = 5 } }\n\
+                    [schedule]\nfkl.sac.lr = 0.1\n[ \"schedule\" . js ]\nlr = 2\n";
+        assert_eq!(key_line(text, "sac.batch_size"), Some(1));
+        assert_eq!(key_line(text, "env.max_steps"), Some(2));
+        assert_eq!(key_line(text, "env.cancel.latest_step"), Some(2));
+        assert_eq!(key_line(text, "schedule.fkl.sac.lr"), Some(4));
+        assert_eq!(key_line(text, "schedule.js.lr"), Some(6));
+        // Absent keys: the line of the table they would be in.
+        assert_eq!(key_line(text, "schedule.rkl.lr"), Some(3));
+        assert_eq!(key_line(text, "schedule.js.tau"), Some(5));
+        assert_eq!(key_line(text, "sac.lr"), None);
     }
 }

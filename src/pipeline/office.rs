@@ -147,12 +147,36 @@ pub enum OfficeError {
     Run(String),
 }
 
+/// The key a message of [`OfficeConfig::validate`] is about: the word before its first `=`
+/// (else its first word), under the table its first word names when that ends in `:`
+/// (`"maxent: bad setting: lr = 0 …"` → `maxent.lr`, `"demos.horizon must …"` →
+/// `demos.horizon`).
+fn field_of(message: &str) -> String {
+    let words: Vec<&str> = message.split_whitespace().collect();
+    let first = words.first().copied().unwrap_or("");
+    let key = match words.iter().position(|&w| w == "=") {
+        Some(i) if i > 0 => words[i - 1],
+        _ => first,
+    };
+    match first.strip_suffix(':') {
+        Some(table) if key != first => format!("{table}.{key}"),
+        _ => key.to_string(),
+    }
+}
+
 impl OfficeConfig {
-    /// Parses TOML text (unknown fields are errors).
+    /// Parses TOML text (unknown fields are errors); an error names the line of the key it
+    /// is about.
     pub fn from_toml(text: &str) -> Result<OfficeConfig, OfficeError> {
-        let cfg: OfficeConfig =
-            toml::from_str(text).map_err(|e| OfficeError::Config(e.to_string()))?;
-        cfg.validate()?;
+        let cfg: OfficeConfig = toml::from_str(text)
+            .map_err(|e| OfficeError::Config(crate::config_text::toml_error_message(text, &e)))?;
+        cfg.validate().map_err(|e| match e {
+            OfficeError::Config(m) => match crate::config_text::key_line(text, &field_of(&m)) {
+                Some(line) => OfficeError::Config(format!("line {line}: {m}")),
+                None => OfficeError::Config(m),
+            },
+            other => other,
+        })?;
         Ok(cfg)
     }
 
