@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
 /// Largest memory the decoded episodes of one log may take (estimated per message): 1 GiB,
-/// ~4 million steps, what a log of [`MAX_LOG_FILE_BYTES`] holds. A compressed chunk can
+/// ~4 million steps, above the ~3 million (~80 bytes each) a log of [`MAX_LOG_FILE_BYTES`]
+/// holds. A compressed chunk can
 /// expand a thousandfold, so the file's size alone does not bound what it decodes to.
 pub const MAX_DECODED_BYTES: u64 = 1 << 30;
 
@@ -103,9 +104,10 @@ impl RolloutLog {
 /// Largest log file read: 256 MiB (a job's log, ~40 000 steps, is ~3 MB).
 pub const MAX_LOG_FILE_BYTES: u64 = 256 << 20;
 
-/// Reads a rollout log of at most [`MAX_LOG_FILE_BYTES`]. A truncated file is read up to its last complete chunk (see
-/// [`RolloutLog::recovery`]); a non-MCAP, corrupt or foreign file, or one with another
-/// schema version, is an error naming the file.
+/// Reads a rollout log of at most [`MAX_LOG_FILE_BYTES`]. A truncated file is read up to its
+/// last complete chunk (see [`RolloutLog::recovery`]); a non-MCAP, corrupt or foreign file,
+/// one that decodes past [`MAX_DECODED_BYTES`], or one with another schema version, is an
+/// error naming the file.
 pub fn read_log(path: &Path) -> Result<RolloutLog, LogError> {
     let bytes = read_log_file(path)?;
     read_log_bytes(&bytes, path)
