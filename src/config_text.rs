@@ -67,7 +67,7 @@ pub fn key_line(text: &str, dotted: &str) -> Option<usize> {
         // A table (or dotted key) on the way to `target`: remember the deepest.
         if found.len() < target.len()
             && target.starts_with(&found)
-            && enclosing.is_none_or(|(_, depth)| found.len() > depth)
+            && enclosing.map_or(true, |(_, depth)| found.len() > depth)
             && line.starts_with('[')
         {
             enclosing = Some((i + 1, found.len()));

@@ -202,7 +202,7 @@ fn a_prepared_run_with_damaged_files_is_refused_by_its_jobs() {
     let perfect = run.join("rm/perfect.txt");
     let text = std::fs::read(&perfect).unwrap();
     let mut big = text.clone();
-    big.extend(std::iter::repeat_n(b'#', 2 << 20));
+    big.resize(text.len() + (2 << 20), b'#');
     std::fs::write(&perfect, &big).unwrap();
     let o = job(dir);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
