@@ -184,9 +184,11 @@ FINAL_HELDOUT = [
     # Replay 200 000 (ablations/replay_all.toml, the standard since): Composite at the held-out
     # bases with misses under the previous standard (3, 27, 30, 36, 39), then bases it solved
     # (Composite 9, 12, 15 and 33, IF 36 and 39) and Sequential 42 (1 of 3 under it); then
-    # (stop 40) every other held-out base of the previous standard, every task run there.
+    # (stop 40) every other held-out base of the previous standard, every task run there; then
+    # (stop 41) fresh bases no run had used, IF and Composite: 75, 78, 81, 84, 87, 90, 96, 99.
     (f"base {b}, replay 200 000, final policy", f"heldout/replay-all-seeds{b}-{{task}}")
-    for b in (3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 33, 36, 39, 42, 45, 54, 69, 72, 93)]
+    for b in (3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 33, 36, 39, 42, 45, 54, 69, 72, 75, 78, 81,
+              84, 87, 90, 93, 96, 99)]
 
 
 def jobs(run):
