@@ -259,8 +259,8 @@ pub struct DemoRequest {
     pub observations: bool,
 }
 
-/// Most episodes `reacher demo` writes: 10 000 episodes of up to a few hundred steps stay
-/// far below what a log may hold (`log::reader::MAX_LOG_FILE_BYTES`).
+/// Most episodes `reacher demo` writes: 10 000 episodes of at most the default 100 steps,
+/// ~80 MB, stay below what a log may hold (`log::reader::MAX_LOG_FILE_BYTES`).
 pub const MAX_DEMO_EPISODES: u64 = 10_000;
 
 /// `reacher demo`: logs scripted demonstrations (a ball sequence) to an MCAP file.
