@@ -147,20 +147,17 @@ pub enum OfficeError {
     Run(String),
 }
 
-/// The key a message of [`OfficeConfig::validate`] is about: the word before its first `=`
-/// (else its first word), under the table its first word names when that ends in `:`
-/// (`"maxent: bad setting: lr = 0 …"` → `maxent.lr`, `"demos.horizon must …"` →
-/// `demos.horizon`).
-fn field_of(message: &str) -> String {
-    let words: Vec<&str> = message.split_whitespace().collect();
-    let first = words.first().copied().unwrap_or("");
-    let key = match words.iter().position(|&w| w == "=") {
-        Some(i) if i > 0 => words[i - 1],
-        _ => first,
-    };
-    match first.strip_suffix(':') {
-        Some(table) if key != first => format!("{table}.{key}"),
-        _ => key.to_string(),
+/// The key a nested config's error is about: `table`, then the setting its message names
+/// before ` = ` (`"bad setting: lr = 0 must be > 0"` under `maxent` → `maxent.lr`); the
+/// table alone when the message names none.
+fn nested_key(table: &str, message: &str) -> String {
+    match message
+        .split(" = ")
+        .next()
+        .and_then(|m| m.split_whitespace().last())
+    {
+        Some(key) if message.contains(" = ") => format!("{table}.{key}"),
+        _ => table.to_string(),
     }
 }
 
@@ -170,38 +167,55 @@ impl OfficeConfig {
     pub fn from_toml(text: &str) -> Result<OfficeConfig, OfficeError> {
         let cfg: OfficeConfig = toml::from_str(text)
             .map_err(|e| OfficeError::Config(crate::config_text::toml_error_message(text, &e)))?;
-        cfg.validate().map_err(|e| match e {
-            OfficeError::Config(m) => match crate::config_text::key_line(text, &field_of(&m)) {
-                Some(line) => OfficeError::Config(format!("line {line}: {m}")),
-                None => OfficeError::Config(m),
-            },
-            other => other,
-        })?;
+        if let Some((key, message)) = cfg.invalid_setting() {
+            return Err(OfficeError::Config(
+                match crate::config_text::key_line(text, &key) {
+                    Some(line) => format!("line {line}: {message}"),
+                    None => message,
+                },
+            ));
+        }
         Ok(cfg)
     }
 
     pub fn validate(&self) -> Result<(), OfficeError> {
-        let bad = |m: String| Err(OfficeError::Config(m));
+        match self.invalid_setting() {
+            Some((_, message)) => Err(OfficeError::Config(message)),
+            None => Ok(()),
+        }
+    }
+
+    /// The first setting out of its range: its dotted key and the message.
+    fn invalid_setting(&self) -> Option<(String, String)> {
+        let bad = |key: &str, message: String| Some((key.to_string(), message));
         if self.demos.n_demos == 0 {
-            return bad("demos.n_demos must be ≥ 1".into());
+            return bad("demos.n_demos", "demos.n_demos must be ≥ 1".into());
         }
         if self.demos.horizon == 0 {
-            return bad("demos.horizon must be ≥ 1".into());
+            return bad("demos.horizon", "demos.horizon must be ≥ 1".into());
         }
-        self.maxent
-            .validate()
-            .map_err(|e| OfficeError::Config(format!("maxent: {e}")))?;
-        self.apprenticeship
-            .validate()
-            .map_err(|e| OfficeError::Config(format!("apprenticeship: {e}")))?;
-        if !(self.eval.gamma > 0.0 && self.eval.gamma < 1.0) {
-            return bad(format!(
-                "eval.gamma = {} must be in (0, 1)",
-                self.eval.gamma
+        if let Err(e) = self.maxent.validate() {
+            let message = e.to_string();
+            return Some((nested_key("maxent", &message), format!("maxent: {message}")));
+        }
+        if let Err(e) = self.apprenticeship.validate() {
+            let message = e.to_string();
+            return Some((
+                nested_key("apprenticeship", &message),
+                format!("apprenticeship: {message}"),
             ));
         }
-        if self.lrm.max_states < 1 || self.lrm.threads < 1 {
-            return bad("lrm.max_states and lrm.threads must be ≥ 1".into());
+        if !(self.eval.gamma > 0.0 && self.eval.gamma < 1.0) {
+            return bad(
+                "eval.gamma",
+                format!("eval.gamma = {} must be in (0, 1)", self.eval.gamma),
+            );
+        }
+        if self.lrm.max_states < 1 {
+            return bad("lrm.max_states", "lrm.max_states must be ≥ 1".into());
+        }
+        if self.lrm.threads < 1 {
+            return bad("lrm.threads", "lrm.threads must be ≥ 1".into());
         }
         for (field, value, limit) in [
             ("demos.n_demos", self.demos.n_demos, MAX_OFFICE_DEMOS),
@@ -215,12 +229,13 @@ impl OfficeConfig {
             ("lrm.threads", self.lrm.threads, MAX_OFFICE_THREADS),
         ] {
             if value > limit {
-                return bad(format!(
-                    "{field} = {value} is more than the limit of {limit}"
-                ));
+                return bad(
+                    field,
+                    format!("{field} = {value} is more than the limit of {limit}"),
+                );
             }
         }
-        Ok(())
+        None
     }
 
     pub fn eval_horizon(&self) -> usize {
