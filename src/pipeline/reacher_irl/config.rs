@@ -168,6 +168,13 @@ pub struct IrlRunConfig {
     /// `"learned"`. Omitted from written configs when `"learned"`.
     #[serde(default, skip_serializing_if = "SmirlMachine::is_learned")]
     pub smirl_machine: SmirlMachine,
+    /// A sink state added to SMIRL's machine, entered by a ball touch no demonstration makes
+    /// in the state it happens in (`smirl::with_unseen_touch_sink`): the learned reward can
+    /// then charge for leaving what the expert does for good (blue after the cancel). A config
+    /// without the key is read as false, what every run before the key existed used. Omitted
+    /// from written configs when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub smirl_unseen_touch_sink: bool,
     /// `smirl`'s label features: `"state"` (L(o) of the state reached, paid on every step a
     /// label holds: the paper's eq. 5) or `"entries"` (the labels that became true on the
     /// step, paid once per entry into a ball). A config without the key is read as
@@ -507,6 +514,7 @@ impl IrlRunConfig {
             smirl_reward_l2: 0.05,
             smirl_normalisation: SmirlNormalisation::EventGatedVisits,
             smirl_machine: SmirlMachine::Learned,
+            smirl_unseen_touch_sink: false,
             smirl_label_features: LabelFeatures::State,
             smirl_shaping: 1.0,
             // SMIRL's final policy: four candidates 5 000 SAC steps apart on the final reward

@@ -285,6 +285,7 @@ pub(super) fn write_reports(
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
         "smirl_machine": config.smirl_machine.name(),
+        "smirl_unseen_touch_sink": config.smirl_unseen_touch_sink,
         "smirl_label_features": config.smirl_label_features.name(),
         "smirl_shaping": config.smirl_shaping,
         "smirl_counterfactual": config.smirl_counterfactual,

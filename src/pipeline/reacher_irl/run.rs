@@ -25,7 +25,9 @@ use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
-use super::smirl::{annotate, label_traces, learn_machine, lrm_config, task_machine};
+use super::smirl::{
+    annotate, label_traces, learn_machine, lrm_config, task_machine, with_unseen_touch_sink,
+};
 use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::EVENTS;
@@ -214,6 +216,10 @@ pub fn prepare(
         ))
     ));
 
+    let hold_to = match config.demo_padding {
+        DemoPadding::Hold => Some(config.env.max_steps),
+        DemoPadding::None => None,
+    };
     // 2. Reward machine (SMIRL only).
     let mut rm_facts = None;
     let learned = if algos.iter().any(|a| a.uses_rm()) {
@@ -231,6 +237,11 @@ pub fn prepare(
                     })?;
                 (rm, cost, 0.0)
             }
+        };
+        let (rm, sink) = if config.smirl_unseen_touch_sink {
+            with_unseen_touch_sink(&rm, &demos, hold_to)
+        } else {
+            (rm, None)
         };
         let traces: Vec<Vec<LabelSet>> = demos.iter().map(|d| d.labels()).collect();
         let r = refines(&rm, &perfect, traces.iter().map(|t| t.as_slice()));
@@ -258,6 +269,16 @@ pub fn prepare(
             "learned machine: {} states ({} reachable); perfect machine: {} states",
             facts.learned_states, facts.learned_reachable, facts.perfect_states
         );
+        if config.smirl_unseen_touch_sink {
+            let _ = writeln!(
+                report,
+                "smirl_unseen_touch_sink: {}",
+                sink.map_or(
+                    "every ball touched in every state, no sink".to_string(),
+                    |s| { format!("state {s} is the sink of ball touches no demonstration makes") }
+                )
+            );
+        }
         let _ = writeln!(
             report,
             "refines the perfect machine along the {} demonstrations: {} ({} of {} steps ambiguous)",
@@ -302,10 +323,6 @@ pub fn prepare(
         Some(rm)
     } else {
         None
-    };
-    let hold_to = match config.demo_padding {
-        DemoPadding::Hold => Some(config.env.max_steps),
-        DemoPadding::None => None,
     };
     let expert_data = annotate(&demos, learned.as_ref(), hold_to);
     let path = dir.join(EXPERT_DATA_FILE);

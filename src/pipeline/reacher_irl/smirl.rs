@@ -42,6 +42,7 @@ use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
 use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig, DEFAULT_PATIENCE, DEFAULT_STARTS};
+use crate::rm::transform::sink_unseen;
 use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
 
 /// Observation columns of the two joint velocities (see `env::reacher`).
@@ -156,10 +157,7 @@ pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usiz
         }
         let mut len = d.steps.len();
         if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
-            let mut held = last.next_obs;
-            held[OBS_JOINT_VEL[0]] = 0.0;
-            held[OBS_JOINT_VEL[1]] = 0.0;
-            held[OBS_CANCEL] = 0.0;
+            let held = held_observation(&last.next_obs);
             let labels = labelling.labels_of(&held);
             let mut before = last.next_obs;
             while len < horizon {
@@ -171,6 +169,49 @@ pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usiz
         data.lengths.push(len);
     }
     data
+}
+
+/// A demonstration's final observation as [`annotate`] holds it: joint velocities zero, no
+/// cancel event.
+fn held_observation(last: &[f32; OBS_DIM]) -> [f32; OBS_DIM] {
+    let mut held = *last;
+    held[OBS_JOINT_VEL[0]] = 0.0;
+    held[OBS_JOINT_VEL[1]] = 0.0;
+    held[OBS_CANCEL] = 0.0;
+    held
+}
+
+/// The label sets the learned machine reads along each demonstration as [`annotate`] steps it,
+/// the held steps to `hold_to` included.
+pub fn annotated_label_traces(demos: &[Demo], hold_to: Option<usize>) -> Vec<Vec<LabelSet>> {
+    let labelling = FeatureMap::reacher_labels();
+    demos
+        .iter()
+        .map(|d| {
+            let mut labels = d.labels();
+            if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
+                let held = labelling.labels_of(&held_observation(&last.next_obs));
+                labels.resize(labels.len().max(horizon), held);
+            }
+            labels
+        })
+        .collect()
+}
+
+/// Step 1b (`smirl_unseen_touch_sink`): the machine with a sink that a ball touch enters from
+/// every state in which no demonstration touches that ball (read as [`annotate`] reads them,
+/// held steps included, so that no demonstration enters it). Demonstrations never fail, so no
+/// learned machine has a failure state; the sink gives the learned reward a place to say that
+/// what the expert never does in a state — blue after the cancel in IF — leaves the task for
+/// good. It is an ordinary state: the episode goes on, and IRL learns what it is worth.
+pub fn with_unseen_touch_sink(
+    rm: &RewardMachine,
+    demos: &[Demo],
+    hold_to: Option<usize>,
+) -> (RewardMachine, Option<usize>) {
+    // Every proposition but the exogenous events: the agent's own touches.
+    let touches = LabelSet(((1u32 << VOCABULARY.len()) - 1) & !EVENTS.0);
+    sink_unseen(rm, &annotated_label_traces(demos, hold_to), touches)
 }
 
 /// Which features δ_r reads.
