@@ -608,6 +608,13 @@ fn unseen_touch_sink_is_a_state_no_demonstration_enters() {
     let c = IrlRunConfig::from_toml(&on, "c.toml").unwrap();
     assert!(c.smirl_unseen_touch_sink);
     assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
+    let gated = format!("smirl_sink_after_events = true\n{on}");
+    let c = IrlRunConfig::from_toml(&gated, "c.toml").unwrap();
+    assert!(c.smirl_sink_after_events);
+    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
+    // Where the sink is entered from means nothing without the sink.
+    let alone = format!("smirl_sink_after_events = true\n{text}");
+    assert_config_error_names(&alone, "smirl_sink_after_events");
 
     let tmp = tempfile::tempdir().unwrap();
     let mut config = tiny_config();
@@ -792,7 +799,7 @@ fn annotate_holds_the_final_state_to_the_horizon() {
         labels("b"),
     ];
     assert_eq!(traces, vec![stepped]);
-    let (sunk, sink) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), Some(6));
+    let (sunk, sink) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), Some(6), false);
     assert_eq!(sink, Some(3));
     assert_eq!(sunk.next_state(2, labels("b")), 2);
     assert_eq!(sunk.next_state(2, labels("g")), 3);
@@ -801,10 +808,13 @@ fn annotate_holds_the_final_state_to_the_horizon() {
         2,
         "the cancel is not a touch"
     );
-    let (unheld, _) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), None);
+    let (unheld, _) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), None, false);
     assert_eq!(unheld.next_state(2, labels("b")), 3);
     let annotated = annotate(std::slice::from_ref(&demo), Some(&sunk), Some(6));
     assert!(annotated.learned_states.iter().all(|&u| u != 3));
+    // Every state of this machine is reached without the cancel: after events only, no sink.
+    let (same, none) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), Some(6), true);
+    assert_eq!((same, none), (rm.clone(), None));
 }
 
 /// `expert_data.bin`: what `reacher prepare` hands the jobs reads back exactly, and a file

@@ -50,7 +50,7 @@ fn a_touch_never_seen_in_a_state_enters_the_sink_and_stays() {
         trace(&v, &["", "c", "", "r", "r"]), // cancel branch: 0 sees c, 2 sees r
     ];
     let balls = labels(&v, "rgby");
-    let (sunk, sink) = sink_unseen(&rm, &traces, balls);
+    let (sunk, sink) = sink_unseen(&rm, &traces, balls, &[true; 3]);
     assert_eq!(sink, Some(3));
     assert_eq!(sunk.n_states(), 4);
     // Blue after the cancel: never in a demonstration → the sink, for good.
@@ -87,7 +87,7 @@ fn every_touch_seen_everywhere_leaves_the_machine_as_is() {
     let v = Vocabulary::new(VOCAB);
     let rm = if_machine(&v);
     let traces = vec![trace(&v, &["rgby", "b", "rgby"]), trace(&v, &["c", "rgby"])];
-    let (same, sink) = sink_unseen(&rm, &traces, labels(&v, "rgby"));
+    let (same, sink) = sink_unseen(&rm, &traces, labels(&v, "rgby"), &[true; 3]);
     assert_eq!(sink, None);
     assert_eq!(same, rm);
 }
@@ -110,10 +110,40 @@ fn a_state_whose_transitions_take_every_label_set_gets_no_sink_edge() {
     )
     .unwrap();
     // State 0 sees nothing, but its `True` guard takes every label set; state 1 never sees g.
-    let (sunk, sink) = sink_unseen(&rm, &[trace(&v, &["", "r"])], labels(&v, "rg"));
+    let (sunk, sink) = sink_unseen(&rm, &[trace(&v, &["", "r"])], labels(&v, "rg"), &[true; 2]);
     assert_eq!(sink, Some(2));
     assert_eq!(sunk.transitions().iter().filter(|t| t.from == 0).count(), 1);
     assert_eq!(sunk.next_state(0, labels(&v, "g")), 1);
     assert_eq!(sunk.next_state(1, labels(&v, "g")), 2);
     assert_eq!(sunk.next_state(1, labels(&v, "r")), 1);
+}
+
+/// Only the states flagged in `from` get a sink edge (`smirl_sink_after_events`: the states
+/// entered after the cancel).
+#[test]
+fn only_flagged_states_lead_to_the_sink() {
+    let v = Vocabulary::new(VOCAB);
+    let rm = if_machine(&v);
+    let traces = vec![
+        trace(&v, &["", "b", "b", "", "r"]),
+        trace(&v, &["", "c", "", "r", "r"]),
+    ];
+    let after_cancel: Vec<bool> = rm
+        .reachable_without(labels(&v, "c"))
+        .iter()
+        .map(|&r| !r)
+        .collect();
+    assert_eq!(after_cancel, vec![false, false, true]);
+    let (sunk, sink) = sink_unseen(&rm, &traces, labels(&v, "rgby"), &after_cancel);
+    assert_eq!(sink, Some(3));
+    assert_eq!(sunk.next_state(2, labels(&v, "b")), 3);
+    assert_eq!(sunk.next_state(2, labels(&v, "r")), 2);
+    // Unseen touches before the cancel stay where they are, as without the sink.
+    assert_eq!(sunk.next_state(0, labels(&v, "r")), 0);
+    assert_eq!(sunk.next_state(1, labels(&v, "g")), 1);
+    assert!(sunk
+        .transitions()
+        .iter()
+        .filter(|t| t.to == 3)
+        .all(|t| t.from == 2));
 }

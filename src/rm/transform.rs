@@ -43,8 +43,8 @@ pub fn restart_on_goal(rm: &RewardMachine) -> RewardMachine {
 }
 
 /// The machine with one more state, a sink, that a proposition of `props` enters from every
-/// state in which no trace of `traces` (read from the initial state) makes it true: what the
-/// traces never do in a state leads out of them for good. The sink has no transitions out and
+/// state `u` with `from[u]` in which no trace of `traces` (read from the initial state) makes
+/// it true: what the traces never do in a state leads out of them for good. The sink has no transitions out and
 /// is neither terminal nor a failure state — no reward, no end of an episode; what being there
 /// is worth is left to whatever learns rewards on the machine. Existing transitions keep
 /// priority: a label set one of them takes stays where it went. Returns the machine and the
@@ -54,7 +54,9 @@ pub fn sink_unseen(
     rm: &RewardMachine,
     traces: &[Vec<LabelSet>],
     props: LabelSet,
+    from: &[bool],
 ) -> (RewardMachine, Option<usize>) {
+    assert_eq!(from.len(), rm.n_states(), "one flag per state");
     // seen[u]: the propositions true on some label set read in state u.
     let mut seen = vec![0u32; rm.n_states()];
     for trace in traces {
@@ -67,7 +69,7 @@ pub fn sink_unseen(
     let sink = rm.n_states();
     let mut transitions = rm.transitions().to_vec();
     for (u, &seen_u) in seen.iter().enumerate() {
-        if rm.is_terminal(u) || rm.is_failure(u) {
+        if !from[u] || rm.is_terminal(u) || rm.is_failure(u) {
             continue;
         }
         let unseen: Vec<Formula> = (0..rm.vocab().len())

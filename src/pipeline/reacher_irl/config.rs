@@ -175,6 +175,13 @@ pub struct IrlRunConfig {
     /// from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub smirl_unseen_touch_sink: bool,
+    /// With `smirl_unseen_touch_sink`: the sink is entered only from learned states the agent
+    /// cannot reach without an exogenous event (`RewardMachine::reachable_without`: the states
+    /// after the cancel), where the expert's behaviour is conditional; elsewhere an unseen
+    /// touch stays where it is, as without the sink. A config without the key is read as false.
+    /// Omitted from written configs when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub smirl_sink_after_events: bool,
     /// `smirl`'s label features: `"state"` (L(o) of the state reached, paid on every step a
     /// label holds: the paper's eq. 5) or `"entries"` (the labels that became true on the
     /// step, paid once per entry into a ball). A config without the key is read as
@@ -515,6 +522,7 @@ impl IrlRunConfig {
             smirl_normalisation: SmirlNormalisation::EventGatedVisits,
             smirl_machine: SmirlMachine::Learned,
             smirl_unseen_touch_sink: false,
+            smirl_sink_after_events: false,
             smirl_label_features: LabelFeatures::State,
             smirl_shaping: 1.0,
             // SMIRL's final policy: four candidates 5 000 SAC steps apart on the final reward
@@ -837,6 +845,12 @@ impl IrlRunConfig {
                 )
             }
             _ => {}
+        }
+        if self.smirl_sink_after_events && !self.smirl_unseen_touch_sink {
+            return bad(
+                "smirl_sink_after_events",
+                "needs smirl_unseen_touch_sink = true (it says where the sink is entered from)",
+            );
         }
         if !(0.0..=1.0).contains(&self.smirl_counterfactual) {
             return bad("smirl_counterfactual", "must be a number in [0, 1]");

@@ -286,6 +286,7 @@ pub(super) fn write_reports(
         "smirl_normalisation": config.smirl_normalisation.name(),
         "smirl_machine": config.smirl_machine.name(),
         "smirl_unseen_touch_sink": config.smirl_unseen_touch_sink,
+        "smirl_sink_after_events": config.smirl_sink_after_events,
         "smirl_label_features": config.smirl_label_features.name(),
         "smirl_shaping": config.smirl_shaping,
         "smirl_counterfactual": config.smirl_counterfactual,

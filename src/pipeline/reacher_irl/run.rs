@@ -239,7 +239,7 @@ pub fn prepare(
             }
         };
         let (rm, sink) = if config.smirl_unseen_touch_sink {
-            with_unseen_touch_sink(&rm, &demos, hold_to)
+            with_unseen_touch_sink(&rm, &demos, hold_to, config.smirl_sink_after_events)
         } else {
             (rm, None)
         };
@@ -275,7 +275,16 @@ pub fn prepare(
                 "smirl_unseen_touch_sink: {}",
                 sink.map_or(
                     "every ball touched in every state, no sink".to_string(),
-                    |s| { format!("state {s} is the sink of ball touches no demonstration makes") }
+                    |s| {
+                        let after = if config.smirl_sink_after_events {
+                            " (only from states entered after an event)"
+                        } else {
+                            ""
+                        };
+                        format!(
+                            "state {s} is the sink of ball touches no demonstration makes{after}"
+                        )
+                    }
                 )
             );
         }

@@ -200,18 +200,26 @@ pub fn annotated_label_traces(demos: &[Demo], hold_to: Option<usize>) -> Vec<Vec
 
 /// Step 1b (`smirl_unseen_touch_sink`): the machine with a sink that a ball touch enters from
 /// every state in which no demonstration touches that ball (read as [`annotate`] reads them,
-/// held steps included, so that no demonstration enters it). Demonstrations never fail, so no
-/// learned machine has a failure state; the sink gives the learned reward a place to say that
-/// what the expert never does in a state — blue after the cancel in IF — leaves the task for
-/// good. It is an ordinary state: the episode goes on, and IRL learns what it is worth.
+/// held steps included, so that no demonstration enters it); with `after_events_only`
+/// (`smirl_sink_after_events`), only from states the agent cannot reach without an exogenous
+/// event (after the cancel). Demonstrations never fail, so no learned machine has a failure
+/// state; the sink gives the learned reward a place to say that what the expert never does in
+/// a state — blue after the cancel in IF — leaves the task for good. It is an ordinary state:
+/// the episode goes on, and IRL learns what it is worth.
 pub fn with_unseen_touch_sink(
     rm: &RewardMachine,
     demos: &[Demo],
     hold_to: Option<usize>,
+    after_events_only: bool,
 ) -> (RewardMachine, Option<usize>) {
     // Every proposition but the exogenous events: the agent's own touches.
     let touches = LabelSet(((1u32 << VOCABULARY.len()) - 1) & !EVENTS.0);
-    sink_unseen(rm, &annotated_label_traces(demos, hold_to), touches)
+    let from: Vec<bool> = if after_events_only {
+        rm.reachable_without(EVENTS).iter().map(|&r| !r).collect()
+    } else {
+        vec![true; rm.n_states()]
+    };
+    sink_unseen(rm, &annotated_label_traces(demos, hold_to), touches, &from)
 }
 
 /// Which features δ_r reads.
