@@ -87,6 +87,17 @@ FINAL_TUNING = [
     ("replay 200 000, final policy, SAC seeds 0-5",
      "ablations/replay_all.toml, SAC seeds 0-5",
      "ablations/runs/replay_all-seeds0to5-{task}"),
+    # The sink of unseen touches (ablations/unseen_touch_sink.toml), SAC seeds 0-5 on base 0 under
+    # the rule in that file, fixed in commit e6b4f49 before the runs (README, "A sink for touches
+    # the demonstrations never make").
+    ("sink of unseen touches, final policy, SAC seeds 0-5",
+     "ablations/unseen_touch_sink.toml, SAC seeds 0-5",
+     "ablations/runs/unseen_touch_sink-seeds0to5-{task}"),
+    # Entered only after the cancel (ablations/sink_after_events.toml), rule fixed in commit
+    # 5f6ea58 before the runs; Composite only (no other task's base-0 machine changes).
+    ("sink after events, final policy, SAC seeds 0-5",
+     "ablations/sink_after_events.toml, SAC seeds 0-5",
+     "ablations/runs/sink_after_events-seeds0to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -188,7 +199,15 @@ FINAL_HELDOUT = [
     # (stop 41) fresh bases no run had used, IF and Composite: every third from 75 to 105 but 93.
     (f"base {b}, replay 200 000, final policy", f"heldout/replay-all-seeds{b}-{{task}}")
     for b in (3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 33, 36, 39, 42, 45, 54, 69, 72, 75, 78, 81,
-              84, 87, 90, 93, 96, 99, 102, 105)]
+              84, 87, 90, 93, 96, 99, 102, 105)] + [
+    # The sink of unseen touches (ablations/unseen_touch_sink.toml): IF 42 only (stopped once
+    # its tuning rule had failed); entered only after the cancel (ablations/sink_after_events.toml):
+    # the standard's misses whose machines it changes, then fresh bases where it changes them
+    # (sink_heldout.py).
+    (f"base {b}, sink of unseen touches, final policy", f"heldout/unseen-sink-seeds{b}-{{task}}")
+    for b in (42,)] + [
+    (f"base {b}, sink after events, final policy", f"heldout/sink-after-events-seeds{b}-{{task}}")
+    for b in (3, 27, 30, 42, 90, 99, 102, 105)]
 
 
 def jobs(run):
