@@ -40,7 +40,7 @@ trap 'rm -f "$out"' EXIT
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/commute_events-seeds0to5-composite
   printf '\n### SMIRL held out under the current standard (a replay buffer of 200 000; every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py`)\n\n'
   python3 standard_heldout.py "$bin"
-  printf '\n### The sink of unseen touches against the current standard, job for job (`ablations/unseen_touch_sink.toml`; `python3 experiments/reacher/sink_heldout.py`)\n\n'
+  printf '\n### The sink of unseen touches against the current standard, job for job (`ablations/unseen_touch_sink.toml`, `ablations/sink_after_events.toml`; neither adopted; `python3 experiments/reacher/sink_heldout.py`)\n\n'
   python3 sink_heldout.py
   printf '\n### SMIRL held out under the previous standard (commuted events, a replay buffer of 100 000; `python3 experiments/reacher/standard_heldout.py --previous`)\n\n'
   python3 standard_heldout.py --previous "$bin"

@@ -3,7 +3,9 @@
 //!
 //! 1. **Learn the machine** ([`learn_machine`]): LRM's Tabu search on the demonstrations' label
 //!    traces, without rewards (rewards are what IRL learns). (`smirl_machine = "task"`: the
-//!    task's own machine instead, [`task_machine`], an oracle for diagnosis.)
+//!    task's own machine instead, [`task_machine`], an oracle for diagnosis; with
+//!    `smirl_unseen_touch_sink`, plus a sink for touches no demonstration makes,
+//!    [`with_unseen_touch_sink`], an ablation.)
 //! 2. **Annotate** ([`annotate`]): every expert observation o_t gets the learned state
 //!    u_{t−1} its labels are read in (demonstrations held at their final state to the
 //!    horizon, so expert and agent are compared over one T).
