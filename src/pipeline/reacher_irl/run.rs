@@ -270,23 +270,16 @@ pub fn prepare(
             facts.learned_states, facts.learned_reachable, facts.perfect_states
         );
         if config.smirl_unseen_touch_sink {
-            let _ = writeln!(
-                report,
-                "smirl_unseen_touch_sink: {}",
-                sink.map_or(
-                    "every ball touched in every state, no sink".to_string(),
-                    |s| {
-                        let after = if config.smirl_sink_after_events {
-                            " (only from states entered after an event)"
-                        } else {
-                            ""
-                        };
-                        format!(
-                            "state {s} is the sink of ball touches no demonstration makes{after}"
-                        )
-                    }
-                )
-            );
+            let from = if config.smirl_sink_after_events {
+                "the states after an event"
+            } else {
+                "every state"
+            };
+            let line = match sink {
+                Some(s) => format!("state {s} is the sink of ball touches no demonstration makes, entered from {from}"),
+                None => format!("no sink: in {from} every ball is touched by some demonstration"),
+            };
+            let _ = writeln!(report, "smirl_unseen_touch_sink: {line}");
         }
         let _ = writeln!(
             report,

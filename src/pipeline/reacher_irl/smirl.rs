@@ -31,7 +31,7 @@ use super::evaluation::{JobWatch, UpdateFacts};
 use super::final_policy::{self, FinalPhase, FinalPolicy};
 use super::job::{reward_lr, Coefficients, ExpertData, RewardTraceRow};
 use crate::env::product::ProductEnv;
-use crate::env::reacher::{ReacherDelivery, EVENTS, OBS_CANCEL, OBS_DIM, VOCABULARY};
+use crate::env::reacher::{ReacherDelivery, BALLS, EVENTS, OBS_CANCEL, OBS_DIM, VOCABULARY};
 use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::smirl::{
@@ -214,8 +214,8 @@ pub fn with_unseen_touch_sink(
     hold_to: Option<usize>,
     after_events_only: bool,
 ) -> (RewardMachine, Option<usize>) {
-    // Every proposition but the exogenous events: the agent's own touches.
-    let touches = LabelSet(((1u32 << VOCABULARY.len()) - 1) & !EVENTS.0);
+    // The agent's own touches: bit k of a label set is ball k (`env::reacher::BALLS`).
+    let touches = LabelSet((1 << BALLS.len()) - 1);
     let from: Vec<bool> = if after_events_only {
         rm.reachable_without(EVENTS).iter().map(|&r| !r).collect()
     } else {
