@@ -228,6 +228,17 @@ pub struct IrlRunConfig {
     /// before the key existed read and write unchanged.
     #[serde(default, skip_serializing_if = "DensityRatio::is_kde")]
     pub firl_density_ratio: DensityRatio,
+    /// Demonstrations drawn for every f-IRL reward step and put in its covariance batch beside
+    /// the agent's trajectories (f-IRL's `resample_episodes`: with replacement when more than
+    /// there are demonstrations, else without); 0 = the agent's trajectories alone, the
+    /// covariance of f-IRL's code for an expert given as a density and of every run before
+    /// the key existed. Why: f-IRL's code for an expert given by samples does this (as many
+    /// demonstrations as agent trajectories in its configs), and it is what raises the reward
+    /// where the expert goes and the agent does not (README, "Positive controls"). Needs
+    /// `demo_padding = "hold"` (the covariance wants trajectories of one length). Omitted from
+    /// written configs when 0.
+    #[serde(default, skip_serializing_if = "is_zero_usize")]
+    pub firl_expert_trajectories: usize,
     /// LRM: most states of the learned machine (u_max).
     pub lrm_max_states: usize,
     /// LRM: tabu list length.
@@ -335,6 +346,8 @@ pub struct AlgoSchedule {
     pub kde_bandwidth: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub firl_density_ratio: Option<DensityRatio>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub firl_expert_trajectories: Option<usize>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub log_every_nth_episode: Option<u64>,
     /// SAC keys that differ from the run's `[sac]` (which supplies the rest).
@@ -536,6 +549,7 @@ impl IrlRunConfig {
             smooth_sigma: 0.05,
             kde_bandwidth: 0.02,
             firl_density_ratio: DensityRatio::Kde,
+            firl_expert_trajectories: 0,
             lrm_max_states: 10,
             lrm_tabu_len: 10_000,
             lrm_steps: 100,
@@ -626,6 +640,7 @@ impl IrlRunConfig {
             mlp_reward_l2,
             kde_bandwidth,
             firl_density_ratio,
+            firl_expert_trajectories,
             log_every_nth_episode
         );
         if let Some(table) = &s.sac {
@@ -718,6 +733,10 @@ impl IrlRunConfig {
         }
         for (field, episodes) in [
             ("agent_trajectories", self.agent_trajectories as u64),
+            (
+                "firl_expert_trajectories",
+                self.firl_expert_trajectories as u64,
+            ),
             ("eval_episodes", self.eval_episodes),
         ] {
             let steps = episodes.saturating_mul(self.env.max_steps as u64);
@@ -767,6 +786,13 @@ impl IrlRunConfig {
         }
         if self.eval_episodes == 0 {
             return bad("eval_episodes", "must be at least 1");
+        }
+        if self.firl_expert_trajectories > 0 && self.demo_padding != DemoPadding::Hold {
+            return bad(
+                "firl_expert_trajectories",
+                "needs demo_padding = \"hold\": the covariance batch wants demonstrations as \
+                 long as the agent's trajectories",
+            );
         }
         for (field, v) in [
             ("mlp_reward_lr", self.mlp_reward_lr),
@@ -907,6 +933,10 @@ impl IrlRunConfig {
 }
 
 fn is_zero(x: &u64) -> bool {
+    *x == 0
+}
+
+fn is_zero_usize(x: &usize) -> bool {
     *x == 0
 }
 

@@ -25,13 +25,15 @@ use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
 use crate::env::ContinuousEnv;
 use crate::irl::discriminator::{Discriminator, DiscriminatorConfig};
 use crate::irl::firl::{
-    DensityRatio, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS,
+    self, DensityRatio, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS,
 };
 use crate::irl::gaussian_kde::GaussianKde;
 use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{episode_seed, RewardFn, RewardFnError, SacTrainer};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use std::path::Path;
 
 /// Which baseline.
@@ -57,13 +59,125 @@ pub enum Ratio<'a> {
     },
 }
 
-/// Step 3: the rows and loss coefficients of one reward update (see the module docs). f-IRL:
-/// one coefficient per agent row; MaxEnt: agent rows then expert rows.
+/// f-IRL's density ratios u = ρ_E/ρ_θ of one iteration's agent batch: at the agent's states
+/// and, when demonstrations join the covariance batch (`at_expert`), at every demonstration
+/// state (row for row with `ExpertData::obs`). Computed once per iteration, like f-IRL's
+/// classifier, which is trained once per iteration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IterationRatios {
+    pub agent: Vec<f64>,
+    /// Empty unless asked for.
+    pub expert: Vec<f64>,
+}
+
+/// Step 3a: the density ratios (see [`IterationRatios`]). The agent's density can be zero at a
+/// demonstration state it never comes near, so the ratios there carry the ε guard of
+/// `irl::firl` (`(ρ_E + ε)/(ρ_θ + ε)`) whatever the source; at the agent's own states each
+/// source computes them as it always has.
+pub fn density_ratios(
+    ratio: &mut Ratio<'_>,
+    expert: &ExpertData,
+    agent: &AgentBatch,
+    at_expert: bool,
+) -> Result<IterationRatios, String> {
+    let fit_agent = |bandwidth: f64| {
+        Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, bandwidth).map_err(|e| e.to_string())
+    };
+    let guarded = |rho_e: &[f64], rho_a: &[f64]| {
+        firl::density_ratio(rho_e, rho_a, DEFAULT_DENSITY_EPS).map_err(|e| e.to_string())
+    };
+    match ratio {
+        Ratio::Discriminator(d) => {
+            d.train(&expert.obs, &agent.obs, OBS_DIM)
+                .map_err(|e| format!("discriminator: {e}"))?;
+            let ratios_at = |obs: &[f32]| -> Result<Vec<f64>, String> {
+                Ok(d.log_ratio(obs, OBS_DIM)
+                    .map_err(|e| format!("discriminator: {e}"))?
+                    .into_iter()
+                    .map(f64::exp)
+                    .collect())
+            };
+            Ok(IterationRatios {
+                agent: ratios_at(&agent.obs)?,
+                expert: if at_expert {
+                    ratios_at(&expert.obs)?
+                } else {
+                    Vec::new()
+                },
+            })
+        }
+        Ratio::GaussianExpert {
+            expert: e,
+            bandwidth,
+        } => {
+            let kde_a = fit_agent(*bandwidth)?;
+            let log_e = e
+                .log_density_columns(&agent.obs, OBS_DIM, &OBS_TIP)
+                .map_err(|e| e.to_string())?;
+            let rho_a = kde_a
+                .density_columns(&agent.obs, OBS_DIM, &OBS_TIP)
+                .map_err(|e| e.to_string())?;
+            // ρ_θ > 0 at the agent's own states (each is a fitted point).
+            let agent_ratios = log_e
+                .iter()
+                .zip(&rho_a)
+                .map(|(&le, &a)| (le - a.ln()).exp())
+                .collect();
+            let expert_ratios = if at_expert {
+                let rho_e: Vec<f64> = e
+                    .log_density_columns(&expert.obs, OBS_DIM, &OBS_TIP)
+                    .map_err(|e| e.to_string())?
+                    .into_iter()
+                    .map(f64::exp)
+                    .collect();
+                let rho_a = kde_a
+                    .density_columns(&expert.obs, OBS_DIM, &OBS_TIP)
+                    .map_err(|e| e.to_string())?;
+                guarded(&rho_e, &rho_a)?
+            } else {
+                Vec::new()
+            };
+            Ok(IterationRatios {
+                agent: agent_ratios,
+                expert: expert_ratios,
+            })
+        }
+        Ratio::Kde {
+            expert: kde_e,
+            bandwidth,
+        } => {
+            let kde_a = fit_agent(*bandwidth)?;
+            let ratios_at = |obs: &[f32]| -> Result<Vec<f64>, String> {
+                let rho_e = kde_e
+                    .density_columns(obs, OBS_DIM, &OBS_TIP)
+                    .map_err(|e| e.to_string())?;
+                let rho_a = kde_a
+                    .density_columns(obs, OBS_DIM, &OBS_TIP)
+                    .map_err(|e| e.to_string())?;
+                guarded(&rho_e, &rho_a)
+            };
+            Ok(IterationRatios {
+                agent: ratios_at(&agent.obs)?,
+                expert: if at_expert {
+                    ratios_at(&expert.obs)?
+                } else {
+                    Vec::new()
+                },
+            })
+        }
+    }
+}
+
+/// Step 3b: the rows and loss coefficients of one reward step (see the module docs). f-IRL:
+/// the agent's trajectories, then the demonstrations `drawn` (indices into the expert's,
+/// repeats allowed), one coefficient per row; MaxEnt: agent rows then every expert row
+/// (`ratios` and `drawn` unused).
 pub fn coefficients(
     loss: Loss,
     expert: &ExpertData,
     agent: &AgentBatch,
-    ratio: Option<&mut Ratio<'_>>,
+    ratios: Option<&IterationRatios>,
+    drawn: &[usize],
 ) -> Result<Coefficients, String> {
     let n_agent = agent.lengths.iter().sum::<usize>();
     if agent.lengths.is_empty() || n_agent == 0 {
@@ -75,58 +189,34 @@ pub fn coefficients(
             if agent.lengths.iter().any(|&l| l != horizon) {
                 return Err("f-IRL needs agent trajectories of one fixed length".into());
             }
-            let n_traj = agent.lengths.len();
-            let surrogate = match ratio.ok_or("f-IRL needs a density ratio")? {
-                Ratio::Discriminator(d) => {
-                    d.train(&expert.obs, &agent.obs, OBS_DIM)
-                        .map_err(|e| format!("discriminator: {e}"))?;
-                    let ratios: Vec<f64> = d
-                        .log_ratio(&agent.obs, OBS_DIM)
-                        .map_err(|e| format!("discriminator: {e}"))?
-                        .into_iter()
-                        .map(f64::exp)
-                        .collect();
-                    FirlSurrogate::new(div, &ratios, n_traj, horizon)
+            let ratios = ratios.ok_or("f-IRL needs density ratios")?;
+            let mut obs = agent.obs.clone();
+            let mut u = ratios.agent.clone();
+            if !drawn.is_empty() {
+                let starts = demonstration_starts(&expert.lengths);
+                if ratios.expert.len() != expert.n_states() {
+                    return Err("f-IRL has no density ratios at the demonstrations".into());
                 }
-                Ratio::GaussianExpert { expert, bandwidth } => {
-                    let log_e = expert
-                        .log_density_columns(&agent.obs, OBS_DIM, &OBS_TIP)
-                        .map_err(|e| e.to_string())?;
-                    let kde_a = Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, *bandwidth)
-                        .map_err(|e| e.to_string())?;
-                    let rho_a = kde_a
-                        .density_columns(&agent.obs, OBS_DIM, &OBS_TIP)
-                        .map_err(|e| e.to_string())?;
-                    // ρ_θ > 0 at the agent's own states (each is a fitted point).
-                    let ratios: Vec<f64> = log_e
-                        .iter()
-                        .zip(&rho_a)
-                        .map(|(&le, &a)| (le - a.ln()).exp())
-                        .collect();
-                    FirlSurrogate::new(div, &ratios, n_traj, horizon)
-                }
-                Ratio::Kde {
-                    expert: kde_e,
-                    bandwidth,
-                } => {
-                    let kde_a = Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, *bandwidth)
-                        .map_err(|e| e.to_string())?;
-                    FirlSurrogate::from_kde(
-                        div,
-                        kde_e,
-                        &kde_a,
-                        &agent.obs,
-                        OBS_DIM,
-                        &OBS_TIP,
-                        n_traj,
-                        horizon,
-                        DEFAULT_DENSITY_EPS,
-                    )
+                for &k in drawn {
+                    let (start, len) = match (starts.get(k), expert.lengths.get(k)) {
+                        (Some(&start), Some(&len)) => (start, len),
+                        _ => return Err(format!("no demonstration {k}")),
+                    };
+                    if len != horizon {
+                        return Err(format!(
+                            "demonstration {k} has {len} steps, the agent's trajectories \
+                             {horizon}: f-IRL's covariance batch needs one length"
+                        ));
+                    }
+                    obs.extend_from_slice(&expert.obs[start * OBS_DIM..(start + len) * OBS_DIM]);
+                    u.extend_from_slice(&ratios.expert[start..start + len]);
                 }
             }
-            .map_err(|e| e.to_string())?;
+            let n_traj = agent.lengths.len() + drawn.len();
+            let surrogate =
+                FirlSurrogate::new(div, &u, n_traj, horizon).map_err(|e| e.to_string())?;
             Ok(Coefficients {
-                obs: agent.obs.clone(),
+                obs,
                 states: Vec::new(),
                 coeffs: surrogate.coefficients,
             })
@@ -142,6 +232,43 @@ pub fn coefficients(
                 states: Vec::new(),
                 coeffs,
             })
+        }
+    }
+}
+
+/// The first row of each demonstration in `ExpertData::obs`.
+fn demonstration_starts(lengths: &[usize]) -> Vec<usize> {
+    lengths
+        .iter()
+        .scan(0, |row, &len| {
+            let start = *row;
+            *row += len;
+            Some(start)
+        })
+        .collect()
+}
+
+/// f-IRL's draw of demonstrations for one reward step (its `resample_episodes`): `m` indices
+/// out of `n`, with replacement when `m > n`, else without; none when `m` is 0. Its own random
+/// stream, so a job that draws none is the job it was before the draw existed.
+pub struct DemonstrationDraw {
+    rng: ChaCha8Rng,
+}
+
+impl DemonstrationDraw {
+    pub fn new(seed: u64) -> DemonstrationDraw {
+        DemonstrationDraw {
+            rng: ChaCha8Rng::seed_from_u64(episode_seed(seed, 0xde70)),
+        }
+    }
+
+    pub fn draw(&mut self, n: usize, m: usize) -> Vec<usize> {
+        if m == 0 || n == 0 {
+            Vec::new()
+        } else if m > n {
+            (0..m).map(|_| self.rng.gen_range(0..n)).collect()
+        } else {
+            rand::seq::index::sample(&mut self.rng, n, m).into_vec()
         }
     }
 }
@@ -248,6 +375,10 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)
         .map_err(|e| e.to_string())?;
     let mut rollouts = RolloutStream::new(job.seed);
+    // f-IRL's demonstrations in the covariance batch (f-IRL only: MaxEnt's loss has them all).
+    let draws_demos = matches!(job.loss, Loss::FDivergence(_)) && s.firl_expert_trajectories > 0;
+    let n_demos = job.expert.lengths.len();
+    let mut demo_draw = DemonstrationDraw::new(job.seed);
 
     watch.iteration_done(0, 0, &mut sac.agent, &mut env, None)?;
     for iteration in 1..=s.irl_iterations {
@@ -259,29 +390,43 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
         // 2. Rollouts of the stochastic policy.
         let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
 
-        // 3. The loss coefficients.
-        let c = coefficients(job.loss, job.expert, &batch, ratio.as_mut())?;
+        // 3. The density ratios (f-IRL), once per iteration.
+        let ratios = match ratio.as_mut() {
+            Some(ratio) => Some(density_ratios(ratio, job.expert, &batch, draws_demos)?),
+            None => None,
+        };
 
-        // 4. Reward steps, at lr · k^(−reward_lr_decay).
-        let mut r = vec![0.0f32; c.coeffs.len()];
-        reward
-            .reward_batch(&c.obs, &c.states, &mut r)
-            .map_err(|e| e.to_string())?;
-        let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
+        // 4. Reward steps, at lr · k^(−reward_lr_decay), each on its own draw of
+        //    demonstrations (f-IRL's samples code); with none drawn, one set of coefficients.
         reward.set_lr(reward_lr(s.mlp_reward_lr, s, iteration));
+        let mut step_batch: Option<Coefficients> = None;
+        let mut facts = None;
         for _ in 0..s.reward_steps_per_iteration.max(1) {
+            let c = match step_batch.take() {
+                Some(c) if !draws_demos => c,
+                _ => {
+                    let drawn = if draws_demos {
+                        demo_draw.draw(n_demos, s.firl_expert_trajectories)
+                    } else {
+                        Vec::new()
+                    };
+                    coefficients(job.loss, job.expert, &batch, ratios.as_ref(), &drawn)?
+                }
+            };
+            if facts.is_none() {
+                let mut r = vec![0.0f32; c.coeffs.len()];
+                reward
+                    .reward_batch(&c.obs, &c.states, &mut r)
+                    .map_err(|e| e.to_string())?;
+                facts = Some(UpdateFacts::of(&r, &c.coeffs, batch.n_states()));
+            }
             reward
                 .update(&c.obs, &c.states, &c.coeffs)
                 .map_err(|e| format!("reward update: {e}"))?;
+            step_batch = Some(c);
         }
 
-        watch.iteration_done(
-            iteration,
-            sac.env_steps(),
-            &mut sac.agent,
-            &mut env,
-            Some(facts),
-        )?;
+        watch.iteration_done(iteration, sac.env_steps(), &mut sac.agent, &mut env, facts)?;
     }
     Ok(reward)
 }
