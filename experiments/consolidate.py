@@ -18,7 +18,7 @@ It writes
   office/runs<TAG>/summary.csv         the five tasks' runs<TAG>/t<N>/summary.csv of each Office
                                        experiment (their first column is already `task`)
   <run>/metrics.csv.gz                 `gzip -n -9` of <run>/metrics.csv for the long runs in
-                                       reacher/runs/: blue-firl*, *-schedules (f-IRL's schedule,
+                                       reacher/runs/: blue-firl*, *-schedules, *-rkl_expert (f-IRL's schedule,
                                        800 IRL iterations per job)
 
 A consolidated file keeps the rows of the runs that are not on disk (a clone has only the
@@ -40,7 +40,7 @@ import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-LONG_RUNS = ["reacher/runs/blue-firl*", "reacher/runs/*-schedules"]
+LONG_RUNS = ["reacher/runs/blue-firl*", "reacher/runs/*-schedules", "reacher/runs/*-rkl_expert"]
 
 
 def read_csv(path):

@@ -1118,6 +1118,9 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             (0.003, 1.0, false)
         );
         assert_eq!(c.sac.replay_capacity, 12_000);
+        // Only rkl draws demonstrations into its covariance batch (it fails "blue" without).
+        let drawn = if algo == Algo::Rkl { 300 } else { 0 };
+        assert_eq!(c.firl_expert_trajectories, drawn, "{algo}");
     }
     for algo in [Algo::Smirl, Algo::SmirlSmooth] {
         let c = standard.for_algo(algo).unwrap();

@@ -16,6 +16,9 @@
 #   defaults: "or sequential if composite", "fkl js maxent smirl smirl-smooth rkl", 0
 #   CONFIG=<file> (default experiments/reacher/config.toml; the runs of issue 14 used what is now
 #   config_unshaped.toml, whose baseline settings are the same);
+#   SUFFIX=<name> (default "schedules") names the run directories runs/<task>-<name> and
+#   heldout/<name>-seed<BASE>-<task>, e.g. SUFFIX=rkl_expert for rkl with demonstrations in its
+#   covariance batch (README, "Positive controls");
 #   REACHER_BIN=<binary> runs another build (e.g. a copy, so that rebuilding the checkout
 #   during the sweep does not change the binary); JOBS=<n>; SEEDS="0 1 2" (offsets from BASE).
 set -euo pipefail
@@ -24,14 +27,15 @@ TASKS=${1:-"or sequential if composite"}
 ALGOS=${2:-"fkl js maxent smirl smirl-smooth rkl"}
 BASE=${3:-0}
 CONFIG=${CONFIG:-experiments/reacher/config.toml}
+SUFFIX=${SUFFIX:-schedules}
 if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher; fi
 BIN=${REACHER_BIN:-./target/release/reacher}
 
 run_dir() {
   if [ "$BASE" = 0 ]; then
-    echo "experiments/reacher/runs/$1-schedules"
+    echo "experiments/reacher/runs/$1-$SUFFIX"
   else
-    echo "experiments/reacher/heldout/schedules-seed$BASE-$1"
+    echo "experiments/reacher/heldout/$SUFFIX-seed$BASE-$1"
   fi
 }
 

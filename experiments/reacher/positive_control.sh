@@ -3,7 +3,7 @@
 # two states, so a reward over the fingertip's position alone expresses it). Every IRL
 # algorithm on the committed "blue" expert's 16 demonstrations, 3 seeds, SMIRL's schedule for
 # every algorithm (config_uniform.toml, figure 7 before issue 14; or CONFIG), into experiments/reacher/runs/blue<SUFFIX>, the baselines' jobs first; wall
-# time to runs/blue<SUFFIX>.time. A baseline's failure on the paper's tasks means something
+# time to runs/blue<SUFFIX>.time (one line per invocation, appended). A baseline's failure on the paper's tasks means something
 # only if it solves this one. Rerunning skips finished jobs.
 # Usage: experiments/reacher/positive_control.sh [CONFIG] [SUFFIX] [ALGOS]
 #   ALGOS: default "maxent fkl rkl js smirl smirl-smooth"
@@ -23,4 +23,4 @@ start=$(date +%s)
 for a in $ALGOS; do for s in ${SEEDS:-0 1 2}; do echo "$a $s"; done; done |
   xargs -P "${JOBS:-2}" -L 1 sh -c '"$0" job --run "$1" --algo "$2" --seed "$3" --quiet > /dev/null' "$BIN" "$out"
 "$BIN" aggregate "$out" --partial | tee "$out.log"
-echo "wall_secs $(( $(date +%s) - start )) task blue algos $ALGOS seeds ${SEEDS:-0 1 2} config $CONFIG" > "$out.time"
+echo "wall_secs $(( $(date +%s) - start )) task blue algos $ALGOS seeds ${SEEDS:-0 1 2} config $CONFIG" >> "$out.time"

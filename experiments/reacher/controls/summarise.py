@@ -25,6 +25,7 @@ CONFIGS = {
     "blue-firl_reacherdraw_alpha0.1": "experiments/reacher/controls/firl_reacherdraw_alpha0.1.toml (f-IRL's ReacherDraw settings, SAC temperature 0.1 fixed instead of 1)",
     "blue-firl_reacherdraw_disc": "experiments/reacher/controls/firl_reacherdraw_disc.toml (f-IRL's ReacherDraw settings, density ratio from a discriminator instead of two KDEs)",
     "blue-firl_reacherdraw_gauss": "experiments/reacher/controls/firl_reacherdraw_gauss.toml (f-IRL's ReacherDraw settings, the demonstrations' density a Gaussian KDE with no zeros instead of the Epanechnikov KDE)",
+    "blue-firl_reacherdraw_expert": "experiments/reacher/controls/firl_reacherdraw_expert.toml (f-IRL's ReacherDraw settings with the demonstrations in the covariance batch, as f-IRL's code for demonstrations has them: 1 000 drawn per reward step beside the 1 000 agent trajectories)",
     "blue-firl_reacherdraw_T100": "experiments/reacher/controls/firl_reacherdraw_T100.toml (the same at figure 7's horizon: 100-step episodes, 300 trajectories = the same 30 000 states per KDE)",
 }
 print("# Positive control \"blue\": touch the blue ball (issue 14)\n")
