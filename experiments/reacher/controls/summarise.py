@@ -35,7 +35,9 @@ print("\"Positive controls\"). Success: ground truth (blue touched), mean action
 print("Code: every job's numbers come from the tree of f94f899 (task `blue`) or later, whose IRL code is")
 print("unchanged since; jobs run from 7e962d1 on also fill `expert_support` (blank in the others).")
 print("The `blue-firl_reacherdraw_disc` jobs ran a build of the discriminator change before it was committed")
-print("(their records name 2281c6a, its parent); its code is that of 17a775d.\n")
+print("(their records name 2281c6a, its parent); its code is that of 17a775d.")
+print("The `blue-firl_reacherdraw_expert*` jobs ran 9d0ed40's build (demonstrations in f-IRL's covariance batch,")
+print("`firl_expert_trajectories`; with it 0 the code computes what it computed before, bit for bit).\n")
 for d in sorted(glob.glob(os.path.join(ROOT, "blue*"))):
     name = os.path.basename(d)
     if not rundata.has(d, "metrics.csv"):

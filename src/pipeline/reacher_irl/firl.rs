@@ -7,13 +7,17 @@
 //! 1. SAC on the plain ReacherDelivery with the current reward r(o_{t+1}), recomputed when a
 //!    batch is sampled (the same agent and replay buffer throughout);
 //! 2. fresh rollouts of the stochastic policy (N trajectories of the fixed length T);
-//! 3. the loss coefficients ([`coefficients`]): for f-IRL the covariance surrogate
+//! 3. the density ratios of the batch ([`density_ratios`]) and the loss coefficients
+//!    ([`coefficients`]): for f-IRL the covariance surrogate
 //!    Cov_i(Σ_t h_f(ρ_E/ρ_θ), Σ_t r)/T, the density ratio from an Epanechnikov KDE of the
 //!    agent's fingertip states against the expert's (or from a classifier,
 //!    `firl_density_ratio = "discriminator"`, or against a Gaussian KDE of the expert's,
 //!    `"gaussian_expert"`); for MaxEnt T·(mean r over agent states − mean r
 //!    over expert states);
-//! 4. reward steps (Adam).
+//! 4. reward steps (Adam). With `firl_expert_trajectories = N`, each f-IRL step first draws N
+//!    demonstrations and appends them to the covariance batch, as f-IRL's code for an expert
+//!    given by samples does (`irl_samples.py`): descent raises the reward along them, also
+//!    where the agent has never been.
 //!
 //! Ground-truth evaluation, logging and progress watch the loop from outside ([`JobWatch`]).
 
@@ -376,7 +380,10 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
         .map_err(|e| e.to_string())?;
     let mut rollouts = RolloutStream::new(job.seed);
     // f-IRL's demonstrations in the covariance batch (f-IRL only: MaxEnt's loss has them all).
-    let draws_demos = matches!(job.loss, Loss::FDivergence(_)) && s.firl_expert_trajectories > 0;
+    let drawn_per_step = match job.loss {
+        Loss::FDivergence(_) => s.firl_expert_trajectories,
+        Loss::MaxEnt => 0,
+    };
     let n_demos = job.expert.lengths.len();
     let mut demo_draw = DemonstrationDraw::new(job.seed);
 
@@ -392,41 +399,42 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
 
         // 3. The density ratios (f-IRL), once per iteration.
         let ratios = match ratio.as_mut() {
-            Some(ratio) => Some(density_ratios(ratio, job.expert, &batch, draws_demos)?),
+            Some(ratio) => Some(density_ratios(
+                ratio,
+                job.expert,
+                &batch,
+                drawn_per_step > 0,
+            )?),
             None => None,
         };
 
         // 4. Reward steps, at lr · k^(−reward_lr_decay), each on its own draw of
         //    demonstrations (f-IRL's samples code); with none drawn, one set of coefficients.
         reward.set_lr(reward_lr(s.mlp_reward_lr, s, iteration));
-        let mut step_batch: Option<Coefficients> = None;
-        let mut facts = None;
-        for _ in 0..s.reward_steps_per_iteration.max(1) {
-            let c = match step_batch.take() {
-                Some(c) if !draws_demos => c,
-                _ => {
-                    let drawn = if draws_demos {
-                        demo_draw.draw(n_demos, s.firl_expert_trajectories)
-                    } else {
-                        Vec::new()
-                    };
-                    coefficients(job.loss, job.expert, &batch, ratios.as_ref(), &drawn)?
-                }
-            };
-            if facts.is_none() {
-                let mut r = vec![0.0f32; c.coeffs.len()];
-                reward
-                    .reward_batch(&c.obs, &c.states, &mut r)
-                    .map_err(|e| e.to_string())?;
-                facts = Some(UpdateFacts::of(&r, &c.coeffs, batch.n_states()));
+        let drawn = demo_draw.draw(n_demos, drawn_per_step);
+        let mut c = coefficients(job.loss, job.expert, &batch, ratios.as_ref(), &drawn)?;
+        let mut r = vec![0.0f32; c.coeffs.len()];
+        reward
+            .reward_batch(&c.obs, &c.states, &mut r)
+            .map_err(|e| e.to_string())?;
+        let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
+        for step in 0..s.reward_steps_per_iteration.max(1) {
+            if step > 0 && drawn_per_step > 0 {
+                let drawn = demo_draw.draw(n_demos, drawn_per_step);
+                c = coefficients(job.loss, job.expert, &batch, ratios.as_ref(), &drawn)?;
             }
             reward
                 .update(&c.obs, &c.states, &c.coeffs)
                 .map_err(|e| format!("reward update: {e}"))?;
-            step_batch = Some(c);
         }
 
-        watch.iteration_done(iteration, sac.env_steps(), &mut sac.agent, &mut env, facts)?;
+        watch.iteration_done(
+            iteration,
+            sac.env_steps(),
+            &mut sac.agent,
+            &mut env,
+            Some(facts),
+        )?;
     }
     Ok(reward)
 }
