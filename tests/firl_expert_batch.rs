@@ -133,9 +133,12 @@ fn demonstrations_are_drawn_as_firl_draws_them() {
 
 #[test]
 fn config_key_round_trips_and_is_checked() {
-    assert!(!IrlRunConfig::standard()
+    // Written only where it is not 0 (the standard profile: rkl's schedule only).
+    assert!(!IrlRunConfig::quick()
         .to_toml()
         .contains("firl_expert_trajectories"));
+    let standard = IrlRunConfig::standard().to_toml();
+    assert_eq!(standard.matches("firl_expert_trajectories").count(), 1);
     let base = tiny_config().to_toml();
     let c = IrlRunConfig::from_toml(
         &format!(
