@@ -3,15 +3,11 @@
 //! f-IRL's draw rule, the config key's round trip and refusals, and a tiny pipeline run.
 
 mod irl_run_common;
-use irl_run_common::tiny_config;
+use irl_run_common::{metrics_column, tiny_config, tiny_rkl_blue_run};
 use smirl::env::reacher::OBS_DIM;
-use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::firl::{Divergence, FirlSurrogate};
 use smirl::pipeline::reacher_irl::firl::{coefficients, DemonstrationDraw, IterationRatios, Loss};
-use smirl::pipeline::reacher_irl::run::Silent;
-use smirl::pipeline::reacher_irl::{
-    run_pipeline, AgentBatch, Algo, DemoPadding, ExpertData, IrlRunConfig, RunRequest,
-};
+use smirl::pipeline::reacher_irl::{AgentBatch, Algo, DemoPadding, ExpertData, IrlRunConfig};
 
 const T: usize = 3;
 
@@ -178,21 +174,9 @@ fn config_key_round_trips_and_is_checked() {
 #[test]
 fn tiny_run_with_demonstrations_in_the_batch() {
     let run = |m: usize| {
-        let tmp = tempfile::tempdir().unwrap();
         let mut config = tiny_config();
         config.firl_expert_trajectories = m;
-        let request = RunRequest {
-            task: ReacherTask::Blue,
-            algos: vec![Algo::Rkl],
-            seeds: 1,
-            seed: 4,
-            config,
-            out: tmp.path().join("run"),
-            force: false,
-        };
-        run_pipeline(&request, &Silent).unwrap();
-        let read = |f: &str| std::fs::read_to_string(tmp.path().join("run").join(f)).unwrap();
-        (read("metrics.csv"), read("config.toml"))
+        tiny_rkl_blue_run(config)
     };
     let (alone, written_alone) = run(0);
     let (with, written) = run(6);
@@ -201,14 +185,7 @@ fn tiny_run_with_demonstrations_in_the_batch() {
         written.contains("firl_expert_trajectories = 6"),
         "{written}"
     );
-    let losses = |m: &str| -> Vec<String> {
-        let mut lines = m.lines();
-        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-        let col = header.iter().position(|h| *h == "surrogate_loss").unwrap();
-        lines
-            .map(|l| l.split(',').nth(col).unwrap().to_string())
-            .collect()
-    };
+    let losses = |m: &str| metrics_column(m, "surrogate_loss");
     assert_eq!(losses(&alone).len(), losses(&with).len());
     assert_ne!(losses(&alone)[1..], losses(&with)[1..], "{alone}\n{with}");
     // Same seed, same run.

@@ -3,7 +3,7 @@
 //! half-written), bad input exiting 2 without output, and bit-identical metrics per seed.
 
 mod irl_run_common;
-use irl_run_common::tiny_config;
+use irl_run_common::{metrics_column, tiny_config, tiny_rkl_blue_run};
 use smirl::env::reacher::OBS_DIM;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
@@ -1403,7 +1403,6 @@ fn discriminator_density_ratio_runs_and_is_recorded() {
         .to_toml()
         .contains("firl_density_ratio"));
     let run = |ratio: Option<&str>| {
-        let tmp = tempfile::tempdir().unwrap();
         let mut config = tiny_config();
         if let Some(ratio) = ratio {
             let text = format!(
@@ -1412,18 +1411,7 @@ fn discriminator_density_ratio_runs_and_is_recorded() {
             );
             config = IrlRunConfig::from_toml(&text, "c.toml").unwrap();
         }
-        let request = RunRequest {
-            task: ReacherTask::Blue,
-            algos: vec![Algo::Rkl],
-            seeds: 1,
-            seed: 4,
-            config,
-            out: tmp.path().join("run"),
-            force: false,
-        };
-        run_pipeline(&request, &Silent).unwrap();
-        let read = |f: &str| std::fs::read_to_string(tmp.path().join("run").join(f)).unwrap();
-        (read("metrics.csv"), read("config.toml"))
+        tiny_rkl_blue_run(config)
     };
     let (kde, _) = run(None);
     let (disc, written) = run(Some("discriminator"));
@@ -1431,14 +1419,7 @@ fn discriminator_density_ratio_runs_and_is_recorded() {
         written.contains("firl_density_ratio = \"discriminator\""),
         "{written}"
     );
-    let learned = |m: &str| -> Vec<String> {
-        let mut lines = m.lines();
-        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-        let col = header.iter().position(|h| *h == "learned_reward").unwrap();
-        lines
-            .map(|l| l.split(',').nth(col).unwrap().to_string())
-            .collect()
-    };
+    let learned = |m: &str| metrics_column(m, "learned_reward");
     assert_eq!(learned(&kde).len(), learned(&disc).len());
     assert_ne!(learned(&kde)[1..], learned(&disc)[1..], "{kde}\n{disc}");
     let err = IrlRunConfig::from_toml(

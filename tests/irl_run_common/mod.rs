@@ -1,6 +1,8 @@
 //! The tiny IRL run configuration the pipeline tests share.
 
-use smirl::pipeline::reacher_irl::{DemoSource, IrlRunConfig};
+use smirl::env::reacher_task::ReacherTask;
+use smirl::pipeline::reacher_irl::run::Silent;
+use smirl::pipeline::reacher_irl::{run_pipeline, Algo, DemoSource, IrlRunConfig, RunRequest};
 
 /// A tiny but complete configuration: scripted demos, 2 IRL iterations of 300 SAC steps
 /// (seconds per job).
@@ -25,4 +27,33 @@ pub fn tiny_config() -> IrlRunConfig {
     c.sac.update_after = 100;
     c.sac.batch_size = 64;
     c
+}
+
+/// One rkl job on task "blue" (seed 4) with `config`: its metrics.csv and written config.toml.
+#[allow(dead_code)] // each test crate that includes this module uses only some of it
+pub fn tiny_rkl_blue_run(config: IrlRunConfig) -> (String, String) {
+    let tmp = tempfile::tempdir().unwrap();
+    let request = RunRequest {
+        task: ReacherTask::Blue,
+        algos: vec![Algo::Rkl],
+        seeds: 1,
+        seed: 4,
+        config,
+        out: tmp.path().join("run"),
+        force: false,
+    };
+    run_pipeline(&request, &Silent).unwrap();
+    let read = |f: &str| std::fs::read_to_string(tmp.path().join("run").join(f)).unwrap();
+    (read("metrics.csv"), read("config.toml"))
+}
+
+/// The column `name` of a metrics.csv, row by row.
+#[allow(dead_code)]
+pub fn metrics_column(metrics: &str, name: &str) -> Vec<String> {
+    let mut lines = metrics.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == name).unwrap();
+    lines
+        .map(|l| l.split(',').nth(col).unwrap().to_string())
+        .collect()
 }

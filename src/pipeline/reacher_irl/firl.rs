@@ -94,20 +94,12 @@ pub fn density_ratios(
         Ratio::Discriminator(d) => {
             d.train(&expert.obs, &agent.obs, OBS_DIM)
                 .map_err(|e| format!("discriminator: {e}"))?;
-            let ratios_at = |obs: &[f32]| -> Result<Vec<f64>, String> {
+            ratios_at_both(agent, expert, at_expert, |obs| {
                 Ok(d.log_ratio(obs, OBS_DIM)
                     .map_err(|e| format!("discriminator: {e}"))?
                     .into_iter()
                     .map(f64::exp)
                     .collect())
-            };
-            Ok(IterationRatios {
-                agent: ratios_at(&agent.obs)?,
-                expert: if at_expert {
-                    ratios_at(&expert.obs)?
-                } else {
-                    Vec::new()
-                },
             })
         }
         Ratio::GaussianExpert {
@@ -151,7 +143,7 @@ pub fn density_ratios(
             bandwidth,
         } => {
             let kde_a = fit_agent(*bandwidth)?;
-            let ratios_at = |obs: &[f32]| -> Result<Vec<f64>, String> {
+            ratios_at_both(agent, expert, at_expert, |obs| {
                 let rho_e = kde_e
                     .density_columns(obs, OBS_DIM, &OBS_TIP)
                     .map_err(|e| e.to_string())?;
@@ -159,17 +151,27 @@ pub fn density_ratios(
                     .density_columns(obs, OBS_DIM, &OBS_TIP)
                     .map_err(|e| e.to_string())?;
                 guarded(&rho_e, &rho_a)
-            };
-            Ok(IterationRatios {
-                agent: ratios_at(&agent.obs)?,
-                expert: if at_expert {
-                    ratios_at(&expert.obs)?
-                } else {
-                    Vec::new()
-                },
             })
         }
     }
+}
+
+/// The ratios `ratios_at` gives at the agent's states and, if `at_expert`, at the
+/// demonstrations'.
+fn ratios_at_both(
+    agent: &AgentBatch,
+    expert: &ExpertData,
+    at_expert: bool,
+    mut ratios_at: impl FnMut(&[f32]) -> Result<Vec<f64>, String>,
+) -> Result<IterationRatios, String> {
+    Ok(IterationRatios {
+        agent: ratios_at(&agent.obs)?,
+        expert: if at_expert {
+            ratios_at(&expert.obs)?
+        } else {
+            Vec::new()
+        },
+    })
 }
 
 /// Step 3b: the rows and loss coefficients of one reward step (see the module docs). f-IRL:
