@@ -75,7 +75,7 @@ trap 'rm -f "$out"' EXIT
   done
   rkl=$(ls -d runs/*-rkl_expert/ 2>/dev/null || true)
   if [ -n "$rkl" ]; then
-    printf '\n### rkl with demonstrations in its covariance batch (its schedule since issue 14'"'"'s control; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS rkl`; `python3 experiments/reacher/figure7.py runs/<task>-rkl_expert`)\n'
+    printf '\n### rkl with demonstrations in its covariance batch (its schedule since issue 14'"'"'s control; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS="0 1" experiments/reacher/figure7_schedules.sh TASKS rkl`; `python3 experiments/reacher/figure7.py runs/<task>-rkl_expert`)\n'
     python3 figure7.py $rkl
   fi
   printf '\n### The learned rewards re-optimised (`python3 experiments/reacher/retrain_table.py`)\n\n'
