@@ -9,6 +9,7 @@
 # prepares machines with REACHER_BIN, default target/release/reacher),
 # figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
 # figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>,
+# rkl's runs/<task>-rkl_expert and heldout/rkl_expert-seed3-<task>,
 # progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised,
 # fresh_agent_screen.py's offline screen of a fresh agent as a final-policy candidate,
 # retrain_agents.py's fresh agents with other SAC settings on fixed rewards),
@@ -75,8 +76,13 @@ trap 'rm -f "$out"' EXIT
   done
   rkl=$(ls -d runs/*-rkl_expert/ 2>/dev/null || true)
   if [ -n "$rkl" ]; then
-    printf '\n### rkl with demonstrations in its covariance batch (its schedule since issue 14'"'"'s control; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS="0 1" experiments/reacher/figure7_schedules.sh TASKS rkl`; `python3 experiments/reacher/figure7.py runs/<task>-rkl_expert`)\n'
+    printf '\n### rkl with demonstrations in its covariance batch (its schedule since issue 14'"'"'s control; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert experiments/reacher/figure7_schedules.sh TASKS rkl`; `python3 experiments/reacher/figure7.py runs/<task>-rkl_expert`)\n'
     python3 figure7.py $rkl
+  fi
+  rkl_held=$(ls -d heldout/rkl_expert-seed3-*/ 2>/dev/null || true)
+  if [ -n "$rkl_held" ]; then
+    printf '\n### rkl held out (base seed 3, SAC seed 3; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS rkl 3`; `python3 experiments/reacher/figure7.py heldout/rkl_expert-seed3-<task>`)\n'
+    python3 figure7.py $rkl_held
   fi
   printf '\n### The learned rewards re-optimised (`python3 experiments/reacher/retrain_table.py`)\n\n'
   python3 retrain_table.py
