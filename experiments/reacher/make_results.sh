@@ -8,8 +8,9 @@
 # table of every setting tried and the held-out runs, half_plateaus.py's OR plateaus, which
 # prepares machines with REACHER_BIN, default target/release/reacher),
 # figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
-# figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>,
-# rkl's runs/<task>-rkl_expert and heldout/rkl_expert-seed3-<task>,
+# figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>
+# (js's OR and Composite in heldout/schedules-js-seed3-<task>),
+# rkl's runs/<task>-rkl_expert and heldout/rkl_expert-seed<B>-<task>,
 # progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised,
 # fresh_agent_screen.py's offline screen of a fresh agent as a final-policy candidate,
 # retrain_agents.py's fresh agents with other SAC settings on fixed rewards),
@@ -70,6 +71,11 @@ trap 'rm -f "$out"' EXIT
     printf '\n### Held-out demonstrations and machines (base seed 3; `python3 experiments/reacher/figure7.py heldout/schedules-seed3-<task>`)\n'
     python3 figure7.py $held
   fi
+  js_held=$(ls -d heldout/schedules-js-seed*-*/ 2>/dev/null || true)
+  if [ -n "$js_held" ]; then
+    printf '\n### js held out on OR and Composite (base seed 3, SAC seed 3: the tasks the held-out table above has no js job on; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=schedules-js SEEDS=0 experiments/reacher/figure7_schedules.sh "or composite" js 3`; `python3 experiments/reacher/figure7.py heldout/schedules-js-seed3-<task>`)\n'
+    python3 figure7.py $js_held
+  fi
   for t in or sequential if composite; do
     printf '\n#### Partial progress per seed: %s (`python3 progress.py runs/%s-schedules`)\n\n' "$t" "$t"
     python3 progress.py "runs/$t-schedules"
@@ -79,9 +85,9 @@ trap 'rm -f "$out"' EXIT
     printf '\n### rkl with demonstrations in its covariance batch (its schedule since issue 14'"'"'s control; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert experiments/reacher/figure7_schedules.sh TASKS rkl`; `python3 experiments/reacher/figure7.py runs/<task>-rkl_expert`)\n'
     python3 figure7.py $rkl
   fi
-  rkl_held=$(ls -d heldout/rkl_expert-seed3-*/ 2>/dev/null || true)
+  rkl_held=$(ls -d heldout/rkl_expert-seed*-*/ 2>/dev/null || true)
   if [ -n "$rkl_held" ]; then
-    printf '\n### rkl held out (base seed 3, SAC seed 3; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS rkl 3`; `python3 experiments/reacher/figure7.py heldout/rkl_expert-seed3-<task>`)\n'
+    printf '\n### rkl held out (base seed B, SAC seed B; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS rkl B`; `python3 experiments/reacher/figure7.py heldout/rkl_expert-seed<B>-<task>`)\n'
     python3 figure7.py $rkl_held
   fi
   printf '\n### The learned rewards re-optimised (`python3 experiments/reacher/retrain_table.py`)\n\n'
