@@ -8,7 +8,7 @@
 # table of every setting tried and the held-out runs, half_plateaus.py's OR plateaus, which
 # prepares machines with REACHER_BIN, default target/release/reacher),
 # figure 7 — every algorithm on its own schedule — (results_figure7.md's prose,
-# figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed3-<task>
+# figure7.py's tables of runs/<task>-schedules and the held-out heldout/schedules-seed<B>-<task>
 # (js's OR and Composite in heldout/schedules-js-seed3-<task>),
 # rkl's runs/<task>-rkl_expert and heldout/rkl_expert-seed<B>-<task>,
 # progress.py's per-seed partial progress, retrain_table.py's learned rewards re-optimised,
@@ -66,9 +66,9 @@ trap 'rm -f "$out"' EXIT
   cat results_figure7.md
   printf '\n### Figure 7 tables (`python3 experiments/reacher/figure7.py runs/<task>-schedules`)\n'
   python3 figure7.py runs/or-schedules runs/sequential-schedules runs/if-schedules runs/composite-schedules
-  held=$(ls -d heldout/schedules-seed3-*/ 2>/dev/null || true)
+  held=$(ls -d heldout/schedules-seed*-*/ 2>/dev/null || true)
   if [ -n "$held" ]; then
-    printf '\n### Held-out demonstrations and machines (base seed 3; `python3 experiments/reacher/figure7.py heldout/schedules-seed3-<task>`)\n'
+    printf '\n### Held-out demonstrations and machines (base seed B, SAC seed B; `CONFIG=experiments/reacher/config_unshaped.toml SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS ALGOS B`; `python3 experiments/reacher/figure7.py heldout/schedules-seed<B>-<task>`)\n'
     python3 figure7.py $held
   fi
   js_held=$(ls -d heldout/schedules-js-seed*-*/ 2>/dev/null || true)
