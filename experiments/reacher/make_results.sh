@@ -28,6 +28,17 @@ cd "$(dirname "$0")"
 # script leaves the previous results.md whole.
 out=$(mktemp results.md.XXXXXX)
 trap 'rm -f "$out"' EXIT
+# heldout_tables PREFIX HEADING: figure7.py's tables of the held-out runs heldout/<PREFIX><B>-<task>
+# (each directory's tracked run.json; the metrics from the consolidated file) under HEADING,
+# every base B; nothing when there are none.
+heldout_tables() {
+  local runs
+  runs=$(ls -d "heldout/$1"*-*/ 2>/dev/null || true)
+  if [ -n "$runs" ]; then
+    printf '\n%s\n' "$2"
+    python3 figure7.py $runs
+  fi
+}
 {
   cat results_smirl.md
   printf '\n### SMIRL in figure 7 (`python3 experiments/reacher/figure7.py runs/<task>-shaped`)\n'
@@ -66,16 +77,8 @@ trap 'rm -f "$out"' EXIT
   cat results_figure7.md
   printf '\n### Figure 7 tables (`python3 experiments/reacher/figure7.py runs/<task>-schedules`)\n'
   python3 figure7.py runs/or-schedules runs/sequential-schedules runs/if-schedules runs/composite-schedules
-  held=$(ls -d heldout/schedules-seed*-*/ 2>/dev/null || true)
-  if [ -n "$held" ]; then
-    printf '\n### Held-out demonstrations and machines (base seed B, SAC seed B; `CONFIG=experiments/reacher/config_unshaped.toml SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS ALGOS B`; `python3 experiments/reacher/figure7.py heldout/schedules-seed<B>-<task>`)\n'
-    python3 figure7.py $held
-  fi
-  js_held=$(ls -d heldout/schedules-js-seed*-*/ 2>/dev/null || true)
-  if [ -n "$js_held" ]; then
-    printf '\n### js held out on OR and Composite (base seed 3, SAC seed 3: the tasks the held-out table above has no js job on; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=schedules-js SEEDS=0 experiments/reacher/figure7_schedules.sh "or composite" js 3`; `python3 experiments/reacher/figure7.py heldout/schedules-js-seed3-<task>`)\n'
-    python3 figure7.py $js_held
-  fi
+  heldout_tables schedules-seed '### Held-out demonstrations and machines (base seed B, SAC seed B; `CONFIG=experiments/reacher/config_unshaped.toml SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS ALGOS B`; `python3 experiments/reacher/figure7.py heldout/schedules-seed<B>-<task>`)'
+  heldout_tables schedules-js-seed '### js held out on OR and Composite (base seed 3, SAC seed 3: the tasks the held-out table above has no js job on; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=schedules-js SEEDS=0 experiments/reacher/figure7_schedules.sh "or composite" js 3`; `python3 experiments/reacher/figure7.py heldout/schedules-js-seed3-<task>`)'
   for t in or sequential if composite; do
     printf '\n#### Partial progress per seed: %s (`python3 progress.py runs/%s-schedules`)\n\n' "$t" "$t"
     python3 progress.py "runs/$t-schedules"
@@ -85,11 +88,7 @@ trap 'rm -f "$out"' EXIT
     printf '\n### rkl with demonstrations in its covariance batch (its schedule since issue 14'"'"'s control; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert experiments/reacher/figure7_schedules.sh TASKS rkl`; `python3 experiments/reacher/figure7.py runs/<task>-rkl_expert`)\n'
     python3 figure7.py $rkl
   fi
-  rkl_held=$(ls -d heldout/rkl_expert-seed*-*/ 2>/dev/null || true)
-  if [ -n "$rkl_held" ]; then
-    printf '\n### rkl held out (base seed B, SAC seed B; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS rkl B`; `python3 experiments/reacher/figure7.py heldout/rkl_expert-seed<B>-<task>`)\n'
-    python3 figure7.py $rkl_held
-  fi
+  heldout_tables rkl_expert-seed '### rkl held out (base seed B, SAC seed B; `CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS rkl B`; `python3 experiments/reacher/figure7.py heldout/rkl_expert-seed<B>-<task>`)'
   printf '\n### The learned rewards re-optimised (`python3 experiments/reacher/retrain_table.py`)\n\n'
   python3 retrain_table.py
   printf '\n### A fresh agent as one more final-policy candidate, screened offline (`python3 experiments/reacher/fresh_agent_screen.py`)\n\n'
