@@ -3,10 +3,15 @@
 # machine learned by `reacher prepare` (demonstrations and LRM only, no IRL) with the standard
 # config and with a stronger search (lrm_steps = 1000, lrm_starts = 32, lrm_patience = 50;
 # the standard: 100 steps, the learner's 4 starts and patience 5). Prints a markdown table:
-# learned states, LRM cost (and the perfect machine's on the same traces), and which perfect
-# states each learned state was seen with (`rm/report.txt`). Nothing here reads an IRL result.
+# learned states, LRM cost (and the perfect machine's on the same traces), whether the machine
+# refines the perfect one along the demonstrations (ambiguous steps), whether the stronger
+# search's machine is the standard's, and which perfect states each learned state was seen
+# with (`rm/report.txt`). Nothing here reads an IRL result.
 # Usage: experiments/reacher/lrm_search.sh ["TASKS"] ["BASES"]
 #   defaults: all four tasks, base seeds 0 3 6 9 (figure 7's and the held-out ones)
+#   STANDARD=<config> (default experiments/reacher/config.toml): the search it is compared with
+#   STRONG_STEPS, STRONG_STARTS, STRONG_PATIENCE (default 1000, 32, 50): the stronger search,
+#   or STRONG_CONFIG=<config>: a config of its own (rows "strong" are then that config's)
 #   REACHER_BIN=<binary>; the prepared directories go to a temporary directory this script
 #   creates and removes.
 set -euo pipefail
@@ -17,14 +22,23 @@ if [ -z "${REACHER_BIN:-}" ]; then cargo build --release --bin reacher >&2; fi
 BIN=${REACHER_BIN:-./target/release/reacher}
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
-STANDARD=experiments/reacher/config.toml
+STANDARD=${STANDARD:-experiments/reacher/config.toml}
 STRONG=$TMP/strong.toml
-grep -q '^lrm_steps = 100$' "$STANDARD"
-sed 's/^lrm_steps = 100$/lrm_steps = 1000\nlrm_starts = 32\nlrm_patience = 50/' "$STANDARD" > "$STRONG"
-echo "LRM's search, standard against stronger (\`experiments/reacher/lrm_search.sh > experiments/reacher/lrm_search.md\`)."
+STRONG_STEPS=${STRONG_STEPS:-1000}
+STRONG_STARTS=${STRONG_STARTS:-32}
+STRONG_PATIENCE=${STRONG_PATIENCE:-50}
+[ -n "${STRONG_CONFIG:-}" ] || grep -q '^lrm_steps = 100$' "$STANDARD"
+if [ -n "${STRONG_CONFIG:-}" ]; then
+  cp "$STRONG_CONFIG" "$STRONG"
+  strong_name="\`$STRONG_CONFIG\`"
+else
+  sed "s/^lrm_steps = 100\$/lrm_steps = $STRONG_STEPS\nlrm_starts = $STRONG_STARTS\nlrm_patience = $STRONG_PATIENCE/" "$STANDARD" > "$STRONG"
+  strong_name="a stronger search ($STRONG_STEPS steps, $STRONG_STARTS starts, patience $STRONG_PATIENCE)"
+fi
+echo "LRM's search, \`$STANDARD\` against $strong_name (\`experiments/reacher/lrm_search.sh\`, tasks \"$TASKS\", bases \"$BASES\")."
 echo
-echo "| task | base seed | search | learned states | LRM cost (perfect machine's) | perfect states per learned state |"
-echo "|---|---|---|---|---|---|"
+echo "| task | base seed | search | learned states | LRM cost (perfect machine's) | refines (ambiguous steps) | same machine | perfect states per learned state |"
+echo "|---|---|---|---|---|---|---|---|"
 for task in $TASKS; do
   for base in $BASES; do
     for search in standard strong; do
@@ -36,8 +50,13 @@ for task in $TASKS; do
       report=$out/rm/report.txt
       states=$(sed -n 's/^learned machine: \([0-9]*\) states.*/\1/p' "$report")
       cost=$(sed -n 's/^LRM cost \([0-9.]*\) (the perfect machine.s on the same traces: \([0-9.]*\)).*/\1 (\2)/p' "$report")
+      refines=$(sed -n 's/^refines the perfect machine along the [0-9]* demonstrations: \([a-z]*\) (\([0-9]*\) of.*/\1 (\2)/p' "$report")
+      same=-
+      if [ "$search" = strong ]; then
+        if cmp -s "$out/rm/learned.txt" "$TMP/$task-$base-standard/rm/learned.txt"; then same=yes; else same=no; fi
+      fi
       seen=$(sed -n 's/^learned state \([0-9]*\) seen with perfect states \(.*\)/\1: \2/p' "$report" | paste -sd ';' - | sed 's/;/; /g')
-      echo "| $task | $base | $search | $states | $cost | $seen |"
+      echo "| $task | $base | $search | $states | $cost | $refines | $same | $seen |"
     done
   done
 done

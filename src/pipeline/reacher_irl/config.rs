@@ -255,6 +255,11 @@ pub struct IrlRunConfig {
     /// default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lrm_patience: Option<usize>,
+    /// LRM: further starts whose machine is kept only when strictly cheaper than the first
+    /// starts' best (`rm::lrm::LrmConfig::fallback_starts`); a config without the key reads
+    /// as 0, what every run before the key existed used. Omitted from written configs when 0.
+    #[serde(default, skip_serializing_if = "is_zero_usize")]
+    pub lrm_fallback_starts: usize,
     /// LRM: remember events (`rm::lrm::LrmConfig::remember_events`): the learned machine made
     /// the product with "cancel seen so far". A config without the key is read as false, what
     /// every run before the key existed used. Omitted from written configs when false.
@@ -559,6 +564,7 @@ impl IrlRunConfig {
             lrm_steps: 100,
             lrm_starts: None,
             lrm_patience: None,
+            lrm_fallback_starts: 0,
             lrm_remember_events: false,
             lrm_borrow_events: false,
             // A cancel never seen in a learned state is read as if it came before the touch
@@ -728,6 +734,11 @@ impl IrlRunConfig {
                 "lrm_patience",
                 self.lrm_patience.unwrap_or(0) as u64,
                 MAX_LRM_STEPS as u64,
+            ),
+            (
+                "lrm_fallback_starts",
+                self.lrm_fallback_starts as u64,
+                MAX_LRM_STARTS as u64,
             ),
             ("threads", self.threads as u64, MAX_THREADS as u64),
         ] {

@@ -113,6 +113,7 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
         // Starts and patience keep the learner's defaults unless set; split moves always.
         starts: config.lrm_starts.unwrap_or(DEFAULT_STARTS),
         patience: config.lrm_patience.unwrap_or(DEFAULT_PATIENCE),
+        fallback_starts: config.lrm_fallback_starts,
         ..LrmConfig::default()
     }
 }

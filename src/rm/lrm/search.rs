@@ -202,6 +202,12 @@ pub(crate) struct SearchParams {
     pub patience: usize,
     /// Independent starts (at least 1).
     pub starts: usize,
+    /// Further starts (streams `starts..starts + fallback_starts`) whose best machine replaces
+    /// the first `starts`' only when its cost is strictly lower: they repair a search that
+    /// stopped above the cost other starts reach, and never reopen a tie among machines of
+    /// equal cost, so wherever the first starts already found the lowest cost any start
+    /// finds, the result is theirs bit for bit.
+    pub fallback_starts: usize,
     pub threads: usize,
     pub seed: u64,
 }
@@ -661,10 +667,12 @@ impl<'a> Searcher<'a> {
     /// start is an independent Tabu search ([`Searcher::search_from`]) with its own RNG
     /// (stream `k` of the seed), so its result does not depend on which thread runs it; the
     /// best machine over all starts (lowest cost, then fewest states, then lowest start
-    /// index) is returned. Starts run in parallel (`min(threads, starts)` workers; the rest
-    /// of the threads evaluate neighbours within a start).
+    /// index) is returned, the fallback starts counting only when strictly cheaper
+    /// ([`SearchParams::fallback_starts`]). Starts run in parallel (`min(threads, starts)`
+    /// workers; the rest of the threads evaluate neighbours within a start).
     pub fn search(&self, p: &SearchParams) -> SearchOutcome {
         let starts = p.starts.max(1);
+        let total = starts + p.fallback_starts;
         let run_start = |k: usize, threads: usize| -> SearchOutcome {
             let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
             rng.set_stream(k as u64);
@@ -675,13 +683,13 @@ impl<'a> Searcher<'a> {
             };
             self.search_from(table, p, threads, &mut rng)
         };
-        let workers = p.threads.clamp(1, starts);
+        let workers = p.threads.clamp(1, total);
         let inner = (p.threads / workers).max(1);
         let outcomes: Vec<SearchOutcome> = if workers == 1 {
-            (0..starts).map(|k| run_start(k, inner)).collect()
+            (0..total).map(|k| run_start(k, inner)).collect()
         } else {
             let next = std::sync::atomic::AtomicUsize::new(0);
-            let mut slots: Vec<Option<SearchOutcome>> = (0..starts).map(|_| None).collect();
+            let mut slots: Vec<Option<SearchOutcome>> = (0..total).map(|_| None).collect();
             let parts: Vec<Vec<(usize, SearchOutcome)>> = std::thread::scope(|scope| {
                 let handles: Vec<_> = (0..workers)
                     .map(|_| {
@@ -689,7 +697,7 @@ impl<'a> Searcher<'a> {
                             let mut done = Vec::new();
                             loop {
                                 let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                                if k >= starts {
+                                if k >= total {
                                     break done;
                                 }
                                 done.push((k, run_start(k, inner)));
@@ -710,13 +718,24 @@ impl<'a> Searcher<'a> {
                 .map(|o| o.expect("every start ran"))
                 .collect()
         };
-        let mut best_k = 0;
-        for (k, o) in outcomes.iter().enumerate() {
-            let b = &outcomes[best_k];
-            if o.best_cost < b.best_cost
-                || (o.best_cost == b.best_cost && o.best.n_used < b.best.n_used)
-            {
-                best_k = k;
+        // Lowest cost, then fewest states, then lowest start index.
+        let best_of = |range: std::ops::Range<usize>| -> usize {
+            let mut best_k = range.start;
+            for k in range {
+                let (o, b) = (&outcomes[k], &outcomes[best_k]);
+                if o.best_cost < b.best_cost
+                    || (o.best_cost == b.best_cost && o.best.n_used < b.best.n_used)
+                {
+                    best_k = k;
+                }
+            }
+            best_k
+        };
+        let mut best_k = best_of(0..starts);
+        if total > starts {
+            let fallback_k = best_of(starts..total);
+            if outcomes[fallback_k].best_cost < outcomes[best_k].best_cost {
+                best_k = fallback_k;
             }
         }
         let mut total = SearchOutcome {
