@@ -938,13 +938,14 @@ fn final_policy_settings_are_checked() {
 
 /// LRM's optional keys (search, event memory, borrowed events, commuted events, event
 /// stutter, event prediction): absent from written configs unless set, read back as set,
-/// bounded, and a zero start count refused; the error names the field.
+/// bounded (fallback starts too), and a zero start count refused; the error names the field.
 #[test]
 fn lrm_search_settings_are_checked() {
     let standard = IrlRunConfig::standard();
     let text = standard.to_toml();
     assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
     assert!(!text.contains("lrm_remember_events") && !text.contains("lrm_borrow_events"));
+    assert!(!text.contains("lrm_fallback_starts") && standard.lrm_fallback_starts == 0);
     // The standard leaves the cancel out of LRM's prediction; a config without the key reads
     // LRM's own objective (true), which is not written.
     assert!(!standard.lrm_predict_events && text.contains("lrm_predict_events = false\n"));
@@ -970,10 +971,15 @@ fn lrm_search_settings_are_checked() {
     let text = without;
     let text = text.replace(
         "lrm_steps = 100\n",
-        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
+        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_fallback_starts = 28\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
     );
     let c = IrlRunConfig::from_toml(&text, "search.toml").unwrap();
     assert_eq!((c.lrm_starts, c.lrm_patience), (Some(32), Some(0)));
+    assert!(c.lrm_fallback_starts == 28 && c.to_toml().contains("lrm_fallback_starts = 28\n"));
+    assert_config_error_names(
+        &text.replace("lrm_fallback_starts = 28", "lrm_fallback_starts = -1"),
+        "lrm_fallback_starts",
+    );
     assert!(c.lrm_remember_events && c.lrm_borrow_events && c.lrm_event_stutter);
     assert!(c.lrm_commute_events && c.to_toml().contains("lrm_commute_events = true\n"));
     assert_config_error_names(
@@ -1000,6 +1006,10 @@ fn lrm_search_settings_are_checked() {
         let e = c.validate("test").unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
     }
+    let mut c = IrlRunConfig::standard();
+    c.lrm_fallback_starts = 1_001;
+    let e = c.validate("test").unwrap_err().to_string();
+    assert!(e.contains("lrm_fallback_starts"), "{e}");
 }
 
 /// `smirl_normalisation`'s three values read back as written; a misspelt one is refused with
