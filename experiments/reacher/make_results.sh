@@ -3,7 +3,7 @@
 # SMIRL's settings of issue 13 (results_smirl.md's prose, figure7.py's tables of
 # runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final (the standards before
 # event-gated visits) and of the current and previous standards' tuning runs, standard_heldout.py's table
-# of the current and the previous standard's held-out jobs, sink_heldout.py's comparison of the
+# of the current and the previous standard's held-out jobs, ablation_heldout.py's comparison of the
 # sink of unseen touches with the current standard, smirl_settings.py's
 # table of every setting tried and the held-out runs, half_plateaus.py's OR plateaus, which
 # prepares machines with REACHER_BIN, default target/release/reacher),
@@ -53,8 +53,8 @@ heldout_tables() {
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/commute_events-seeds0to5-composite
   printf '\n### SMIRL held out under the current standard (a replay buffer of 200 000; every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py`)\n\n'
   python3 standard_heldout.py "$bin"
-  printf '\n### The sink of unseen touches against the current standard, job for job (`ablations/unseen_touch_sink.toml`, `ablations/sink_after_events.toml`; neither adopted; `python3 experiments/reacher/sink_heldout.py`)\n\n'
-  python3 sink_heldout.py
+  printf '\n### The sink of unseen touches against the current standard, job for job (`ablations/unseen_touch_sink.toml`, `ablations/sink_after_events.toml`; neither adopted; `python3 experiments/reacher/ablation_heldout.py unseen_touch_sink sink_after_events`)\n\n'
+  python3 ablation_heldout.py unseen_touch_sink sink_after_events
   printf '\n### SMIRL held out under the previous standard (commuted events, a replay buffer of 100 000; `python3 experiments/reacher/standard_heldout.py --previous`)\n\n'
   python3 standard_heldout.py --previous "$bin"
   printf '\n### SMIRL'"'"'s final policy before commuted events (LRM not asked to predict the cancel; base 0, SAC seeds 0-5; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-<task>`)\n'

@@ -203,7 +203,7 @@ FINAL_HELDOUT = [
     # The sink of unseen touches (ablations/unseen_touch_sink.toml): IF 42 only (stopped once
     # its tuning rule had failed); entered only after the cancel (ablations/sink_after_events.toml):
     # the standard's misses whose machines it changes, then fresh bases where it changes them
-    # (sink_heldout.py).
+    # (ablation_heldout.py).
     (f"base {b}, sink of unseen touches, final policy", f"heldout/unseen-sink-seeds{b}-{{task}}")
     for b in (42,)] + [
     (f"base {b}, sink after events, final policy", f"heldout/sink-after-events-seeds{b}-{{task}}")
