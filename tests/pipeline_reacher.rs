@@ -945,7 +945,12 @@ fn lrm_search_settings_are_checked() {
     let text = standard.to_toml();
     assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
     assert!(!text.contains("lrm_remember_events") && !text.contains("lrm_borrow_events"));
-    assert!(!text.contains("lrm_fallback_starts") && standard.lrm_fallback_starts == 0);
+    // Fallback starts are on in the standard; a config without the key reads 0.
+    assert!(standard.lrm_fallback_starts == 28 && text.contains("lrm_fallback_starts = 28\n"));
+    let without_fallback = text.replace("lrm_fallback_starts = 28\n", "");
+    let old = IrlRunConfig::from_toml(&without_fallback, "old.toml").unwrap();
+    assert!(old.lrm_fallback_starts == 0 && !old.to_toml().contains("lrm_fallback_starts"));
+    let text = without_fallback;
     // The standard leaves the cancel out of LRM's prediction; a config without the key reads
     // LRM's own objective (true), which is not written.
     assert!(!standard.lrm_predict_events && text.contains("lrm_predict_events = false\n"));
@@ -1077,7 +1082,7 @@ fn without_schedules() -> IrlRunConfig {
 
 /// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
 /// issue 13 (20 IRL iterations, no shaping, no event stutter, LRM predicting the cancel, no
-/// commuted events, a replay buffer of 100 000), as the runs made with it.
+/// commuted events, no fallback starts, a replay buffer of 100 000), as the runs made with it.
 fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
         sac: smirl::rl::sac::SacConfig {
@@ -1091,6 +1096,7 @@ fn unshaped() -> IrlRunConfig {
         lrm_event_stutter: false,
         lrm_predict_events: true,
         lrm_commute_events: false,
+        lrm_fallback_starts: 0,
         smirl_normalisation: SmirlNormalisation::Visits,
         ..IrlRunConfig::standard()
     }
@@ -1147,7 +1153,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
     // The baselines' resolved settings differ only in SMIRL's shaping, final policy,
-    // normalisation and learned machine, which only SMIRL reads.
+    // normalisation and learned machine (LRM's keys), which only SMIRL reads.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let before = IrlRunConfig {
             smirl_shaping: 1.0,
@@ -1157,6 +1163,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             lrm_event_stutter: true,
             lrm_predict_events: false,
             lrm_commute_events: true,
+            lrm_fallback_starts: standard.lrm_fallback_starts,
             ..unshaped_file.for_algo(algo).unwrap()
         };
         assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");

@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""Ablations of SMIRL's settings against the current standard (ablations/replay_all.toml), job
-for job. Per task and base seed B where a run of any named setting exists under heldout/
-(heldout/<prefix>-seedsB-<task>), the reported policy of each SAC seed B, B+1, B+2 under the
-standard and each setting ("-": no run); then the tuning jobs (base 0, SAC seeds 0-5:
-ablations/runs/<name>-seeds0to5-<task>), for the tasks a setting ran. A setting whose
-machine or jobs are the standard's at a base was not rerun there. A job counts as solved when
-its reported policy reaches 0.9 (IF and Composite: on each branch). Markdown on standard
-output.
+"""Ablations of SMIRL's settings against the replay-all standard (ablations/replay_all.toml, the
+standard before fallback starts), job for job. Per task and base seed B where a run of any named
+setting exists under heldout/ (heldout/<prefix>-seedsB-<task>), the reported policy of each SAC
+seed B, B+1, B+2 under the standard and each setting ("-": no run); then the tuning jobs (base
+0, SAC seeds 0-5: ablations/runs/<name>-seeds0to5-<task>), for the tasks a setting ran. A
+setting whose machine or jobs are the standard's at a base was not rerun there. A job counts as
+solved when its reported policy reaches 0.9 (IF and Composite: on each branch). Markdown on
+standard output.
 
 Settings, by their config's name in ablations/: unseen_touch_sink and sink_after_events (the
 sink of unseen touches, runs unseen-sink-* and sink-after-events-*), fallback_starts (LRM's
@@ -24,7 +24,7 @@ from standard_heldout import cell  # noqa: E402
 
 TASKS = ["or", "sequential", "if", "composite"]
 # (column, held-out run prefix, tuning run prefix)
-STANDARD = ("standard", "replay-all", "replay_all")
+STANDARD = ("replay-all standard", "replay-all", "replay_all")
 KNOWN = {"unseen_touch_sink": ("sink everywhere", "unseen-sink", "unseen_touch_sink"),
          "sink_after_events": ("sink after events", "sink-after-events", "sink_after_events"),
          "fallback_starts": ("fallback starts", "fallback-starts", "fallback_starts")}

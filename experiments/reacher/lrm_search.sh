@@ -12,6 +12,8 @@
 #   STANDARD=<config> (default experiments/reacher/config.toml): the search it is compared with
 #   STRONG_STEPS, STRONG_STARTS, STRONG_PATIENCE (default 1000, 32, 50): the stronger search,
 #   or STRONG_CONFIG=<config>: a config of its own (rows "strong" are then that config's)
+#   CHANGED_ONLY=1: print only the bases whose two machines differ (the count of every base
+#   and of those is printed last either way)
 #   REACHER_BIN=<binary>; the prepared directories go to a temporary directory this script
 #   creates and removes.
 set -euo pipefail
@@ -39,8 +41,10 @@ echo "LRM's search, \`$STANDARD\` against $strong_name (\`experiments/reacher/lr
 echo
 echo "| task | base seed | search | learned states | LRM cost (perfect machine's) | refines (ambiguous steps) | same machine | perfect states per learned state |"
 echo "|---|---|---|---|---|---|---|---|"
+declare -A bases_of changed_of
 for task in $TASKS; do
   for base in $BASES; do
+    rows=""
     for search in standard strong; do
       cfg=$STANDARD
       [ "$search" = strong ] && cfg=$STRONG
@@ -56,7 +60,16 @@ for task in $TASKS; do
         if cmp -s "$out/rm/learned.txt" "$TMP/$task-$base-standard/rm/learned.txt"; then same=yes; else same=no; fi
       fi
       seen=$(sed -n 's/^learned state \([0-9]*\) seen with perfect states \(.*\)/\1: \2/p' "$report" | paste -sd ';' - | sed 's/;/; /g')
-      echo "| $task | $base | $search | $states | $cost | $refines | $same | $seen |"
+      rows+="| $task | $base | $search | $states | $cost | $refines | $same | $seen |"$'\n'
     done
+    bases_of[$task]=$(( ${bases_of[$task]:-0} + 1 ))
+    [ "$same" = no ] && changed_of[$task]=$(( ${changed_of[$task]:-0} + 1 ))
+    if [ -z "${CHANGED_ONLY:-}" ] || [ "$same" = no ]; then printf '%s' "$rows"; fi
   done
 done
+echo
+summary=""
+for task in $TASKS; do
+  summary+="${summary:+; }$task ${changed_of[$task]:-0} of ${bases_of[$task]}"
+done
+echo "Bases whose machine differs: $summary."
