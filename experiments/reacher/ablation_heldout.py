@@ -78,10 +78,12 @@ def main():
     rows, totals = [], {}
     ablations = os.path.join(HERE, "ablations", "runs")
     for task in TASKS:
-        cells = [jobs_cell(os.path.join(ablations, f"{p}-seeds0to5-{task}"), task, totals,
+        counted = {}
+        cells = [jobs_cell(os.path.join(ablations, f"{p}-seeds0to5-{task}"), task, counted,
                            (task, c)) for c, _, p in settings]
         if any(c != "-" for c in cells[1:]):
             rows.append(f"| {task} | 0 (SAC seeds 0-5) | " + " | ".join(cells) + " |")
+            totals.update(counted)
     print(table("Tuning (base 0, SAC seeds 0-5)", settings, rows, totals), end="")
 
 
