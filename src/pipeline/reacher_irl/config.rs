@@ -260,6 +260,12 @@ pub struct IrlRunConfig {
     /// as 0, what every run before the key existed used. Omitted from written configs when 0.
     #[serde(default, skip_serializing_if = "is_zero_usize")]
     pub lrm_fallback_starts: usize,
+    /// LRM: read an event the demonstrations never show in the initial state (the split's
+    /// "before the first label") as coming with the first label (`rm::lrm::LrmConfig::
+    /// initial_events`). A config without the key reads as false, what every run before the
+    /// key existed used. Omitted from written configs when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub lrm_initial_events: bool,
     /// LRM: remember events (`rm::lrm::LrmConfig::remember_events`): the learned machine made
     /// the product with "cancel seen so far". A config without the key is read as false, what
     /// every run before the key existed used. Omitted from written configs when false.
@@ -570,6 +576,7 @@ impl IrlRunConfig {
             // the other tasks' base-0 machines unchanged; README, "A search stuck above the
             // perfect machine's cost").
             lrm_fallback_starts: 28,
+            lrm_initial_events: false,
             lrm_remember_events: false,
             lrm_borrow_events: false,
             // A cancel never seen in a learned state is read as if it came before the touch

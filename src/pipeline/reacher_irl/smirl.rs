@@ -110,6 +110,7 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
         remember_events: config.lrm_remember_events,
         borrow_events: config.lrm_borrow_events,
         commute_events: config.lrm_commute_events,
+        initial_events: config.lrm_initial_events,
         // Starts and patience keep the learner's defaults unless set; split moves always.
         starts: config.lrm_starts.unwrap_or(DEFAULT_STARTS),
         patience: config.lrm_patience.unwrap_or(DEFAULT_PATIENCE),

@@ -187,6 +187,50 @@ pub(crate) fn commute_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], e
     }
 }
 
+/// Gives each event cell of the initial state that no trace reads the state the traces reach
+/// when the event comes on the first step together with the label that left the initial
+/// state (see [`LrmConfig::initial_events`]): for an event label `l` undefined in state 0,
+/// with `k` = the label id of `l`'s set without its events (`without_events[l]`), the cell
+/// becomes `delta(delta(0, k), l)` when `(0, k)` is observed and leaves state 0 and
+/// `(delta(0, k), l)` is defined. Only when no other state enters state 0: the initial state
+/// is then "before the first label" (the initial-state split's), whose events the
+/// demonstrations show only if a cancel fired on their first step. Decided on the cells as
+/// given; observed cells and every trace's path are unchanged.
+///
+/// [`LrmConfig::initial_events`]: super::LrmConfig::initial_events
+pub(crate) fn initial_events(
+    n: usize,
+    l_n: usize,
+    cells: &mut [Option<Cell>],
+    events: &[usize],
+    without_events: &[Option<usize>],
+) {
+    let given = cells.to_vec();
+    let observed = |w: usize, k: usize| given[w * l_n + k].filter(|c| c.weight > 0.0);
+    let reentered = (1..n).any(|p| (0..l_n).any(|k| observed(p, k).is_some_and(|c| c.target == 0)));
+    if reentered {
+        return;
+    }
+    for &l in events {
+        if given[l].is_some() {
+            continue;
+        }
+        let Some(k) = without_events[l] else {
+            continue;
+        };
+        let Some(first) = observed(0, k).map(|c| c.target).filter(|&v| v != 0) else {
+            continue;
+        };
+        if let Some(c) = given[first * l_n + l] {
+            cells[l] = Some(Cell {
+                target: c.target,
+                reward: 0.0,
+                weight: 0.0,
+            });
+        }
+    }
+}
+
 fn try_merge(
     part: &Partition,
     l_n: usize,

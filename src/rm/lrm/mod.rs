@@ -200,6 +200,14 @@ pub struct LrmConfig {
     /// machine would otherwise ignore it there. Traces' paths and the cost are unchanged. Off
     /// by default.
     pub commute_events: bool,
+    /// After the search, read an event that the traces never show in the initial state, when
+    /// no other state enters it, as coming on the first step with the label that leaves it
+    /// (`merge::initial_events`). The initial-state split makes such a state ("before the
+    /// first label"), and only demonstrations whose cancel fired on their first step show an
+    /// event there; without any, the guards read a first-step cancel as no cancel
+    /// (ReacherDelivery IF 81, Composite 282). Traces' paths and the cost are unchanged. Off by
+    /// default.
+    pub initial_events: bool,
 }
 
 impl Default for LrmConfig {
@@ -228,6 +236,7 @@ impl Default for LrmConfig {
             remember_events: false,
             borrow_events: false,
             commute_events: false,
+            initial_events: false,
         }
     }
 }
@@ -465,6 +474,14 @@ pub fn learn_rm(
     }
     if cfg.commute_events {
         merge::commute_events(n, l_n, &mut defined, &event_ids);
+    }
+    if cfg.initial_events {
+        let without_events: Vec<Option<usize>> = data
+            .labels
+            .iter()
+            .map(|l| data.labels.iter().position(|m| m.0 == l.0 & !cfg.events.0))
+            .collect();
+        merge::initial_events(n, l_n, &mut defined, &event_ids, &without_events);
     }
 
     let (exact_rm, final_cells, final_n, final_cost) = if cfg.merge {
