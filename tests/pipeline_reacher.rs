@@ -936,8 +936,8 @@ fn final_policy_settings_are_checked() {
     assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
 }
 
-/// LRM's optional keys (search, event memory, borrowed events, commuted events, event
-/// stutter, event prediction): absent from written configs unless set, read back as set,
+/// LRM's optional keys (search, event memory, borrowed events, commuted events, initial
+/// events, event stutter, event prediction): absent from written configs unless set, read back as set,
 /// bounded (fallback starts too), and a zero start count refused; the error names the field.
 #[test]
 fn lrm_search_settings_are_checked() {
@@ -945,6 +945,7 @@ fn lrm_search_settings_are_checked() {
     let text = standard.to_toml();
     assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
     assert!(!text.contains("lrm_remember_events") && !text.contains("lrm_borrow_events"));
+    assert!(!text.contains("lrm_initial_events") && !standard.lrm_initial_events);
     // Fallback starts are on in the standard; a config without the key reads 0.
     assert!(standard.lrm_fallback_starts == 28 && text.contains("lrm_fallback_starts = 28\n"));
     let without_fallback = text.replace("lrm_fallback_starts = 28\n", "");
@@ -976,11 +977,16 @@ fn lrm_search_settings_are_checked() {
     let text = without;
     let text = text.replace(
         "lrm_steps = 100\n",
-        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_fallback_starts = 28\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
+        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_fallback_starts = 28\nlrm_initial_events = true\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
     );
     let c = IrlRunConfig::from_toml(&text, "search.toml").unwrap();
     assert_eq!((c.lrm_starts, c.lrm_patience), (Some(32), Some(0)));
     assert!(c.lrm_fallback_starts == 28 && c.to_toml().contains("lrm_fallback_starts = 28\n"));
+    assert!(c.lrm_initial_events && c.to_toml().contains("lrm_initial_events = true\n"));
+    assert_config_error_names(
+        &text.replace("lrm_initial_events = true", "lrm_initial_events = \"yes\""),
+        "lrm_initial_events",
+    );
     assert_config_error_names(
         &text.replace("lrm_fallback_starts = 28", "lrm_fallback_starts = -1"),
         "lrm_fallback_starts",

@@ -964,3 +964,59 @@ fn fallback_starts_keep_the_first_starts_machine_on_a_tie() {
         "no tie that plain extra starts would break"
     );
 }
+
+/// The demonstrations of held-out Composite (base seed 282) as `reacher replay` lists them:
+/// none has a cancel on its first step.
+const COMPOSITE_BASE282: [(usize, &str); 16] = [
+    (13, "c@3 r@7-8 y@13"),
+    (12, "c@2 r@6-7 y@12"),
+    (24, "r@7 b@16-17 y@24"),
+    (23, "r@6-7 b@15-16 y@23"),
+    (13, "c@3 r@7-8 y@13"),
+    (15, "r@6 c@7 r@10 y@15"),
+    (24, "r@6-7 b@16 y@24"),
+    (15, "r@6 rc@7 r@8-9 y@15"),
+    (12, "rc@6 r@7 y@12"),
+    (25, "r@7 b@17 y@25"),
+    (24, "r@7-8 b@16-17 y@24"),
+    (13, "c@5 r@7-8 y@13"),
+    (13, "rc@6 r@7 y@13"),
+    (18, "r@6-7 c@8 y@18"),
+    (19, "r@6 c@8 y@19"),
+    (12, "c@2 r@6-7 y@12"),
+];
+
+/// Regression for held-out Composite base 282 (every job at 0.75-0.85 on the cancel branch):
+/// the learned machine's initial state is the initial-state split's "before the first
+/// label", which no demonstration leaves on a cancel, so the guards read a cancel on step 1
+/// as the empty set and forget it ("cancel on step 1, then red" ends where "red" does). With
+/// `initial_events` it is read as the cancel on step 2 is; the demonstrations' paths and the
+/// cost are unchanged.
+#[test]
+fn initial_events_keep_a_cancel_on_the_first_step() {
+    let vocab = Vocabulary::new("rgbyc");
+    let traces = episode_traces(&vocab, &COMPOSITE_BASE282);
+    let learn = |initial_events| {
+        let cfg = LrmConfig {
+            initial_events,
+            ..smirl_standard_cfg(&vocab, 282, 28)
+        };
+        learn_rm(&vocab, &traces, &cfg).unwrap()
+    };
+    let (plain, read) = (learn(false), learn(true));
+    let red = |rm| state_after(rm, &vocab, 9, "r@6");
+    let cancel_first = |rm| state_after(rm, &vocab, 9, "c@1 r@6");
+    let cancel_second = |rm| state_after(rm, &vocab, 9, "c@2 r@6");
+    assert_eq!(cancel_first(&plain.rm), red(&plain.rm), "the hole");
+    assert_ne!(cancel_second(&plain.rm), red(&plain.rm));
+    assert_eq!(cancel_first(&read.rm), cancel_second(&read.rm));
+    assert_eq!(read.rm.n_states(), plain.rm.n_states());
+    assert_eq!(read.cost.to_bits(), plain.cost.to_bits());
+    for t in &traces {
+        let (mut a, mut b) = (plain.rm.initial(), read.rm.initial());
+        for &l in &t.labels {
+            (a, b) = (plain.rm.next_state(a, l), read.rm.next_state(b, l));
+            assert_eq!(a, b, "a demonstration's path changed");
+        }
+    }
+}

@@ -343,6 +343,37 @@ mod tests {
         assert_eq!(c[L_N + 1].map(|c| c.target), Some(3));
     }
 
+    /// Initial events, with label 2 read as the empty set ({c} without its event): the
+    /// split's initial state 0 leaves on it for 1, where the cancel leads to 2; a cancel on
+    /// the first step is read the same way.
+    const WITHOUT_EVENTS: [Option<usize>; L_N] = [None, Some(2), None];
+
+    #[test]
+    fn a_first_step_event_is_read_as_after_the_first_label() {
+        let mut c = cells(4, &[(0, 2, 1), (1, 1, 2), (1, 0, 3)]);
+        initial_events(4, L_N, &mut c, &EVENTS, &WITHOUT_EVENTS);
+        assert_eq!(c[1].map(|c| (c.target, c.weight)), Some((2, 0.0)));
+        // Only the initial state's event cells: state 1's and the touches' are untouched.
+        assert_eq!(c[0], None);
+        assert_eq!(c[L_N + 1], seen(2));
+        // An event the traces do show on the first step keeps its observed target.
+        let mut c = cells(4, &[(0, 2, 1), (0, 1, 3), (1, 1, 2)]);
+        initial_events(4, L_N, &mut c, &EVENTS, &WITHOUT_EVENTS);
+        assert_eq!(c[1], seen(3));
+    }
+
+    /// A state that re-enters the initial state makes it more than "before the first label":
+    /// nothing is filled. Neither is a cell whose path after the first label is undefined.
+    #[test]
+    fn a_re_entered_initial_state_or_an_undefined_path_is_left_alone() {
+        let mut c = cells(4, &[(0, 2, 1), (1, 1, 2), (2, 0, 0)]);
+        initial_events(4, L_N, &mut c, &EVENTS, &WITHOUT_EVENTS);
+        assert_eq!(c[1], None);
+        let mut c = cells(4, &[(0, 2, 1), (1, 0, 3)]);
+        initial_events(4, L_N, &mut c, &EVENTS, &WITHOUT_EVENTS);
+        assert_eq!(c[1], None);
+    }
+
     /// An event that stays where it was seen (0 -c-> 0) commutes to a stay in 1: what an
     /// undefined cell already does, so it is not defined (the guards stay free there).
     #[test]
