@@ -98,6 +98,16 @@ FINAL_TUNING = [
     ("sink after events, final policy, SAC seeds 0-5",
      "ablations/sink_after_events.toml, SAC seeds 0-5",
      "ablations/runs/sink_after_events-seeds0to5-{task}"),
+    # LRM's fallback starts (ablations/fallback_starts.toml, the standard since), rule fixed in
+    # commit 1a8d645 before the runs; Sequential only (no other task's base-0 machine changes).
+    ("fallback starts, final policy, SAC seeds 0-5",
+     "ablations/fallback_starts.toml, SAC seeds 0-5",
+     "ablations/runs/fallback_starts-seeds0to5-{task}"),
+    # Initial events (ablations/initial_events.toml), rule fixed in commit 06902f7 before the
+    # runs; Sequential only (no other task's base-0 machine changes).
+    ("initial events, final policy, SAC seeds 0-5",
+     "ablations/initial_events.toml, SAC seeds 0-5",
+     "ablations/runs/initial_events-seeds0to5-{task}"),
 ]
 HELDOUT = [
     ("base 3", "heldout/shaped-{task}"),
@@ -199,7 +209,16 @@ FINAL_HELDOUT = [
     # (stop 41) fresh bases no run had used, IF and Composite: every third from 75 to 105 but 93.
     (f"base {b}, replay 200 000, final policy", f"heldout/replay-all-seeds{b}-{{task}}")
     for b in (3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 33, 36, 39, 42, 45, 54, 69, 72, 75, 78, 81,
-              84, 87, 90, 93, 96, 99, 102, 105)] + [
+              84, 87, 90, 93, 96, 99, 102, 105, 153, 219, 246, 282, 372, 546, 549)] + [
+    # LRM's fallback starts (ablations/fallback_starts.toml, the standard since): the previous
+    # standard's held-out bases whose machine it changes, then fresh bases where it changes it
+    # (lrm_fallback.md, lrm_fallback_303to600.md), the replay-all jobs beside them.
+    (f"base {b}, fallback starts, final policy", f"heldout/fallback-starts-seeds{b}-{{task}}")
+    for b in (6, 39, 78, 84, 96, 99, 105, 153, 219, 246, 282, 372, 546, 549)] + [
+    # Initial events (ablations/initial_events.toml): IF 81 and Composite 282, the machines with
+    # first-step cancel holes, then the held-out Composite bases whose machine it changes.
+    (f"base {b}, initial events, final policy", f"heldout/initial-events-seeds{b}-{{task}}")
+    for b in (15, 39, 81, 102, 282)] + [
     # The sink of unseen touches (ablations/unseen_touch_sink.toml): IF 42 only (stopped once
     # its tuning rule had failed); entered only after the cancel (ablations/sink_after_events.toml):
     # the standard's misses whose machines it changes, then fresh bases where it changes them
