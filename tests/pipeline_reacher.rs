@@ -945,10 +945,14 @@ fn lrm_search_settings_are_checked() {
     let text = standard.to_toml();
     assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
     assert!(!text.contains("lrm_remember_events") && !text.contains("lrm_borrow_events"));
-    assert!(!text.contains("lrm_initial_events") && !standard.lrm_initial_events);
+    // Initial events are on in the standard; a config without the key reads false.
+    assert!(standard.lrm_initial_events && text.contains("lrm_initial_events = true\n"));
+    let without_initial = text.replace("lrm_initial_events = true\n", "");
+    let old = IrlRunConfig::from_toml(&without_initial, "old.toml").unwrap();
+    assert!(!old.lrm_initial_events && !old.to_toml().contains("lrm_initial_events"));
     // Fallback starts are on in the standard; a config without the key reads 0.
     assert!(standard.lrm_fallback_starts == 28 && text.contains("lrm_fallback_starts = 28\n"));
-    let without_fallback = text.replace("lrm_fallback_starts = 28\n", "");
+    let without_fallback = without_initial.replace("lrm_fallback_starts = 28\n", "");
     let old = IrlRunConfig::from_toml(&without_fallback, "old.toml").unwrap();
     assert!(old.lrm_fallback_starts == 0 && !old.to_toml().contains("lrm_fallback_starts"));
     let text = without_fallback;
@@ -1088,7 +1092,8 @@ fn without_schedules() -> IrlRunConfig {
 
 /// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
 /// issue 13 (20 IRL iterations, no shaping, no event stutter, LRM predicting the cancel, no
-/// commuted events, no fallback starts, a replay buffer of 100 000), as the runs made with it.
+/// commuted events, no fallback starts or initial events, a replay buffer of 100 000), as the
+/// runs made with it.
 fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
         sac: smirl::rl::sac::SacConfig {
@@ -1103,6 +1108,7 @@ fn unshaped() -> IrlRunConfig {
         lrm_predict_events: true,
         lrm_commute_events: false,
         lrm_fallback_starts: 0,
+        lrm_initial_events: false,
         smirl_normalisation: SmirlNormalisation::Visits,
         ..IrlRunConfig::standard()
     }
@@ -1170,6 +1176,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             lrm_predict_events: false,
             lrm_commute_events: true,
             lrm_fallback_starts: standard.lrm_fallback_starts,
+            lrm_initial_events: standard.lrm_initial_events,
             ..unshaped_file.for_algo(algo).unwrap()
         };
         assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");

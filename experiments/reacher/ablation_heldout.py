@@ -10,7 +10,8 @@ standard output.
 
 Settings, by their config's name in ablations/: unseen_touch_sink and sink_after_events (the
 sink of unseen touches, runs unseen-sink-* and sink-after-events-*), fallback_starts (LRM's
-fallback starts, runs fallback-starts-*).
+fallback starts, runs fallback-starts-*), initial_events (with them, initial events, runs
+initial-events-*).
 
 Usage: python3 experiments/reacher/ablation_heldout.py NAME..."""
 import os
@@ -27,7 +28,8 @@ TASKS = ["or", "sequential", "if", "composite"]
 STANDARD = ("replay-all standard", "replay-all", "replay_all")
 KNOWN = {"unseen_touch_sink": ("sink everywhere", "unseen-sink", "unseen_touch_sink"),
          "sink_after_events": ("sink after events", "sink-after-events", "sink_after_events"),
-         "fallback_starts": ("fallback starts", "fallback-starts", "fallback_starts")}
+         "fallback_starts": ("fallback starts", "fallback-starts", "fallback_starts"),
+         "initial_events": ("initial events", "initial-events", "initial_events")}
 
 
 def jobs_cell(run_dir, task, totals, key):

@@ -1,29 +1,31 @@
 #!/usr/bin/env python3
 """SMIRL's held-out check under the current standard (issue 13), in one table: per task and
 held-out base seed B, the reported policy of each SAC seed B, B+1, B+2, from whichever run is
-the standard's job there. With --previous, the same for the previous standard (no fallback
-starts in LRM's search, ablations/replay_all.toml); with --commuted, for the one before it
-(commuted events with a 100 000-transition replay buffer, ablations/commute_events.toml).
+the standard's job there. With --previous, the same for the previous standard (fallback starts
+without initial events, ablations/fallback_starts.toml); with --replay-all, for the one before
+it (ablations/replay_all.toml); with --commuted, for the one before that (commuted events with
+a 100 000-transition replay buffer, ablations/commute_events.toml).
 
-Usage: python3 experiments/reacher/standard_heldout.py [--previous | --commuted] [REACHER_BIN]
+Usage: python3 experiments/reacher/standard_heldout.py [--previous | --replay-all | --commuted] [REACHER_BIN]
   (REACHER_BIN defaults to target/release/reacher; it only runs `reacher prepare`, well under a
   second per machine. make_results.sh puts the tables in results.md.)
 
 Which run is a standard's job at base B:
-  1. Its own runs: heldout/fallback-starts-seedsB-<task> (ablations/fallback_starts.toml:
+  1. Its own runs: heldout/initial-events-seedsB-<task> (ablations/initial_events.toml:
      config.toml key for key, the comments aside) for the current standard;
-     heldout/replay-all-seedsB-<task> (ablations/replay_all.toml) for the previous one;
-     heldout/commute-seedsB-<task> (ablations/commute_events.toml) for the one before.
+     heldout/fallback-starts-seedsB-<task> (ablations/fallback_starts.toml) for the previous
+     one; heldout/replay-all-seedsB-<task> (ablations/replay_all.toml) for the replay-all one;
+     heldout/commute-seedsB-<task> (ablations/commute_events.toml) for the commuted-events one.
   2. Else a run of an earlier setting whose config differs from the standard's only in LRM
      keys, when `reacher prepare` learns, at B, the same machine under that config as under
      the standard's. LRM runs in `prepare` alone and a job reads the machine from
      rm/learned.txt, so such a job is that standard's, seed for seed. For the current
-     standard: heldout/replay-all-seedsB-<task> (no fallback starts; the same binary's code
-     for everything after `prepare`). For the commuted-events standard:
-     heldout/unpredicted-seedsB-<task> (ablations/unpredicted_events.toml: no commuted
-     events), then heldout/event-gated-seedsB-<task> (ablations/event_gated_visits.toml: also
-     predicting the cancel) — from their commit, d6fce19, to commuted events `git log -- src`
-     touches LRM, config keys and the commands' refusal of unfinished runs only. The
+     standard: fallback-starts, then replay-all runs; for the previous one: replay-all runs
+     (the same binary's code for everything after `prepare`). For the commuted-events
+     standard: heldout/unpredicted-seedsB-<task> (ablations/unpredicted_events.toml: no
+     commuted events), then heldout/event-gated-seedsB-<task> (ablations/event_gated_visits.toml:
+     also predicting the cancel) — from their commit, d6fce19, to commuted events `git log --
+     src` touches LRM, config keys and the commands' refusal of unfinished runs only. The
      replay-all standard's SAC keeps a larger buffer than any setting before it, so only its
      own runs are its jobs.
   A base where no run qualifies is left out of the table and listed below it, with the runs
@@ -46,8 +48,11 @@ HELDOUT = os.path.join(HERE, "heldout")
 # Per standard: its config and (run name prefix, config) of its own runs first (config None),
 # then of earlier settings that differ from it only in how LRM learns the machine.
 CURRENT = ("config.toml",
-           [("fallback-starts", None), ("replay-all", "ablations/replay_all.toml")])
-PREVIOUS = ("ablations/replay_all.toml", [("replay-all", None)])
+           [("initial-events", None), ("fallback-starts", "ablations/fallback_starts.toml"),
+            ("replay-all", "ablations/replay_all.toml")])
+PREVIOUS = ("ablations/fallback_starts.toml",
+            [("fallback-starts", None), ("replay-all", "ablations/replay_all.toml")])
+REPLAY_ALL = ("ablations/replay_all.toml", [("replay-all", None)])
 COMMUTED = ("ablations/commute_events.toml",
             [("commute", None),
              ("unpredicted", "ablations/unpredicted_events.toml"),
@@ -134,8 +139,9 @@ def table(binary, standard):
 
 def main(argv):
     standard = CURRENT
-    if argv and argv[0] in ("--previous", "--commuted"):
-        standard, argv = {"--previous": PREVIOUS, "--commuted": COMMUTED}[argv[0]], argv[1:]
+    named = {"--previous": PREVIOUS, "--replay-all": REPLAY_ALL, "--commuted": COMMUTED}
+    if argv and argv[0] in named:
+        standard, argv = named[argv[0]], argv[1:]
     if argv and argv[0].startswith("-"):
         sys.exit(__doc__)
     binary = argv[0] if argv else os.path.join(HERE, "..", "..", "target", "release", "reacher")

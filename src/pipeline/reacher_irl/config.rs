@@ -576,7 +576,10 @@ impl IrlRunConfig {
             // the other tasks' base-0 machines unchanged; README, "A search stuck above the
             // perfect machine's cost").
             lrm_fallback_starts: 28,
-            lrm_initial_events: false,
+            // A cancel on step 1 is read where one on step 2 goes when no demonstration shows
+            // it in the split's initial state (Sequential's tuning jobs 6 of 6, the other
+            // tasks' base-0 machines unchanged; README, "A cancel on the first step").
+            lrm_initial_events: true,
             lrm_remember_events: false,
             lrm_borrow_events: false,
             // A cancel never seen in a learned state is read as if it came before the touch
