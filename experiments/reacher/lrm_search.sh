@@ -26,14 +26,14 @@ TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 STANDARD=${STANDARD:-experiments/reacher/config.toml}
 STRONG=$TMP/strong.toml
-STRONG_STEPS=${STRONG_STEPS:-1000}
-STRONG_STARTS=${STRONG_STARTS:-32}
-STRONG_PATIENCE=${STRONG_PATIENCE:-50}
-[ -n "${STRONG_CONFIG:-}" ] || grep -q '^lrm_steps = 100$' "$STANDARD"
 if [ -n "${STRONG_CONFIG:-}" ]; then
   cp "$STRONG_CONFIG" "$STRONG"
   strong_name="\`$STRONG_CONFIG\`"
 else
+  STRONG_STEPS=${STRONG_STEPS:-1000}
+  STRONG_STARTS=${STRONG_STARTS:-32}
+  STRONG_PATIENCE=${STRONG_PATIENCE:-50}
+  grep -q '^lrm_steps = 100$' "$STANDARD"
   sed "s/^lrm_steps = 100\$/lrm_steps = $STRONG_STEPS\nlrm_starts = $STRONG_STARTS\nlrm_patience = $STRONG_PATIENCE/" "$STANDARD" > "$STRONG"
   strong_name="a stronger search ($STRONG_STEPS steps, $STRONG_STARTS starts, patience $STRONG_PATIENCE)"
 fi

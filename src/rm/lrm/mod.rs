@@ -479,7 +479,12 @@ pub fn learn_rm(
         let without_events: Vec<Option<usize>> = data
             .labels
             .iter()
-            .map(|l| data.labels.iter().position(|m| m.0 == l.0 & !cfg.events.0))
+            .map(
+                |l| match data.id_of[LabelSet(l.0 & !cfg.events.0).index()] {
+                    u16::MAX => None,
+                    id => Some(usize::from(id)),
+                },
+            )
             .collect();
         merge::initial_events(n, l_n, &mut defined, &event_ids, &without_events);
     }
