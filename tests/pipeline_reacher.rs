@@ -657,6 +657,59 @@ fn unseen_touch_sink_is_a_state_no_demonstration_enters() {
     );
 }
 
+/// `smirl_selection_cut`: read as false from configs without the key (and not written when
+/// false), refused without a final-policy phase; a run with it says in its report which balls
+/// the demonstrations touch after the cancel per learned state, and every final-policy
+/// candidate of its SMIRL job carries a cut return, the one the choice reads.
+#[test]
+fn selection_cut_scores_every_candidate_and_chooses_by_it() {
+    use smirl::pipeline::reacher_irl::final_policy::choose;
+    use smirl::pipeline::reacher_irl::records::JobRecord;
+    let text = IrlRunConfig::standard().to_toml();
+    assert!(!text.contains("smirl_selection_cut"));
+    let on = format!("smirl_selection_cut = true\n{text}");
+    let c = IrlRunConfig::from_toml(&on, "c.toml").unwrap();
+    assert!(c.smirl_selection_cut);
+    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
+    let mut no_phase = c.clone();
+    no_phase.smirl_final_sac_steps = 0;
+    no_phase.smirl_final_checkpoints = 0;
+    assert_config_error_names(&no_phase.to_toml(), "smirl_selection_cut");
+
+    let tmp = tempfile::tempdir().unwrap();
+    let mut config = tiny_config();
+    config.smirl_selection_cut = true;
+    let request = RunRequest {
+        task: ReacherTask::If,
+        algos: vec![Algo::Smirl],
+        seeds: 1,
+        seed: 3,
+        config,
+        out: tmp.path().join("run"),
+        force: false,
+    };
+    run_pipeline(&request, &Silent).unwrap();
+    let dir = tmp.path().join("run");
+    let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
+    assert!(
+        report.contains("smirl_selection_cut: balls the demonstrations touch after the cancel"),
+        "{report}"
+    );
+    let table = std::fs::read_to_string(dir.join("final_policy.csv")).unwrap();
+    let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
+    let column = header.iter().position(|&c| c == "cut_return").unwrap();
+    for row in table.lines().skip(1) {
+        let cell = row.split(',').nth(column).unwrap();
+        assert!(cell.parse::<f64>().unwrap().is_finite(), "{row}");
+    }
+    let record: JobRecord =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("jobs/smirl_seed3.json")).unwrap())
+            .unwrap();
+    let f = record.final_policy.unwrap();
+    assert!(f.candidates.iter().all(|c| c.cut_return.is_some()));
+    assert_eq!(f.chosen, choose(&f.candidates));
+}
+
 /// Keys missing from `[sac]` come from the IRL runs' SAC, not from the paper's preset; a
 /// `preset` key switches the base.
 #[test]
@@ -1059,7 +1112,8 @@ fn smirl_normalisation_values_round_trip() {
     );
 }
 
-/// The reported candidate is the first of highest learned return, whatever its ground truth.
+/// The reported candidate is the first of highest learned return, whatever its ground truth;
+/// with the selection cut, of highest cut return.
 #[test]
 fn final_policy_is_the_first_candidate_of_highest_learned_return() {
     use smirl::pipeline::reacher_irl::final_policy::{choose, FinalAgent, FinalCandidate};
@@ -1067,6 +1121,7 @@ fn final_policy_is_the_first_candidate_of_highest_learned_return() {
         agent: FinalAgent::CoTrained,
         env_steps: 0,
         learned_return,
+        cut_return: None,
         success_rate,
         branches: None,
         progress: 0.0,
@@ -1081,6 +1136,14 @@ fn final_policy_is_the_first_candidate_of_highest_learned_return() {
     assert_eq!(choose(&c), 1);
     assert_eq!(choose(&c[..1]), 0);
     assert_eq!(choose(&c[2..]), 0);
+    // IF 42 seed 44's pattern: the candidate of highest learned return touches blue after the
+    // cancel, its cut return falls below one that does not.
+    let cut = |learned: f64, cut: f64| FinalCandidate {
+        cut_return: Some(cut),
+        ..candidate(learned, 0.0)
+    };
+    assert_eq!(choose(&[cut(380.0, 300.0), cut(355.0, 355.0)]), 1);
+    assert_eq!(choose(&[cut(380.0, 380.0), cut(355.0, 355.0)]), 0);
 }
 
 /// The standard profile without its per-algorithm schedules: what SMIRL runs with.

@@ -15,6 +15,8 @@
 //! - [`discriminator`]: a logistic classifier of expert vs agent states whose logit estimates
 //!   log(ρ_E/ρ_θ), f-IRL's density ratio for an expert given by demonstrations.
 //! - [`firl`]: f-IRL (fkl, rkl, js) and continuous MaxEnt IRL as per-state loss coefficients.
+//! - [`seen_after_events`]: what demonstrations do in each learned state once the cancel has
+//!   come (SMIRL's final-policy choice with `smirl_selection_cut`).
 //! - [`smirl`]: SMIRL's linear reward δ_r(u, o) = w_uᵀ φ(o) on U × O and its MaxEnt gradient.
 //! - [`reward`]: the [`reward::RewardModel`] trait SAC reads rewards from, and the (64, 64)
 //!   MLP reward clamped to ±10 of the baselines.
@@ -44,6 +46,7 @@ pub mod gaussian_kde;
 pub mod kde;
 pub mod knn_divergence;
 pub mod reward;
+pub mod seen_after_events;
 pub mod smirl;
 pub mod tabular;
 

@@ -19,10 +19,18 @@
 //! fresh agent has its own networks, replay buffer and seed, the co-trained agent's SAC
 //! settings, environment and reward; its checkpoints are scored like the others, so the
 //! choice still reads the learned reward alone.
+//!
+//! The cut (`smirl_selection_cut`): a learned machine without a failure state lets a policy
+//! that touches blue after the cancel earn about what one that avoids it earns, so the choice
+//! can fall on it (README, "Why the final phase can prefer a policy that fails the cancel
+//! branch"). With the cut, each selection episode counts its learned reward only up to its
+//! first ball touch, after the cancel, that no demonstration makes after a cancel in the same
+//! learned state ([`SeenAfterEvents`]) — still no ground truth, and nothing in training changes.
 
 use super::episodes::{play_episode, train_sac, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::evaluation::{Evaluation, JobWatch};
 use crate::env::reacher_task::BranchTally;
+use crate::irl::seen_after_events::SeenAfterEvents;
 use crate::irl::smirl::FeatureMap;
 use crate::log::RolloutLogger;
 use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
@@ -65,6 +73,11 @@ pub struct FinalCandidate {
     /// Mean learned return (the final reward, unshaped) of the mean action over the selection
     /// episodes, each played to the time limit: what the choice reads.
     pub learned_return: f64,
+    /// With `smirl_selection_cut`, the same mean with each episode's learned reward counted
+    /// only up to its first touch after the cancel that no demonstration makes there: what
+    /// the choice reads instead.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cut_return: Option<f64>,
     /// On the ground truth, as the iterations are judged (for a conditional task the lower
     /// branch rate).
     pub success_rate: f64,
@@ -78,8 +91,15 @@ pub struct FinalCandidate {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FinalPolicy {
     pub candidates: Vec<FinalCandidate>,
-    /// Index into `candidates`: the first of highest learned return.
+    /// Index into `candidates`: the first of highest selection return.
     pub chosen: usize,
+}
+
+impl FinalCandidate {
+    /// The number the choice reads: the cut return when there is one, else the learned return.
+    pub fn selection_return(&self) -> f64 {
+        self.cut_return.unwrap_or(self.learned_return)
+    }
 }
 
 impl FinalPolicy {
@@ -89,9 +109,9 @@ impl FinalPolicy {
     }
 }
 
-/// The length of the phase.
+/// The length of the phase and what its choice reads.
 #[derive(Clone, Copy, Debug)]
-pub struct FinalPhase {
+pub struct FinalPhase<'a> {
     /// SAC environment steps on the fixed final reward.
     pub steps: u64,
     /// Candidates taken along them (evenly spaced, the last at the end), besides the co-trained
@@ -103,6 +123,9 @@ pub struct FinalPhase {
     /// SAC environment steps of the fresh agent (0: none), with `checkpoints` candidates
     /// along them.
     pub fresh_steps: u64,
+    /// With `smirl_selection_cut`: what the demonstrations touch after the cancel, per learned
+    /// state, where selection episodes stop counting.
+    pub selection_cut: Option<&'a SeenAfterEvents>,
 }
 
 /// The stream of the fresh agent's SAC seed within the job's seed.
@@ -116,7 +139,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     sac: &mut SacTrainer,
     env: &mut E,
     reward: &mut R,
-    phase: FinalPhase,
+    phase: FinalPhase<'_>,
     iterations: usize,
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<FinalPolicy, String> {
@@ -125,7 +148,11 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         .map(|i| episode_seed(selection_stream, i))
         .collect();
     let task = GroundTruthTask::of(watch.perfect());
-    let seeds = &selection_seeds;
+    let selection = Selection {
+        seeds: &selection_seeds,
+        cut: phase.selection_cut,
+    };
+    let seeds = &selection;
     let (obs_dim, act_dim) = (env.obs_dim(), env.act_dim());
     let sac_config = sac.config().clone();
     let co_trained = FinalAgent::CoTrained;
@@ -168,22 +195,17 @@ fn candidate<E: JobEnv, R: ScoredReward>(
     env: &mut E,
     reward: &mut R,
     task: &GroundTruthTask<'_>,
-    selection_seeds: &[u64],
+    selection: &Selection<'_>,
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<FinalCandidate, String> {
-    let learned_return = learned_return(
-        &mut sac.agent,
-        env,
-        reward,
-        task,
-        selection_seeds,
-        watch.logger(),
-    )?;
+    let (learned_return, cut_return) =
+        selection_returns(&mut sac.agent, env, reward, task, selection, watch.logger())?;
     let ev: Evaluation = watch.judge_final(&mut sac.agent, env)?;
     Ok(FinalCandidate {
         agent,
         env_steps: sac.env_steps(),
         learned_return,
+        cut_return,
         success_rate: ev.success_rate,
         branches: ev.branches,
         progress: ev.progress,
@@ -191,15 +213,21 @@ fn candidate<E: JobEnv, R: ScoredReward>(
     })
 }
 
-/// The first candidate of highest learned return.
+/// The first candidate of highest selection return.
 pub fn choose(candidates: &[FinalCandidate]) -> usize {
     let mut best = 0;
     for (i, c) in candidates.iter().enumerate() {
-        if c.learned_return > candidates[best].learned_return {
+        if c.selection_return() > candidates[best].selection_return() {
             best = i;
         }
     }
     best
+}
+
+/// The episodes every candidate is scored on, and where they stop counting.
+struct Selection<'a> {
+    seeds: &'a [u64],
+    cut: Option<&'a SeenAfterEvents>,
 }
 
 /// The mean learned return of `agent`'s mean action over the episodes of `reset_seeds`, every
@@ -210,12 +238,31 @@ pub(super) fn learned_return<E: JobEnv, R: ScoredReward>(
     reward: &mut R,
     task: &GroundTruthTask<'_>,
     reset_seeds: &[u64],
-    mut logger: Option<&mut RolloutLogger>,
+    logger: Option<&mut RolloutLogger>,
 ) -> Result<f64, String> {
+    let selection = Selection {
+        seeds: reset_seeds,
+        cut: None,
+    };
+    selection_returns(agent, env, reward, task, &selection, logger).map(|(r, _)| r)
+}
+
+/// The mean learned return of `agent`'s mean action over the selection episodes, and with a
+/// cut the mean of the same returns counted only up to each episode's first unseen touch.
+fn selection_returns<E: JobEnv, R: ScoredReward>(
+    agent: &mut SacAgent,
+    env: &mut E,
+    reward: &mut R,
+    task: &GroundTruthTask<'_>,
+    selection: &Selection<'_>,
+    mut logger: Option<&mut RolloutLogger>,
+) -> Result<(f64, Option<f64>), String> {
     let mut rng = ChaCha8Rng::seed_from_u64(0);
     let labelling = FeatureMap::reacher_labels();
     let mut steps = AgentBatch::default();
-    for &reset_seed in reset_seeds {
+    // The labels of each step's next observation, as the demonstrations' are read for the cut.
+    let mut labels = Vec::new();
+    for &reset_seed in selection.seeds {
         let spec = EpisodeSpec {
             mode: ActMode::Mean,
             reset_seed,
@@ -223,6 +270,7 @@ pub(super) fn learned_return<E: JobEnv, R: ScoredReward>(
             with_branch: false,
             phase: "select",
         };
+        let start = labels.len();
         play_episode(
             agent,
             env,
@@ -232,10 +280,34 @@ pub(super) fn learned_return<E: JobEnv, R: ScoredReward>(
             logger.as_deref_mut(),
             |o, next, u| {
                 steps.push_step(&labelling, o, next, u);
+                labels.push(labelling.labels_of(next));
             },
         )?;
+        steps.lengths.push(labels.len() - start);
     }
     let r = reward.score(&steps)?;
-    let episodes = reset_seeds.len().max(1) as f64;
-    Ok(r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes)
+    let episodes = selection.seeds.len().max(1) as f64;
+    let full = r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes;
+    if selection.cut.is_some() && steps.states.len() != labels.len() {
+        return Err(
+            "the selection cut reads learned-machine states, and this agent has none".into(),
+        );
+    }
+    let cut = selection.cut.map(|seen| {
+        let mut start = 0;
+        let mut sum = 0.0;
+        for &len in &steps.lengths {
+            let end = start + len;
+            let counted = seen
+                .first_unseen(&steps.states[start..end], &labels[start..end])
+                .unwrap_or(len);
+            sum += r[start..start + counted]
+                .iter()
+                .map(|&x| f64::from(x))
+                .sum::<f64>();
+            start = end;
+        }
+        sum / episodes
+    });
+    Ok((full, cut))
 }

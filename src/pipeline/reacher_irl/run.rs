@@ -26,7 +26,8 @@ use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{
-    annotate, label_traces, learn_machine, lrm_config, task_machine, with_unseen_touch_sink,
+    annotate, label_traces, learn_machine, lrm_config, seen_after_events, task_machine,
+    with_unseen_touch_sink,
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;
@@ -308,6 +309,20 @@ pub fn prepare(
             let _ = writeln!(
                 report,
                 "learned state {u} seen with perfect states {seen:?}"
+            );
+        }
+        if config.smirl_selection_cut {
+            let seen = seen_after_events(&rm, &annotate(&demos, Some(&rm), hold_to));
+            let per_state: Vec<String> = (0..rm.n_states())
+                .map(|u| match seen.in_state(u) {
+                    l if l.is_empty() => format!("{u}: -"),
+                    l => format!("{u}: {}", rm.vocab().format_labels(l)),
+                })
+                .collect();
+            let _ = writeln!(
+                report,
+                "smirl_selection_cut: balls the demonstrations touch after the cancel, per learned state: {}",
+                per_state.join(", ")
             );
         }
         write_file(&dir.join("rm/learned.txt"), &write_rm(&rm))?;

@@ -34,6 +34,7 @@ use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherDelivery, BALLS, EVENTS, OBS_CANCEL, OBS_DIM, VOCABULARY};
 use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
+use crate::irl::seen_after_events::SeenAfterEvents;
 use crate::irl::smirl::{
     maxent_coefficients, maxent_coefficients_by_shared_visits, maxent_coefficients_by_visits,
     AnnotatedTrajectories, FeatureMap, LabelFeatures, LearnedSubgoalPotential, LinearRmReward,
@@ -46,6 +47,9 @@ use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
 use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig, DEFAULT_PATIENCE, DEFAULT_STARTS};
 use crate::rm::transform::sink_unseen;
 use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
+
+/// The agent's own touches: bit k of a label set is ball k (`env::reacher::BALLS`).
+const TOUCHES: LabelSet = LabelSet((1 << BALLS.len()) - 1);
 
 /// Observation columns of the two joint velocities (see `env::reacher`).
 const OBS_JOINT_VEL: [usize; 2] = [4, 5];
@@ -216,14 +220,12 @@ pub fn with_unseen_touch_sink(
     hold_to: Option<usize>,
     after_events_only: bool,
 ) -> (RewardMachine, Option<usize>) {
-    // The agent's own touches: bit k of a label set is ball k (`env::reacher::BALLS`).
-    let touches = LabelSet((1 << BALLS.len()) - 1);
     let from: Vec<bool> = if after_events_only {
         rm.reachable_without(EVENTS).iter().map(|&r| !r).collect()
     } else {
         vec![true; rm.n_states()]
     };
-    sink_unseen(rm, &annotated_label_traces(demos, hold_to), touches, &from)
+    sink_unseen(rm, &annotated_label_traces(demos, hold_to), TOUCHES, &from)
 }
 
 /// Which features δ_r reads.
@@ -407,6 +409,26 @@ pub(super) fn shaping_potential(
         .map_err(|e| e.to_string())
 }
 
+/// Step 4's cut (`smirl_selection_cut`): the ball touches the demonstrations make after the
+/// cancel in each state of `machine`, read from their steps as [`annotate`] gives them in it
+/// (held steps included), as a candidate's selection episodes are read.
+pub fn seen_after_events(machine: &RewardMachine, expert: &ExpertData) -> SeenAfterEvents {
+    let labelling = FeatureMap::reacher_labels();
+    let labels: Vec<LabelSet> = expert
+        .obs
+        .chunks_exact(OBS_DIM)
+        .map(|o| labelling.labels_of(o))
+        .collect();
+    SeenAfterEvents::new(
+        machine.n_states(),
+        &expert.learned_states,
+        &labels,
+        &expert.lengths,
+        EVENTS,
+        TOUCHES,
+    )
+}
+
 /// One SMIRL job.
 pub struct SmirlJob<'a> {
     pub features: Features,
@@ -515,11 +537,15 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
             counterfactual.as_ref(),
             potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
         );
+        let selection_cut = s
+            .smirl_selection_cut
+            .then(|| seen_after_events(job.machine, job.expert));
         let phase = FinalPhase {
             steps: s.smirl_final_sac_steps,
             checkpoints: s.smirl_final_checkpoints,
             seed: job.seed,
             fresh_steps: s.smirl_final_fresh_steps,
+            selection_cut: selection_cut.as_ref(),
         };
         let iterations = s.irl_iterations;
         Some(final_policy::train(

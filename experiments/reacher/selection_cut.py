@@ -1,0 +1,180 @@
+#!/usr/bin/env python3
+"""The selection cut (issue 13; ablations/selection_cut.toml, `smirl_selection_cut = true`):
+which jobs it can change, running them, and what it changed.
+
+The cut changes only the number the final phase's choice reads; the IRL loop, the final
+phase's SAC steps and every candidate's ground-truth evaluation are the standard's. So a job
+whose candidates all reach 0.9 (on each branch) is solved under any choice, one whose
+candidates all miss is missed under any, and only the standard's jobs with candidates on both
+sides of 0.9 are run — tuning (base 0, SAC seeds 0-5) and held
+out, the current standard's jobs as standard_heldout.py finds them.
+
+Usage: python3 experiments/reacher/selection_cut.py [--list | --run] [REACHER_BIN]
+  --list  the jobs that can change, one per line: scope (tuning/heldout), task, base, SAC seed,
+          the standard's run
+  --run   run them (skipping those already done): per (task, base) `reacher prepare` with
+          the ablation's config into ablations/runs/selection_cut-seeds0to5-<task> (tuning) or
+          heldout/selection-cut-seeds<B>-<task>, `reacher job` two at a time, then
+          `reacher aggregate --partial`; tuning first, then the held-out jobs
+  (none)  the table for results.md: per job the standard's reported policy and the cut's, a
+          check that every candidate is the standard's (all columns but cut_return and chosen
+          equal), and the totals over every job of the standard
+REACHER_BIN defaults to target/release/reacher (used for `prepare`, and by --run).
+"""
+import os
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import rundata  # noqa: E402
+import standard_heldout  # noqa: E402
+
+HERE = standard_heldout.HERE
+CONFIG = os.path.join(HERE, "ablations", "selection_cut.toml")
+ABLATION_RUNS = os.path.join(HERE, "ablations", "runs")
+# The standard's tuning jobs: base 0's machines of OR, IF and Composite are the replay-all
+# standard's (fallback starts and initial events change none of them); Sequential's changed.
+TUNING = {"or": "replay_all-seeds0to5-or", "sequential": "initial_events-seeds0to5-sequential",
+          "if": "replay_all-seeds0to5-if", "composite": "replay_all-seeds0to5-composite"}
+SOLVED = standard_heldout.SOLVED
+# Columns that must match the standard's candidate for the rerun to be the standard's job.
+SAME = ["candidate", "env_steps", "learned_return", "success_rate", "success_normal",
+        "success_cancel", "progress", "final_ball"]
+
+
+def standard_jobs(binary):
+    """[(scope, task, base, seed, standard run dir, its candidate rows)] of every job of the
+    current standard (tuning and held out)."""
+    jobs = []
+    for task, name in TUNING.items():
+        run = os.path.join(ABLATION_RUNS, name)
+        for (algo, seed), cands in sorted(rundata.final_policy(run).items()):
+            if algo == "smirl":
+                jobs.append(("tuning", task, 0, seed, run, cands))
+    found = standard_heldout.held_out_runs(standard_heldout.CURRENT[1])
+    with tempfile.TemporaryDirectory() as tmp:
+        for task in standard_heldout.TASKS:
+            for base in sorted(b for t, b in found if t == task):
+                name, _ = standard_heldout.standard_run(binary, tmp, standard_heldout.CURRENT,
+                                                        task, base, found[(task, base)])
+                if name is None:
+                    continue
+                run = os.path.join(standard_heldout.HELDOUT, name)
+                for (algo, seed), cands in sorted(rundata.final_policy(run).items()):
+                    if algo == "smirl":
+                        jobs.append(("heldout", task, base, seed, run, cands))
+    return jobs
+
+
+def can_change(cands):
+    """Whether the choice decides the job: candidates on both sides of 0.9."""
+    rates = [float(c["success_rate"]) for c in cands]
+    return min(rates) < SOLVED <= max(rates)
+
+
+def cut_run(scope, task, base):
+    if scope == "tuning":
+        return os.path.join(ABLATION_RUNS, f"selection_cut-seeds0to5-{task}")
+    return os.path.join(standard_heldout.HELDOUT, f"selection-cut-seeds{base}-{task}")
+
+
+def cut_candidates(scope, task, base, seed):
+    """The cut run's candidate rows of one job, or None when it has not run."""
+    try:
+        return rundata.final_policy(cut_run(scope, task, base)).get(("smirl", seed))
+    except FileNotFoundError:
+        return None
+
+
+def run_all(binary, jobs):
+    todo = [(s, t, b, seed) for s, t, b, seed, _, cands in jobs
+            if can_change(cands) and cut_candidates(s, t, b, seed) is None]
+    runs = {}
+    for s, t, b, seed in todo:
+        runs.setdefault((s, t, b), []).append(seed)
+    for (s, t, b) in runs:
+        out = cut_run(s, t, b)
+        if not os.path.isdir(out):
+            seeds = "6" if s == "tuning" else "3"
+            subprocess.run([binary, "prepare", "--task", t, "--algo", "smirl", "--seed", str(b),
+                            "--seeds", seeds, "--config", CONFIG, "--out", out, "--quiet"],
+                           check=True, stdout=subprocess.DEVNULL)
+
+    def job(item):
+        s, t, b, seed = item
+        with open(cut_run(s, t, b) + f".seed{seed}.log", "w") as log:
+            subprocess.run([binary, "job", "--run", cut_run(s, t, b), "--algo", "smirl",
+                            "--seed", str(seed), "--quiet"], check=True, stdout=log)
+        print(f"done: {s} {t} {b} seed {seed}", flush=True)
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        list(pool.map(job, todo))
+    for (s, t, b) in runs:
+        subprocess.run([binary, "aggregate", cut_run(s, t, b), "--partial"], check=True,
+                       stdout=subprocess.DEVNULL)
+
+
+def rate(c, task):
+    text = f"{float(c['success_rate']):.2f}"
+    if task in ("if", "composite"):
+        text += f" ({float(c['success_normal']):.2f}/{float(c['success_cancel']):.2f})"
+    return text
+
+
+def table(jobs):
+    lines = ["| scope | task | base | SAC seed | standard's reported policy | with the cut | candidates the standard's |",
+             "|---|---|---|---|---|---|---|"]
+    totals = {}
+    for scope, task, base, seed, _, cands in jobs:
+        key = (scope, task)
+        std_ok = float(rundata.chosen(cands)["success_rate"]) >= SOLVED
+        cut_ok = std_ok
+        if can_change(cands):
+            cut = cut_candidates(scope, task, base, seed)
+            if cut is None:
+                lines.append(f"| {scope} | {task} | {base} | {seed} | {rate(rundata.chosen(cands), task)} | not run | |")
+                totals.setdefault(key, [0, 0, 0, 0])[3] += 1
+                continue
+            same = len(cut) == len(cands) and all(
+                a[k] == b[k] for a, b in zip(cut, cands) for k in SAME)
+            cut_ok = float(rundata.chosen(cut)["success_rate"]) >= SOLVED
+            mark = lambda rows: f"{rate(rundata.chosen(rows), task)} (candidate {rundata.chosen(rows)['candidate']})"
+            lines.append(f"| {scope} | {task} | {base} | {seed} | {mark(cands)} | {mark(cut)} | "
+                         f"{'yes' if same else '**no**'} |")
+        t = totals.setdefault(key, [0, 0, 0, 0])
+        t[0] += std_ok
+        t[1] += cut_ok
+        t[2] += 1
+    out = "\n".join(lines) + "\n\nJobs solved (both branches ≥ 0.9), standard → with the cut: " + "; ".join(
+        f"{scope} {task} {t[0]} → {t[1]} of {t[2]}" + (f" ({t[3]} not run)" if t[3] else "")
+        for (scope, task), t in totals.items()) + ".\n"
+    return out
+
+
+def main(argv):
+    mode = None
+    if argv and argv[0] in ("--list", "--run"):
+        mode, argv = argv[0], argv[1:]
+    if argv and argv[0].startswith("-"):
+        sys.exit(__doc__)
+    binary = argv[0] if argv else os.path.join(HERE, "..", "..", "target", "release", "reacher")
+    if not os.path.isfile(binary):
+        sys.exit(f"selection_cut.py: {binary}: no such program (cargo build --release)")
+    jobs = standard_jobs(binary)
+    # Tuning first; then the jobs whose reported policy misses, then the rest.
+    jobs.sort(key=lambda j: (j[0] != "tuning",
+                             float(rundata.chosen(j[5])["success_rate"]) >= SOLVED))
+    if mode == "--list":
+        for scope, task, base, seed, run, cands in jobs:
+            if can_change(cands):
+                print(scope, task, base, seed, os.path.relpath(run, HERE))
+    elif mode == "--run":
+        run_all(binary, jobs)
+    else:
+        print(table(jobs), end="")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
