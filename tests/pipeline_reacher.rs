@@ -212,7 +212,7 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
     let mut lines = table.lines();
     assert_eq!(
         lines.next(),
-        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent")
+        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent,cut_return")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let config = tiny_config();

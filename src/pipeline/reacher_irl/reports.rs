@@ -307,7 +307,8 @@ pub(super) fn write_reports(
 
 /// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
 /// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `agent` says
-/// whose policy it is (`co-trained`, or `fresh` with `smirl_final_fresh_steps`).
+/// whose policy it is (`co-trained`, or `fresh` with `smirl_final_fresh_steps`), `cut_return`
+/// what the choice read instead of `learned_return` (`smirl_selection_cut`; else empty).
 fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
     let mut table = CsvTable::new([
         "algo",
@@ -315,7 +316,6 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
         "candidate",
         "env_steps",
         "learned_return",
-        "cut_return",
         "chosen",
         "success_rate",
         "success_normal",
@@ -323,6 +323,7 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
         "progress",
         "final_ball",
         "agent",
+        "cut_return",
     ]);
     for (_, r) in records {
         let Some(f) = &r.final_policy else { continue };
@@ -338,7 +339,6 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 i.to_string(),
                 c.env_steps.to_string(),
                 format!("{:.6}", c.learned_return),
-                c.cut_return.map_or(String::new(), |x| format!("{x:.6}")),
                 u8::from(i == f.chosen).to_string(),
                 format!("{}", c.success_rate),
                 rate(Branch::Normal),
@@ -346,6 +346,7 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 format!("{}", c.progress),
                 format!("{}", c.final_ball),
                 c.agent.name().to_string(),
+                c.cut_return.map_or(String::new(), |x| format!("{x:.6}")),
             ]);
         }
     }
