@@ -657,24 +657,23 @@ fn unseen_touch_sink_is_a_state_no_demonstration_enters() {
     );
 }
 
-/// `smirl_selection_cut`: read as false from configs without the key (and not written when
-/// false), refused without a final-policy phase; a run with it says in its report which balls
+/// `smirl_selection_cut`: the standard, read as false from configs without the key; a run with it says in its report which balls
 /// the demonstrations touch after the cancel per learned state, and every final-policy
 /// candidate of its SMIRL job carries a cut return, the one the choice reads.
 #[test]
 fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     use smirl::pipeline::reacher_irl::final_policy::choose;
     use smirl::pipeline::reacher_irl::records::JobRecord;
-    let text = IrlRunConfig::standard().to_toml();
-    assert!(!text.contains("smirl_selection_cut"));
-    let on = format!("smirl_selection_cut = true\n{text}");
-    let c = IrlRunConfig::from_toml(&on, "c.toml").unwrap();
+    // The standard since its tuning rule was met; a config without the key reads as false.
+    let c = IrlRunConfig::standard();
     assert!(c.smirl_selection_cut);
     assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    let mut no_phase = c.clone();
-    no_phase.smirl_final_sac_steps = 0;
-    no_phase.smirl_final_checkpoints = 0;
-    assert_config_error_names(&no_phase.to_toml(), "smirl_selection_cut");
+    let without = c.to_toml().replace("smirl_selection_cut = true\n", "");
+    assert!(
+        !IrlRunConfig::from_toml(&without, "c.toml")
+            .unwrap()
+            .smirl_selection_cut
+    );
 
     let tmp = tempfile::tempdir().unwrap();
     let mut config = tiny_config();
@@ -1155,8 +1154,8 @@ fn without_schedules() -> IrlRunConfig {
 
 /// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
 /// issue 13 (20 IRL iterations, no shaping, no event stutter, LRM predicting the cancel, no
-/// commuted events, no fallback starts or initial events, a replay buffer of 100 000), as the
-/// runs made with it.
+/// commuted events, no fallback starts or initial events, no selection cut, a replay buffer of
+/// 100 000), as the runs made with it.
 fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
         sac: smirl::rl::sac::SacConfig {
@@ -1167,6 +1166,7 @@ fn unshaped() -> IrlRunConfig {
         smirl_shaping: 0.0,
         smirl_final_sac_steps: 0,
         smirl_final_checkpoints: 0,
+        smirl_selection_cut: false,
         lrm_event_stutter: false,
         lrm_predict_events: true,
         lrm_commute_events: false,
@@ -1227,13 +1227,14 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     // with SMIRL's earlier settings; the baselines' schedules are the same.
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
-    // The baselines' resolved settings differ only in SMIRL's shaping, final policy,
-    // normalisation and learned machine (LRM's keys), which only SMIRL reads.
+    // The baselines' resolved settings differ only in SMIRL's shaping, final policy (and its
+    // selection cut), normalisation and learned machine (LRM's keys), which only SMIRL reads.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let before = IrlRunConfig {
             smirl_shaping: 1.0,
             smirl_final_sac_steps: standard.smirl_final_sac_steps,
             smirl_final_checkpoints: standard.smirl_final_checkpoints,
+            smirl_selection_cut: standard.smirl_selection_cut,
             smirl_normalisation: standard.smirl_normalisation,
             lrm_event_stutter: true,
             lrm_predict_events: false,

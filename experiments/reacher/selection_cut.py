@@ -53,11 +53,11 @@ def standard_jobs(binary):
         for (algo, seed), cands in sorted(rundata.final_policy(run).items()):
             if algo == "smirl":
                 jobs.append(("tuning", task, 0, seed, run, cands))
-    found = standard_heldout.held_out_runs(standard_heldout.CURRENT[1])
+    found = standard_heldout.held_out_runs(standard_heldout.PREVIOUS[1])
     with tempfile.TemporaryDirectory() as tmp:
         for task in standard_heldout.TASKS:
             for base in sorted(b for t, b in found if t == task):
-                name, _ = standard_heldout.standard_run(binary, tmp, standard_heldout.CURRENT,
+                name, _ = standard_heldout.standard_run(binary, tmp, standard_heldout.PREVIOUS,
                                                         task, base, found[(task, base)])
                 if name is None:
                     continue
@@ -68,10 +68,7 @@ def standard_jobs(binary):
     return jobs
 
 
-def can_change(cands):
-    """Whether the choice decides the job: candidates on both sides of 0.9."""
-    rates = [float(c["success_rate"]) for c in cands]
-    return min(rates) < SOLVED <= max(rates)
+can_change = standard_heldout.decided_by_choice
 
 
 def cut_run(scope, task, base):

@@ -213,7 +213,8 @@ pub struct IrlRunConfig {
     /// learned state (`irl::seen_after_events`); training is unchanged. Why: a learned machine
     /// without a failure state lets a policy that touches blue after the cancel earn about
     /// what one that avoids it earns (README, "A choice that reads what the expert does after
-    /// the cancel"). False for every run before the key existed; omitted when false.
+    /// the cancel"). Without the phase (and for the baselines, which have none) it does
+    /// nothing. False for every run before the key existed; omitted when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub smirl_selection_cut: bool,
     /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
@@ -566,7 +567,10 @@ impl IrlRunConfig {
             smirl_final_sac_steps: 20_000,
             smirl_final_checkpoints: 4,
             smirl_final_fresh_steps: 0,
-            smirl_selection_cut: false,
+            // The choice reads no return earned after a touch, after the cancel, that no
+            // demonstration makes there (24 of 24 tuning jobs; README, "A choice that reads
+            // what the expert does after the cancel").
+            smirl_selection_cut: true,
             smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,
@@ -910,12 +914,6 @@ impl IrlRunConfig {
                 )
             }
             _ => {}
-        }
-        if self.smirl_selection_cut && self.smirl_final_checkpoints == 0 {
-            return bad(
-                "smirl_selection_cut",
-                "needs the final-policy phase (smirl_final_sac_steps and smirl_final_checkpoints > 0): it changes how that phase chooses",
-            );
         }
         if self.smirl_sink_after_events && !self.smirl_unseen_touch_sink {
             return bad(
