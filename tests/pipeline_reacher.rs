@@ -204,7 +204,8 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
 }
 
 /// `final_policy.csv`: per SMIRL job the co-trained policy and `smirl_final_checkpoints`
-/// candidates, the chosen one the first of highest learned return; the co-trained candidate is
+/// candidates, the chosen one the first of highest selection return (the cut return, else the
+/// learned return); the co-trained candidate is
 /// the policy of the last metrics row, judged on the same episodes, so its success is that row's.
 fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
     let table = std::fs::read_to_string(dir.join("final_policy.csv")).unwrap();
@@ -225,7 +226,11 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
             .filter(|r| r[0] == *a && r[1] == seed.to_string())
             .collect();
         assert_eq!(job.len(), per_job, "{table}");
-        let returns: Vec<f64> = job.iter().map(|r| r[4].parse().unwrap()).collect();
+        // The number the choice reads: the cut return (last column) when the run has one.
+        let returns: Vec<f64> = job
+            .iter()
+            .map(|r| r[12].parse().unwrap_or_else(|_| r[4].parse().unwrap()))
+            .collect();
         let best = returns.iter().cloned().fold(f64::MIN, f64::max);
         let first_best = returns.iter().position(|&x| x == best).unwrap();
         let chosen: Vec<usize> = (0..per_job).filter(|&i| job[i][5] == "1").collect();

@@ -2,7 +2,8 @@
 //! training on the job's final learned reward, now held fixed, and the policy the job reports is
 //! the one of highest learned return among the co-trained policy and the checkpoints of that
 //! phase — and, with `smirl_final_fresh_steps` > 0, the checkpoints of a fresh agent trained on
-//! the same reward after it.
+//! the same reward after it; with `smirl_selection_cut` (the standard), the return counted as
+//! the cut below says.
 //!
 //! Why: the IRL loop's policy learns along with a moving reward; the one evaluated after the
 //! last iteration trained on the weights before the last update, and on held-out seeds it can

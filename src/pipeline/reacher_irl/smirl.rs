@@ -19,7 +19,9 @@
 //!    4. reward step(s) on w (Adam, L2).
 //! 4. **Final policy** (`smirl_final_sac_steps` > 0, [`super::final_policy`]): SAC goes on with
 //!    the final reward held fixed (and, with `smirl_final_fresh_steps` > 0, a fresh agent
-//!    learns it from scratch); the candidate of highest learned return is reported.
+//!    learns it from scratch); the candidate of highest learned return is reported
+//!    (`smirl_selection_cut`: each selection episode's return counted up to its first touch
+//!    after the cancel that no demonstration makes, [`seen_after_events`]).
 //!
 //! Steps 1–2 run once per task in `reacher prepare` (every SMIRL job of a run shares the
 //! machine); `train` is one (variant, seed) job. Ground-truth evaluation, logging and progress
@@ -529,7 +531,8 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
 
     // Step 4, the final policy: SAC goes on with the final reward, now fixed (shaped by its
     //    potential), then (`smirl_final_fresh_steps`) a fresh agent learns it from scratch,
-    //    and the candidate of highest learned return is the job's policy.
+    //    and the candidate of highest learned return (`smirl_selection_cut`: counted up to
+    //    the first touch after the cancel that no demonstration makes) is the job's policy.
     let final_policy = if s.smirl_final_sac_steps > 0 {
         let potential = shaping_potential(&features, n_states, &reward.params(), s)?;
         let mut sac_reward = ProductReward::new(
