@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
-"""The selection cut (issue 13; ablations/selection_cut.toml, `smirl_selection_cut = true`):
-which jobs it can change, running them, and what it changed.
+"""The selection cut (issue 13; ablations/selection_cut.toml, `smirl_selection_cut = true`)
+and its reading of touches as entries (ablations/selection_cut_entries.toml,
+`smirl_selection_cut_entries = true`): which jobs they can change, running them, and what
+they changed.
 
 The cut changes only the number the final phase's choice reads; the IRL loop, the final
 phase's SAC steps and every candidate's ground-truth evaluation are the standard's. So a job
@@ -9,16 +11,18 @@ candidates all miss is missed under any, and only the standard's jobs with candi
 sides of 0.9 are run — tuning (base 0, SAC seeds 0-5) and held
 out, the current standard's jobs as standard_heldout.py finds them.
 
-Usage: python3 experiments/reacher/selection_cut.py [--list | --run] [REACHER_BIN]
+Usage: python3 experiments/reacher/selection_cut.py [--list | --run [--entries]] [REACHER_BIN]
   --list  the jobs that can change, one per line: scope (tuning/heldout), task, base, SAC seed,
-          the standard's run
-  --run   run them (skipping those already done): per (task, base) `reacher prepare` with
-          the ablation's config into ablations/runs/selection_cut-seeds0to5-<task> (tuning) or
-          heldout/selection-cut-seeds<B>-<task>, `reacher job` two at a time, then
-          `reacher aggregate --partial`; tuning first, then the held-out jobs
-  (none)  the table for results.md: per job the standard's reported policy and the cut's, a
-          check that every candidate is the standard's (all columns but cut_return and chosen
-          equal), and the totals over every job of the standard
+          the previous standard's run
+  --run   run them with the cut (skipping those already done): per (task, base) `reacher
+          prepare` with the ablation's config into ablations/runs/selection_cut-seeds0to5-<task>
+          (tuning) or heldout/selection-cut-seeds<B>-<task>, `reacher job` two at a time, then
+          `reacher aggregate --partial`; tuning first, then the held-out jobs. With --entries,
+          the same with ablations/selection_cut_entries.toml into selection_cut_entries-… and
+          selection-cut-entries-…
+  (none)  the table for results.md: per job the previous standard's reported policy and each
+          variant's, a check that every candidate is the previous standard's (all columns but
+          cut_return and chosen equal), and the totals over every job of the standard
 REACHER_BIN defaults to target/release/reacher (used for `prepare`, and by --run).
 """
 import os
@@ -32,7 +36,11 @@ import rundata  # noqa: E402
 import standard_heldout  # noqa: E402
 
 HERE = standard_heldout.HERE
-CONFIG = os.path.join(HERE, "ablations", "selection_cut.toml")
+# Variant: (config, tuning run prefix, held-out run prefix).
+VARIANTS = {
+    "touches": ("selection_cut.toml", "selection_cut", "selection-cut"),
+    "entries": ("selection_cut_entries.toml", "selection_cut_entries", "selection-cut-entries"),
+}
 ABLATION_RUNS = os.path.join(HERE, "ablations", "runs")
 # The standard's tuning jobs: base 0's machines of OR, IF and Composite are the replay-all
 # standard's (fallback starts and initial events change none of them); Sequential's changed.
@@ -71,45 +79,48 @@ def standard_jobs(binary):
 can_change = standard_heldout.decided_by_choice
 
 
-def cut_run(scope, task, base):
+def cut_run(variant, scope, task, base):
+    _, tuning, heldout = VARIANTS[variant]
     if scope == "tuning":
-        return os.path.join(ABLATION_RUNS, f"selection_cut-seeds0to5-{task}")
-    return os.path.join(standard_heldout.HELDOUT, f"selection-cut-seeds{base}-{task}")
+        return os.path.join(ABLATION_RUNS, f"{tuning}-seeds0to5-{task}")
+    return os.path.join(standard_heldout.HELDOUT, f"{heldout}-seeds{base}-{task}")
 
 
-def cut_candidates(scope, task, base, seed):
-    """The cut run's candidate rows of one job, or None when it has not run."""
+def cut_candidates(variant, scope, task, base, seed):
+    """A variant's run's candidate rows of one job, or None when it has not run."""
     try:
-        return rundata.final_policy(cut_run(scope, task, base)).get(("smirl", seed))
+        return rundata.final_policy(cut_run(variant, scope, task, base)).get(("smirl", seed))
     except FileNotFoundError:
         return None
 
 
-def run_all(binary, jobs):
+def run_all(binary, jobs, variant):
+    config = os.path.join(HERE, "ablations", VARIANTS[variant][0])
+    cut_run_of = lambda s, t, b: cut_run(variant, s, t, b)
     todo = [(s, t, b, seed) for s, t, b, seed, _, cands in jobs
-            if can_change(cands) and cut_candidates(s, t, b, seed) is None]
+            if can_change(cands) and cut_candidates(variant, s, t, b, seed) is None]
     runs = {}
     for s, t, b, seed in todo:
         runs.setdefault((s, t, b), []).append(seed)
     for (s, t, b) in runs:
-        out = cut_run(s, t, b)
+        out = cut_run_of(s, t, b)
         if not os.path.isdir(out):
             seeds = "6" if s == "tuning" else "3"
             subprocess.run([binary, "prepare", "--task", t, "--algo", "smirl", "--seed", str(b),
-                            "--seeds", seeds, "--config", CONFIG, "--out", out, "--quiet"],
+                            "--seeds", seeds, "--config", config, "--out", out, "--quiet"],
                            check=True, stdout=subprocess.DEVNULL)
 
     def job(item):
         s, t, b, seed = item
-        with open(cut_run(s, t, b) + f".seed{seed}.log", "w") as log:
-            subprocess.run([binary, "job", "--run", cut_run(s, t, b), "--algo", "smirl",
+        with open(cut_run_of(s, t, b) + f".seed{seed}.log", "w") as log:
+            subprocess.run([binary, "job", "--run", cut_run_of(s, t, b), "--algo", "smirl",
                             "--seed", str(seed), "--quiet"], check=True, stdout=log)
-        print(f"done: {s} {t} {b} seed {seed}", flush=True)
+        print(f"done: {variant} {s} {t} {b} seed {seed}", flush=True)
 
     with ThreadPoolExecutor(max_workers=2) as pool:
         list(pool.map(job, todo))
     for (s, t, b) in runs:
-        subprocess.run([binary, "aggregate", cut_run(s, t, b), "--partial"], check=True,
+        subprocess.run([binary, "aggregate", cut_run_of(s, t, b), "--partial"], check=True,
                        stdout=subprocess.DEVNULL)
 
 
@@ -121,39 +132,52 @@ def rate(c, task):
 
 
 def table(jobs):
-    lines = ["| scope | task | base | SAC seed | standard's reported policy | with the cut | candidates the standard's |",
-             "|---|---|---|---|---|---|---|"]
+    variants = list(VARIANTS)
+    lines = ["| scope | task | base | SAC seed | previous standard's reported policy | "
+             + " | ".join(f"cut, {v}" for v in variants) + " | candidates the standard's |",
+             "|---|---|---|---|---|" + "---|" * len(variants) + "---|"]
     totals = {}
+    mark = lambda rows, task: f"{rate(rundata.chosen(rows), task)} (candidate {rundata.chosen(rows)['candidate']})"
     for scope, task, base, seed, _, cands in jobs:
-        key = (scope, task)
+        t = totals.setdefault((scope, task), {"jobs": 0, "previous": 0, **{v: 0 for v in variants},
+                                              **{v + " not run": 0 for v in variants}})
         std_ok = float(rundata.chosen(cands)["success_rate"]) >= SOLVED
-        cut_ok = std_ok
-        if can_change(cands):
-            cut = cut_candidates(scope, task, base, seed)
+        t["jobs"] += 1
+        t["previous"] += std_ok
+        if not can_change(cands):
+            for v in variants:
+                t[v] += std_ok
+            continue
+        cells, same = [], True
+        for v in variants:
+            cut = cut_candidates(v, scope, task, base, seed)
             if cut is None:
-                lines.append(f"| {scope} | {task} | {base} | {seed} | {rate(rundata.chosen(cands), task)} | not run | |")
-                totals.setdefault(key, [0, 0, 0, 0])[3] += 1
+                cells.append("not run")
+                t[v + " not run"] += 1
                 continue
-            same = len(cut) == len(cands) and all(
+            same &= len(cut) == len(cands) and all(
                 a[k] == b[k] for a, b in zip(cut, cands) for k in SAME)
-            cut_ok = float(rundata.chosen(cut)["success_rate"]) >= SOLVED
-            mark = lambda rows: f"{rate(rundata.chosen(rows), task)} (candidate {rundata.chosen(rows)['candidate']})"
-            lines.append(f"| {scope} | {task} | {base} | {seed} | {mark(cands)} | {mark(cut)} | "
-                         f"{'yes' if same else '**no**'} |")
-        t = totals.setdefault(key, [0, 0, 0, 0])
-        t[0] += std_ok
-        t[1] += cut_ok
-        t[2] += 1
-    out = "\n".join(lines) + "\n\nJobs solved (both branches ≥ 0.9), standard → with the cut: " + "; ".join(
-        f"{scope} {task} {t[0]} → {t[1]} of {t[2]}" + (f" ({t[3]} not run)" if t[3] else "")
-        for (scope, task), t in totals.items()) + ".\n"
+            t[v] += float(rundata.chosen(cut)["success_rate"]) >= SOLVED
+            cells.append(mark(cut, task))
+        lines.append(f"| {scope} | {task} | {base} | {seed} | {mark(cands, task)} | "
+                     + " | ".join(cells) + f" | {'yes' if same else '**no**'} |")
+
+    def total(t, v):
+        missing = t[v + " not run"]
+        return f"{t[v]}" + (f" ({missing} not run)" if missing else "")
+    out = "\n".join(lines) + "\n\nJobs solved (both branches ≥ 0.9) of all the previous standard's, previous → " \
+        + " → ".join(f"cut ({v})" for v in variants) + ": " + "; ".join(
+            f"{scope} {task} {t['previous']} → " + " → ".join(total(t, v) for v in variants)
+            + f" of {t['jobs']}" for (scope, task), t in totals.items()) + ".\n"
     return out
 
 
 def main(argv):
-    mode = None
+    mode, variant = None, "touches"
     if argv and argv[0] in ("--list", "--run"):
         mode, argv = argv[0], argv[1:]
+    if mode == "--run" and argv and argv[0] == "--entries":
+        variant, argv = "entries", argv[1:]
     if argv and argv[0].startswith("-"):
         sys.exit(__doc__)
     binary = argv[0] if argv else os.path.join(HERE, "..", "..", "target", "release", "reacher")
@@ -168,7 +192,7 @@ def main(argv):
             if can_change(cands):
                 print(scope, task, base, seed, os.path.relpath(run, HERE))
     elif mode == "--run":
-        run_all(binary, jobs)
+        run_all(binary, jobs, variant)
     else:
         print(table(jobs), end="")
 

@@ -10,6 +10,12 @@
 //! candidate's learned return only up to its first touch that no demonstration makes there.
 //! Before any event nothing is judged: there the expert's behaviour is the task's, and an
 //! agent's other touches are the way it moves.
+//!
+//! Touches can be read as entries (`smirl_selection_cut_entries`): a ball counts on the step
+//! its touch begins, not on the steps the fingertip stays on it. Why: the expert brushes a ball
+//! for one step where an agent lingers for two or three, so the steps after a touch that
+//! entered a state look, read as labels, like a touch no demonstration makes there (held-out
+//! Sequential 78: red held one step longer after a cancel).
 
 use crate::rm::LabelSet;
 
@@ -19,13 +25,16 @@ use crate::rm::LabelSet;
 pub struct SeenAfterEvents {
     events: LabelSet,
     props: LabelSet,
+    entries: bool,
     seen: Vec<LabelSet>,
 }
 
 impl SeenAfterEvents {
     /// From annotated trajectories (concatenated, `lengths` each): step t read `labels[t]` in
     /// learned state `states[t]`. A step's labels count once an event came on an earlier step;
-    /// the event's own step is read before it. States outside `0..n_states` are ignored.
+    /// the event's own step is read before it. With `entries`, a proposition counts only on a
+    /// step it is true on and was not on the step before (the first step of a trajectory
+    /// follows no labels). States outside `0..n_states` are ignored.
     pub fn new(
         n_states: usize,
         states: &[u32],
@@ -33,22 +42,22 @@ impl SeenAfterEvents {
         lengths: &[usize],
         events: LabelSet,
         props: LabelSet,
+        entries: bool,
     ) -> SeenAfterEvents {
         let mut table = SeenAfterEvents {
             events,
             props,
+            entries,
             seen: vec![LabelSet::EMPTY; n_states],
         };
         let mut steps = states.iter().zip(labels);
         for &len in lengths {
-            let mut after_event = false;
+            let mut walk = Walk::default();
             for (&u, &l) in steps.by_ref().take(len) {
-                if after_event {
-                    if let Some(seen) = table.seen.get_mut(u as usize) {
-                        seen.0 |= l.0 & props.0;
-                    }
+                let touched = walk.step(&table, l);
+                if let (Some(touched), Some(seen)) = (touched, table.seen.get_mut(u as usize)) {
+                    seen.0 |= touched;
                 }
-                after_event |= l.0 & events.0 != 0;
             }
         }
         table
@@ -63,15 +72,36 @@ impl SeenAfterEvents {
     /// after an event, makes true a proposition of `props` that no trajectory made true in
     /// its state after an event; `None` when there is none.
     pub fn first_unseen(&self, states: &[u32], labels: &[LabelSet]) -> Option<usize> {
-        let mut after_event = false;
+        let mut walk = Walk::default();
         for (t, (&u, &l)) in states.iter().zip(labels).enumerate() {
-            let touched = l.0 & self.props.0;
-            if after_event && touched & !self.in_state(u as usize).0 != 0 {
+            let touched = walk.step(self, l);
+            if touched.is_some_and(|p| p & !self.in_state(u as usize).0 != 0) {
                 return Some(t);
             }
-            after_event |= l.0 & self.events.0 != 0;
         }
         None
+    }
+}
+
+/// Where a trajectory is: whether an event has come, and the labels of the step before.
+#[derive(Default)]
+struct Walk {
+    after_event: bool,
+    before: LabelSet,
+}
+
+impl Walk {
+    /// Reads one step's labels: the propositions of `table.props` that count as touched on it
+    /// after an event (`None` before any), then whether an event came.
+    fn step(&mut self, table: &SeenAfterEvents, labels: LabelSet) -> Option<u32> {
+        let mut touched = labels.0 & table.props.0;
+        if table.entries {
+            touched &= !self.before.0;
+        }
+        let counted = self.after_event.then_some(touched);
+        self.after_event |= labels.0 & table.events.0 != 0;
+        self.before = labels;
+        counted
     }
 }
 
@@ -90,7 +120,7 @@ mod tests {
         let states = [0, 0, 1, 1, /* cancel branch */ 0, 1, 1];
         let empty = LabelSet::EMPTY;
         let labels = [empty, BLUE, BLUE, RED, CANCEL, empty, RED];
-        SeenAfterEvents::new(2, &states, &labels, &[4, 3], CANCEL, BALLS)
+        SeenAfterEvents::new(2, &states, &labels, &[4, 3], CANCEL, BALLS, false)
     }
 
     #[test]
@@ -123,5 +153,25 @@ mod tests {
             seen.first_unseen(&[0, 1], &[LabelSet(CANCEL.0 | BLUE.0), RED]),
             None
         );
+    }
+
+    /// Held-out Sequential 78's pattern: the expert touches red for one step, an agent stays
+    /// on it for two after the cancel. Read as labels the second step is unseen in the state
+    /// red entered; read as entries it is no touch at all, while a new touch of blue still is.
+    #[test]
+    fn entries_ignore_a_ball_held_from_the_step_before() {
+        let empty = LabelSet::EMPTY;
+        let states = [0, 0, 1, 1];
+        let expert = [CANCEL, RED, empty, empty];
+        let labels =
+            |entries| SeenAfterEvents::new(2, &states, &expert, &[4], CANCEL, BALLS, entries);
+        let lingering = [CANCEL, RED, RED, empty];
+        assert_eq!(labels(false).first_unseen(&states, &lingering), Some(2));
+        assert_eq!(labels(true).first_unseen(&states, &lingering), None);
+        assert_eq!(
+            labels(true).first_unseen(&states, &[CANCEL, RED, empty, BLUE]),
+            Some(3)
+        );
+        assert_eq!(labels(true).in_state(0), RED);
     }
 }

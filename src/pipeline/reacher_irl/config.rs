@@ -217,6 +217,12 @@ pub struct IrlRunConfig {
     /// nothing. False for every run before the key existed; omitted when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub smirl_selection_cut: bool,
+    /// With `smirl_selection_cut`: a ball counts as touched on the step its touch begins, not
+    /// on the steps the fingertip stays on it (an agent lingers on a ball the expert brushes,
+    /// README "A choice that reads what the expert does after the cancel"). Refused without
+    /// the cut; false for every run before the key existed; omitted when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub smirl_selection_cut_entries: bool,
     /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
     /// state (CRM, see `rl::crm`): 0 = only the states the agent was in, 1 = every sampled
     /// transition from a uniformly drawn state.
@@ -571,6 +577,7 @@ impl IrlRunConfig {
             // demonstration makes there (24 of 24 tuning jobs; README, "A choice that reads
             // what the expert does after the cancel").
             smirl_selection_cut: true,
+            smirl_selection_cut_entries: false,
             smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,
@@ -914,6 +921,12 @@ impl IrlRunConfig {
                 )
             }
             _ => {}
+        }
+        if self.smirl_selection_cut_entries && !self.smirl_selection_cut {
+            return bad(
+                "smirl_selection_cut_entries",
+                "needs smirl_selection_cut = true (it says how the cut reads touches)",
+            );
         }
         if self.smirl_sink_after_events && !self.smirl_unseen_touch_sink {
             return bad(

@@ -288,6 +288,7 @@ pub(super) fn write_reports(
         "smirl_unseen_touch_sink": config.smirl_unseen_touch_sink,
         "smirl_sink_after_events": config.smirl_sink_after_events,
         "smirl_selection_cut": config.smirl_selection_cut,
+        "smirl_selection_cut_entries": config.smirl_selection_cut_entries,
         "smirl_label_features": config.smirl_label_features.name(),
         "smirl_shaping": config.smirl_shaping,
         "smirl_counterfactual": config.smirl_counterfactual,

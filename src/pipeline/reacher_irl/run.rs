@@ -312,7 +312,7 @@ pub fn prepare(
             );
         }
         if config.smirl_selection_cut {
-            let seen = seen_after_events(&rm, &annotate(&demos, Some(&rm), hold_to));
+            let seen = seen_after_events(&rm, &annotate(&demos, Some(&rm), hold_to), config);
             let per_state: Vec<String> = (0..rm.n_states())
                 .map(|u| match seen.in_state(u) {
                     l if l.is_empty() => format!("{u}: -"),
@@ -321,7 +321,8 @@ pub fn prepare(
                 .collect();
             let _ = writeln!(
                 report,
-                "smirl_selection_cut: balls the demonstrations touch after the cancel, per learned state: {}",
+                "smirl_selection_cut: balls the demonstrations touch{} after the cancel, per learned state: {}",
+                if config.smirl_selection_cut_entries { " (touches begun)" } else { "" },
                 per_state.join(", ")
             );
         }

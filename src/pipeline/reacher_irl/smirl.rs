@@ -414,7 +414,11 @@ pub(super) fn shaping_potential(
 /// Step 4's cut (`smirl_selection_cut`): the ball touches the demonstrations make after the
 /// cancel in each state of `machine`, read from their steps as [`annotate`] gives them in it
 /// (held steps included), as a candidate's selection episodes are read.
-pub fn seen_after_events(machine: &RewardMachine, expert: &ExpertData) -> SeenAfterEvents {
+pub fn seen_after_events(
+    machine: &RewardMachine,
+    expert: &ExpertData,
+    settings: &IrlRunConfig,
+) -> SeenAfterEvents {
     let labelling = FeatureMap::reacher_labels();
     let labels: Vec<LabelSet> = expert
         .obs
@@ -428,6 +432,7 @@ pub fn seen_after_events(machine: &RewardMachine, expert: &ExpertData) -> SeenAf
         &expert.lengths,
         EVENTS,
         TOUCHES,
+        settings.smirl_selection_cut_entries,
     )
 }
 
@@ -542,7 +547,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
         );
         let selection_cut = s
             .smirl_selection_cut
-            .then(|| seen_after_events(job.machine, job.expert));
+            .then(|| seen_after_events(job.machine, job.expert, s));
         let phase = FinalPhase {
             steps: s.smirl_final_sac_steps,
             checkpoints: s.smirl_final_checkpoints,
