@@ -679,6 +679,13 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
             .unwrap()
             .smirl_selection_cut
     );
+    // Reading touches as entries is a way of cutting: refused without the cut.
+    let entries = format!("smirl_selection_cut_entries = true\n{without}");
+    assert_config_error_names(&entries, "smirl_selection_cut_entries");
+    let with_cut = format!("smirl_selection_cut_entries = true\n{}", c.to_toml());
+    let e = IrlRunConfig::from_toml(&with_cut, "c.toml").unwrap();
+    assert!(e.smirl_selection_cut_entries);
+    assert_eq!(IrlRunConfig::from_toml(&e.to_toml(), "c.toml").unwrap(), e);
 
     let tmp = tempfile::tempdir().unwrap();
     let mut config = tiny_config();
