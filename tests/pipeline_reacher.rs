@@ -673,7 +673,11 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     let c = IrlRunConfig::standard();
     assert!(c.smirl_selection_cut);
     assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    let without = c.to_toml().replace("smirl_selection_cut = true\n", "");
+    assert!(c.smirl_selection_cut_entries);
+    let without = c
+        .to_toml()
+        .replace("smirl_selection_cut = true\n", "")
+        .replace("smirl_selection_cut_entries = true\n", "");
     assert!(
         !IrlRunConfig::from_toml(&without, "c.toml")
             .unwrap()
@@ -682,7 +686,7 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     // Reading touches as entries is a way of cutting: refused without the cut.
     let entries = format!("smirl_selection_cut_entries = true\n{without}");
     assert_config_error_names(&entries, "smirl_selection_cut_entries");
-    let with_cut = format!("smirl_selection_cut_entries = true\n{}", c.to_toml());
+    let with_cut = format!("smirl_selection_cut = true\n{entries}");
     let e = IrlRunConfig::from_toml(&with_cut, "c.toml").unwrap();
     assert!(e.smirl_selection_cut_entries);
     assert_eq!(IrlRunConfig::from_toml(&e.to_toml(), "c.toml").unwrap(), e);
@@ -703,7 +707,9 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     let dir = tmp.path().join("run");
     let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
     assert!(
-        report.contains("smirl_selection_cut: balls the demonstrations touch after the cancel"),
+        report.contains(
+            "smirl_selection_cut: balls the demonstrations touch (touches begun) after the cancel"
+        ),
         "{report}"
     );
     let table = std::fs::read_to_string(dir.join("final_policy.csv")).unwrap();
@@ -1179,6 +1185,7 @@ fn unshaped() -> IrlRunConfig {
         smirl_final_sac_steps: 0,
         smirl_final_checkpoints: 0,
         smirl_selection_cut: false,
+        smirl_selection_cut_entries: false,
         lrm_event_stutter: false,
         lrm_predict_events: true,
         lrm_commute_events: false,
@@ -1247,6 +1254,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             smirl_final_sac_steps: standard.smirl_final_sac_steps,
             smirl_final_checkpoints: standard.smirl_final_checkpoints,
             smirl_selection_cut: standard.smirl_selection_cut,
+            smirl_selection_cut_entries: standard.smirl_selection_cut_entries,
             smirl_normalisation: standard.smirl_normalisation,
             lrm_event_stutter: true,
             lrm_predict_events: false,

@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
 """SMIRL's held-out check under the current standard (issue 13), in one table: per task and
 held-out base seed B, the reported policy of each SAC seed B, B+1, B+2, from whichever run is
-the standard's job there. With --previous, the same for the previous standard (initial events
-and fallback starts, choosing by the full learned return: ablations/initial_events.toml); with
---fallback, for the one before it (fallback starts without initial events,
+the standard's job there. With --touches, the same for the selection cut reading touches as
+labels (ablations/selection_cut.toml, the standard for one stop before it read them as
+entries); with --previous, for the standard before the cut (initial events and fallback starts,
+choosing by the full learned return: ablations/initial_events.toml); with --fallback, for the one before it (fallback starts without initial events,
 ablations/fallback_starts.toml); with --replay-all, for the one before that
 (ablations/replay_all.toml); with --commuted, for the one before that (commuted events with a
 100 000-transition replay buffer, ablations/commute_events.toml).
 
-Usage: python3 experiments/reacher/standard_heldout.py [--previous | --fallback | --replay-all | --commuted] [REACHER_BIN]
+Usage: python3 experiments/reacher/standard_heldout.py [--touches | --previous | --fallback | --replay-all | --commuted] [REACHER_BIN]
   (REACHER_BIN defaults to target/release/reacher; it only runs `reacher prepare`, well under a
   second per machine. make_results.sh puts the tables in results.md.)
 
@@ -30,13 +31,14 @@ Which run is a standard's job at base B:
      src` touches LRM, config keys and the commands' refusal of unfinished runs only. The
      replay-all standard's SAC keeps a larger buffer than any setting before it, so only its
      own runs are its jobs.
-  3. The current standard (config.toml: the previous one with the selection cut,
-     ablations/selection_cut.toml) trains exactly as the previous one and only chooses
-     differently, so its jobs are the previous standard's, SAC seed by SAC seed, with the
-     choice of heldout/selection-cut-seedsB-<task> where that run has the seed. It has every
-     job whose candidates lie on both sides of 0.9 (selection_cut.py --run); in any other job
-     every candidate is solved, or none is, under either choice — its cell shows the previous
-     choice, marked °.
+  3. The current standard (config.toml: the previous one with the selection cut reading
+     touches as entries, ablations/selection_cut_entries.toml) and the touches one
+     (ablations/selection_cut.toml) train exactly as the previous one and only choose
+     differently, so their jobs are the previous standard's, SAC seed by SAC seed, with the
+     choice of heldout/selection-cut-entries-seedsB-<task> (selection-cut-seedsB-<task>) where
+     that run has the seed. They have every job whose candidates lie on both sides of 0.9
+     (selection_cut.py --run [--entries]); in any other job every candidate is solved, or none
+     is, under either choice — its cell shows the previous choice, marked °.
   A base where no run qualifies is left out of the table and listed below it, with the runs
   that exist there but learned another machine.
 
@@ -63,7 +65,8 @@ PREVIOUS = ("ablations/initial_events.toml",
 CURRENT = ("config.toml",
            [("initial-events", "ablations/initial_events.toml"),
             ("fallback-starts", "ablations/fallback_starts.toml"),
-            ("replay-all", "ablations/replay_all.toml")], "selection-cut")
+            ("replay-all", "ablations/replay_all.toml")], "selection-cut-entries")
+TOUCHES = ("ablations/selection_cut.toml", CURRENT[1], "selection-cut")
 FALLBACK = ("ablations/fallback_starts.toml",
             [("fallback-starts", None), ("replay-all", "ablations/replay_all.toml")], None)
 REPLAY_ALL = ("ablations/replay_all.toml", [("replay-all", None)], None)
@@ -190,7 +193,7 @@ def table(binary, standard):
 
 def main(argv):
     standard = CURRENT
-    named = {"--previous": PREVIOUS, "--fallback": FALLBACK, "--replay-all": REPLAY_ALL,
+    named = {"--touches": TOUCHES, "--previous": PREVIOUS, "--fallback": FALLBACK, "--replay-all": REPLAY_ALL,
              "--commuted": COMMUTED}
     if argv and argv[0] in named:
         standard, argv = named[argv[0]], argv[1:]

@@ -577,7 +577,9 @@ impl IrlRunConfig {
             // demonstration makes there (24 of 24 tuning jobs; README, "A choice that reads
             // what the expert does after the cancel").
             smirl_selection_cut: true,
-            smirl_selection_cut_entries: false,
+            // A ball counts on the step its touch begins (24 of 24 tuning jobs; an agent
+            // lingers on a ball the expert brushes).
+            smirl_selection_cut_entries: true,
             smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,
