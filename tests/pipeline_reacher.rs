@@ -14,7 +14,7 @@ use smirl::pipeline::reacher_irl::{
     reward_lr, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData, IrlRunConfig, RunRequest,
 };
 use smirl_reference::maxent_gradient;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// An observation row whose fingertip touches ball `ball` (or none), cancel flag off.
@@ -569,22 +569,11 @@ fn task_machine_is_the_perfect_machine_without_its_ends() {
         }
     }
 
-    let tmp = tempfile::tempdir().unwrap();
     let mut config = tiny_config();
     config.smirl_machine = smirl::pipeline::reacher_irl::SmirlMachine::Task;
-    let request = RunRequest {
-        task: ReacherTask::Or,
-        algos: vec![Algo::Smirl],
-        seeds: 1,
-        seed: 3,
-        config,
-        out: tmp.path().join("run"),
-        force: false,
-    };
-    let summary = run_pipeline(&request, &Silent).unwrap();
+    let (_tmp, dir, summary) = tiny_smirl_run(ReacherTask::Or, config);
     assert_eq!(summary.rm.as_ref().unwrap().learned_states, 3);
     assert!(summary.rm.as_ref().unwrap().refines_perfect);
-    let dir = tmp.path().join("run");
     let text = std::fs::read_to_string(dir.join("rm/learned.txt")).unwrap();
     let written = parse_rm(&text, "learned.txt").unwrap();
     assert_eq!(
@@ -598,6 +587,31 @@ fn task_machine_is_the_perfect_machine_without_its_ends() {
         metrics.lines().skip(1).any(|l| l.starts_with("smirl,3,")),
         "{metrics}"
     );
+}
+
+/// One SMIRL job on `task` (base seed 3) with `config`: the temporary directory, its run
+/// directory and the run's summary.
+fn tiny_smirl_run(
+    task: ReacherTask,
+    config: IrlRunConfig,
+) -> (
+    tempfile::TempDir,
+    PathBuf,
+    smirl::pipeline::reacher_irl::RunSummary,
+) {
+    let tmp = tempfile::tempdir().unwrap();
+    let request = RunRequest {
+        task,
+        algos: vec![Algo::Smirl],
+        seeds: 1,
+        seed: 3,
+        config,
+        out: tmp.path().join("run"),
+        force: false,
+    };
+    let summary = run_pipeline(&request, &Silent).unwrap();
+    let dir = tmp.path().join("run");
+    (tmp, dir, summary)
 }
 
 /// `smirl_unseen_touch_sink`: read as false from configs without the key (and not written
@@ -621,20 +635,9 @@ fn unseen_touch_sink_is_a_state_no_demonstration_enters() {
     let alone = format!("smirl_sink_after_events = true\n{text}");
     assert_config_error_names(&alone, "smirl_sink_after_events");
 
-    let tmp = tempfile::tempdir().unwrap();
     let mut config = tiny_config();
     config.smirl_unseen_touch_sink = true;
-    let request = RunRequest {
-        task: ReacherTask::If,
-        algos: vec![Algo::Smirl],
-        seeds: 1,
-        seed: 3,
-        config,
-        out: tmp.path().join("run"),
-        force: false,
-    };
-    run_pipeline(&request, &Silent).unwrap();
-    let dir = tmp.path().join("run");
+    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::If, config);
     let machine = parse_rm(
         &std::fs::read_to_string(dir.join("rm/learned.txt")).unwrap(),
         "learned.txt",
@@ -691,20 +694,10 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     assert!(e.smirl_selection_cut_entries);
     assert_eq!(IrlRunConfig::from_toml(&e.to_toml(), "c.toml").unwrap(), e);
 
-    let tmp = tempfile::tempdir().unwrap();
     let mut config = tiny_config();
     config.smirl_selection_cut = true;
-    let request = RunRequest {
-        task: ReacherTask::If,
-        algos: vec![Algo::Smirl],
-        seeds: 1,
-        seed: 3,
-        config,
-        out: tmp.path().join("run"),
-        force: false,
-    };
-    run_pipeline(&request, &Silent).unwrap();
-    let dir = tmp.path().join("run");
+    config.smirl_selection_cut_entries = true;
+    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::If, config);
     let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
     assert!(
         report.contains(
