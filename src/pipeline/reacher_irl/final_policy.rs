@@ -72,7 +72,7 @@ pub struct FinalCandidate {
     pub agent: FinalAgent,
     pub env_steps: u64,
     /// Mean learned return (the final reward, unshaped) of the mean action over the selection
-    /// episodes, each played to the time limit: what the choice reads.
+    /// episodes, each played to the time limit: what the choice reads without the cut.
     pub learned_return: f64,
     /// With `smirl_selection_cut`, the same mean with each episode's learned reward counted
     /// only up to its first touch after the cancel that no demonstration makes there: what
@@ -149,16 +149,15 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         .map(|i| episode_seed(selection_stream, i))
         .collect();
     let task = GroundTruthTask::of(watch.perfect());
-    let selection = Selection {
+    let selection = &Selection {
         seeds: &selection_seeds,
         cut: phase.selection_cut,
     };
-    let seeds = &selection;
     let (obs_dim, act_dim) = (env.obs_dim(), env.act_dim());
     let sac_config = sac.config().clone();
     let co_trained = FinalAgent::CoTrained;
     let mut candidates = vec![candidate(
-        sac, co_trained, env, reward, &task, seeds, watch,
+        sac, co_trained, env, reward, &task, selection, watch,
     )?];
     // `steps` more SAC steps of `sac` in `phase.checkpoints` even segments, each ending in a
     // scored candidate: the co-trained agent's, then the fresh one's.
@@ -169,7 +168,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
             let end = start + steps * k / phase.checkpoints;
             let n = end.saturating_sub(sac.env_steps());
             train_sac(sac, env, reward, n, iterations + 1, watch)?;
-            scored.push(candidate(sac, agent, env, reward, &task, seeds, watch)?);
+            scored.push(candidate(sac, agent, env, reward, &task, selection, watch)?);
         }
         Ok::<_, String>(scored)
     };
