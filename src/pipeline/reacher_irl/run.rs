@@ -223,7 +223,8 @@ pub fn prepare(
     };
     // 2. Reward machine (SMIRL only).
     let mut rm_facts = None;
-    let learned = if algos.iter().any(|a| a.uses_rm()) {
+    // The demonstrations, annotated with the learned machine's states when SMIRL needs one.
+    let expert_data = if algos.iter().any(|a| a.uses_rm()) {
         observer.phase("lrm");
         let lrm = lrm_config(config, seed);
         let (rm, cost, secs) = match config.smirl_machine {
@@ -311,8 +312,9 @@ pub fn prepare(
                 "learned state {u} seen with perfect states {seen:?}"
             );
         }
+        let expert_data = annotate(&demos, Some(&rm), hold_to);
         if config.smirl_selection_cut {
-            let seen = seen_after_events(&rm, &annotate(&demos, Some(&rm), hold_to), config);
+            let seen = seen_after_events(&rm, &expert_data, config);
             let per_state: Vec<String> = (0..rm.n_states())
                 .map(|u| match seen.in_state(u) {
                     l if l.is_empty() => format!("{u}: -"),
@@ -338,11 +340,10 @@ pub fn prepare(
                 .as_str(),
         );
         rm_facts = Some(facts);
-        Some(rm)
+        expert_data
     } else {
-        None
+        annotate(&demos, None, hold_to)
     };
-    let expert_data = annotate(&demos, learned.as_ref(), hold_to);
     let path = dir.join(EXPERT_DATA_FILE);
     write_atomic(&path, &expert_data.to_bytes()).map_err(|e| io(&path, e))?;
     let prepared = Prepared {
