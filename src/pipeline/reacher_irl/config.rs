@@ -208,6 +208,15 @@ pub struct IrlRunConfig {
     /// agent solves (`reacher retrain`). Omitted from written configs when 0.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub smirl_final_fresh_steps: u64,
+    /// Gradient updates, then as many SAC environment steps, of a reset agent after the
+    /// co-trained (and fresh) agent's final phase: new networks, optimisers, temperature and
+    /// seed on a copy of the co-trained agent's replay buffer, which it first learns from alone;
+    /// `smirl_final_checkpoints` candidates along its steps; 0 = none (every run before the key
+    /// existed). Why: a co-trained agent can stay stuck on the final reward while a fresh agent
+    /// solves it (README, "Composite's five misses"); a reset keeps the loop's data and drops
+    /// the networks' habit. Omitted from written configs when 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub smirl_final_reset_steps: u64,
     /// The final phase's choice reads each candidate's learned return only up to its first
     /// ball touch, after the cancel, that no demonstration makes after a cancel in the same
     /// learned state (`irl::seen_after_events`); training is unchanged. Why: a learned machine
@@ -573,6 +582,7 @@ impl IrlRunConfig {
             smirl_final_sac_steps: 20_000,
             smirl_final_checkpoints: 4,
             smirl_final_fresh_steps: 0,
+            smirl_final_reset_steps: 0,
             // The choice reads no return earned after a touch, after the cancel, that no
             // demonstration makes there (24 of 24 tuning jobs; README, "A choice that reads
             // what the expert does after the cancel").
@@ -901,28 +911,32 @@ impl IrlRunConfig {
             }
             _ => {}
         }
-        if self.smirl_final_fresh_steps > MAX_SAC_STEPS_PER_ITERATION {
-            return over(
-                "smirl_final_fresh_steps",
-                self.smirl_final_fresh_steps,
-                MAX_SAC_STEPS_PER_ITERATION,
-            );
-        }
-        match (self.smirl_final_fresh_steps, self.smirl_final_checkpoints) {
-            (0, _) => {}
-            (_, 0) => {
-                return bad(
-                    "smirl_final_fresh_steps",
-                    "needs the final-policy phase (smirl_final_sac_steps and smirl_final_checkpoints > 0)",
-                )
+        // The fresh and the reset agent are more agents of the final phase: each needs its
+        // checkpoints.
+        let extra_agents = [
+            ("smirl_final_fresh_steps", self.smirl_final_fresh_steps),
+            ("smirl_final_reset_steps", self.smirl_final_reset_steps),
+        ];
+        for (field, steps) in extra_agents {
+            if steps > MAX_SAC_STEPS_PER_ITERATION {
+                return over(field, steps, MAX_SAC_STEPS_PER_ITERATION);
             }
-            (steps, k) if k > steps => {
-                return bad(
-                    "smirl_final_fresh_steps",
-                    &format!("must be at least smirl_final_checkpoints ({k}), got {steps}"),
-                )
+            match (steps, self.smirl_final_checkpoints) {
+                (0, _) => {}
+                (_, 0) => {
+                    return bad(
+                        field,
+                        "needs the final-policy phase (smirl_final_sac_steps and smirl_final_checkpoints > 0)",
+                    )
+                }
+                (steps, k) if k > steps => {
+                    return bad(
+                        field,
+                        &format!("must be at least smirl_final_checkpoints ({k}), got {steps}"),
+                    )
+                }
+                _ => {}
             }
-            _ => {}
         }
         if self.smirl_selection_cut_entries && !self.smirl_selection_cut {
             return bad(

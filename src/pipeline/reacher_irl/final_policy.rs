@@ -54,6 +54,9 @@ pub enum FinalAgent {
     CoTrained,
     /// The fresh agent of `smirl_final_fresh_steps`.
     Fresh,
+    /// The reset agent of `smirl_final_reset_steps`: new networks on the co-trained agent's
+    /// replay buffer.
+    Reset,
 }
 
 impl FinalAgent {
@@ -61,6 +64,7 @@ impl FinalAgent {
         match self {
             FinalAgent::CoTrained => "co-trained",
             FinalAgent::Fresh => "fresh",
+            FinalAgent::Reset => "reset",
         }
     }
 }
@@ -124,6 +128,9 @@ pub struct FinalPhase<'a> {
     /// SAC environment steps of the fresh agent (0: none), with `checkpoints` candidates
     /// along them.
     pub fresh_steps: u64,
+    /// Gradient updates, then as many SAC environment steps, of the reset agent (0: none),
+    /// with `checkpoints` candidates along the steps.
+    pub reset_steps: u64,
     /// With `smirl_selection_cut`: what the demonstrations touch after the cancel, per learned
     /// state, where selection episodes stop counting.
     pub selection_cut: Option<&'a SeenAfterEvents>,
@@ -131,11 +138,14 @@ pub struct FinalPhase<'a> {
 
 /// The stream of the fresh agent's SAC seed within the job's seed.
 const FRESH_AGENT_STREAM: u64 = 0xf7e5_a9e7;
+/// The stream of the reset agent's SAC seed within the job's seed.
+const RESET_AGENT_STREAM: u64 = 0x7e5e_7a9e;
 
 /// Runs the phase: `sac`, fresh from the IRL loop, trains on `reward` (the final reward, fixed)
 /// and is scored at each checkpoint; then, with `phase.fresh_steps` > 0, a new agent with the
-/// same SAC settings does the same from scratch. `iterations` is the loop's length (for
-/// progress reports).
+/// same SAC settings does the same from scratch; then, with `phase.reset_steps` > 0, a new
+/// agent on a copy of `sac`'s replay buffer first learns from that buffer alone and then does
+/// the same. `iterations` is the loop's length (for progress reports).
 pub(super) fn train<E: JobEnv, R: ScoredReward>(
     sac: &mut SacTrainer,
     env: &mut E,
@@ -159,9 +169,9 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     let mut candidates = vec![candidate(
         sac, co_trained, env, reward, &task, selection, watch,
     )?];
-    // `steps` more SAC steps of `sac` in `phase.checkpoints` even segments, each ending in a
-    // scored candidate: the co-trained agent's, then the fresh one's.
-    let mut checkpoints = |sac: &mut SacTrainer, agent: FinalAgent, steps: u64| {
+    // `steps` more SAC steps of an agent in `phase.checkpoints` even segments, each ending in
+    // a scored candidate: the co-trained agent's, then the fresh one's, then the reset one's.
+    let mut checkpoints = |sac: &mut SacTrainer, reward: &mut R, agent: FinalAgent, steps: u64| {
         let start = sac.env_steps();
         let mut scored = Vec::new();
         for k in 1..=phase.checkpoints {
@@ -172,15 +182,32 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         }
         Ok::<_, String>(scored)
     };
-    candidates.extend(checkpoints(sac, co_trained, phase.steps)?);
+    candidates.extend(checkpoints(sac, reward, co_trained, phase.steps)?);
     if phase.fresh_steps > 0 {
         let fresh_seed = episode_seed(phase.seed, FRESH_AGENT_STREAM);
         let mut fresh = SacTrainer::new(&sac_config, obs_dim, act_dim, fresh_seed)
             .map_err(|e| format!("the fresh agent: {e}"))?;
         candidates.extend(checkpoints(
             &mut fresh,
+            reward,
             FinalAgent::Fresh,
             phase.fresh_steps,
+        )?);
+    }
+    if phase.reset_steps > 0 {
+        // The co-trained agent's data, every transition of the loop and the phase, without
+        // what its networks made of it: first updates on the buffer alone (the final reward,
+        // counterfactual states, as in every batch), so its first actions are not a new
+        // network's noise, then steps of its own.
+        let mut reset = sac.with_new_agent(episode_seed(phase.seed, RESET_AGENT_STREAM));
+        reset
+            .update_from_replay(reward, phase.reset_steps)
+            .map_err(|e| format!("the reset agent: {e}"))?;
+        candidates.extend(checkpoints(
+            &mut reset,
+            reward,
+            FinalAgent::Reset,
+            phase.reset_steps,
         )?);
     }
     let chosen = choose(&candidates);

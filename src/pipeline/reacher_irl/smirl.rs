@@ -553,6 +553,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
             checkpoints: s.smirl_final_checkpoints,
             seed: job.seed,
             fresh_steps: s.smirl_final_fresh_steps,
+            reset_steps: s.smirl_final_reset_steps,
             selection_cut: selection_cut.as_ref(),
         };
         let iterations = s.irl_iterations;

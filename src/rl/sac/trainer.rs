@@ -296,18 +296,7 @@ impl SacTrainer {
         let cfg = self.agent.config();
         if self.env_steps >= cfg.update_after && self.replay.len() >= cfg.batch_size {
             for _ in 0..cfg.updates_per_step {
-                self.replay.sample_into(&mut self.rng, &mut self.batch);
-                reward.relabel(&mut self.batch, &mut self.rng);
-                reward
-                    .fill_rewards(&self.batch, &mut self.rewards)
-                    .map_err(|source| SacError::Reward {
-                        step: self.env_steps,
-                        source,
-                    })?;
-                update = Some(
-                    self.agent
-                        .update(&self.batch, &self.rewards, &mut self.rng)?,
-                );
+                update = Some(self.update_once(reward)?);
             }
         }
         Ok(StepOutcome {
@@ -315,6 +304,70 @@ impl SacTrainer {
             update,
             episode,
         })
+    }
+
+    /// One gradient update on a batch sampled from the replay buffer, rewards from `reward`.
+    fn update_once<R: RewardFn + ?Sized>(
+        &mut self,
+        reward: &mut R,
+    ) -> Result<UpdateStats, SacError> {
+        self.replay.sample_into(&mut self.rng, &mut self.batch);
+        reward.relabel(&mut self.batch, &mut self.rng);
+        reward
+            .fill_rewards(&self.batch, &mut self.rewards)
+            .map_err(|source| SacError::Reward {
+                step: self.env_steps,
+                source,
+            })?;
+        self.agent.update(&self.batch, &self.rewards, &mut self.rng)
+    }
+
+    /// A new agent — networks, optimisers and temperature drawn afresh from `seed`, its own
+    /// random stream — on a copy of this trainer's replay buffer and step counters, so it
+    /// neither warms up with random actions nor waits before updating: the reset of Nikishin
+    /// et al. (2022, "The primacy bias in deep reinforcement learning"), which keeps the data
+    /// and forgets what the networks made of it first. Call it between episodes.
+    pub fn with_new_agent(&self, seed: u64) -> SacTrainer {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let agent = SacAgent::new(
+            self.agent.config(),
+            self.agent.obs_dim(),
+            self.agent.act_dim(),
+            &mut rng,
+        );
+        Self {
+            agent,
+            replay: self.replay.clone(),
+            seed,
+            rng,
+            batch: self.batch.clone(),
+            rewards: self.rewards.clone(),
+            obs: self.obs.clone(),
+            next_obs: self.next_obs.clone(),
+            action: self.action.clone(),
+            in_episode: false,
+            env_steps: self.env_steps,
+            episodes: self.episodes,
+            episode_return: 0.0,
+            episode_len: 0,
+        }
+    }
+
+    /// `updates` gradient updates on batches of the replay buffer, without an environment
+    /// step (nothing when the buffer holds less than a batch). Returns the last update's
+    /// statistics.
+    pub fn update_from_replay<R: RewardFn + ?Sized>(
+        &mut self,
+        reward: &mut R,
+        updates: u64,
+    ) -> Result<Option<UpdateStats>, SacError> {
+        let mut last = None;
+        if self.replay.len() >= self.agent.config().batch_size {
+            for _ in 0..updates {
+                last = Some(self.update_once(reward)?);
+            }
+        }
+        Ok(last)
     }
 
     /// Runs `steps` calls of [`SacTrainer::step`], reporting each outcome to `on_step`.
