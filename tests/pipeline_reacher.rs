@@ -965,29 +965,41 @@ fn final_policy_settings_are_checked() {
             }
         }
     }
-    // The fresh agent needs the phase's checkpoints, at least one step per checkpoint and at
-    // most the step limit.
-    for (fresh, steps, checkpoints, ok) in [
-        (150_000, 20_000, 4, true),
-        (4, 20_000, 4, true),
-        (3, 20_000, 4, false),
-        (150_000, 0, 0, false),
-        (100_000_001, 20_000, 4, false),
-    ] {
-        c.smirl_final_fresh_steps = fresh;
-        c.smirl_final_sac_steps = steps;
-        c.smirl_final_checkpoints = checkpoints;
-        match c.validate("test") {
-            Ok(()) => assert!(ok, "fresh {fresh} accepted"),
-            Err(e) => {
-                assert!(!ok, "fresh {fresh}: {e}");
-                assert!(e.to_string().contains("smirl_final_fresh_steps"), "{e}");
+    // The fresh and the reset agent need the phase's checkpoints, at least one step per
+    // checkpoint and at most the step limit.
+    type Key = fn(&mut IrlRunConfig) -> &mut u64;
+    let keys: [(&str, Key); 2] = [
+        ("smirl_final_fresh_steps", |c| {
+            &mut c.smirl_final_fresh_steps
+        }),
+        ("smirl_final_reset_steps", |c| {
+            &mut c.smirl_final_reset_steps
+        }),
+    ];
+    for (field, key) in keys {
+        for (extra, steps, checkpoints, ok) in [
+            (150_000, 20_000, 4, true),
+            (4, 20_000, 4, true),
+            (3, 20_000, 4, false),
+            (150_000, 0, 0, false),
+            (100_000_001, 20_000, 4, false),
+        ] {
+            let mut c = c.clone();
+            *key(&mut c) = extra;
+            c.smirl_final_sac_steps = steps;
+            c.smirl_final_checkpoints = checkpoints;
+            match c.validate("test") {
+                Ok(()) => assert!(ok, "{field} {extra} accepted"),
+                Err(e) => {
+                    assert!(!ok, "{field} {extra}: {e}");
+                    assert!(e.to_string().contains(field), "{e}");
+                }
             }
         }
+        let mut standard = IrlRunConfig::standard();
+        assert_eq!(*key(&mut standard), 0);
+        assert!(!standard.to_toml().contains(field));
     }
-    let standard = IrlRunConfig::standard();
-    assert_eq!(standard.smirl_final_fresh_steps, 0);
-    assert!(!standard.to_toml().contains("smirl_final_fresh_steps"));
     // A config without the keys (every run before them) has no final phase.
     let old = IrlRunConfig::standard()
         .to_toml()
@@ -1418,6 +1430,65 @@ fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
         written.contains("smirl_final_fresh_steps = 280"),
         "{written}"
     );
+}
+
+/// `smirl_final_reset_steps`: after the co-trained agent's final phase a reset agent (new
+/// networks on its replay buffer) learns from that buffer, then trains on, and its checkpoints
+/// join the candidates (`agent` = reset, step counts going on from the co-trained agent's);
+/// the IRL loop and the co-trained candidates are those of the same run without it, the
+/// choice is still the first of highest selection return, and the log replays bit for bit.
+#[test]
+fn reset_agent_checkpoints_join_the_final_policy_candidates() {
+    let tmp = tempfile::tempdir().unwrap();
+    let request = |out: &str, reset_steps: u64| {
+        let mut config = tiny_config();
+        config.smirl_final_reset_steps = reset_steps;
+        RunRequest {
+            task: ReacherTask::Or,
+            algos: vec![Algo::Smirl],
+            seeds: 1,
+            seed: 3,
+            config,
+            out: tmp.path().join(out),
+            force: false,
+        }
+    };
+    run_pipeline(&request("without", 0), &Silent).unwrap();
+    run_pipeline(&request("with", 280), &Silent).unwrap();
+    let read =
+        |run: &str, file: &str| std::fs::read_to_string(tmp.path().join(run).join(file)).unwrap();
+    assert_eq!(read("without", "metrics.csv"), read("with", "metrics.csv"));
+    let rows = |run: &str| -> Vec<Vec<String>> {
+        read(run, "final_policy.csv")
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(String::from).collect())
+            .collect()
+    };
+    let (without, with) = (rows("without"), rows("with"));
+    assert_eq!(with.len(), without.len() + 2, "{with:?}");
+    for (a, b) in without.iter().zip(&with) {
+        assert_eq!((&a[..5], &a[6..]), (&b[..5], &b[6..]));
+    }
+    let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
+    assert_eq!(
+        agents,
+        ["co-trained", "co-trained", "co-trained", "reset", "reset"]
+    );
+    let co_trained_end: u64 = with[2][3].parse().unwrap();
+    let reset_steps: Vec<u64> = with[3..].iter().map(|r| r[3].parse().unwrap()).collect();
+    assert_eq!(reset_steps, [co_trained_end + 140, co_trained_end + 280]);
+    let returns: Vec<f64> = with.iter().map(|r| r[4].parse().unwrap()).collect();
+    let best = returns.iter().cloned().fold(f64::MIN, f64::max);
+    let chosen: Vec<usize> = (0..5).filter(|&i| with[i][5] == "1").collect();
+    assert_eq!(
+        chosen,
+        vec![returns.iter().position(|&x| x == best).unwrap()]
+    );
+    let log = smirl::log::read_log(&tmp.path().join("with/logs/smirl_seed3.mcap")).unwrap();
+    let report = smirl::pipeline::replay::replay(&log).unwrap();
+    assert!(report.all_match(), "{report}");
+    assert!(read("with", "config.toml").contains("smirl_final_reset_steps = 280"));
 }
 
 /// A job runs with its algorithm's schedule: one IRL iteration for `maxent`, the run's two
