@@ -21,6 +21,13 @@
 //! settings, environment and reward; its checkpoints are scored like the others, so the
 //! choice still reads the learned reward alone.
 //!
+//! The reset agent (`smirl_final_reset_steps`): the fresh agent learns from nothing; the reset
+//! agent keeps the co-trained agent's data — a copy of its replay buffer, every transition of
+//! the loop and the phase — with new networks, optimisers and temperature
+//! ([`SacTrainer::with_new_agent`]), learns from that buffer alone first and then trains on.
+//! Why: in Composite's misses the co-trained agent does not respond to a reward that pays for
+//! what it never does (README, "A reset agent").
+//!
 //! The cut (`smirl_selection_cut`): a learned machine without a failure state lets a policy
 //! that touches blue after the cancel earn about what one that avoids it earns, so the choice
 //! can fall on it (README, "Why the final phase can prefer a policy that fails the cancel

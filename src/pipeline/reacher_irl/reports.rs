@@ -308,7 +308,8 @@ pub(super) fn write_reports(
 
 /// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
 /// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `agent` says
-/// whose policy it is (`co-trained`, or `fresh` with `smirl_final_fresh_steps`), `cut_return`
+/// whose policy it is (`co-trained`, `fresh` with `smirl_final_fresh_steps`, `reset` with
+/// `smirl_final_reset_steps`), `cut_return`
 /// what the choice read instead of `learned_return` (`smirl_selection_cut`; else empty).
 fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
     let mut table = CsvTable::new([
