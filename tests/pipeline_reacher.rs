@@ -945,6 +945,8 @@ fn counterfactual_share_must_be_in_the_unit_interval() {
 #[test]
 fn final_policy_settings_are_checked() {
     let mut c = IrlRunConfig::standard();
+    // The phase's own keys first, without the standard's reset agent (which needs them).
+    c.smirl_final_reset_steps = 0;
     for (steps, checkpoints, ok) in [
         (0, 0, true),
         (20_000, 4, true),
@@ -996,10 +998,14 @@ fn final_policy_settings_are_checked() {
                 }
             }
         }
-        let mut standard = IrlRunConfig::standard();
-        assert_eq!(*key(&mut standard), 0);
-        assert!(!standard.to_toml().contains(field));
     }
+    let standard = IrlRunConfig::standard();
+    assert_eq!(standard.smirl_final_fresh_steps, 0);
+    assert!(!standard.to_toml().contains("smirl_final_fresh_steps"));
+    assert_eq!(standard.smirl_final_reset_steps, 20_000);
+    assert!(standard
+        .to_toml()
+        .contains("smirl_final_reset_steps = 20000"));
     // A config without the keys (every run before them) has no final phase.
     let old = IrlRunConfig::standard()
         .to_toml()
@@ -1177,7 +1183,7 @@ fn without_schedules() -> IrlRunConfig {
 
 /// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
 /// issue 13 (20 IRL iterations, no shaping, no event stutter, LRM predicting the cancel, no
-/// commuted events, no fallback starts or initial events, no selection cut, a replay buffer of
+/// commuted events, no fallback starts or initial events, no selection cut or reset agent, a replay buffer of
 /// 100 000), as the runs made with it.
 fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
@@ -1189,6 +1195,7 @@ fn unshaped() -> IrlRunConfig {
         smirl_shaping: 0.0,
         smirl_final_sac_steps: 0,
         smirl_final_checkpoints: 0,
+        smirl_final_reset_steps: 0,
         smirl_selection_cut: false,
         smirl_selection_cut_entries: false,
         lrm_event_stutter: false,
@@ -1252,12 +1259,14 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
     // The baselines' resolved settings differ only in SMIRL's shaping, final policy (and its
-    // selection cut), normalisation and learned machine (LRM's keys), which only SMIRL reads.
+    // selection cut and reset agent), normalisation and learned machine (LRM's keys), which only
+    // SMIRL reads.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let before = IrlRunConfig {
             smirl_shaping: 1.0,
             smirl_final_sac_steps: standard.smirl_final_sac_steps,
             smirl_final_checkpoints: standard.smirl_final_checkpoints,
+            smirl_final_reset_steps: standard.smirl_final_reset_steps,
             smirl_selection_cut: standard.smirl_selection_cut,
             smirl_selection_cut_entries: standard.smirl_selection_cut_entries,
             smirl_normalisation: standard.smirl_normalisation,

@@ -3,7 +3,8 @@
 # SMIRL's settings of issue 13 (results_smirl.md's prose, figure7.py's tables of
 # runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final (the standards before
 # event-gated visits) and of the current and previous standards' tuning runs, standard_heldout.py's tables
-# of the current (selection cut reading entries), the touches one, the previous (initial events), the fallback-starts, the replay-all
+# of the current (the reset agent, the jobs rerun so far), reset_agent.py's comparison of the reset agent
+# with the cut-entries standard before it, of that one (selection cut reading entries), the touches one, the previous (initial events), the fallback-starts, the replay-all
 # and the commuted-events standard's held-out jobs, selection_cut.py's comparison of the selection
 # cut with the previous standard, ablation_heldout.py's comparisons of fallback starts, initial events and the sink of
 # unseen touches with the replay-all standard, smirl_settings.py's
@@ -59,8 +60,12 @@ heldout_tables() {
   printf '\n### SMIRL'"'"'s final policy under the commuted-events standard (a replay buffer of 100 000; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; OR, Sequential and IF are the runs of unpredicted events, whose base-0 machines commuted events leave unchanged; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-{or,sequential,if} ablations/runs/commute_events-seeds0to5-composite`)\n'
   python3 figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-or ablations/runs/unpredicted_events-seeds0to5-sequential \
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/commute_events-seeds0to5-composite
-  printf '\n### SMIRL held out under the current standard (the selection cut, touches read as entries; initial events and fallback starts in LRM, a replay buffer of 200 000; every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py`)\n\n'
+  printf '\n### SMIRL held out under the current standard (the reset agent; the selection cut, touches read as entries; initial events and fallback starts in LRM, a replay buffer of 200 000; only the jobs rerun with the reset agent so far; `python3 experiments/reacher/standard_heldout.py`)\n\n'
   python3 standard_heldout.py "$bin"
+  printf '\n### The reset agent against the current standard, job for job (`ablations/reset_agent.toml`; the jobs run so far, the standard'"'"'s misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/reset_agent.py`)\n\n'
+  python3 reset_agent.py "$bin"
+  printf '\n### SMIRL held out under the cut-entries standard (the standard before the reset agent: every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py --cut-entries`)\n\n'
+  python3 standard_heldout.py --cut-entries "$bin"
   printf '\n### The selection cut, touches read as labels and as entries, against the previous standard, job for job (`ablations/selection_cut.toml`, `ablations/selection_cut_entries.toml`, both adopted in turn; only the jobs whose candidates lie on both sides of 0.9 can change, and only they ran; `python3 experiments/reacher/selection_cut.py`)\n\n'
   python3 selection_cut.py "$bin"
   printf '\n### SMIRL held out under the selection cut reading touches as labels (`python3 experiments/reacher/standard_heldout.py --touches`)\n\n'

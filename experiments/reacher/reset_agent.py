@@ -117,8 +117,10 @@ def table(jobs):
         t[0] += 1
         t[1] += solved(rows)
         t[2] += solved(reset)
+        # cut_return only where the standard's run has it (the cut's reruns).
         same = len(reset) > len(rows) and all(
-            a.get(k) == b.get(k) for a, b in zip(reset, rows) for k in SAME)
+            a.get(k) == b.get(k) for a, b in zip(reset, rows) for k in SAME
+            if k != "cut_return" or b.get(k))
         chosen = rundata.chosen(reset)
         lines.append(
             f"| {scope} | {task} | {base} | {seed} | {selection_cut.rate(rundata.chosen(rows), task)} | "

@@ -1,15 +1,20 @@
 #!/usr/bin/env python3
 """SMIRL's held-out check under the current standard (issue 13), in one table: per task and
 held-out base seed B, the reported policy of each SAC seed B, B+1, B+2, from whichever run is
-the standard's job there. With --touches, the same for the selection cut reading touches as
-labels (ablations/selection_cut.toml, the standard for one stop before it read them as
+the standard's job there. The current standard (config.toml) has the reset agent
+(ablations/reset_agent.toml); its jobs are its own runs, heldout/reset-agent-seedsB-<task>,
+and only those: a reset candidate can change any job's choice, so a job not rerun with it is
+no job of the current standard's, and the table covers the jobs rerun so far. With
+--cut-entries, the same for the standard before it (the selection cut reading touches as
+entries, ablations/selection_cut_entries.toml). With --touches, the same for the selection cut
+reading touches as labels (ablations/selection_cut.toml, the standard for one stop before it read them as
 entries); with --previous, for the standard before the cut (initial events and fallback starts,
 choosing by the full learned return: ablations/initial_events.toml); with --fallback, for the one before it (fallback starts without initial events,
 ablations/fallback_starts.toml); with --replay-all, for the one before that
 (ablations/replay_all.toml); with --commuted, for the one before that (commuted events with a
 100 000-transition replay buffer, ablations/commute_events.toml).
 
-Usage: python3 experiments/reacher/standard_heldout.py [--touches | --previous | --fallback | --replay-all | --commuted] [REACHER_BIN]
+Usage: python3 experiments/reacher/standard_heldout.py [--cut-entries | --touches | --previous | --fallback | --replay-all | --commuted] [REACHER_BIN]
   (REACHER_BIN defaults to target/release/reacher; it only runs `reacher prepare`, well under a
   second per machine. make_results.sh puts the tables in results.md.)
 
@@ -31,8 +36,8 @@ Which run is a standard's job at base B:
      src` touches LRM, config keys and the commands' refusal of unfinished runs only. The
      replay-all standard's SAC keeps a larger buffer than any setting before it, so only its
      own runs are its jobs.
-  3. The current standard (config.toml: the previous one with the selection cut reading
-     touches as entries, ablations/selection_cut_entries.toml) and the touches one
+  3. The cut-entries standard (the previous one with the selection cut reading touches as
+     entries, ablations/selection_cut_entries.toml) and the touches one
      (ablations/selection_cut.toml) train exactly as the previous one and only choose
      differently, so their jobs are the previous standard's, SAC seed by SAC seed, with the
      choice of heldout/selection-cut-entries-seedsB-<task> (selection-cut-seedsB-<task>) where
@@ -62,11 +67,12 @@ HELDOUT = os.path.join(HERE, "heldout")
 PREVIOUS = ("ablations/initial_events.toml",
             [("initial-events", None), ("fallback-starts", "ablations/fallback_starts.toml"),
              ("replay-all", "ablations/replay_all.toml")], None)
-CURRENT = ("config.toml",
-           [("initial-events", "ablations/initial_events.toml"),
-            ("fallback-starts", "ablations/fallback_starts.toml"),
-            ("replay-all", "ablations/replay_all.toml")], "selection-cut-entries")
-TOUCHES = ("ablations/selection_cut.toml", CURRENT[1], "selection-cut")
+CURRENT = ("config.toml", [("reset-agent", None)], None)
+CUT_ENTRIES = ("ablations/selection_cut_entries.toml",
+               [("initial-events", "ablations/initial_events.toml"),
+                ("fallback-starts", "ablations/fallback_starts.toml"),
+                ("replay-all", "ablations/replay_all.toml")], "selection-cut-entries")
+TOUCHES = ("ablations/selection_cut.toml", CUT_ENTRIES[1], "selection-cut")
 FALLBACK = ("ablations/fallback_starts.toml",
             [("fallback-starts", None), ("replay-all", "ablations/replay_all.toml")], None)
 REPLAY_ALL = ("ablations/replay_all.toml", [("replay-all", None)], None)
@@ -193,7 +199,7 @@ def table(binary, standard):
 
 def main(argv):
     standard = CURRENT
-    named = {"--touches": TOUCHES, "--previous": PREVIOUS, "--fallback": FALLBACK, "--replay-all": REPLAY_ALL,
+    named = {"--cut-entries": CUT_ENTRIES, "--touches": TOUCHES, "--previous": PREVIOUS, "--fallback": FALLBACK, "--replay-all": REPLAY_ALL,
              "--commuted": COMMUTED}
     if argv and argv[0] in named:
         standard, argv = named[argv[0]], argv[1:]

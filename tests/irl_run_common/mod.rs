@@ -20,6 +20,8 @@ pub fn tiny_config() -> IrlRunConfig {
     // SMIRL's final policy: two candidates after the co-trained one, 140 steps apart.
     c.smirl_final_sac_steps = 280;
     c.smirl_final_checkpoints = 2;
+    // No reset agent (the standard's, `smirl_final_reset_steps`): tests that want one set it.
+    c.smirl_final_reset_steps = 0;
     // 300 SAC steps are not a whole number of 70-step episodes: each iteration has to finish
     // SAC's episode in progress before the rollouts reset the environment.
     c.env.max_steps = 70;

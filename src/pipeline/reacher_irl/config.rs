@@ -582,7 +582,9 @@ impl IrlRunConfig {
             smirl_final_sac_steps: 20_000,
             smirl_final_checkpoints: 4,
             smirl_final_fresh_steps: 0,
-            smirl_final_reset_steps: 0,
+            // Four more from a reset agent on the co-trained agent's replay buffer (24 of 24
+            // tuning jobs; README, "A reset agent").
+            smirl_final_reset_steps: 20_000,
             // The choice reads no return earned after a touch, after the cancel, that no
             // demonstration makes there (24 of 24 tuning jobs; README, "A choice that reads
             // what the expert does after the cancel").
@@ -649,6 +651,7 @@ impl IrlRunConfig {
             log_every_nth_episode: 4,
             smirl_final_sac_steps: 2_000,
             smirl_final_checkpoints: 2,
+            smirl_final_reset_steps: 2_000,
             // One short schedule for every algorithm: a smoke run, not the baselines' 800
             // iterations.
             schedule: BTreeMap::new(),
