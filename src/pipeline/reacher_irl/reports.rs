@@ -433,7 +433,7 @@ pub fn summary_markdown(
         let _ = writeln!(
             s,
             "\nFinal policy (SAC on the final reward held fixed; of the candidates in \
-             final_policy.csv — the co-trained policy, its checkpoints and any fresh agent's — \
+             final_policy.csv — the co-trained policy, its checkpoints and any fresh or reset agent's — \
              the one of highest learned return, counted with smirl_selection_cut up to the \
              first touch after the cancel that no demonstration makes):\n"
         );
