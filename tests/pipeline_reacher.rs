@@ -1378,17 +1378,20 @@ fn bad_schedules_name_the_key_and_line() {
     }
 }
 
-/// `smirl_final_fresh_steps`: after the co-trained agent's final phase a fresh agent learns the
-/// final reward from scratch, and its checkpoints join the candidates (`agent` = fresh, its
-/// own step count); the IRL loop and the co-trained candidates are those of the same run
-/// without it, the choice is still the first of highest learned return, and the rollout log
-/// with the fresh agent's episodes replays bit for bit.
-#[test]
-fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
+/// An OR run (seed 3, tiny config) without and with one more agent of the final phase
+/// (`set` puts `steps` into its key): both runs' `final_policy.csv` rows. Checks what holds for
+/// every such agent: the IRL loop and the co-trained candidates are those of the run without
+/// it, the choice is the first candidate of highest learned return, the rollout log with the
+/// agent's episodes replays bit for bit, and the written config holds the key (`written`).
+fn run_with_extra_agent(
+    set: fn(&mut IrlRunConfig, u64),
+    steps: u64,
+    written: &str,
+) -> (Vec<Vec<String>>, Vec<Vec<String>>) {
     let tmp = tempfile::tempdir().unwrap();
-    let request = |out: &str, fresh_steps: u64| {
+    let request = |out: &str, steps: u64| {
         let mut config = tiny_config();
-        config.smirl_final_fresh_steps = fresh_steps;
+        set(&mut config, steps);
         RunRequest {
             task: ReacherTask::Or,
             algos: vec![Algo::Smirl],
@@ -1400,7 +1403,7 @@ fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
         }
     };
     run_pipeline(&request("without", 0), &Silent).unwrap();
-    run_pipeline(&request("with", 280), &Silent).unwrap();
+    run_pipeline(&request("with", steps), &Silent).unwrap();
     let read =
         |run: &str, file: &str| std::fs::read_to_string(tmp.path().join(run).join(file)).unwrap();
     assert_eq!(read("without", "metrics.csv"), read("with", "metrics.csv"));
@@ -1412,21 +1415,13 @@ fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
             .collect()
     };
     let (without, with) = (rows("without"), rows("with"));
-    assert_eq!(with.len(), 5, "{with:?}");
     // The co-trained candidates are unchanged but for `chosen`.
     for (a, b) in without.iter().zip(&with) {
         assert_eq!((&a[..5], &a[6..]), (&b[..5], &b[6..]));
     }
-    let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
-    assert_eq!(
-        agents,
-        ["co-trained", "co-trained", "co-trained", "fresh", "fresh"]
-    );
-    let fresh_steps: Vec<&str> = with[3..].iter().map(|r| r[3].as_str()).collect();
-    assert_eq!(fresh_steps, ["140", "280"]);
     let returns: Vec<f64> = with.iter().map(|r| r[4].parse().unwrap()).collect();
     let best = returns.iter().cloned().fold(f64::MIN, f64::max);
-    let chosen: Vec<usize> = (0..5).filter(|&i| with[i][5] == "1").collect();
+    let chosen: Vec<usize> = (0..with.len()).filter(|&i| with[i][5] == "1").collect();
     assert_eq!(
         chosen,
         vec![returns.iter().position(|&x| x == best).unwrap()]
@@ -1434,51 +1429,42 @@ fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
     let log = smirl::log::read_log(&tmp.path().join("with/logs/smirl_seed3.mcap")).unwrap();
     let report = smirl::pipeline::replay::replay(&log).unwrap();
     assert!(report.all_match(), "{report}");
-    let written = read("with", "config.toml");
-    assert!(
-        written.contains("smirl_final_fresh_steps = 280"),
-        "{written}"
+    let config = read("with", "config.toml");
+    assert!(config.contains(written), "{config}");
+    (without, with)
+}
+
+/// `smirl_final_fresh_steps`: after the co-trained agent's final phase a fresh agent learns the
+/// final reward from scratch, and its checkpoints join the candidates (`agent` = fresh, its
+/// own step count), the rest as [`run_with_extra_agent`] checks.
+#[test]
+fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
+    let (_, with) = run_with_extra_agent(
+        |c, steps| c.smirl_final_fresh_steps = steps,
+        280,
+        "smirl_final_fresh_steps = 280",
     );
+    let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
+    assert_eq!(
+        agents,
+        ["co-trained", "co-trained", "co-trained", "fresh", "fresh"]
+    );
+    let fresh_steps: Vec<&str> = with[3..].iter().map(|r| r[3].as_str()).collect();
+    assert_eq!(fresh_steps, ["140", "280"]);
 }
 
 /// `smirl_final_reset_steps`: after the co-trained agent's final phase a reset agent (new
 /// networks on its replay buffer) learns from that buffer, then trains on, and its checkpoints
-/// join the candidates (`agent` = reset, step counts going on from the co-trained agent's);
-/// the IRL loop and the co-trained candidates are those of the same run without it, the
-/// choice is still the first of highest selection return, and the log replays bit for bit.
+/// join the candidates (`agent` = reset, step counts going on from the co-trained agent's),
+/// the rest as [`run_with_extra_agent`] checks.
 #[test]
 fn reset_agent_checkpoints_join_the_final_policy_candidates() {
-    let tmp = tempfile::tempdir().unwrap();
-    let request = |out: &str, reset_steps: u64| {
-        let mut config = tiny_config();
-        config.smirl_final_reset_steps = reset_steps;
-        RunRequest {
-            task: ReacherTask::Or,
-            algos: vec![Algo::Smirl],
-            seeds: 1,
-            seed: 3,
-            config,
-            out: tmp.path().join(out),
-            force: false,
-        }
-    };
-    run_pipeline(&request("without", 0), &Silent).unwrap();
-    run_pipeline(&request("with", 280), &Silent).unwrap();
-    let read =
-        |run: &str, file: &str| std::fs::read_to_string(tmp.path().join(run).join(file)).unwrap();
-    assert_eq!(read("without", "metrics.csv"), read("with", "metrics.csv"));
-    let rows = |run: &str| -> Vec<Vec<String>> {
-        read(run, "final_policy.csv")
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').map(String::from).collect())
-            .collect()
-    };
-    let (without, with) = (rows("without"), rows("with"));
+    let (without, with) = run_with_extra_agent(
+        |c, steps| c.smirl_final_reset_steps = steps,
+        280,
+        "smirl_final_reset_steps = 280",
+    );
     assert_eq!(with.len(), without.len() + 2, "{with:?}");
-    for (a, b) in without.iter().zip(&with) {
-        assert_eq!((&a[..5], &a[6..]), (&b[..5], &b[6..]));
-    }
     let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
     assert_eq!(
         agents,
@@ -1487,17 +1473,6 @@ fn reset_agent_checkpoints_join_the_final_policy_candidates() {
     let co_trained_end: u64 = with[2][3].parse().unwrap();
     let reset_steps: Vec<u64> = with[3..].iter().map(|r| r[3].parse().unwrap()).collect();
     assert_eq!(reset_steps, [co_trained_end + 140, co_trained_end + 280]);
-    let returns: Vec<f64> = with.iter().map(|r| r[4].parse().unwrap()).collect();
-    let best = returns.iter().cloned().fold(f64::MIN, f64::max);
-    let chosen: Vec<usize> = (0..5).filter(|&i| with[i][5] == "1").collect();
-    assert_eq!(
-        chosen,
-        vec![returns.iter().position(|&x| x == best).unwrap()]
-    );
-    let log = smirl::log::read_log(&tmp.path().join("with/logs/smirl_seed3.mcap")).unwrap();
-    let report = smirl::pipeline::replay::replay(&log).unwrap();
-    assert!(report.all_match(), "{report}");
-    assert!(read("with", "config.toml").contains("smirl_final_reset_steps = 280"));
 }
 
 /// A job runs with its algorithm's schedule: one IRL iteration for `maxent`, the run's two

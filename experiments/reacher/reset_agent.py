@@ -94,12 +94,7 @@ def run_all(binary, jobs):
         print(f"done: reset agent {s} {t} {b} seed {seed}", flush=True)
 
     for s, t, b, _ in todo:
-        out = reset_run(s, t, b)
-        if not os.path.isdir(out):
-            seeds = "6" if s == "tuning" else "3"
-            subprocess.run([binary, "prepare", "--task", t, "--algo", "smirl", "--seed", str(b),
-                            "--seeds", seeds, "--config", CONFIG, "--out", out, "--quiet"],
-                           check=True, stdout=subprocess.DEVNULL)
+        selection_cut.prepare_run(binary, s, t, b, CONFIG, reset_run(s, t, b))
     with ThreadPoolExecutor(max_workers=2) as pool:
         list(pool.map(job, todo))
 

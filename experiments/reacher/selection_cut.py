@@ -94,6 +94,16 @@ def cut_candidates(variant, scope, task, base, seed):
         return None
 
 
+def prepare_run(binary, scope, task, base, config, out):
+    """`reacher prepare` of a job's run with `config` into `out`, unless it exists: SAC seeds
+    0-5 at a tuning base, B..B+2 at a held-out one."""
+    if not os.path.isdir(out):
+        seeds = "6" if scope == "tuning" else "3"
+        subprocess.run([binary, "prepare", "--task", task, "--algo", "smirl", "--seed", str(base),
+                        "--seeds", seeds, "--config", config, "--out", out, "--quiet"],
+                       check=True, stdout=subprocess.DEVNULL)
+
+
 def run_all(binary, jobs, variant):
     config = os.path.join(HERE, "ablations", VARIANTS[variant][0])
     cut_run_of = lambda s, t, b: cut_run(variant, s, t, b)
@@ -103,12 +113,7 @@ def run_all(binary, jobs, variant):
     for s, t, b, seed in todo:
         runs.setdefault((s, t, b), []).append(seed)
     for (s, t, b) in runs:
-        out = cut_run_of(s, t, b)
-        if not os.path.isdir(out):
-            seeds = "6" if s == "tuning" else "3"
-            subprocess.run([binary, "prepare", "--task", t, "--algo", "smirl", "--seed", str(b),
-                            "--seeds", seeds, "--config", config, "--out", out, "--quiet"],
-                           check=True, stdout=subprocess.DEVNULL)
+        prepare_run(binary, s, t, b, config, cut_run_of(s, t, b))
 
     def job(item):
         s, t, b, seed = item
