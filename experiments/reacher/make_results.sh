@@ -62,7 +62,7 @@ heldout_tables() {
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/commute_events-seeds0to5-composite
   printf '\n### SMIRL held out under the current standard (the reset agent; the selection cut, touches read as entries; initial events and fallback starts in LRM, a replay buffer of 200 000; only the jobs rerun with the reset agent so far; `python3 experiments/reacher/standard_heldout.py`)\n\n'
   python3 standard_heldout.py "$bin"
-  printf '\n### The reset agent against the current standard, job for job (`ablations/reset_agent.toml`; the jobs run so far, the standard'"'"'s misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/reset_agent.py`)\n\n'
+  printf '\n### The reset agent against the cut-entries standard before it, job for job (`ablations/reset_agent.toml`, adopted; the jobs run so far, that standard'"'"'s misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/reset_agent.py`)\n\n'
   python3 reset_agent.py "$bin"
   printf '\n### SMIRL held out under the cut-entries standard (the standard before the reset agent: every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py --cut-entries`)\n\n'
   python3 standard_heldout.py --cut-entries "$bin"

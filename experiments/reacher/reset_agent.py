@@ -1,21 +1,22 @@
 #!/usr/bin/env python3
 """The reset agent (issue 13; ablations/reset_agent.toml, `smirl_final_reset_steps = 20000`):
-running it and what it changed against the current standard.
+running it and what it changed against the standard before it (the selection cut reading
+touches as entries: the cut-entries standard).
 
 The loop, the co-trained agent's final phase and its five candidates are the standard's bit
 for bit (checked per job: every column but `chosen`); the reset agent's four checkpoints join
 them, so any job can change — a solved one by a reset candidate of higher selection return
-that fails. Every job is run, in this order: the current standard's misses (held out), the
+that fails. Every job is run, in this order: the cut-entries standard's misses (held out), the
 tuning jobs (base 0, SAC seeds 0-5, every task: the rule's), then the other held-out jobs, IF
-and Composite first.
+and Composite first, base by base (so that a sweep cut short covers both alike).
 
 Usage: python3 experiments/reacher/reset_agent.py [--list | --run] [REACHER_BIN]
-  --list  the jobs in that order: scope, task, base, SAC seed, the current standard's outcome
+  --list  the jobs in that order: scope, task, base, SAC seed, the cut-entries standard's outcome
   --run   run them (skipping those already done): per (task, base) `reacher prepare` with the
           ablation's config into ablations/runs/reset_agent-seeds0to5-<task> (tuning) or
           heldout/reset-agent-seeds<B>-<task>, `reacher job` two at a time, `reacher aggregate
           --partial` after each job
-  (none)  the table for results.md: per job run, the current standard's reported policy and
+  (none)  the table for results.md: per job run, the cut-entries standard's reported policy and
           the reset agent's, which agent's candidate was chosen, whether the first candidates
           are the standard's; totals over the jobs run
 REACHER_BIN defaults to target/release/reacher (used for `prepare`, and by --run).
@@ -52,7 +53,7 @@ def reset_candidates(scope, task, base, seed):
 
 
 def current_jobs(binary):
-    """[(scope, task, base, seed, the current standard's candidate rows)]: the selection cut's
+    """[(scope, task, base, seed, the cut-entries standard's candidate rows)]: the selection cut's
     (as entries) run where it ran, else the previous standard's rows (whose choice the cut
     could not change)."""
     jobs = []
@@ -75,7 +76,7 @@ def ordered(jobs):
             return (0, task not in ("if", "composite"), 0)
         if scope == "tuning":
             return (1, 0, 0)
-        return (2, (task, base) not in missed_bases, task not in ("if", "composite"))
+        return (2, (task, base) not in missed_bases, task not in ("if", "composite"), base)
     return sorted(jobs, key=key)
 
 
@@ -100,7 +101,7 @@ def run_all(binary, jobs):
 
 
 def table(jobs):
-    lines = ["| scope | task | base | SAC seed | current standard's reported policy | "
+    lines = ["| scope | task | base | SAC seed | cut-entries standard's reported policy | "
              "with the reset agent (chosen: agent, candidate) | first candidates the standard's |",
              "|---|---|---|---|---|---|---|"]
     totals = {}
@@ -121,7 +122,7 @@ def table(jobs):
             f"| {scope} | {task} | {base} | {seed} | {selection_cut.rate(rundata.chosen(rows), task)} | "
             f"{selection_cut.rate(chosen, task)} ({chosen.get('agent', 'co-trained')}, "
             f"{chosen['candidate']}) | {'yes' if same else '**no**'} |")
-    return "\n".join(lines) + "\n\nJobs solved (every branch ≥ 0.9) among those run, current " \
+    return "\n".join(lines) + "\n\nJobs solved (every branch ≥ 0.9) among those run, cut-entries " \
         "standard → with the reset agent: " + "; ".join(
             f"{scope} {task} {t[1]} → {t[2]} of {t[0]}"
             for (scope, task), t in sorted(totals.items())) + ".\n"
