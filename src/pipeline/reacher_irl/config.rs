@@ -214,7 +214,8 @@ pub struct IrlRunConfig {
     /// `smirl_final_checkpoints` candidates along its steps; 0 = none (every run before the key
     /// existed). Why: a co-trained agent can stay stuck on the final reward while a fresh agent
     /// solves it (README, "Composite's five misses"); a reset keeps the loop's data and drops
-    /// the networks' habit. Omitted from written configs when 0.
+    /// the networks' habit (README, "A reset agent", for what it did held out). Omitted from
+    /// written configs when 0.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub smirl_final_reset_steps: u64,
     /// The final phase's choice reads each candidate's learned return only up to its first

@@ -25,8 +25,9 @@
 //! agent keeps the co-trained agent's data — a copy of its replay buffer, every transition of
 //! the loop and the phase — with new networks, optimisers and temperature
 //! ([`SacTrainer::with_new_agent`]), learns from that buffer alone first and then trains on.
-//! Why: in Composite's misses the co-trained agent does not respond to a reward that pays for
-//! what it never does (README, "A reset agent").
+//! Why: a co-trained agent can stay stuck on a final reward that a fresh agent solves. Held out
+//! it rescued collapsed Sequential agents but not the Composite misses it was built for, and
+//! twice it found a failing policy the final reward pays as well (README, "A reset agent").
 //!
 //! The cut (`smirl_selection_cut`): a learned machine without a failure state lets a policy
 //! that touches blue after the cancel earn about what one that avoids it earns, so the choice
