@@ -1388,33 +1388,25 @@ fn run_with_extra_agent(
     steps: u64,
     written: &str,
 ) -> (Vec<Vec<String>>, Vec<Vec<String>>) {
-    let tmp = tempfile::tempdir().unwrap();
-    let request = |out: &str, steps: u64| {
+    let run = |steps: u64| {
         let mut config = tiny_config();
         set(&mut config, steps);
-        RunRequest {
-            task: ReacherTask::Or,
-            algos: vec![Algo::Smirl],
-            seeds: 1,
-            seed: 3,
-            config,
-            out: tmp.path().join(out),
-            force: false,
-        }
+        tiny_smirl_run(ReacherTask::Or, config)
     };
-    run_pipeline(&request("without", 0), &Silent).unwrap();
-    run_pipeline(&request("with", steps), &Silent).unwrap();
-    let read =
-        |run: &str, file: &str| std::fs::read_to_string(tmp.path().join(run).join(file)).unwrap();
-    assert_eq!(read("without", "metrics.csv"), read("with", "metrics.csv"));
-    let rows = |run: &str| -> Vec<Vec<String>> {
-        read(run, "final_policy.csv")
+    let ((_without_tmp, without_dir, _), (_with_tmp, with_dir, _)) = (run(0), run(steps));
+    let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
+    assert_eq!(
+        read(&without_dir, "metrics.csv"),
+        read(&with_dir, "metrics.csv")
+    );
+    let rows = |dir: &PathBuf| -> Vec<Vec<String>> {
+        read(dir, "final_policy.csv")
             .lines()
             .skip(1)
             .map(|l| l.split(',').map(String::from).collect())
             .collect()
     };
-    let (without, with) = (rows("without"), rows("with"));
+    let (without, with) = (rows(&without_dir), rows(&with_dir));
     // The co-trained candidates are unchanged but for `chosen`.
     for (a, b) in without.iter().zip(&with) {
         assert_eq!((&a[..5], &a[6..]), (&b[..5], &b[6..]));
@@ -1426,10 +1418,10 @@ fn run_with_extra_agent(
         chosen,
         vec![returns.iter().position(|&x| x == best).unwrap()]
     );
-    let log = smirl::log::read_log(&tmp.path().join("with/logs/smirl_seed3.mcap")).unwrap();
+    let log = smirl::log::read_log(&with_dir.join("logs/smirl_seed3.mcap")).unwrap();
     let report = smirl::pipeline::replay::replay(&log).unwrap();
     assert!(report.all_match(), "{report}");
-    let config = read("with", "config.toml");
+    let config = read(&with_dir, "config.toml");
     assert!(config.contains(written), "{config}");
     (without, with)
 }
