@@ -165,3 +165,35 @@ fn tasks_parse_and_reject_unknown_names() {
         .unwrap_err()
         .contains("unknown task 'composit'"));
 }
+
+/// The clock: one entry after the one-hot block, the share of the episode still to come —
+/// 1 at reset, 1 − t/H after step t, 0 from step H on, 1 again after a reset; the inner
+/// observation, the machine state and every step report are the product's without a clock.
+#[test]
+fn the_clock_counts_down_the_episode() {
+    let mut config = no_cancel();
+    config.max_steps = 6;
+    config.cancel.latest_step = 6;
+    let product = || {
+        let inner = ReacherDelivery::new(config.clone()).unwrap();
+        ProductEnv::new(inner, ReacherTask::Or.perfect_rm().unwrap())
+    };
+    let (mut plain, mut clocked) = (product(), product().with_clock(4));
+    let n = plain.obs_dim();
+    assert_eq!(clocked.obs_dim(), n + 1);
+    assert_eq!((plain.trailing_dim(), clocked.trailing_dim()), (0, 1));
+    let (mut a, mut b) = (vec![0.0f32; n], vec![0.0f32; n + 1]);
+    for episode in 0..2 {
+        plain.reset(7 + episode, &mut a);
+        clocked.reset(7 + episode, &mut b);
+        assert_eq!((&a[..], b[n]), (&b[..n], 1.0));
+        for (t, expected) in [0.75f32, 0.5, 0.25, 0.0, 0.0, 0.0].into_iter().enumerate() {
+            let action = [0.3f32, -0.2];
+            let p = plain.step_product(&action, &mut a).unwrap();
+            let c = clocked.step_product(&action, &mut b).unwrap();
+            assert_eq!(p, c, "step {}", t + 1);
+            assert_eq!(&a[..], &b[..n], "step {}", t + 1);
+            assert_eq!(b[n], expected, "step {}", t + 1);
+        }
+    }
+}

@@ -1590,3 +1590,68 @@ fn discriminator_density_ratio_runs_and_is_recorded() {
         "{err}"
     );
 }
+
+/// `smirl_clock`: SMIRL's agent sees the share of the episode still to come. Read as false
+/// from configs without the key and not written when false; `ablations/clock.toml` is the
+/// standard with it; a run with it records it
+/// (config.toml, run.json), trains with counterfactual states on the wider observation (the
+/// relabeller refuses a width it was not built for), replays its log, repeats itself per seed
+/// and differs from the run without a clock; `reacher retrain` on its reward trains in the same
+/// product.
+#[test]
+fn clock_widens_smirls_observation_through_the_pipeline() {
+    use smirl::pipeline::commands::irl::{retrain, RetrainRequest};
+    let text = IrlRunConfig::standard().to_toml();
+    assert!(!text.contains("smirl_clock"));
+    assert!(
+        !IrlRunConfig::from_toml(&text, "c.toml")
+            .unwrap()
+            .smirl_clock
+    );
+    let mut config = tiny_config();
+    config.smirl_clock = true;
+    assert!(config.smirl_counterfactual > 0.0);
+    let written = config.to_toml();
+    assert!(written.contains("smirl_clock = true"), "{written}");
+    assert_eq!(IrlRunConfig::from_toml(&written, "c.toml").unwrap(), config);
+    // The ablation's config is the standard's with the clock.
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
+    let standard = IrlRunConfig::load(&dir.join("config.toml")).unwrap();
+    assert_eq!(
+        IrlRunConfig::load(&dir.join("ablations/clock.toml")).unwrap(),
+        IrlRunConfig {
+            smirl_clock: true,
+            ..standard
+        }
+    );
+
+    let (_with_tmp, with, _) = tiny_smirl_run(ReacherTask::Or, config.clone());
+    let (_again_tmp, again, _) = tiny_smirl_run(ReacherTask::Or, config);
+    let (_without_tmp, without, _) = tiny_smirl_run(ReacherTask::Or, tiny_config());
+    let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
+    for file in ["metrics.csv", "final_policy.csv"] {
+        assert_eq!(read(&with, file), read(&again, file), "{file}");
+    }
+    assert_ne!(read(&with, "metrics.csv"), read(&without, "metrics.csv"));
+    assert!(read(&with, "config.toml").contains("smirl_clock = true"));
+    let run_json: serde_json::Value = serde_json::from_str(&read(&with, "run.json")).unwrap();
+    assert_eq!(run_json["smirl_clock"], serde_json::Value::Bool(true));
+    let log = smirl::log::read_log(&with.join("logs/smirl_seed3.mcap")).unwrap();
+    let report = smirl::pipeline::replay::replay(&log).unwrap();
+    assert!(report.all_match(), "{report}");
+
+    retrain(RetrainRequest {
+        run: with.clone(),
+        algo: Algo::Smirl,
+        seed: 3,
+        steps: Some(200),
+        sac_seed: 1,
+        evaluations: 1,
+        zero_states: Vec::new(),
+        agent: None,
+        force: false,
+    })
+    .unwrap();
+    let table = read(&with, "retrain/smirl_seed3_sac1.csv");
+    assert_eq!(table.lines().count(), 2, "{table}");
+}

@@ -2,6 +2,13 @@
 //! observation ⊕ one-hot machine state, reward from the machine, episode ends when the
 //! machine reaches a terminal (goal) state or a failure sink.
 //!
+//! Optional clock ([`ProductEnv::with_clock`]): one more observation entry after the one-hot
+//! block, the share of the episode's steps still to come (1 at reset, 0 on the last step).
+//! Why: a task whose events can only happen early (ReacherDelivery's cancel comes on steps
+//! 1–8) is not Markovian in (o, u) alone — an agent that cannot tell step 9 from step 1 may
+//! keep waiting for an event that can no longer come (Pardo et al. 2018, "Time limits in
+//! reinforcement learning", give the remaining time as input for this reason).
+//!
 //! Optional potential-based shaping (Ng, Harada & Russell 1999) adds
 //! `F = γ·Φ(o', u') − Φ(o, u)` to the machine's reward, with `Φ = 0` once the machine is in a
 //! terminal or failure state. Shaping of this form leaves the optimal policies of the product
@@ -45,6 +52,10 @@ pub struct ProductEnv<E, P = NoShaping> {
     inner_obs: Vec<f32>,
     last_potential: f64,
     last: Option<ProductStep>,
+    /// Episode length the clock counts down from; `None`: no clock entry.
+    clock_horizon: Option<usize>,
+    /// Steps since the last reset.
+    steps: usize,
 }
 
 /// No shaping: the machine's reward only.
@@ -77,7 +88,26 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
             inner_obs,
             last_potential: 0.0,
             last: None,
+            clock_horizon: None,
+            steps: 0,
         }
+    }
+
+    /// The product with a clock: one more observation entry, `(horizon − t) / horizon` after
+    /// step t (1 at reset, 0 from step `horizon` on). `horizon` should be the inner
+    /// environment's episode length.
+    ///
+    /// # Panics
+    /// If `horizon` is 0 (a programming error: an episode has at least one step).
+    pub fn with_clock(mut self, horizon: usize) -> Self {
+        assert!(horizon > 0, "a clock needs an episode of at least one step");
+        self.clock_horizon = Some(horizon);
+        self
+    }
+
+    /// Observation entries after the one-hot block (1 with a clock, else 0).
+    pub fn trailing_dim(&self) -> usize {
+        usize::from(self.clock_horizon.is_some())
     }
 
     pub fn inner(&self) -> &E {
@@ -116,8 +146,12 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
 
     fn write_obs(&self, obs: &mut [f32]) {
         let n = self.inner_obs.len();
+        let k = self.tracker.n_states();
         obs[..n].copy_from_slice(&self.inner_obs);
-        one_hot(self.tracker.state(), &mut obs[n..]);
+        one_hot(self.tracker.state(), &mut obs[n..n + k]);
+        if let Some(horizon) = self.clock_horizon {
+            obs[n + k] = (horizon - self.steps.min(horizon)) as f32 / horizon as f32;
+        }
     }
 
     /// A step with the full product report.
@@ -127,6 +161,7 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
         obs: &mut [f32],
     ) -> Result<ProductStep, EnvError> {
         let inner = self.inner.step(action, &mut self.inner_obs)?;
+        self.steps += 1;
         let rm = self.tracker.step(inner.labels);
         let potential = self.shaped_potential(rm.state);
         let shaping = self.gamma * potential - self.last_potential;
@@ -153,7 +188,7 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
 
 impl<E: ContinuousEnv, P: Potential> ContinuousEnv for ProductEnv<E, P> {
     fn obs_dim(&self) -> usize {
-        self.inner.obs_dim() + self.tracker.n_states()
+        self.inner.obs_dim() + self.tracker.n_states() + self.trailing_dim()
     }
 
     fn act_dim(&self) -> usize {
@@ -163,6 +198,7 @@ impl<E: ContinuousEnv, P: Potential> ContinuousEnv for ProductEnv<E, P> {
     fn reset(&mut self, seed: u64, obs: &mut [f32]) {
         self.inner.reset(seed, &mut self.inner_obs);
         self.tracker.reset();
+        self.steps = 0;
         self.last_potential = self.shaped_potential(self.tracker.state());
         self.last = None;
         self.write_obs(obs);

@@ -233,6 +233,14 @@ pub struct IrlRunConfig {
     /// the cut; false for every run before the key existed; omitted when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub smirl_selection_cut_entries: bool,
+    /// SMIRL's agent sees a clock: the product's observation gets one more entry, the share of
+    /// the episode still to come (`ProductEnv::with_clock`), in the loop, the final phase and
+    /// `reacher retrain`; the reward does not read it. Why: the cancel comes only early in an
+    /// episode, and an agent without a clock cannot tell that it no longer will (README, "A
+    /// reset agent", Composite 30 seed 30 waiting). False for every run before the key
+    /// existed; omitted when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub smirl_clock: bool,
     /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
     /// state (CRM, see `rl::crm`): 0 = only the states the agent was in, 1 = every sampled
     /// transition from a uniformly drawn state.
@@ -593,6 +601,7 @@ impl IrlRunConfig {
             // A ball counts on the step its touch begins (24 of 24 tuning jobs; an agent
             // lingers on a ball the expert brushes).
             smirl_selection_cut_entries: true,
+            smirl_clock: false,
             smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,

@@ -14,9 +14,10 @@ use super::evaluation::{Evaluation, GroundTruth};
 use super::final_policy::{learned_return, ScoredReward};
 use super::firl::{self, StateReward};
 use super::run::PreparedRun;
-use super::smirl::{counterfactual_states, shaping_potential, Features, ProductReward};
+use super::smirl::{
+    counterfactual_states, product_env, shaping_potential, Features, ProductReward,
+};
 use super::Algo;
-use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
 use crate::irl::reward::MlpReward;
 use crate::irl::reward::{RewardModel, RewardOptimConfig};
@@ -327,7 +328,7 @@ pub fn retrain(
             let counterfactual = counterfactual_states(machine, &s)?;
             let potential =
                 shaping_potential(reward.features(), machine.n_states(), &reward.params(), &s)?;
-            let mut env = ProductEnv::new(inner, machine.clone());
+            let mut env = product_env(inner, machine, &s);
             let gamma = f64::from(s.sac.gamma);
             let shaping = potential.as_ref().map(|p| (p, gamma));
             let mut sac_reward = ProductReward::new(&mut reward, counterfactual.as_ref(), shaping);

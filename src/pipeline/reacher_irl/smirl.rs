@@ -337,6 +337,8 @@ impl RewardFn for ProductReward<'_> {
 
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
+        // The one-hot block; a clock (`smirl_clock`) comes after it.
+        let block = OBS_DIM..OBS_DIM + self.model.n_states();
         self.next_obs.clear();
         self.labels_before.clear();
         self.states.clear();
@@ -349,7 +351,7 @@ impl RewardFn for ProductReward<'_> {
                 self.labels_before
                     .push(features.labels_of(&prev[..OBS_DIM]));
             }
-            self.states.push(hot_index(&prev[OBS_DIM..]) as u32);
+            self.states.push(hot_index(&prev[block.clone()]) as u32);
         }
         features.step_rows(&self.next_obs, &self.labels_before, &mut self.rows);
         self.model.reward_batch(&self.rows, &self.states, out)?;
@@ -361,8 +363,8 @@ impl RewardFn for ProductReward<'_> {
                 .zip(&batch.terminated)
                 .zip(out.iter_mut())
             {
-                let u = hot_index(&prev[OBS_DIM..]);
-                let u_next = hot_index(&next[OBS_DIM..]);
+                let u = hot_index(&prev[block.clone()]);
+                let u_next = hot_index(&next[block.clone()]);
                 let after = if terminated > 0.5 {
                     0.0
                 } else {
@@ -387,13 +389,33 @@ impl super::final_policy::ScoredReward for ProductReward<'_> {
     }
 }
 
-/// SMIRL's counterfactual relabelling of SAC batches (`smirl_counterfactual` > 0).
+/// The environment SMIRL's agent learns in: ReacherDelivery × the learned machine, with the
+/// clock of `smirl_clock`.
+pub(super) fn product_env(
+    inner: ReacherDelivery,
+    machine: &RewardMachine,
+    s: &IrlRunConfig,
+) -> ProductEnv<ReacherDelivery> {
+    let env = ProductEnv::new(inner, machine.clone());
+    if s.smirl_clock {
+        env.with_clock(s.env.max_steps)
+    } else {
+        env
+    }
+}
+
+/// SMIRL's counterfactual relabelling of SAC batches (`smirl_counterfactual` > 0), for the
+/// observations of [`product_env`].
 pub(super) fn counterfactual_states(
     machine: &RewardMachine,
     s: &IrlRunConfig,
 ) -> Result<Option<CounterfactualRm>, String> {
+    let clock_dim = usize::from(s.smirl_clock);
     (s.smirl_counterfactual > 0.0)
-        .then(|| CounterfactualRm::new(machine.clone(), OBS_DIM, s.smirl_counterfactual))
+        .then(|| {
+            CounterfactualRm::new(machine.clone(), OBS_DIM, s.smirl_counterfactual)
+                .map(|crm| crm.with_trailing_dim(clock_dim))
+        })
         .transpose()
         .map_err(|e| e.to_string())
 }
@@ -461,7 +483,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     let s = job.settings;
     let n_states = job.machine.n_states();
     let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
-    let mut env = ProductEnv::new(inner, job.machine.clone());
+    let mut env = product_env(inner, job.machine, s);
     let features = job.features.map(s).map_err(|e| e.to_string())?;
     let optim = RewardOptimConfig {
         adam: true,
