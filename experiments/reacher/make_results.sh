@@ -4,7 +4,8 @@
 # runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final (the standards before
 # event-gated visits) and of the current and previous standards' tuning runs, standard_heldout.py's tables
 # of the current (the reset agent, the jobs rerun so far), reset_agent.py's comparison of the reset agent
-# with the cut-entries standard before it, of that one (selection cut reading entries), the touches one, the previous (initial events), the fallback-starts, the replay-all
+# with the cut-entries standard before it, clock.py's comparison of a clock for the agent with the
+# reset agent (once it has run), standard_heldout.py's of that one (selection cut reading entries), the touches one, the previous (initial events), the fallback-starts, the replay-all
 # and the commuted-events standard's held-out jobs, selection_cut.py's comparison of the selection
 # cut with the previous standard, ablation_heldout.py's comparisons of fallback starts, initial events and the sink of
 # unseen touches with the replay-all standard, smirl_settings.py's
@@ -64,6 +65,10 @@ heldout_tables() {
   python3 standard_heldout.py "$bin"
   printf '\n### The reset agent against the cut-entries standard before it, job for job (`ablations/reset_agent.toml`, adopted; the jobs run so far, that standard'"'"'s misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/reset_agent.py`)\n\n'
   python3 reset_agent.py "$bin"
+  if ls -d heldout/clock-seeds*-*/ ablations/runs/clock-seeds0to5-*/ > /dev/null 2>&1; then
+    printf '\n### A clock for the agent against the reset-agent standard, job for job (`ablations/clock.toml`, an ablation with its rule; the jobs run so far: the standard'"'"'s IF and Composite misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/clock.py`)\n\n'
+    python3 clock.py "$bin"
+  fi
   printf '\n### SMIRL held out under the cut-entries standard (the standard before the reset agent: every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py --cut-entries`)\n\n'
   python3 standard_heldout.py --cut-entries "$bin"
   printf '\n### The selection cut, touches read as labels and as entries, against the previous standard, job for job (`ablations/selection_cut.toml`, `ablations/selection_cut_entries.toml`, both adopted in turn; only the jobs whose candidates lie on both sides of 0.9 can change, and only they ran; `python3 experiments/reacher/selection_cut.py`)\n\n'

@@ -1,0 +1,146 @@
+#!/usr/bin/env python3
+"""A clock for SMIRL's agent (issue 13; ablations/clock.toml, `smirl_clock = true`) against the
+reset-agent standard (config.toml), job for job.
+
+The standard's outcome of a job is its reset-agent rerun (reset_agent.py); jobs the standard has
+not run are left out. The clock changes what the agent sees from the first iteration on, so no
+job is the standard's bit for bit. The rule (in clock.toml): (a) 24 of 24 tuning jobs and (b) on
+the held-out IF and Composite jobs run under both, at least two more solved than the standard.
+Order: the standard's IF and Composite held-out misses, the tuning jobs (base 0, SAC seeds 0-5,
+every task), then the other held-out jobs, IF and Composite first, base by base.
+
+Usage: python3 experiments/reacher/clock.py [--list | --run] [REACHER_BIN]
+  --list  the jobs in that order: scope, task, base, SAC seed, the standard's outcome
+  --run   run them (skipping those already done): per (task, base) `reacher prepare` with
+          clock.toml into ablations/runs/clock-seeds0to5-<task> (tuning) or
+          heldout/clock-seeds<B>-<task>, `reacher job` two at a time, `reacher aggregate
+          --partial` after each job
+  (none)  the table for results.md: per job run, the standard's reported policy and the
+          clock's; totals over the jobs run and rule (b)'s count
+REACHER_BIN defaults to target/release/reacher (used for `prepare`, and by --run).
+"""
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import rundata  # noqa: E402
+import reset_agent  # noqa: E402
+import selection_cut  # noqa: E402
+import standard_heldout  # noqa: E402
+
+HERE = standard_heldout.HERE
+CONFIG = os.path.join(HERE, "ablations", "clock.toml")
+CONDITIONAL = ("if", "composite")
+
+
+def clock_run(scope, task, base):
+    if scope == "tuning":
+        return os.path.join(selection_cut.ABLATION_RUNS, f"clock-seeds0to5-{task}")
+    return os.path.join(standard_heldout.HELDOUT, f"clock-seeds{base}-{task}")
+
+
+def clock_candidates(scope, task, base, seed):
+    """The clock run's candidate rows of one job, or None when it has not run."""
+    try:
+        return rundata.final_policy(clock_run(scope, task, base)).get(("smirl", seed))
+    except FileNotFoundError:
+        return None
+
+
+def standard_jobs(binary):
+    """[(scope, task, base, seed, the standard's candidate rows)] of the jobs the standard ran."""
+    jobs = []
+    for scope, task, base, seed, _ in reset_agent.current_jobs(binary):
+        rows = reset_agent.reset_candidates(scope, task, base, seed)
+        if rows is not None:
+            jobs.append((scope, task, base, seed, rows))
+    return jobs
+
+
+def ordered(jobs):
+    solved = reset_agent.solved
+
+    def key(j):
+        scope, task, base, _, rows = j
+        if scope == "heldout" and task in CONDITIONAL and not solved(rows):
+            return (0, 0, 0)
+        if scope == "tuning":
+            return (1, 0, 0)
+        return (2, task not in CONDITIONAL, base)
+    return sorted(jobs, key=key)
+
+
+def run_all(binary, jobs):
+    todo = [(s, t, b, seed) for s, t, b, seed, _ in jobs
+            if clock_candidates(s, t, b, seed) is None]
+
+    def job(item):
+        s, t, b, seed = item
+        out = clock_run(s, t, b)
+        with open(out + f".seed{seed}.log", "w") as log:
+            subprocess.run([binary, "job", "--run", out, "--algo", "smirl", "--seed", str(seed),
+                            "--quiet"], check=True, stdout=log)
+        subprocess.run([binary, "aggregate", out, "--partial"], check=True,
+                       stdout=subprocess.DEVNULL)
+        print(f"done: clock {s} {t} {b} seed {seed}", flush=True)
+
+    for s, t, b, _ in todo:
+        selection_cut.prepare_run(binary, s, t, b, CONFIG, clock_run(s, t, b))
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        list(pool.map(job, todo))
+
+
+def table(jobs):
+    solved = reset_agent.solved
+    lines = ["| scope | task | base | SAC seed | standard's reported policy | "
+             "with the clock (chosen: agent, candidate) |",
+             "|---|---|---|---|---|---|"]
+    totals = {}
+    gained = lost = 0
+    for scope, task, base, seed, rows in jobs:
+        clock = clock_candidates(scope, task, base, seed)
+        if clock is None:
+            continue
+        t = totals.setdefault((scope, task), [0, 0, 0])
+        t[0] += 1
+        t[1] += solved(rows)
+        t[2] += solved(clock)
+        if scope == "heldout" and task in CONDITIONAL:
+            gained += solved(clock) and not solved(rows)
+            lost += solved(rows) and not solved(clock)
+        chosen = rundata.chosen(clock)
+        lines.append(
+            f"| {scope} | {task} | {base} | {seed} | "
+            f"{selection_cut.rate(rundata.chosen(rows), task)} | "
+            f"{selection_cut.rate(chosen, task)} ({chosen.get('agent', 'co-trained')}, "
+            f"{chosen['candidate']}) |")
+    return "\n".join(lines) + "\n\nJobs solved (every branch ≥ 0.9) among those run, standard " \
+        "→ with the clock: " + "; ".join(
+            f"{scope} {task} {t[1]} → {t[2]} of {t[0]}"
+            for (scope, task), t in sorted(totals.items())) + \
+        f". Held-out IF and Composite: {gained} gained, {lost} lost (rule (b): gained − lost ≥ 2).\n"
+
+
+def main(argv):
+    mode = None
+    if argv and argv[0] in ("--list", "--run"):
+        mode, argv = argv[0], argv[1:]
+    if argv and argv[0].startswith("-"):
+        sys.exit(__doc__)
+    binary = argv[0] if argv else os.path.join(HERE, "..", "..", "target", "release", "reacher")
+    if not os.path.isfile(binary):
+        sys.exit(f"clock.py: {binary}: no such program (cargo build --release)")
+    jobs = ordered(standard_jobs(binary))
+    if mode == "--list":
+        for scope, task, base, seed, rows in jobs:
+            print(scope, task, base, seed, "solved" if reset_agent.solved(rows) else "missed")
+    elif mode == "--run":
+        run_all(binary, jobs)
+    else:
+        print(table(jobs), end="")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
