@@ -11,8 +11,8 @@ every task), then the other held-out jobs, IF and Composite first, base by base.
 
 Usage: python3 experiments/reacher/clock.py [--list | --run] [REACHER_BIN]
   --list  the jobs in that order: scope, task, base, SAC seed, the standard's outcome
-  --run   run them (skipping those already done): per (task, base) `reacher prepare` with
-          clock.toml into ablations/runs/clock-seeds0to5-<task> (tuning) or
+  --run   run them (skipping those already done): per (task, base), when its first job comes
+          up, `reacher prepare` with clock.toml into ablations/runs/clock-seeds0to5-<task> (tuning) or
           heldout/clock-seeds<B>-<task>, `reacher job` two at a time, `reacher aggregate
           --partial` after each job
   (none)  the table for results.md: per job run, the standard's reported policy and the
@@ -22,6 +22,7 @@ REACHER_BIN defaults to target/release/reacher (used for `prepare`, and by --run
 import os
 import subprocess
 import sys
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -76,9 +77,13 @@ def run_all(binary, jobs):
     todo = [(s, t, b, seed) for s, t, b, seed, _ in jobs
             if clock_candidates(s, t, b, seed) is None]
 
+    locks = {clock_run(s, t, b): threading.Lock() for s, t, b, _ in todo}
+
     def job(item):
         s, t, b, seed = item
         out = clock_run(s, t, b)
+        with locks[out]:  # a run is prepared once, when its first job comes up
+            selection_cut.prepare_run(binary, s, t, b, CONFIG, out)
         with open(out + f".seed{seed}.log", "w") as log:
             subprocess.run([binary, "job", "--run", out, "--algo", "smirl", "--seed", str(seed),
                             "--quiet"], check=True, stdout=log)
@@ -86,8 +91,6 @@ def run_all(binary, jobs):
                        stdout=subprocess.DEVNULL)
         print(f"done: clock {s} {t} {b} seed {seed}", flush=True)
 
-    for s, t, b, _ in todo:
-        selection_cut.prepare_run(binary, s, t, b, CONFIG, clock_run(s, t, b))
     with ThreadPoolExecutor(max_workers=2) as pool:
         list(pool.map(job, todo))
 
