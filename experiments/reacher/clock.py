@@ -9,12 +9,18 @@ the held-out IF and Composite jobs run under both, at least two more solved than
 Order: the standard's IF and Composite held-out misses, the tuning jobs (base 0, SAC seeds 0-5,
 every task), then the other held-out jobs, IF and Composite first, base by base.
 
-Usage: python3 experiments/reacher/clock.py [--list | --run] [REACHER_BIN]
+Fresh bases: IF and Composite at base seeds no run has used (FRESH_BASES, SAC seeds B..B+2),
+run with the clock only, are the held-out check of what the rule adopts; they are listed after
+the rest, their standard's column empty.
+
+Usage: python3 experiments/reacher/clock.py [--list | --run | --run-fresh] [REACHER_BIN]
   --list  the jobs in that order: scope, task, base, SAC seed, the standard's outcome
   --run   run them (skipping those already done): per (task, base), when its first job comes
           up, `reacher prepare` with clock.toml into ablations/runs/clock-seeds0to5-<task> (tuning) or
           heldout/clock-seeds<B>-<task>, `reacher job` two at a time, `reacher aggregate
           --partial` after each job
+  --run-fresh  the same for the fresh bases' jobs (scope `fresh`, run dirs
+          heldout/clock-seeds<B>-<task>)
   (none)  the table for results.md: per job run, the standard's reported policy and the
           clock's; totals over the jobs run and rule (b)'s count
 REACHER_BIN defaults to target/release/reacher (used for `prepare`, and by --run).
@@ -34,6 +40,14 @@ import standard_heldout  # noqa: E402
 HERE = standard_heldout.HERE
 CONFIG = os.path.join(HERE, "ablations", "clock.toml")
 CONDITIONAL = ("if", "composite")
+# IF and Composite bases no run had used when the rule was applied (every held-out run before
+# is at base 549 or lower).
+FRESH_BASES = [700, 703]
+
+
+def fresh_jobs():
+    return [("fresh", task, base, base + k, None)
+            for base in FRESH_BASES for task in CONDITIONAL for k in range(3)]
 
 
 def clock_run(scope, task, base):
@@ -108,39 +122,42 @@ def table(jobs):
             continue
         t = totals.setdefault((scope, task), [0, 0, 0])
         t[0] += 1
-        t[1] += solved(rows)
+        t[1] += rows is not None and solved(rows)
         t[2] += solved(clock)
         if scope == "heldout" and task in CONDITIONAL:
             gained += solved(clock) and not solved(rows)
             lost += solved(rows) and not solved(clock)
         chosen = rundata.chosen(clock)
+        standard = "" if rows is None else selection_cut.rate(rundata.chosen(rows), task)
         lines.append(
-            f"| {scope} | {task} | {base} | {seed} | "
-            f"{selection_cut.rate(rundata.chosen(rows), task)} | "
+            f"| {scope} | {task} | {base} | {seed} | {standard} | "
             f"{selection_cut.rate(chosen, task)} ({chosen.get('agent', 'co-trained')}, "
             f"{chosen['candidate']}) |")
     return "\n".join(lines) + "\n\nJobs solved (every branch ≥ 0.9) among those run, standard " \
         "→ with the clock: " + "; ".join(
-            f"{scope} {task} {t[1]} → {t[2]} of {t[0]}"
+            f"{scope} {task} {t[1] if scope != 'fresh' else '-'} → {t[2]} of {t[0]}"
             for (scope, task), t in sorted(totals.items())) + \
         f". Held-out IF and Composite: {gained} gained, {lost} lost (rule (b): gained − lost ≥ 2).\n"
 
 
 def main(argv):
     mode = None
-    if argv and argv[0] in ("--list", "--run"):
+    if argv and argv[0] in ("--list", "--run", "--run-fresh"):
         mode, argv = argv[0], argv[1:]
     if argv and argv[0].startswith("-"):
         sys.exit(__doc__)
     binary = argv[0] if argv else os.path.join(HERE, "..", "..", "target", "release", "reacher")
     if not os.path.isfile(binary):
         sys.exit(f"clock.py: {binary}: no such program (cargo build --release)")
-    jobs = ordered(standard_jobs(binary))
+    jobs = ordered(standard_jobs(binary)) + fresh_jobs()
     if mode == "--list":
         for scope, task, base, seed, rows in jobs:
-            print(scope, task, base, seed, "solved" if reset_agent.solved(rows) else "missed")
+            outcome = "-" if rows is None else "solved" if reset_agent.solved(rows) else "missed"
+            print(scope, task, base, seed, outcome)
     elif mode == "--run":
-        run_all(binary, jobs)
+        run_all(binary, [j for j in jobs if j[0] != "fresh"])
+    elif mode == "--run-fresh":
+        run_all(binary, fresh_jobs())
     else:
         print(table(jobs), end="")
 
