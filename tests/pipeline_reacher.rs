@@ -1198,6 +1198,7 @@ fn unshaped() -> IrlRunConfig {
         smirl_final_reset_steps: 0,
         smirl_selection_cut: false,
         smirl_selection_cut_entries: false,
+        smirl_clock: false,
         lrm_event_stutter: false,
         lrm_predict_events: true,
         lrm_commute_events: false,
@@ -1259,7 +1260,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
     // The baselines' resolved settings differ only in SMIRL's shaping, final policy (and its
-    // selection cut and reset agent), normalisation and learned machine (LRM's keys), which only
+    // selection cut and reset agent), clock, normalisation and learned machine (LRM's keys), which only
     // SMIRL reads.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let before = IrlRunConfig {
@@ -1269,6 +1270,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             smirl_final_reset_steps: standard.smirl_final_reset_steps,
             smirl_selection_cut: standard.smirl_selection_cut,
             smirl_selection_cut_entries: standard.smirl_selection_cut_entries,
+            smirl_clock: standard.smirl_clock,
             smirl_normalisation: standard.smirl_normalisation,
             lrm_event_stutter: true,
             lrm_predict_events: false,
@@ -1592,8 +1594,8 @@ fn discriminator_density_ratio_runs_and_is_recorded() {
 }
 
 /// `smirl_clock`: SMIRL's agent sees the share of the episode still to come. Read as false
-/// from configs without the key and not written when false; `ablations/clock.toml` is the
-/// standard with it; a run with it records it
+/// from configs without the key and not written when false; the standard's (its ablation's
+/// config, `ablations/clock.toml`, is the standard); a run with it records it
 /// (config.toml, run.json), trains with counterfactual states on the wider observation (the
 /// relabeller refuses a width it was not built for), replays its log, repeats itself per seed
 /// and differs from the run without a clock; `reacher retrain` on its reward trains in the same
@@ -1601,33 +1603,36 @@ fn discriminator_density_ratio_runs_and_is_recorded() {
 #[test]
 fn clock_widens_smirls_observation_through_the_pipeline() {
     use smirl::pipeline::commands::irl::{retrain, RetrainRequest};
-    let text = IrlRunConfig::standard().to_toml();
+    let text = unshaped().to_toml();
     assert!(!text.contains("smirl_clock"));
     assert!(
         !IrlRunConfig::from_toml(&text, "c.toml")
             .unwrap()
             .smirl_clock
     );
-    let mut config = tiny_config();
-    config.smirl_clock = true;
+    let config = tiny_config();
+    assert!(
+        config.smirl_clock,
+        "the standard's, and so the quick profile's"
+    );
     assert!(config.smirl_counterfactual > 0.0);
     let written = config.to_toml();
     assert!(written.contains("smirl_clock = true"), "{written}");
     assert_eq!(IrlRunConfig::from_toml(&written, "c.toml").unwrap(), config);
-    // The ablation's config is the standard's with the clock.
+    // The ablation's config is the standard, which has the clock.
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
-    let standard = IrlRunConfig::load(&dir.join("config.toml")).unwrap();
     assert_eq!(
         IrlRunConfig::load(&dir.join("ablations/clock.toml")).unwrap(),
-        IrlRunConfig {
-            smirl_clock: true,
-            ..standard
-        }
+        IrlRunConfig::load(&dir.join("config.toml")).unwrap()
     );
 
     let (_with_tmp, with, _) = tiny_smirl_run(ReacherTask::Or, config.clone());
     let (_again_tmp, again, _) = tiny_smirl_run(ReacherTask::Or, config);
-    let (_without_tmp, without, _) = tiny_smirl_run(ReacherTask::Or, tiny_config());
+    let no_clock = IrlRunConfig {
+        smirl_clock: false,
+        ..tiny_config()
+    };
+    let (_without_tmp, without, _) = tiny_smirl_run(ReacherTask::Or, no_clock);
     let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
     for file in ["metrics.csv", "final_policy.csv"] {
         assert_eq!(read(&with, file), read(&again, file), "{file}");

@@ -3,7 +3,7 @@
 # SMIRL's settings of issue 13 (results_smirl.md's prose, figure7.py's tables of
 # runs/<task>-shaped and, for SMIRL's final policy, of runs/<task>-final (the standards before
 # event-gated visits) and of the current and previous standards' tuning runs, standard_heldout.py's tables
-# of the current (the reset agent, the jobs rerun so far), reset_agent.py's comparison of the reset agent
+# of the current (the clock, the jobs run so far) and the reset-agent one, reset_agent.py's comparison of the reset agent
 # with the cut-entries standard before it, clock.py's comparison of a clock for the agent with the
 # reset agent (once it has run), standard_heldout.py's of that one (selection cut reading entries), the touches one, the previous (initial events), the fallback-starts, the replay-all
 # and the commuted-events standard's held-out jobs, selection_cut.py's comparison of the selection
@@ -61,12 +61,14 @@ heldout_tables() {
   printf '\n### SMIRL'"'"'s final policy under the commuted-events standard (a replay buffer of 100 000; base 0, SAC seeds 0-5, figure 7'"'"'s are 0-2; OR, Sequential and IF are the runs of unpredicted events, whose base-0 machines commuted events leave unchanged; `python3 experiments/reacher/figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-{or,sequential,if} ablations/runs/commute_events-seeds0to5-composite`)\n'
   python3 figure7.py --final-only ablations/runs/unpredicted_events-seeds0to5-or ablations/runs/unpredicted_events-seeds0to5-sequential \
     ablations/runs/unpredicted_events-seeds0to5-if ablations/runs/commute_events-seeds0to5-composite
-  printf '\n### SMIRL held out under the current standard (the reset agent; the selection cut, touches read as entries; initial events and fallback starts in LRM, a replay buffer of 200 000; only the jobs rerun with the reset agent so far; `python3 experiments/reacher/standard_heldout.py`)\n\n'
+  printf '\n### SMIRL held out under the current standard (the agent'"'"'s clock and the reset agent; the selection cut, touches read as entries; initial events and fallback starts in LRM, a replay buffer of 200 000; only the jobs run with the clock so far, fresh bases 700 and 703 among them; `python3 experiments/reacher/standard_heldout.py`)\n\n'
   python3 standard_heldout.py "$bin"
+  printf '\n### SMIRL held out under the reset-agent standard (the one before the clock; the jobs rerun with the reset agent; `python3 experiments/reacher/standard_heldout.py --reset-agent`)\n\n'
+  python3 standard_heldout.py --reset-agent "$bin"
   printf '\n### The reset agent against the cut-entries standard before it, job for job (`ablations/reset_agent.toml`, adopted; the jobs run so far, that standard'"'"'s misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/reset_agent.py`)\n\n'
   python3 reset_agent.py "$bin"
   if ls -d heldout/clock-seeds*-*/ ablations/runs/clock-seeds0to5-*/ > /dev/null 2>&1; then
-    printf '\n### A clock for the agent against the reset-agent standard, job for job (`ablations/clock.toml`, an ablation with its rule; the jobs run so far: the standard'"'"'s IF and Composite misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/clock.py`)\n\n'
+    printf '\n### A clock for the agent against the reset-agent standard, job for job (`ablations/clock.toml`, adopted by its rule; the jobs run so far: the standard'"'"'s IF and Composite misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/clock.py`)\n\n'
     python3 clock.py "$bin"
   fi
   printf '\n### SMIRL held out under the cut-entries standard (the standard before the reset agent: every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py --cut-entries`)\n\n'

@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """SMIRL's held-out check under the current standard (issue 13), in one table: per task and
 held-out base seed B, the reported policy of each SAC seed B, B+1, B+2, from whichever run is
-the standard's job there. The current standard (config.toml) has the reset agent
-(ablations/reset_agent.toml); its jobs are its own runs, heldout/reset-agent-seedsB-<task>,
-and only those: a reset candidate can change any job's choice, so a job not rerun with it is
-no job of the current standard's, and the table covers the jobs rerun so far. With
---cut-entries, the same for the standard before it (the selection cut reading touches as
-entries, ablations/selection_cut_entries.toml). With --touches, the same for the selection cut
+the standard's job there. The current standard (config.toml) has the agent's clock
+(ablations/clock.toml); its jobs are its own runs, heldout/clock-seedsB-<task> (the fresh bases
+700 and 703 among them), and only those: the clock changes every job from its first
+iteration, so a job not rerun with it is no job of the current standard's, and the table covers
+the jobs run so far. With --reset-agent, the same for the standard before it (the reset agent,
+ablations/reset_agent.toml, its runs heldout/reset-agent-seedsB-<task>). With --cut-entries,
+the same for the one before that (the selection cut reading touches as entries,
+ablations/selection_cut_entries.toml). With --touches, the same for the selection cut
 reading touches as labels (ablations/selection_cut.toml, the standard for one stop before it read them as
 entries); with --previous, for the standard before the cut (initial events and fallback starts,
 choosing by the full learned return: ablations/initial_events.toml); with --fallback, for the one before it (fallback starts without initial events,
@@ -14,7 +16,7 @@ ablations/fallback_starts.toml); with --replay-all, for the one before that
 (ablations/replay_all.toml); with --commuted, for the one before that (commuted events with a
 100 000-transition replay buffer, ablations/commute_events.toml).
 
-Usage: python3 experiments/reacher/standard_heldout.py [--cut-entries | --touches | --previous | --fallback | --replay-all | --commuted] [REACHER_BIN]
+Usage: python3 experiments/reacher/standard_heldout.py [--reset-agent | --cut-entries | --touches | --previous | --fallback | --replay-all | --commuted] [REACHER_BIN]
   (REACHER_BIN defaults to target/release/reacher; it only runs `reacher prepare`, well under a
   second per machine. make_results.sh puts the tables in results.md.)
 
@@ -67,7 +69,8 @@ HELDOUT = os.path.join(HERE, "heldout")
 PREVIOUS = ("ablations/initial_events.toml",
             [("initial-events", None), ("fallback-starts", "ablations/fallback_starts.toml"),
              ("replay-all", "ablations/replay_all.toml")], None)
-CURRENT = ("config.toml", [("reset-agent", None)], None)
+CURRENT = ("config.toml", [("clock", None)], None)
+RESET_AGENT = ("ablations/reset_agent.toml", [("reset-agent", None)], None)
 CUT_ENTRIES = ("ablations/selection_cut_entries.toml",
                [("initial-events", "ablations/initial_events.toml"),
                 ("fallback-starts", "ablations/fallback_starts.toml"),
@@ -199,7 +202,7 @@ def table(binary, standard):
 
 def main(argv):
     standard = CURRENT
-    named = {"--cut-entries": CUT_ENTRIES, "--touches": TOUCHES, "--previous": PREVIOUS, "--fallback": FALLBACK, "--replay-all": REPLAY_ALL,
+    named = {"--reset-agent": RESET_AGENT, "--cut-entries": CUT_ENTRIES, "--touches": TOUCHES, "--previous": PREVIOUS, "--fallback": FALLBACK, "--replay-all": REPLAY_ALL,
              "--commuted": COMMUTED}
     if argv and argv[0] in named:
         standard, argv = named[argv[0]], argv[1:]
