@@ -26,12 +26,10 @@ Usage: python3 experiments/reacher/clock.py [--list | --run | --run-fresh] [REAC
 REACHER_BIN defaults to target/release/reacher (used for `prepare`, and by --run).
 """
 import os
-import subprocess
 import sys
-import threading
-from concurrent.futures import ThreadPoolExecutor
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import job_reruns  # noqa: E402
 import rundata  # noqa: E402
 import reset_agent  # noqa: E402
 import selection_cut  # noqa: E402
@@ -50,18 +48,8 @@ def fresh_jobs():
             for base in FRESH_BASES for task in CONDITIONAL for k in range(3)]
 
 
-def clock_run(scope, task, base):
-    if scope == "tuning":
-        return os.path.join(selection_cut.ABLATION_RUNS, f"clock-seeds0to5-{task}")
-    return os.path.join(standard_heldout.HELDOUT, f"clock-seeds{base}-{task}")
-
-
-def clock_candidates(scope, task, base, seed):
-    """The clock run's candidate rows of one job, or None when it has not run."""
-    try:
-        return rundata.final_policy(clock_run(scope, task, base)).get(("smirl", seed))
-    except FileNotFoundError:
-        return None
+RERUNS = job_reruns.Reruns(CONFIG, "clock", "clock", "clock")
+clock_candidates = RERUNS.candidates
 
 
 def standard_jobs(binary):
@@ -85,28 +73,6 @@ def ordered(jobs):
             return (1, 0, 0)
         return (2, task not in CONDITIONAL, base)
     return sorted(jobs, key=key)
-
-
-def run_all(binary, jobs):
-    todo = [(s, t, b, seed) for s, t, b, seed, _ in jobs
-            if clock_candidates(s, t, b, seed) is None]
-
-    locks = {clock_run(s, t, b): threading.Lock() for s, t, b, _ in todo}
-
-    def job(item):
-        s, t, b, seed = item
-        out = clock_run(s, t, b)
-        with locks[out]:  # a run is prepared once, when its first job comes up
-            selection_cut.prepare_run(binary, s, t, b, CONFIG, out)
-        with open(out + f".seed{seed}.log", "w") as log:
-            subprocess.run([binary, "job", "--run", out, "--algo", "smirl", "--seed", str(seed),
-                            "--quiet"], check=True, stdout=log)
-        subprocess.run([binary, "aggregate", out, "--partial"], check=True,
-                       stdout=subprocess.DEVNULL)
-        print(f"done: clock {s} {t} {b} seed {seed}", flush=True)
-
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        list(pool.map(job, todo))
 
 
 def table(jobs):
@@ -155,9 +121,9 @@ def main(argv):
             outcome = "-" if rows is None else "solved" if reset_agent.solved(rows) else "missed"
             print(scope, task, base, seed, outcome)
     elif mode == "--run":
-        run_all(binary, [j for j in jobs if j[0] != "fresh"])
+        RERUNS.run(binary, [j for j in jobs if j[0] != "fresh"])
     elif mode == "--run-fresh":
-        run_all(binary, fresh_jobs())
+        RERUNS.run(binary, fresh_jobs())
     else:
         print(table(jobs), end="")
 

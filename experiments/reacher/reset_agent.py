@@ -22,11 +22,10 @@ Usage: python3 experiments/reacher/reset_agent.py [--list | --run] [REACHER_BIN]
 REACHER_BIN defaults to target/release/reacher (used for `prepare`, and by --run).
 """
 import os
-import subprocess
 import sys
-from concurrent.futures import ThreadPoolExecutor
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import job_reruns  # noqa: E402
 import rundata  # noqa: E402
 import selection_cut  # noqa: E402
 import standard_heldout  # noqa: E402
@@ -38,18 +37,8 @@ SOLVED = standard_heldout.SOLVED
 SAME = selection_cut.SAME + ["cut_return"]
 
 
-def reset_run(scope, task, base):
-    if scope == "tuning":
-        return os.path.join(selection_cut.ABLATION_RUNS, f"reset_agent-seeds0to5-{task}")
-    return os.path.join(standard_heldout.HELDOUT, f"reset-agent-seeds{base}-{task}")
-
-
-def reset_candidates(scope, task, base, seed):
-    """The reset agent's run's candidate rows of one job, or None when it has not run."""
-    try:
-        return rundata.final_policy(reset_run(scope, task, base)).get(("smirl", seed))
-    except FileNotFoundError:
-        return None
+RERUNS = job_reruns.Reruns(CONFIG, "reset_agent", "reset-agent", "reset agent")
+reset_candidates = RERUNS.candidates
 
 
 def current_jobs(binary):
@@ -78,26 +67,6 @@ def ordered(jobs):
             return (1, 0, 0)
         return (2, (task, base) not in missed_bases, task not in ("if", "composite"), base)
     return sorted(jobs, key=key)
-
-
-def run_all(binary, jobs):
-    todo = [(s, t, b, seed) for s, t, b, seed, _ in jobs
-            if reset_candidates(s, t, b, seed) is None]
-
-    def job(item):
-        s, t, b, seed = item
-        out = reset_run(s, t, b)
-        with open(out + f".seed{seed}.log", "w") as log:
-            subprocess.run([binary, "job", "--run", out, "--algo", "smirl", "--seed", str(seed),
-                            "--quiet"], check=True, stdout=log)
-        subprocess.run([binary, "aggregate", out, "--partial"], check=True,
-                       stdout=subprocess.DEVNULL)
-        print(f"done: reset agent {s} {t} {b} seed {seed}", flush=True)
-
-    for s, t, b, _ in todo:
-        selection_cut.prepare_run(binary, s, t, b, CONFIG, reset_run(s, t, b))
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        list(pool.map(job, todo))
 
 
 def table(jobs):
@@ -142,7 +111,7 @@ def main(argv):
         for scope, task, base, seed, rows in jobs:
             print(scope, task, base, seed, "solved" if solved(rows) else "missed")
     elif mode == "--run":
-        run_all(binary, jobs)
+        RERUNS.run(binary, jobs)
     else:
         print(table(jobs), end="")
 
