@@ -237,8 +237,8 @@ pub struct IrlRunConfig {
     /// the episode still to come (`ProductEnv::with_clock`), in the loop, the final phase and
     /// `reacher retrain`; the reward does not read it. Why: the cancel comes only early in an
     /// episode, and an agent without a clock cannot tell that it no longer will (README, "A
-    /// reset agent", Composite 30 seed 30 waiting). False for every run before the key
-    /// existed; omitted when false.
+    /// clock for the agent": Composite 30 seed 30 and 39 seed 40 waited without a cancel).
+    /// False for every run before the key existed; omitted when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub smirl_clock: bool,
     /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
