@@ -325,10 +325,10 @@ pub fn retrain(
                 .learned
                 .as_ref()
                 .ok_or("the run has no learned machine")?;
-            let counterfactual = counterfactual_states(machine, &s)?;
+            let mut env = product_env(inner, machine, &s);
+            let counterfactual = counterfactual_states(&env, &s)?;
             let potential =
                 shaping_potential(reward.features(), machine.n_states(), &reward.params(), &s)?;
-            let mut env = product_env(inner, machine, &s);
             let gamma = f64::from(s.sac.gamma);
             let shaping = potential.as_ref().map(|p| (p, gamma));
             let mut sac_reward = ProductReward::new(&mut reward, counterfactual.as_ref(), shaping);

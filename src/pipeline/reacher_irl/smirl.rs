@@ -405,16 +405,15 @@ pub(super) fn product_env(
 }
 
 /// SMIRL's counterfactual relabelling of SAC batches (`smirl_counterfactual` > 0), for the
-/// observations of [`product_env`].
+/// observations of `env` (its clock, if any, kept as logged).
 pub(super) fn counterfactual_states(
-    machine: &RewardMachine,
+    env: &ProductEnv<ReacherDelivery>,
     s: &IrlRunConfig,
 ) -> Result<Option<CounterfactualRm>, String> {
-    let clock_dim = usize::from(s.smirl_clock);
     (s.smirl_counterfactual > 0.0)
         .then(|| {
-            CounterfactualRm::new(machine.clone(), OBS_DIM, s.smirl_counterfactual)
-                .map(|crm| crm.with_trailing_dim(clock_dim))
+            CounterfactualRm::new(env.rm().clone(), OBS_DIM, s.smirl_counterfactual)
+                .map(|crm| crm.with_trailing_dim(env.trailing_dim()))
         })
         .transpose()
         .map_err(|e| e.to_string())
@@ -492,7 +491,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     };
     let mut reward =
         LinearRmReward::new(features.clone(), n_states, optim).map_err(|e| e.to_string())?;
-    let counterfactual = counterfactual_states(job.machine, s)?;
+    let counterfactual = counterfactual_states(&env, s)?;
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)
         .map_err(|e| e.to_string())?;
     let mut rollouts = RolloutStream::new(job.seed);
