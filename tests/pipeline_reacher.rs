@@ -1660,3 +1660,48 @@ fn clock_widens_smirls_observation_through_the_pipeline() {
     let table = read(&with, "retrain/smirl_seed3_sac1.csv");
     assert_eq!(table.lines().count(), 2, "{table}");
 }
+
+/// `smirl_clock_frozen`, the clock's control: refused without the clock; read as false from
+/// configs without the key; a run with it records it and differs from the run with the moving
+/// clock; its ablation config is the standard with only the clock frozen.
+#[test]
+fn frozen_clock_is_the_clock_without_the_time() {
+    let standard = tiny_config();
+    assert!(!standard.smirl_clock_frozen);
+    assert!(!standard.to_toml().contains("smirl_clock_frozen"));
+    let frozen = IrlRunConfig {
+        smirl_clock_frozen: true,
+        ..standard.clone()
+    };
+    let written = frozen.to_toml();
+    assert!(written.contains("smirl_clock_frozen = true"), "{written}");
+    assert_eq!(IrlRunConfig::from_toml(&written, "c.toml").unwrap(), frozen);
+    assert_config_error_names(
+        &written.replace("smirl_clock = true\n", ""),
+        "smirl_clock_frozen",
+    );
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
+    let control = IrlRunConfig::load(&dir.join("ablations/clock_frozen.toml")).unwrap();
+    assert!(control.smirl_clock_frozen);
+    assert_eq!(
+        IrlRunConfig {
+            smirl_clock_frozen: false,
+            ..control
+        },
+        IrlRunConfig::load(&dir.join("config.toml")).unwrap()
+    );
+
+    let (_frozen_tmp, with_frozen, _) = tiny_smirl_run(ReacherTask::Or, frozen);
+    let (_clock_tmp, with_clock, _) = tiny_smirl_run(ReacherTask::Or, standard);
+    let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
+    assert_ne!(
+        read(&with_frozen, "metrics.csv"),
+        read(&with_clock, "metrics.csv")
+    );
+    let run_json: serde_json::Value =
+        serde_json::from_str(&read(&with_frozen, "run.json")).unwrap();
+    assert_eq!(
+        run_json["smirl_clock_frozen"],
+        serde_json::Value::Bool(true)
+    );
+}

@@ -8,6 +8,8 @@
 //! 1–8) is not Markovian in (o, u) alone — an agent that cannot tell step 9 from step 1 may
 //! keep waiting for an event that can no longer come (Pardo et al. 2018, "Time limits in
 //! reinforcement learning", give the remaining time as input for this reason).
+//! A frozen clock ([`ProductEnv::with_frozen_clock`]) is its control: the same entry, held at
+//! its reset value, so the same width and first observation without the time.
 //!
 //! Optional potential-based shaping (Ng, Harada & Russell 1999) adds
 //! `F = γ·Φ(o', u') − Φ(o, u)` to the machine's reward, with `Φ = 0` once the machine is in a
@@ -54,6 +56,8 @@ pub struct ProductEnv<E, P = NoShaping> {
     last: Option<ProductStep>,
     /// Episode length the clock counts down from; `None`: no clock entry.
     clock_horizon: Option<usize>,
+    /// The clock entry stays at 1 (a control: the entry without the time).
+    clock_frozen: bool,
     /// Steps since the last reset.
     steps: usize,
 }
@@ -89,6 +93,7 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
             last_potential: 0.0,
             last: None,
             clock_horizon: None,
+            clock_frozen: false,
             steps: 0,
         }
     }
@@ -102,6 +107,16 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
     pub fn with_clock(mut self, horizon: usize) -> Self {
         assert!(horizon > 0, "a clock needs an episode of at least one step");
         self.clock_horizon = Some(horizon);
+        self
+    }
+
+    /// The product with a frozen clock: the entry of [`with_clock`](Self::with_clock), held at 1
+    /// (its value at reset) on every step. The control of the clock: the same observation width,
+    /// so the same network shapes and initialisation from a seed, and the same first
+    /// observation, but no information about time.
+    pub fn with_frozen_clock(mut self) -> Self {
+        self.clock_horizon = Some(1);
+        self.clock_frozen = true;
         self
     }
 
@@ -150,7 +165,11 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
         obs[..n].copy_from_slice(&self.inner_obs);
         one_hot(self.tracker.state(), &mut obs[n..n + k]);
         if let Some(horizon) = self.clock_horizon {
-            obs[n + k] = (horizon - self.steps.min(horizon)) as f32 / horizon as f32;
+            obs[n + k] = if self.clock_frozen {
+                1.0
+            } else {
+                (horizon - self.steps.min(horizon)) as f32 / horizon as f32
+            };
         }
     }
 

@@ -241,6 +241,11 @@ pub struct IrlRunConfig {
     /// False for every run before the key existed; omitted when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub smirl_clock: bool,
+    /// With `smirl_clock`: the clock entry stays at 1 (`ProductEnv::with_frozen_clock`), the
+    /// clock's control — the same observation width and network initialisation, no time (README,
+    /// "A frozen clock: is it the time?"). Refused without the clock; omitted when false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub smirl_clock_frozen: bool,
     /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
     /// state (CRM, see `rl::crm`): 0 = only the states the agent was in, 1 = every sampled
     /// transition from a uniformly drawn state.
@@ -604,6 +609,7 @@ impl IrlRunConfig {
             // The agent sees the episode's remaining time (24 of 24 tuning jobs, every miss of
             // the reset-agent standard held out solved: README, "A clock for the agent").
             smirl_clock: true,
+            smirl_clock_frozen: false,
             smirl_counterfactual: 1.0,
             reward_lr_decay: 0.0,
             reward_steps_per_iteration: 5,
@@ -957,6 +963,12 @@ impl IrlRunConfig {
             return bad(
                 "smirl_selection_cut_entries",
                 "needs smirl_selection_cut = true (it says how the cut reads touches)",
+            );
+        }
+        if self.smirl_clock_frozen && !self.smirl_clock {
+            return bad(
+                "smirl_clock_frozen",
+                "needs smirl_clock = true (it freezes the clock's entry)",
             );
         }
         if self.smirl_sink_after_events && !self.smirl_unseen_touch_sink {

@@ -294,6 +294,7 @@ pub(super) fn write_reports(
         "smirl_final_fresh_steps": config.smirl_final_fresh_steps,
         "smirl_final_reset_steps": config.smirl_final_reset_steps,
         "smirl_clock": config.smirl_clock,
+        "smirl_clock_frozen": config.smirl_clock_frozen,
         "smirl_label_features": config.smirl_label_features.name(),
         "smirl_shaping": config.smirl_shaping,
         "smirl_counterfactual": config.smirl_counterfactual,

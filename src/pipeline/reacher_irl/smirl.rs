@@ -390,17 +390,17 @@ impl super::final_policy::ScoredReward for ProductReward<'_> {
 }
 
 /// The environment SMIRL's agent learns in: ReacherDelivery × the learned machine, with the
-/// clock of `smirl_clock`.
+/// clock of `smirl_clock` (frozen with `smirl_clock_frozen`).
 pub(super) fn product_env(
     inner: ReacherDelivery,
     machine: &RewardMachine,
     s: &IrlRunConfig,
 ) -> ProductEnv<ReacherDelivery> {
     let env = ProductEnv::new(inner, machine.clone());
-    if s.smirl_clock {
-        env.with_clock(s.env.max_steps)
-    } else {
-        env
+    match (s.smirl_clock, s.smirl_clock_frozen) {
+        (true, false) => env.with_clock(s.env.max_steps),
+        (true, true) => env.with_frozen_clock(),
+        (false, _) => env,
     }
 }
 
