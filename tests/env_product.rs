@@ -166,18 +166,21 @@ fn tasks_parse_and_reject_unknown_names() {
         .contains("unknown task 'composit'"));
 }
 
+/// OR's product with six-step episodes and no cancel, as the clock tests step it.
+fn six_step_or_product() -> ProductEnv<ReacherDelivery> {
+    let mut config = no_cancel();
+    config.max_steps = 6;
+    config.cancel.latest_step = 6;
+    let inner = ReacherDelivery::new(config).unwrap();
+    ProductEnv::new(inner, ReacherTask::Or.perfect_rm().unwrap())
+}
+
 /// The clock: one entry after the one-hot block, the share of the episode still to come —
 /// 1 at reset, 1 − t/H after step t, 0 from step H on, 1 again after a reset; the inner
 /// observation, the machine state and every step report are the product's without a clock.
 #[test]
 fn the_clock_counts_down_the_episode() {
-    let mut config = no_cancel();
-    config.max_steps = 6;
-    config.cancel.latest_step = 6;
-    let product = || {
-        let inner = ReacherDelivery::new(config.clone()).unwrap();
-        ProductEnv::new(inner, ReacherTask::Or.perfect_rm().unwrap())
-    };
+    let product = six_step_or_product;
     let (mut plain, mut clocked) = (product(), product().with_clock(4));
     let n = plain.obs_dim();
     assert_eq!(clocked.obs_dim(), n + 1);
@@ -202,13 +205,7 @@ fn the_clock_counts_down_the_episode() {
 /// held at 1 on every step of every episode; all else is the product's without a clock.
 #[test]
 fn the_frozen_clock_never_moves() {
-    let mut config = no_cancel();
-    config.max_steps = 6;
-    config.cancel.latest_step = 6;
-    let product = || {
-        let inner = ReacherDelivery::new(config.clone()).unwrap();
-        ProductEnv::new(inner, ReacherTask::Or.perfect_rm().unwrap())
-    };
+    let product = six_step_or_product;
     let (mut plain, mut frozen) = (product(), product().with_frozen_clock());
     let n = plain.obs_dim();
     assert_eq!(frozen.obs_dim(), product().with_clock(6).obs_dim());
