@@ -9,16 +9,21 @@ the held-out IF and Composite jobs run under both, at least two more solved than
 Order: the standard's IF and Composite held-out misses, the tuning jobs (base 0, SAC seeds 0-5,
 every task), then the other held-out jobs, IF and Composite first, base by base.
 
+Rest: the held-out jobs of the cut-entries standard the reset agent never reran (scope `rest`,
+Composite, then Sequential, then OR, base by base), run with the clock as held-out checks of the
+standard it became; rule (b) does not read them, and their standard's column is empty.
+
 Fresh bases: IF and Composite at base seeds no run has used (FRESH_BASES, SAC seeds B..B+2),
 run with the clock only, are the held-out check of what the rule adopts; they are listed after
 the rest, their standard's column empty.
 
-Usage: python3 experiments/reacher/clock.py [--list | --run | --run-fresh] [REACHER_BIN]
+Usage: python3 experiments/reacher/clock.py [--list | --run | --run-rest | --run-fresh] [REACHER_BIN]
   --list  the jobs in that order: scope, task, base, SAC seed, the standard's outcome
   --run   run them (skipping those already done): per (task, base), when its first job comes
           up, `reacher prepare` with clock.toml into ablations/runs/clock-seeds0to5-<task> (tuning) or
           heldout/clock-seeds<B>-<task>, `reacher job` two at a time, `reacher aggregate
           --partial` after each job
+  --run-rest  the same for the rest (run dirs as the held-out jobs')
   --run-fresh  the same for the fresh bases' jobs (scope `fresh`, run dirs
           heldout/clock-seeds<B>-<task>)
   (none)  the table for results.md: per job run, the standard's reported policy and the
@@ -50,6 +55,15 @@ def fresh_jobs():
 
 RERUNS = job_reruns.Reruns(CONFIG, "clock", "clock", "clock")
 clock_candidates = RERUNS.candidates
+
+
+def rest_jobs(binary):
+    """[(scope `rest`, task, base, seed, None)]: the held-out jobs the reset agent never reran."""
+    order = {"composite": 0, "sequential": 1, "or": 2}
+    rest = [("rest", task, base, seed, None)
+            for scope, task, base, seed, _ in reset_agent.current_jobs(binary)
+            if scope == "heldout" and reset_agent.reset_candidates(scope, task, base, seed) is None]
+    return sorted(rest, key=lambda j: (order.get(j[1], 3), j[2], j[3]))
 
 
 def standard_jobs(binary):
@@ -101,27 +115,29 @@ def table(jobs):
             f"{chosen['candidate']}) |")
     return "\n".join(lines) + "\n\nJobs solved (every branch ≥ 0.9) among those run, standard " \
         "→ with the clock: " + "; ".join(
-            f"{scope} {task} {t[1] if scope != 'fresh' else '-'} → {t[2]} of {t[0]}"
+            f"{scope} {task} {t[1] if scope not in ('rest', 'fresh') else '-'} → {t[2]} of {t[0]}"
             for (scope, task), t in sorted(totals.items())) + \
         f". Held-out IF and Composite: {gained} gained, {lost} lost (rule (b): gained − lost ≥ 2).\n"
 
 
 def main(argv):
     mode = None
-    if argv and argv[0] in ("--list", "--run", "--run-fresh"):
+    if argv and argv[0] in ("--list", "--run", "--run-rest", "--run-fresh"):
         mode, argv = argv[0], argv[1:]
     if argv and argv[0].startswith("-"):
         sys.exit(__doc__)
     binary = argv[0] if argv else os.path.join(HERE, "..", "..", "target", "release", "reacher")
     if not os.path.isfile(binary):
         sys.exit(f"clock.py: {binary}: no such program (cargo build --release)")
-    jobs = ordered(standard_jobs(binary)) + fresh_jobs()
+    jobs = ordered(standard_jobs(binary)) + rest_jobs(binary) + fresh_jobs()
     if mode == "--list":
         for scope, task, base, seed, rows in jobs:
             outcome = "-" if rows is None else "solved" if reset_agent.solved(rows) else "missed"
             print(scope, task, base, seed, outcome)
     elif mode == "--run":
         RERUNS.run(binary, [j for j in jobs if j[0] != "fresh"])
+    elif mode == "--run-rest":
+        RERUNS.run(binary, rest_jobs(binary))
     elif mode == "--run-fresh":
         RERUNS.run(binary, fresh_jobs())
     else:
