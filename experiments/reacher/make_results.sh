@@ -5,7 +5,7 @@
 # event-gated visits) and of the current and previous standards' tuning runs, standard_heldout.py's tables
 # of the current (the clock, the jobs run so far) and the reset-agent one, reset_agent.py's comparison of the reset agent
 # with the cut-entries standard before it, clock.py's comparison of a clock for the agent with the
-# reset agent (once it has run), standard_heldout.py's of that one (selection cut reading entries), the touches one, the previous (initial events), the fallback-starts, the replay-all
+# reset agent (once it has run), clock_frozen.py's control of the clock, standard_heldout.py's of that one (selection cut reading entries), the touches one, the previous (initial events), the fallback-starts, the replay-all
 # and the commuted-events standard's held-out jobs, selection_cut.py's comparison of the selection
 # cut with the previous standard, ablation_heldout.py's comparisons of fallback starts, initial events and the sink of
 # unseen touches with the replay-all standard, smirl_settings.py's
@@ -70,6 +70,10 @@ heldout_tables() {
   if ls -d heldout/clock-seeds*-*/ ablations/runs/clock-seeds0to5-*/ > /dev/null 2>&1; then
     printf '\n### A clock for the agent against the reset-agent standard, job for job (`ablations/clock.toml`, adopted by its rule; the jobs run so far: the standard'"'"'s IF and Composite misses first, then the tuning jobs, then the other held-out jobs; `python3 experiments/reacher/clock.py`)\n\n'
     python3 clock.py "$bin"
+  fi
+  if ls -d heldout/clock_frozen-seeds*-*/ > /dev/null 2>&1; then
+    printf '\n### The clock frozen, its control, on the seven held-out jobs the clock gained (`ablations/clock_frozen.toml`: the same input width and networks, the entry held at 1; its reading fixed before the runs; `python3 experiments/reacher/clock_frozen.py`)\n\n'
+    python3 clock_frozen.py "$bin"
   fi
   printf '\n### SMIRL held out under the cut-entries standard (the standard before the reset agent: every held-out base with a job of it; `python3 experiments/reacher/standard_heldout.py --cut-entries`)\n\n'
   python3 standard_heldout.py --cut-entries "$bin"

@@ -243,7 +243,7 @@ pub struct IrlRunConfig {
     pub smirl_clock: bool,
     /// With `smirl_clock`: the clock entry stays at 1 (`ProductEnv::with_frozen_clock`), the
     /// clock's control — the same observation width and network initialisation, no time (README,
-    /// "A frozen clock: is it the time?"). Refused without the clock; omitted when false.
+    /// "A frozen clock"). Refused without the clock; omitted when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub smirl_clock_frozen: bool,
     /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
