@@ -10,7 +10,7 @@ Order: the standard's IF and Composite held-out misses, the tuning jobs (base 0,
 every task), then the other held-out jobs, IF and Composite first, base by base.
 
 Rest: the held-out jobs of the cut-entries standard the reset agent never reran (scope `rest`,
-Composite, then Sequential, then OR, base by base), run with the clock as held-out checks of the
+Composite first, then Sequential and OR base by base, so that a sweep cut short covers both), run with the clock as held-out checks of the
 standard it became; rule (b) does not read them, and their standard's column is empty.
 
 Fresh bases: IF and Composite at base seeds no run has used (FRESH_BASES, SAC seeds B..B+2),
@@ -59,11 +59,10 @@ clock_candidates = RERUNS.candidates
 
 def rest_jobs(binary):
     """[(scope `rest`, task, base, seed, None)]: the held-out jobs the reset agent never reran."""
-    order = {"composite": 0, "sequential": 1, "or": 2}
     rest = [("rest", task, base, seed, None)
             for scope, task, base, seed, _ in reset_agent.current_jobs(binary)
             if scope == "heldout" and reset_agent.reset_candidates(scope, task, base, seed) is None]
-    return sorted(rest, key=lambda j: (order.get(j[1], 3), j[2], j[3]))
+    return sorted(rest, key=lambda j: (j[1] != "composite", j[2], j[1], j[3]))
 
 
 def standard_jobs(binary):
