@@ -9,9 +9,10 @@ the held-out IF and Composite jobs run under both, at least two more solved than
 Order: the standard's IF and Composite held-out misses, the tuning jobs (base 0, SAC seeds 0-5,
 every task), then the other held-out jobs, IF and Composite first, base by base.
 
-Rest: the held-out jobs of the cut-entries standard the reset agent never reran (scope `rest`,
-Composite first, then Sequential and OR base by base, so that a sweep cut short covers both), run with the clock as held-out checks of the
-standard it became; rule (b) does not read them, and their standard's column is empty.
+Rest: the held-out jobs of the cut-entries standard the reset agent never reran (scope `rest`;
+Composite first, then Sequential and OR base by base, so that a sweep cut short covers both),
+run with the clock as held-out checks of the standard it became; rule (b) does not read them,
+and their standard's column is empty.
 
 Fresh bases: IF and Composite at base seeds no run has used (FRESH_BASES, SAC seeds B..B+2),
 run with the clock only, are the held-out check of what the rule adopts; they are listed after

@@ -54,12 +54,19 @@ pub struct ProductEnv<E, P = NoShaping> {
     inner_obs: Vec<f32>,
     last_potential: f64,
     last: Option<ProductStep>,
-    /// Episode length the clock counts down from; `None`: no clock entry.
-    clock_horizon: Option<usize>,
-    /// The clock entry stays at 1 (a control: the entry without the time).
-    clock_frozen: bool,
+    clock: Clock,
     /// Steps since the last reset.
     steps: usize,
+}
+
+/// The observation entry after the one-hot block, if any.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Clock {
+    None,
+    /// `(horizon − t) / horizon` after step t, clamped at 0; `horizon` ≥ 1.
+    CountDown(usize),
+    /// Always 1, the count-down's value at reset (its control: no time).
+    Frozen,
 }
 
 /// No shaping: the machine's reward only.
@@ -92,8 +99,7 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
             inner_obs,
             last_potential: 0.0,
             last: None,
-            clock_horizon: None,
-            clock_frozen: false,
+            clock: Clock::None,
             steps: 0,
         }
     }
@@ -106,7 +112,7 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
     /// If `horizon` is 0 (a programming error: an episode has at least one step).
     pub fn with_clock(mut self, horizon: usize) -> Self {
         assert!(horizon > 0, "a clock needs an episode of at least one step");
-        self.clock_horizon = Some(horizon);
+        self.clock = Clock::CountDown(horizon);
         self
     }
 
@@ -115,14 +121,13 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
     /// so the same network shapes and initialisation from a seed, and the same first
     /// observation, but no information about time.
     pub fn with_frozen_clock(mut self) -> Self {
-        self.clock_horizon = Some(1);
-        self.clock_frozen = true;
+        self.clock = Clock::Frozen;
         self
     }
 
     /// Observation entries after the one-hot block (1 with a clock, else 0).
     pub fn trailing_dim(&self) -> usize {
-        usize::from(self.clock_horizon.is_some())
+        usize::from(self.clock != Clock::None)
     }
 
     pub fn inner(&self) -> &E {
@@ -164,12 +169,12 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
         let k = self.tracker.n_states();
         obs[..n].copy_from_slice(&self.inner_obs);
         one_hot(self.tracker.state(), &mut obs[n..n + k]);
-        if let Some(horizon) = self.clock_horizon {
-            obs[n + k] = if self.clock_frozen {
-                1.0
-            } else {
-                (horizon - self.steps.min(horizon)) as f32 / horizon as f32
-            };
+        match self.clock {
+            Clock::None => {}
+            Clock::CountDown(horizon) => {
+                obs[n + k] = (horizon - self.steps.min(horizon)) as f32 / horizon as f32;
+            }
+            Clock::Frozen => obs[n + k] = 1.0,
         }
     }
 
