@@ -43,6 +43,7 @@ use crate::irl::seen_after_events::SeenAfterEvents;
 use crate::irl::smirl::FeatureMap;
 use crate::log::RolloutLogger;
 use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
+use crate::rm::LabelSet;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -321,22 +322,50 @@ fn selection_returns<E: JobEnv, R: ScoredReward>(
         steps.lengths.push(labels.len() - start);
     }
     let r = reward.score(&steps)?;
-    let episodes = selection.seeds.len().max(1) as f64;
-    let full = r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes;
-    if selection.cut.is_some() && steps.states.len() != labels.len() {
+    selection_returns_of(&r, &steps.states, &labels, &steps.lengths, selection.cut)
+}
+
+/// What the choice reads from recorded selection episodes (concatenated, `lengths` steps
+/// each): the mean over episodes of each one's learned return, and with `cut` the mean of the
+/// same returns counted only up to each episode's first step that `cut` finds unseen
+/// ([`SeenAfterEvents::first_unseen`]). Per step: `rewards`, the learned reward; `states`, the
+/// learned state its labels are read in; `labels`, the labels of its next observation.
+pub fn selection_returns_of(
+    rewards: &[f32],
+    states: &[u32],
+    labels: &[LabelSet],
+    lengths: &[usize],
+    cut: Option<&SeenAfterEvents>,
+) -> Result<(f64, Option<f64>), String> {
+    let steps = lengths.iter().sum::<usize>();
+    if rewards.len() != steps {
+        return Err(format!(
+            "{} learned rewards for {steps} selection steps",
+            rewards.len()
+        ));
+    }
+    if cut.is_some() && states.len() != labels.len() {
         return Err(
             "the selection cut reads learned-machine states, and this agent has none".into(),
         );
     }
-    let cut = selection.cut.map(|seen| {
+    if cut.is_some() && labels.len() != steps {
+        return Err(format!(
+            "{} label sets for {steps} selection steps",
+            labels.len()
+        ));
+    }
+    let episodes = lengths.len().max(1) as f64;
+    let full = rewards.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes;
+    let cut = cut.map(|seen| {
         let mut start = 0;
         let mut sum = 0.0;
-        for &len in &steps.lengths {
+        for &len in lengths {
             let end = start + len;
             let counted = seen
-                .first_unseen(&steps.states[start..end], &labels[start..end])
+                .first_unseen(&states[start..end], &labels[start..end])
                 .unwrap_or(len);
-            sum += r[start..start + counted]
+            sum += rewards[start..start + counted]
                 .iter()
                 .map(|&x| f64::from(x))
                 .sum::<f64>();
