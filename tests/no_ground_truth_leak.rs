@@ -19,6 +19,15 @@ use std::path::Path;
 
 const SEED: u64 = 3;
 
+/// What a job reads or writes that no ground truth may change: the learned machine and the
+/// annotated demonstrations (prepared), the learned reward and its trace (the job's).
+const LEARNED_FILES: [&str; 4] = [
+    "rm/learned.txt",
+    "expert_data.bin",
+    "rewards/smirl_seed3.json",
+    "rewards/smirl_seed3.trace.csv",
+];
+
 /// Another task with a cancel branch (as IF's has), and other rewards: the episode succeeds,
 /// with reward 7, on any first step without blue or the cancel; a cancel pays 0.5 and makes
 /// blue a failure, red after it pays 3.
@@ -70,15 +79,10 @@ fn job(task: ReacherTask, dir: &Path, perfect: Option<&str>) -> (JobRecord, Vec<
     }
     let (record, ran) = run.run_job(Algo::Smirl, SEED, &|_| {}).unwrap();
     assert!(ran);
-    let files = [
-        "rm/learned.txt",
-        "expert_data.bin",
-        "rewards/smirl_seed3.json",
-        "rewards/smirl_seed3.trace.csv",
-    ]
-    .iter()
-    .map(|f| std::fs::read(dir.join(f)).unwrap())
-    .collect();
+    let files = LEARNED_FILES
+        .iter()
+        .map(|f| std::fs::read(dir.join(f)).unwrap())
+        .collect();
     (record, files)
 }
 
@@ -123,8 +127,11 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
         let rows: Vec<(u64, u64)> = (r.rows.iter())
             .map(|x| (x.success_rate.to_bits(), x.task_return.to_bits()))
             .collect();
-        let finals: Vec<u64> = (r.final_policy.as_ref().unwrap().candidates.iter())
-            .map(|c| c.success_rate.to_bits())
+        let finals: Vec<String> = (r.final_policy.as_ref().unwrap().candidates.iter())
+            .map(|c| {
+                let judged = (c.success_rate, c.progress, c.final_ball, &c.branches);
+                format!("{judged:?}")
+            })
             .collect();
         (rows, finals)
     };
@@ -132,7 +139,7 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
     assert_ne!(ja.0, jb.0, "the evaluation rows did not change");
     assert_ne!(
         ja.1, jb.1,
-        "the candidates' ground-truth success did not change"
+        "the candidates' ground-truth evaluation did not change"
     );
 }
 
@@ -144,7 +151,8 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
 /// Mutations tried (each a leak): the selection's cut return reading the candidate's
 /// ground-truth success (`cut_return + success_rate` in `final_policy::candidate`): fails at
 /// "candidate 0"; the reward update's rollouts ending when the perfect machine decides
-/// (`stop_when_decided: true` in `RolloutStream::collect`): fails at "iteration 1".
+/// (`stop_when_decided: true` in `RolloutStream::collect`): fails at "rewards/smirl_seed3.json
+/// differs".
 #[test]
 fn perturbing_the_perfect_machine_changes_the_evaluation_and_nothing_learned() {
     let tmp = tempfile::tempdir().unwrap();
@@ -155,7 +163,33 @@ fn perturbing_the_perfect_machine_changes_the_evaluation_and_nothing_learned() {
         Some(PERTURBED_CONDITIONAL),
     );
     for (k, (fa, fb)) in files_a.iter().zip(&files_b).enumerate() {
-        assert!(fa == fb, "file {k} differs");
+        assert!(fa == fb, "{} differs", LEARNED_FILES[k]);
+    }
+    assert_same_learning_other_evaluation(&a, &b);
+}
+
+/// IF's job judged by Sequential's machine, a task without a cancel branch: the evaluation
+/// plays half as many episodes, unstratified; the selection still plays its own
+/// (`final_policy::selection_episodes`).
+///
+/// Regression: the selection played as many episodes as the ground-truth evaluation, so
+/// whether the perfect machine has a cancel branch set the candidates' learned returns; on
+/// main df9c858 (before `selection_episodes`) this test fails at "candidate 0".
+#[test]
+fn perturbing_the_perfect_machine_to_a_task_without_a_cancel_branch_changes_nothing_learned() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sequential = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm/reacher_sequential.txt"),
+    )
+    .unwrap();
+    let (a, files_a) = job(ReacherTask::If, &tmp.path().join("true"), None);
+    let (b, files_b) = job(
+        ReacherTask::If,
+        &tmp.path().join("perturbed"),
+        Some(&sequential),
+    );
+    for (k, (fa, fb)) in files_a.iter().zip(&files_b).enumerate() {
+        assert!(fa == fb, "{} differs", LEARNED_FILES[k]);
     }
     assert_same_learning_other_evaluation(&a, &b);
 }

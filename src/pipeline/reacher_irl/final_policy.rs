@@ -36,6 +36,7 @@
 //! first ball touch, after the cancel, that no demonstration makes after a cancel in the same
 //! learned state ([`SeenAfterEvents`]) — still no ground truth, and nothing in training changes.
 
+use super::config::IrlRunConfig;
 use super::episodes::{play_episode, train_sac, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::evaluation::{Evaluation, JobWatch};
 use crate::env::reacher_task::BranchTally;
@@ -143,6 +144,16 @@ pub struct FinalPhase<'a> {
     /// With `smirl_selection_cut`: what the demonstrations touch after the cancel, per learned
     /// state, where selection episodes stop counting.
     pub selection_cut: Option<&'a SeenAfterEvents>,
+    /// Selection episodes per candidate ([`selection_episodes`]).
+    pub selection_episodes: u64,
+}
+
+/// Selection episodes per candidate: twice `eval_episodes` on every task — as many as the
+/// evaluation of a task with a cancel branch plays (`eval_episodes` per branch). Why not the
+/// evaluation's own count: that count says whether the task's perfect machine has a cancel
+/// branch, and the choice reads no ground truth.
+pub fn selection_episodes(settings: &IrlRunConfig) -> u64 {
+    2 * settings.eval_episodes
 }
 
 /// The stream of the fresh agent's SAC seed within the job's seed.
@@ -164,7 +175,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<FinalPolicy, String> {
     let selection_stream = episode_seed(phase.seed, 0x5e1e_c7ed);
-    let selection_seeds: Vec<u64> = (0..watch.evaluation_episodes() as u64)
+    let selection_seeds: Vec<u64> = (0..phase.selection_episodes)
         .map(|i| episode_seed(selection_stream, i))
         .collect();
     let task = GroundTruthTask::of(watch.perfect());

@@ -579,6 +579,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
             fresh_steps: s.smirl_final_fresh_steps,
             reset_steps: s.smirl_final_reset_steps,
             selection_cut: selection_cut.as_ref(),
+            selection_episodes: final_policy::selection_episodes(s),
         };
         let iterations = s.irl_iterations;
         Some(final_policy::train(
