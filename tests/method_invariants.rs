@@ -166,9 +166,9 @@ fn product_rewards(batch: &ReplayBatch, beta: f64, gamma: f64) -> (Vec<f32>, Vec
 ///   blue before touching it adds up to a positive shaping.
 ///
 /// Mutation tried: `*r += (after − Φ(prev))` → `*r -= …` in `ProductReward::fill_rewards`
-/// (`src/pipeline/reacher_irl/smirl.rs`): fails the per-step identity ("step 0 …"). Also
-/// tried: dropping the terminal case (`after` = γ Φ' on every step): fails the terminated
-/// episode's last step.
+/// (`src/pipeline/reacher_irl/smirl.rs`): fails the per-step identity at "step 0". Also
+/// tried: dropping the terminal case (`after` = γ Φ' on every step): fails the per-step
+/// identity on the terminated episode's last step ("step 26").
 #[test]
 fn shaping_telescopes_along_a_recorded_episode_and_pulls_towards_the_paid_ball() {
     let beta = 1.0;
@@ -314,9 +314,10 @@ fn record(m: &RewardMachine, episodes: &[Vec<LabelSet>]) -> Recorded {
 /// and the rule picks B.
 ///
 /// Mutations tried: the cut disabled in `selection_returns_of`
-/// (`src/pipeline/reacher_irl/final_policy.rs`: `counted = len`): fails "the cut chooses B";
-/// `SeenAfterEvents::first_unseen` returning `None`: fails the same assertion; `choose`
-/// reading `learned_return` instead of `selection_return()`: fails the same assertion.
+/// (`src/pipeline/reacher_irl/final_policy.rs`: `counted = len`): fails "A's cut return"
+/// (3.75, not 1.5); `SeenAfterEvents::first_unseen` returning `None`: fails the same
+/// assertion; `choose` reading `learned_return` instead of `selection_return()`: fails "the
+/// cut chooses B".
 #[test]
 fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cancel() {
     let m = machine(IF_MERGED);
