@@ -322,11 +322,6 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         Ok(())
     }
 
-    /// Episodes of one ground-truth evaluation.
-    pub fn evaluation_episodes(&self) -> usize {
-        self.ground_truth.reset_seeds().len()
-    }
-
     /// Judges a candidate of the final-policy phase on the ground truth (episodes logged
     /// under "final"); no metrics row.
     pub fn judge_final<E: JobEnv>(
