@@ -5,7 +5,7 @@
 use super::usage;
 use crate::env::reacher_task::ReacherTask;
 use crate::log::{LogOptions, RolloutLogger};
-use crate::output::{check_file, OutputDir};
+use crate::output::{check_file, check_not_input, create_parent, OutputDir};
 use crate::pipeline::reacher_expert::{self as rx, ExpertConfig};
 use crate::rl::sac::ActMode;
 use anyhow::{Context, Result};
@@ -279,8 +279,12 @@ pub fn redraw_curve(args: CurveRequest) -> Result<()> {
     }
     for path in [&args.out, &args.out_return] {
         check_file(path, args.force).map_err(usage)?;
+        check_not_input(path, &[&args.csv]).map_err(usage)?;
     }
     let curve = crate::pipeline::expert::read_curve(&args.csv, u64::MAX).map_err(usage)?;
+    for path in [&args.out, &args.out_return] {
+        create_parent(path)?;
+    }
     rx::write_curve_svg(&args.out, &args.out_return, args.task, &curve, args.window)?;
     println!(
         "{} and {} ({} episodes)",
