@@ -590,11 +590,12 @@ pub fn run_pipeline(
     );
     let next = AtomicUsize::new(0);
     let failures: Mutex<Vec<Option<String>>> = Mutex::new(jobs.iter().map(|_| None).collect());
-    // Workers with no job left lend their thread to the jobs still running: a job may use
-    // workers / (workers still running jobs) threads.
-    let workers = run.config.threads.min(jobs.len());
+    // The run's threads are shared by the jobs running: a worker with no job left lends its
+    // thread to the others, and a run of fewer jobs than threads gives each the rest.
+    let threads = run.config.threads;
+    let workers = threads.min(jobs.len());
     let idle = AtomicUsize::new(0);
-    let job_threads = || workers / workers.saturating_sub(idle.load(Ordering::SeqCst)).max(1);
+    let job_threads = || threads / workers.saturating_sub(idle.load(Ordering::SeqCst)).max(1);
     std::thread::scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|| loop {
