@@ -261,8 +261,10 @@ pub fn job(args: JobRequest) -> Result<()> {
         .progress_chars("=> "),
     );
     bar.set_prefix(format!("{algo} seed {seed}"));
+    // One job per process: its rollouts and evaluations may use every thread of the run.
+    let threads = run.config.threads;
     let (record, ran) = run
-        .run_job(algo, seed, &|p: JobProgress| {
+        .run_job(algo, seed, &|| threads, &|p: JobProgress| {
             bar.set_position(p.env_steps);
             bar.set_message(format!(
                 "iter {}/{} success {:.2}",

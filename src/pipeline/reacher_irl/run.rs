@@ -23,6 +23,7 @@
 use super::config::{DemoPadding, DemoSource, IrlRunConfig, SmirlMachine};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
+use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{
@@ -458,10 +459,13 @@ impl PreparedRun {
     /// last its record `jobs/<algo>_seed<S>.json`. A finished job (record present) is not run
     /// again: its record is returned. A job killed halfway left no record; it starts over and
     /// overwrites its own files.
+    /// `threads` says how many threads the job may use at the moment it asks (its rollouts
+    /// and evaluations; the job's results do not depend on it).
     pub fn run_job(
         &self,
         algo: Algo,
         seed: u64,
+        threads: &(dyn Fn() -> usize + Sync),
         progress: &(dyn Fn(JobProgress) + Sync),
     ) -> Result<(JobRecord, bool), String> {
         let record_path = self.record_path(algo, seed);
@@ -483,6 +487,7 @@ impl PreparedRun {
             self.learned.as_ref(),
             &self.expert,
             &self.dir,
+            threads,
             progress,
         )?;
         let record = JobRecord {
@@ -585,14 +590,23 @@ pub fn run_pipeline(
     );
     let next = AtomicUsize::new(0);
     let failures: Mutex<Vec<Option<String>>> = Mutex::new(jobs.iter().map(|_| None).collect());
+    // The run's threads are shared by the jobs running: a worker with no job left lends its
+    // thread to the others, and a run of fewer jobs than threads gives each the rest.
+    let threads = run.config.threads;
+    let workers = threads.min(jobs.len());
+    let idle = AtomicUsize::new(0);
+    let job_threads = || threads / workers.saturating_sub(idle.load(Ordering::SeqCst)).max(1);
     std::thread::scope(|scope| {
-        for _ in 0..run.config.threads.min(jobs.len()) {
+        for _ in 0..workers {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(&(algo, job_seed)) = jobs.get(i) else {
+                    idle.fetch_add(1, Ordering::SeqCst);
                     break;
                 };
-                match run.run_job(algo, job_seed, &|p| observer.job_progress(i, p)) {
+                match run.run_job(algo, job_seed, &job_threads, &|p| {
+                    observer.job_progress(i, p)
+                }) {
                     Ok((record, _)) => observer.job_done(i, &record),
                     Err(e) => {
                         failures
@@ -636,6 +650,7 @@ fn run_one(
     learned: Option<&RewardMachine>,
     expert: &ExpertData,
     dir: &Path,
+    threads: &(dyn Fn() -> usize + Sync),
     progress: &(dyn Fn(JobProgress) + Sync),
 ) -> Result<JobResult, String> {
     // The algorithm's own schedule, if the config gives it one.
@@ -670,6 +685,10 @@ fn run_one(
         learned_rm: learned,
         expert,
         reward_path: Some(&reward_path),
+        lockstep: Lockstep {
+            batch: LOCKSTEP_BATCH,
+            threads,
+        },
     };
     let result = run_job(&inputs, logger.as_mut(), progress).map_err(|e| e.to_string())?;
     if let Some(l) = logger {
