@@ -99,7 +99,7 @@ fn log_header(
 ) -> Result<RunHeader, PipelineError> {
     // Replay reads the environment config from `env` (time limit, cancel schedule).
     let json = serde_json::json!({ "run": what, "env": config.env, "irl_config": config });
-    let mut header = RunHeader::reacher_shipped(task.name(), seed, json);
+    let mut header = RunHeader::reacher_shipped(task.id(), seed, json);
     header.reward_machine = Some(write_rm(perfect));
     Ok(header)
 }
@@ -115,13 +115,14 @@ fn job_stem(algo: Algo, seed: u64) -> String {
 /// demonstrations) the expert cache, which is loaded. Returns the expert and the last seed.
 fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), PipelineError> {
     let RunRequest {
-        task,
+        ref task,
         ref algos,
         seeds,
         seed,
         ref config,
         ..
     } = *request;
+    let task = task.clone();
     let usage = PipelineError::Usage;
     if algos.is_empty() {
         return Err(usage("no algorithm selected".into()));
@@ -142,7 +143,7 @@ fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), Pi
         .map_err(|e| usage(e.to_string()))?;
     let expert = match config.demo_source {
         DemoSource::Expert => Some(load_expert(task, config.cache_dir()).map_err(|e| match e {
-            DemoError::Cache { .. } => usage(e.to_string()),
+            DemoError::Cache { .. } | DemoError::Missing { .. } => usage(e.to_string()),
             other => PipelineError::Run(other.to_string()),
         })?),
         DemoSource::Scripted => None,
@@ -162,12 +163,13 @@ pub fn prepare(
 ) -> Result<Prepared, PipelineError> {
     let started = Instant::now();
     let RunRequest {
-        task,
+        ref task,
         ref algos,
         seed,
         ref config,
         ..
     } = *request;
+    let task = task.clone();
     let (mut expert, last_seed) = check_request(request)?;
     let perfect = task
         .perfect_rm()
@@ -185,15 +187,21 @@ pub fn prepare(
     let demo_log = dir.join("logs/demos.mcap");
     let mut logger = RolloutLogger::create(
         &demo_log,
-        log_header(task, seed, config, "demonstrations", &perfect)?,
+        log_header(task.clone(), seed, config, "demonstrations", &perfect)?,
         LogOptions {
             observations: true,
             ..LogOptions::default()
         },
     )
     .map_err(|e| PipelineError::Run(e.to_string()))?;
-    let all_demos = make_demos(task, config, expert.as_mut(), seed, Some(&mut logger))
-        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let all_demos = make_demos(
+        task.clone(),
+        config,
+        expert.as_mut(),
+        seed,
+        Some(&mut logger),
+    )
+    .map_err(|e| PipelineError::Run(e.to_string()))?;
     logger
         .finish()
         .map_err(|e| PipelineError::Run(e.to_string()))?;
@@ -205,7 +213,7 @@ pub fn prepare(
         )));
     }
     let demo_branches =
-        branch_tally(task, &demos).map_err(|e| PipelineError::Run(e.to_string()))?;
+        branch_tally(task.clone(), &demos).map_err(|e| PipelineError::Run(e.to_string()))?;
     observer.message(&format!(
         "demonstrations: {} of {demos_generated} complete the task ({} source), {} steps{}",
         demos.len(),
@@ -479,7 +487,7 @@ impl PreparedRun {
             std::fs::create_dir_all(&sub).map_err(|e| format!("{}: {e}", sub.display()))?;
         }
         let result = run_one(
-            self.prepared.task,
+            self.prepared.task.clone(),
             algo,
             seed,
             &self.config,
