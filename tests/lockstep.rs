@@ -184,7 +184,7 @@ fn same_steps(a: &AgentBatch, b: &AgentBatch, what: &str) {
 #[test]
 fn lockstep_play_is_one_at_a_time_play() {
     let dir = tempfile::tempdir().unwrap();
-    let rm = ReacherTask::Composite.perfect_rm().unwrap();
+    let rm = ReacherTask::shipped("composite").unwrap().perfect_rm().unwrap();
     let task = GroundTruthTask::of(&rm);
     for (mode, decided, n) in [(ActMode::Sample, false, 300), (ActMode::Mean, true, 40)] {
         let specs = specs(n, mode, decided);
@@ -214,7 +214,7 @@ fn lockstep_play_is_one_at_a_time_play() {
 /// Sampled lockstep play refuses noise of the wrong size instead of playing other episodes.
 #[test]
 fn lockstep_sampling_needs_the_whole_noise() {
-    let rm = ReacherTask::Or.perfect_rm().unwrap();
+    let rm = ReacherTask::shipped("or").unwrap().perfect_rm().unwrap();
     let task = GroundTruthTask::of(&rm);
     let specs = specs(3, ActMode::Sample, false);
     let agent = agent(1);

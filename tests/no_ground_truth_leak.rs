@@ -77,7 +77,7 @@ fn job(task: ReacherTask, dir: &Path, perfect: Option<&str>) -> (JobRecord, Vec<
     if let Some(text) = perfect {
         assert_eq!(run.perfect, parse_rm(text, "perturbed").unwrap());
     }
-    let (record, ran) = run.run_job(Algo::Smirl, SEED, &|_| {}).unwrap();
+    let (record, ran) = run.run_job(Algo::Smirl, SEED, &|| 1, &|_| {}).unwrap();
     assert!(ran);
     let files = LEARNED_FILES
         .iter()
@@ -156,9 +156,9 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
 #[test]
 fn perturbing_the_perfect_machine_changes_the_evaluation_and_nothing_learned() {
     let tmp = tempfile::tempdir().unwrap();
-    let (a, files_a) = job(ReacherTask::If, &tmp.path().join("true"), None);
+    let (a, files_a) = job(ReacherTask::shipped("if").unwrap(), &tmp.path().join("true"), None);
     let (b, files_b) = job(
-        ReacherTask::If,
+        ReacherTask::shipped("if").unwrap(),
         &tmp.path().join("perturbed"),
         Some(PERTURBED_CONDITIONAL),
     );
@@ -182,9 +182,9 @@ fn perturbing_the_perfect_machine_to_a_task_without_a_cancel_branch_changes_noth
         Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm/reacher_sequential.txt"),
     )
     .unwrap();
-    let (a, files_a) = job(ReacherTask::If, &tmp.path().join("true"), None);
+    let (a, files_a) = job(ReacherTask::shipped("if").unwrap(), &tmp.path().join("true"), None);
     let (b, files_b) = job(
-        ReacherTask::If,
+        ReacherTask::shipped("if").unwrap(),
         &tmp.path().join("perturbed"),
         Some(&sequential),
     );

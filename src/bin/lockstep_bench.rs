@@ -56,7 +56,7 @@ fn main() -> Result<()> {
         .map(|b| b.trim().parse::<usize>())
         .collect::<Result<_, _>>()?;
     ensure!(batches.iter().all(|&b| b > 0), "--batches must be positive");
-    let rm = ReacherTask::Composite.perfect_rm()?;
+    let rm = ReacherTask::shipped("composite")?.perfect_rm()?;
     let task = GroundTruthTask::of(&rm);
     let mut init = ChaCha8Rng::seed_from_u64(0);
     let mut agent = SacAgent::new(&SacConfig::default(), OBS_DIM, ACT_DIM, &mut init);
