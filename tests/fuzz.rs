@@ -1,44 +1,93 @@
-//! Mutation fuzzers for every text and binary input format (issue 16): reward-machine files,
-//! Office map files, the TOML configs (IRL run, expert, SAC, Office) and MCAP rollout logs.
-//! Each starts from a seed corpus of shipped files, applies seeded random mutations (bit
-//! flips, interesting bytes and numbers, deletions, duplications, long repeats of a slice —
-//! the deep nesting that once overflowed the stack — and truncation), and feeds every mutant
-//! to the reader.
-//! A panic fails the test and writes the input to `target/fuzz-crashes/`; an abort or a
-//! stack overflow kills the process, which fails the test too.
+//! Mutation fuzzers for every file the program reads, run under a supervisor that sees
+//! aborts (issues 16, 57). A custom test harness (`harness = false`): run plainly, it is the
+//! **supervisor**; with `FUZZ_CHILD=<target> <start> <end>` in its environment, a **child**
+//! that runs one target on inputs `start..end`.
 //!
-//! CI runs a short pass (the default iteration counts, a few seconds). The long pass, with
-//! an address-space limit so that any unbounded allocation aborts:
+//! - Inputs are deterministic: input `i` of a target is a seeded mutation of a corpus file,
+//!   so the supervisor rebuilds any input from its number.
+//! - A child prints each input's number before running it, and `finding <i> <why>` when an
+//!   oracle fails. It runs with a 4 GiB address-space limit, so an unbounded allocation
+//!   aborts it. When a child dies (panic, abort, stack overflow, signal), the supervisor saves
+//!   the input it was on and starts a new child at the next input; an input that runs longer
+//!   than [`INPUT_TIME_LIMIT`] is a finding too (the child is killed and restarted).
+//! - Findings are saved to `target/fuzz-findings/<target>/` and fail the run.
 //!
-//! ```sh
-//! cargo test --release --test fuzz --no-run
-//! (ulimit -v 4194304; FUZZ_TEXT_ITERS=1000000 FUZZ_MCAP_ITERS=100000 \
-//!    cargo test --release --test fuzz -- --nocapture --test-threads 1)
-//! ```
+//! Targets and oracles:
+//! - `rm`: reward-machine files; an accepted machine writes back to text that reads back to
+//!   the same machine (read → write → read).
+//! - `config`: the TOML configs (IRL run, expert, SAC, Office, ReacherDraw).
+//! - `office_map`: Office map files; an accepted map builds a world and writes back to
+//!   itself (read → write → read).
+//! - `mcap`, `mcap_nocrc`: rollout logs of a real `--quick` run (demonstration and training
+//!   logs, several chunks), with and without CRCs, under record-aware mutations (a record's
+//!   length, opcode or CRC, a cut at a record boundary or anywhere, byte damage). A cut
+//!   log reads to a prefix of the original's episodes (or is refused); a damaged log with
+//!   CRCs is refused, read identical, or read as cut short with a prefix. Every accepted log
+//!   goes through replay, render, the offline-RM traces and (one in eight) the Foxglove
+//!   export, whose copy must read back to the same episodes.
+//! - `expert_data`, `policy`, `reward_net`, `reward_linear`, `job`, `prepare`: the run
+//!   directory's `expert_data.bin`, `*.policy`, `rewards/*.bin`, `rewards/*.json`,
+//!   `jobs/*.json` and `prepare.json`; `expert_data` also round-trips.
+//!
+//! CI runs the short pass (default counts, well under 60 s). The long pass is
+//! `experiments/fuzz/long_pass.sh` (counts from `FUZZ_TEXT_ITERS`, `FUZZ_MCAP_ITERS`,
+//! `FUZZ_BIN_ITERS`). The corpus in `tests/fuzz_corpus/` comes from
+//! `experiments/fuzz/make_corpus.sh`.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::env::office::{parse_map, write_map, OfficeWorld};
-use smirl::env::reacher::ReacherConfig;
-use smirl::log::demo::{log_scripted_demos, DemoSpec};
-use smirl::log::{read_log_bytes, LogOptions};
+use smirl::env::reacher_task::ReacherTask;
+use smirl::irl::reward::RewardOptimConfig;
+use smirl::irl::smirl::LinearRmReward;
+use smirl::log::{read_log, read_log_bytes, RolloutLog};
+use smirl::nn::{Mlp, MlpArch};
 use smirl::pipeline::office::OfficeConfig;
-use smirl::pipeline::reacher_expert::ExpertConfig;
-use smirl::pipeline::reacher_irl::IrlRunConfig;
+use smirl::pipeline::reacher_draw::DrawConfig;
+use smirl::pipeline::reacher_expert::{ExpertConfig, ExpertPolicy};
+use smirl::pipeline::reacher_irl::records::{JobRecord, Prepared};
+use smirl::pipeline::reacher_irl::{ExpertData, IrlRunConfig};
+use smirl::pipeline::render::{render_episode, RenderOptions};
 use smirl::rl::sac::SacConfig;
-use smirl::rm::format::parse_rm;
-use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::Path;
-use std::time::Instant;
+use smirl::rm::format::{parse_rm, write_rm};
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
-fn iterations(var: &str, default: u64) -> u64 {
-    std::env::var(var)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
+/// Longest an input may take before it is a finding.
+const INPUT_TIME_LIMIT: Duration = Duration::from_secs(1);
+/// Address space of a child: an allocation past it aborts the child (and is found).
+const CHILD_ADDRESS_SPACE: u64 = 4 << 30;
+
+const TARGETS: &[(&str, &str, u64)] = &[
+    // (name, iteration variable, short-pass count)
+    ("rm", "FUZZ_TEXT_ITERS", 20_000),
+    ("config", "FUZZ_TEXT_ITERS", 4_000),
+    ("office_map", "FUZZ_TEXT_ITERS", 20_000),
+    ("mcap", "FUZZ_MCAP_ITERS", 2_000),
+    ("mcap_nocrc", "FUZZ_MCAP_ITERS", 1_000),
+    ("expert_data", "FUZZ_BIN_ITERS", 4_000),
+    ("policy", "FUZZ_BIN_ITERS", 3_000),
+    ("reward_net", "FUZZ_BIN_ITERS", 500),
+    ("reward_linear", "FUZZ_BIN_ITERS", 1_000),
+    ("job", "FUZZ_BIN_ITERS", 4_000),
+    ("prepare", "FUZZ_BIN_ITERS", 4_000),
+];
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Bytes that tend to matter to the formats: delimiters, quotes, brackets, digits, `!`.
+fn read(path: &str) -> Vec<u8> {
+    std::fs::read(root().join(path)).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+// ---------------------------------------------------------------------------------------
+// Mutations
+
+/// Bytes that tend to matter to the text formats: delimiters, quotes, brackets, digits.
 const INTERESTING_BYTES: &[u8] = b"\0\xff()[]{}!&|'\",:=#.\n\r 0123456789-+eE";
 /// Numbers that tend to find size bugs.
 const INTERESTING_NUMBERS: &[&str] = &[
@@ -53,8 +102,8 @@ const INTERESTING_NUMBERS: &[&str] = &[
     "99999999999999999999999",
 ];
 
-fn mutate(rng: &mut ChaCha8Rng, input: &[u8]) -> Vec<u8> {
-    let mut out = input.to_vec();
+/// Byte-level mutations (text and binary formats).
+fn mutate_bytes(rng: &mut ChaCha8Rng, out: &mut Vec<u8>) {
     for _ in 0..rng.gen_range(1..=4) {
         let len = out.len();
         match rng.gen_range(0..8) {
@@ -72,7 +121,6 @@ fn mutate(rng: &mut ChaCha8Rng, input: &[u8]) -> Vec<u8> {
                 out.drain(i..i + n);
             }
             3 if len > 0 => {
-                // Duplicate a slice in place.
                 let i = rng.gen_range(0..len);
                 let n = rng.gen_range(1..=64.min(len - i));
                 let piece = out[i..i + n].to_vec();
@@ -88,7 +136,6 @@ fn mutate(rng: &mut ChaCha8Rng, input: &[u8]) -> Vec<u8> {
                 out.splice(i..i, repeated);
             }
             5 if len > 0 => {
-                // Replace a run of digits by an interesting number.
                 let i = rng.gen_range(0..len);
                 if let Some(start) = (i..len).find(|&k| out[k].is_ascii_digit()) {
                     let end = (start..len)
@@ -99,172 +146,591 @@ fn mutate(rng: &mut ChaCha8Rng, input: &[u8]) -> Vec<u8> {
                 }
             }
             6 if len > 8 => {
-                // Overwrite 4 or 8 bytes with an extreme little-endian integer (binary
-                // length fields).
+                // An extreme little-endian integer (binary length and count fields).
                 let width = if rng.gen_bool(0.5) { 4 } else { 8 };
-                let i = rng.gen_range(0..len.saturating_sub(width));
+                let i = rng.gen_range(0..len - width);
                 let value: u64 =
                     [0, u64::MAX, u32::MAX as u64, 1 << 31, 1 << 40][rng.gen_range(0..5)];
                 out[i..i + width].copy_from_slice(&value.to_le_bytes()[..width]);
             }
-            7 if len > 0 => {
-                out.truncate(rng.gen_range(0..len));
-            }
+            7 if len > 0 => out.truncate(rng.gen_range(0..len)),
             _ => {}
+        }
+    }
+}
+
+/// One top-level MCAP record: offset, opcode, body length.
+#[derive(Clone, Copy)]
+struct McapRecord {
+    at: usize,
+    opcode: u8,
+    len: usize,
+}
+
+fn mcap_records(bytes: &[u8]) -> Vec<McapRecord> {
+    let mut at = mcap::MAGIC.len();
+    let mut found = Vec::new();
+    while at + 9 <= bytes.len() - mcap::MAGIC.len() {
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+        found.push(McapRecord {
+            at,
+            opcode: bytes[at],
+            len,
+        });
+        at += 9 + len;
+    }
+    found
+}
+
+/// Where a record keeps its CRC (offset in the file, 4 bytes), when it has one.
+fn crc_field(r: &McapRecord) -> Option<usize> {
+    use mcap::records::op;
+    let body = r.at + 9;
+    match r.opcode {
+        op::CHUNK => Some(body + 24),
+        op::ATTACHMENT => Some(body + r.len - 4),
+        op::DATA_END => Some(body),
+        op::FOOTER => Some(body + 16),
+        _ => None,
+    }
+}
+
+/// The log with every CRC field zeroed (a CRC of 0 means "not computed").
+fn without_crcs(bytes: &[u8]) -> Vec<u8> {
+    let mut out = bytes.to_vec();
+    for r in mcap_records(bytes) {
+        if let Some(at) = crc_field(&r) {
+            out[at..at + 4].fill(0);
         }
     }
     out
 }
 
-/// Runs `target` on `iters` mutants of the corpus; panics are collected and reported.
-fn fuzz(name: &str, corpus: &[Vec<u8>], iters: u64, seed: u64, target: impl Fn(&[u8])) {
-    assert!(!corpus.is_empty(), "{name}: empty corpus");
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let started = Instant::now();
-    let mut crashes = Vec::new();
-    // Silence the default panic message for each caught panic; the report below has them.
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
-    for i in 0..iters {
-        let base = &corpus[rng.gen_range(0..corpus.len())];
-        let input = mutate(&mut rng, base);
-        if catch_unwind(AssertUnwindSafe(|| target(&input))).is_err() {
-            crashes.push((i, input));
+/// A mutated log, and whether it is only cut (a prefix of the original).
+fn mutate_mcap(rng: &mut ChaCha8Rng, original: &[u8]) -> (Vec<u8>, bool) {
+    let records = mcap_records(original);
+    let mut out = original.to_vec();
+    let r = records[rng.gen_range(0..records.len())];
+    match rng.gen_range(0..7) {
+        0 => {
+            out.truncate(r.at);
+            return (out, true);
         }
-    }
-    std::panic::set_hook(hook);
-    let secs = started.elapsed().as_secs_f64();
-    println!(
-        "{name}: {iters} inputs in {secs:.1} s ({:.0}/s), {} panics",
-        iters as f64 / secs.max(1e-9),
-        crashes.len()
-    );
-    if !crashes.is_empty() {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-crashes");
-        std::fs::create_dir_all(&dir).unwrap();
-        for (i, input) in crashes.iter().take(20) {
-            std::fs::write(dir.join(format!("{name}-{i}")), input).unwrap();
+        1 => {
+            out.truncate(rng.gen_range(0..original.len()));
+            return (out, true);
         }
-        panic!(
-            "{name}: {} inputs panicked; the first are in {}",
-            crashes.len(),
-            dir.display()
-        );
-    }
-}
-
-fn read_all(paths: &[&str]) -> Vec<Vec<u8>> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    paths
-        .iter()
-        .map(|p| std::fs::read(root.join(p)).unwrap())
-        .collect()
-}
-
-#[test]
-fn reward_machine_files() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm");
-    let corpus: Vec<Vec<u8>> = std::fs::read_dir(&root)
-        .unwrap()
-        .map(|e| std::fs::read(e.unwrap().path()).unwrap())
-        .collect();
-    fuzz(
-        "rm",
-        &corpus,
-        iterations("FUZZ_TEXT_ITERS", 20_000),
-        1,
-        |bytes| {
-            let _ = parse_rm(&String::from_utf8_lossy(bytes), "fuzz.txt");
-        },
-    );
-}
-
-#[test]
-fn office_map_files() {
-    let mut corpus = read_all(&["assets/office/paper.map"]);
-    corpus.push(
-        b"legend:\nk = key\ng =\nmap:\n+-+-+-+\n|k . g|\n+ +-+ +\n|@|.|.|\n+-+-+-+\n".to_vec(),
-    );
-    fuzz(
-        "office-map",
-        &corpus,
-        iterations("FUZZ_TEXT_ITERS", 20_000),
-        4,
-        |bytes| {
-            // A map that parses builds a world and writes back to itself.
-            if let Ok(map) = parse_map(&String::from_utf8_lossy(bytes), "fuzz.map") {
-                let world = OfficeWorld::from_map(&map);
-                assert_eq!(world.n_cells(), map.width() * map.height());
-                assert_eq!(parse_map(&write_map(&map), "written.map").unwrap(), map);
+        2 => {
+            // A length field: a bit flip, or an extreme value.
+            let field = r.at + 1;
+            if rng.gen_bool(0.5) {
+                out[field + rng.gen_range(0..8)] ^= 1 << rng.gen_range(0..8);
+            } else {
+                let v: u64 = [0, u64::MAX, 1 << 32, r.len as u64 + 1][rng.gen_range(0..4)];
+                out[field..field + 8].copy_from_slice(&v.to_le_bytes());
             }
-        },
-    );
+        }
+        3 => out[r.at] = rng.gen_range(0..=0x12),
+        4 => {
+            let with_crc: Vec<usize> = records.iter().filter_map(crc_field).collect();
+            let at = with_crc[rng.gen_range(0..with_crc.len())];
+            out[at + rng.gen_range(0..4)] ^= 1 << rng.gen_range(0..8);
+        }
+        5 => {
+            // Damage inside one record's body.
+            if r.len > 0 {
+                let at = r.at + 9 + rng.gen_range(0..r.len);
+                out[at] ^= 1 << rng.gen_range(0..8);
+            }
+        }
+        _ => mutate_bytes(rng, &mut out),
+    }
+    if rng.gen_bool(0.2) {
+        out.truncate(rng.gen_range(0..out.len().max(1)));
+    }
+    let cut_only = out.len() <= original.len() && out[..] == original[..out.len()];
+    (out, cut_only)
 }
 
-#[test]
-fn configs() {
-    let corpus = read_all(&[
-        "experiments/reacher/config.toml",
-        "experiments/reacher/quick.toml",
-        "experiments/reacher/config_scripted.toml",
-        "experiments/office/config.toml",
-        "experiments/office/config_finite_horizon.toml",
-    ]);
-    let mut corpus = corpus;
-    corpus.push(IrlRunConfig::standard().to_toml().into_bytes());
-    corpus.push(SacConfig::expert().to_toml().into_bytes());
-    corpus.push(
-        b"total_steps = 1000\neval_episodes = 5\n[sac]\npreset = \"expert\"\nhidden = [64, 64]\n[env]\nmax_steps = 50\n"
-            .to_vec(),
-    );
-    fuzz(
-        "config",
-        &corpus,
-        iterations("FUZZ_TEXT_ITERS", 20_000),
-        2,
-        |bytes| {
-            let text = String::from_utf8_lossy(bytes);
+// ---------------------------------------------------------------------------------------
+// Targets
+
+struct Corpus {
+    files: Vec<Vec<u8>>,
+    /// Per file: its episodes as read (MCAP targets).
+    episodes: Vec<Vec<smirl::log::LoggedEpisode>>,
+    /// Architecture of the reward network files.
+    reward_arch: Option<MlpArch>,
+}
+
+fn corpus(target: &str) -> Corpus {
+    let mut c = Corpus {
+        files: Vec::new(),
+        episodes: Vec::new(),
+        reward_arch: None,
+    };
+    let dir_files = |dir: &str| -> Vec<Vec<u8>> {
+        let mut paths: Vec<PathBuf> = std::fs::read_dir(root().join(dir))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        paths.sort();
+        paths.iter().map(|p| std::fs::read(p).unwrap()).collect()
+    };
+    match target {
+        "rm" => c.files = dir_files("assets/rm"),
+        "office_map" => {
+            c.files.push(read("assets/office/paper.map"));
+            c.files.push(
+                b"legend:\nk = key\ng =\nmap:\n+-+-+-+\n|k . g|\n+ +-+ +\n|@|.|.|\n+-+-+-+\n".to_vec(),
+            );
+        }
+        "config" => {
+            for p in [
+                "experiments/reacher/config.toml",
+                "experiments/reacher/quick.toml",
+                "experiments/reacher/config_scripted.toml",
+                "experiments/office/config.toml",
+                "experiments/office/config_finite_horizon.toml",
+                "tests/fuzz_corpus/config.toml",
+            ] {
+                c.files.push(read(p));
+            }
+            c.files
+                .push(IrlRunConfig::standard().to_toml().into_bytes());
+            c.files.push(SacConfig::expert().to_toml().into_bytes());
+        }
+        "mcap" | "mcap_nocrc" => {
+            for p in [
+                "tests/fuzz_corpus/demos.mcap",
+                "tests/fuzz_corpus/fkl_seed0.mcap",
+            ] {
+                let bytes = read(p);
+                let bytes = if target == "mcap" {
+                    bytes
+                } else {
+                    without_crcs(&bytes)
+                };
+                let log = read_log_bytes(&bytes, Path::new(p)).unwrap();
+                assert!(log.recovery.is_none() && log.chunks > 1, "{p}");
+                c.episodes.push(log.episodes);
+                c.files.push(bytes);
+            }
+        }
+        "expert_data" => c.files.push(read("tests/fuzz_corpus/expert_data.bin")),
+        "policy" => {
+            c.files
+                .push(read("experiments/experts/cache/expert_or.policy"));
+            c.files
+                .push(read("experiments/experts/cache/expert_composite.policy"));
+        }
+        "reward_net" => {
+            let bytes = read("tests/fuzz_corpus/reward_maxent_seed0.bin");
+            let path = scratch_file(&bytes);
+            c.reward_arch = (1..=17).find_map(|d| {
+                let arch = MlpArch::new(d, &[64, 64], 1);
+                let mut net = Mlp::new(&arch, &mut ChaCha8Rng::seed_from_u64(0));
+                net.load(&path).ok().map(|()| arch)
+            });
+            assert!(c.reward_arch.is_some(), "no architecture reads the corpus");
+            c.files.push(bytes);
+        }
+        "reward_linear" => c
+            .files
+            .push(read("tests/fuzz_corpus/reward_smirl_seed0.json")),
+        "job" => {
+            c.files.push(read("tests/fuzz_corpus/job_smirl_seed0.json"));
+            c.files.push(read("tests/fuzz_corpus/job_fkl_seed0.json"));
+        }
+        "prepare" => c.files.push(read("tests/fuzz_corpus/prepare.json")),
+        "selftest" => c.files.push(b"x".to_vec()),
+        other => panic!("unknown fuzz target {other}"),
+    }
+    assert!(!c.files.is_empty(), "{target}: empty corpus");
+    c
+}
+
+/// Input `i` of `target`: (bytes, corpus file it came from, cut only).
+fn input(target: &str, c: &Corpus, i: u64) -> (Vec<u8>, usize, bool) {
+    let salt = TARGETS.iter().position(|t| t.0 == target).unwrap_or(99) as u64;
+    let mut rng = ChaCha8Rng::seed_from_u64(i.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ salt);
+    let k = rng.gen_range(0..c.files.len());
+    if target.starts_with("mcap") {
+        let (bytes, cut) = mutate_mcap(&mut rng, &c.files[k]);
+        return (bytes, k, cut);
+    }
+    let mut bytes = c.files[k].clone();
+    mutate_bytes(&mut rng, &mut bytes);
+    (bytes, k, false)
+}
+
+/// A file in the child's scratch directory holding `bytes` (for readers that take a path).
+fn scratch_file(bytes: &[u8]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("smirl-fuzz-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("input");
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+/// `part` is `whole` or a prefix of it: complete episodes equal, a last unfinished one
+/// holding the first steps of its original.
+fn is_prefix(
+    part: &[smirl::log::LoggedEpisode],
+    whole: &[smirl::log::LoggedEpisode],
+) -> Result<(), String> {
+    if part.len() > whole.len() {
+        return Err(format!(
+            "{} episodes, the original has {}",
+            part.len(),
+            whole.len()
+        ));
+    }
+    for (k, (p, w)) in part.iter().zip(whole).enumerate() {
+        let same = if p.is_complete() {
+            p == w
+        } else {
+            p.start == w.start
+                && p.steps.len() <= w.steps.len()
+                && p.steps[..] == w.steps[..p.steps.len()]
+                && k + 1 == part.len()
+        };
+        if !same {
+            return Err(format!("episode {k} differs from the original"));
+        }
+    }
+    Ok(())
+}
+
+/// The commands' work on an accepted log; errors are fine, wrong copies are not.
+fn downstream(log: &RolloutLog, bytes: &[u8], i: u64) -> Result<(), String> {
+    // Replay re-simulates: its first two episodes and its last (where a cut or damage shows)
+    // keep an input well inside the time limit.
+    let mut few = log.clone();
+    if few.episodes.len() > 3 {
+        let last = few.episodes.pop().unwrap();
+        few.episodes.truncate(2);
+        few.episodes.push(last);
+    }
+    let _ = smirl::pipeline::replay::replay(&few);
+    let options = RenderOptions { size: 64, poses: 2 };
+    let _ = render_episode(log, None, &options);
+    let _ = smirl::pipeline::offline_rm::traces_from_logs(std::slice::from_ref(log));
+    if i % 8 == 0 {
+        let input = scratch_file(bytes);
+        let view = input.with_file_name("view.mcap");
+        let _ = std::fs::remove_file(&view);
+        if smirl::pipeline::foxglove_scene::export_scene(&input, &view, true).is_ok() {
+            let copy =
+                read_log(&view).map_err(|e| format!("the Foxglove copy does not read: {e}"))?;
+            if copy.episodes != log.episodes {
+                return Err("the Foxglove copy holds other episodes than the log".into());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Runs input `i`; `Err` is an oracle's finding.
+fn run(target: &str, c: &Corpus, i: u64) -> Result<(), String> {
+    let (bytes, k, cut_only) = input(target, c, i);
+    let text = || String::from_utf8_lossy(&bytes).into_owned();
+    match target {
+        "rm" => {
+            let Ok(text) = std::str::from_utf8(&bytes) else {
+                return Ok(());
+            };
+            if let Ok(rm) = parse_rm(text, "fuzz.txt") {
+                let written = write_rm(&rm);
+                let again = parse_rm(&written, "written.txt")
+                    .map_err(|e| format!("the written machine does not read back: {e}"))?;
+                if write_rm(&again) != written {
+                    return Err("read → write → read changes the machine".into());
+                }
+            }
+        }
+        "office_map" => {
+            // A map that parses builds a world and writes back to itself.
+            if let Ok(map) = parse_map(&text(), "fuzz.map") {
+                let world = OfficeWorld::from_map(&map);
+                if world.n_cells() != map.width() * map.height() {
+                    return Err("the world's cells are not the map's".into());
+                }
+                match parse_map(&write_map(&map), "written.map") {
+                    Ok(again) if again == map => {}
+                    _ => return Err("read → write → read changes the map".into()),
+                }
+            }
+        }
+        "config" => {
+            let text = text();
             let _ = IrlRunConfig::from_toml(&text, "fuzz.toml");
             let _ = ExpertConfig::from_toml(&text, "fuzz.toml");
             let _ = SacConfig::from_toml(&text, "fuzz.toml");
             let _ = OfficeConfig::from_toml(&text);
+            let _ = DrawConfig::from_toml(&text, "fuzz.toml");
+        }
+        "mcap" | "mcap_nocrc" => {
+            let Ok(log) = read_log_bytes(&bytes, Path::new("fuzz.mcap")) else {
+                return Ok(());
+            };
+            let original = &c.episodes[k];
+            if cut_only || target == "mcap" {
+                if log.recovery.is_none() && bytes != c.files[k] && log.episodes != *original {
+                    return Err("a changed log reads as complete with other episodes".into());
+                }
+                is_prefix(&log.episodes, original)?;
+            }
+            downstream(&log, &bytes, i)?;
+        }
+        "expert_data" => {
+            if let Ok(data) = ExpertData::from_bytes(&bytes) {
+                let written = data.to_bytes();
+                let again = ExpertData::from_bytes(&written)
+                    .map_err(|e| format!("written expert data does not read back: {e}"))?;
+                if again.to_bytes() != written {
+                    return Err("expert data changes in a round trip".into());
+                }
+            }
+        }
+        "policy" => {
+            let hidden = SacConfig::expert().hidden;
+            for name in ["or", "composite"] {
+                let task = ReacherTask::shipped(name).map_err(|e| e.to_string())?;
+                let _ = ExpertPolicy::from_bytes(&bytes, "fuzz.policy", task, &hidden);
+            }
+        }
+        "reward_net" => {
+            let arch = c.reward_arch.as_ref().unwrap();
+            let mut net = Mlp::new(arch, &mut ChaCha8Rng::seed_from_u64(0));
+            let _ = net.load(&scratch_file(&bytes));
+        }
+        "reward_linear" => {
+            let _ = LinearRmReward::load(&scratch_file(&bytes), RewardOptimConfig::adam(1e-3));
+        }
+        "job" => {
+            let _ = serde_json::from_slice::<JobRecord>(&bytes);
+        }
+        "prepare" => {
+            if let Ok(p) = serde_json::from_slice::<Prepared>(&bytes) {
+                let _ = p.jobs();
+            }
+        }
+        // The supervisor's own check: an abort, a panic and a hang at known inputs.
+        "selftest" => match i {
+            10 => std::process::abort(),
+            20 => panic!("selftest panic"),
+            30 => std::thread::sleep(INPUT_TIME_LIMIT * 2),
+            _ => {}
         },
+        other => panic!("unknown fuzz target {other}"),
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Child and supervisor
+
+fn child(spec: &str) {
+    let mut parts = spec.split_whitespace();
+    let (target, start, end) = (
+        parts.next().unwrap().to_string(),
+        parts.next().unwrap().parse::<u64>().unwrap(),
+        parts.next().unwrap().parse::<u64>().unwrap(),
+    );
+    let limit = libc::rlimit {
+        rlim_cur: CHILD_ADDRESS_SPACE,
+        rlim_max: CHILD_ADDRESS_SPACE,
+    };
+    // SAFETY: sets a resource limit of this process only.
+    unsafe { libc::setrlimit(libc::RLIMIT_AS, &limit) };
+    let c = corpus(&target);
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "ready").unwrap();
+    for i in start..end {
+        writeln!(out, "{i}").unwrap();
+        out.flush().unwrap();
+        if let Err(why) = run(&target, &c, i) {
+            writeln!(out, "finding {i} {why}").unwrap();
+        }
+    }
+    writeln!(out, "done").unwrap();
+    let _ = std::fs::remove_dir_all(
+        std::env::temp_dir().join(format!("smirl-fuzz-{}", std::process::id())),
     );
 }
 
-#[test]
-fn mcap_logs() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut corpus = Vec::new();
-    for (k, (episodes, chunk)) in [(2u64, 1u64 << 20), (3, 4 << 10)].into_iter().enumerate() {
-        let path = dir.path().join(format!("seed{k}.mcap"));
-        log_scripted_demos(
-            &path,
-            &DemoSpec {
-                task: "sequential".into(),
-                sequence: "rgby".into(),
-                episodes,
-                seed: k as u64,
-                stop_when_done: true,
-                env: ReacherConfig::default(),
-                reward_machine: Some(smirl::rm::perfect::load("reacher_sequential").unwrap()),
-            },
-            LogOptions {
-                chunk_size: chunk,
-                observations: k == 1,
-                ..LogOptions::default()
-            },
-        )
-        .unwrap();
-        corpus.push(std::fs::read(&path).unwrap());
+struct Report {
+    inputs: u64,
+    secs: f64,
+    findings: Vec<String>,
+}
+
+fn save_finding(target: &str, c: &Corpus, i: u64, kind: &str, why: &str) -> String {
+    let dir = root().join("target/fuzz-findings").join(target);
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{kind}-{i}"));
+    std::fs::write(&path, input(target, c, i).0).unwrap();
+    format!(
+        "{target} input {i}: {kind}: {why} (saved as {})",
+        path.display()
+    )
+}
+
+/// Runs `target` on inputs `0..iters` in children, restarting after every crash or timeout.
+fn supervise(target: &str, iters: u64) -> Report {
+    let c = corpus(target);
+    let started = Instant::now();
+    let mut findings = Vec::new();
+    let mut next = 0;
+    while next < iters {
+        let mut proc = Command::new(std::env::current_exe().unwrap())
+            .env("FUZZ_CHILD", format!("{target} {next} {iters}"))
+            .env("RUST_BACKTRACE", "0")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let (tx, rx) = mpsc::channel();
+        let stdout = proc.stdout.take().unwrap();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines() {
+                if tx.send(line.unwrap_or_default()).is_err() {
+                    break;
+                }
+            }
+        });
+        let stderr = proc.stderr.take().unwrap();
+        let errors = std::thread::spawn(move || {
+            // The first lines: the panic or abort message.
+            let mut head = Vec::new();
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                if head.len() < 3 {
+                    head.push(line);
+                }
+            }
+            head.join(" | ")
+        });
+        let mut current = None;
+        let mut done = false;
+        let mut timed_out = false;
+        let mut wait = Duration::from_secs(60); // corpus loading
+        loop {
+            match rx.recv_timeout(wait) {
+                Ok(line) if line == "ready" => wait = INPUT_TIME_LIMIT,
+                Ok(line) if line == "done" => {
+                    done = true;
+                    break;
+                }
+                Ok(line) if line.starts_with("finding ") => {
+                    let mut p = line.splitn(3, ' ').skip(1);
+                    let i: u64 = p.next().unwrap().parse().unwrap();
+                    findings.push(save_finding(
+                        target,
+                        &c,
+                        i,
+                        "oracle",
+                        p.next().unwrap_or(""),
+                    ));
+                }
+                Ok(line) => current = line.parse::<u64>().ok(),
+                Err(mpsc::RecvTimeoutError::Timeout) => {
+                    timed_out = true;
+                    let _ = proc.kill();
+                    break;
+                }
+                Err(mpsc::RecvTimeoutError::Disconnected) => break,
+            }
+        }
+        let status = proc.wait().unwrap();
+        let tail = errors.join().unwrap_or_default();
+        if done && status.success() {
+            break;
+        }
+        let Some(i) = current else {
+            panic!("{target}: the child failed before its first input ({status}): {tail}");
+        };
+        let (kind, why) = if timed_out {
+            ("timeout", format!("ran longer than {INPUT_TIME_LIMIT:?}"))
+        } else {
+            ("crash", format!("{status}: {tail}"))
+        };
+        findings.push(save_finding(target, &c, i, kind, &why));
+        next = i + 1;
     }
-    fuzz(
-        "mcap",
-        &corpus,
-        iterations("FUZZ_MCAP_ITERS", 2_000),
-        3,
-        |bytes| {
-            let _ = read_log_bytes(bytes, Path::new("fuzz.mcap"));
-        },
+    Report {
+        inputs: iters,
+        secs: started.elapsed().as_secs_f64(),
+        findings,
+    }
+}
+
+fn main() {
+    if let Ok(spec) = std::env::var("FUZZ_CHILD") {
+        child(&spec);
+        return;
+    }
+    // `cargo test -- --list` and filters: this harness has one test, `fuzz`.
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.iter().any(|a| a == "--list") {
+        println!("fuzz: test");
+        return;
+    }
+    // The supervisor sees what a single-process fuzzer cannot: an abort, and a hang.
+    let check = supervise("selftest", 40);
+    let kinds: Vec<&str> = check
+        .findings
+        .iter()
+        .map(|f| f.split(": ").nth(1).unwrap_or(""))
+        .collect();
+    assert_eq!(
+        kinds,
+        ["crash", "crash", "timeout"],
+        "the supervisor missed a failure: {:?}",
+        check.findings
     );
+    for name in ["crash-10", "crash-20", "timeout-30"] {
+        assert!(
+            root()
+                .join("target/fuzz-findings/selftest")
+                .join(name)
+                .is_file(),
+            "{name} not saved"
+        );
+    }
+    let _ = std::fs::remove_dir_all(root().join("target/fuzz-findings/selftest"));
+    println!("selftest: an abort, a panic and a hang found and saved, every other input run");
+
+    let only = std::env::var("FUZZ_TARGETS").ok();
+    let mut findings = 0;
+    for &(target, var, short) in TARGETS {
+        if only
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|t| t == target))
+        {
+            continue;
+        }
+        let iters = std::env::var(var)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(short);
+        let r = supervise(target, iters);
+        println!(
+            "{target}: {} inputs in {:.1} s ({:.0}/s), {} findings",
+            r.inputs,
+            r.secs,
+            r.inputs as f64 / r.secs.max(1e-9),
+            r.findings.len()
+        );
+        for f in r.findings.iter().take(10) {
+            println!("  {f}");
+        }
+        findings += r.findings.len();
+    }
+    if findings > 0 {
+        eprintln!("fuzz: {findings} findings");
+        std::process::exit(1);
+    }
+    println!("fuzz: 0 findings");
 }

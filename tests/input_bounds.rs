@@ -226,3 +226,34 @@ fn reward_machine_files_cannot_exhaust_the_stack_or_memory() {
     let e = read_rm(&big).unwrap_err().to_string();
     assert!(e.contains("big_rm.txt") && e.contains("limit"), "{e}");
 }
+
+/// Regression (issue 57, found by the supervised fuzzer): a linear RM reward file declaring
+/// 10^12 states aborted on allocating its weights before the weight count was checked.
+#[test]
+fn a_linear_reward_file_with_a_huge_state_count_is_refused_without_allocating() {
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fuzz_corpus/reward_smirl_seed0.json"),
+    )
+    .unwrap();
+    let start = text.find("\"n_states\": ").unwrap() + "\"n_states\": ".len();
+    let end = start + text[start..].find(',').unwrap();
+    let huge = format!("{}1000000000000{}", &text[..start], &text[end..]);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("reward.json");
+    std::fs::write(&path, huge).unwrap();
+    let e = smirl::irl::smirl::LinearRmReward::load(
+        &path,
+        smirl::irl::reward::RewardOptimConfig::adam(1e-3),
+    )
+    .err()
+    .expect("refused");
+    assert!(e.to_string().contains("weight vectors"), "{e}");
+    // The unchanged file still loads.
+    std::fs::write(&path, &text).unwrap();
+    assert!(smirl::irl::smirl::LinearRmReward::load(
+        &path,
+        smirl::irl::reward::RewardOptimConfig::adam(1e-3)
+    )
+    .is_ok());
+}

@@ -181,3 +181,26 @@ fn damaged_string_lengths_are_errors_not_huge_allocations() {
         );
     }
 }
+
+/// Regression (issue 57, found by the supervised fuzzer): a record's opcode damaged into a
+/// footer's (0x07 -> 0x02) ended the reading there, and since the real footer and magic were
+/// intact at the end, the log read as complete with the later chunks' episodes silently gone.
+#[test]
+fn a_record_damaged_into_a_footer_is_corruption_not_an_early_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = demo_bytes(dir.path(), 6);
+    let full = read_log_bytes(&good, Path::new("good.mcap")).unwrap();
+    assert!(full.recovery.is_none() && full.episodes.len() == 6);
+    let index = records(&good, mcap::records::op::MESSAGE_INDEX)[0];
+    let mut bad = good.clone();
+    bad[index] = mcap::records::op::FOOTER;
+    match read_log_bytes(&bad, Path::new("bad.mcap")) {
+        Err(LogError::Corrupt { problem, .. }) => assert!(problem.contains("footer"), "{problem}"),
+        Err(e) => panic!("unexpected error: {e}"),
+        Ok(log) => panic!(
+            "read with {} of 6 episodes (recovery {:?})",
+            log.episodes.len(),
+            log.recovery
+        ),
+    }
+}

@@ -514,14 +514,15 @@ impl LinearRmReward {
         }
         let features = FeatureMap::new(file.features.kind, file.features.layout)
             .map_err(|e| RewardError::Config(format!("{name}: {e}")))?;
-        let mut model = LinearRmReward::new(features, file.n_states, optim)?;
-        let k = model.features.len();
+        // The weights present bound the state count before anything is sized by it.
+        let k = features.len();
         if file.weights.len() != file.n_states || file.weights.iter().any(|w| w.len() != k) {
             return Err(RewardError::Config(format!(
                 "{name}: expected {} weight vectors of length {k}",
                 file.n_states
             )));
         }
+        let mut model = LinearRmReward::new(features, file.n_states, optim)?;
         model.weights = file.weights.concat();
         Ok(model)
     }

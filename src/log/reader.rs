@@ -454,17 +454,24 @@ pub fn read_log_records(
             problem: "the file ends with a footer that the records before it do not reach".into(),
         });
     }
-    // One end-of-file rule: a log is complete only when its footer is followed by the
-    // closing magic bytes and nothing else; a footer with part of the magic (or none) is a
-    // file cut short, a footer followed by anything else is damage.
-    if footer && stopped_by.is_none() && !ends_with_footer(bytes) {
-        if !footer_then_cut_magic(bytes) {
+    // One end-of-file rule: a log is complete only when the footer the records reach is
+    // followed by the closing magic bytes and nothing else; part of the magic (or none) is a
+    // file cut short, anything else (more records: a damaged opcode made a footer of one)
+    // is damage.
+    if footer && stopped_by.is_none() {
+        let magic = mcap::MAGIC.len();
+        if input.len() > magic || input != &mcap::MAGIC[..input.len()] {
             return Err(LogError::Corrupt {
                 path: path.into(),
-                problem: "bytes follow the footer where only the closing magic may".into(),
+                problem: format!(
+                    "a footer record ends the data {} bytes before the end of the file",
+                    input.len()
+                ),
             });
         }
-        stopped_by = Some("it ends before its closing magic bytes".into());
+        if input.len() < magic {
+            stopped_by = Some("it ends before its closing magic bytes".into());
+        }
     }
     let recovery = if footer && stopped_by.is_none() {
         None
@@ -578,21 +585,6 @@ fn ends_with_footer(bytes: &[u8]) -> bool {
     tail[0] == op::FOOTER
         && tail[1..9] == 20u64.to_le_bytes()
         && &tail[FOOTER_RECORD..] == mcap::MAGIC
-}
-
-/// The file ends with a footer record and only part of the closing magic (none of it, up to
-/// all but its last byte): a finished log cut short at its very end.
-fn footer_then_cut_magic(bytes: &[u8]) -> bool {
-    const FOOTER_RECORD: usize = 1 + 8 + 20;
-    let magic = mcap::MAGIC.len();
-    (0..magic).any(|kept| {
-        bytes.len() >= magic + FOOTER_RECORD + kept && {
-            let tail = &bytes[bytes.len() - kept - FOOTER_RECORD..];
-            tail[0] == op::FOOTER
-                && tail[1..9] == 20u64.to_le_bytes()
-                && tail[FOOTER_RECORD..] == mcap::MAGIC[..kept]
-        }
-    })
 }
 
 /// Checks that every length prefix inside a record's body (strings, byte arrays, maps,
