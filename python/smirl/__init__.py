@@ -16,6 +16,7 @@ from ._core import (  # noqa: F401  (re-exported)
     SmirlError,
     __version__,
     learn_rm,
+    write_log,
     read_log,
     task_names,
 )
@@ -35,4 +36,5 @@ __all__ = [
     "read_log",
     "register_envs",
     "task_names",
+    "write_log",
 ]

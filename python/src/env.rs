@@ -49,17 +49,17 @@ type StepTuple<'py> = (
 type Region = (&'static str, f64, f64, f64);
 
 /// What every environment of a task shares.
-struct TaskSpec {
-    task: ReacherTask,
-    config: ReacherConfig,
-    rm: RewardMachine,
+pub(crate) struct TaskSpec {
+    pub(crate) task: ReacherTask,
+    pub(crate) config: ReacherConfig,
+    pub(crate) rm: RewardMachine,
     branches: Option<CancelBranch>,
     shaping: f64,
     gamma: f64,
 }
 
 impl TaskSpec {
-    fn new(task: &str, shaping: f64, gamma: f64) -> PyResult<TaskSpec> {
+    pub(crate) fn new(task: &str, shaping: f64, gamma: f64) -> PyResult<TaskSpec> {
         let task: ReacherTask = task.parse().map_err(error)?;
         if !shaping.is_finite() || shaping < 0.0 {
             return Err(PyValueError::new_err(format!(
@@ -82,7 +82,7 @@ impl TaskSpec {
         })
     }
 
-    fn env(&self) -> PyResult<TaskEnv> {
+    pub(crate) fn env(&self) -> PyResult<TaskEnv> {
         task_env(self.task, self.config.clone(), self.shaping, self.gamma).map_err(error)
     }
 }

@@ -1,13 +1,14 @@
 //! MCAP rollout logs for Python: a log's run metadata and its episodes as NumPy arrays.
 
 use crate::error;
-use numpy::{PyArray1, PyArray2, PyArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use smirl::log::reader::LoggedEpisode;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_log, m)?)?;
+    m.add_function(wrap_pyfunction!(write_log, m)?)?;
     Ok(())
 }
 
@@ -146,4 +147,146 @@ fn read_log<'py>(
     }
     out.set_item("episodes", episodes)?;
     Ok(out)
+}
+
+/// Most episodes one `write_log` call takes.
+const MAX_WRITE_EPISODES: usize = 1_000_000;
+
+/// Writes a rollout log of a task's episodes given as `(seed, actions)` pairs (`actions`:
+/// `(steps, 2)` float32), re-simulating each in the Rust core so the log holds exactly what
+/// the `reacher` binary would have logged for those seeds and actions (`reacher replay
+/// --verify`, `learn-rm`, `render` and `foxglove` accept it). An episode's actions must end
+/// where the episode does (the machine's goal or failure, or the time limit). Refuses an
+/// existing `path`. Returns the number of steps written.
+#[pyfunction]
+#[pyo3(signature = (path, task, episodes, observations = true))]
+fn write_log(
+    path: std::path::PathBuf,
+    task: &str,
+    episodes: Vec<(u64, PyReadonlyArray2<'_, f32>)>,
+    observations: bool,
+) -> PyResult<u64> {
+    use smirl::env::ContinuousEnv;
+    use smirl::log::{LogOptions, RolloutLogger, RunHeader};
+    if path.exists() {
+        return Err(error(format!(
+            "{}: already exists; not replaced",
+            path.display()
+        )));
+    }
+    if episodes.len() > MAX_WRITE_EPISODES {
+        return Err(error(format!(
+            "{} episodes; write_log takes at most {MAX_WRITE_EPISODES}",
+            episodes.len()
+        )));
+    }
+    let spec = crate::env::TaskSpec::new(task, 0.0, 0.99)?;
+    let mut env = spec.env()?;
+    let act_dim = env.act_dim();
+    // Check every episode's actions before the file exists.
+    for (k, (_, actions)) in episodes.iter().enumerate() {
+        let shape = actions.shape();
+        if shape.len() != 2 || shape[1] != act_dim || shape[0] > spec.config.max_steps {
+            return Err(error(format!(
+                "episode {k}: actions have shape {shape:?}; expected (steps, {act_dim}) with \
+                 at most {} steps",
+                spec.config.max_steps
+            )));
+        }
+    }
+    // Every episode is simulated once before the file exists, so a bad episode (actions
+    // past its end, a simulation error) leaves no file behind.
+    for (k, (seed, actions)) in episodes.iter().enumerate() {
+        simulate(&mut env, *seed, &actions.as_array(), |_, _, _| Ok(()))
+            .map_err(|e| error(format!("episode {k}: {e}")))?;
+    }
+    let config = serde_json::json!({ "env": spec.config, "source": "smirl.write_log (Python)" });
+    let seed0 = episodes.first().map_or(0, |e| e.0);
+    let mut header = RunHeader::reacher_shipped(spec.task.name(), seed0, config);
+    header.reward_machine = Some(smirl::rm::format::write_rm(&spec.rm));
+    let options = LogOptions {
+        observations,
+        ..LogOptions::default()
+    };
+    let mut logger = RolloutLogger::create(&path, header, options).map_err(error)?;
+    let n_inner = env.inner().obs_dim();
+    let mut steps = 0u64;
+    for (k, (seed, actions)) in episodes.iter().enumerate() {
+        let mut started = false;
+        let success = simulate(&mut env, *seed, &actions.as_array(), |env, step, action| {
+            if !started {
+                started = true;
+                let inner_obs = env.inner_obs().to_vec();
+                logger
+                    .begin_reacher_episode(
+                        env.inner(),
+                        *seed,
+                        "python",
+                        Some(env.rm_state()),
+                        &inner_obs[..n_inner],
+                    )
+                    .map_err(|e| e.to_string())?;
+            }
+            let Some((p, obs)) = step else { return Ok(()) };
+            let inner_step = smirl::env::EnvStep {
+                reward: p.env_reward,
+                ..p.step
+            };
+            steps += 1;
+            logger
+                .reacher_step(
+                    env.inner(),
+                    action,
+                    &inner_step,
+                    Some((p.rm_state, p.task_reward)),
+                    &obs[..n_inner],
+                )
+                .map_err(|e| e.to_string())
+        })
+        .map_err(|e| error(format!("episode {k}: {e}")))?;
+        logger.end_episode(success).map_err(error)?;
+    }
+    logger.finish().map_err(error)?;
+    Ok(steps)
+}
+
+type TaskEnv = smirl::env::product::ProductEnv<
+    smirl::env::reacher::ReacherDelivery,
+    smirl::env::reacher_task::SubgoalPotential,
+>;
+
+/// Runs one episode from `seed` with `actions`, calling `visit` once after the reset (with
+/// `None`) and after every step; the episode's actions must end where it does. Returns
+/// whether the task was completed.
+fn simulate(
+    env: &mut TaskEnv,
+    seed: u64,
+    actions: &numpy::ndarray::ArrayView2<'_, f32>,
+    mut visit: impl FnMut(
+        &TaskEnv,
+        Option<(smirl::env::product::ProductStep, &[f32])>,
+        &[f32],
+    ) -> Result<(), String>,
+) -> Result<bool, String> {
+    use smirl::env::ContinuousEnv;
+    let mut obs = vec![0.0f32; env.obs_dim()];
+    env.reset(seed, &mut obs);
+    visit(env, None, &[])?;
+    let n = actions.nrows();
+    let mut success = false;
+    for (t, row) in actions.rows().into_iter().enumerate() {
+        let action: Vec<f32> = row.iter().copied().collect();
+        let p = env
+            .step_product(&action, &mut obs)
+            .map_err(|e| format!("step {}: {e}", t + 1))?;
+        visit(env, Some((p, &obs)), &action)?;
+        success = p.success;
+        if (p.step.terminated || p.step.truncated) && t + 1 < n {
+            return Err(format!(
+                "the episode ends at step {} but has {n} actions",
+                t + 1
+            ));
+        }
+    }
+    Ok(success)
 }

@@ -149,3 +149,64 @@ def test_same_seed_same_trajectory_as_the_reacher_binary(demo_log):
             assert info["env_reward"] == ep["rewards"][t]
             if term or trunc:  # the product ends here; the scripted demo may go on
                 break
+
+
+def reacher_binary():
+    binary = os.environ.get("SMIRL_REACHER_BIN") or shutil.which("reacher")
+    if binary is None and (ROOT / "target" / "release" / "reacher").exists():
+        binary = str(ROOT / "target" / "release" / "reacher")
+    return binary
+
+
+def python_episodes(task, seeds):
+    """Episodes played in Python with random actions, ended where the environment ends them."""
+    env = smirl.make(task)
+    rng = np.random.default_rng(0)
+    episodes = []
+    for seed in seeds:
+        env.reset(seed=seed)
+        actions = []
+        while True:
+            a = rng.uniform(-1, 1, 2).astype(np.float32)
+            actions.append(a)
+            _, _, term, trunc, _ = env.step(a)
+            if term or trunc:
+                break
+        episodes.append((seed, np.array(actions, dtype=np.float32)))
+    return episodes
+
+
+def test_write_log_is_read_back_and_replayed_by_the_binary(tmp_path):
+    episodes = python_episodes("sequential", [3, 4, 5])
+    path = tmp_path / "py.mcap"
+    steps = smirl.write_log(path, "sequential", episodes)
+    assert steps == sum(len(a) for _, a in episodes)
+    log = smirl.read_log(path)
+    assert log["run"]["task"] == "sequential"
+    for (seed, actions), ep in zip(episodes, log["episodes"]):
+        assert ep["seed"] == seed and np.array_equal(ep["actions"], actions)
+    with pytest.raises(smirl.SmirlError, match="already exists"):
+        smirl.write_log(path, "sequential", episodes)
+    binary = reacher_binary()
+    if binary is None:
+        pytest.skip("no reacher binary")
+    replay = subprocess.run([binary, "replay", "--verify", str(path)], capture_output=True, text=True)
+    assert replay.returncode == 0, replay.stdout + replay.stderr
+    learned = subprocess.run(
+        [binary, "learn-rm", str(path), "--out", str(tmp_path / "lrm")], capture_output=True, text=True
+    )
+    assert learned.returncode == 0, learned.stdout + learned.stderr
+    assert (tmp_path / "lrm" / "learned_rm.txt").exists()
+
+
+def test_write_log_refuses_bad_episodes_and_leaves_no_file(tmp_path):
+    path = tmp_path / "bad.mcap"
+    long = np.zeros((101, 2), np.float32)  # one action past the time limit
+    with pytest.raises(smirl.SmirlError, match="episode 0"):
+        smirl.write_log(path, "blue", [(0, long)])
+    with pytest.raises(smirl.SmirlError, match="shape"):
+        smirl.write_log(path, "blue", [(0, np.zeros((5, 3), np.float32))])
+    nan = np.full((5, 2), np.nan, np.float32)
+    with pytest.raises(smirl.SmirlError, match="not a finite number"):
+        smirl.write_log(path, "blue", [(0, nan)])
+    assert not path.exists() and list(tmp_path.iterdir()) == []
