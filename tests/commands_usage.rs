@@ -116,7 +116,7 @@ fn bad_input_to_every_command_is_a_usage_error_and_writes_nothing() {
         "--max-states must be in 1..=",
     );
     let office_request = office::OfficeRequest {
-        task: 9,
+        task: "9".into(),
         algo: "all".into(),
         seeds: 1,
         seed: 0,
@@ -128,7 +128,7 @@ fn bad_input_to_every_command_is_a_usage_error_and_writes_nothing() {
     assert_usage(office::run(office_request.clone()), "unknown Office task 9");
     assert_usage(
         office::run(office::OfficeRequest {
-            task: 1,
+            task: "1".into(),
             seeds: office::MAX_SEEDS + 1,
             ..office_request
         }),

@@ -4,6 +4,10 @@
 use smirl::env::office::OfficeTask;
 use smirl::pipeline::office::{run, Algo, OfficeConfig};
 
+fn task(name: &str) -> OfficeTask {
+    OfficeTask::shipped(name).unwrap()
+}
+
 fn small() -> OfficeConfig {
     let mut cfg = OfficeConfig::default();
     cfg.demos.n_demos = 20;
@@ -14,7 +18,7 @@ fn small() -> OfficeConfig {
 #[test]
 fn smirl_learns_the_patrol_task() {
     let cfg = small();
-    let r = run(OfficeTask::Patrol, Algo::Smirl, 11, &cfg, &mut |_| {}).unwrap();
+    let r = run(&task("4"), Algo::Smirl, 11, &cfg, &mut |_| {}).unwrap();
     let rm = r.rm.as_ref().expect("SMIRL returns its machine");
     // Some structure was learned (how much depends on the LRM objective, see DESIGN §4).
     assert!(rm.n_states() >= 2, "a one-state machine learns nothing");
@@ -26,8 +30,8 @@ fn smirl_learns_the_patrol_task() {
 #[test]
 fn runs_are_reproducible() {
     let cfg = small();
-    let a = run(OfficeTask::Coffee, Algo::Smirl, 3, &cfg, &mut |_| {}).unwrap();
-    let b = run(OfficeTask::Coffee, Algo::Smirl, 3, &cfg, &mut |_| {}).unwrap();
+    let a = run(&task("1"), Algo::Smirl, 3, &cfg, &mut |_| {}).unwrap();
+    let b = run(&task("1"), Algo::Smirl, 3, &cfg, &mut |_| {}).unwrap();
     assert_eq!(a.weights, b.weights);
     assert_eq!(a.rm, b.rm);
     let curve = |r: &smirl::pipeline::office::OfficeRun| {
@@ -42,7 +46,7 @@ fn runs_are_reproducible() {
 #[test]
 fn maxent_baseline_solves_the_single_step_task() {
     let cfg = small();
-    let r = run(OfficeTask::ReachD, Algo::MaxEnt, 0, &cfg, &mut |_| {}).unwrap();
+    let r = run(&task("0"), Algo::MaxEnt, 0, &cfg, &mut |_| {}).unwrap();
     assert!(r.final_success());
     assert_eq!(r.weights.len(), 1, "no reward machine: one weight row");
 }
@@ -64,15 +68,13 @@ fn shipped_config_is_the_default() {
 fn apprenticeship_mixture_is_a_distribution_over_its_policies() {
     use smirl::env::office::OfficeWorld;
     use smirl::irl::tabular::{Apprenticeship, ApprenticeshipConfig, DemoConfig, OfficeExpert};
-    let world = OfficeWorld::new();
-    let demos = OfficeExpert::new(&world, OfficeTask::ReachD)
-        .unwrap()
-        .demonstrations(&DemoConfig {
-            n_demos: 10,
-            horizon: 80,
-            random_steps: 5,
-            seed: 4,
-        });
+    let world = OfficeWorld::paper();
+    let demos = OfficeExpert::new(&task("0")).demonstrations(&DemoConfig {
+        n_demos: 10,
+        horizon: 80,
+        random_steps: 5,
+        seed: 4,
+    });
     let mut app = Apprenticeship::new(&world, &demos, ApprenticeshipConfig::default(), 4).unwrap();
     let mut margins = Vec::new();
     for i in 1..=10 {

@@ -1,7 +1,7 @@
 //! The LRM learner on expert-like traces: recovery of the perfect machines where it
 //! succeeds, determinism, the reward assignment and bad input.
 
-use smirl::env::office::{OfficeTask, OfficeWorld};
+use smirl::env::office::OfficeTask;
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines};
 use smirl::rm::lrm::synthetic::{expert_like_traces, ExpertStyle};
@@ -68,8 +68,7 @@ fn office_demos(
     seed: u64,
     with_rewards: bool,
 ) -> (smirl::rm::RewardMachine, Vec<LabelTrace>) {
-    let world = OfficeWorld::new();
-    let expert = OfficeExpert::new(&world, OfficeTask::from_index(task).unwrap()).unwrap();
+    let expert = OfficeExpert::new(&OfficeTask::shipped(&task.to_string()).unwrap());
     let demos = expert.demonstrations(&DemoConfig {
         n_demos,
         horizon: 100,

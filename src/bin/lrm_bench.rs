@@ -28,7 +28,7 @@
 //! The speed target (issue 3) is under 5 s per Office task at 100 000 transitions on 2 cores.
 
 use anyhow::{bail, Context, Result};
-use smirl::env::office::{OfficeTask, OfficeWorld};
+use smirl::env::office::OfficeTask;
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines, state_counts};
 use smirl::rm::lrm::synthetic::reacher_traces;
@@ -149,12 +149,11 @@ fn main() -> Result<()> {
         "refines",
         "equiv"
     );
-    let world = OfficeWorld::new();
     let mut tasks: Vec<(String, RewardMachine, Vec<LabelTrace>)> = Vec::new();
     for k in 0..5 {
-        let task = OfficeTask::from_index(k)?;
-        let expert = OfficeExpert::new(&world, task)
-            .with_context(|| format!("the expert of Office task {k}"))?;
+        let task = OfficeTask::shipped(&k.to_string())
+            .with_context(|| format!("the shipped Office task {k}"))?;
+        let expert = OfficeExpert::new(&task);
         let demos = expert.demonstrations(&DemoConfig {
             n_demos: args.steps.div_ceil(100),
             horizon: 100,

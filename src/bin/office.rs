@@ -1,7 +1,7 @@
 //! `office`: the Office Gridworld experiments (paper section 4.2, figures 4 and 5).
 //!
 //! ```text
-//! office --task 3 --algo smirl|maxent|apprenticeship|all --seeds 3 --seed 0 --out runs/office-t3 [--config office.toml] [--force]
+//! office --task 3|path/to/task.toml --algo smirl|maxent|apprenticeship|all --seeds 3 --seed 0 --out runs/office-t3 [--config office.toml] [--force]
 //! ```
 //! Writes into `--out`: `metrics.csv` (one row per algorithm, seed and IRL step),
 //! `summary.csv`, `success.svg` (mean ± std over seeds per algorithm), per SMIRL seed the
@@ -24,9 +24,9 @@ use std::process::ExitCode;
     about = "Office Gridworld IRL experiments (SMIRL and baselines)"
 )]
 struct Args {
-    /// Task number, 0-4.
-    #[arg(long, allow_negative_numbers = true)]
-    task: i64,
+    /// A shipped task (0-4, the paper's) or the path of a task file (docs/office.md).
+    #[arg(long, allow_hyphen_values = true)]
+    task: String,
     /// smirl, maxent, apprenticeship or all.
     #[arg(long, default_value = "all")]
     algo: String,

@@ -13,7 +13,7 @@
 //! rolled out for the evaluation horizon from the start cell without reset; its return under
 //! the task's perfect machine is 1 when the task is completed, else 0 (success = return).
 
-use crate::env::office::{xy, OfficeTask, OfficeWorld};
+use crate::env::office::{OfficeTask, OfficeWorld};
 use crate::irl::tabular::{
     evaluate_policy, greedy_policy, trivial_rm, Apprenticeship, ApprenticeshipConfig, DemoConfig,
     Demonstration, MaxEntConfig, OfficeExpert, ProductIrl,
@@ -278,7 +278,8 @@ pub struct Timings {
 /// What one algorithm produced on one seed.
 #[derive(Clone, Debug)]
 pub struct OfficeRun {
-    pub task: OfficeTask,
+    /// The task's name.
+    pub task: String,
     pub algo: Algo,
     pub seed: u64,
     pub steps: Vec<StepMetrics>,
@@ -303,19 +304,13 @@ impl OfficeRun {
 }
 
 /// Demonstrations of `task` for a run seed.
-pub fn demonstrations(
-    world: &OfficeWorld,
-    task: OfficeTask,
-    settings: &DemoSettings,
-    seed: u64,
-) -> Result<Vec<Demonstration>, OfficeError> {
-    let expert = OfficeExpert::new(world, task).map_err(|e| OfficeError::Run(e.to_string()))?;
-    Ok(expert.demonstrations(&DemoConfig {
+pub fn demonstrations(task: &OfficeTask, settings: &DemoSettings, seed: u64) -> Vec<Demonstration> {
+    OfficeExpert::new(task).demonstrations(&DemoConfig {
         n_demos: settings.n_demos,
         horizon: settings.horizon,
         random_steps: settings.random_steps,
         seed,
-    }))
+    })
 }
 
 /// Demonstrations as a table: one row per step with the cell before and after it, the
@@ -327,7 +322,7 @@ pub fn demonstrations_table(demos: &[Demonstration], world: &OfficeWorld) -> Csv
         "demo", "step", "x", "y", "action", "next_x", "next_y", "labels", "rm_state", "reward",
     ]);
     for (i, d) in demos.iter().enumerate() {
-        let (x0, y0) = xy(d.start_cell);
+        let (x0, y0) = world.xy(d.start_cell);
         t.push([
             i.to_string(),
             "-1".into(),
@@ -341,8 +336,8 @@ pub fn demonstrations_table(demos: &[Demonstration], world: &OfficeWorld) -> Csv
             String::new(),
         ]);
         for s in 0..d.len() {
-            let (x, y) = xy(d.cell_before(s));
-            let (nx, ny) = xy(d.cells[s] as usize);
+            let (x, y) = world.xy(d.cell_before(s));
+            let (nx, ny) = world.xy(d.cells[s] as usize);
             t.push([
                 i.to_string(),
                 s.to_string(),
@@ -429,7 +424,7 @@ pub fn learn_structure(
 
 /// Runs one algorithm on one task and seed. `progress` receives a line per IRL step.
 pub fn run(
-    task: OfficeTask,
+    task: &OfficeTask,
     algo: Algo,
     seed: u64,
     cfg: &OfficeConfig,
@@ -437,15 +432,13 @@ pub fn run(
 ) -> Result<OfficeRun, OfficeError> {
     cfg.validate()?;
     let t0 = Instant::now();
-    let world = OfficeWorld::new();
-    let gt = task
-        .perfect_rm()
-        .map_err(|e| OfficeError::Run(e.to_string()))?;
-    let demos = demonstrations(&world, task, &cfg.demos, seed)?;
+    let world = task.world();
+    let gt = task.rm();
+    let demos = demonstrations(task, &cfg.demos, seed);
     let demos_s = t0.elapsed().as_secs_f64();
     let horizon = cfg.eval_horizon();
     let mut run = OfficeRun {
-        task,
+        task: task.name().to_string(),
         algo,
         seed,
         steps: Vec::new(),
@@ -465,11 +458,11 @@ pub fn run(
             let model = match (algo, cfg.smirl.structure) {
                 (Algo::MaxEnt, _) => trivial_rm(world.vocab()),
                 (_, Structure::Perfect) => gt.clone(),
-                (_, Structure::Learned) => learn_structure(&world, &demos, &cfg.lrm, seed)?,
+                (_, Structure::Learned) => learn_structure(world, &demos, &cfg.lrm, seed)?,
             };
             run.timings.rm_learning_s = t_rm.elapsed().as_secs_f64();
             if algo == Algo::Smirl {
-                run.refines_perfect = Some(refines_along(&model, &gt, &demos));
+                run.refines_perfect = Some(refines_along(&model, gt, &demos));
                 progress(&format!(
                     "{} seed {seed}: reward machine with {} states ({:.2} s), refines the perfect one: {}",
                     algo.name(),
@@ -480,7 +473,7 @@ pub fn run(
             }
             let t_irl = Instant::now();
             let product =
-                ProductIrl::new(&world, model).map_err(|e| OfficeError::Run(e.to_string()))?;
+                ProductIrl::new(world, model).map_err(|e| OfficeError::Run(e.to_string()))?;
             let annotated = product.annotate(&demos);
             let mut irl = product
                 .maxent(&annotated, cfg.maxent)
@@ -506,10 +499,10 @@ pub fn run(
                 }
                 .map_err(|e| OfficeError::Run(e.to_string()))?;
                 Ok::<_, OfficeError>(evaluate_policy(
-                    &world,
+                    world,
                     &product.model_rm,
                     &policy,
-                    &gt,
+                    gt,
                     horizon,
                 ))
             };
@@ -572,7 +565,7 @@ pub fn run(
         }
         Algo::Apprenticeship => {
             let t_irl = Instant::now();
-            let mut app = Apprenticeship::new(&world, &demos, cfg.apprenticeship, seed)
+            let mut app = Apprenticeship::new(world, &demos, cfg.apprenticeship, seed)
                 .map_err(OfficeError::Run)?;
             let one_state = trivial_rm(world.vocab());
             let mut interactions = 0;
@@ -582,7 +575,7 @@ pub fn run(
             while !app.done() {
                 let s = app.step().map_err(|e| OfficeError::Run(e.to_string()))?;
                 interactions += s.interactions;
-                let e = evaluate_policy(&world, &one_state, &s.policy, &gt, horizon);
+                let e = evaluate_policy(world, &one_state, &s.policy, gt, horizon);
                 returns.push(e.gt_return);
                 let mixture_return: f64 = app
                     .mixture_weights()

@@ -1,7 +1,7 @@
 //! Machine-to-machine transformations.
 
 use super::formula::Formula;
-use super::labels::LabelSet;
+use super::labels::{LabelSet, Vocabulary};
 use super::machine::{RewardMachine, Transition};
 
 /// The machine of a task that restarts when it is completed, as in the paper's expert
@@ -40,6 +40,49 @@ pub fn restart_on_goal(rm: &RewardMachine) -> RewardMachine {
     let failure: Vec<usize> = rm.failure_states().iter().map(|&u| new_id[u]).collect();
     RewardMachine::new(rm.vocab().clone(), n, initial, &[], &failure, transitions)
         .expect("renumbering a valid machine keeps it valid")
+}
+
+/// The same machine read over a larger vocabulary `vocab` (e.g. a world's letters, in the
+/// world's bit order): every formula names the same propositions, so the machine ignores the
+/// letters it did not have. `Err(p)`: proposition `p` of the machine is not in `vocab`. A
+/// machine already over `vocab` is returned as is.
+pub fn over_vocabulary(rm: &RewardMachine, vocab: &Vocabulary) -> Result<RewardMachine, char> {
+    if rm.vocab() == vocab {
+        return Ok(rm.clone());
+    }
+    let index: Vec<usize> = rm
+        .vocab()
+        .props()
+        .iter()
+        .map(|&p| vocab.index_of(p).map_err(|_| p))
+        .collect::<Result<_, char>>()?;
+    fn renamed(f: &Formula, index: &[usize]) -> Formula {
+        match f {
+            Formula::True => Formula::True,
+            Formula::False => Formula::False,
+            Formula::Prop(p) => Formula::Prop(index[*p]),
+            Formula::Not(g) => Formula::Not(Box::new(renamed(g, index))),
+            Formula::And(gs) => Formula::And(gs.iter().map(|g| renamed(g, index)).collect()),
+            Formula::Or(gs) => Formula::Or(gs.iter().map(|g| renamed(g, index)).collect()),
+        }
+    }
+    let transitions = rm
+        .transitions()
+        .iter()
+        .map(|t| Transition {
+            formula: renamed(&t.formula, &index),
+            ..t.clone()
+        })
+        .collect();
+    Ok(RewardMachine::new(
+        vocab.clone(),
+        rm.n_states(),
+        rm.initial(),
+        &rm.terminal_states(),
+        &rm.failure_states(),
+        transitions,
+    )
+    .expect("formulas over the same propositions keep a valid machine valid"))
 }
 
 /// The machine with one more state, a sink, that a proposition of `props` enters from every

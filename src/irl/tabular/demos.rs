@@ -11,7 +11,6 @@
 
 use crate::env::office::{OfficeTask, OfficeWorld, N_ACTIONS};
 use crate::rl::tabular::{optimal_action_masks, value_iteration, DetMdp, Iteration};
-use crate::rm::format::RmFileError;
 use crate::rm::{LabelSet, RewardMachine};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -23,19 +22,19 @@ const EXPERT_GAMMA: f64 = 0.9;
 #[derive(Clone, Debug)]
 pub struct OfficeExpert {
     world: OfficeWorld,
-    task: OfficeTask,
     rm: RewardMachine,
-    /// Bit mask of optimal actions at `u * 108 + cell`.
+    /// Bit mask of optimal actions at `u * n_cells + cell`.
     masks: Vec<u32>,
 }
 
 impl OfficeExpert {
-    /// The expert of `task`; fails only when the task's machine file cannot be read.
-    pub fn new(world: &OfficeWorld, task: OfficeTask) -> Result<OfficeExpert, RmFileError> {
-        let rm = task.perfect_rm()?;
-        let n_cells = world.labels().len();
-        let product = DetMdp::product(world.transition_table(), N_ACTIONS, world.labels(), &rm)
-            .expect("the Office tables have consistent shapes");
+    /// The expert of `task`, on the task's world and machine.
+    pub fn new(task: &OfficeTask) -> OfficeExpert {
+        let world = task.world();
+        let rm = task.rm();
+        let n_cells = world.n_cells();
+        let product = DetMdp::product(world.transition_table(), N_ACTIONS, world.labels(), rm)
+            .expect("a task's world and machine have consistent shapes");
         let mut reward = vec![0.0; product.n_pairs()];
         for u in 0..rm.n_states() {
             for c in 0..n_cells {
@@ -51,19 +50,14 @@ impl OfficeExpert {
             max_sweeps: 10_000,
         };
         let values = value_iteration(&product, &reward, it, None)
-            .expect("the Office tables have consistent shapes");
+            .expect("a task's world and machine have consistent shapes");
         // Q-values of shortest and longer paths differ by ≥ γ^d (1 − γ) ≫ 1e-9 for d < 150.
         let masks = optimal_action_masks(&values.q, N_ACTIONS, 1e-9);
-        Ok(OfficeExpert {
+        OfficeExpert {
             world: world.clone(),
-            task,
-            rm,
+            rm: rm.clone(),
             masks,
-        })
-    }
-
-    pub fn task(&self) -> OfficeTask {
-        self.task
+        }
     }
 
     /// The perfect machine the expert follows.

@@ -12,7 +12,7 @@
 
 use super::usage;
 use crate::atomic_file::write_atomic;
-use crate::env::office::{OfficeTask, OfficeWorld};
+use crate::env::office::OfficeTask;
 use crate::output::OutputDir;
 use crate::pipeline::office::{
     self as office, demonstrations, demonstrations_table, Algo, OfficeConfig, OfficeRun,
@@ -24,8 +24,9 @@ use std::path::{Path, PathBuf};
 /// The arguments of `office`.
 #[derive(Clone, Debug)]
 pub struct OfficeRequest {
-    /// Task number, 0-4 (anything else is refused).
-    pub task: i64,
+    /// A shipped task's name (`0`-`4`, the paper's) or the path of a task file
+    /// ([`crate::env::office::task`]).
+    pub task: String,
     /// smirl, maxent, apprenticeship or all.
     pub algo: String,
     /// Number of seeds, 1..=[`MAX_SEEDS`].
@@ -64,7 +65,7 @@ struct Plan {
 /// Checks the task, algorithms, seeds, config and output directory; any error here is bad
 /// input.
 fn plan(args: &OfficeRequest) -> Result<Plan> {
-    let task = OfficeTask::from_index(args.task)?;
+    let task = OfficeTask::from_argument(&args.task)?;
     let algos = if args.algo == "all" {
         Algo::OFFICE.to_vec()
     } else {
@@ -114,12 +115,12 @@ fn execute(plan: &Plan) -> Result<()> {
     let mut runs: Vec<OfficeRun> = Vec::new();
     for &algo in &plan.algos {
         for &seed in &plan.seeds {
-            let r = office::run(plan.task, algo, seed, &plan.cfg, &mut |line| {
-                eprintln!("[task {}] {line}", plan.task.index())
+            let r = office::run(&plan.task, algo, seed, &plan.cfg, &mut |line| {
+                eprintln!("[task {}] {line}", plan.task.name())
             })?;
             eprintln!(
                 "[task {}] {} seed {seed}: final success {} after {} IRL steps, {:.2} s",
-                plan.task.index(),
+                plan.task.name(),
                 algo.name(),
                 r.final_success(),
                 r.steps.len() - 1,
@@ -146,7 +147,7 @@ fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
 
 /// Writes every output file into `dir` (the run's `.partial` directory, already created).
 fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
-    let task = plan.task.index().to_string();
+    let task = plan.task.name().to_string();
     let mut metrics = CsvTable::new([
         "task",
         "algo",
@@ -239,11 +240,7 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
     write_file(dir, "summary.csv", &summary.to_csv())?;
 
     let mut plot = LinePlot::new(
-        &format!(
-            "Office task {}: {}",
-            plan.task.index(),
-            plan.task.description()
-        ),
+        &plan.task.title(),
         "IRL step",
         "ground-truth return (success rate)",
     );
@@ -268,11 +265,7 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
 
     // Figure 5's x-axis: environment interactions, for the algorithms that sample them.
     let mut by_interactions = LinePlot::new(
-        &format!(
-            "Office task {}: {} (sampling algorithms)",
-            plan.task.index(),
-            plan.task.description()
-        ),
+        &format!("{} (sampling algorithms)", plan.task.title()),
         "environment interactions",
         "ground-truth return (success rate)",
     );
@@ -304,13 +297,12 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
     }
 
     if plan.write_demos {
-        let world = OfficeWorld::new();
         for &seed in &plan.seeds {
-            let demos = demonstrations(&world, plan.task, &plan.cfg.demos, seed)?;
+            let demos = demonstrations(&plan.task, &plan.cfg.demos, seed);
             write_file(
                 dir,
                 &format!("demos_seed{seed}.csv"),
-                &demonstrations_table(&demos, &world).to_csv(),
+                &demonstrations_table(&demos, plan.task.world()).to_csv(),
             )?;
         }
     }
