@@ -5,7 +5,8 @@ logs; this package puts them behind Gymnasium's interfaces:
 
 - ``smirl.make("composite")`` — a ``gymnasium.Env`` of a ReacherDelivery task (also
   registered as ``smirl/ReacherDelivery-Composite-v0``), ``smirl.make_vec("composite", 16)``
-  its vector version, stepped in Rust without the GIL;
+  its vector version, stepped in Rust without the GIL; ``smirl.make_office("0")`` an Office
+  gridworld task (``smirl/Office-T0-v0``);
 - ``smirl.RewardMachine``, ``smirl.learn_rm`` — machines and LRM;
 - ``smirl.read_log`` — a rollout log's episodes as NumPy arrays.
 """
@@ -20,18 +21,28 @@ from ._core import (  # noqa: F401  (re-exported)
     read_log,
     task_names,
 )
-from .envs import ReacherDeliveryEnv, ReacherDeliveryVectorEnv, make, make_vec, register_envs
+from .envs import (
+    OfficeEnv,
+    ReacherDeliveryEnv,
+    ReacherDeliveryVectorEnv,
+    make,
+    make_office,
+    make_vec,
+    register_envs,
+)
 
 register_envs()
 
 __all__ = [
     "GIT_COMMIT",
+    "OfficeEnv",
     "ReacherDeliveryEnv",
     "ReacherDeliveryVectorEnv",
     "RewardMachine",
     "SmirlError",
     "learn_rm",
     "make",
+    "make_office",
     "make_vec",
     "read_log",
     "register_envs",

@@ -182,12 +182,49 @@ class ReacherDeliveryVectorEnv(VectorEnv):
         return obs, rewards, terminated, truncated, {"success": success, "rm_state": states}
 
 
+class OfficeEnv(gym.Env):
+    """An Office gridworld task (a shipped name ``"0"``–``"4"`` or a task file's path).
+
+    Observation: ``(cell, machine state)`` as ``MultiDiscrete([n_cells, n_rm_states])``;
+    actions ``0``–``3`` (up, right, down, left); reward: the task machine's; terminated when the
+    machine reaches its goal or a failure state, truncated after ``max_steps``. ``info`` holds
+    ``labels``, ``xy``, ``success`` and ``failure``. The world is deterministic: ``seed`` only
+    seeds ``np_random`` for the caller.
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, task: str = "0", max_steps: int = 100):
+        self._core = _core.OfficeCore(str(task), int(max_steps))
+        self.task = self._core.name
+        self.observation_space = spaces.MultiDiscrete([self._core.n_cells, self._core.n_rm_states])
+        self.action_space = spaces.Discrete(4)
+        self.reward_machine = _core.RewardMachine.from_text(
+            self._core.reward_machine, f"machine of Office task {self.task}"
+        )
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        cell, u = self._core.reset()
+        return np.array([cell, u], dtype=np.int64), {}
+
+    def step(self, action):
+        if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)):
+            arr = np.asarray(action)
+            if arr.shape != () or not np.issubdtype(arr.dtype, np.integer):
+                raise TypeError(f"an Office action is an integer 0-3, got {action!r}")
+            action = int(arr)
+        (cell, u), reward, terminated, truncated, info = self._core.step(int(action))
+        return np.array([cell, u], dtype=np.int64), reward, terminated, truncated, info
+
+
 def _title(task: str) -> str:
     return {"or": "OR", "if": "IF"}.get(task, task.capitalize())
 
 
 def register_envs() -> None:
-    """Registers ``smirl/ReacherDelivery-<Task>-v0`` for the shipped tasks."""
+    """Registers ``smirl/ReacherDelivery-<Task>-v0`` and ``smirl/Office-T<k>-v0`` for the
+    shipped tasks."""
     for task in _core.task_names():
         env_id = f"smirl/ReacherDelivery-{_title(task)}-v0"
         if env_id in gym.registry:
@@ -199,11 +236,20 @@ def register_envs() -> None:
             max_episode_steps=None,
             vector_entry_point="smirl.envs:ReacherDeliveryVectorEnv",
         )
+    for task in _core.office_task_names():
+        env_id = f"smirl/Office-T{task}-v0"
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point="smirl.envs:OfficeEnv", kwargs={"task": task})
 
 
-def make(task: str = "composite", **kwargs) -> ReacherDeliveryEnv:
-    """The environment of a task (a shipped name, e.g. ``"composite"``)."""
+def make(task: str = "composite", **kwargs):
+    """The environment of a ReacherDelivery task (a shipped name, e.g. ``"composite"``)."""
     return ReacherDeliveryEnv(task, **kwargs)
+
+
+def make_office(task: str = "0", **kwargs) -> OfficeEnv:
+    """The environment of an Office task (``"0"``–``"4"`` or a task file's path)."""
+    return OfficeEnv(task, **kwargs)
 
 
 def make_vec(task: str = "composite", num_envs: int = 8, **kwargs) -> ReacherDeliveryVectorEnv:

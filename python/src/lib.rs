@@ -8,6 +8,7 @@
 
 mod env;
 mod logs;
+mod office;
 mod rm;
 
 use pyo3::prelude::*;
@@ -22,6 +23,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     env::register(m)?;
     rm::register(m)?;
     logs::register(m)?;
+    office::register(m)?;
     Ok(())
 }
 
