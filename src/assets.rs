@@ -1,6 +1,6 @@
 //! The files the programs need at run time, built into the binaries so that an installed or
-//! copied binary runs without the source tree: the ReacherDelivery model, the perfect reward
-//! machines and the committed expert policies. Each is the file of the same name in the
+//! copied binary runs without the source tree: the ReacherDelivery model, the shipped task
+//! files, the perfect reward machines and the committed expert policies. Each is the file of the same name in the
 //! source tree at build time (`include_str!`/`include_bytes!`, rebuilt when it changes).
 
 /// File name of the ReacherDelivery model (as logs record it).
@@ -22,6 +22,18 @@ pub fn reward_machine(name: &str) -> Option<&'static str> {
         "reacher_if" => include_str!("../assets/rm/reacher_if.txt"),
         "reacher_composite" => include_str!("../assets/rm/reacher_composite.txt"),
         "reacher_blue" => include_str!("../assets/rm/reacher_blue.txt"),
+        _ => return None,
+    })
+}
+
+/// `assets/tasks/<name>.toml`, for the names of [`crate::env::task_file::SHIPPED`].
+pub fn task_file(name: &str) -> Option<&'static str> {
+    Some(match name {
+        "or" => include_str!("../assets/tasks/or.toml"),
+        "sequential" => include_str!("../assets/tasks/sequential.toml"),
+        "if" => include_str!("../assets/tasks/if.toml"),
+        "composite" => include_str!("../assets/tasks/composite.toml"),
+        "blue" => include_str!("../assets/tasks/blue.toml"),
         _ => return None,
     })
 }

@@ -52,6 +52,7 @@ pub mod mujoco;
 pub mod nn;
 pub mod output;
 pub mod pipeline;
+pub mod quoted;
 pub mod report;
 pub mod rl;
 pub mod rm;

@@ -11,8 +11,12 @@
 //!   first moved aside to `<out>.replaced`, then removed.
 //! - An output **file** that exists is replaced only with `--force`; a directory in its
 //!   place is refused.
-//! - Every check runs before any work starts, including a write probe in the parent
-//!   directory, so an unwritable place fails in a second, not after an hour of training.
+//! - An output file is never one of the command's inputs ([`check_not_input`]), through
+//!   another name, a symlink or a hard link.
+//! - Every check runs before any work starts, including a write probe in the nearest
+//!   existing ancestor, so an unwritable place fails in a second, not after an hour of
+//!   training. Checks create nothing: missing parent directories are created only when the
+//!   output is written ([`create_parent`]), so a refused command leaves no trace.
 
 use std::path::{Component, Path, PathBuf};
 
@@ -118,28 +122,74 @@ pub fn check_not_protected(path: &Path) -> Result<PathBuf, OutputError> {
     Ok(resolved)
 }
 
-/// Creates the missing ancestors of `path` and checks that a file can be created next to
-/// it (a probe file, removed at once).
-fn check_parent_writable(path: &Path) -> Result<(), OutputError> {
-    let parent = match path.parent() {
+/// The directory that will hold `path` (`.` for a bare name).
+fn parent_of(path: &Path) -> PathBuf {
+    match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
-    };
-    if parent.exists() && !parent.is_dir() {
+    }
+}
+
+/// Checks, without creating anything, that `path` can be created: its nearest existing
+/// ancestor is a directory in which a file can be written (a probe file, removed at once).
+fn check_parent_writable(path: &Path) -> Result<(), OutputError> {
+    let mut ancestor = parent_of(path);
+    while !ancestor.exists() {
+        match ancestor.parent() {
+            Some(p) if !p.as_os_str().is_empty() => ancestor = p.to_path_buf(),
+            _ => {
+                ancestor = PathBuf::from(".");
+                break;
+            }
+        }
+    }
+    if !ancestor.is_dir() {
         return Err(refuse(
             path,
-            format!("{} is not a directory", parent.display()),
+            format!("{} is not a directory", ancestor.display()),
         ));
     }
-    std::fs::create_dir_all(&parent)
-        .map_err(|e| refuse(path, format!("cannot create {}: {e}", parent.display())))?;
     let name = path
         .file_name()
         .map_or_else(|| "output".into(), |n| n.to_string_lossy().into_owned());
-    let probe = parent.join(format!(".{name}.probe-{}", std::process::id()));
+    let probe = ancestor.join(format!(".{name}.probe-{}", std::process::id()));
     std::fs::write(&probe, b"")
-        .map_err(|e| refuse(path, format!("cannot write in {}: {e}", parent.display())))?;
+        .map_err(|e| refuse(path, format!("cannot write in {}: {e}", ancestor.display())))?;
     let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// Creates the missing parent directories of the output file `path`, when the command
+/// starts writing it (the checks before create nothing).
+pub fn create_parent(path: &Path) -> Result<(), OutputError> {
+    let parent = parent_of(path);
+    std::fs::create_dir_all(&parent)
+        .map_err(|e| refuse(path, format!("cannot create {}: {e}", parent.display())))
+}
+
+/// The file's identity (device and inode), the same through every name and link.
+fn file_id(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+}
+
+/// Refuses an output file `out` that is one of `inputs`: the same path once symlinks, `.`
+/// and `..` are resolved, or the same file through a hard link. `--force` does not lift this.
+pub fn check_not_input(out: &Path, inputs: &[&Path]) -> Result<(), OutputError> {
+    let resolved = resolve(out)?;
+    let out_id = file_id(out);
+    for input in inputs {
+        if resolve(input)? == resolved || (out_id.is_some() && file_id(input) == out_id) {
+            return Err(refuse(
+                out,
+                format!(
+                    "is the input {}: choose another output (not even --force writes over an \
+                     input)",
+                    input.display()
+                ),
+            ));
+        }
+    }
     Ok(())
 }
 
@@ -187,6 +237,15 @@ impl OutputDir {
         if partial.exists() && !(partial.is_dir() && is_marked(&partial)) {
             return Err(refuse(
                 &partial,
+                format!("exists and was not written by this program (no {MARKER} in it): remove or rename it"),
+            ));
+        }
+        // `commit` moves an existing output aside to `<out>.replaced`, removing an earlier
+        // one there: only one this program wrote.
+        let aside = replaced_path(path);
+        if path.exists() && aside.exists() && !(aside.is_dir() && is_marked(&aside)) {
+            return Err(refuse(
+                &aside,
                 format!("exists and was not written by this program (no {MARKER} in it): remove or rename it"),
             ));
         }
@@ -241,11 +300,7 @@ impl OutputDir {
     /// again now) is moved aside first and removed after the move.
     pub fn commit(&self, partial: &Path) -> Result<(), OutputError> {
         let out = &self.path;
-        let aside = out.with_file_name(format!(
-            "{}.replaced",
-            out.file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
-        ));
+        let aside = replaced_path(out);
         let previous = if out.exists() {
             if !(out.is_dir() && (is_marked(out) || is_empty_dir(out)?)) {
                 return Err(refuse(out, "appeared during the run and is not ours: leaving the result in the .partial directory"));
@@ -289,8 +344,18 @@ pub fn partial_path(out: &Path) -> PathBuf {
     out.with_file_name(name)
 }
 
+/// `<out>.replaced`, where [`OutputDir::commit`] moves a previous output aside.
+pub fn replaced_path(out: &Path) -> PathBuf {
+    let mut name = out
+        .file_name()
+        .map_or_else(Default::default, |n| n.to_os_string());
+    name.push(".replaced");
+    out.with_file_name(name)
+}
+
 /// Checks `path` as an output file: a directory there is refused, an existing file is
-/// replaced only with `force`, and the parent must be writable.
+/// replaced only with `force`, and the nearest existing ancestor must be writable. Nothing
+/// is created: the writer calls [`create_parent`].
 pub fn check_file(path: &Path, force: bool) -> Result<(), OutputError> {
     if !matches!(path.components().next_back(), Some(Component::Normal(_))) {
         return Err(refuse(path, "names no file"));

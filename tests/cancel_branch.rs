@@ -44,9 +44,15 @@ fn outcome(task: ReacherTask, steps: &[&str]) -> (Option<Branch>, bool) {
 fn branch_is_read_off_the_perfect_machines_trace() {
     use Branch::{Cancelled, Normal};
     // OR and Sequential have no branch.
-    assert_eq!(outcome(ReacherTask::Or, &["r", "c", "b"]), (None, true));
     assert_eq!(
-        outcome(ReacherTask::Sequential, &["c", "r", "g", "b", "y"]),
+        outcome(ReacherTask::shipped("or").unwrap(), &["r", "c", "b"]),
+        (None, true)
+    );
+    assert_eq!(
+        outcome(
+            ReacherTask::shipped("sequential").unwrap(),
+            &["c", "r", "g", "b", "y"]
+        ),
         (None, true)
     );
     // IF: blue then red; a cancel before blue removes blue, and blue after it fails.
@@ -61,7 +67,7 @@ fn branch_is_read_off_the_perfect_machines_trace() {
     ];
     for (steps, branch, success) in cases {
         assert_eq!(
-            outcome(ReacherTask::If, steps),
+            outcome(ReacherTask::shipped("if").unwrap(), steps),
             (Some(branch), success),
             "IF {steps:?}"
         );
@@ -79,7 +85,7 @@ fn branch_is_read_off_the_perfect_machines_trace() {
     ];
     for (steps, branch, success) in cases {
         assert_eq!(
-            outcome(ReacherTask::Composite, steps),
+            outcome(ReacherTask::shipped("composite").unwrap(), steps),
             (Some(branch), success),
             "Composite {steps:?}"
         );
@@ -155,8 +161,11 @@ fn committed(task: ReacherTask) -> ExpertPolicy {
 #[test]
 fn committed_conditional_experts_take_and_solve_both_branches() {
     let env = ReacherConfig::default();
-    for task in [ReacherTask::If, ReacherTask::Composite] {
-        let mut policy = committed(task);
+    for task in [
+        ReacherTask::shipped("if").unwrap(),
+        ReacherTask::shipped("composite").unwrap(),
+    ] {
+        let mut policy = committed(task.clone());
         for mode in [ActMode::Sample, ActMode::Mean] {
             let eval = evaluate_expert(&mut policy, &env, 100, mode, 7).unwrap();
             let b = eval.branches.expect("a conditional task");
@@ -283,7 +292,7 @@ fn quick_if_run_reports_each_branch() {
     // And a logged cancel before blue is reported as the cancel branch.
     let log = smirl::log::read_log(&out.join("logs/demos.mcap")).unwrap();
     let report = smirl::pipeline::replay::replay(&log).unwrap();
-    let rm = ReacherTask::If.perfect_rm().unwrap();
+    let rm = ReacherTask::shipped("if").unwrap().perfect_rm().unwrap();
     let branches = CancelBranch::of(&rm).unwrap();
     for (ep, r) in log.episodes.iter().zip(&report.episodes) {
         let labels = ep.steps.iter().map(|s| LabelSet(s.labels));
@@ -410,7 +419,7 @@ fn stratified_demonstrations_cover_every_cancel_step() {
         demo_episodes: 6,
         ..IrlRunConfig::quick()
     };
-    let demos = make_demos(ReacherTask::If, &config, None, 7, None).unwrap();
+    let demos = make_demos(ReacherTask::shipped("if").unwrap(), &config, None, 7, None).unwrap();
     let used: Vec<u64> = demos.iter().map(|d| d.seed).collect();
     assert_eq!(used, seeds[..6]);
 }

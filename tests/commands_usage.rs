@@ -20,7 +20,7 @@ fn assert_empty(dir: &Path) {
 
 fn irl_request(out: PathBuf) -> irl::IrlRequest {
     irl::IrlRequest {
-        task: Some(ReacherTask::Or),
+        task: Some(ReacherTask::shipped("or").unwrap()),
         algo: None,
         seeds: 1,
         seed: 0,
@@ -76,7 +76,7 @@ fn bad_input_to_every_command_is_a_usage_error_and_writes_nothing() {
     );
     assert_usage(
         expert::run(expert::ExpertRequest {
-            task: ReacherTask::If,
+            task: ReacherTask::shipped("if").unwrap(),
             config: Some(missing.clone()),
             seed: 0,
             resume: false,

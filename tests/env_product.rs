@@ -43,22 +43,22 @@ fn subgoals_follow_the_machines() {
     );
     let cases: &[Case] = &[
         (
-            ReacherTask::Or,
+            ReacherTask::shipped("or").unwrap(),
             &[&[0, 1], &[2], &[]],
             &[Some(2), Some(1), Some(0)],
         ),
         (
-            ReacherTask::Sequential,
+            ReacherTask::shipped("sequential").unwrap(),
             &[&[0], &[1], &[2], &[3], &[]],
             &[Some(4), Some(3), Some(2), Some(1), Some(0)],
         ),
         (
-            ReacherTask::If,
+            ReacherTask::shipped("if").unwrap(),
             &[&[2], &[0], &[0], &[], &[]],
             &[Some(2), Some(1), Some(1), Some(0), None],
         ),
         (
-            ReacherTask::Composite,
+            ReacherTask::shipped("composite").unwrap(),
             &[&[0, 1], &[2], &[3], &[3], &[0, 1], &[], &[]],
             &[Some(3), Some(2), Some(1), Some(1), Some(2), Some(0), None],
         ),
@@ -75,7 +75,13 @@ fn subgoals_follow_the_machines() {
 
 #[test]
 fn sequential_task_runs_through_the_machine() {
-    let mut env = task_env(ReacherTask::Sequential, no_cancel(), 0.0, 0.99).unwrap();
+    let mut env = task_env(
+        ReacherTask::shipped("sequential").unwrap(),
+        no_cancel(),
+        0.0,
+        0.99,
+    )
+    .unwrap();
     let n_states = env.rm().n_states();
     assert_eq!(env.obs_dim(), OBS_DIM + n_states);
     let mut obs = vec![0.0; env.obs_dim()];
@@ -109,7 +115,7 @@ fn if_task_fails_on_blue_after_cancel() {
         },
         ..Default::default()
     };
-    let mut env = task_env(ReacherTask::If, config, 0.0, 0.99).unwrap();
+    let mut env = task_env(ReacherTask::shipped("if").unwrap(), config, 0.0, 0.99).unwrap();
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(3, &mut obs);
     let s = env.step_product(&[0.0, 0.0], &mut obs).unwrap();
@@ -123,7 +129,7 @@ fn if_task_fails_on_blue_after_cancel() {
 #[test]
 fn shaping_telescopes_and_rewards_progress() {
     // With gamma = 1 the shaping terms of an episode sum to Φ(last) − Φ(first).
-    let mut env = task_env(ReacherTask::Or, no_cancel(), 1.0, 1.0).unwrap();
+    let mut env = task_env(ReacherTask::shipped("or").unwrap(), no_cancel(), 1.0, 1.0).unwrap();
     let potential = SubgoalPotential::from_rm(env.rm());
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(1, &mut obs);
@@ -157,13 +163,13 @@ fn shaping_telescopes_and_rewards_progress() {
 
 #[test]
 fn tasks_parse_and_reject_unknown_names() {
-    for t in ReacherTask::ALL {
+    for t in ReacherTask::all_shipped().unwrap() {
         assert_eq!(t.name().parse::<ReacherTask>().unwrap(), t);
     }
     assert!("composit"
         .parse::<ReacherTask>()
         .unwrap_err()
-        .contains("unknown task 'composit'"));
+        .contains("no shipped task named 'composit'"));
 }
 
 /// OR's product with six-step episodes and no cancel, as the clock tests step it.
@@ -172,7 +178,10 @@ fn six_step_or_product() -> ProductEnv<ReacherDelivery> {
     config.max_steps = 6;
     config.cancel.latest_step = 6;
     let inner = ReacherDelivery::new(config).unwrap();
-    ProductEnv::new(inner, ReacherTask::Or.perfect_rm().unwrap())
+    ProductEnv::new(
+        inner,
+        ReacherTask::shipped("or").unwrap().perfect_rm().unwrap(),
+    )
 }
 
 /// The clock: one entry after the one-hot block, the share of the episode still to come —

@@ -1,8 +1,9 @@
 //! Mutation fuzzers for every text and binary input format (issue 16): reward-machine files,
-//! the TOML configs (IRL run, expert, SAC, Office) and MCAP rollout logs. Each starts from a
-//! seed corpus of shipped files, applies seeded random mutations (bit flips, interesting
-//! bytes and numbers, deletions, duplications, long repeats of a slice — the deep nesting
-//! that once overflowed the stack — and truncation), and feeds every mutant to the reader.
+//! Office map files, the TOML configs (IRL run, expert, SAC, Office) and MCAP rollout logs.
+//! Each starts from a seed corpus of shipped files, applies seeded random mutations (bit
+//! flips, interesting bytes and numbers, deletions, duplications, long repeats of a slice —
+//! the deep nesting that once overflowed the stack — and truncation), and feeds every mutant
+//! to the reader.
 //! A panic fails the test and writes the input to `target/fuzz-crashes/`; an abort or a
 //! stack overflow kills the process, which fails the test too.
 //!
@@ -17,6 +18,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use smirl::env::office::{parse_map, write_map, OfficeWorld};
 use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::{read_log_bytes, LogOptions};
@@ -173,6 +175,28 @@ fn reward_machine_files() {
         1,
         |bytes| {
             let _ = parse_rm(&String::from_utf8_lossy(bytes), "fuzz.txt");
+        },
+    );
+}
+
+#[test]
+fn office_map_files() {
+    let mut corpus = read_all(&["assets/office/paper.map"]);
+    corpus.push(
+        b"legend:\nk = key\ng =\nmap:\n+-+-+-+\n|k . g|\n+ +-+ +\n|@|.|.|\n+-+-+-+\n".to_vec(),
+    );
+    fuzz(
+        "office-map",
+        &corpus,
+        iterations("FUZZ_TEXT_ITERS", 20_000),
+        4,
+        |bytes| {
+            // A map that parses builds a world and writes back to itself.
+            if let Ok(map) = parse_map(&String::from_utf8_lossy(bytes), "fuzz.map") {
+                let world = OfficeWorld::from_map(&map);
+                assert_eq!(world.n_cells(), map.width() * map.height());
+                assert_eq!(parse_map(&write_map(&map), "written.map").unwrap(), map);
+            }
         },
     );
 }

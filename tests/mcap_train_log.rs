@@ -28,9 +28,9 @@ fn tiny_expert_config() -> ExpertConfig {
 fn expert_training_episodes_are_logged_every_nth_and_replay_bit_exactly() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("train.mcap");
-    let task = ReacherTask::Sequential;
+    let task = ReacherTask::shipped("sequential").unwrap();
     let config = tiny_expert_config();
-    let header = train_log_header(task, &config, 5).unwrap();
+    let header = train_log_header(task.clone(), &config, 5).unwrap();
     let mut logger = RolloutLogger::create(
         &path,
         header,

@@ -21,7 +21,7 @@ fn assert_rejected(args: &[&str], out: &Path, needle: &str) {
     let leftovers: Vec<_> = std::fs::read_dir(parent)
         .unwrap()
         .map(|e| e.unwrap().file_name())
-        .filter(|n| n != "bad.toml" && n != "typo.toml" && n != "existing")
+        .filter(|n| n != "bad.toml" && n != "typo.toml" && n != "task.toml" && n != "existing")
         .collect();
     assert!(leftovers.is_empty(), "{args:?} left {leftovers:?}");
 }
@@ -37,7 +37,14 @@ fn bad_arguments_exit_2_and_write_nothing() {
         &out,
         "unknown Office task -1",
     );
-    assert_rejected(&["--task", "x", "--out", o], &out, "invalid value");
+    assert_rejected(&["--task", "x", "--out", o], &out, "unknown Office task x");
+    let task = dir.path().join("task.toml");
+    std::fs::write(&task, "map = \"none.map\"\nmachine = \"none.txt\"\n").unwrap();
+    assert_rejected(
+        &["--task", task.to_str().unwrap(), "--out", o],
+        &out,
+        "task.toml:1: `map` = \"none.map\": cannot read",
+    );
     assert_rejected(
         &["--task", "3", "--algo", "qlearn", "--out", o],
         &out,

@@ -571,3 +571,61 @@ fn a_new_task_runs_end_to_end() {
     let svg = std::fs::read_to_string(out.join("success.svg")).unwrap();
     assert!(svg.contains("Office task key_goal: key, then goal"));
 }
+
+#[test]
+fn a_shipped_task_by_name_and_by_path_gives_the_same_results() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("small.toml");
+    std::fs::write(&config, "[demos]\nn_demos = 10\n[maxent]\nmax_steps = 30\n").unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let outputs = |task: String, out: &str| {
+        let out = dir.path().join(out);
+        run(OfficeRequest {
+            task,
+            algo: "smirl".into(),
+            seeds: 1,
+            seed: 2,
+            out: out.clone(),
+            config: Some(config.clone()),
+            force: false,
+            write_demos: true,
+        })
+        .unwrap();
+        let mut files: Vec<(String, String)> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| {
+                let path = e.unwrap().path();
+                let name = path.file_name().unwrap().to_string_lossy().into_owned();
+                let text = std::fs::read_to_string(&path).unwrap();
+                // Wall-clock columns aside (metrics: the last; summary: demos_s .. total_s).
+                let text = match name.as_str() {
+                    "metrics.csv" => text
+                        .lines()
+                        .map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n")
+                        .collect(),
+                    "summary.csv" => text
+                        .lines()
+                        .map(|l| {
+                            let f: Vec<&str> = l.split(',').collect();
+                            format!("{},{}\n", f[..8].join(","), f[12])
+                        })
+                        .collect(),
+                    _ => text,
+                };
+                (name, text)
+            })
+            .collect();
+        files.sort();
+        files
+    };
+    let by_name = outputs("2".into(), "by-name");
+    let by_path = outputs(
+        root.join("assets/office/task2.toml").display().to_string(),
+        "by-path",
+    );
+    let names: Vec<&str> = by_name.iter().map(|f| f.0.as_str()).collect();
+    assert!(names.contains(&"demos_seed2.csv") && names.contains(&"rm_smirl_seed2.txt"));
+    assert_eq!(by_name, by_path);
+    let metrics = &by_name.iter().find(|f| f.0 == "metrics.csv").unwrap().1;
+    assert!(metrics.contains("\n2,smirl,2,0,"), "{metrics}");
+}

@@ -294,7 +294,7 @@ fn check_reward_trace(dir: &Path, algo: &str, seed: u64) {
 fn tiny_library_run_writes_every_artefact_and_is_reproducible() {
     let tmp = tempfile::tempdir().unwrap();
     let request = |out: &str| RunRequest {
-        task: ReacherTask::Or,
+        task: ReacherTask::shipped("or").unwrap(),
         algos: vec![Algo::Smirl, Algo::Fkl],
         seeds: 1,
         seed: 3,
@@ -538,10 +538,10 @@ fn task_machine_is_the_perfect_machine_without_its_ends() {
     use smirl::rm::format::parse_rm;
     use smirl::rm::LabelSet;
     for task in [
-        ReacherTask::Or,
-        ReacherTask::Sequential,
-        ReacherTask::If,
-        ReacherTask::Composite,
+        ReacherTask::shipped("or").unwrap(),
+        ReacherTask::shipped("sequential").unwrap(),
+        ReacherTask::shipped("if").unwrap(),
+        ReacherTask::shipped("composite").unwrap(),
     ] {
         let perfect = task.perfect_rm().unwrap();
         let m = task_machine(&perfect).unwrap();
@@ -571,14 +571,14 @@ fn task_machine_is_the_perfect_machine_without_its_ends() {
 
     let mut config = tiny_config();
     config.smirl_machine = smirl::pipeline::reacher_irl::SmirlMachine::Task;
-    let (_tmp, dir, summary) = tiny_smirl_run(ReacherTask::Or, config);
+    let (_tmp, dir, summary) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config);
     assert_eq!(summary.rm.as_ref().unwrap().learned_states, 3);
     assert!(summary.rm.as_ref().unwrap().refines_perfect);
     let text = std::fs::read_to_string(dir.join("rm/learned.txt")).unwrap();
     let written = parse_rm(&text, "learned.txt").unwrap();
     assert_eq!(
         written,
-        task_machine(&ReacherTask::Or.perfect_rm().unwrap()).unwrap()
+        task_machine(&ReacherTask::shipped("or").unwrap().perfect_rm().unwrap()).unwrap()
     );
     let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
     assert!(report.contains("smirl_machine = \"task\""), "{report}");
@@ -637,7 +637,7 @@ fn unseen_touch_sink_is_a_state_no_demonstration_enters() {
 
     let mut config = tiny_config();
     config.smirl_unseen_touch_sink = true;
-    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::If, config);
+    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::shipped("if").unwrap(), config);
     let machine = parse_rm(
         &std::fs::read_to_string(dir.join("rm/learned.txt")).unwrap(),
         "learned.txt",
@@ -697,7 +697,7 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     let mut config = tiny_config();
     config.smirl_selection_cut = true;
     config.smirl_selection_cut_entries = true;
-    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::If, config);
+    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::shipped("if").unwrap(), config);
     let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
     assert!(
         report.contains(
@@ -1393,7 +1393,7 @@ fn run_with_extra_agent(
     let run = |steps: u64| {
         let mut config = tiny_config();
         set(&mut config, steps);
-        tiny_smirl_run(ReacherTask::Or, config)
+        tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config)
     };
     let ((_without_tmp, without_dir, _), (_with_tmp, with_dir, _)) = (run(0), run(steps));
     let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
@@ -1483,7 +1483,7 @@ fn jobs_run_with_their_algorithms_schedule() {
         },
     );
     let request = RunRequest {
-        task: ReacherTask::Or,
+        task: ReacherTask::shipped("or").unwrap(),
         algos: vec![Algo::Smirl, Algo::MaxEnt],
         seeds: 1,
         seed: 3,
@@ -1626,13 +1626,13 @@ fn clock_widens_smirls_observation_through_the_pipeline() {
         IrlRunConfig::load(&dir.join("config.toml")).unwrap()
     );
 
-    let (_with_tmp, with, _) = tiny_smirl_run(ReacherTask::Or, config.clone());
-    let (_again_tmp, again, _) = tiny_smirl_run(ReacherTask::Or, config);
+    let (_with_tmp, with, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config.clone());
+    let (_again_tmp, again, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config);
     let no_clock = IrlRunConfig {
         smirl_clock: false,
         ..tiny_config()
     };
-    let (_without_tmp, without, _) = tiny_smirl_run(ReacherTask::Or, no_clock);
+    let (_without_tmp, without, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), no_clock);
     let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
     for file in ["metrics.csv", "final_policy.csv"] {
         assert_eq!(read(&with, file), read(&again, file), "{file}");
@@ -1691,8 +1691,8 @@ fn frozen_clock_is_the_clock_without_the_time() {
         IrlRunConfig::load(&dir.join("config.toml")).unwrap()
     );
 
-    let (_frozen_tmp, with_frozen, _) = tiny_smirl_run(ReacherTask::Or, frozen);
-    let (_clock_tmp, with_clock, _) = tiny_smirl_run(ReacherTask::Or, standard);
+    let (_frozen_tmp, with_frozen, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), frozen);
+    let (_clock_tmp, with_clock, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), standard);
     let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
     assert_ne!(
         read(&with_frozen, "metrics.csv"),

@@ -43,10 +43,11 @@ fn mean_action(policy: &mut ExpertPolicy, obs: &[f32]) -> [f32; 2] {
 fn policy_file_round_trip() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("p.policy");
-    let mut policy = random_policy(ReacherTask::If, 3);
+    let mut policy = random_policy(ReacherTask::shipped("if").unwrap(), 3);
     policy.save(&path).unwrap();
-    let mut loaded = ExpertPolicy::load(&path, ReacherTask::If, &[64, 64]).unwrap();
-    assert_eq!(loaded.task(), ReacherTask::If);
+    let mut loaded =
+        ExpertPolicy::load(&path, ReacherTask::shipped("if").unwrap(), &[64, 64]).unwrap();
+    assert_eq!(loaded.task(), ReacherTask::shipped("if").unwrap());
     assert_eq!(loaded.obs_dim(), OBS_DIM + 5);
     assert_eq!(loaded.info(), &info());
     let bits = |p: &ExpertPolicy| -> Vec<u32> {
@@ -72,10 +73,17 @@ fn policy_file_round_trip() {
 fn policy_file_refusals_name_file_and_problem() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("or.policy");
-    random_policy(ReacherTask::Or, 1).save(&path).unwrap();
+    random_policy(ReacherTask::shipped("or").unwrap(), 1)
+        .save(&path)
+        .unwrap();
     let p = path.display().to_string();
 
-    let e = ExpertPolicy::load(&path, ReacherTask::Sequential, &[64, 64]).unwrap_err();
+    let e = ExpertPolicy::load(
+        &path,
+        ReacherTask::shipped("sequential").unwrap(),
+        &[64, 64],
+    )
+    .unwrap_err();
     assert!(matches!(e, PolicyFileError::WrongTask { .. }), "{e}");
     let msg = e.to_string();
     assert!(
@@ -83,7 +91,7 @@ fn policy_file_refusals_name_file_and_problem() {
         "{msg}"
     );
 
-    let e = ExpertPolicy::load(&path, ReacherTask::Or, &[32, 32]).unwrap_err();
+    let e = ExpertPolicy::load(&path, ReacherTask::shipped("or").unwrap(), &[32, 32]).unwrap_err();
     assert!(matches!(e, PolicyFileError::Architecture { .. }), "{e}");
     let msg = e.to_string();
     assert!(
@@ -95,14 +103,14 @@ fn policy_file_refusals_name_file_and_problem() {
     let mut bad_version = good.clone();
     bad_version[8..12].copy_from_slice(&99u32.to_le_bytes());
     std::fs::write(&path, &bad_version).unwrap();
-    let msg = ExpertPolicy::load(&path, ReacherTask::Or, &[64, 64])
+    let msg = ExpertPolicy::load(&path, ReacherTask::shipped("or").unwrap(), &[64, 64])
         .unwrap_err()
         .to_string();
     assert!(msg.contains(&p) && msg.contains("version 99"), "{msg}");
 
     for cut in [4, 30, good.len() / 2, good.len() - 1] {
         std::fs::write(&path, &good[..cut]).unwrap();
-        let msg = ExpertPolicy::load(&path, ReacherTask::Or, &[64, 64])
+        let msg = ExpertPolicy::load(&path, ReacherTask::shipped("or").unwrap(), &[64, 64])
             .unwrap_err()
             .to_string();
         assert!(msg.contains(&p), "{msg}");
@@ -115,14 +123,14 @@ fn policy_file_refusals_name_file_and_problem() {
     let mut trailing = good.clone();
     trailing.push(0);
     std::fs::write(&path, &trailing).unwrap();
-    let msg = ExpertPolicy::load(&path, ReacherTask::Or, &[64, 64])
+    let msg = ExpertPolicy::load(&path, ReacherTask::shipped("or").unwrap(), &[64, 64])
         .unwrap_err()
         .to_string();
     assert!(msg.contains("trailing"), "{msg}");
 
     let e = ExpertPolicy::load(
         &dir.path().join("missing.policy"),
-        ReacherTask::Or,
+        ReacherTask::shipped("or").unwrap(),
         &[64, 64],
     )
     .unwrap_err();
@@ -140,13 +148,13 @@ fn committed(task: ReacherTask) -> ExpertPolicy {
 
 #[test]
 fn demos_are_deterministic_and_carry_the_perfect_machines_states() {
-    let task = ReacherTask::If;
-    let mut policy = committed(task);
+    let task = ReacherTask::shipped("if").unwrap();
+    let mut policy = committed(task.clone());
     let env = ReacherConfig::default();
-    let a = generate_demos(&mut policy, task, &env, 6, 11, None).unwrap();
-    let b = generate_demos(&mut policy, task, &env, 6, 11, None).unwrap();
+    let a = generate_demos(&mut policy, task.clone(), &env, 6, 11, None).unwrap();
+    let b = generate_demos(&mut policy, task.clone(), &env, 6, 11, None).unwrap();
     assert_eq!(a, b, "same seed, same demonstrations");
-    let c = generate_demos(&mut policy, task, &env, 6, 12, None).unwrap();
+    let c = generate_demos(&mut policy, task.clone(), &env, 6, 12, None).unwrap();
     assert_ne!(a, c, "another seed, other demonstrations");
 
     let rm = task.perfect_rm().unwrap();
@@ -172,13 +180,21 @@ fn demos_are_deterministic_and_carry_the_perfect_machines_states() {
     }
     assert!(state_changes >= a.len(), "the expert makes progress");
 
-    let e = generate_demos(&mut policy, ReacherTask::Or, &env, 1, 0, None).unwrap_err();
+    let e = generate_demos(
+        &mut policy,
+        ReacherTask::shipped("or").unwrap(),
+        &env,
+        1,
+        0,
+        None,
+    )
+    .unwrap_err();
     assert!(matches!(e, ExpertError::Task { .. }), "{e}");
 }
 
 #[test]
 fn committed_or_expert_succeeds() {
-    let mut policy = committed(ReacherTask::Or);
+    let mut policy = committed(ReacherTask::shipped("or").unwrap());
     let env = ReacherConfig::default();
     let eval = evaluate_expert(&mut policy, &env, 20, ActMode::Sample, 99).unwrap();
     assert!(eval.success_rate >= 0.9, "{eval:?}");
@@ -204,7 +220,7 @@ fn expert_command_rejects_bad_arguments_with_status_2() {
 
     let (code, err) = reacher(&["expert", "--task", "diagonal", "--out", out_s]);
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("unknown task 'diagonal'"), "{err}");
+    assert!(err.contains("no shipped task named 'diagonal'"), "{err}");
 
     let (code, err) = reacher(&["expert", "--task", "or", "--seed", "x", "--out", out_s]);
     assert_eq!(code, 2, "{err}");

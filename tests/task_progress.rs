@@ -23,26 +23,25 @@ fn progress(task: ReacherTask, trace: &[&str]) -> (f64, bool) {
 
 #[test]
 fn sub_goals_completed_on_known_traces() {
-    use ReacherTask::*;
-    let cases: [(ReacherTask, &[&str], f64, bool); 15] = [
-        (Or, &["", "r"], 0.5, false), // OR: red or green, then blue
-        (Or, &["", "b"], 0.0, true),  // the end location without the sub-goal before it
-        (Or, &["g", "", "b"], 1.0, true),
-        (Sequential, &["r", "", "g"], 0.5, false),
-        (Sequential, &["g", "r", "b", "y"], 0.25, true), // only red counts: order matters
-        (Sequential, &["r", "g", "b", "y"], 1.0, true),
-        (Composite, &["", "r", ""], 1.0 / 3.0, false),
-        (Composite, &["g", "b", "y"], 1.0, true),
-        (Composite, &["r", "c", "y"], 1.0, true), // the cancel removes blue: 2 of 2 done
-        (If, &["r", "r", "b", "", "r"], 1.0, true), // waiting on red does nothing; blue, red
-        (If, &["c", "", "b"], 0.0, false),        // blue after the cancel: failure, nothing done
-        (If, &["r", "b"], 0.5, true),             // the end ball touched early, then blue: 1 of 2
-        (Blue, &["r", "g", "y"], 0.0, false),     // the positive control: blue alone counts
-        (Blue, &["c", "", "b"], 1.0, true),       // the cancel plays no part
-        (Blue, &["yb"], 1.0, true),
+    let cases: [(&str, &[&str], f64, bool); 15] = [
+        ("or", &["", "r"], 0.5, false), // OR: red or green, then blue
+        ("or", &["", "b"], 0.0, true),  // the end location without the sub-goal before it
+        ("or", &["g", "", "b"], 1.0, true),
+        ("sequential", &["r", "", "g"], 0.5, false),
+        ("sequential", &["g", "r", "b", "y"], 0.25, true), // only red counts: order matters
+        ("sequential", &["r", "g", "b", "y"], 1.0, true),
+        ("composite", &["", "r", ""], 1.0 / 3.0, false),
+        ("composite", &["g", "b", "y"], 1.0, true),
+        ("composite", &["r", "c", "y"], 1.0, true), // the cancel removes blue: 2 of 2 done
+        ("if", &["r", "r", "b", "", "r"], 1.0, true), // waiting on red does nothing; blue, red
+        ("if", &["c", "", "b"], 0.0, false),        // blue after the cancel: failure, nothing done
+        ("if", &["r", "b"], 0.5, true),             // the end ball touched early, then blue: 1 of 2
+        ("blue", &["r", "g", "y"], 0.0, false),     // the positive control: blue alone counts
+        ("blue", &["c", "", "b"], 1.0, true),       // the cancel plays no part
+        ("blue", &["yb"], 1.0, true),
     ];
     for (task, trace, fraction, end) in cases {
-        let (f, e) = progress(task, trace);
+        let (f, e) = progress(ReacherTask::shipped(task).unwrap(), trace);
         assert!(
             (f - fraction).abs() < 1e-12,
             "{task:?} {trace:?}: {f} != {fraction}"

@@ -12,8 +12,10 @@ reported), a second table: that policy's success per seed (and per branch), besi
 co-trained policy's and the phase's last checkpoint's. Markdown on standard output; numbers
 from the runs' metrics.csv(.gz), final_policy.csv and run.json.
 
-Usage: python3 experiments/reacher/figure7.py [--final-only] RUN_DIR...
+Usage: python3 experiments/reacher/figure7.py [--final-only] [--algos A,B] RUN_DIR...
   --final-only  only the final-policy tables (for runs whose IRL loops another table shows)
+  --algos A,B   only these algorithms' rows
+A run without run.json (the consolidated ablation runs) shows no wall time.
 """
 import json
 import os
@@ -50,14 +52,15 @@ def algorithms(jobs):
     return sorted({a for a, _ in jobs}, key=lambda a: ORDER.index(a) if a in ORDER else 9)
 
 
-def main(runs, final_only=False):
+def main(runs, final_only=False, only=None):
     for run in runs:
         if final_only:
             print(f"\n**{os.path.basename(os.path.normpath(run))}**")
-            final_policies(run)
+            final_policies(run, only)
             continue
-        rows = rundata.table(run, "metrics.csv")
-        info = json.load(open(os.path.join(run, "run.json")))
+        rows = [r for r in rundata.table(run, "metrics.csv") if only is None or r["algo"] in only]
+        info_path = os.path.join(run, "run.json")
+        info = json.load(open(info_path)) if os.path.exists(info_path) else {}
         walls = {}
         for j in info.get("jobs", []):
             walls.setdefault(j["algo"], []).append(j["wall_secs"])
@@ -91,13 +94,13 @@ def main(runs, final_only=False):
             wall_txt = f"{statistics.median(wall):.0f}" if wall else "-"
             line += f" {ms(quarter)} | {per_seed(best)} | {ms(prog)} | {ms(ball)} | {wall_txt} |"
             print(line)
-        final_policies(run)
+        final_policies(run, only)
 
 
-def final_policies(run):
+def final_policies(run, only=None):
     """The table of the run's final-policy phases, if it has any (from final_policy.csv, or
     the consolidated rows of its parent directory)."""
-    jobs = rundata.final_policy(run)
+    jobs = {k: v for k, v in rundata.final_policy(run).items() if only is None or k[0] in only}
     if not jobs:
         return
     branches = any(r.get("success_normal", "") != "" for c in jobs.values() for r in c)
@@ -124,4 +127,12 @@ def final_policies(run):
 if __name__ == "__main__":
     args = sys.argv[1:]
     final_only = "--final-only" in args
-    main([a for a in args if a != "--final-only"], final_only)
+    args = [a for a in args if a != "--final-only"]
+    only = None
+    if "--algos" in args:
+        i = args.index("--algos")
+        if i + 1 >= len(args):
+            sys.exit(__doc__)
+        only = set(args[i + 1].split(","))
+        del args[i:i + 2]
+    main(args, final_only, only)

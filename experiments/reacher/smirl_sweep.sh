@@ -13,7 +13,7 @@
 # whose baseline rows it completes: the baselines read none of SMIRL's settings). {task} in
 # OUT is replaced by the task. A directory the program did not write is never replaced
 # (`--force` replaces only its own output). Then `python3 experiments/consolidate.py` for the
-# held-out rows, `python3 experiments/reacher/figure7.py RUN...` or `heldout.py` for tables.
+# held-out rows, `python3 experiments/reacher/figure7.py RUN...` for tables.
 # Environment: ALGOS (default "smirl,smirl-smooth"), TASKS (default all four), CONFIG
 # (default experiments/reacher/config.toml, the standard profile), REACHER_BIN (another build,
 # e.g. a copy, so that rebuilding the checkout during the sweep does not change the binary).

@@ -5,7 +5,7 @@ gradient is not small, as  <feature><weight>(<data gradient μ_π − μ_D>).  A
 −1.00 on the ball a state is left by means the agent's rollouts never took that transition.
 The traces are not tracked (experiments/README.md): `reacher job` writes them into the run
 directory, and those of the committed runs are in history (`git restore --source=4e88128
---worktree -- RUN_DIR/rewards`); composite_cancel_weight.csv keeps the final Composite weights.
+--worktree -- RUN_DIR/rewards`); experiments/archive/reacher/composite_cancel_weight.csv keeps the final Composite weights.
 Usage: python3 experiments/reacher/trace.py RUN_DIR [ALGO] [SEED]"""
 import csv, glob, os, sys
 

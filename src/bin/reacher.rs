@@ -194,7 +194,8 @@ struct ExpertCurveArgs {
 
 #[derive(Args)]
 struct ExpertArgs {
-    /// Task: or, sequential, if, composite (the paper's), blue (positive control).
+    /// Task: or, sequential, if, composite (the paper's), blue (positive control), or the
+    /// path of a task file (FILE.toml, see docs/tasks.md).
     #[arg(long)]
     task: ReacherTask,
     /// Expert config (TOML: run settings, [sac], [env]); defaults otherwise.
@@ -323,7 +324,8 @@ struct DemoArgs {
 
 #[derive(Args)]
 struct PipelineArgs {
-    /// Run the IRL pipeline on a task: or, sequential, if, composite, blue.
+    /// Run the IRL pipeline on a task: or, sequential, if, composite, blue, or the path of a
+    /// task file (FILE.toml, see docs/tasks.md).
     #[arg(long)]
     task: Option<ReacherTask>,
     /// Algorithms, comma-separated: smirl, smirl-smooth, maxent, fkl, rkl, js, or all

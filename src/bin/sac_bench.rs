@@ -302,6 +302,9 @@ fn main() -> Result<()> {
     let args = Args::parse();
     if let Some(path) = &args.out {
         smirl::output::check_file(path, args.force)?;
+        if let Some(config) = &args.config {
+            smirl::output::check_not_input(path, &[config])?;
+        }
     }
     let config = match &args.config {
         Some(p) => SacConfig::load(p)?,
@@ -357,6 +360,7 @@ fn main() -> Result<()> {
     }
     print!("{out}");
     if let Some(path) = &args.out {
+        smirl::output::create_parent(path)?;
         smirl::atomic_file::write_atomic(path, out.as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }

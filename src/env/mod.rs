@@ -67,3 +67,4 @@ pub mod product;
 pub mod reacher;
 pub mod reacher_controller;
 pub mod reacher_task;
+pub mod task_file;

@@ -162,7 +162,7 @@ pub enum ConfigError {
     NoSteps,
     #[error("max_steps ({0}) is more than the limit of {MAX_EPISODE_STEPS} steps per episode")]
     TooManySteps(usize),
-    #[error("cancel.probability is {0}, it must be in [0, 1]")]
+    #[error("cancel.probability is {}, it must be in [0, 1]", crate::quoted::number(*.0))]
     CancelProbability(f64),
     #[error(
         "cancel.earliest_step ({earliest}) must be between 1 and cancel.latest_step ({latest})"
@@ -173,7 +173,7 @@ pub enum ConfigError {
          the cancel window must lie inside the episode"
     )]
     CancelAfterEpisode { latest: usize, max_steps: usize },
-    #[error("ball {ball} at ({x}, {y}) is outside the slide joints' range ±0.27")]
+    #[error("ball {ball} at ({}, {}) is outside the slide joints' range ±0.27", crate::quoted::number(*.x), crate::quoted::number(*.y))]
     BallOutOfRange { ball: &'static str, x: f64, y: f64 },
 }
 

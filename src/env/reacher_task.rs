@@ -1,55 +1,129 @@
-//! The four ReacherDelivery tasks of the paper (appendix C) and what the product with their
-//! reward machines needs: the perfect machine, a sub-goal potential for shaping, and the
-//! product environment.
+//! A ReacherDelivery task (a checked task file, `env::task_file`; the paper's four and `blue`
+//! ship in `assets/tasks/`) and what the product with its reward machine needs: the perfect
+//! machine, a sub-goal potential for shaping, and the product environment.
 
 use super::product::{Potential, ProductEnv};
-use super::reacher::{ReacherConfig, ReacherDelivery, ReacherError, BALLS};
-use crate::rm::perfect;
+use super::reacher::{CancelConfig, ReacherConfig, ReacherDelivery, ReacherError, BALLS};
+use super::task_file::{Task, TaskFileError, TaskShapeError, SHIPPED};
 use crate::rm::{LabelSet, RewardMachine};
 use std::collections::VecDeque;
 use std::fmt;
 use std::str::FromStr;
+use std::sync::Arc;
 
-/// A ReacherDelivery task.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ReacherTask {
-    /// Red or green, then blue (3 machine states).
-    Or,
-    /// Red, green, blue, yellow in order (5).
-    Sequential,
-    /// Blue unless cancel, then red (5).
-    If,
-    /// Red or green, then blue unless cancel, then yellow (7).
-    Composite,
-    /// Touch blue (2): not a paper task but the baselines' Markovian positive control, a
-    /// task a reward over the fingertip's position alone can express.
-    Blue,
-}
+/// A ReacherDelivery task: a checked task file ([`Task`]), shared. Two tasks are the same
+/// when their name and content (task file, scene, machine) are. It is written to run records
+/// as its shipped name or its file's path and read back by loading that again.
+#[derive(Clone, Debug)]
+pub struct ReacherTask(Arc<Task>);
 
 impl ReacherTask {
-    /// Every task: the paper's four, then the positive control.
-    pub const ALL: [ReacherTask; 5] = [
-        ReacherTask::Or,
-        ReacherTask::Sequential,
-        ReacherTask::If,
-        ReacherTask::Composite,
-        ReacherTask::Blue,
-    ];
+    /// The shipped tasks, `assets/tasks/<name>.toml`: the paper's four, then the positive
+    /// control `blue` (touch blue, a task a reward over the fingertip's position alone can
+    /// express).
+    pub fn all_shipped() -> Result<Vec<ReacherTask>, TaskFileError> {
+        SHIPPED.iter().map(|n| ReacherTask::shipped(n)).collect()
+    }
 
-    pub fn name(self) -> &'static str {
-        match self {
-            ReacherTask::Or => "or",
-            ReacherTask::Sequential => "sequential",
-            ReacherTask::If => "if",
-            ReacherTask::Composite => "composite",
-            ReacherTask::Blue => "blue",
+    /// A shipped task by name.
+    pub fn shipped(name: &str) -> Result<ReacherTask, TaskFileError> {
+        Ok(ReacherTask(Arc::new(Task::shipped(name)?)))
+    }
+
+    /// A shipped name (`composite`) or the path of a task file (`my/task.toml`).
+    pub fn resolve(name_or_path: &str) -> Result<ReacherTask, TaskFileError> {
+        if SHIPPED.contains(&name_or_path) {
+            return ReacherTask::shipped(name_or_path);
+        }
+        // Records name the file by an absolute path, so a run resumes from any directory.
+        let path = std::path::Path::new(name_or_path);
+        let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+        Ok(ReacherTask(Arc::new(Task::resolve(
+            &path.to_string_lossy(),
+        )?)))
+    }
+
+    /// The shipped name, or the task file's stem.
+    pub fn name(&self) -> &str {
+        &self.0.name
+    }
+
+    /// How records name the task: the shipped name, or the task file's path.
+    pub fn id(&self) -> &str {
+        if self.is_shipped() {
+            &self.0.name
+        } else {
+            &self.0.source
         }
     }
 
-    /// The task's perfect reward machine, from `assets/rm/reacher_<name>.txt`.
-    pub fn perfect_rm(self) -> Result<RewardMachine, crate::rm::format::RmFileError> {
-        perfect::reacher(self.name())
+    /// The task is one of `assets/tasks/`.
+    pub fn is_shipped(&self) -> bool {
+        self.0.source == format!("assets/tasks/{}.toml", self.0.name)
+    }
+
+    pub fn task(&self) -> &Task {
+        &self.0
+    }
+
+    /// The task's perfect reward machine.
+    pub fn perfect_rm(&self) -> Result<RewardMachine, crate::rm::format::RmFileError> {
+        Ok((*self.0.machine).clone())
+    }
+
+    /// The environment of a run of this task: the task's own, except each value of
+    /// `configured` (a run config's `[env]`) that differs from its default (an experiment on
+    /// the environment, such as another event schedule or shorter episodes, over the task's
+    /// machine). Refused for a task the ReacherDelivery environment cannot run.
+    pub fn env_config(&self, configured: &ReacherConfig) -> Result<ReacherConfig, TaskShapeError> {
+        fn pick<T: PartialEq + Clone>(own: T, configured: &T, default: &T) -> T {
+            if configured == default {
+                own
+            } else {
+                configured.clone()
+            }
+        }
+        let own = self.0.reacher_config()?;
+        let d = ReacherConfig::default();
+        let c = configured;
+        Ok(ReacherConfig {
+            max_steps: pick(own.max_steps, &c.max_steps, &d.max_steps),
+            ball_layout: pick(own.ball_layout, &c.ball_layout, &d.ball_layout),
+            randomize_balls: pick(own.randomize_balls, &c.randomize_balls, &d.randomize_balls),
+            cancel: CancelConfig {
+                probability: pick(
+                    own.cancel.probability,
+                    &c.cancel.probability,
+                    &d.cancel.probability,
+                ),
+                earliest_step: pick(
+                    own.cancel.earliest_step,
+                    &c.cancel.earliest_step,
+                    &d.cancel.earliest_step,
+                ),
+                latest_step: pick(
+                    own.cancel.latest_step,
+                    &c.cancel.latest_step,
+                    &d.cancel.latest_step,
+                ),
+            },
+            arm_start: c.arm_start,
+        })
+    }
+}
+
+impl PartialEq for ReacherTask {
+    fn eq(&self, other: &Self) -> bool {
+        self.0.name == other.0.name && self.0.content_hash == other.0.content_hash
+    }
+}
+
+impl Eq for ReacherTask {}
+
+impl std::hash::Hash for ReacherTask {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.0.name.hash(state);
+        self.0.content_hash.hash(state);
     }
 }
 
@@ -62,12 +136,20 @@ impl fmt::Display for ReacherTask {
 impl FromStr for ReacherTask {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        ReacherTask::ALL
-            .into_iter()
-            .find(|t| t.name() == s)
-            .ok_or_else(|| {
-                format!("unknown task '{s}' (expected one of: or, sequential, if, composite, blue)")
-            })
+        ReacherTask::resolve(s).map_err(|e| e.to_string())
+    }
+}
+
+impl serde::Serialize for ReacherTask {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.id())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for ReacherTask {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let id = String::deserialize(d)?;
+        ReacherTask::resolve(&id).map_err(serde::de::Error::custom)
     }
 }
 

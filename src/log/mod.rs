@@ -22,7 +22,10 @@ pub mod reader;
 pub mod schema;
 pub mod writer;
 
-pub use reader::{read_log, read_log_bytes, read_log_file, LoggedEpisode, Recovery, RolloutLog};
+pub use reader::{
+    read_log, read_log_bytes, read_log_file, read_log_records, LoggedEpisode, RecordSink, Recovery,
+    RolloutLog,
+};
 pub use schema::{EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHEMA_VERSION};
 pub use writer::{LogOptions, LogSummary, RolloutLogger, RunHeader, StepRecord};
 

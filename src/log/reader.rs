@@ -141,8 +141,13 @@ fn is_truncation(e: &McapError) -> bool {
     )
 }
 
+/// What [`read_log_records`] hands each accepted record to.
+pub type RecordSink<'s> = dyn FnMut(&Record) -> Result<(), LogError> + 's;
+
 struct Reading<'p> {
     path: &'p Path,
+    /// Sees every record the reading accepts, in file order.
+    accept: &'p mut RecordSink<'p>,
     schemas: HashMap<u16, (String, String)>,
     channels: HashMap<u16, Kind>,
     run: Option<RunInfo>,
@@ -166,6 +171,7 @@ impl Reading<'_> {
     }
 
     fn record(&mut self, record: Record) -> Result<(), LogError> {
+        (self.accept)(&record)?;
         match record {
             Record::Schema { header, data } => {
                 if header.name.starts_with("smirl.") && !header.name.starts_with("smirl.v1.") {
@@ -325,6 +331,18 @@ impl Reading<'_> {
 
 /// [`read_log`] on bytes already in memory; `path` names them in messages.
 pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError> {
+    read_log_records(bytes, path, &mut |_| Ok(()))
+}
+
+/// [`read_log_bytes`], handing every record it accepts to `accept` in file order: the records
+/// of each chunk once the whole chunk has decoded and passed its CRC, never one of a chunk
+/// cut short or damaged. A copy made of these records holds exactly what the reader reads
+/// (the same episodes, attachments and metadata); an error from `accept` stops the reading.
+pub fn read_log_records(
+    bytes: &[u8],
+    path: &Path,
+    accept: &mut RecordSink,
+) -> Result<RolloutLog, LogError> {
     if bytes.len() < mcap::MAGIC.len() || &bytes[..mcap::MAGIC.len()] != mcap::MAGIC {
         return Err(LogError::NotMcap {
             path: path.into(),
@@ -333,6 +351,7 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
     }
     let mut r = Reading {
         path,
+        accept,
         schemas: HashMap::new(),
         channels: HashMap::new(),
         run: None,
@@ -434,6 +453,18 @@ pub fn read_log_bytes(bytes: &[u8], path: &Path) -> Result<RolloutLog, LogError>
             path: path.into(),
             problem: "the file ends with a footer that the records before it do not reach".into(),
         });
+    }
+    // One end-of-file rule: a log is complete only when its footer is followed by the
+    // closing magic bytes and nothing else; a footer with part of the magic (or none) is a
+    // file cut short, a footer followed by anything else is damage.
+    if footer && stopped_by.is_none() && !ends_with_footer(bytes) {
+        if !footer_then_cut_magic(bytes) {
+            return Err(LogError::Corrupt {
+                path: path.into(),
+                problem: "bytes follow the footer where only the closing magic may".into(),
+            });
+        }
+        stopped_by = Some("it ends before its closing magic bytes".into());
     }
     let recovery = if footer && stopped_by.is_none() {
         None
@@ -547,6 +578,21 @@ fn ends_with_footer(bytes: &[u8]) -> bool {
     tail[0] == op::FOOTER
         && tail[1..9] == 20u64.to_le_bytes()
         && &tail[FOOTER_RECORD..] == mcap::MAGIC
+}
+
+/// The file ends with a footer record and only part of the closing magic (none of it, up to
+/// all but its last byte): a finished log cut short at its very end.
+fn footer_then_cut_magic(bytes: &[u8]) -> bool {
+    const FOOTER_RECORD: usize = 1 + 8 + 20;
+    let magic = mcap::MAGIC.len();
+    (0..magic).any(|kept| {
+        bytes.len() >= magic + FOOTER_RECORD + kept && {
+            let tail = &bytes[bytes.len() - kept - FOOTER_RECORD..];
+            tail[0] == op::FOOTER
+                && tail[1..9] == 20u64.to_le_bytes()
+                && tail[FOOTER_RECORD..] == mcap::MAGIC[..kept]
+        }
+    })
 }
 
 /// Checks that every length prefix inside a record's body (strings, byte arrays, maps,

@@ -131,6 +131,12 @@ impl Data {
         [all[3 * body], all[3 * body + 1], all[3 * body + 2]]
     }
 
+    /// World position of a site, as of the last `step`/`forward`.
+    pub fn site_xpos(&self, site: usize) -> [f64; 3] {
+        let all = self.slice(self.raw().site_xpos, 3 * self.model.nsite());
+        [all[3 * site], all[3 * site + 1], all[3 * site + 2]]
+    }
+
     /// Number of times MuJoCo flagged an unstable simulation (bad acceleration) since the
     /// last reset; MuJoCo resets the state itself when that happens.
     pub fn instability_count(&self) -> i32 {

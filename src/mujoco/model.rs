@@ -176,6 +176,9 @@ impl Model {
     pub fn ngeom(&self) -> usize {
         self.raw().ngeom as usize
     }
+    pub fn nsite(&self) -> usize {
+        self.raw().nsite as usize
+    }
 
     /// Integration time step in seconds.
     pub fn timestep(&self) -> f64 {

@@ -11,20 +11,22 @@
 //!
 //! Geometry, colours and sizes come from the log's own model XML; poses from forward
 //! kinematics on the logged `qpos` (exact doubles), at the `log_time` of the state's
-//! `/episode/start` or `/step` message. Every original record (messages, attachments,
-//! metadata) is copied unchanged; the log itself keeps its size (the view is a separate
-//! file). Schemas are the official ones of the `foxglove` crate.
+//! `/episode/start` or `/step` message. Every original record the reader accepts (messages,
+//! attachments, metadata) is copied unchanged, in file order; of a log cut short, that is its
+//! complete chunks and nothing of the chunk it was cut in. The log itself keeps its size (the
+//! view is a separate file). Schemas are the official ones of the `foxglove` crate.
 
 use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
 use crate::log::schema::{EpisodeStartMsg, StepMsg, TOPIC_EPISODE_START, TOPIC_STEP};
-use crate::log::{read_log_bytes, read_log_file, LogError};
+use crate::log::{read_log_bytes, read_log_file, read_log_records, LogError};
 use crate::mujoco::{Data, Model, ObjectKind};
 use foxglove::schemas::{
     Color, CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms, Pose, Quaternion,
     SceneEntity, SceneUpdate, SpherePrimitive, TextPrimitive, Timestamp, Vector3,
 };
 use foxglove::Encode;
-use std::collections::BTreeMap;
+use mcap::records::Record;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -363,8 +365,10 @@ fn encoded<T: Encode>(message: &T) -> Vec<u8> {
 }
 
 /// Writes `out`: the log at `input` plus the `/scene` and `/tf` channels (see the module
-/// docs). A log cut short is refused unless `allow_partial`; the output is written to
-/// `<out>.part` and renamed when complete.
+/// docs). A log cut short is refused unless `allow_partial`; with it, the copy holds exactly
+/// the records the reader recovers (complete chunks only, see
+/// [`crate::log::read_log_records`]), and a log from which no episode is recovered is
+/// refused. The output is written to `<out>.part` and renamed when complete.
 pub fn export_scene(
     input: &Path,
     out: &Path,
@@ -373,10 +377,17 @@ pub fn export_scene(
     let (bad_input, bad_output) = (input_error(input), output_error(out));
     let bytes = read_log_file(input)?;
     let log = read_log_bytes(&bytes, input)?;
-    if let (Some(rec), false) = (&log.recovery, allow_partial) {
-        return Err(bad_input(format!(
-            "{rec}; pass --allow-partial to export its complete chunks"
-        )));
+    if let Some(rec) = &log.recovery {
+        if !allow_partial {
+            return Err(bad_input(format!(
+                "{rec}; pass --allow-partial to export its complete chunks"
+            )));
+        }
+        if log.episodes.is_empty() {
+            return Err(bad_input(format!(
+                "{rec}: no episode is recoverable, nothing to export"
+            )));
+        }
     }
     let xml = log.reacher_model_xml().map_err(&bad_input)?;
     let geometry = Geometry::new(xml, &format!("{}:model.xml", input.display()))
@@ -386,8 +397,9 @@ pub fn export_scene(
     let mut part = out.as_os_str().to_os_string();
     part.push(".part");
     let part = PathBuf::from(part);
+    crate::output::create_parent(out).map_err(|e| bad_output(e.problem))?;
     let file = std::fs::File::create(&part).map_err(|e| bad_output(e.to_string()))?;
-    let written = write_view(&bytes, &log, &geometry, &mut data, file, input, out);
+    let written = write_view(&bytes, &geometry, &mut data, file, input, out);
     if written.is_err() {
         // Only the file this call created.
         let _ = std::fs::remove_file(&part);
@@ -402,17 +414,153 @@ pub fn export_scene(
     })
 }
 
-/// Writes the view into `file`; returns (messages copied, scene states written).
+/// Copies the log's records into a view, adding a scene for every logged state.
+struct ViewWriter<'g, W: std::io::Write + std::io::Seek> {
+    writer: mcap::Writer<W>,
+    geometry: &'g Geometry,
+    data: &'g mut Data,
+    scene_channel: u16,
+    tf_channel: u16,
+    /// The log's schemas and channels by their ids in the log.
+    schemas: HashMap<u16, (String, String, Vec<u8>)>,
+    channels: HashMap<u16, mcap::records::Channel>,
+    /// Log channel id -> channel id in the view (declared at the channel's first message).
+    view_channels: HashMap<u16, u16>,
+    sequence: u32,
+    copied: u64,
+    scenes: u64,
+}
+
+impl<W: std::io::Write + std::io::Seek> ViewWriter<'_, W> {
+    fn record(&mut self, record: &Record, input: &Path) -> Result<(), SceneError> {
+        let bad_input = input_error(input);
+        let mcap_err = |e: mcap::McapError| SceneError::Output {
+            path: PathBuf::new(),
+            problem: e.to_string(),
+        };
+        match record {
+            Record::Schema { header, data } => {
+                self.schemas.insert(
+                    header.id,
+                    (header.name.clone(), header.encoding.clone(), data.to_vec()),
+                );
+            }
+            Record::Channel(ch) => {
+                self.channels.insert(ch.id, ch.clone());
+            }
+            Record::Attachment { header, data, .. } => {
+                self.writer
+                    .attach(&mcap::Attachment {
+                        log_time: header.log_time,
+                        create_time: header.create_time,
+                        name: header.name.clone(),
+                        media_type: header.media_type.clone(),
+                        data: std::borrow::Cow::Borrowed(data),
+                    })
+                    .map_err(mcap_err)?;
+            }
+            Record::Metadata(m) => self.writer.write_metadata(m).map_err(mcap_err)?,
+            Record::Message { header, data } => {
+                let ch = self.channels.get(&header.channel_id).ok_or_else(|| {
+                    bad_input(format!("message on unknown channel {}", header.channel_id))
+                })?;
+                let channel_id = match self.view_channels.get(&ch.id) {
+                    Some(&id) => id,
+                    None => {
+                        let schema_id = match self.schemas.get(&ch.schema_id) {
+                            Some((name, encoding, schema)) => self
+                                .writer
+                                .add_schema(name, encoding, schema)
+                                .map_err(mcap_err)?,
+                            None => 0,
+                        };
+                        let id = self
+                            .writer
+                            .add_channel(schema_id, &ch.topic, &ch.message_encoding, &ch.metadata)
+                            .map_err(mcap_err)?;
+                        self.view_channels.insert(ch.id, id);
+                        id
+                    }
+                };
+                self.writer
+                    .write_to_known_channel(
+                        &mcap::records::MessageHeader {
+                            channel_id,
+                            ..*header
+                        },
+                        data,
+                    )
+                    .map_err(mcap_err)?;
+                self.copied += 1;
+                let state = match ch.topic.as_str() {
+                    TOPIC_EPISODE_START => {
+                        let m = EpisodeStartMsg::decode(data)
+                            .map_err(|e| bad_input(format!("{TOPIC_EPISODE_START}: {e}")))?;
+                        Some((m.qpos, m.labels, true))
+                    }
+                    TOPIC_STEP => {
+                        let m = StepMsg::decode(data)
+                            .map_err(|e| bad_input(format!("{TOPIC_STEP}: {e}")))?;
+                        Some((m.qpos, m.labels, false))
+                    }
+                    _ => None,
+                };
+                if let Some((qpos, labels, start)) = state {
+                    self.scene(&qpos, labels, start, header.log_time)
+                        .map_err(|e| {
+                            bad_input(format!("state at log time {}: {e}", header.log_time))
+                        })?;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Writes the `/scene` and `/tf` messages of one logged state.
+    fn scene(
+        &mut self,
+        qpos: &[f64],
+        labels: u32,
+        start: bool,
+        log_time: u64,
+    ) -> Result<(), String> {
+        let frame = self
+            .geometry
+            .frame(self.data, qpos, labels, start, log_time)?;
+        for (channel_id, payload) in [
+            (self.scene_channel, encoded(&frame.scene)),
+            (self.tf_channel, encoded(&frame.transforms)),
+        ] {
+            self.writer
+                .write_to_known_channel(
+                    &mcap::records::MessageHeader {
+                        channel_id,
+                        sequence: self.sequence,
+                        log_time,
+                        publish_time: log_time,
+                    },
+                    &payload,
+                )
+                .map_err(|e| e.to_string())?;
+        }
+        self.sequence = self.sequence.wrapping_add(1);
+        self.scenes += 1;
+        Ok(())
+    }
+}
+
+/// Writes the view into `file` from the records the reader accepts; returns (messages
+/// copied, scene states written).
 fn write_view(
     bytes: &[u8],
-    log: &crate::log::RolloutLog,
     geometry: &Geometry,
     data: &mut Data,
     file: std::fs::File,
     input: &Path,
     out: &Path,
 ) -> Result<(u64, u64), SceneError> {
-    let (bad_input, bad_output) = (input_error(input), output_error(out));
+    let bad_output = output_error(out);
     let mcap_err = |e: mcap::McapError| bad_output(e.to_string());
     let mut writer = mcap::WriteOptions::new()
         .compression_threads(0)
@@ -421,95 +569,38 @@ fn write_view(
     let scene_channel =
         add_channel::<SceneUpdate, _>(&mut writer, TOPIC_SCENE).map_err(mcap_err)?;
     let tf_channel = add_channel::<FrameTransforms, _>(&mut writer, TOPIC_TF).map_err(mcap_err)?;
-
-    let mut channels: BTreeMap<u16, u16> = BTreeMap::new();
-    let (mut copied, mut scenes) = (0u64, 0u64);
-    let mut sequence = 0u32;
-    for message in mcap::MessageStream::new(bytes).map_err(|e| bad_input(e.to_string()))? {
-        let message = match message {
-            Ok(m) => m,
-            // A partial log (accepted above) ends inside a record.
-            Err(_) if log.recovery.is_some() => break,
-            Err(e) => return Err(bad_input(e.to_string())),
-        };
-        // Original channels are re-declared once each (new ids), then written as they were.
-        let channel_id = match channels.get(&message.channel.id) {
-            Some(&id) => id,
-            None => {
-                let ch = &message.channel;
-                let schema_id = match &ch.schema {
-                    Some(s) => writer
-                        .add_schema(&s.name, &s.encoding, &s.data)
-                        .map_err(mcap_err)?,
-                    None => 0,
-                };
-                let id = writer
-                    .add_channel(schema_id, &ch.topic, &ch.message_encoding, &ch.metadata)
-                    .map_err(mcap_err)?;
-                channels.insert(ch.id, id);
-                id
+    let mut view = ViewWriter {
+        writer,
+        geometry,
+        data,
+        scene_channel,
+        tf_channel,
+        schemas: HashMap::new(),
+        channels: HashMap::new(),
+        view_channels: HashMap::new(),
+        sequence: 0,
+        copied: 0,
+        scenes: 0,
+    };
+    // The view's own failure, kept while the reader is told to stop.
+    let mut failure = None;
+    let read = read_log_records(bytes, input, &mut |record| {
+        view.record(record, input).map_err(|e| {
+            let problem = e.to_string();
+            failure = Some(e);
+            LogError::Usage {
+                path: out.into(),
+                problem,
             }
-        };
-        writer
-            .write_to_known_channel(
-                &mcap::records::MessageHeader {
-                    channel_id,
-                    sequence: message.sequence,
-                    log_time: message.log_time,
-                    publish_time: message.publish_time,
-                },
-                &message.data,
-            )
-            .map_err(mcap_err)?;
-        copied += 1;
-        let state = match message.channel.topic.as_str() {
-            TOPIC_EPISODE_START => {
-                let m = EpisodeStartMsg::decode(&message.data)
-                    .map_err(|e| bad_input(format!("{TOPIC_EPISODE_START}: {e}")))?;
-                Some((m.qpos, m.labels, true))
-            }
-            TOPIC_STEP => {
-                let m = StepMsg::decode(&message.data)
-                    .map_err(|e| bad_input(format!("{TOPIC_STEP}: {e}")))?;
-                Some((m.qpos, m.labels, false))
-            }
-            _ => None,
-        };
-        let Some((qpos, labels, start)) = state else {
-            continue;
-        };
-        let frame = geometry
-            .frame(data, &qpos, labels, start, message.log_time)
-            .map_err(|e| bad_input(format!("state at log time {}: {e}", message.log_time)))?;
-        for (channel_id, payload) in [
-            (scene_channel, encoded(&frame.scene)),
-            (tf_channel, encoded(&frame.transforms)),
-        ] {
-            writer
-                .write_to_known_channel(
-                    &mcap::records::MessageHeader {
-                        channel_id,
-                        sequence,
-                        log_time: message.log_time,
-                        publish_time: message.log_time,
-                    },
-                    &payload,
-                )
-                .map_err(mcap_err)?;
-        }
-        sequence = sequence.wrapping_add(1);
-        scenes += 1;
+        })
+    });
+    if let Some(e) = failure {
+        return Err(match e {
+            SceneError::Output { problem, .. } => bad_output(problem),
+            other => other,
+        });
     }
-    if let Ok(Some(summary)) = mcap::Summary::read(bytes) {
-        for index in &summary.attachment_indexes {
-            let a = mcap::read::attachment(bytes, index).map_err(|e| bad_input(e.to_string()))?;
-            writer.attach(&a).map_err(mcap_err)?;
-        }
-        for index in &summary.metadata_indexes {
-            let m = mcap::read::metadata(bytes, index).map_err(|e| bad_input(e.to_string()))?;
-            writer.write_metadata(&m).map_err(mcap_err)?;
-        }
-    }
-    writer.finish().map_err(mcap_err)?;
-    Ok((copied, scenes))
+    read?;
+    view.writer.finish().map_err(mcap_err)?;
+    Ok((view.copied, view.scenes))
 }

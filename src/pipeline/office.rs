@@ -6,7 +6,7 @@
 //!   search), annotate the demonstrations with its states, MaxEnt IRL on (learned RM × cells)
 //!   with `δ_r(u, o) = w_uᵀ L(o)`.
 //! - **MaxEnt**: the same MaxEnt IRL on cells only (one-state machine), reward `wᵀ L(o)`.
-//! - **Apprenticeship**: projection method on the nine label features.
+//! - **Apprenticeship**: projection method on the label features (one per letter, and none).
 //!
 //! The policy evaluated at each step is the greedy policy of discounted value iteration on
 //! the learned reward over the algorithm's own state space (for SMIRL the learned product),

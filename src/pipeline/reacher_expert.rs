@@ -134,7 +134,7 @@ impl ExpertPolicy {
     /// Wraps a trained actor (head: mean and log-std per action) for `task`; the actor's input
     /// must be the task's product observation.
     pub fn new(task: ReacherTask, actor: Mlp, info: PolicyInfo) -> Result<Self, PolicyFileError> {
-        let obs_dim = OBS_DIM + rm_states(task)?;
+        let obs_dim = OBS_DIM + rm_states(task.clone())?;
         let arch = actor.arch();
         let expected = MlpArch::new(obs_dim, &hidden_of(&arch), 2 * ACT_DIM);
         if arch != expected {
@@ -155,7 +155,7 @@ impl ExpertPolicy {
     }
 
     pub fn task(&self) -> ReacherTask {
-        self.task
+        self.task.clone()
     }
     /// Product observation size (17 + machine states).
     pub fn obs_dim(&self) -> usize {
@@ -231,7 +231,7 @@ impl ExpertPolicy {
                 problem: e.to_string(),
             })
         })?;
-        let expected = MlpArch::new(OBS_DIM + rm_states(task)?, hidden, 2 * ACT_DIM);
+        let expected = MlpArch::new(OBS_DIM + rm_states(task.clone())?, hidden, 2 * ACT_DIM);
         let mut actor = Mlp::new(&expected, &mut ChaCha8Rng::seed_from_u64(0));
         if let Err(found) = actor.read_into(&mut r).map_err(codec)? {
             return Err(PolicyFileError::Architecture {
@@ -258,19 +258,43 @@ fn hidden_of(arch: &MlpArch) -> Vec<usize> {
     arch.sizes[1..arch.sizes.len() - 1].to_vec()
 }
 
-/// The committed expert of `task`, built into the binary (`experiments/experts/cache`).
+/// The committed expert of a shipped task, built into the binary
+/// (`experiments/experts/cache`); a task file has none (it is never given the expert of a
+/// shipped task of the same name).
 pub fn committed_expert(
     task: ReacherTask,
     hidden: &[usize],
 ) -> Result<ExpertPolicy, PolicyFileError> {
     let name = format!("experiments/experts/cache/expert_{task}.policy (built in)");
-    let bytes = crate::assets::expert_policy(task.name()).unwrap_or_default();
+    let bytes = if task.is_shipped() {
+        crate::assets::expert_policy(task.name()).unwrap_or_default()
+    } else {
+        &[]
+    };
     ExpertPolicy::from_bytes(bytes, &name, task, hidden)
 }
 
-/// The cached policy file of `task`'s expert in `cache_dir`.
+/// The cached policy file of `task`'s expert in `cache_dir`: `expert_<name>.policy` for a
+/// shipped task, `expert_<name>-<content hash>.policy` for a task file, so that a changed
+/// task file, scene or machine never finds the expert of its former content.
 pub fn expert_cache_path(cache_dir: &Path, task: ReacherTask) -> PathBuf {
-    cache_dir.join(format!("expert_{}.policy", task.name()))
+    if task.is_shipped() {
+        cache_dir.join(format!("expert_{}.policy", task.name()))
+    } else {
+        let hash = &task.task().content_hash[..16];
+        cache_dir.join(format!("expert_{}-{hash}.policy", task.name()))
+    }
+}
+
+/// Where the experts of a task file are cached by default: `experts/` beside the task file
+/// (`None` for a shipped task, whose experts are committed).
+pub fn default_expert_cache(task: &ReacherTask) -> Option<PathBuf> {
+    (!task.is_shipped()).then(|| {
+        Path::new(&task.task().source)
+            .parent()
+            .unwrap_or(Path::new(""))
+            .join("experts")
+    })
 }
 
 /// The product environment with a shared flag telling whether its last episode reached the
@@ -314,7 +338,7 @@ fn product_env(
     shaping_scale: f64,
     gamma: f64,
 ) -> Result<ProductEnv<ReacherDelivery, SubgoalPotential>, ExpertError> {
-    task_env(task, env.clone(), shaping_scale, gamma).map_err(|e| ExpertError::Task {
+    task_env(task.clone(), env.clone(), shaping_scale, gamma).map_err(|e| ExpertError::Task {
         task: task.name().into(),
         problem: e.to_string(),
     })
@@ -337,7 +361,7 @@ pub fn train_task_expert(
     let success = Rc::new(Cell::new(false));
     let mut env = SuccessFlag {
         env: product_env(
-            task,
+            task.clone(),
             &config.env,
             config.shaping_scale,
             config.sac.gamma as f64,
@@ -365,7 +389,7 @@ pub fn train_task_expert(
         env: config.env.clone(),
         git_commit: crate::GIT_COMMIT.to_string(),
     };
-    let policy = ExpertPolicy::new(task, outcome.trainer.agent.actor.clone(), info)?;
+    let policy = ExpertPolicy::new(task.clone(), outcome.trainer.agent.actor.clone(), info)?;
     Ok((policy, outcome))
 }
 
@@ -675,7 +699,7 @@ pub fn demo_log_header(
         "policy": "SAC expert, stochastic actions",
         "vocabulary": VOCABULARY,
     });
-    let mut header = RunHeader::reacher_shipped(policy.task().name(), seed, config);
+    let mut header = RunHeader::reacher_shipped(policy.task().id(), seed, config);
     let rm = policy.task().perfect_rm().map_err(|e| ExpertError::Task {
         task: policy.task().name().into(),
         problem: e.to_string(),
@@ -698,7 +722,7 @@ pub fn train_log_header(
         "expert_config": config,
         "vocabulary": VOCABULARY,
     });
-    let mut header = RunHeader::reacher_shipped(task.name(), seed, json);
+    let mut header = RunHeader::reacher_shipped(task.id(), seed, json);
     let rm = task.perfect_rm().map_err(|e| ExpertError::Task {
         task: task.name().into(),
         problem: e.to_string(),

@@ -18,7 +18,7 @@ mod config;
 mod episode;
 mod trainer;
 
-pub use agent::{ActMode, ActWorkspace, SacAgent, UpdateStats};
+pub use agent::{draw_noise, ActMode, ActWorkspace, SacAgent, UpdateStats};
 pub(crate) use config::{deserialize_table, load_toml, parse_table};
 pub use config::{ConfigError, SacConfig};
 pub use episode::{EpisodeSummary, RolloutStep};

@@ -36,6 +36,7 @@
 use super::formula::Formula;
 use super::labels::Vocabulary;
 use super::machine::{RewardMachine, RmError, Transition};
+use crate::quoted;
 use std::fmt::Write as _;
 use std::io;
 use std::path::Path;
@@ -122,7 +123,8 @@ pub fn parse_rm(text: &str, source: &str) -> Result<RewardMachine, RmFileError> 
             return Err(syntax(
                 line_no,
                 format!(
-                    "expected a header 'key: value' (vocabulary, states, initial, terminal, failure) or a transition '(from, to, 'formula', reward)', found \"{line}\""
+                    "expected a header 'key: value' (vocabulary, states, initial, terminal, failure) or a transition '(from, to, 'formula', reward)', found \"{}\"",
+                    quoted::text(line)
                 ),
             ));
         };
@@ -140,7 +142,7 @@ pub fn parse_rm(text: &str, source: &str) -> Result<RewardMachine, RmFileError> 
                     return Err(duplicate(key, h.line));
                 }
                 let v = Vocabulary::parse(value)
-                    .map_err(|e| syntax(line_no, format!("bad vocabulary \"{value}\": {e}")))?;
+                    .map_err(|e| syntax(line_no, format!("bad vocabulary \"{}\": {e}", quoted::text(value))))?;
                 vocab = Some(Header {
                     value: v,
                     line: line_no,
@@ -198,7 +200,10 @@ pub fn parse_rm(text: &str, source: &str) -> Result<RewardMachine, RmFileError> 
             other => {
                 return Err(syntax(
                     line_no,
-                    format!("unknown header '{other}:' (expected vocabulary, states, initial, terminal or failure)"),
+                    format!(
+                        "unknown header '{}:' (expected vocabulary, states, initial, terminal or failure)",
+                        quoted::text(other)
+                    ),
                 ))
             }
         }
@@ -369,8 +374,12 @@ fn strip_comment(line: &str) -> &str {
 
 fn parse_state(text: &str) -> Result<usize, String> {
     let t = text.trim();
-    t.parse::<usize>()
-        .map_err(|_| format!("expected a state number (0, 1, 2, ...), found \"{t}\""))
+    t.parse::<usize>().map_err(|_| {
+        format!(
+            "expected a state number (0, 1, 2, ...), found \"{}\"",
+            quoted::text(t)
+        )
+    })
 }
 
 /// `(from, to, 'formula', reward)`.
@@ -379,12 +388,18 @@ fn parse_transition(line: &str, vocab: &Vocabulary) -> Result<Transition, String
     let inner = line
         .strip_prefix('(')
         .and_then(|s| s.strip_suffix(')'))
-        .ok_or_else(|| format!("expected a transition {SHAPE}, found \"{line}\" (missing ')')"))?;
+        .ok_or_else(|| {
+            format!(
+                "expected a transition {SHAPE}, found \"{}\" (missing ')')",
+                quoted::text(line)
+            )
+        })?;
     let (open, close) = match (inner.find('\''), inner.rfind('\'')) {
         (Some(a), Some(b)) if a < b => (a, b),
         _ => {
             return Err(format!(
-                "expected a transition {SHAPE} with the formula in single quotes, found \"{line}\""
+                "expected a transition {SHAPE} with the formula in single quotes, found \"{}\"",
+                quoted::text(line)
             ))
         }
     };
@@ -392,7 +407,7 @@ fn parse_transition(line: &str, vocab: &Vocabulary) -> Result<Transition, String
     if head.len() != 3 || !head[2].is_empty() {
         return Err(format!(
             "expected 'from, to,' before the formula in {SHAPE}, found \"{}\"",
-            inner[..open].trim()
+            quoted::text(inner[..open].trim())
         ));
     }
     let from = parse_state(head[0]).map_err(|e| format!("source: {e}"))?;
@@ -401,13 +416,21 @@ fn parse_transition(line: &str, vocab: &Vocabulary) -> Result<Transition, String
     let formula = Formula::parse(formula_text, vocab).map_err(|e| e.to_string())?;
     let tail = inner[close + 1..].trim();
     let reward_text = tail.strip_prefix(',').map(str::trim).ok_or_else(|| {
-        format!("expected ', reward' after the formula in {SHAPE}, found \"{tail}\"")
+        format!(
+            "expected ', reward' after the formula in {SHAPE}, found \"{}\"",
+            quoted::text(tail)
+        )
     })?;
     let reward: f64 = reward_text
         .parse()
         .ok()
         .filter(|r: &f64| r.is_finite())
-        .ok_or_else(|| format!("expected a finite reward number, found \"{reward_text}\""))?;
+        .ok_or_else(|| {
+            format!(
+                "expected a finite reward number, found \"{}\"",
+                quoted::text(reward_text)
+            )
+        })?;
     Ok(Transition {
         from,
         to,

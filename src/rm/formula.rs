@@ -25,7 +25,7 @@ pub enum Formula {
 
 /// A formula that could not be parsed: what was expected and at which character.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("in formula \"{text}\" at column {column}: {problem}")]
+#[error("in formula \"{}\" at column {column}: {problem}", crate::quoted::text(.text))]
 pub struct FormulaError {
     pub text: String,
     /// 1-based character column in `text`.
@@ -248,7 +248,8 @@ impl Parser<'_> {
                 Err(e) => Err(self.error(e.to_string())),
             },
             Some(c) => Err(self.error(format!(
-                "expected a proposition, '!', '(' or True/False, found '{c}'"
+                "expected a proposition, '!', '(' or True/False, found '{}'",
+                crate::quoted::text(&c.to_string())
             ))),
         }
     }

@@ -70,7 +70,10 @@ impl Vocabulary {
         }
         for (i, &p) in props.iter().enumerate() {
             if !is_prop_char(p) {
-                return Err(format!("'{p}' cannot name a proposition"));
+                return Err(format!(
+                    "'{}' cannot name a proposition",
+                    crate::quoted::text(&p.to_string())
+                ));
             }
             if props[..i].contains(&p) {
                 return Err(format!("proposition '{p}' appears twice"));

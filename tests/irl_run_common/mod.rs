@@ -36,7 +36,7 @@ pub fn tiny_config() -> IrlRunConfig {
 pub fn tiny_rkl_blue_run(config: IrlRunConfig) -> (String, String) {
     let tmp = tempfile::tempdir().unwrap();
     let request = RunRequest {
-        task: ReacherTask::Blue,
+        task: ReacherTask::shipped("blue").unwrap(),
         algos: vec![Algo::Rkl],
         seeds: 1,
         seed: 4,

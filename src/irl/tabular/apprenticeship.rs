@@ -79,7 +79,7 @@ pub fn label_feature(labels: LabelSet, n_props: usize) -> usize {
 /// What one IRL step produced.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ApprenticeshipStep {
-    /// Reward weights over the nine label features.
+    /// Reward weights over the label features (one per letter of the map, then "none").
     pub weights: Vec<f64>,
     /// Greedy action per cell.
     pub policy: Vec<u8>,

@@ -1,7 +1,7 @@
 //! Ground-truth evaluation of Office policies, and the greedy policy for a learned reward.
 //!
 //! A policy is deterministic on the product of the world with a *model* machine (the learned
-//! RM for SMIRL, the one-state machine for the baselines): `action[u * 108 + cell]`. It is
+//! RM for SMIRL, the one-state machine for the baselines): `action[u * n_cells + cell]`. It is
 //! rolled out from the start cell for a fixed horizon without reset (as the paper trains),
 //! with the task's perfect machine tracking the ground truth alongside. The world and the
 //! policy are deterministic, so one rollout is the exact expected return.
@@ -24,7 +24,7 @@ pub struct Evaluation {
 }
 
 /// Rolls out `policy` for `horizon` steps: indexed by model product state (stationary, length
-/// `|U|·108`) or by time and state (length `horizon·|U|·108`, `t`-major).
+/// `|U|·n_cells`) or by time and state (length `horizon·|U|·n_cells`, `t`-major).
 pub fn evaluate_policy(
     world: &OfficeWorld,
     model_rm: &RewardMachine,

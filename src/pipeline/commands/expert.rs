@@ -5,7 +5,7 @@
 use super::usage;
 use crate::env::reacher_task::ReacherTask;
 use crate::log::{LogOptions, RolloutLogger};
-use crate::output::{check_file, OutputDir};
+use crate::output::{check_file, check_not_input, create_parent, OutputDir};
 use crate::pipeline::reacher_expert::{self as rx, ExpertConfig};
 use crate::rl::sac::ActMode;
 use anyhow::{Context, Result};
@@ -25,7 +25,9 @@ pub struct ExpertRequest {
     pub out: Option<PathBuf>,
     /// Start over in an existing run directory (only one this program wrote).
     pub force: bool,
-    /// Policy cache the trained actor is also copied to, as `expert_<task>.policy`.
+    /// Policy cache the trained actor is also copied to, as `expert_<task>.policy`
+    /// (`expert_<task>-<content hash>.policy` for a task file); `None`: none for a shipped
+    /// task, `experts/` beside a task file.
     pub cache: Option<PathBuf>,
     /// Log every N-th training episode to `train.mcap` (0: no training log).
     pub train_log_every: u64,
@@ -43,10 +45,11 @@ fn eval_seed(seed: u64) -> u64 {
 /// written.
 pub fn run(args: ExpertRequest) -> Result<()> {
     let task = args.task;
-    let config = match &args.config {
+    let mut config = match &args.config {
         Some(path) => ExpertConfig::load(path).map_err(usage)?,
         None => ExpertConfig::default(),
     };
+    config.env = task.env_config(&config.env).map_err(usage)?;
     config
         .validate()
         .map_err(|e| usage(format!("expert config: {e}")))?;
@@ -80,7 +83,7 @@ pub fn run(args: ExpertRequest) -> Result<()> {
     bar.set_prefix(format!("expert {task}"));
     let mut train_logger = if args.train_log_every > 0 {
         let path = free_log_path(&out, "train");
-        let header = rx::train_log_header(task, &config, args.seed)?;
+        let header = rx::train_log_header(task.clone(), &config, args.seed)?;
         let options = LogOptions {
             every_nth_episode: args.train_log_every,
             ..LogOptions::default()
@@ -91,7 +94,7 @@ pub fn run(args: ExpertRequest) -> Result<()> {
     };
     let started = std::time::Instant::now();
     let (mut policy, outcome) = rx::train_task_expert(
-        task,
+        task.clone(),
         &config,
         args.seed,
         &checkpoint,
@@ -136,11 +139,15 @@ pub fn run(args: ExpertRequest) -> Result<()> {
 
     let policy_path = out.join("expert.policy");
     policy.save(&policy_path)?;
-    let cached = match &args.cache {
+    let cache = args
+        .cache
+        .clone()
+        .or_else(|| rx::default_expert_cache(&task));
+    let cached = match &cache {
         Some(cache) => {
             std::fs::create_dir_all(cache)
                 .with_context(|| format!("cannot create {}", cache.display()))?;
-            let path = rx::expert_cache_path(cache, task);
+            let path = rx::expert_cache_path(cache, task.clone());
             policy.save(&path)?;
             Some(path)
         }
@@ -151,7 +158,7 @@ pub fn run(args: ExpertRequest) -> Result<()> {
     rx::write_curve_svg(
         &curve_svg,
         &out.join("curve_return.svg"),
-        task,
+        task.clone(),
         &outcome.curve,
         config.progress_window,
     )?;
@@ -165,7 +172,7 @@ pub fn run(args: ExpertRequest) -> Result<()> {
     let mut logger = RolloutLogger::create(&demos_path, header, options)?;
     let demos = rx::generate_demos(
         &mut policy,
-        task,
+        task.clone(),
         &config.env,
         rx::PAPER_DEMOS,
         args.seed,
@@ -173,7 +180,7 @@ pub fn run(args: ExpertRequest) -> Result<()> {
     )?;
     logger.finish()?;
     let demo_successes = demos.iter().filter(|d| d.success).count();
-    let demo_branches = rx::branch_tally(task, &demos)?;
+    let demo_branches = rx::branch_tally(task.clone(), &demos)?;
 
     let summary = rx::ExpertRunSummary {
         task: task.name().into(),
@@ -279,8 +286,12 @@ pub fn redraw_curve(args: CurveRequest) -> Result<()> {
     }
     for path in [&args.out, &args.out_return] {
         check_file(path, args.force).map_err(usage)?;
+        check_not_input(path, &[&args.csv]).map_err(usage)?;
     }
     let curve = crate::pipeline::expert::read_curve(&args.csv, u64::MAX).map_err(usage)?;
+    for path in [&args.out, &args.out_return] {
+        create_parent(path)?;
+    }
     rx::write_curve_svg(&args.out, &args.out_return, args.task, &curve, args.window)?;
     println!(
         "{} and {} ({} episodes)",

@@ -7,6 +7,9 @@
 use super::{usage, UsageError};
 use crate::env::reacher_task::ReacherTask;
 use crate::output::{check_not_protected, OutputDir};
+use crate::pipeline::reacher_expert::default_expert_cache;
+use crate::pipeline::reacher_irl::config::DemoSource;
+use crate::pipeline::reacher_irl::demos::{load_expert, DemoError};
 use crate::pipeline::reacher_irl::job::JobProgress;
 use crate::pipeline::reacher_irl::run::{self, open_run, summary_markdown, JobRecord, PreparedRun};
 use crate::pipeline::reacher_irl::{
@@ -131,16 +134,16 @@ fn pipeline_error(e: PipelineError) -> anyhow::Error {
 /// The run request of `reacher --task` / `reacher prepare` (`None`: `--print-config`
 /// printed the config, nothing to run).
 fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
-    let Some(task) = args.task else {
+    let Some(task) = args.task.clone() else {
         return Err(usage(
-            "nothing to do: give --task <or|sequential|if|composite|blue> or a subcommand (see --help)",
+            "nothing to do: give --task <or|sequential|if|composite|blue|FILE.toml> or a subcommand (see --help)",
         ));
     };
     let algos = match &args.algo {
         Some(s) => Algo::parse_list(s, &Algo::REACHER).map_err(usage)?,
         None => Algo::REACHER_DEFAULT.to_vec(),
     };
-    let config = match (&args.config, args.quick) {
+    let mut config = match (&args.config, args.quick) {
         (Some(path), _) => IrlRunConfig::load(path).map_err(usage)?,
         (None, true) => IrlRunConfig::quick(),
         (None, false) => IrlRunConfig::standard(),
@@ -149,10 +152,14 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
         print!("{}", config.to_toml());
         return Ok(None);
     }
+    config.env = task.env_config(&config.env).map_err(usage)?;
     let out = args
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/reacher-{}", task.name())));
+    if config.demo_source == DemoSource::Expert {
+        train_missing_expert(&task, &config, args.quiet)?;
+    }
     Ok(Some(RunRequest {
         task,
         algos,
@@ -162,6 +169,42 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
         out,
         force: args.force,
     }))
+}
+
+/// Trains the expert of a task file that has none in its cache yet, as `reacher expert
+/// --task FILE` would (default expert config, seed 0, run directory `<cache>/runs/<name>-<hash>`),
+/// so that `reacher --task FILE` runs from a task file alone. A shipped task's committed
+/// expert, or any expert already cached, is used as it is.
+fn train_missing_expert(task: &ReacherTask, config: &IrlRunConfig, quiet: bool) -> Result<()> {
+    match load_expert(task.clone(), config.cache_dir()) {
+        Err(DemoError::Missing { path, .. }) => {
+            let cache = config
+                .cache_dir()
+                .map(Path::to_path_buf)
+                .or_else(|| default_expert_cache(task))
+                .context("a missing expert has a cache directory")?;
+            let hash = &task.task().content_hash[..16];
+            let out = cache.join("runs").join(format!("{}-{hash}", task.name()));
+            eprintln!(
+                "no expert for task {} in {path}: training one first (run directory {})",
+                task.task().source,
+                out.display()
+            );
+            super::expert::run(super::expert::ExpertRequest {
+                task: task.clone(),
+                config: None,
+                seed: 0,
+                resume: out.join("expert.ckpt").is_file(),
+                out: Some(out),
+                force: false,
+                cache: Some(cache),
+                train_log_every: 0,
+                quiet,
+            })
+        }
+        // Other problems (a foreign or stale file) are reported by the run's own checks.
+        _ => Ok(()),
+    }
 }
 
 /// `reacher prepare`: writes `<out>.partial`, renamed to `<out>` when complete, and prints the
@@ -261,8 +304,10 @@ pub fn job(args: JobRequest) -> Result<()> {
         .progress_chars("=> "),
     );
     bar.set_prefix(format!("{algo} seed {seed}"));
+    // One job per process: its rollouts and evaluations may use every thread of the run.
+    let threads = run.config.threads;
     let (record, ran) = run
-        .run_job(algo, seed, &|p: JobProgress| {
+        .run_job(algo, seed, &|| threads, &|p: JobProgress| {
             bar.set_position(p.env_steps);
             bar.set_message(format!(
                 "iter {}/{} success {:.2}",
@@ -321,7 +366,7 @@ pub fn run(args: IrlRequest) -> Result<()> {
     let Some(request) = request(&args)? else {
         return Ok(());
     };
-    let (task, out) = (request.task, request.out.clone());
+    let (task, out) = (request.task.clone(), request.out.clone());
     let multi = MultiProgress::new();
     let phase = if args.quiet {
         ProgressBar::hidden()

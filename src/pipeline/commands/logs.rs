@@ -1,13 +1,13 @@
 //! The rollout-log commands of `reacher`: `replay`, `render`, `foxglove`, `demo` and
-//! `learn-rm`. Every output file is checked (exists only with `--force`) before any input is
-//! read, so a refused command writes nothing.
+//! `learn-rm`. Every output file is checked (exists only with `--force`, never one of the
+//! inputs) before any input is read, so a refused command writes nothing.
 
 use super::{usage, UsageError};
 use crate::env::reacher::ReacherConfig;
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::log::demo::{log_scripted_demos, DemoSpec};
 use crate::log::{read_log, LogOptions, RolloutLog};
-use crate::output::check_file;
+use crate::output::{check_file, check_not_input, create_parent};
 use crate::pipeline::offline_rm::{compare, traces_from_files, OfflineRm};
 use crate::pipeline::render::{render_episode, write_png, RenderOptions};
 use crate::rm::lrm::{LrmConfig, MAX_SEARCH_STEPS, MAX_STATES};
@@ -87,9 +87,11 @@ pub fn render(args: RenderRequest) -> Result<()> {
         .validate()
         .map_err(|problem| usage(format!("--size: {problem}")))?;
     check_file(&args.out, args.force).map_err(usage)?;
+    check_not_input(&args.out, &[&args.file]).map_err(usage)?;
     let log = read_log(&args.file)?;
     check_partial(&log, args.allow_partial)?;
     let picture = render_episode(&log, args.episode, &options)?;
+    create_parent(&args.out)?;
     write_png(&args.out, &picture)?;
     let touches: Vec<String> = picture
         .touches
@@ -116,6 +118,7 @@ pub fn render(args: RenderRequest) -> Result<()> {
 /// `reacher foxglove FILE --out VIEW`: writes a copy of the log with a Foxglove 3D scene.
 pub fn foxglove(file: &Path, out: &Path, force: bool, allow_partial: bool) -> Result<()> {
     check_file(out, force).map_err(usage)?;
+    check_not_input(out, &[file]).map_err(usage)?;
     let s = crate::pipeline::foxglove_scene::export_scene(file, out, allow_partial)?;
     println!(
         "wrote {}: {} messages of the log, {} scene states of {} episodes (/scene, /tf); open it in Foxglove and add a 3D panel",
@@ -171,8 +174,15 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
     }
     let txt = args.out.join("learned_rm.txt");
     let dot = args.out.join("learned_rm.dot");
+    let inputs: Vec<&Path> = args
+        .files
+        .iter()
+        .chain(&args.compare)
+        .map(PathBuf::as_path)
+        .collect();
     for path in [&txt, &dot] {
         check_file(path, args.force).map_err(usage)?;
+        check_not_input(path, &inputs).map_err(usage)?;
     }
     let reference = match &args.compare {
         Some(path) => Some((
@@ -215,6 +225,7 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
         learned.stats.search_states,
         learned.cost
     );
+    create_parent(&txt)?;
     crate::rm::format::save_rm(&txt, &learned.rm)
         .with_context(|| format!("cannot write {}", txt.display()))?;
     crate::atomic_file::write_atomic(&dot, crate::rm::dot::to_dot(&learned.rm).as_bytes())
@@ -266,6 +277,9 @@ pub const MAX_DEMO_EPISODES: u64 = 10_000;
 /// `reacher demo`: logs scripted demonstrations (a ball sequence) to an MCAP file.
 pub fn demo(args: DemoRequest) -> Result<()> {
     // Every argument is checked before the log file is created.
+    args.task
+        .parse::<crate::env::reacher_task::ReacherTask>()
+        .map_err(|e| usage(format!("--task: {e}")))?;
     if !(1..=MAX_DEMO_EPISODES).contains(&args.episodes) {
         return Err(usage(format!(
             "--episodes must be in 1..={MAX_DEMO_EPISODES}"
@@ -298,6 +312,7 @@ pub fn demo(args: DemoRequest) -> Result<()> {
         observations: args.observations,
         ..LogOptions::default()
     };
+    create_parent(&args.out)?;
     let s = log_scripted_demos(&args.out, &spec, options)?;
     println!(
         "wrote {}: {} episodes, {} steps, {} bytes ({:.1} B/step)",

@@ -11,8 +11,8 @@ use crate::env::reacher_task::{ReacherTask, SubgoalPotential};
 use crate::env::ContinuousEnv;
 use crate::log::{LogError, RolloutLogger};
 use crate::pipeline::reacher_expert::{
-    committed_expert, expert_cache_path, generate_demos_from, record_episode, Demo, ExpertPolicy,
-    RecordError,
+    committed_expert, default_expert_cache, expert_cache_path, generate_demos_from, record_episode,
+    Demo, ExpertPolicy, RecordError,
 };
 use crate::rl::sac::episode_seed;
 use crate::rm::LabelSet;
@@ -26,6 +26,9 @@ pub enum DemoError {
     /// Bad input: a missing, foreign or stale expert cache file.
     #[error("expert cache {path}: {problem}")]
     Cache { path: String, problem: String },
+    /// No expert in the cache yet (`reacher --task FILE` trains one).
+    #[error("expert cache {path}: {problem}")]
+    Missing { path: String, problem: String },
     #[error("demonstrations: {0}")]
     Run(String),
     #[error(transparent)]
@@ -33,19 +36,21 @@ pub enum DemoError {
 }
 
 /// Loads the cached expert of `task` from `cache_dir`, or with `None` the committed one built
-/// into the binary (never trains here: run `reacher expert --task <task>` for that). A file
-/// of another task, architecture or format version is refused.
+/// into the binary for a shipped task and the one in [`default_expert_cache`] for a task file
+/// (never trains here: run `reacher expert --task <task>` for that). A file of another task,
+/// architecture or format version is refused.
 pub fn load_expert(task: ReacherTask, cache_dir: Option<&Path>) -> Result<ExpertPolicy, DemoError> {
     let hidden = crate::rl::sac::SacConfig::expert().hidden;
-    let Some(cache_dir) = cache_dir else {
-        return committed_expert(task, &hidden).map_err(|e| DemoError::Cache {
+    let default_cache = default_expert_cache(&task);
+    let Some(cache_dir) = cache_dir.or(default_cache.as_deref()) else {
+        return committed_expert(task.clone(), &hidden).map_err(|e| DemoError::Cache {
             path: "experiments/experts/cache (built in)".into(),
             problem: e.to_string(),
         });
     };
-    let path = expert_cache_path(cache_dir, task);
+    let path = expert_cache_path(cache_dir, task.clone());
     if !path.exists() {
-        return Err(DemoError::Cache {
+        return Err(DemoError::Missing {
             path: path.display().to_string(),
             problem: format!(
                 "no cached expert for task '{task}' (train it with `reacher expert --task \

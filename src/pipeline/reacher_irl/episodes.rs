@@ -6,24 +6,38 @@
 //! with the rollouts, not in any of this.
 
 use super::evaluation::JobWatch;
+use super::lockstep::{play_lockstep, Keep};
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherDelivery, OBS_DIM};
-use crate::env::reacher_task::{Branch, CancelBranch, TaskProgress};
+use crate::env::reacher_task::{Branch, CancelBranch, ProgressTracker, TaskProgress};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::irl::smirl::FeatureMap;
-use crate::log::RolloutLogger;
+use crate::log::writer::EpisodeStartRecord;
+use crate::log::{RolloutLogger, StepRecord};
 use crate::pipeline::training_log::{ReacherView, TrainingLog};
-use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer, TrainingObserver};
+use crate::rl::sac::{
+    draw_noise, episode_seed, ActMode, RewardFn, SacAgent, SacTrainer, TrainingObserver,
+};
 use crate::rm::{LabelSet, RewardMachine};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use std::sync::Arc;
 
 /// The environment an IRL job's SAC acts in: ReacherDelivery itself (the baselines) or its
 /// product with the learned machine (SMIRL: observation ⊕ one-hot learned state).
-pub trait JobEnv: ContinuousEnv + ReacherView {
+pub trait JobEnv: ContinuousEnv + ReacherView + Send {
     /// The learned machine's current state (SMIRL's product), `None` for the plain
     /// environment.
     fn learned_state(&self) -> Option<usize>;
+
+    /// A new environment of the same model and configuration, for playing episodes side by
+    /// side (`super::lockstep`); `None` when it cannot be made.
+    fn fresh(&self) -> Option<Self>
+    where
+        Self: Sized;
+
+    /// Every episode runs to the time limit (nothing in the environment ends one earlier).
+    fn ends_only_at_time_limit(&self) -> bool;
 
     /// One step, with ReacherDelivery's own (distance) reward beside the step the agent sees
     /// (the product's step reward is its machine's).
@@ -39,6 +53,15 @@ impl JobEnv for ReacherDelivery {
         None
     }
 
+    fn fresh(&self) -> Option<Self> {
+        ReacherDelivery::with_model(Arc::clone(self.model()), self.config().clone()).ok()
+    }
+
+    fn ends_only_at_time_limit(&self) -> bool {
+        // ReacherDelivery's step never sets `terminated`.
+        true
+    }
+
     fn step_with_env_reward(
         &mut self,
         action: &[f32],
@@ -51,6 +74,15 @@ impl JobEnv for ReacherDelivery {
 impl JobEnv for ProductEnv<ReacherDelivery> {
     fn learned_state(&self) -> Option<usize> {
         Some(self.rm_state())
+    }
+
+    fn fresh(&self) -> Option<Self> {
+        None
+    }
+
+    fn ends_only_at_time_limit(&self) -> bool {
+        // The machine ends an episode in a terminal or failure state.
+        false
     }
 
     fn step_with_env_reward(
@@ -109,6 +141,333 @@ pub struct EpisodeSpec<'p> {
     pub phase: &'p str,
 }
 
+/// Where an episode's log records go: straight into the job's logger (one episode at a time),
+/// into a [`RecordedEpisode`] (episodes played in lockstep, written in order afterwards), or
+/// nowhere.
+pub trait EpisodeLog {
+    /// The episode starts in `env`, just reset with `seed`.
+    fn begin(
+        &mut self,
+        env: &ReacherDelivery,
+        seed: u64,
+        phase: &str,
+        rm_state: Option<usize>,
+        obs: &[f32],
+    ) -> Result<(), String>;
+    /// A step of `env` (state read after it).
+    fn step(
+        &mut self,
+        env: &ReacherDelivery,
+        action: &[f32],
+        step: &EnvStep,
+        rm: Option<(usize, f64)>,
+        obs: &[f32],
+    ) -> Result<(), String>;
+    fn end(&mut self, success: bool) -> Result<(), String>;
+}
+
+/// No log.
+pub struct NoLog;
+
+impl EpisodeLog for NoLog {
+    fn begin(
+        &mut self,
+        _: &ReacherDelivery,
+        _: u64,
+        _: &str,
+        _: Option<usize>,
+        _: &[f32],
+    ) -> Result<(), String> {
+        Ok(())
+    }
+    fn step(
+        &mut self,
+        _: &ReacherDelivery,
+        _: &[f32],
+        _: &EnvStep,
+        _: Option<(usize, f64)>,
+        _: &[f32],
+    ) -> Result<(), String> {
+        Ok(())
+    }
+    fn end(&mut self, _: bool) -> Result<(), String> {
+        Ok(())
+    }
+}
+
+impl EpisodeLog for Option<&mut RolloutLogger> {
+    fn begin(
+        &mut self,
+        env: &ReacherDelivery,
+        seed: u64,
+        phase: &str,
+        rm_state: Option<usize>,
+        obs: &[f32],
+    ) -> Result<(), String> {
+        match self {
+            Some(l) => l
+                .begin_reacher_episode(env, seed, phase, rm_state, obs)
+                .map(|_| ())
+                .map_err(|e| e.to_string()),
+            None => Ok(()),
+        }
+    }
+
+    fn step(
+        &mut self,
+        env: &ReacherDelivery,
+        action: &[f32],
+        step: &EnvStep,
+        rm: Option<(usize, f64)>,
+        obs: &[f32],
+    ) -> Result<(), String> {
+        match self {
+            Some(l) => l
+                .reacher_step(env, action, step, rm, obs)
+                .map_err(|e| e.to_string()),
+            None => Ok(()),
+        }
+    }
+
+    fn end(&mut self, success: bool) -> Result<(), String> {
+        match self {
+            Some(l) => l.end_episode(success).map_err(|e| e.to_string()),
+            None => Ok(()),
+        }
+    }
+}
+
+/// An episode's log records kept in memory, as [`RolloutLogger::begin_reacher_episode`],
+/// [`RolloutLogger::reacher_step`] and [`RolloutLogger::end_episode`] would have received
+/// them; [`RecordedEpisode::write_to`] hands them to a logger.
+#[derive(Clone, Debug, Default)]
+pub struct RecordedEpisode {
+    seed: u64,
+    phase: String,
+    balls: Vec<f64>,
+    cancel_step: Option<usize>,
+    start_labels: LabelSet,
+    start_rm: Option<usize>,
+    nq: usize,
+    nv: usize,
+    /// The start's state and observation, then every step's, one after the other.
+    qpos: Vec<f64>,
+    qvel: Vec<f64>,
+    obs: Vec<f32>,
+    actions: Vec<f32>,
+    steps: Vec<(EnvStep, Option<(usize, f64)>)>,
+    success: Option<bool>,
+}
+
+impl RecordedEpisode {
+    /// Writes the episode into `logger`, as if it had been logged while played.
+    pub fn write_to(&self, logger: &mut RolloutLogger) -> Result<(), String> {
+        let (nq, nv) = (self.nq, self.nv);
+        let obs_dim = self.obs.len() / (self.steps.len() + 1);
+        let act_dim = self.actions.len() / self.steps.len().max(1);
+        logger
+            .begin_episode(&EpisodeStartRecord {
+                seed: self.seed,
+                phase: &self.phase,
+                qpos: &self.qpos[..nq],
+                qvel: &self.qvel[..nv],
+                balls: &self.balls,
+                cancel_step: self.cancel_step,
+                labels: self.start_labels,
+                rm_state: self.start_rm,
+                obs: &self.obs[..obs_dim],
+            })
+            .map_err(|e| e.to_string())?;
+        for (t, (step, rm)) in self.steps.iter().enumerate() {
+            let k = t + 1;
+            logger
+                .step(&StepRecord {
+                    action: &self.actions[t * act_dim..k * act_dim],
+                    reward: step.reward,
+                    labels: step.labels,
+                    rm: *rm,
+                    qpos: &self.qpos[k * nq..(k + 1) * nq],
+                    qvel: &self.qvel[k * nv..(k + 1) * nv],
+                    obs: &self.obs[k * obs_dim..(k + 1) * obs_dim],
+                    terminated: step.terminated,
+                    truncated: step.truncated,
+                })
+                .map_err(|e| e.to_string())?;
+        }
+        match self.success {
+            Some(success) => logger.end_episode(success).map_err(|e| e.to_string()),
+            None => Ok(()),
+        }
+    }
+}
+
+impl EpisodeLog for RecordedEpisode {
+    fn begin(
+        &mut self,
+        env: &ReacherDelivery,
+        seed: u64,
+        phase: &str,
+        rm_state: Option<usize>,
+        obs: &[f32],
+    ) -> Result<(), String> {
+        *self = RecordedEpisode {
+            seed,
+            phase: phase.into(),
+            balls: env.balls().iter().flatten().copied().collect(),
+            cancel_step: env.cancel_step(),
+            start_labels: env.labels(),
+            start_rm: rm_state,
+            nq: env.qpos().len(),
+            nv: env.qvel().len(),
+            qpos: env.qpos().to_vec(),
+            qvel: env.qvel().to_vec(),
+            obs: obs.to_vec(),
+            ..RecordedEpisode::default()
+        };
+        Ok(())
+    }
+
+    fn step(
+        &mut self,
+        env: &ReacherDelivery,
+        action: &[f32],
+        step: &EnvStep,
+        rm: Option<(usize, f64)>,
+        obs: &[f32],
+    ) -> Result<(), String> {
+        self.qpos.extend_from_slice(env.qpos());
+        self.qvel.extend_from_slice(env.qvel());
+        self.obs.extend_from_slice(obs);
+        self.actions.extend_from_slice(action);
+        self.steps.push((*step, rm));
+        Ok(())
+    }
+
+    fn end(&mut self, success: bool) -> Result<(), String> {
+        self.success = Some(success);
+        Ok(())
+    }
+}
+
+/// One episode being played, step by step: the ground truth tracked on the labels, the log
+/// records written as it goes. [`play_episode`] plays one to its end; lockstep rollouts
+/// (`super::lockstep`) play many side by side.
+pub struct EpisodePlay<'t, 'p> {
+    task: &'t GroundTruthTask<'t>,
+    spec: EpisodeSpec<'p>,
+    branches: Option<&'t CancelBranch>,
+    up: usize,
+    tracker: ProgressTracker,
+    cancelled: bool,
+    out: EpisodeOutcome,
+    steps: usize,
+    max_steps: usize,
+    ended: bool,
+}
+
+impl<'t, 'p> EpisodePlay<'t, 'p> {
+    /// Resets `env` with the spec's seed (first observation into `obs`) and starts the log.
+    pub fn begin<E: JobEnv>(
+        env: &mut E,
+        task: &'t GroundTruthTask<'t>,
+        spec: EpisodeSpec<'p>,
+        obs: &mut [f32],
+        log: &mut dyn EpisodeLog,
+    ) -> Result<EpisodePlay<'t, 'p>, String> {
+        let perfect = task.perfect;
+        let branches = task.branches.as_ref().filter(|_| spec.with_branch);
+        env.reset(spec.reset_seed, obs);
+        let up = perfect.initial();
+        log.begin(
+            env.reacher(),
+            spec.reset_seed,
+            spec.phase,
+            Some(up),
+            &obs[..OBS_DIM],
+        )?;
+        let max_steps = env.reacher().config().max_steps;
+        Ok(EpisodePlay {
+            task,
+            spec,
+            branches,
+            up,
+            tracker: task.progress.start(up),
+            cancelled: branches.is_some_and(|b| b.is_cancelled(up)),
+            out: EpisodeOutcome::default(),
+            steps: 0,
+            max_steps,
+            ended: max_steps == 0,
+        })
+    }
+
+    /// The episode has ended (time limit, termination, or decided when the spec says so).
+    pub fn ended(&self) -> bool {
+        self.ended
+    }
+
+    /// Steps played so far.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// Plays `action` from observation `obs`; the next observation goes into `next`.
+    /// `on_step(inner o_t, inner o_{t+1}, learned u_t)` sees the step.
+    pub fn step<E: JobEnv>(
+        &mut self,
+        env: &mut E,
+        action: &[f32],
+        obs: &[f32],
+        next: &mut [f32],
+        log: &mut dyn EpisodeLog,
+        mut on_step: impl FnMut(&[f32], &[f32], Option<usize>),
+    ) -> Result<(), String> {
+        let perfect = self.task.perfect;
+        let u_before = env.learned_state();
+        let (step, env_reward) = env
+            .step_with_env_reward(action, next)
+            .map_err(|e| e.to_string())?;
+        let (u_next, r) = perfect.step(self.up, step.labels);
+        (self.task.progress).track(&mut self.tracker, self.up, u_next, step.labels);
+        self.up = u_next;
+        self.cancelled |= self.branches.is_some_and(|b| b.is_cancelled(u_next));
+        self.out.task_return += r;
+        self.out.env_return += env_reward;
+        self.out.success |= perfect.is_terminal(u_next) && !perfect.is_failure(u_next);
+        let inner = env.inner_step(&step);
+        log.step(
+            env.reacher(),
+            action,
+            &inner,
+            Some((u_next, r)),
+            &next[..OBS_DIM],
+        )?;
+        on_step(&obs[..OBS_DIM], &next[..OBS_DIM], u_before);
+        self.steps += 1;
+        let decided = perfect.is_terminal(u_next) || perfect.is_failure(u_next);
+        self.ended = step.terminated
+            || step.truncated
+            || (self.spec.stop_when_decided && decided)
+            || self.steps >= self.max_steps;
+        Ok(())
+    }
+
+    /// Ends the log and reports the outcome.
+    pub fn finish(self, log: &mut dyn EpisodeLog) -> Result<EpisodeOutcome, String> {
+        log.end(self.out.success)?;
+        let mut out = self.out;
+        out.progress = self.tracker.fraction();
+        out.final_ball = self.tracker.touched_final_ball();
+        out.branch = self.branches.map(|_| {
+            if self.cancelled {
+                Branch::Cancelled
+            } else {
+                Branch::Normal
+            }
+        });
+        Ok(out)
+    }
+}
+
 /// Plays one episode. The perfect machine is tracked on the labels for the ground truth;
 /// `on_step(inner o_t, inner o_{t+1}, learned u_t)` sees every step.
 pub fn play_episode<E: JobEnv>(
@@ -117,74 +476,20 @@ pub fn play_episode<E: JobEnv>(
     task: &GroundTruthTask<'_>,
     spec: EpisodeSpec<'_>,
     rng: &mut ChaCha8Rng,
-    mut logger: Option<&mut RolloutLogger>,
+    logger: Option<&mut RolloutLogger>,
     mut on_step: impl FnMut(&[f32], &[f32], Option<usize>),
 ) -> Result<EpisodeOutcome, String> {
-    let perfect = task.perfect;
-    let branches = task.branches.as_ref().filter(|_| spec.with_branch);
+    let mut log = logger;
     let mut obs = vec![0.0f32; env.obs_dim()];
     let mut next = vec![0.0f32; env.obs_dim()];
     let mut action = vec![0.0f32; env.act_dim()];
-    env.reset(spec.reset_seed, &mut obs);
-    let mut up = perfect.initial();
-    let mut out = EpisodeOutcome::default();
-    let mut tracker = task.progress.start(up);
-    let mut cancelled = branches.is_some_and(|b| b.is_cancelled(up));
-    if let Some(l) = logger.as_mut() {
-        l.begin_reacher_episode(
-            env.reacher(),
-            spec.reset_seed,
-            spec.phase,
-            Some(up),
-            &obs[..OBS_DIM],
-        )
-        .map_err(|e| e.to_string())?;
-    }
-    let max_steps = env.reacher().config().max_steps;
-    for _ in 0..max_steps {
+    let mut play = EpisodePlay::begin(env, task, spec, &mut obs, &mut log)?;
+    while !play.ended() {
         agent.act(&obs, spec.mode, rng, &mut action);
-        let u_before = env.learned_state();
-        let (step, env_reward) = env
-            .step_with_env_reward(&action, &mut next)
-            .map_err(|e| e.to_string())?;
-        let (u_next, r) = perfect.step(up, step.labels);
-        task.progress.track(&mut tracker, up, u_next, step.labels);
-        up = u_next;
-        cancelled |= branches.is_some_and(|b| b.is_cancelled(up));
-        out.task_return += r;
-        out.env_return += env_reward;
-        out.success |= perfect.is_terminal(up) && !perfect.is_failure(up);
-        if let Some(l) = logger.as_mut() {
-            let inner = env.inner_step(&step);
-            l.reacher_step(
-                env.reacher(),
-                &action,
-                &inner,
-                Some((up, r)),
-                &next[..OBS_DIM],
-            )
-            .map_err(|e| e.to_string())?;
-        }
-        on_step(&obs[..OBS_DIM], &next[..OBS_DIM], u_before);
+        play.step(env, &action, &obs, &mut next, &mut log, &mut on_step)?;
         std::mem::swap(&mut obs, &mut next);
-        let decided = perfect.is_terminal(up) || perfect.is_failure(up);
-        if step.terminated || step.truncated || (spec.stop_when_decided && decided) {
-            break;
-        }
     }
-    if let Some(l) = logger.as_mut() {
-        l.end_episode(out.success).map_err(|e| e.to_string())?;
-    }
-    out.progress = tracker.fraction();
-    out.final_ball = tracker.touched_final_ball();
-    out.branch = branches.map(|_| {
-        if cancelled {
-            Branch::Cancelled
-        } else {
-            Branch::Normal
-        }
-    });
-    Ok(out)
+    play.finish(&mut log)
 }
 
 /// Phase 1 of an IRL iteration: `steps` more SAC environment steps on `reward` (the reward the
@@ -245,6 +550,14 @@ impl AgentBatch {
         self.obs.len() / OBS_DIM
     }
 
+    /// Appends `other`'s trajectories after this batch's.
+    pub fn append(&mut self, other: AgentBatch) {
+        self.obs.extend_from_slice(&other.obs);
+        self.labels_before.extend_from_slice(&other.labels_before);
+        self.states.extend_from_slice(&other.states);
+        self.lengths.extend_from_slice(&other.lengths);
+    }
+
     /// Appends one step: the observations before and after it, and the learned state;
     /// `labelling` reads the labels before the step.
     pub fn push_step(
@@ -282,7 +595,10 @@ impl RolloutStream {
 
     /// Phase 2 of an IRL iteration: `n` episodes to the time limit, each observation with the
     /// learned state its labels are read in (SMIRL), logged under "agent" and shown to the
-    /// watch.
+    /// watch. The episodes are played in lockstep (`super::lockstep`, the watch's plan) when
+    /// every one runs to the time limit, so that the noise each draws is known before play;
+    /// otherwise (SMIRL's product, whose machine can end an episode) one after the other,
+    /// since an episode's noise then starts where the previous episode's ended.
     pub fn collect<E: JobEnv>(
         &mut self,
         agent: &mut SacAgent,
@@ -293,30 +609,52 @@ impl RolloutStream {
         let mut batch = AgentBatch::default();
         let task = GroundTruthTask::of(watch.perfect());
         let labelling = FeatureMap::reacher_labels();
-        for _ in 0..n {
-            let reset_seed = episode_seed(self.seed, self.next);
-            self.next += 1;
-            let spec = EpisodeSpec {
-                mode: ActMode::Sample,
-                reset_seed,
-                stop_when_decided: false,
-                with_branch: false,
-                phase: "agent",
+        let specs: Vec<EpisodeSpec<'_>> = (0..n)
+            .map(|_| {
+                let reset_seed = episode_seed(self.seed, self.next);
+                self.next += 1;
+                EpisodeSpec {
+                    mode: ActMode::Sample,
+                    reset_seed,
+                    stop_when_decided: false,
+                    with_branch: false,
+                    phase: "agent",
+                }
+            })
+            .collect();
+        if env.ends_only_at_time_limit() {
+            let per_episode = env.reacher().config().max_steps * env.act_dim();
+            let mut noise = vec![0.0f32; n * per_episode];
+            draw_noise(&mut self.rng, &mut noise);
+            let keep = Keep {
+                log: watch.logger().is_some(),
+                steps: true,
             };
-            let mut len = 0;
-            play_episode(
-                agent,
-                env,
-                &task,
-                spec,
-                &mut self.rng,
-                watch.logger(),
-                |before, after, u| {
-                    batch.push_step(&labelling, before, after, u);
-                    len += 1;
-                },
-            )?;
-            batch.lengths.push(len);
+            let plan = watch.lockstep();
+            let played = play_lockstep(&agent.actor, env, &task, &specs, Some(&noise), plan, keep)?;
+            for p in played {
+                if let (Some(logger), Some(log)) = (watch.logger(), &p.log) {
+                    log.write_to(logger)?;
+                }
+                batch.append(p.steps.unwrap_or_default());
+            }
+        } else {
+            for spec in specs {
+                let mut len = 0;
+                play_episode(
+                    agent,
+                    env,
+                    &task,
+                    spec,
+                    &mut self.rng,
+                    watch.logger(),
+                    |before, after, u| {
+                        batch.push_step(&labelling, before, after, u);
+                        len += 1;
+                    },
+                )?;
+                batch.lengths.push(len);
+            }
         }
         watch.rollouts(&batch)?;
         Ok(batch)

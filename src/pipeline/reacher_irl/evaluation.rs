@@ -8,6 +8,7 @@
 use super::config::IrlRunConfig;
 use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::job::{JobProgress, MetricsRow};
+use super::lockstep::{play_lockstep, Keep, Lockstep};
 use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
 use crate::env::reacher_task::BranchTally;
 use crate::env::ContinuousEnv;
@@ -117,38 +118,64 @@ impl<'r> GroundTruth<'r> {
         env: &mut E,
         logger: Option<&mut RolloutLogger>,
     ) -> Result<Evaluation, String> {
-        self.evaluate_logged_as(agent, env, logger, "eval")
+        self.evaluate_logged_as(agent, env, logger, "eval", None)
     }
 
-    /// [`GroundTruth::evaluate`], the episodes logged under `phase`.
+    /// [`GroundTruth::evaluate`], the episodes logged under `phase`; played in lockstep by
+    /// `plan` when given and `env` can be copied (the same episodes either way).
     pub fn evaluate_logged_as<E: JobEnv>(
         &self,
         agent: &mut SacAgent,
         env: &mut E,
         mut logger: Option<&mut RolloutLogger>,
         phase: &str,
+        plan: Option<Lockstep<'_>>,
     ) -> Result<Evaluation, String> {
-        let mut rng = ChaCha8Rng::seed_from_u64(self.eval_seed);
-        let (mut succ, mut ret, mut env_ret) = (0.0, 0.0, 0.0);
-        let (mut progress, mut final_ball) = (0.0, 0.0);
-        let mut tally = BranchTally::default();
-        for &reset_seed in &self.eval_seeds {
-            let spec = EpisodeSpec {
+        let specs: Vec<EpisodeSpec<'_>> = (self.eval_seeds.iter())
+            .map(|&reset_seed| EpisodeSpec {
                 mode: ActMode::Mean,
                 reset_seed,
                 stop_when_decided: true,
                 with_branch: true,
                 phase,
-            };
-            let o = play_episode(
-                agent,
-                env,
-                &self.task,
-                spec,
-                &mut rng,
-                logger.as_deref_mut(),
-                |_, _, _| {},
-            )?;
+            })
+            .collect();
+        let mut outcomes = Vec::with_capacity(specs.len());
+        match plan.filter(|_| env.fresh().is_some()) {
+            Some(plan) => {
+                let keep = Keep {
+                    log: logger.is_some(),
+                    steps: false,
+                };
+                let played =
+                    play_lockstep(&agent.actor, env, &self.task, &specs, None, plan, keep)?;
+                for p in played {
+                    if let (Some(logger), Some(log)) = (logger.as_deref_mut(), &p.log) {
+                        log.write_to(logger)?;
+                    }
+                    outcomes.push(p.outcome);
+                }
+            }
+            None => {
+                // The mean action draws no noise.
+                let mut rng = ChaCha8Rng::seed_from_u64(self.eval_seed);
+                for spec in specs {
+                    outcomes.push(play_episode(
+                        agent,
+                        env,
+                        &self.task,
+                        spec,
+                        &mut rng,
+                        logger.as_deref_mut(),
+                        |_, _, _| {},
+                    )?);
+                }
+            }
+        }
+        let (mut succ, mut ret, mut env_ret) = (0.0, 0.0, 0.0);
+        let (mut progress, mut final_ball) = (0.0, 0.0);
+        let mut tally = BranchTally::default();
+        for o in outcomes {
             succ += f64::from(u8::from(o.success));
             progress += o.progress;
             final_ball += f64::from(u8::from(o.final_ball));
@@ -205,6 +232,8 @@ pub struct JobWatch<'r, 'l> {
     /// `expert_support` of the last rollouts, for the next row.
     expert_support: Option<f64>,
     rows: Vec<MetricsRow>,
+    /// How the job plays its many independent episodes (rollouts, evaluations).
+    lockstep: Lockstep<'l>,
 }
 
 impl<'r, 'l> JobWatch<'r, 'l> {
@@ -230,12 +259,26 @@ impl<'r, 'l> JobWatch<'r, 'l> {
             total_env_steps: settings.sac_steps_per_iteration * iterations as u64 + final_steps,
             expert_support: None,
             rows: Vec::with_capacity(iterations + 1),
+            lockstep: Lockstep::single_thread(),
+        }
+    }
+
+    /// The watch with episodes played by `plan` (one thread unless given).
+    pub fn with_lockstep(self, plan: Lockstep<'l>) -> JobWatch<'r, 'l> {
+        JobWatch {
+            lockstep: plan,
+            ..self
         }
     }
 
     /// The task's perfect machine (logged episodes track it).
     pub fn perfect(&self) -> &'r RewardMachine {
         self.perfect
+    }
+
+    /// How the job plays its many independent episodes.
+    pub fn lockstep(&self) -> Lockstep<'l> {
+        self.lockstep
     }
 
     /// The job's rollout log, if it keeps one.
@@ -297,7 +340,13 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         } else {
             self.logger.as_deref_mut()
         };
-        let ev = self.ground_truth.evaluate(agent, env, logger)?;
+        let ev = self.ground_truth.evaluate_logged_as(
+            agent,
+            env,
+            logger,
+            "eval",
+            Some(self.lockstep),
+        )?;
         let facts = update.unwrap_or_default();
         self.rows.push(MetricsRow {
             iteration,
@@ -322,11 +371,6 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         Ok(())
     }
 
-    /// Episodes of one ground-truth evaluation.
-    pub fn evaluation_episodes(&self) -> usize {
-        self.ground_truth.reset_seeds().len()
-    }
-
     /// Judges a candidate of the final-policy phase on the ground truth (episodes logged
     /// under "final"); no metrics row.
     pub fn judge_final<E: JobEnv>(
@@ -336,7 +380,7 @@ impl<'r, 'l> JobWatch<'r, 'l> {
     ) -> Result<Evaluation, String> {
         let logger = self.logger.as_deref_mut();
         self.ground_truth
-            .evaluate_logged_as(agent, env, logger, "final")
+            .evaluate_logged_as(agent, env, logger, "final", Some(self.lockstep))
     }
 
     /// The metrics rows, iteration 0 first.

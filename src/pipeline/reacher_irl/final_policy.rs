@@ -36,6 +36,7 @@
 //! first ball touch, after the cancel, that no demonstration makes after a cancel in the same
 //! learned state ([`SeenAfterEvents`]) — still no ground truth, and nothing in training changes.
 
+use super::config::IrlRunConfig;
 use super::episodes::{play_episode, train_sac, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::evaluation::{Evaluation, JobWatch};
 use crate::env::reacher_task::BranchTally;
@@ -43,6 +44,7 @@ use crate::irl::seen_after_events::SeenAfterEvents;
 use crate::irl::smirl::FeatureMap;
 use crate::log::RolloutLogger;
 use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
+use crate::rm::LabelSet;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -142,6 +144,16 @@ pub struct FinalPhase<'a> {
     /// With `smirl_selection_cut`: what the demonstrations touch after the cancel, per learned
     /// state, where selection episodes stop counting.
     pub selection_cut: Option<&'a SeenAfterEvents>,
+    /// Selection episodes per candidate ([`selection_episodes`]).
+    pub selection_episodes: u64,
+}
+
+/// Selection episodes per candidate: twice `eval_episodes` on every task — as many as the
+/// evaluation of a task with a cancel branch plays (`eval_episodes` per branch). Why not the
+/// evaluation's own count: that count says whether the task's perfect machine has a cancel
+/// branch, and the choice reads no ground truth.
+pub fn selection_episodes(settings: &IrlRunConfig) -> u64 {
+    2 * settings.eval_episodes
 }
 
 /// The stream of the fresh agent's SAC seed within the job's seed.
@@ -163,7 +175,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<FinalPolicy, String> {
     let selection_stream = episode_seed(phase.seed, 0x5e1e_c7ed);
-    let selection_seeds: Vec<u64> = (0..watch.evaluation_episodes() as u64)
+    let selection_seeds: Vec<u64> = (0..phase.selection_episodes)
         .map(|i| episode_seed(selection_stream, i))
         .collect();
     let task = GroundTruthTask::of(watch.perfect());
@@ -321,22 +333,50 @@ fn selection_returns<E: JobEnv, R: ScoredReward>(
         steps.lengths.push(labels.len() - start);
     }
     let r = reward.score(&steps)?;
-    let episodes = selection.seeds.len().max(1) as f64;
-    let full = r.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes;
-    if selection.cut.is_some() && steps.states.len() != labels.len() {
+    selection_returns_of(&r, &steps.states, &labels, &steps.lengths, selection.cut)
+}
+
+/// What the choice reads from recorded selection episodes (concatenated, `lengths` steps
+/// each): the mean over episodes of each one's learned return, and with `cut` the mean of the
+/// same returns counted only up to each episode's first step that `cut` finds unseen
+/// ([`SeenAfterEvents::first_unseen`]). Per step: `rewards`, the learned reward; `states`, the
+/// learned state its labels are read in; `labels`, the labels of its next observation.
+pub fn selection_returns_of(
+    rewards: &[f32],
+    states: &[u32],
+    labels: &[LabelSet],
+    lengths: &[usize],
+    cut: Option<&SeenAfterEvents>,
+) -> Result<(f64, Option<f64>), String> {
+    let steps = lengths.iter().sum::<usize>();
+    if rewards.len() != steps {
+        return Err(format!(
+            "{} learned rewards for {steps} selection steps",
+            rewards.len()
+        ));
+    }
+    if cut.is_some() && states.len() != labels.len() {
         return Err(
             "the selection cut reads learned-machine states, and this agent has none".into(),
         );
     }
-    let cut = selection.cut.map(|seen| {
+    if cut.is_some() && labels.len() != steps {
+        return Err(format!(
+            "{} label sets for {steps} selection steps",
+            labels.len()
+        ));
+    }
+    let episodes = lengths.len().max(1) as f64;
+    let full = rewards.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes;
+    let cut = cut.map(|seen| {
         let mut start = 0;
         let mut sum = 0.0;
-        for &len in &steps.lengths {
+        for &len in lengths {
             let end = start + len;
             let counted = seen
-                .first_unseen(&steps.states[start..end], &labels[start..end])
+                .first_unseen(&states[start..end], &labels[start..end])
                 .unwrap_or(len);
-            sum += r[start..start + counted]
+            sum += rewards[start..start + counted]
                 .iter()
                 .map(|&x| f64::from(x))
                 .sum::<f64>();

@@ -8,6 +8,7 @@ use super::config::IrlRunConfig;
 use super::evaluation::{GroundTruth, JobWatch};
 use super::final_policy::FinalPolicy;
 use super::firl::{self, BaselineJob, Loss};
+use super::lockstep::Lockstep;
 use super::smirl::{self, Features, SmirlJob};
 use super::Algo;
 use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
@@ -258,6 +259,8 @@ pub struct JobInputs<'a> {
     pub expert: &'a ExpertData,
     /// Where the learned reward's parameters are saved at the end (`None`: not saved).
     pub reward_path: Option<&'a Path>,
+    /// How the job plays its many independent episodes (no effect on its results).
+    pub lockstep: Lockstep<'a>,
 }
 
 /// Runs one (algorithm, seed) job: a pure function of its inputs (own seeded RNGs), so the
@@ -301,7 +304,8 @@ pub fn run_job(
         expert_kde,
         logger,
         progress,
-    );
+    )
+    .with_lockstep(inputs.lockstep);
     let baseline = |loss| BaselineJob {
         loss,
         seed,

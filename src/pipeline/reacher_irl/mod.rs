@@ -32,6 +32,7 @@ pub mod evaluation;
 pub mod final_policy;
 pub mod firl;
 pub mod job;
+pub mod lockstep;
 pub mod records;
 pub mod reports;
 pub mod retrain;

@@ -28,7 +28,7 @@ pub(super) fn write_reports(
     wall_secs: Option<f64>,
 ) -> Result<RunSummary, PipelineError> {
     let dir = &run.dir;
-    let task = run.prepared.task;
+    let task = run.prepared.task.clone();
     let mut metrics = CsvTable::new([
         "algo",
         "seed",
@@ -264,7 +264,7 @@ pub(super) fn write_reports(
     let p = &run.prepared;
     write_file(
         &dir.join("summary.md"),
-        &summary_markdown(task, &summaries, p.rm.as_ref()),
+        &summary_markdown(task.clone(), &summaries, p.rm.as_ref()),
     )?;
     let summary = RunSummary {
         out: dir.clone(),

@@ -23,6 +23,7 @@
 use super::config::{DemoPadding, DemoSource, IrlRunConfig, SmirlMachine};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
+use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{
@@ -98,7 +99,7 @@ fn log_header(
 ) -> Result<RunHeader, PipelineError> {
     // Replay reads the environment config from `env` (time limit, cancel schedule).
     let json = serde_json::json!({ "run": what, "env": config.env, "irl_config": config });
-    let mut header = RunHeader::reacher_shipped(task.name(), seed, json);
+    let mut header = RunHeader::reacher_shipped(task.id(), seed, json);
     header.reward_machine = Some(write_rm(perfect));
     Ok(header)
 }
@@ -114,13 +115,14 @@ fn job_stem(algo: Algo, seed: u64) -> String {
 /// demonstrations) the expert cache, which is loaded. Returns the expert and the last seed.
 fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), PipelineError> {
     let RunRequest {
-        task,
+        ref task,
         ref algos,
         seeds,
         seed,
         ref config,
         ..
     } = *request;
+    let task = task.clone();
     let usage = PipelineError::Usage;
     if algos.is_empty() {
         return Err(usage("no algorithm selected".into()));
@@ -141,7 +143,7 @@ fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), Pi
         .map_err(|e| usage(e.to_string()))?;
     let expert = match config.demo_source {
         DemoSource::Expert => Some(load_expert(task, config.cache_dir()).map_err(|e| match e {
-            DemoError::Cache { .. } => usage(e.to_string()),
+            DemoError::Cache { .. } | DemoError::Missing { .. } => usage(e.to_string()),
             other => PipelineError::Run(other.to_string()),
         })?),
         DemoSource::Scripted => None,
@@ -161,12 +163,13 @@ pub fn prepare(
 ) -> Result<Prepared, PipelineError> {
     let started = Instant::now();
     let RunRequest {
-        task,
+        ref task,
         ref algos,
         seed,
         ref config,
         ..
     } = *request;
+    let task = task.clone();
     let (mut expert, last_seed) = check_request(request)?;
     let perfect = task
         .perfect_rm()
@@ -184,15 +187,21 @@ pub fn prepare(
     let demo_log = dir.join("logs/demos.mcap");
     let mut logger = RolloutLogger::create(
         &demo_log,
-        log_header(task, seed, config, "demonstrations", &perfect)?,
+        log_header(task.clone(), seed, config, "demonstrations", &perfect)?,
         LogOptions {
             observations: true,
             ..LogOptions::default()
         },
     )
     .map_err(|e| PipelineError::Run(e.to_string()))?;
-    let all_demos = make_demos(task, config, expert.as_mut(), seed, Some(&mut logger))
-        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let all_demos = make_demos(
+        task.clone(),
+        config,
+        expert.as_mut(),
+        seed,
+        Some(&mut logger),
+    )
+    .map_err(|e| PipelineError::Run(e.to_string()))?;
     logger
         .finish()
         .map_err(|e| PipelineError::Run(e.to_string()))?;
@@ -204,7 +213,7 @@ pub fn prepare(
         )));
     }
     let demo_branches =
-        branch_tally(task, &demos).map_err(|e| PipelineError::Run(e.to_string()))?;
+        branch_tally(task.clone(), &demos).map_err(|e| PipelineError::Run(e.to_string()))?;
     observer.message(&format!(
         "demonstrations: {} of {demos_generated} complete the task ({} source), {} steps{}",
         demos.len(),
@@ -458,10 +467,13 @@ impl PreparedRun {
     /// last its record `jobs/<algo>_seed<S>.json`. A finished job (record present) is not run
     /// again: its record is returned. A job killed halfway left no record; it starts over and
     /// overwrites its own files.
+    /// `threads` says how many threads the job may use at the moment it asks (its rollouts
+    /// and evaluations; the job's results do not depend on it).
     pub fn run_job(
         &self,
         algo: Algo,
         seed: u64,
+        threads: &(dyn Fn() -> usize + Sync),
         progress: &(dyn Fn(JobProgress) + Sync),
     ) -> Result<(JobRecord, bool), String> {
         let record_path = self.record_path(algo, seed);
@@ -475,7 +487,7 @@ impl PreparedRun {
             std::fs::create_dir_all(&sub).map_err(|e| format!("{}: {e}", sub.display()))?;
         }
         let result = run_one(
-            self.prepared.task,
+            self.prepared.task.clone(),
             algo,
             seed,
             &self.config,
@@ -483,6 +495,7 @@ impl PreparedRun {
             self.learned.as_ref(),
             &self.expert,
             &self.dir,
+            threads,
             progress,
         )?;
         let record = JobRecord {
@@ -585,14 +598,23 @@ pub fn run_pipeline(
     );
     let next = AtomicUsize::new(0);
     let failures: Mutex<Vec<Option<String>>> = Mutex::new(jobs.iter().map(|_| None).collect());
+    // The run's threads are shared by the jobs running: a worker with no job left lends its
+    // thread to the others, and a run of fewer jobs than threads gives each the rest.
+    let threads = run.config.threads;
+    let workers = threads.min(jobs.len());
+    let idle = AtomicUsize::new(0);
+    let job_threads = || threads / workers.saturating_sub(idle.load(Ordering::SeqCst)).max(1);
     std::thread::scope(|scope| {
-        for _ in 0..run.config.threads.min(jobs.len()) {
+        for _ in 0..workers {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(&(algo, job_seed)) = jobs.get(i) else {
+                    idle.fetch_add(1, Ordering::SeqCst);
                     break;
                 };
-                match run.run_job(algo, job_seed, &|p| observer.job_progress(i, p)) {
+                match run.run_job(algo, job_seed, &job_threads, &|p| {
+                    observer.job_progress(i, p)
+                }) {
                     Ok((record, _)) => observer.job_done(i, &record),
                     Err(e) => {
                         failures
@@ -636,6 +658,7 @@ fn run_one(
     learned: Option<&RewardMachine>,
     expert: &ExpertData,
     dir: &Path,
+    threads: &(dyn Fn() -> usize + Sync),
     progress: &(dyn Fn(JobProgress) + Sync),
 ) -> Result<JobResult, String> {
     // The algorithm's own schedule, if the config gives it one.
@@ -670,6 +693,10 @@ fn run_one(
         learned_rm: learned,
         expert,
         reward_path: Some(&reward_path),
+        lockstep: Lockstep {
+            batch: LOCKSTEP_BATCH,
+            threads,
+        },
     };
     let result = run_job(&inputs, logger.as_mut(), progress).map_err(|e| e.to_string())?;
     if let Some(l) = logger {

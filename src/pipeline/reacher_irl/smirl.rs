@@ -300,7 +300,7 @@ pub fn coefficients(
 /// one-hot block. With `counterfactual`, a share of each batch is first moved to other learned
 /// states (CRM), so SAC learns every state's values from every step. With `shaping`, plus
 /// γ Φ(u_{t+1}, o_{t+1}) − Φ(u_t, o_t) (Φ = 0 after a terminating step).
-pub(super) struct ProductReward<'a> {
+pub struct ProductReward<'a> {
     model: &'a mut LinearRmReward,
     counterfactual: Option<&'a CounterfactualRm>,
     shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
@@ -311,7 +311,10 @@ pub(super) struct ProductReward<'a> {
 }
 
 impl<'a> ProductReward<'a> {
-    pub(super) fn new(
+    /// The reward of `model` on SAC batches of the product (observation ⊕ one-hot learned
+    /// state ⊕ clock, if any), relabelled by `counterfactual` and shaped by `shaping`
+    /// (Φ, γ) when given.
+    pub fn new(
         model: &'a mut LinearRmReward,
         counterfactual: Option<&'a CounterfactualRm>,
         shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
@@ -576,6 +579,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
             fresh_steps: s.smirl_final_fresh_steps,
             reset_steps: s.smirl_final_reset_steps,
             selection_cut: selection_cut.as_ref(),
+            selection_episodes: final_policy::selection_episodes(s),
         };
         let iterations = s.irl_iterations;
         Some(final_policy::train(

@@ -70,9 +70,12 @@ impl PolicyDraw {
     /// Draws ε ~ N(0, I) from `rng` (column by column) and samples reparameterised actions
     /// from the actor output `head`.
     fn sample(&mut self, head: &DMatrix<f32>, rng: &mut impl Rng) {
-        for e in self.eps.as_mut_slice() {
-            *e = rng.sample(StandardNormal);
-        }
+        draw_noise(rng, self.eps.as_mut_slice());
+        self.apply(head);
+    }
+
+    /// Samples reparameterised actions from `head` with the noise already in `eps`.
+    fn apply(&mut self, head: &DMatrix<f32>) {
         gaussian::sample(
             head,
             &self.eps,
@@ -80,6 +83,15 @@ impl PolicyDraw {
             &mut self.actions,
             &mut self.log_prob,
         );
+    }
+}
+
+/// Fills `eps` with standard-normal noise from `rng`, in order: the draws sampling makes for
+/// `eps.len() / act_dim` actions one after the other, so noise drawn ahead for a whole episode
+/// (lockstep rollouts) is the noise one-at-a-time acting would have drawn.
+pub fn draw_noise(rng: &mut impl Rng, eps: &mut [f32]) {
+    for e in eps {
+        *e = rng.sample(StandardNormal);
     }
 }
 
@@ -130,6 +142,29 @@ impl ActWorkspace {
         match mode {
             ActMode::Mean => gaussian::mean_action(head, &mut self.draw.actions),
             ActMode::Sample => self.draw.sample(head, rng),
+        }
+        action.copy_from_slice(self.draw.actions.as_slice());
+    }
+
+    /// [`ActWorkspace::act`] with the sampling noise given instead of drawn: `noise` holds
+    /// ε for every observation (`batch × act_dim`, what [`draw_noise`] writes); `None` takes
+    /// the mean action. The actions are those `act` chooses when its generator would draw
+    /// `noise`.
+    pub fn act_with_noise(
+        &mut self,
+        actor: &Mlp,
+        obs: &[f32],
+        noise: Option<&[f32]>,
+        action: &mut [f32],
+    ) {
+        self.obs.as_mut_slice().copy_from_slice(obs);
+        let head = actor.forward(&self.obs, &mut self.actor);
+        match noise {
+            None => gaussian::mean_action(head, &mut self.draw.actions),
+            Some(eps) => {
+                self.draw.eps.as_mut_slice().copy_from_slice(eps);
+                self.draw.apply(head);
+            }
         }
         action.copy_from_slice(self.draw.actions.as_slice());
     }

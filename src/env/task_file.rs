@@ -1,0 +1,753 @@
+//! ReacherDelivery tasks as files: a TOML task file names the scene, the labelled regions,
+//! the exogenous events, the episode length, the region layout and the task's perfect reward
+//! machine. `docs/tasks.md` is the reference of the format; the paper's four tasks and `blue`
+//! ship as `assets/tasks/<name>.toml` (built into the binaries, [`crate::assets::task_file`]).
+//!
+//! ```toml
+//! scene = "builtin"                      # the built-in model, or an MJCF path
+//! machine = "../rm/reacher_if.txt"       # the perfect machine, relative to this file
+//! episode_steps = 100
+//! randomize_layout = false
+//!
+//! [[region]]                             # label bit 0, 1, ... in file order
+//! letter = "r"
+//! body = "red"                           # or site = "..."
+//! radius = 0.02
+//! position = [0.0975, 0.1689]            # moves the body by its slide joints red_x, red_y
+//!
+//! [[event]]                              # label bits after the regions', in file order
+//! letter = "c"
+//! probability = 0.5
+//! earliest_step = 1
+//! latest_step = 8
+//! ```
+//!
+//! [`Task::load`] checks everything against the scene and the machine before any work, and
+//! every error names the file, the line and the key.
+
+use super::reacher::{
+    ArmStart, CancelConfig, ReacherConfig, BALLS, MAX_EPISODE_STEPS, TOUCH_RADIUS,
+};
+use crate::config_text::{key_line, read_text_file, toml_error_message};
+use crate::mujoco::{Data, Model, ObjectKind};
+use crate::rm::format::{parse_rm, RmFileError};
+use crate::rm::{LabelSet, RewardMachine};
+use serde::Deserialize;
+use sha2::{Digest, Sha256};
+use std::fmt;
+use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
+
+/// `scene = "builtin"`: the ReacherDelivery model built into the binaries
+/// (`assets/reacher_delivery.xml`).
+pub const BUILTIN_SCENE: &str = "builtin";
+/// Most labelled regions of a task.
+pub const MAX_REGIONS: usize = 8;
+/// Most exogenous events of a task.
+pub const MAX_EVENTS: usize = 4;
+/// Most regions of a randomised layout (each reset draws them apart from each other in an
+/// annulus that holds about this many).
+pub const MAX_RANDOMIZED_REGIONS: usize = 6;
+/// Half the side of the arena (its walls are at ±0.3 m): every region lies inside.
+pub const ARENA_HALF_WIDTH: f64 = 0.3;
+/// The range of a region's slide joints in the built-in scene: a fixed position lies within.
+pub const SLIDE_RANGE: f64 = 0.27;
+/// The annulus a randomised layout draws centres in (m), as [`super::reacher`] does.
+pub const RANDOM_LAYOUT_MAX_RADIUS: f64 = 0.19;
+/// The body whose position is the fingertip.
+pub const FINGERTIP_BODY: &str = "fingertip";
+
+/// The shipped tasks (`assets/tasks/<name>.toml`): the paper's four and the baselines'
+/// Markovian positive control `blue`.
+pub const SHIPPED: [&str; 5] = ["or", "sequential", "if", "composite", "blue"];
+
+/// A task file as written (before it is checked against its scene and machine).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TaskText {
+    scene: String,
+    machine: String,
+    episode_steps: usize,
+    randomize_layout: bool,
+    #[serde(default)]
+    region: Vec<RegionText>,
+    #[serde(default)]
+    event: Vec<EventText>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RegionText {
+    letter: String,
+    body: Option<String>,
+    site: Option<String>,
+    radius: f64,
+    position: Option<[f64; 2]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EventText {
+    letter: String,
+    probability: f64,
+    earliest_step: usize,
+    latest_step: usize,
+}
+
+/// What a region's centre is attached to in the scene.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Anchor {
+    Body(String),
+    Site(String),
+}
+
+impl Anchor {
+    pub fn name(&self) -> &str {
+        match self {
+            Anchor::Body(n) | Anchor::Site(n) => n,
+        }
+    }
+}
+
+impl fmt::Display for Anchor {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Anchor::Body(n) => write!(f, "body '{n}'"),
+            Anchor::Site(n) => write!(f, "site '{n}'"),
+        }
+    }
+}
+
+/// A labelled region: its proposition holds while the fingertip is strictly within `radius`
+/// of its centre.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Region {
+    pub letter: char,
+    pub anchor: Anchor,
+    pub radius: f64,
+    /// Where the layout puts the centre when it is not randomised (x, y); the anchor's place
+    /// in the scene when the file gives none.
+    pub position: [f64; 2],
+    /// The anchor is a body with slide joints `<body>_x`, `<body>_y`, so a layout can move it.
+    pub movable: bool,
+}
+
+/// An exogenous event: with `probability`, an episode has it on one step drawn uniformly
+/// from `earliest_step..=latest_step` (1-based), and its proposition holds on that step only.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Event {
+    pub letter: char,
+    pub probability: f64,
+    pub earliest_step: usize,
+    pub latest_step: usize,
+}
+
+/// Where a task's scene comes from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Scene {
+    Builtin,
+    File(PathBuf),
+}
+
+impl fmt::Display for Scene {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Scene::Builtin => f.write_str(crate::assets::REACHER_XML_NAME),
+            Scene::File(p) => write!(f, "{}", p.display()),
+        }
+    }
+}
+
+/// A checked ReacherDelivery task. Label bit `k` is region `k` for `k < regions.len()`, then
+/// the events in file order; the perfect machine's vocabulary lists the same letters in the
+/// same order.
+#[derive(Clone, Debug)]
+pub struct Task {
+    /// The shipped name, or the task file's stem.
+    pub name: String,
+    /// Where the task came from: `assets/tasks/<name>.toml` or the file's path.
+    pub source: String,
+    pub scene: Scene,
+    pub regions: Vec<Region>,
+    pub events: Vec<Event>,
+    pub episode_steps: usize,
+    pub randomize_layout: bool,
+    /// The perfect machine: trains the expert and judges success; no learner reads it.
+    pub machine: Arc<RewardMachine>,
+    pub machine_source: String,
+    /// SHA-256 of the task file, its scene and its machine (hex): the key of its expert.
+    pub content_hash: String,
+}
+
+/// Why a task could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum TaskFileError {
+    #[error("{file}: cannot read: {error}")]
+    Io { file: String, error: std::io::Error },
+    #[error("{file}: {message}")]
+    Toml { file: String, message: String },
+    /// A value that breaks a rule; `line` is 1-based.
+    #[error("{file}:{}: `{key}`: {problem}", line.map_or("?".to_string(), |l| l.to_string()))]
+    Invalid {
+        file: String,
+        line: Option<usize>,
+        key: String,
+        problem: Box<TaskProblem>,
+    },
+    #[error("no shipped task named '{0}' (shipped: or, sequential, if, composite, blue); a task file's path must end in .toml")]
+    UnknownName(String),
+}
+
+impl TaskFileError {
+    /// The problem, when the file parsed but breaks a rule.
+    pub fn problem(&self) -> Option<&TaskProblem> {
+        match self {
+            TaskFileError::Invalid { problem, .. } => Some(&**problem),
+            _ => None,
+        }
+    }
+}
+
+/// The rule a task file breaks.
+#[derive(Debug, thiserror::Error)]
+pub enum TaskProblem {
+    #[error("cannot load the scene: {0}")]
+    Scene(String),
+    #[error("the scene {scene} has no body '{FINGERTIP_BODY}' (the arm's fingertip)")]
+    NoFingertip { scene: String },
+    #[error("the scene {scene} is not a ReacherDelivery arm: {problem}")]
+    NotAnArm { scene: String, problem: String },
+    #[error("no {anchor} in the scene {scene}")]
+    UnknownAnchor { anchor: Anchor, scene: String },
+    #[error("a region names exactly one of `body` or `site`")]
+    AnchorCount,
+    #[error("'{0}' is not one proposition letter (a single ASCII letter or digit)")]
+    BadLetter(String),
+    #[error("letter '{letter}' is defined twice (first on line {first})")]
+    LetterTwice { letter: char, first: usize },
+    #[error("{count} {what}, more than the limit of {limit}")]
+    TooMany {
+        what: &'static str,
+        count: usize,
+        limit: usize,
+    },
+    #[error("radius {0} must be more than 0 and the region must fit in the arena (±{ARENA_HALF_WIDTH} m)")]
+    Radius(f64),
+    #[error("position ({x}, {y}) with radius {radius} does not lie inside the arena (±{ARENA_HALF_WIDTH} m) and the slide range (±{SLIDE_RANGE} m)")]
+    OutsideArena { x: f64, y: f64, radius: f64 },
+    #[error("{anchor} has no slide joints '{name}_x' and '{name}_y' to move it to a layout position", name = anchor.name())]
+    NotMovable { anchor: Anchor },
+    #[error("probability {0} must be in [0, 1]")]
+    Probability(f64),
+    #[error("event window {earliest}..={latest} must lie within the episode's steps 1..={episode_steps}")]
+    EventWindow {
+        earliest: usize,
+        latest: usize,
+        episode_steps: usize,
+    },
+    #[error("episode_steps {0} must be between 1 and {MAX_EPISODE_STEPS}")]
+    EpisodeSteps(usize),
+    #[error(transparent)]
+    Machine(RmFileError),
+    #[error("proposition '{letter}' of the machine {machine} is defined by no region or event")]
+    UndefinedProposition { letter: char, machine: String },
+    #[error("the machine {machine} lists the propositions '{machine_letters}'; the task defines '{task_letters}' (regions, then events, in file order) and the machine must list exactly these, in this order")]
+    VocabularyOrder {
+        machine: String,
+        machine_letters: String,
+        task_letters: String,
+    },
+}
+
+/// Where the files a task file refers to are read from.
+enum Origin<'a> {
+    /// A shipped task: its machine is a shipped machine (`assets/rm/<name>.txt`).
+    Shipped,
+    /// A task file on disk in directory `dir`.
+    Dir(&'a Path),
+}
+
+impl Task {
+    /// A shipped task by name (`composite`), or a task file by path (`my/task.toml`).
+    pub fn resolve(name_or_path: &str) -> Result<Task, TaskFileError> {
+        if SHIPPED.contains(&name_or_path) {
+            return Task::shipped(name_or_path);
+        }
+        if name_or_path.ends_with(".toml") || Path::new(name_or_path).is_file() {
+            return Task::load(Path::new(name_or_path));
+        }
+        Err(TaskFileError::UnknownName(name_or_path.into()))
+    }
+
+    /// A shipped task, `assets/tasks/<name>.toml`.
+    pub fn shipped(name: &str) -> Result<Task, TaskFileError> {
+        let source = format!("assets/tasks/{name}.toml");
+        let text = crate::assets::task_file(name)
+            .ok_or_else(|| TaskFileError::UnknownName(name.into()))?;
+        Task::parse(text, name, &source, Origin::Shipped)
+    }
+
+    /// Reads and checks a task file.
+    pub fn load(path: &Path) -> Result<Task, TaskFileError> {
+        let source = path.display().to_string();
+        let text = read_text_file(path).map_err(|error| TaskFileError::Io {
+            file: source.clone(),
+            error,
+        })?;
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "task".into());
+        let dir = path.parent().unwrap_or(Path::new(""));
+        Task::parse(&text, &name, &source, Origin::Dir(dir))
+    }
+
+    fn parse(text: &str, name: &str, source: &str, origin: Origin) -> Result<Task, TaskFileError> {
+        let raw: TaskText = toml::from_str(text).map_err(|e| TaskFileError::Toml {
+            file: source.into(),
+            message: toml_error_message(text, &e),
+        })?;
+        let bad = |key: String, problem: TaskProblem| {
+            let line = locate(text, &key);
+            TaskFileError::Invalid {
+                file: source.into(),
+                line,
+                key,
+                problem: Box::new(problem),
+            }
+        };
+
+        // Sizes first, before anything is built from them.
+        if raw.region.len() > MAX_REGIONS {
+            return Err(bad(
+                "region".into(),
+                TaskProblem::TooMany {
+                    what: "regions",
+                    count: raw.region.len(),
+                    limit: MAX_REGIONS,
+                },
+            ));
+        }
+        if raw.event.len() > MAX_EVENTS {
+            return Err(bad(
+                "event".into(),
+                TaskProblem::TooMany {
+                    what: "events",
+                    count: raw.event.len(),
+                    limit: MAX_EVENTS,
+                },
+            ));
+        }
+        if raw.randomize_layout && raw.region.len() > MAX_RANDOMIZED_REGIONS {
+            return Err(bad(
+                "randomize_layout".into(),
+                TaskProblem::TooMany {
+                    what: "regions in a randomised layout",
+                    count: raw.region.len(),
+                    limit: MAX_RANDOMIZED_REGIONS,
+                },
+            ));
+        }
+        if raw.episode_steps == 0 || raw.episode_steps > MAX_EPISODE_STEPS {
+            return Err(bad(
+                "episode_steps".into(),
+                TaskProblem::EpisodeSteps(raw.episode_steps),
+            ));
+        }
+
+        // Letters: one character each, each defined once.
+        let mut letters: Vec<(char, usize)> = Vec::new();
+        let all = raw
+            .region
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (format!("region[{i}].letter"), &r.letter))
+            .chain(
+                raw.event
+                    .iter()
+                    .enumerate()
+                    .map(|(i, e)| (format!("event[{i}].letter"), &e.letter)),
+            );
+        for (key, letter) in all {
+            let mut chars = letter.chars();
+            let c = match (chars.next(), chars.next()) {
+                (Some(c), None) if c.is_ascii_alphanumeric() => c,
+                _ => return Err(bad(key, TaskProblem::BadLetter(letter.clone()))),
+            };
+            let line = locate(text, &key).unwrap_or(0);
+            if let Some(&(_, first)) = letters.iter().find(|(l, _)| *l == c) {
+                return Err(bad(key, TaskProblem::LetterTwice { letter: c, first }));
+            }
+            letters.push((c, line));
+        }
+
+        // The scene: loadable, with the arm and its fingertip.
+        let (scene, model) = match raw.scene.as_str() {
+            BUILTIN_SCENE => (
+                Scene::Builtin,
+                Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME),
+            ),
+            path => {
+                let path = match origin {
+                    Origin::Dir(dir) => dir.join(path),
+                    Origin::Shipped => PathBuf::from(path),
+                };
+                (Scene::File(path.clone()), Model::from_xml_path(&path))
+            }
+        };
+        let model = model.map_err(|e| bad("scene".into(), TaskProblem::Scene(e.to_string())))?;
+        let scene_name = scene.to_string();
+        check_arm(&model, &scene_name).map_err(|p| bad("scene".into(), p))?;
+        let mut data = Data::new(Arc::new(model))
+            .map_err(|e| bad("scene".into(), TaskProblem::Scene(e.to_string())))?;
+        data.forward()
+            .map_err(|e| bad("scene".into(), TaskProblem::Scene(e.to_string())))?;
+        let model = data.model().clone();
+
+        // Regions: anchors in the scene, radii and positions inside the arena.
+        let mut regions = Vec::with_capacity(raw.region.len());
+        for (i, r) in raw.region.iter().enumerate() {
+            let key = |k: &str| format!("region[{i}].{k}");
+            let anchor = match (&r.body, &r.site) {
+                (Some(b), None) => Anchor::Body(b.clone()),
+                (None, Some(s)) => Anchor::Site(s.clone()),
+                _ => return Err(bad(format!("region[{i}]"), TaskProblem::AnchorCount)),
+            };
+            let anchor_key = key(if r.body.is_some() { "body" } else { "site" });
+            let unknown = || {
+                bad(
+                    anchor_key.clone(),
+                    TaskProblem::UnknownAnchor {
+                        anchor: anchor.clone(),
+                        scene: scene_name.clone(),
+                    },
+                )
+            };
+            let scene_position = match &anchor {
+                Anchor::Body(b) => {
+                    data.body_xpos(model.id(ObjectKind::Body, b).map_err(|_| unknown())?)
+                }
+                Anchor::Site(s) => {
+                    data.site_xpos(model.id(ObjectKind::Site, s).map_err(|_| unknown())?)
+                }
+            };
+            let movable = match &anchor {
+                Anchor::Body(b) => has_slides(&model, b),
+                Anchor::Site(_) => false,
+            };
+            if !(r.radius > 0.0 && r.radius <= ARENA_HALF_WIDTH) {
+                return Err(bad(key("radius"), TaskProblem::Radius(r.radius)));
+            }
+            if (r.position.is_some() || raw.randomize_layout) && !movable {
+                let k = if r.position.is_some() {
+                    key("position")
+                } else {
+                    "randomize_layout".into()
+                };
+                return Err(bad(k, TaskProblem::NotMovable { anchor }));
+            }
+            let position = r.position.unwrap_or([scene_position[0], scene_position[1]]);
+            let [x, y] = position;
+            let reach = if raw.randomize_layout {
+                RANDOM_LAYOUT_MAX_RADIUS + r.radius
+            } else {
+                x.abs().max(y.abs()) + r.radius
+            };
+            let slide_ok =
+                r.position.is_none() || (x.abs() <= SLIDE_RANGE && y.abs() <= SLIDE_RANGE);
+            if !(x.is_finite() && y.is_finite() && reach <= ARENA_HALF_WIDTH && slide_ok) {
+                let k = if r.position.is_some() {
+                    key("position")
+                } else {
+                    anchor_key.clone()
+                };
+                return Err(bad(
+                    k,
+                    TaskProblem::OutsideArena {
+                        x,
+                        y,
+                        radius: r.radius,
+                    },
+                ));
+            }
+            regions.push(Region {
+                letter: letters[i].0,
+                anchor,
+                radius: r.radius,
+                position,
+                movable,
+            });
+        }
+
+        // Events: a probability and a window inside the episode.
+        let mut events = Vec::with_capacity(raw.event.len());
+        for (i, e) in raw.event.iter().enumerate() {
+            let key = |k: &str| format!("event[{i}].{k}");
+            if !(0.0..=1.0).contains(&e.probability) {
+                return Err(bad(
+                    key("probability"),
+                    TaskProblem::Probability(e.probability),
+                ));
+            }
+            let window = TaskProblem::EventWindow {
+                earliest: e.earliest_step,
+                latest: e.latest_step,
+                episode_steps: raw.episode_steps,
+            };
+            if e.earliest_step == 0 || e.earliest_step > e.latest_step {
+                return Err(bad(key("earliest_step"), window));
+            }
+            if e.latest_step > raw.episode_steps {
+                return Err(bad(key("latest_step"), window));
+            }
+            events.push(Event {
+                letter: letters[raw.region.len() + i].0,
+                probability: e.probability,
+                earliest_step: e.earliest_step,
+                latest_step: e.latest_step,
+            });
+        }
+
+        // The machine: its propositions are the task's letters, in label-bit order.
+        let (machine_text, machine_source) = read_machine(&raw.machine, &origin)
+            .map_err(|e| bad("machine".into(), TaskProblem::Machine(e)))?;
+        let machine = parse_rm(&machine_text, &machine_source)
+            .map_err(|e| bad("machine".into(), TaskProblem::Machine(e)))?;
+        let task_letters: String = letters.iter().map(|(c, _)| *c).collect();
+        let machine_letters: String = machine.vocab().props().iter().collect();
+        if let Some(&letter) = machine
+            .vocab()
+            .props()
+            .iter()
+            .find(|c| !task_letters.contains(**c))
+        {
+            return Err(bad(
+                "machine".into(),
+                TaskProblem::UndefinedProposition {
+                    letter,
+                    machine: machine_source,
+                },
+            ));
+        }
+        if machine_letters != task_letters {
+            return Err(bad(
+                "machine".into(),
+                TaskProblem::VocabularyOrder {
+                    machine: machine_source,
+                    machine_letters,
+                    task_letters,
+                },
+            ));
+        }
+
+        let scene_text = match &scene {
+            Scene::Builtin => crate::assets::REACHER_XML.as_bytes().to_vec(),
+            // The model loaded from this file a moment ago; a failure to read it again is a
+            // race with the user's editor, reported as such.
+            Scene::File(p) => {
+                crate::input_file::read_bytes(p, crate::config_text::MAX_TEXT_FILE_BYTES * 16)
+                    .map_err(|e| bad("scene".into(), TaskProblem::Scene(e.to_string())))?
+            }
+        };
+        let mut hash = Sha256::new();
+        for part in [text.as_bytes(), &scene_text, machine_text.as_bytes()] {
+            hash.update((part.len() as u64).to_le_bytes());
+            hash.update(part);
+        }
+        let content_hash = hash.finalize().iter().map(|b| format!("{b:02x}")).collect();
+
+        Ok(Task {
+            name: name.into(),
+            source: source.into(),
+            scene,
+            regions,
+            events,
+            episode_steps: raw.episode_steps,
+            randomize_layout: raw.randomize_layout,
+            machine: Arc::new(machine),
+            machine_source,
+            content_hash,
+        })
+    }
+
+    /// The task's propositions in label-bit order: regions, then events.
+    pub fn letters(&self) -> String {
+        self.regions
+            .iter()
+            .map(|r| r.letter)
+            .chain(self.events.iter().map(|e| e.letter))
+            .collect()
+    }
+
+    /// The label bits of the task's exogenous events.
+    pub fn event_labels(&self) -> LabelSet {
+        (0..self.events.len()).fold(LabelSet::EMPTY, |s, k| s.with(self.regions.len() + k))
+    }
+
+    /// The label bits of the regions (the agent's own touches).
+    pub fn region_labels(&self) -> LabelSet {
+        (0..self.regions.len()).fold(LabelSet::EMPTY, |s, k| s.with(k))
+    }
+
+    /// The configuration of [`super::reacher::ReacherDelivery`] that runs this task, when the
+    /// task fits it: the built-in scene's four balls (red, green, blue, yellow in label-bit
+    /// order, touched within [`TOUCH_RADIUS`]) and one event.
+    pub fn reacher_config(&self) -> Result<ReacherConfig, TaskShapeError> {
+        let shape_ok = self.scene == Scene::Builtin
+            && self.regions.len() == BALLS.len()
+            && self
+                .regions
+                .iter()
+                .zip(BALLS)
+                .all(|(r, b)| r.anchor == Anchor::Body(b.into()) && r.radius == TOUCH_RADIUS)
+            && self.events.len() == 1;
+        if !shape_ok {
+            return Err(TaskShapeError {
+                task: self.source.clone(),
+            });
+        }
+        let mut ball_layout = [[0.0; 2]; 4];
+        for (slot, r) in ball_layout.iter_mut().zip(&self.regions) {
+            *slot = r.position;
+        }
+        let e = &self.events[0];
+        Ok(ReacherConfig {
+            max_steps: self.episode_steps,
+            ball_layout,
+            randomize_balls: self.randomize_layout,
+            cancel: CancelConfig {
+                probability: e.probability,
+                earliest_step: e.earliest_step,
+                latest_step: e.latest_step,
+            },
+            arm_start: ArmStart::Random,
+        })
+    }
+}
+
+/// A task the ReacherDelivery environment cannot run yet.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{task}: the ReacherDelivery environment runs tasks over the built-in scene's four balls \
+     (regions on bodies red, green, blue, yellow in this order, radius {TOUCH_RADIUS}) and one \
+     event; other scenes and region sets load and validate but do not run yet"
+)]
+pub struct TaskShapeError {
+    pub task: String,
+}
+
+/// The arm the environment drives: joints `joint0`, `joint1`, two actuators, a fingertip.
+fn check_arm(model: &Model, scene: &str) -> Result<(), TaskProblem> {
+    if model.id(ObjectKind::Body, FINGERTIP_BODY).is_err() {
+        return Err(TaskProblem::NoFingertip {
+            scene: scene.into(),
+        });
+    }
+    for joint in ["joint0", "joint1"] {
+        if model.id(ObjectKind::Joint, joint).is_err() {
+            return Err(TaskProblem::NotAnArm {
+                scene: scene.into(),
+                problem: format!("no joint '{joint}'"),
+            });
+        }
+    }
+    if model.nu() != 2 {
+        return Err(TaskProblem::NotAnArm {
+            scene: scene.into(),
+            problem: format!("{} actuators, the arm has 2", model.nu()),
+        });
+    }
+    Ok(())
+}
+
+/// The body has slide joints `<body>_x` and `<body>_y`, adjacent in `qpos`.
+fn has_slides(model: &Model, body: &str) -> bool {
+    let x = model.id(ObjectKind::Joint, &format!("{body}_x"));
+    let y = model.id(ObjectKind::Joint, &format!("{body}_y"));
+    match (x, y) {
+        (Ok(x), Ok(y)) => model.joint_qpos_addr(y) == model.joint_qpos_addr(x) + 1,
+        _ => false,
+    }
+}
+
+/// The machine's text and how messages name it. A shipped task's machine path resolves
+/// inside the shipped assets (`assets/tasks/../rm/x.txt` is `assets/rm/x.txt`).
+fn read_machine(path: &str, origin: &Origin) -> Result<(String, String), RmFileError> {
+    match origin {
+        Origin::Dir(dir) => {
+            let full = dir.join(path);
+            let name = full.display().to_string();
+            read_text_file(&full)
+                .map(|t| (t, name.clone()))
+                .map_err(|error| RmFileError::Io { file: name, error })
+        }
+        Origin::Shipped => {
+            let full = normalize(&Path::new("assets/tasks").join(path));
+            let name = full.display().to_string();
+            let text = full
+                .strip_prefix("assets/rm")
+                .ok()
+                .and_then(|p| p.to_str())
+                .and_then(|p| p.strip_suffix(".txt"))
+                .and_then(crate::rm::perfect::text);
+            text.map(|t| (t.to_string(), name.clone()))
+                .ok_or_else(|| RmFileError::Io {
+                    file: name,
+                    error: std::io::Error::new(
+                        std::io::ErrorKind::NotFound,
+                        "not a shipped reward machine",
+                    ),
+                })
+        }
+    }
+}
+
+/// `a/b/../c` → `a/c` (no file system access).
+fn normalize(path: &Path) -> PathBuf {
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+/// The line of a key such as `region[2].radius`: the key's own line inside the third
+/// `[[region]]` table, or the table's header when the key is not written there.
+fn locate(text: &str, key: &str) -> Option<usize> {
+    let Some((array, rest)) = key.split_once('[') else {
+        return key_line(text, key);
+    };
+    let (index, field) = rest.split_once(']')?;
+    let index: usize = index.parse().ok()?;
+    let field = field.trim_start_matches('.');
+    let header = format!("[[{array}]]");
+    let mut seen = 0;
+    let mut start = None;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.starts_with('[') {
+            if start.is_some() {
+                break;
+            }
+            if line == header {
+                if seen == index {
+                    start = Some(i + 1);
+                }
+                seen += 1;
+            }
+            continue;
+        }
+        if let (Some(_), Some((k, _))) = (start, line.split_once('=')) {
+            if !field.is_empty() && k.trim() == field {
+                return Some(i + 1);
+            }
+        }
+    }
+    start
+}

@@ -1,0 +1,534 @@
+//! Tests that protect SMIRL's method (issue 54, item 6): each fails on a build that breaks the
+//! mechanism it names (the mutation tried is in each test's doc comment).
+//!
+//! - shaping: along a recorded episode, the shaped minus the unshaped reward telescopes to
+//!   γ^T Φ_T − Φ_0 (Φ_T = 0 after a terminating step), step by step it is γ Φ' − Φ, and moving
+//!   towards the ball a state's reward values raises it;
+//! - the final choice: on hand-built selection episodes whose answer is known, the rule picks
+//!   the candidate that keeps the task, and only the selection cut makes it do so;
+//! - the event-gated normalisation: its coefficients on a hand-worked case;
+//! - no leak: perturbing the perfect machine and its rewards (the ground truth a job is judged
+//!   by) leaves the learned reward, the learned returns and the final choice bit-identical,
+//!   while the evaluation changes.
+
+use smirl::env::product::ProductEnv;
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery, OBS_CANCEL, OBS_DIM};
+use smirl::env::reacher_controller::{ControllerGains, ScriptedController};
+use smirl::env::ContinuousEnv;
+use smirl::irl::reward::{RewardModel, RewardOptimConfig};
+use smirl::irl::smirl::{FeatureMap, LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation};
+use smirl::pipeline::reacher_irl::final_policy::{
+    choose, selection_returns_of, FinalAgent, FinalCandidate,
+};
+use smirl::pipeline::reacher_irl::smirl::{coefficients, seen_after_events, ProductReward};
+use smirl::pipeline::reacher_irl::{AgentBatch, ExpertData, IrlRunConfig};
+use smirl::rl::replay::ReplayBatch;
+use smirl::rl::sac::RewardFn;
+use smirl::rm::format::parse_rm;
+use smirl::rm::{LabelSet, RewardMachine};
+
+const RED: usize = 0;
+const GREEN: usize = 1;
+const BLUE: usize = 2;
+const YELLOW: usize = 3;
+const CANCEL: usize = 4;
+/// Features per RM state: four balls and the cancel flag.
+const K: usize = 5;
+
+fn machine(text: &str) -> RewardMachine {
+    parse_rm(text, "test machine").unwrap()
+}
+
+fn labels(props: &[usize]) -> LabelSet {
+    props.iter().fold(LabelSet::EMPTY, |l, &p| l.with(p))
+}
+
+/// An observation row whose labels are `l`: the fingertip 7 mm from every ball of `l` and
+/// 0.5 m from the others, the cancel flag as `l` says.
+fn row_of(l: LabelSet) -> Vec<f32> {
+    let mut r = vec![0.5f32; OBS_DIM];
+    r[OBS_CANCEL] = if l.contains(CANCEL) { 1.0 } else { 0.0 };
+    for b in 0..4 {
+        if l.contains(b) {
+            r[8 + 2 * b] = 0.005;
+            r[9 + 2 * b] = -0.005;
+        }
+    }
+    r
+}
+
+/// The state each step's labels are read in (u_{t−1}), as `annotate` pairs them.
+fn states_along(m: &RewardMachine, trace: &[LabelSet]) -> Vec<u32> {
+    let mut u = m.initial();
+    trace
+        .iter()
+        .map(|&l| {
+            let before = u;
+            u = m.next_state(u, l);
+            before as u32
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Shaping
+// ---------------------------------------------------------------------------------------------
+
+/// A learned-like machine: blue, then red; no goal, so episodes run to the time limit.
+const BLUE_THEN_RED: &str = "vocabulary: rgbyc\nstates: 3\ninitial: 0\n\
+                             (0, 1, 'b', 0)\n(1, 2, 'r', 0)\n";
+/// The same with a goal after red: the product terminates there.
+const BLUE_THEN_RED_GOAL: &str = "vocabulary: rgbyc\nstates: 3\ninitial: 0\nterminal: 2\n\
+                                  (0, 1, 'b', 0)\n(1, 2, 'r', 0)\n";
+
+/// Weights of the shaping tests: state 0 pays blue (1.0; red's 0.3 is under half of it, so
+/// only blue attracts), state 1 pays red (2.0; green's 0.5 does not attract), state 2 pays
+/// yellow (0.7), so that Φ is not 0 where episodes end.
+#[rustfmt::skip]
+const SHAPING_WEIGHTS: [f32; 3 * K] = [
+    0.3, 0.0, 1.0, 0.0, 0.0,
+    2.0, 0.5, 0.0, -1.0, 0.0,
+    0.0, 0.0, 0.0, 0.7, 0.0,
+];
+
+/// Φ(u, o) by hand for [`SHAPING_WEIGHTS`] with strength β: −β · (state's largest ball weight)
+/// · (distance to its attracting ball).
+fn potential_by_hand(row: &[f32], beta: f64) -> f64 {
+    let u = (0..3).find(|&u| row[OBS_DIM + u] == 1.0).unwrap();
+    let dist = |b: usize| f64::from(row[8 + 2 * b]).hypot(f64::from(row[9 + 2 * b]));
+    match u {
+        0 => -beta * 1.0 * dist(BLUE),
+        1 => -beta * 2.0 * dist(RED),
+        _ => -beta * f64::from(0.7f32) * dist(YELLOW),
+    }
+}
+
+/// One episode of the product (observation ⊕ one-hot state ⊕ clock, as SMIRL's SAC stores it)
+/// driven by the scripted controller to blue then red: every transition (o, o', terminated).
+fn recorded_episode(machine_text: &str, reset_seed: u64) -> Vec<(Vec<f32>, Vec<f32>, bool)> {
+    let config = ReacherConfig::default();
+    let inner = ReacherDelivery::new(config.clone()).unwrap();
+    let mut env = ProductEnv::new(inner, machine(machine_text)).with_clock(config.max_steps);
+    let d = env.obs_dim();
+    let (mut obs, mut next) = (vec![0.0f32; d], vec![0.0f32; d]);
+    env.reset(reset_seed, &mut obs);
+    let mut controller = ScriptedController::sequence(&[BLUE, RED], ControllerGains::default());
+    let mut steps = Vec::new();
+    loop {
+        let action = controller.act(&obs[..OBS_DIM], env.inner().labels(), None);
+        let step = env.step(&action, &mut next).unwrap();
+        steps.push((obs.clone(), next.clone(), step.terminated));
+        std::mem::swap(&mut obs, &mut next);
+        if step.terminated || step.truncated {
+            return steps;
+        }
+    }
+}
+
+/// The transitions as a SAC batch, one column each.
+fn batch_of(steps: &[(Vec<f32>, Vec<f32>, bool)]) -> ReplayBatch {
+    let d = steps[0].0.len();
+    let mut batch = ReplayBatch::new(d, 2, steps.len());
+    for (i, (o, next, terminated)) in steps.iter().enumerate() {
+        batch.obs.as_mut_slice()[i * d..(i + 1) * d].copy_from_slice(o);
+        batch.next_obs.as_mut_slice()[i * d..(i + 1) * d].copy_from_slice(next);
+        batch.terminated[i] = if *terminated { 1.0 } else { 0.0 };
+    }
+    batch
+}
+
+/// SMIRL's SAC reward of every transition, unshaped and shaped with strength β and discount γ.
+fn product_rewards(batch: &ReplayBatch, beta: f64, gamma: f64) -> (Vec<f32>, Vec<f32>) {
+    let features = FeatureMap::reacher_labels();
+    let mut model = LinearRmReward::new(features.clone(), 3, RewardOptimConfig::adam(0.1)).unwrap();
+    model.set_params(&SHAPING_WEIGHTS).unwrap();
+    let potential =
+        LearnedSubgoalPotential::from_weights(&features, 3, &SHAPING_WEIGHTS, beta).unwrap();
+    let mut plain = vec![0.0f32; batch.len()];
+    ProductReward::new(&mut model, None, None)
+        .fill_rewards(batch, &mut plain)
+        .unwrap();
+    let mut shaped = vec![0.0f32; batch.len()];
+    ProductReward::new(&mut model, None, Some((&potential, gamma)))
+        .fill_rewards(batch, &mut shaped)
+        .unwrap();
+    (plain, shaped)
+}
+
+/// Shaping along recorded episodes of the product, as SMIRL's SAC reads its batches (standard
+/// strength β = 1 and the IRL runs' discount γ):
+/// - step by step, shaped − unshaped = γ Φ(u', o') − Φ(u, o), with Φ(u', o') = 0 on a
+///   terminating step, Φ computed here by hand from the fingertip–ball offsets;
+/// - along the episode, Σ_t γ^t (shaped_t − unshaped_t) = γ^T Φ_T − Φ_0 (truncated at the time
+///   limit) and = −Φ_0 (terminated at the goal): shaping adds only a function of the ends;
+/// - its sign: a step in a state that brings the fingertip closer to the ball the state's
+///   reward pays (d' < d/γ) is shaped up, one that moves away is shaped down, and approaching
+///   blue before touching it adds up to a positive shaping.
+///
+/// Mutation tried: `*r += (after − Φ(prev))` → `*r -= …` in `ProductReward::fill_rewards`
+/// (`src/pipeline/reacher_irl/smirl.rs`): fails the per-step identity at "step 0". Also
+/// tried: dropping the terminal case (`after` = γ Φ' on every step): fails the per-step
+/// identity on the terminated episode's last step ("step 26").
+#[test]
+fn shaping_telescopes_along_a_recorded_episode_and_pulls_towards_the_paid_ball() {
+    let beta = 1.0;
+    assert_eq!(IrlRunConfig::standard().smirl_shaping, beta);
+    let gamma = f64::from(IrlRunConfig::standard().sac.gamma);
+    for (text, reset_seed, ends_at_goal) in
+        [(BLUE_THEN_RED, 11, false), (BLUE_THEN_RED_GOAL, 11, true)]
+    {
+        let steps = recorded_episode(text, reset_seed);
+        let last = steps.last().unwrap();
+        assert_eq!(last.2, ends_at_goal, "the episode ends as the machine says");
+        // The controller visits blue, then red: the episode passes through every state.
+        let state_of = |row: &[f32]| (0..3).find(|&u| row[OBS_DIM + u] == 1.0).unwrap();
+        assert_eq!(
+            state_of(&last.1),
+            2,
+            "the controller reaches red after blue"
+        );
+        let batch = batch_of(&steps);
+        let (plain, shaped) = product_rewards(&batch, beta, gamma);
+
+        let mut discounted = 0.0;
+        let mut approach = 0.0;
+        let mut closer_steps = 0;
+        for (t, ((o, next, terminated), (&p, &s))) in
+            steps.iter().zip(plain.iter().zip(&shaped)).enumerate()
+        {
+            let after = if *terminated {
+                0.0
+            } else {
+                gamma * potential_by_hand(next, beta)
+            };
+            let expected = after - potential_by_hand(o, beta);
+            let f = f64::from(s) - f64::from(p);
+            assert!(
+                (f - expected).abs() < 1e-5,
+                "step {t}: shaped − unshaped = {f}, γ Φ' − Φ = {expected}"
+            );
+            discounted += gamma.powi(t as i32) * f;
+            // Sign, within a state that pulls: closer (d' < d/γ) is rewarded.
+            let (u, u_next) = (state_of(o), state_of(next));
+            if u == u_next && !*terminated {
+                let ball = [BLUE, RED, YELLOW][u];
+                let dist = |r: &[f32]| f64::from(r[8 + 2 * ball]).hypot(f64::from(r[9 + 2 * ball]));
+                let margin = dist(o) - gamma * dist(next);
+                if margin.abs() > 1e-4 {
+                    assert_eq!(
+                        f > 0.0,
+                        margin > 0.0,
+                        "step {t}: shaping {f}, d − γ d' = {margin}"
+                    );
+                    closer_steps += usize::from(margin > 0.0);
+                }
+                if u == 0 {
+                    approach += f;
+                }
+            }
+        }
+        let t_end = steps.len() as i32;
+        let phi_end = if ends_at_goal {
+            0.0
+        } else {
+            potential_by_hand(&last.1, beta)
+        };
+        let phi_0 = potential_by_hand(&steps[0].0, beta);
+        let telescoped = gamma.powi(t_end) * phi_end - phi_0;
+        assert!(
+            (discounted - telescoped).abs() < 1e-4,
+            "Σ γ^t (shaped − unshaped) = {discounted}, γ^T Φ_T − Φ_0 = {telescoped}"
+        );
+        assert!(
+            phi_0 < -0.05,
+            "the episode starts away from blue (Φ_0 = {phi_0})"
+        );
+        assert!(
+            closer_steps >= 5,
+            "only {closer_steps} steps approach a paid ball"
+        );
+        assert!(approach > 0.05, "approaching blue is shaped by {approach}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The final choice and its selection cut
+// ---------------------------------------------------------------------------------------------
+
+/// A learned machine of IF that merges "blue touched" with "cancelled" (`0 -(b|c)-> 1`), as
+/// LRM learns it: no failure state, so blue after the cancel costs nothing in it.
+const IF_MERGED: &str = "vocabulary: rgbyc\nstates: 3\ninitial: 0\n\
+                         (0, 1, 'b|c', 0)\n(1, 2, 'r', 0)\n";
+
+/// The learned reward of the selection tests: blue pays in state 0, red in states 1 and 2,
+/// and blue in state 1 pays half of red (the normal branch touches blue on its way into it).
+#[rustfmt::skip]
+const SELECTION_WEIGHTS: [f32; 3 * K] = [
+    0.0, 0.0, 1.0, 0.0, 0.0,
+    1.0, 0.0, 0.5, 0.0, 0.0,
+    1.0, 0.0, 0.0, 0.0, 0.0,
+];
+
+/// Selection episodes (label traces) played by one candidate: their learned rewards, learned
+/// states and labels, concatenated, and their lengths.
+struct Recorded {
+    rewards: Vec<f32>,
+    states: Vec<u32>,
+    labels: Vec<LabelSet>,
+    lengths: Vec<usize>,
+}
+
+fn record(m: &RewardMachine, episodes: &[Vec<LabelSet>]) -> Recorded {
+    let mut model = LinearRmReward::new(
+        FeatureMap::reacher_labels(),
+        m.n_states(),
+        RewardOptimConfig::adam(0.1),
+    )
+    .unwrap();
+    model.set_params(&SELECTION_WEIGHTS).unwrap();
+    let mut rec = Recorded {
+        rewards: Vec::new(),
+        states: Vec::new(),
+        labels: Vec::new(),
+        lengths: Vec::new(),
+    };
+    for trace in episodes {
+        let states = states_along(m, trace);
+        let rows: Vec<f32> = trace.iter().flat_map(|&l| row_of(l)).collect();
+        let mut r = vec![0.0f32; trace.len()];
+        model.reward_batch(&rows, &states, &mut r).unwrap();
+        rec.rewards.extend(r);
+        rec.states.extend(states);
+        rec.labels.extend_from_slice(trace);
+        rec.lengths.push(trace.len());
+    }
+    rec
+}
+
+/// The final choice on IF: two candidates play one normal and one cancelled selection episode
+/// each. Both touch blue then red without the cancel; after the cancel, A touches blue on its
+/// way to red and stays on red longer, B goes straight to red. The learned reward (a machine
+/// that merges "after blue" with "after the cancel") pays A more (4.5 against 3 after the
+/// cancel), but the perfect machine fails A's cancelled episode and B solves both. The
+/// demonstrations never touch blue after the cancel, so the cut ends A's counted return there,
+/// and the rule picks B.
+///
+/// Mutations tried: the cut disabled in `selection_returns_of`
+/// (`src/pipeline/reacher_irl/final_policy.rs`: `counted = len`): fails "A's cut return"
+/// (3.75, not 1.5); `SeenAfterEvents::first_unseen` returning `None`: fails the same
+/// assertion; `choose` reading `learned_return` instead of `selection_return()`: fails "the
+/// cut chooses B".
+#[test]
+fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cancel() {
+    let m = machine(IF_MERGED);
+    let perfect = smirl::rm::format::read_rm(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm/reacher_if.txt"),
+    )
+    .unwrap();
+    let (e, c, r, b) = (
+        LabelSet::EMPTY,
+        labels(&[CANCEL]),
+        labels(&[RED]),
+        labels(&[BLUE]),
+    );
+    // The demonstrations: blue then red; the cancel, then red.
+    let demos = [vec![e, b, e, r], vec![c, e, r]];
+    let mut expert = ExpertData {
+        obs: Vec::new(),
+        labels_before: Vec::new(),
+        lengths: Vec::new(),
+        learned_states: Vec::new(),
+    };
+    for d in &demos {
+        expert.obs.extend(d.iter().flat_map(|&l| row_of(l)));
+        expert
+            .labels_before
+            .extend(std::iter::once(e).chain(d[..d.len() - 1].iter().copied()));
+        expert.learned_states.extend(states_along(&m, d));
+        expert.lengths.push(d.len());
+    }
+    let settings = IrlRunConfig::standard();
+    assert!(settings.smirl_selection_cut && settings.smirl_selection_cut_entries);
+    let seen = seen_after_events(&m, &expert, &settings);
+    assert_eq!(
+        seen.in_state(1),
+        r,
+        "after the cancel the demonstrations touch red only"
+    );
+
+    let normal = vec![e, e, b, e, r, r, e, e];
+    let a = [normal.clone(), vec![c, e, b, e, r, r, r, r]];
+    let b_ = [normal, vec![c, e, e, e, e, r, r, r]];
+    // The known answer, on the ground truth: A fails the cancelled branch, B solves both.
+    let solves = |trace: &[LabelSet]| {
+        let end = perfect.run(trace).last().unwrap().0;
+        perfect.is_terminal(end) && !perfect.is_failure(end)
+    };
+    assert!(a.iter().map(|t| solves(t)).eq([true, false]));
+    assert!(b_.iter().all(|t| solves(t)));
+
+    let candidate = |episodes: &[Vec<LabelSet>], success_rate: f64| {
+        let rec = record(&m, episodes);
+        let (learned_return, cut_return) = selection_returns_of(
+            &rec.rewards,
+            &rec.states,
+            &rec.labels,
+            &rec.lengths,
+            Some(&seen),
+        )
+        .unwrap();
+        FinalCandidate {
+            agent: FinalAgent::CoTrained,
+            env_steps: 0,
+            learned_return,
+            cut_return,
+            success_rate,
+            branches: None,
+            progress: 0.0,
+            final_ball: 0.0,
+        }
+    };
+    let (ca, cb) = (candidate(&a, 0.0), candidate(&b_, 1.0));
+    // Normal episodes: blue in state 0 (1.0), red entering state 2 (1.0), red in it (1.0).
+    // Cancelled: A blue in state 1 (0.5) and red ×4 (4.0), B red ×3 (3.0). Means over 2.
+    assert_eq!(ca.learned_return, (3.0 + 4.5) / 2.0);
+    assert_eq!(cb.learned_return, (3.0 + 3.0) / 2.0);
+    assert!(
+        ca.learned_return > cb.learned_return,
+        "uncut, A looks better"
+    );
+    // Cut: A's cancelled episode counts nothing from its blue touch on (step 2: 0.0).
+    assert_eq!(ca.cut_return, Some(3.0 / 2.0), "A's cut return");
+    assert_eq!(
+        cb.cut_return,
+        Some(cb.learned_return),
+        "B has nothing to cut"
+    );
+    let chosen = choose(&[ca.clone(), cb.clone()]);
+    assert_eq!(
+        chosen, 1,
+        "the cut chooses B, the candidate that solves the task"
+    );
+    // Without the cut the same rule would take A: the cut is what decides here.
+    let uncut = |c: &FinalCandidate| FinalCandidate {
+        cut_return: None,
+        ..c.clone()
+    };
+    assert_eq!(choose(&[uncut(&ca), uncut(&cb)]), 0);
+    // Without a cut there is no cut return, and lengths that do not add up are an error.
+    let rec = record(&m, &a);
+    let (full, none) =
+        selection_returns_of(&rec.rewards, &rec.states, &rec.labels, &rec.lengths, None).unwrap();
+    assert_eq!((full, none), (ca.learned_return, None));
+    assert!(selection_returns_of(&rec.rewards, &rec.states, &rec.labels, &[3], None).is_err());
+}
+
+// ---------------------------------------------------------------------------------------------
+// The event-gated normalisation
+// ---------------------------------------------------------------------------------------------
+
+/// A learned machine of IF with a state only the cancel enters: 0 -b-> 1, 0 -c-> 2, then red
+/// to 3 from either.
+const IF_SPLIT: &str = "vocabulary: rgbyc\nstates: 4\ninitial: 0\n\
+                        (0, 1, 'b&!c', 0)\n(0, 2, 'c', 0)\n(1, 3, 'r', 0)\n(2, 3, 'r', 0)\n";
+
+/// The standard normalisation's coefficients (`event_gated_visits`, through SMIRL's
+/// `coefficients`) on a case worked by hand. Expert: E1 visits states 0, 1, 3; E2 0, 1, 3; E3
+/// (the cancel) 0, 2, 3 — N_D = (3, 2, 1, 3). Agent: A1 and A2 visit 0 and 1 only — N_A =
+/// (2, 2, 0, 0). Agent rows get +1/N_A(u): ½ in states 0 and 1. Expert rows get −1/N_D(u)
+/// where the agent comes (state 0: −⅓, state 1: −½); where it does not, state 3 keeps its
+/// pull (the agent can reach it by its own moves: −⅓) and state 2, which only the cancel
+/// enters, gets 0. The gradient on w follows: expert yellow touches in state 3 (one per
+/// trajectory) give −1, E3's red touches in state 2 nothing, A1's green touches in state 0
+/// (two) +1.
+///
+/// Mutations tried: `maxent_coefficients_by_shared_visits` ignoring `pull_unvisited` (every
+/// unvisited state dropped): fails at state 3's −⅓; `coefficients` gating with every state
+/// free (`vec![true; n]`, i.e. plain visits): fails at state 2's 0; `trajectories_visiting`
+/// counting rows instead of trajectories: fails at state 0's coefficients.
+#[test]
+fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
+    let m = machine(IF_SPLIT);
+    let (e, c, r, g, y) = (
+        LabelSet::EMPTY,
+        labels(&[CANCEL]),
+        labels(&[RED]),
+        labels(&[GREEN]),
+        labels(&[YELLOW]),
+    );
+    let b = labels(&[BLUE]);
+    // Each step's state is given (u_{t−1}); its row's labels are the next observation's.
+    let expert_steps: [&[(u32, LabelSet)]; 3] = [
+        &[(0, e), (0, b), (1, e), (1, r), (3, y)],
+        &[(0, b), (1, r), (3, y)],
+        &[(0, c), (2, r), (2, r), (3, y)],
+    ];
+    let agent_steps: [&[(u32, LabelSet)]; 2] =
+        [&[(0, g), (0, g), (0, b), (1, e)], &[(0, b), (1, e), (1, e)]];
+    let mut expert = ExpertData {
+        obs: Vec::new(),
+        labels_before: Vec::new(),
+        lengths: Vec::new(),
+        learned_states: Vec::new(),
+    };
+    for t in expert_steps {
+        for &(u, l) in t {
+            expert.obs.extend(row_of(l));
+            expert.labels_before.push(e);
+            expert.learned_states.push(u);
+        }
+        expert.lengths.push(t.len());
+    }
+    let mut agent = AgentBatch::default();
+    for t in agent_steps {
+        for &(u, l) in t {
+            agent.obs.extend(row_of(l));
+            agent.labels_before.push(e);
+            agent.states.push(u);
+        }
+        agent.lengths.push(t.len());
+    }
+    let features = FeatureMap::reacher_labels();
+    let normalisation = IrlRunConfig::standard().smirl_normalisation;
+    assert_eq!(normalisation, SmirlNormalisation::EventGatedVisits);
+    let got = coefficients(&features, &expert, &agent, normalisation, &m);
+
+    let (h, third) = (0.5, 1.0 / 3.0);
+    #[rustfmt::skip]
+    let expected = [
+        // Agent A1 (states 0 0 0 1), A2 (0 1 1).
+        h, h, h, h, h, h, h,
+        // Expert E1 (0 0 1 1 3), E2 (0 1 3), E3 (0 2 2 3).
+        -third, -third, -h, -h, -third,
+        -third, -h, -third,
+        -third, 0.0, 0.0, -third,
+    ];
+    assert_eq!(got.coeffs, expected);
+    let states: Vec<u32> = [agent.states.as_slice(), &expert.learned_states].concat();
+    assert_eq!(got.states, states);
+    assert_eq!(got.obs, [agent.obs.as_slice(), &expert.obs].concat());
+
+    // The gradient of the loss on w: Σ_rows c · φ(row) per (state, feature).
+    let mut model = LinearRmReward::new(features, 4, RewardOptimConfig::adam(0.1)).unwrap();
+    model.backward(&got.obs, &got.states, &got.coeffs).unwrap();
+    let grad = model.grad();
+    let at = |u: usize, f: usize| grad[u * K + f];
+    assert_eq!(
+        at(3, YELLOW),
+        -1.0,
+        "three yellow touches in state 3, −⅓ each"
+    );
+    assert_eq!(
+        at(2, RED),
+        0.0,
+        "state 2 is entered only by the cancel and never by the agent"
+    );
+    assert_eq!(
+        at(0, GREEN),
+        1.0,
+        "A1's two green touches in state 0, +½ each"
+    );
+    // Blue in state 0: agents 2 × ½, experts E1, E2 −⅓ each.
+    assert!((at(0, BLUE) - (1.0 - 2.0 / 3.0) as f32).abs() < 1e-7);
+    assert_eq!(at(1, RED), -1.0, "E1 and E2 touch red in state 1, −½ each");
+}
