@@ -31,7 +31,7 @@ const MAX_BATCH: usize = 4096;
 /// Names of the shipped ReacherDelivery tasks.
 #[pyfunction]
 fn task_names() -> Vec<&'static str> {
-    ReacherTask::ALL.iter().map(|t| t.name()).collect()
+    smirl::env::task_file::SHIPPED.to_vec()
 }
 
 type TaskEnv = ProductEnv<ReacherDelivery, SubgoalPotential>;
@@ -60,7 +60,7 @@ pub(crate) struct TaskSpec {
 
 impl TaskSpec {
     pub(crate) fn new(task: &str, shaping: f64, gamma: f64) -> PyResult<TaskSpec> {
-        let task: ReacherTask = task.parse().map_err(error)?;
+        let task = ReacherTask::resolve(task).map_err(error)?;
         if !shaping.is_finite() || shaping < 0.0 {
             return Err(PyValueError::new_err(format!(
                 "shaping must be a finite number ≥ 0, got {shaping}"
@@ -72,9 +72,10 @@ impl TaskSpec {
             )));
         }
         let rm = task.perfect_rm().map_err(error)?;
+        let config = task.env_config(&ReacherConfig::default()).map_err(error)?;
         Ok(TaskSpec {
             task,
-            config: ReacherConfig::default(),
+            config,
             branches: CancelBranch::of(&rm),
             rm,
             shaping,
@@ -83,7 +84,13 @@ impl TaskSpec {
     }
 
     pub(crate) fn env(&self) -> PyResult<TaskEnv> {
-        task_env(self.task, self.config.clone(), self.shaping, self.gamma).map_err(error)
+        task_env(
+            self.task.clone(),
+            self.config.clone(),
+            self.shaping,
+            self.gamma,
+        )
+        .map_err(error)
     }
 }
 
@@ -170,7 +177,8 @@ fn seed_of(seed: i128) -> PyResult<u64> {
         .map_err(|_| PyValueError::new_err(format!("seed must be in 0..2^64, got {seed}")))
 }
 
-/// One ReacherDelivery environment of a task, with its perfect machine. `unsendable`: the
+/// One ReacherDelivery environment of a task (a shipped name or a task file's path), with its
+/// perfect machine. `unsendable`: the
 /// MuJoCo data is not `Sync`, so Python may use an environment only from the thread that made
 /// it (another thread gets an exception, never a data race).
 #[pyclass(module = "smirl._core", unsendable)]
@@ -195,8 +203,8 @@ impl ReacherCore {
     }
 
     #[getter]
-    fn task(&self) -> &'static str {
-        self.spec.task.name()
+    fn task(&self) -> String {
+        self.spec.task.name().to_string()
     }
     #[getter]
     fn obs_dim(&self) -> usize {

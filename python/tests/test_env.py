@@ -1,6 +1,7 @@
 """The Gymnasium environments: API conformance, seeding, the machine in the loop, errors."""
 
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -120,7 +121,7 @@ def test_bad_actions_raise_python_exceptions(action):
 
 
 def test_bad_arguments_raise_python_exceptions():
-    with pytest.raises(smirl.SmirlError, match="unknown task 'nope'"):
+    with pytest.raises(smirl.SmirlError, match="no shipped task named 'nope'"):
         smirl.make("nope")
     with pytest.raises(ValueError):
         smirl.make("or", shaping=math.nan)
@@ -192,3 +193,27 @@ def test_vector_env_refuses_bad_shapes_and_sizes():
         smirl.make_vec("or", 0)
     with pytest.raises(ValueError):
         smirl.make_vec("or", 10**6)
+
+
+def test_a_task_file_makes_an_environment(tmp_path):
+    """A user's task file: the shipped IF task with its machine beside it and a later event."""
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "assets" / "tasks" / "if.toml").read_text()
+    text = text.replace('machine = "../rm/reacher_if.txt"', 'machine = "mine.txt"')
+    text = text.replace("earliest_step = 1\nlatest_step = 8", "earliest_step = 20\nlatest_step = 30")
+    (tmp_path / "mine.txt").write_text(smirl.RewardMachine.shipped("reacher_if").to_text())
+    (tmp_path / "late.toml").write_text(text)
+    env = smirl.make(str(tmp_path / "late.toml"))
+    assert env.task == "late"
+    check_env(env)
+    for seed in range(40):
+        env.reset(seed=seed)
+        while True:
+            _, _, term, trunc, info = env.step(np.zeros(2))
+            if info["cancel_step"] is not None:
+                assert 20 <= info["cancel_step"] <= 30
+            if term or trunc:
+                break
+    (tmp_path / "bad.toml").write_text(text.replace("radius = 0.02", "radius = -1", 1))
+    with pytest.raises(smirl.SmirlError, match="bad.toml"):
+        smirl.make(str(tmp_path / "bad.toml"))
