@@ -282,7 +282,8 @@ fn corpus(target: &str) -> Corpus {
         "office_map" => {
             c.files.push(read("assets/office/paper.map"));
             c.files.push(
-                b"legend:\nk = key\ng =\nmap:\n+-+-+-+\n|k . g|\n+ +-+ +\n|@|.|.|\n+-+-+-+\n".to_vec(),
+                b"legend:\nk = key\ng =\nmap:\n+-+-+-+\n|k . g|\n+ +-+ +\n|@|.|.|\n+-+-+-+\n"
+                    .to_vec(),
             );
         }
         "config" => {

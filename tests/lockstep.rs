@@ -184,7 +184,10 @@ fn same_steps(a: &AgentBatch, b: &AgentBatch, what: &str) {
 #[test]
 fn lockstep_play_is_one_at_a_time_play() {
     let dir = tempfile::tempdir().unwrap();
-    let rm = ReacherTask::shipped("composite").unwrap().perfect_rm().unwrap();
+    let rm = ReacherTask::shipped("composite")
+        .unwrap()
+        .perfect_rm()
+        .unwrap();
     let task = GroundTruthTask::of(&rm);
     for (mode, decided, n) in [(ActMode::Sample, false, 300), (ActMode::Mean, true, 40)] {
         let specs = specs(n, mode, decided);

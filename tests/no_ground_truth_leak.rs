@@ -156,7 +156,11 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
 #[test]
 fn perturbing_the_perfect_machine_changes_the_evaluation_and_nothing_learned() {
     let tmp = tempfile::tempdir().unwrap();
-    let (a, files_a) = job(ReacherTask::shipped("if").unwrap(), &tmp.path().join("true"), None);
+    let (a, files_a) = job(
+        ReacherTask::shipped("if").unwrap(),
+        &tmp.path().join("true"),
+        None,
+    );
     let (b, files_b) = job(
         ReacherTask::shipped("if").unwrap(),
         &tmp.path().join("perturbed"),
@@ -182,7 +186,11 @@ fn perturbing_the_perfect_machine_to_a_task_without_a_cancel_branch_changes_noth
         Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm/reacher_sequential.txt"),
     )
     .unwrap();
-    let (a, files_a) = job(ReacherTask::shipped("if").unwrap(), &tmp.path().join("true"), None);
+    let (a, files_a) = job(
+        ReacherTask::shipped("if").unwrap(),
+        &tmp.path().join("true"),
+        None,
+    );
     let (b, files_b) = job(
         ReacherTask::shipped("if").unwrap(),
         &tmp.path().join("perturbed"),
