@@ -16,6 +16,8 @@
 //! - `rm`: reward-machine files; an accepted machine writes back to text that reads back to
 //!   the same machine (read → write → read).
 //! - `config`: the TOML configs (IRL run, expert, SAC, Office, ReacherDraw).
+//! - `task_file`, `office_task`: ReacherDelivery and Office task files, read beside copies of
+//!   the shipped machines and map.
 //! - `office_map`: Office map files; an accepted map builds a world and writes back to
 //!   itself (read → write → read).
 //! - `mcap`, `mcap_nocrc`: rollout logs of a real `--quick` run (demonstration and training
@@ -36,8 +38,9 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use smirl::env::office::{parse_map, write_map, OfficeWorld};
+use smirl::env::office::{parse_map, write_map, OfficeTask, OfficeWorld};
 use smirl::env::reacher_task::ReacherTask;
+use smirl::env::task_file::Task;
 use smirl::irl::reward::RewardOptimConfig;
 use smirl::irl::smirl::LinearRmReward;
 use smirl::log::{read_log, read_log_bytes, RolloutLog};
@@ -66,6 +69,8 @@ const TARGETS: &[(&str, &str, u64)] = &[
     ("rm", "FUZZ_TEXT_ITERS", 20_000),
     ("config", "FUZZ_TEXT_ITERS", 4_000),
     ("office_map", "FUZZ_TEXT_ITERS", 20_000),
+    ("task_file", "FUZZ_BIN_ITERS", 1_000),
+    ("office_task", "FUZZ_BIN_ITERS", 4_000),
     ("mcap", "FUZZ_MCAP_ITERS", 2_000),
     ("mcap_nocrc", "FUZZ_MCAP_ITERS", 1_000),
     ("expert_data", "FUZZ_BIN_ITERS", 4_000),
@@ -279,6 +284,12 @@ fn corpus(target: &str) -> Corpus {
     };
     match target {
         "rm" => c.files = dir_files("assets/rm"),
+        "task_file" => c.files = dir_files("assets/tasks"),
+        "office_task" => {
+            for k in 0..5 {
+                c.files.push(read(&format!("assets/office/task{k}.toml")));
+            }
+        }
         "office_map" => {
             c.files.push(read("assets/office/paper.map"));
             c.files.push(
@@ -374,6 +385,30 @@ fn scratch_file(bytes: &[u8]) -> PathBuf {
     path
 }
 
+/// A task file's bytes written as `<scratch>/<dir>/input.toml`, beside copies of the shipped
+/// machines (`<scratch>/rm/`) and Office map (`<scratch>/office/`), so that the relative paths
+/// of the shipped task files resolve as they do in `assets/`.
+fn task_scratch(bytes: &[u8], dir: &str) -> PathBuf {
+    let scratch = std::env::temp_dir().join(format!("smirl-fuzz-tasks-{}", std::process::id()));
+    if !scratch.join("office/paper.map").is_file() {
+        for sub in ["rm", "office", "tasks"] {
+            std::fs::create_dir_all(scratch.join(sub)).unwrap();
+        }
+        for entry in std::fs::read_dir(root().join("assets/rm")).unwrap() {
+            let path = entry.unwrap().path();
+            std::fs::copy(&path, scratch.join("rm").join(path.file_name().unwrap())).unwrap();
+        }
+        std::fs::copy(
+            root().join("assets/office/paper.map"),
+            scratch.join("office/paper.map"),
+        )
+        .unwrap();
+    }
+    let path = scratch.join(dir).join("input.toml");
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
 /// `part` is `whole` or a prefix of it: complete episodes equal, a last unfinished one
 /// holding the first steps of its original.
 fn is_prefix(
@@ -449,6 +484,12 @@ fn run(target: &str, c: &Corpus, i: u64) -> Result<(), String> {
                     return Err("read → write → read changes the machine".into());
                 }
             }
+        }
+        "task_file" => {
+            let _ = Task::load(&task_scratch(&bytes, "tasks"));
+        }
+        "office_task" => {
+            let _ = OfficeTask::load(&task_scratch(&bytes, "office"));
         }
         "office_map" => {
             // A map that parses builds a world and writes back to itself.
