@@ -6,8 +6,21 @@
 /// File name of the ReacherDelivery model (as logs record it).
 pub const REACHER_XML_NAME: &str = "reacher_delivery.xml";
 
-/// `assets/reacher_delivery.xml`.
+/// `assets/reacher_delivery.xml`: the balls are mocap bodies, the arm's joints the whole state.
 pub const REACHER_XML: &str = include_str!("../assets/reacher_delivery.xml");
+
+/// File name of the first ReacherDelivery model.
+pub const REACHER_V1_XML_NAME: &str = "reacher_delivery_v1.xml";
+
+/// `assets/reacher_delivery_v1.xml`: the same arm, each ball on two slide joints (qpos holds
+/// the arm's two joints, then x and y of each ball). Logs that record it replay with it.
+pub const REACHER_V1_XML: &str = include_str!("../assets/reacher_delivery_v1.xml");
+
+/// Every ReacherDelivery model the programs ship, newest first: (file name, XML text).
+pub const REACHER_MODELS: [(&str, &str); 2] = [
+    (REACHER_XML_NAME, REACHER_XML),
+    (REACHER_V1_XML_NAME, REACHER_V1_XML),
+];
 
 /// `assets/rm/<name>.txt`, for the names of [`crate::rm::perfect::NAMES`].
 pub fn reward_machine(name: &str) -> Option<&'static str> {

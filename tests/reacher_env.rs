@@ -267,10 +267,14 @@ fn actions_are_clipped_and_bad_actions_rejected() {
 
 #[test]
 fn randomised_layouts_are_reachable_and_seeded() {
-    let mut e = env(ReacherConfig {
+    let config = ReacherConfig {
         randomize_balls: true,
         ..Default::default()
-    });
+    };
+    let mut e = env(config.clone());
+    // The first scene, whose balls sit on slide joints, places the same layouts.
+    let mut v1 = ReacherDelivery::with_model(v1_model(), config).unwrap();
+    let ball_ids = BALLS.map(|b| e.model().id(ObjectKind::Body, b).unwrap());
     let mut obs = vec![0.0; OBS_DIM];
     e.reset(11, &mut obs);
     let first = e.balls();
@@ -284,9 +288,14 @@ fn randomised_layouts_are_reachable_and_seeded() {
         for (i, b) in balls.iter().enumerate() {
             let r = b[0].hypot(b[1]);
             assert!((0.06..0.19).contains(&r));
-            // The ball slide joints carry the layout.
-            let q = e.qpos();
-            assert_eq!([q[2 + 2 * i], q[3 + 2 * i]], *b);
+            // The model's ball bodies are where the layout says, in both scenes.
+            let p = e.body_position(ball_ids[i]);
+            assert_eq!([p[0], p[1]], *b);
+            v1.reset(seed, &mut obs);
+            assert_eq!(v1.balls(), balls);
+            assert_eq!([v1.qpos()[2 + 2 * i], v1.qpos()[3 + 2 * i]], *b);
+            let p = v1.body_position(ball_ids[i]);
+            assert_eq!([p[0], p[1]], *b);
             for c in &balls[..i] {
                 assert!((b[0] - c[0]).hypot(b[1] - c[1]) >= 0.08);
             }
@@ -331,13 +340,30 @@ fn unknown_names_and_wrong_models_are_errors() {
     let m = Arc::new(Model::from_xml_path(&shipped_xml()).unwrap());
     let e = m.id(ObjectKind::Body, "purple").unwrap_err();
     assert!(e.to_string().contains("no body named 'purple'"), "{e}");
-    assert!(m.id(ObjectKind::Joint, "red_x").is_ok());
-    assert!(m.id(ObjectKind::Site, "red_x").is_err());
+    // The balls are mocap bodies without joints; the first scene moves them by slides.
+    assert!(m.id(ObjectKind::Joint, "red_x").is_err());
+    assert!(m
+        .body_mocap_id(m.id(ObjectKind::Body, "red").unwrap())
+        .is_some());
+    assert!(v1_model().id(ObjectKind::Joint, "red_x").is_ok());
+    assert!(v1_model().id(ObjectKind::Site, "red_x").is_err());
     let plain = Arc::new(Model::from_xml_str("<mujoco><worldbody><body name='b'><joint name='joint0' type='hinge'/><geom size='0.1'/></body></worldbody></mujoco>", "plain").unwrap());
     let err = ReacherDelivery::with_model(plain, ReacherConfig::default())
         .err()
         .unwrap();
     assert!(err.to_string().contains("joint1"), "{err}");
+    // A scene whose ball can be neither moved by mocap nor by slides is refused by name.
+    let fixed = smirl::assets::REACHER_XML
+        .replace(r#"<body mocap="true" name="blue""#, r#"<body name="blue""#);
+    let fixed = Arc::new(Model::from_xml_str(&fixed, "fixed.xml").unwrap());
+    let err = ReacherDelivery::with_model(fixed, ReacherConfig::default())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("fixed.xml") && err.contains("ball blue"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -367,8 +393,15 @@ fn invalid_configs_are_rejected() {
 fn data_state_setters_check_lengths() {
     let m = Arc::new(Model::from_xml_path(&shipped_xml()).unwrap());
     let mut d = Data::new(m).unwrap();
-    assert_eq!(d.qpos().len(), 10);
+    // The arm's two joints are the whole state.
+    assert_eq!((d.qpos().len(), d.qvel().len()), (2, 2));
     assert!(d.set_qpos(&[0.0; 3]).is_err());
+    assert!(d.set_qvel(&[0.0; 10]).is_err());
+    d.set_qpos(&[0.1; 2]).unwrap();
+    d.forward().unwrap();
+    assert_eq!(d.qpos(), &[0.1; 2]);
+    let mut d = Data::new(v1_model()).unwrap();
+    assert_eq!(d.qpos().len(), 10);
     d.set_qpos(&[0.1; 10]).unwrap();
     d.forward().unwrap();
     assert_eq!(d.qpos(), &[0.1; 10]);
@@ -413,6 +446,13 @@ fn shipped_xml() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/reacher_delivery.xml")
 }
 
+/// The first scene, balls on slide joints (`assets/reacher_delivery_v1.xml`).
+fn v1_model() -> Arc<Model> {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/reacher_delivery_v1.xml");
+    Arc::new(Model::from_xml_path(&path).unwrap())
+}
+
 #[test]
 fn built_in_model_is_the_shipped_file() {
     let file = std::fs::read_to_string(shipped_xml()).unwrap();
@@ -421,31 +461,37 @@ fn built_in_model_is_the_shipped_file() {
 
 #[test]
 fn constraint_buffers_hold_every_limit_at_once() {
-    // The model sizes its constraint buffers (njmax) to what it can produce, because MuJoCo
-    // zeroes them on every reset. The worst case: the elbow and all eight ball slides at
-    // their limits and moving outward, nine limit rows. A full buffer is a MuJoCo warning.
-    let m = Arc::new(Model::from_xml_path(&shipped_xml()).unwrap());
-    let mut d = Data::new(m).unwrap();
-    smirl::mujoco::take_warnings();
-    let mut qpos = [0.27f64; 10];
-    qpos[0] = 0.0;
-    qpos[1] = 3.0;
-    for (i, q) in qpos.iter_mut().enumerate().skip(2) {
-        if i % 2 == 1 {
-            *q = -*q;
+    // Each model sizes its constraint buffers (njmax) to what it can produce, because MuJoCo
+    // zeroes them on every reset. The worst case: every limited joint at its limit and moving
+    // outward: the elbow alone in the shipped model, the elbow and all eight ball slides (nine
+    // limit rows) in the first scene. A full buffer is a MuJoCo warning.
+    for m in [
+        Arc::new(Model::from_xml_path(&shipped_xml()).unwrap()),
+        v1_model(),
+    ] {
+        let mut d = Data::new(Arc::clone(&m)).unwrap();
+        smirl::mujoco::take_warnings();
+        let mut qpos = vec![0.27f64; m.nq()];
+        qpos[0] = 0.0;
+        qpos[1] = 3.0;
+        for (i, q) in qpos.iter_mut().enumerate().skip(2) {
+            if i % 2 == 1 {
+                *q = -*q;
+            }
         }
-    }
-    let qvel: Vec<f64> = qpos.iter().map(|q: &f64| q.signum()).collect();
-    d.set_qpos(&qpos).unwrap();
-    d.set_qvel(&qvel).unwrap();
-    d.set_ctrl(&[1.0, 1.0]).unwrap();
-    for _ in 0..20 {
-        d.step().unwrap();
-    }
-    assert_eq!(smirl::mujoco::take_warnings(), Vec::<String>::new());
-    // The limits held: every limited joint is still within a few mm (or rad/100) of its range.
-    for (i, q) in d.qpos().iter().enumerate().skip(1) {
-        let limit = if i == 1 { 3.0 } else { 0.27 };
-        assert!(q.abs() < limit + 0.05, "qpos[{i}] = {q}");
+        let qvel: Vec<f64> = qpos.iter().map(|q: &f64| q.signum()).collect();
+        d.set_qpos(&qpos).unwrap();
+        d.set_qvel(&qvel).unwrap();
+        d.set_ctrl(&[1.0, 1.0]).unwrap();
+        for _ in 0..20 {
+            d.step().unwrap();
+        }
+        assert_eq!(smirl::mujoco::take_warnings(), Vec::<String>::new());
+        // The limits held: every limited joint is still within a few mm (or rad/100) of its
+        // range.
+        for (i, q) in d.qpos().iter().enumerate().skip(1) {
+            let limit = if i == 1 { 3.0 } else { 0.27 };
+            assert!(q.abs() < limit + 0.05, "{m:?} qpos[{i}] = {q}");
+        }
     }
 }

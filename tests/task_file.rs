@@ -314,3 +314,25 @@ fn names_and_paths_resolve() {
         "{e}"
     );
 }
+
+#[test]
+fn layouts_move_mocap_bodies_and_bodies_on_slides_only() {
+    let dir = tempfile::tempdir().unwrap();
+    // The built-in scene's balls are mocap bodies.
+    let task = Task::load(&write(dir.path(), &task_text(), MACHINE)).unwrap();
+    assert!(task.regions.iter().all(|r| r.movable));
+    // The first built-in scene's balls move by their slide joints.
+    std::fs::write(dir.path().join("v1.xml"), smirl::assets::REACHER_V1_XML).unwrap();
+    let text = task_text().replace("\"builtin\"", "\"v1.xml\"");
+    let task = Task::load(&write(dir.path(), &text, MACHINE)).unwrap();
+    assert!(task.regions.iter().all(|r| r.movable));
+    assert_eq!(task.regions[0].position, [0.1, 0.1]);
+    // A body that is neither cannot be put at a position.
+    let xml = REACHER_XML.replace(r#"<body mocap="true" name="red""#, r#"<body name="red""#);
+    assert_ne!(xml, REACHER_XML);
+    std::fs::write(dir.path().join("fixed.xml"), xml).unwrap();
+    let text = task_text().replace("\"builtin\"", "\"fixed.xml\"");
+    let e = Task::load(&write(dir.path(), &text, MACHINE)).unwrap_err();
+    assert_at(&e, 10, "region[0].position");
+    assert!(e.to_string().contains("neither a mocap body"), "{e}");
+}

@@ -37,6 +37,7 @@
 //! arm complete OR and Sequential.) With `randomize_balls`, each reset draws positions uniformly in the annulus
 //! 0.06–0.19 m with at least 0.08 m between balls.
 
+use super::placement::Placement;
 use super::{check_action, ContinuousEnv, EnvError, EnvStep};
 use crate::mujoco::{Data, MjError, Model, ObjectKind};
 use crate::rm::{LabelSet, Vocabulary};
@@ -173,7 +174,7 @@ pub enum ConfigError {
          the cancel window must lie inside the episode"
     )]
     CancelAfterEpisode { latest: usize, max_steps: usize },
-    #[error("ball {ball} at ({}, {}) is outside the slide joints' range ±0.27", crate::quoted::number(*.x), crate::quoted::number(*.y))]
+    #[error("ball {ball} at ({}, {}) is outside the layout range ±0.27", crate::quoted::number(*.x), crate::quoted::number(*.y))]
     BallOutOfRange { ball: &'static str, x: f64, y: f64 },
 }
 
@@ -244,8 +245,8 @@ pub enum ReacherError {
 struct Layout {
     arm_qpos: [usize; 2],
     arm_dof: [usize; 2],
-    /// qpos index of each ball's x slide (y is the next one).
-    ball_qpos: [usize; 4],
+    /// How each ball is put at its layout position.
+    balls: [Placement; 4],
     fingertip_body: usize,
 }
 
@@ -254,18 +255,15 @@ impl Layout {
         let joint = |name: &str| model.id(ObjectKind::Joint, name);
         let j0 = joint("joint0")?;
         let j1 = joint("joint1")?;
-        let mut ball_qpos = [0; 4];
-        for (i, ball) in BALLS.iter().enumerate() {
-            let jx = joint(&format!("{ball}_x"))?;
-            let jy = joint(&format!("{ball}_y"))?;
-            let (ax, ay) = (model.joint_qpos_addr(jx), model.joint_qpos_addr(jy));
-            if ay != ax + 1 {
-                return Err(ReacherError::WrongModel {
-                    model: model.source_name().into(),
-                    problem: format!("joints {ball}_x and {ball}_y are not adjacent in qpos"),
-                });
-            }
-            ball_qpos[i] = ax;
+        let mut balls = [Placement::Slides { qpos: 0 }; 4];
+        for (slot, ball) in balls.iter_mut().zip(BALLS) {
+            *slot = Placement::find(model, ball).ok_or_else(|| ReacherError::WrongModel {
+                model: model.source_name().into(),
+                problem: format!(
+                    "ball {ball} is neither a mocap body nor a body with adjacent slide joints \
+                     {ball}_x, {ball}_y"
+                ),
+            })?;
         }
         if model.nu() != ACT_DIM {
             return Err(ReacherError::WrongModel {
@@ -276,7 +274,7 @@ impl Layout {
         Ok(Layout {
             arm_qpos: [model.joint_qpos_addr(j0), model.joint_qpos_addr(j1)],
             arm_dof: [model.joint_dof_addr(j0), model.joint_dof_addr(j1)],
-            ball_qpos,
+            balls,
             fingertip_body: model.id(ObjectKind::Body, "fingertip")?,
         })
     }
@@ -345,6 +343,11 @@ impl ReacherDelivery {
         self.data.qvel()
     }
 
+    /// World position of a body of the model (e.g. a ball), as of the last reset or step.
+    pub fn body_position(&self, body: usize) -> [f64; 3] {
+        self.data.body_xpos(body)
+    }
+
     /// Ball positions of the current episode, in [`BALLS`] order.
     pub fn balls(&self) -> [[f64; 2]; 4] {
         self.balls
@@ -398,11 +401,13 @@ impl ReacherDelivery {
         obs: &mut [f32],
     ) -> Result<(), EnvError> {
         self.data.reset();
+        self.balls = balls;
+        // Before the logged qpos, which holds the balls itself on a model with ball slides.
+        self.place_balls();
         self.data
             .set_qpos(qpos)
             .and_then(|()| self.data.set_qvel(qvel))
             .map_err(|e| EnvError::Simulation(e.to_string()))?;
-        self.balls = balls;
         self.cancel_step = cancel_step;
         self.steps = 0;
         self.data
@@ -412,6 +417,14 @@ impl ReacherDelivery {
         self.ready = true;
         self.write_obs(obs);
         Ok(())
+    }
+
+    /// Puts the model's balls at this episode's layout (positions take effect at the next
+    /// forward pass).
+    fn place_balls(&mut self) {
+        for (placement, &b) in self.layout.balls.iter().zip(&self.balls) {
+            placement.place(&mut self.data, b);
+        }
     }
 
     /// Labels of the balls the fingertip touches now (no cancel).
@@ -509,11 +522,7 @@ impl ContinuousEnv for ReacherDelivery {
                 self.data.qvel_mut()[d] = rng.gen_range(-0.005..0.005);
             }
         }
-        for (i, b) in self.balls.iter().enumerate() {
-            let a = self.layout.ball_qpos[i];
-            self.data.qpos_mut()[a] = b[0];
-            self.data.qpos_mut()[a + 1] = b[1];
-        }
+        self.place_balls();
         let cancel = &self.config.cancel;
         self.cancel_step = rng
             .gen_bool(cancel.probability)

@@ -13,7 +13,7 @@
 //! letter = "r"
 //! body = "red"                           # or site = "..."
 //! radius = 0.02
-//! position = [0.0975, 0.1689]            # moves the body by its slide joints red_x, red_y
+//! position = [0.0975, 0.1689]            # moves the body (a mocap body, or one with slides)
 //!
 //! [[event]]                              # label bits after the regions', in file order
 //! letter = "c"
@@ -25,6 +25,7 @@
 //! [`Task::load`] checks everything against the scene and the machine before any work, and
 //! every error names the file, the line and the key.
 
+use super::placement::Placement;
 use super::reacher::{
     ArmStart, CancelConfig, ReacherConfig, BALLS, MAX_EPISODE_STEPS, TOUCH_RADIUS,
 };
@@ -50,7 +51,8 @@ pub const MAX_EVENTS: usize = 4;
 pub const MAX_RANDOMIZED_REGIONS: usize = 6;
 /// Half the side of the arena (its walls are at ±0.3 m): every region lies inside.
 pub const ARENA_HALF_WIDTH: f64 = 0.3;
-/// The range of a region's slide joints in the built-in scene: a fixed position lies within.
+/// A fixed layout position lies within ±this (m) in x and y: inside the walls with room for a
+/// ball, the range [`super::reacher::ReacherConfig::ball_layout`] accepts.
 pub const SLIDE_RANGE: f64 = 0.27;
 /// The annulus a randomised layout draws centres in (m), as [`super::reacher`] does.
 pub const RANDOM_LAYOUT_MAX_RADIUS: f64 = 0.19;
@@ -128,7 +130,8 @@ pub struct Region {
     /// Where the layout puts the centre when it is not randomised (x, y); the anchor's place
     /// in the scene when the file gives none.
     pub position: [f64; 2],
-    /// The anchor is a body with slide joints `<body>_x`, `<body>_y`, so a layout can move it.
+    /// The anchor is a body a layout can move ([`Placement::find`]): a mocap body, or a body
+    /// with slide joints `<body>_x`, `<body>_y`.
     pub movable: bool,
 }
 
@@ -233,9 +236,9 @@ pub enum TaskProblem {
     },
     #[error("radius {0} must be more than 0 and the region must fit in the arena (±{ARENA_HALF_WIDTH} m)")]
     Radius(f64),
-    #[error("position ({x}, {y}) with radius {radius} does not lie inside the arena (±{ARENA_HALF_WIDTH} m) and the slide range (±{SLIDE_RANGE} m)")]
+    #[error("position ({x}, {y}) with radius {radius} does not lie inside the arena (±{ARENA_HALF_WIDTH} m) and the layout range (±{SLIDE_RANGE} m)")]
     OutsideArena { x: f64, y: f64, radius: f64 },
-    #[error("{anchor} has no slide joints '{name}_x' and '{name}_y' to move it to a layout position", name = anchor.name())]
+    #[error("{anchor} is neither a mocap body nor a body with slide joints '{name}_x' and '{name}_y', so a layout cannot move it", name = anchor.name())]
     NotMovable { anchor: Anchor },
     #[error("probability {0} must be in [0, 1]")]
     Probability(f64),
@@ -432,7 +435,7 @@ impl Task {
                 }
             };
             let movable = match &anchor {
-                Anchor::Body(b) => has_slides(&model, b),
+                Anchor::Body(b) => Placement::find(&model, b).is_some(),
                 Anchor::Site(_) => false,
             };
             if !(r.radius > 0.0 && r.radius <= ARENA_HALF_WIDTH) {
@@ -658,16 +661,6 @@ fn check_arm(model: &Model, scene: &str) -> Result<(), TaskProblem> {
         });
     }
     Ok(())
-}
-
-/// The body has slide joints `<body>_x` and `<body>_y`, adjacent in `qpos`.
-fn has_slides(model: &Model, body: &str) -> bool {
-    let x = model.id(ObjectKind::Joint, &format!("{body}_x"));
-    let y = model.id(ObjectKind::Joint, &format!("{body}_y"));
-    match (x, y) {
-        (Ok(x), Ok(y)) => model.joint_qpos_addr(y) == model.joint_qpos_addr(x) + 1,
-        _ => false,
-    }
 }
 
 /// The machine's text and how messages name it. A shipped task's machine path resolves

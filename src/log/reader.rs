@@ -86,8 +86,10 @@ impl RolloutLog {
         self.episodes.iter().map(|e| e.steps.len()).sum()
     }
 
-    /// The model XML stored with a ReacherDelivery log (what replay, render and the
-    /// Foxglove view simulate); the message says why there is none.
+    /// The model XML of a ReacherDelivery log (what replay, render and the Foxglove view
+    /// simulate): the one attached to the file, else the shipped model
+    /// ([`crate::assets::REACHER_MODELS`]) whose hash the run record names; the message says
+    /// why there is none.
     pub fn reacher_model_xml(&self) -> Result<&str, String> {
         if self.run.env != "ReacherDelivery" {
             return Err(format!(
@@ -95,9 +97,17 @@ impl RolloutLog {
                 self.run.env
             ));
         }
-        self.model_xml
-            .as_deref()
-            .ok_or_else(|| "the file has no model.xml attachment".to_string())
+        if let Some(xml) = &self.model_xml {
+            return Ok(xml);
+        }
+        crate::assets::REACHER_MODELS
+            .iter()
+            .find(|(_, xml)| schema::sha256_hex(xml) == self.run.model_xml_sha256)
+            .map(|(_, xml)| *xml)
+            .ok_or_else(|| {
+                "the file has no model.xml attachment and its run record names no shipped model"
+                    .to_string()
+            })
     }
 }
 

@@ -125,6 +125,13 @@ impl Data {
         copy_checked("qvel", qvel, self.qvel_mut())
     }
 
+    /// Places a mocap body (index from [`Model::body_mocap_id`]); takes effect at the next
+    /// `step`/`forward`, and [`Data::reset`] puts it back at its model position.
+    pub fn set_mocap_pos(&mut self, mocap: usize, pos: [f64; 3]) {
+        let (p, n) = (self.raw().mocap_pos, 3 * self.model.nmocap());
+        self.slice_mut(p, n)[3 * mocap..3 * mocap + 3].copy_from_slice(&pos);
+    }
+
     /// World position of a body's frame, as of the last `step`/`forward`.
     pub fn body_xpos(&self, body: usize) -> [f64; 3] {
         let all = self.slice(self.raw().xpos, 3 * self.model.nbody());

@@ -196,6 +196,23 @@ impl Model {
         unsafe { std::slice::from_raw_parts(ptr, len) }
     }
 
+    /// Index of a body in `mocap_pos` when it is a mocap body (a body of the world whose
+    /// position each [`super::Data`] sets, with no degrees of freedom).
+    pub fn body_mocap_id(&self, body: usize) -> Option<usize> {
+        usize::try_from(self.slice(self.raw().body_mocapid, self.nbody())[body]).ok()
+    }
+
+    /// Number of mocap bodies.
+    pub fn nmocap(&self) -> usize {
+        self.raw().nmocap as usize
+    }
+
+    /// Position of a body in its parent's frame, as the model gives it.
+    pub fn body_pos(&self, body: usize) -> [f64; 3] {
+        let s = &self.slice(self.raw().body_pos, 3 * self.nbody())[3 * body..3 * body + 3];
+        [s[0], s[1], s[2]]
+    }
+
     /// Index of a joint's first value in `qpos`.
     pub fn joint_qpos_addr(&self, joint: usize) -> usize {
         self.slice(self.raw().jnt_qposadr, self.njnt())[joint] as usize

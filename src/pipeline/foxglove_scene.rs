@@ -10,12 +10,14 @@
 //! - `/tf` (`foxglove.FrameTransforms`): frames `link0`, `link1` and `fingertip` in `world`.
 //!
 //! Geometry, colours and sizes come from the log's own model XML; poses from forward
-//! kinematics on the logged `qpos` (exact doubles), at the `log_time` of the state's
+//! kinematics on the logged `qpos` (exact doubles) with the balls at the episode's logged
+//! layout, at the `log_time` of the state's
 //! `/episode/start` or `/step` message. Every original record the reader accepts (messages,
 //! attachments, metadata) is copied unchanged, in file order; of a log cut short, that is its
 //! complete chunks and nothing of the chunk it was cut in. The log itself keeps its size (the
 //! view is a separate file). Schemas are the official ones of the `foxglove` crate.
 
+use crate::env::placement::Placement;
 use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
 use crate::log::schema::{EpisodeStartMsg, StepMsg, TOPIC_EPISODE_START, TOPIC_STEP};
 use crate::log::{read_log_bytes, read_log_file, read_log_records, LogError};
@@ -77,6 +79,8 @@ struct Geometry {
     model: Arc<Model>,
     arm_bodies: [usize; 3],
     ball_bodies: [usize; 4],
+    /// How each ball is put at its episode's logged position.
+    ball_placements: [Placement; 4],
     link_radius: f64,
     tip_radius: f64,
     ball_radius: f64,
@@ -108,8 +112,11 @@ impl Geometry {
         ];
         let mut ball_bodies = [0; 4];
         let mut ball_colours = [Color::default(); 4];
+        let mut ball_placements = [Placement::Slides { qpos: 0 }; 4];
         for (k, name) in BALLS.iter().enumerate() {
             ball_bodies[k] = id(ObjectKind::Body, name)?;
+            ball_placements[k] = Placement::find(&model, name)
+                .ok_or_else(|| format!("ball {name} has neither a mocap body nor slide joints"))?;
             ball_colours[k] = colour(model.geom_rgba(geom(name)?), None);
         }
         let mut walls = Vec::new();
@@ -131,6 +138,7 @@ impl Geometry {
             walls,
             arm_bodies,
             ball_bodies,
+            ball_placements,
             model,
         })
     }
@@ -233,6 +241,22 @@ struct Frame {
 }
 
 impl Geometry {
+    /// Puts the balls at an episode's logged layout (x, y of each ball in label order); the
+    /// state's forward pass in [`Geometry::frame`] moves them there.
+    fn place_balls(&self, data: &mut Data, balls: &[f64]) -> Result<(), String> {
+        if balls.len() != 2 * BALLS.len() {
+            return Err(format!(
+                "the ball layout has {} values, expected {}",
+                balls.len(),
+                2 * BALLS.len()
+            ));
+        }
+        for (placement, xy) in self.ball_placements.iter().zip(balls.chunks_exact(2)) {
+            placement.place(data, [xy[0], xy[1]]);
+        }
+        Ok(())
+    }
+
     fn frame(
         &self,
         data: &mut Data,
@@ -495,6 +519,9 @@ impl<W: std::io::Write + std::io::Seek> ViewWriter<'_, W> {
                 let state = match ch.topic.as_str() {
                     TOPIC_EPISODE_START => {
                         let m = EpisodeStartMsg::decode(data)
+                            .map_err(|e| bad_input(format!("{TOPIC_EPISODE_START}: {e}")))?;
+                        self.geometry
+                            .place_balls(self.data, &m.balls)
                             .map_err(|e| bad_input(format!("{TOPIC_EPISODE_START}: {e}")))?;
                         Some((m.qpos, m.labels, true))
                     }

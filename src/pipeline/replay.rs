@@ -10,7 +10,8 @@
 //! Differences in the setting are reported as such before any step is compared: a log from
 //! another MuJoCo version (bit-exact agreement is then not expected), a stored XML whose hash
 //! is not the one recorded (a damaged file), or an XML that differs from the shipped model
-//! (replay still uses the stored one, which is what the run used).
+//! (replay still uses the stored one, which is what the run used; the first shipped model,
+//! `assets/reacher_delivery_v1.xml`, is named as such).
 
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
 use crate::env::reacher_task::{Branch, CancelBranch};
@@ -172,7 +173,13 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
         ));
     }
     let shipped = sha256_hex(crate::assets::REACHER_XML);
-    if shipped != stored_hash {
+    if sha256_hex(crate::assets::REACHER_V1_XML) == stored_hash {
+        notes.push(format!(
+            "the run used the first shipped model (assets/{}, balls on slide joints); \
+             replaying with it",
+            crate::assets::REACHER_V1_XML_NAME
+        ));
+    } else if shipped != stored_hash {
         notes.push(format!(
             "the run used a model XML ({}, sha256 {}) that differs from the shipped assets/{} \
              (sha256 {}); replaying with the XML stored in the log",
