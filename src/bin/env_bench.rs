@@ -1,19 +1,22 @@
-//! Benchmark: ReacherDelivery steps per second against the raw FFI step loop on the same
-//! model, measured in the same run (interleaved repetitions, medians); and what one episode
-//! reset costs in environment steps (f-IRL resets 1 000 times per iteration for 30-step
-//! episodes, so a reset worth many steps is a large share of its sampling).
+//! Benchmark: ReacherDelivery steps per second on the shipped model against the raw FFI step
+//! loop on the same model (the limit) and against the environment on the first model
+//! (`assets/reacher_delivery_v1.xml`: balls on slide joints, contact pass on), all measured in
+//! the same run (interleaved repetitions, medians of per-repetition ratios); and what one
+//! episode reset costs in environment steps (f-IRL resets 1 000 times per iteration for
+//! 30-step episodes, so a reset worth many steps is a large share of its sampling).
 //!
 //! `cargo run --release --bin env_bench -- --reps 7 --steps 20000`
 
 use clap::Parser;
+use smirl::assets::{REACHER_V1_XML, REACHER_V1_XML_NAME};
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery, FRAME_SKIP, OBS_DIM};
 use smirl::env::ContinuousEnv;
-use smirl::mujoco::{self, Data};
+use smirl::mujoco::{self, Data, Model};
 use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(about = "ReacherDelivery steps/s vs the raw mj_step loop")]
+#[command(about = "ReacherDelivery steps/s vs the raw mj_step loop and vs the first model")]
 struct Args {
     /// Repetitions of each measurement (the median is reported).
     #[arg(long, default_value_t = 7)]
@@ -28,6 +31,30 @@ fn median(mut xs: Vec<f64>) -> f64 {
     xs[xs.len() / 2]
 }
 
+/// Environment steps per second over `steps` steps of a fixed action, resetting at truncation.
+fn env_rate(env: &mut ReacherDelivery, steps: usize, obs: &mut [f32]) -> anyhow::Result<f64> {
+    let action = [0.3f32, -0.2];
+    let t = Instant::now();
+    let mut episode = 0u64;
+    env.reset(episode, obs);
+    for _ in 0..steps {
+        let step = env.step(&action, obs)?;
+        if step.truncated {
+            episode += 1;
+            env.reset(episode, obs);
+        }
+    }
+    Ok(steps as f64 / t.elapsed().as_secs_f64())
+}
+
+/// Environment steps per second of the bare `mj_step` loop (FRAME_SKIP calls a step).
+fn raw_rate(data: &mut Data, steps: usize) -> f64 {
+    data.reset();
+    let t = Instant::now();
+    mujoco::raw_step_loop(data, &[0.3, -0.2], steps, FRAME_SKIP);
+    steps as f64 / t.elapsed().as_secs_f64()
+}
+
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     anyhow::ensure!(
@@ -36,29 +63,20 @@ fn main() -> anyhow::Result<()> {
     );
     let mut env = ReacherDelivery::new(ReacherConfig::default())?;
     let mut raw = Data::new(Arc::clone(env.model()))?;
-    let action = [0.3f32, -0.2];
-    let ctrl = [0.3f64, -0.2];
+    let v1_model = Arc::new(Model::from_xml_str(REACHER_V1_XML, REACHER_V1_XML_NAME)?);
+    let mut env_v1 = ReacherDelivery::with_model(Arc::clone(&v1_model), ReacherConfig::default())?;
+    let mut raw_v1 = Data::new(v1_model)?;
     let mut obs = vec![0.0f32; OBS_DIM];
 
-    let (mut raw_rates, mut env_rates, mut reset_costs) = (vec![], vec![], vec![]);
+    let (mut raw_rates, mut env_rates, mut raw_v1_rates, mut env_v1_rates) =
+        (vec![], vec![], vec![], vec![]);
+    let mut reset_costs = vec![];
     let resets = (args.steps / 10).max(1);
     for rep in 0..args.reps {
-        raw.reset();
-        let t = Instant::now();
-        mujoco::raw_step_loop(&mut raw, &ctrl, args.steps, FRAME_SKIP);
-        raw_rates.push(args.steps as f64 / t.elapsed().as_secs_f64());
-
-        let t = Instant::now();
-        let mut episode = 0u64;
-        env.reset(episode, &mut obs);
-        for _ in 0..args.steps {
-            let step = env.step(&action, &mut obs)?;
-            if step.truncated {
-                episode += 1;
-                env.reset(episode, &mut obs);
-            }
-        }
-        env_rates.push(args.steps as f64 / t.elapsed().as_secs_f64());
+        raw_rates.push(raw_rate(&mut raw, args.steps));
+        env_rates.push(env_rate(&mut env, args.steps, &mut obs)?);
+        raw_v1_rates.push(raw_rate(&mut raw_v1, args.steps));
+        env_v1_rates.push(env_rate(&mut env_v1, args.steps, &mut obs)?);
 
         let t = Instant::now();
         for episode in 0..resets {
@@ -67,38 +85,38 @@ fn main() -> anyhow::Result<()> {
         let reset_secs = t.elapsed().as_secs_f64() / resets as f64;
         reset_costs.push(reset_secs * env_rates[rep]);
         eprintln!(
-            "rep {rep}: raw {:.0} steps/s, env {:.0} steps/s",
-            raw_rates[rep], env_rates[rep]
+            "rep {rep}: raw {:.0}, env {:.0}, raw v1 {:.0}, env v1 {:.0} steps/s",
+            raw_rates[rep], env_rates[rep], raw_v1_rates[rep], env_v1_rates[rep]
         );
     }
-    let ratios: Vec<f64> = env_rates
-        .iter()
-        .zip(&raw_rates)
-        .map(|(e, r)| e / r)
-        .collect();
-    let (raw_med, env_med) = (median(raw_rates), median(env_rates));
+    let ratio = |a: &[f64], b: &[f64]| median(a.iter().zip(b).map(|(x, y)| x / y).collect());
+    let env_vs_raw = ratio(&env_rates, &raw_rates);
+    let env_vs_v1 = ratio(&env_rates, &env_v1_rates);
+    let raw_vs_raw_v1 = ratio(&raw_rates, &raw_v1_rates);
+    let v1_env_vs_raw = ratio(&env_v1_rates, &raw_v1_rates);
     let reset_cost = median(reset_costs);
     println!(
-        "MuJoCo {} ({} steps x {} reps, {FRAME_SKIP} mj_step per env step)",
+        "MuJoCo {} ({} steps x {} reps, {FRAME_SKIP} mj_step per env step, one thread)",
         mujoco::version_string(),
         args.steps,
         args.reps
     );
+    for (name, rates) in [
+        ("raw FFI loop, shipped model ", &raw_rates),
+        ("ReacherDelivery, shipped    ", &env_rates),
+        ("raw FFI loop, first model   ", &raw_v1_rates),
+        ("ReacherDelivery, first model", &env_v1_rates),
+    ] {
+        let m = median(rates.clone());
+        println!("{name}: {m:>9.0} steps/s ({:.1} us/step)", 1e6 / m);
+    }
+    println!("ratio env shipped / env first model: {env_vs_v1:.3} (target >= 1.5)");
+    println!("ratio env shipped / raw shipped    : {env_vs_raw:.3} (target >= 0.9)");
+    println!("ratio raw shipped / raw first model: {raw_vs_raw_v1:.3}");
+    println!("ratio env first / raw first model  : {v1_env_vs_raw:.3}");
     println!(
-        "raw FFI loop      : {raw_med:>9.0} steps/s ({:.1} us/step)",
-        1e6 / raw_med
-    );
-    println!(
-        "ReacherDelivery   : {env_med:>9.0} steps/s ({:.1} us/step)",
-        1e6 / env_med
-    );
-    println!(
-        "ratio env/raw     : {:.3} (median of per-rep ratios; target >= 0.9)",
-        median(ratios)
-    );
-    println!(
-        "episode reset     : {:.1} us = {reset_cost:.2} env steps (median per rep; target <= 1)",
-        reset_cost * 1e6 / env_med
+        "episode reset (shipped): {:.1} us = {reset_cost:.2} env steps (median per rep; target <= 1)",
+        reset_cost * 1e6 / median(env_rates)
     );
     Ok(())
 }
