@@ -1,6 +1,7 @@
 //! SVG plots of long curves stay small and keep their extremes (`report::plot::downsample`,
 //! used by `LinePlot::to_svg` for series longer than `MAX_DRAWN_POINTS`).
 
+use smirl::report::curves::{CurveTable, FigureLabels, HEADER, MAX_PANELS};
 use smirl::report::{downsample, BandPoint, LinePlot, Series, MAX_DRAWN_POINTS};
 
 /// A noisy curve with one-point spikes up (index 6 007) and down (index 2 501).
@@ -90,9 +91,9 @@ fn x_out_of_order_falls_back_to_buckets_of_equal_count() {
 
 fn plot(n: usize) -> LinePlot {
     let mut plot = LinePlot::new("a long curve", "env steps", "value");
-    plot.series.push(Series {
-        name: "noisy".into(),
-        points: noisy(n)
+    plot.series.push(Series::new(
+        "noisy",
+        noisy(n)
             .into_iter()
             .map(|(x, y)| BandPoint {
                 x,
@@ -100,7 +101,7 @@ fn plot(n: usize) -> LinePlot {
                 std: 0.1 + 0.05 * (x * 0.003).cos(),
             })
             .collect(),
-    });
+    ));
     plot
 }
 
@@ -146,4 +147,197 @@ fn short_series_are_drawn_point_for_point() {
     let svg = plot(n).to_svg();
     assert_eq!(coordinates(&svg, "polyline").len(), n);
     assert_eq!(coordinates(&svg, "polygon").len(), 2 * n);
+}
+
+// Small multiples and curve tables (`reacher figure`).
+
+fn labels() -> FigureLabels {
+    FigureLabels {
+        title: "Figure".into(),
+        x_label: "env steps".into(),
+        y_label: "success".into(),
+    }
+}
+
+/// Two panels; smirl in both, with two branch curves in the second.
+fn table_text() -> String {
+    let mut t = format!("{HEADER}\n");
+    for seed in 0..2 {
+        for x in 0..3 {
+            t += &format!("OR,smirl,,{seed},{x},0.5\n");
+            t += &format!("OR,fkl,,{seed},{x},0.25\n");
+            t += &format!("IF,smirl,normal,{seed},{x},1\n");
+            t += &format!("IF,smirl,cancel,{seed},{x},0\n");
+        }
+    }
+    t
+}
+
+#[test]
+fn a_curve_table_becomes_one_panel_per_task_with_one_colour_per_algorithm() {
+    let table = CurveTable::parse(&table_text()).unwrap();
+    let colour = |algo: &str| (algo == "smirl").then_some("#59a14f");
+    let figure = table.to_figure(&labels(), Some((0.0, 1.0)), 2, 1, colour);
+    assert_eq!(figure.panels.len(), 2);
+    let (or, branches) = (&figure.panels[0], &figure.panels[1]);
+    assert_eq!((or.title.as_str(), branches.title.as_str()), ("OR", "IF"));
+    let names: Vec<&str> = branches.series.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["smirl (normal)", "smirl (cancel)"]);
+    // The first curve name is solid, the other dashed, both in the algorithm's colour.
+    assert_eq!(
+        branches.series.iter().map(|s| s.dashed).collect::<Vec<_>>(),
+        [false, true]
+    );
+    assert!(branches.series.iter().all(|s| s.colour == Some("#59a14f")));
+    // Mean over the two seeds at each x.
+    assert_eq!(or.series[1].points.len(), 3);
+    assert!(or.series[1]
+        .points
+        .iter()
+        .all(|p| p.mean == 0.25 && p.std == 0.0));
+
+    let svg = figure.to_svg();
+    // One legend entry per algorithm (smirl once, though three of its lines are drawn) and
+    // one per line style.
+    assert_eq!(svg.matches(">smirl<").count(), 1);
+    assert_eq!(svg.matches(">fkl<").count(), 1);
+    assert!(svg.contains(">normal<") && svg.contains(">cancel<"));
+    // smirl's colour wherever it is drawn, fkl's a palette colour no named series takes.
+    assert_eq!(
+        svg.matches(r##"stroke="#59a14f" stroke-width="2""##)
+            .count(),
+        3
+    );
+    assert_eq!(
+        svg.matches("stroke-dasharray").count(),
+        2,
+        "the cancel line and its key"
+    );
+}
+
+#[test]
+fn the_legend_is_beside_the_plot_area_not_over_it() {
+    let svg = plot(50).to_svg();
+    // The plot area ends at x = 620 (70 + 550); every legend sample line starts right of it.
+    let legend_x: Vec<f64> = svg
+        .match_indices(r#"<line x1=""#)
+        .map(|(i, m)| {
+            let rest = &svg[i + m.len()..];
+            rest[..rest.find('"').unwrap()].parse().unwrap()
+        })
+        .filter(|&x: &f64| x > 620.0)
+        .collect();
+    assert_eq!(legend_x.len(), 1, "one legend entry");
+    let width: f64 = {
+        let i = svg.find("width=\"").unwrap() + 7;
+        svg[i..i + svg[i..].find('"').unwrap()].parse().unwrap()
+    };
+    assert!(width > 640.0, "the document widens for the legend: {width}");
+}
+
+#[test]
+fn moving_average_smooths_each_seed() {
+    let text = format!("{HEADER}\nA,maxent,,0,0,0\nA,maxent,,0,1,1\nA,maxent,,0,2,0\n");
+    let figure = CurveTable::parse(&text)
+        .unwrap()
+        .to_figure(&labels(), None, 1, 2, |_| None);
+    let means: Vec<f64> = figure.panels[0].series[0]
+        .points
+        .iter()
+        .map(|p| p.mean)
+        .collect();
+    assert_eq!(means, [0.0, 0.5, 0.5]);
+}
+
+#[test]
+fn bad_curve_tables_name_their_line() {
+    let cases = [
+        (
+            "panel,algo,seed,x,y\n".to_string(),
+            "line 1: expected the header",
+        ),
+        (String::new(), "line 1: empty"),
+        (format!("{HEADER}\n"), "no rows"),
+        (
+            format!("{HEADER}\nA,smirl,,0,1\n"),
+            "line 2: 5 fields, expected 6",
+        ),
+        (
+            format!("{HEADER}\nA,smirl,,0,1,2\nA,smirl,,x,1,2\n"),
+            "line 3: seed `x`",
+        ),
+        (
+            format!("{HEADER}\nA,smirl,,0,NaN,2\n"),
+            "line 2: x `NaN` is not a finite",
+        ),
+        (
+            format!("{HEADER}\nA,smirl,,0,1,inf\n"),
+            "line 2: y `inf` is not a finite",
+        ),
+        (
+            format!("{HEADER}\n,smirl,,0,1,2\n"),
+            "line 2: empty panel or algo",
+        ),
+    ];
+    for (text, expected) in cases {
+        let error = CurveTable::parse(&text).unwrap_err().to_string();
+        assert!(error.contains(expected), "{text:?}: {error}");
+    }
+    let many: String = (0..=MAX_PANELS)
+        .map(|k| format!("P{k},smirl,,0,0,0\n"))
+        .collect();
+    let error = CurveTable::parse(&format!("{HEADER}\n{many}"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains(&format!(
+            "line {}: more than {MAX_PANELS} panels",
+            MAX_PANELS + 2
+        )),
+        "{error}"
+    );
+}
+
+#[test]
+fn reacher_figure_writes_the_svg_and_refuses_bad_input_with_status_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("curves.csv");
+    std::fs::write(&data, table_text()).unwrap();
+    let out = dir.path().join("figure.svg");
+    let run = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_reacher"))
+            .arg("figure")
+            .arg("--data")
+            .arg(&data)
+            .arg("--out")
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let ok = run(&["--y-range", "0,1"]);
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let svg = std::fs::read_to_string(&out).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains(">OR<") && svg.contains(">IF<"));
+    // An existing figure is kept without --force.
+    let again = run(&[]);
+    assert_eq!(again.status.code(), Some(2));
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), svg);
+    for bad in [
+        &["--y-range", "1,0"][..],
+        &["--columns", "0"],
+        &["--smooth", "0"],
+    ] {
+        let o = run(&[bad, &["--force"]].concat());
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+    }
+    std::fs::write(&data, format!("{HEADER}\nA,smirl,,0,1\n")).unwrap();
+    let o = run(&["--force"]);
+    assert_eq!(o.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("curves.csv: line 2: 5 fields"), "{stderr}");
 }

@@ -7,12 +7,15 @@ logs; this package puts them behind Gymnasium's interfaces:
   registered as ``smirl/ReacherDelivery-Composite-v0``), ``smirl.make_vec("composite", 16)``
   its vector version, stepped in Rust without the GIL; ``smirl.make_office("0")`` an Office
   gridworld task (``smirl/Office-T0-v0``);
+- ``smirl.make_learned(run_dir)`` — the environment SMIRL's agent learns in, rebuilt from a run
+  directory: the learned machine's product paying the learned reward (``smirl.LearnedReward``);
 - ``smirl.RewardMachine``, ``smirl.learn_rm`` — machines and LRM;
 - ``smirl.read_log`` — a rollout log's episodes as NumPy arrays.
 """
 
 from ._core import (  # noqa: F401  (re-exported)
     GIT_COMMIT,
+    LearnedReward,
     RewardMachine,
     SmirlError,
     __version__,
@@ -22,10 +25,12 @@ from ._core import (  # noqa: F401  (re-exported)
     task_names,
 )
 from .envs import (
+    LearnedProductEnv,
     OfficeEnv,
     ReacherDeliveryEnv,
     ReacherDeliveryVectorEnv,
     make,
+    make_learned,
     make_office,
     make_vec,
     register_envs,
@@ -35,6 +40,8 @@ register_envs()
 
 __all__ = [
     "GIT_COMMIT",
+    "LearnedProductEnv",
+    "LearnedReward",
     "OfficeEnv",
     "ReacherDeliveryEnv",
     "ReacherDeliveryVectorEnv",
@@ -42,6 +49,7 @@ __all__ = [
     "SmirlError",
     "learn_rm",
     "make",
+    "make_learned",
     "make_office",
     "make_vec",
     "read_log",

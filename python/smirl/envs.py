@@ -121,6 +121,48 @@ def top_down(angles, tip, regions, size: int) -> np.ndarray:
     return img
 
 
+class LearnedProductEnv(gym.Env):
+    """The environment SMIRL's agent learns in, rebuilt from a run directory: ReacherDelivery ×
+    the run's learned machine (``rm/learned.txt``, or ``machine``), paying the learned reward
+    ``rewards/<algo>_seed<seed>.json`` (δ_r(u, o) = w_uᵀ φ(o), u the learned state before the
+    step, o the observation after it; no shaping).
+
+    The observation is the environment's, the learned state's one-hot, then — when the run's
+    config has ``smirl_clock`` — the share of the episode still to come. Episodes are only
+    truncated (at the task's episode length): the task's perfect machine never ends one, and
+    the agent sees nothing of it. ``info`` holds ``labels``, ``rm_state`` (learned) and, for
+    judging only, ``success``/``failure`` on the step the task's machine reaches its goal or a
+    failure state, ``task_done``, ``task_rm_state`` and, for a conditional task, ``branch``.
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, run: str, algo: str = "smirl", seed: int = 0, machine: str | None = None):
+        self._core = _core.LearnedProductCore(str(run), algo, int(seed), machine)
+        self.task = self._core.task
+        self.observation_space = _observation_space(self._core.obs_dim)
+        self.action_space = _action_space(self._core.act_dim)
+        self.reward_machine = _core.RewardMachine.from_text(
+            self._core.reward_machine, f"learned machine of {run}"
+        )
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        if seed is None:
+            seed = _seed_from(self.np_random)
+        if not 0 <= int(seed) <= MAX_SEED:
+            raise ValueError(f"seed must be in 0..2**64, got {seed}")
+        return self._core.reset(int(seed)), {"seed": int(seed)}
+
+    def step(self, action):
+        action = np.asarray(action, dtype=np.float32).reshape(-1)
+        if action.shape != self.action_space.shape:
+            raise ValueError(
+                f"action has shape {action.shape}, the environment takes {self.action_space.shape}"
+            )
+        return self._core.step(action.tolist())
+
+
 class ReacherDeliveryVectorEnv(VectorEnv):
     """``num_envs`` environments of one task stepped together in Rust (GIL released).
 
@@ -245,6 +287,11 @@ def register_envs() -> None:
 def make(task: str = "composite", **kwargs):
     """The environment of a ReacherDelivery task (a shipped name, e.g. ``"composite"``)."""
     return ReacherDeliveryEnv(task, **kwargs)
+
+
+def make_learned(run: str, algo: str = "smirl", seed: int = 0, machine: str | None = None):
+    """SMIRL's learned product of a run directory (see ``LearnedProductEnv``)."""
+    return LearnedProductEnv(run, algo, seed, machine)
 
 
 def make_office(task: str = "0", **kwargs) -> OfficeEnv:

@@ -2,13 +2,15 @@
 //!
 //! Thin bindings over the `smirl` library: a task's environment (ReacherDelivery × its perfect
 //! machine) one at a time or as a batch stepped without the GIL, reward machines (text, DOT,
-//! stepping, equivalence), LRM, and the MCAP rollout logs. Every error of the library reaches
+//! stepping, equivalence), LRM, SMIRL's learned rewards, and the MCAP rollout logs. Every error of the library reaches
 //! Python as an exception carrying the library's message; arguments are checked here before
 //! they reach the library, so no call can panic or abort the interpreter.
 
 mod env;
+mod learned_product;
 mod logs;
 mod office;
+mod reward;
 mod rm;
 
 use pyo3::prelude::*;
@@ -24,6 +26,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     rm::register(m)?;
     logs::register(m)?;
     office::register(m)?;
+    reward::register(m)?;
+    learned_product::register(m)?;
     Ok(())
 }
 

@@ -10,6 +10,7 @@
 //!   training curve, its training episodes and 16 demonstrations in MCAP.
 //! - `reacher draw --algo A --out DIR`: f-IRL's ReacherDraw with one baseline.
 //! - `reacher reward FILE --at x,y`: a baseline's saved reward at fingertip positions.
+//! - `reacher figure --data CURVES.csv --out FIG.svg`: learning curves as small multiples.
 //!
 //! - `reacher --task T [--algo A] [--seeds N] [--quick] …`: the IRL pipeline, in one
 //!   process; the same run in three steps a scheduler can spread over machines:
@@ -29,6 +30,7 @@ use smirl::pipeline::commands::{
     self,
     draw::DrawRequest,
     expert::{CurveRequest, ExpertRequest},
+    figure::FigureRequest,
     irl::IrlRequest,
     irl::JobRequest,
     irl::RetrainRequest,
@@ -97,6 +99,39 @@ enum Command {
     /// Print a baseline's saved reward (rewards/<algo>_seed<k>.bin of maxent, fkl, rkl, js)
     /// at fingertip positions.
     Reward(RewardArgs),
+    /// Draw learning curves as small multiples (one panel per task, each algorithm in its own
+    /// colour, a second curve of an algorithm dashed) from a curve table: a CSV
+    /// `panel,algo,curve,seed,x,y` with one row per point, as experiments/ scripts write it.
+    Figure(FigureArgs),
+}
+
+#[derive(Args)]
+struct FigureArgs {
+    /// The curve table (CSV with the header `panel,algo,curve,seed,x,y`).
+    #[arg(long)]
+    data: PathBuf,
+    /// The SVG to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// The figure's title.
+    #[arg(long, default_value = "")]
+    title: String,
+    #[arg(long, default_value = "environment steps")]
+    x_label: String,
+    #[arg(long, default_value = "success rate")]
+    y_label: String,
+    /// The y axis of every panel, `LO,HI` (default: fitted to each panel's data).
+    #[arg(long, allow_hyphen_values = true)]
+    y_range: Option<String>,
+    /// Panels per row.
+    #[arg(long, default_value_t = 2)]
+    columns: usize,
+    /// Moving average of each seed's curve over this many consecutive points (1: none).
+    #[arg(long, default_value_t = 1)]
+    smooth: usize,
+    /// Replace an existing --out.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -490,6 +525,17 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             quiet: a.quiet,
         }),
         Some(Command::Reward(a)) => irl::reward(&a.file, &a.at),
+        Some(Command::Figure(a)) => commands::figure::run(FigureRequest {
+            data: a.data,
+            out: a.out,
+            title: a.title,
+            x_label: a.x_label,
+            y_label: a.y_label,
+            y_range: a.y_range,
+            columns: a.columns,
+            smooth: a.smooth,
+            force: a.force,
+        }),
     }
 }
 

@@ -66,6 +66,20 @@ impl Algo {
         }
     }
 
+    /// The algorithm's colour in every plot (one of [`crate::report::plot::PALETTE`]): SMIRL's
+    /// variants in greens and teal, the baselines each in their own hue.
+    pub fn colour(self) -> &'static str {
+        match self {
+            Algo::Smirl => "#59a14f",
+            Algo::SmirlSmooth => "#76b7b2",
+            Algo::MaxEnt => "#4e79a7",
+            Algo::Fkl => "#f28e2b",
+            Algo::Rkl => "#b07aa1",
+            Algo::Js => "#e15759",
+            Algo::Apprenticeship => "#9c755f",
+        }
+    }
+
     /// SMIRL variants act on the product with a learned machine.
     pub fn uses_rm(self) -> bool {
         matches!(self, Algo::Smirl | Algo::SmirlSmooth)
@@ -79,6 +93,22 @@ impl Algo {
             Algo::Js => Some(Divergence::Js),
             _ => None,
         }
+    }
+
+    /// Every algorithm of either domain.
+    pub const ALL: [Algo; 7] = [
+        Algo::Smirl,
+        Algo::SmirlSmooth,
+        Algo::MaxEnt,
+        Algo::Fkl,
+        Algo::Rkl,
+        Algo::Js,
+        Algo::Apprenticeship,
+    ];
+
+    /// The algorithm called `name` (its [`Algo::name`]), of either domain.
+    pub fn from_name(name: &str) -> Option<Algo> {
+        Algo::ALL.into_iter().find(|a| a.name() == name)
     }
 
     /// The algorithm called `name` among `domain`'s.

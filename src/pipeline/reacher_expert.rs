@@ -808,19 +808,17 @@ pub fn write_curve_svg(
         &format!("success rate (last {window} episodes)"),
     );
     success.y_range = Some((0.0, 1.0));
-    success.series.push(Series {
-        name: task.name().into(),
-        points: moving(&|p| f64::from(u8::from(p.success))),
-    });
+    success.series.push(Series::new(
+        task.name(),
+        moving(&|p| f64::from(u8::from(p.success))),
+    ));
     let mut ret = LinePlot::new(
         &format!("SAC expert, task {task}: training return (shaped)"),
         "environment steps",
         &format!("mean return (last {window} episodes)"),
     );
-    ret.series.push(Series {
-        name: task.name().into(),
-        points: moving(&|p| p.env_return),
-    });
+    ret.series
+        .push(Series::new(task.name(), moving(&|p| p.env_return)));
     for (p, plot) in [(path, &success), (return_path, &ret)] {
         write_atomic(p, plot.to_svg().as_bytes()).map_err(|e| ExpertError::Write {
             path: p.display().to_string(),

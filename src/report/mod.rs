@@ -2,8 +2,11 @@
 //! imports nothing else from the crate.
 
 pub mod csv;
+pub mod curves;
 pub mod plot;
 pub mod raster;
 
 pub use csv::CsvTable;
-pub use plot::{aggregate_over_seeds, downsample, BandPoint, LinePlot, Series, MAX_DRAWN_POINTS};
+pub use plot::{
+    aggregate_over_seeds, downsample, BandPoint, Figure, LinePlot, Series, MAX_DRAWN_POINTS,
+};

@@ -1,6 +1,9 @@
 //! SVG line plots: one line per named series with a shaded mean ± std band, axes with tick
-//! labels, axis titles and a legend. Series are generic `(x, mean, std)` points, so any
-//! experiment (tabular or continuous) can plot its curves over seeds.
+//! labels, axis titles and a legend beside the plot area, never over the data. Series are
+//! generic `(x, mean, std)` points, so any experiment (tabular or continuous) can plot its
+//! curves over seeds. A series may name its colour (so one algorithm has one colour in every
+//! plot) and be dashed (so two curves of one algorithm, e.g. the two branches of a conditional
+//! task, share its colour and differ in line style).
 //!
 //! A series longer than [`MAX_DRAWN_POINTS`] (an expert's 10 000 training episodes, f-IRL's
 //! 800 iterations) is drawn through [`downsample`]: its line and each edge of its band keep,
@@ -77,7 +80,46 @@ pub struct BandPoint {
 pub struct Series {
     pub name: String,
     pub points: Vec<BandPoint>,
+    /// An SVG colour; `None` takes the next free colour of [`PALETTE`].
+    pub colour: Option<&'static str>,
+    /// Drawn dashed rather than solid.
+    pub dashed: bool,
 }
+
+impl Series {
+    /// A solid series in the next free palette colour.
+    pub fn new(name: impl Into<String>, points: Vec<BandPoint>) -> Series {
+        Series {
+            name: name.into(),
+            points,
+            colour: None,
+            dashed: false,
+        }
+    }
+
+    /// The same series in `colour`.
+    pub fn with_colour(self, colour: &'static str) -> Series {
+        Series {
+            colour: Some(colour),
+            ..self
+        }
+    }
+
+    /// The same series, dashed when `dashed`.
+    pub fn with_dashes(self, dashed: bool) -> Series {
+        Series { dashed, ..self }
+    }
+}
+
+/// Colours of series that name none, in order (ten colours told apart in print and by most
+/// colour-blind readers; Tableau 10).
+pub const PALETTE: [&str; 10] = [
+    "#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1", "#ff9da7",
+    "#9c755f", "#bab0ac",
+];
+
+/// Width of one character of the legend's 12-pixel sans-serif text, for sizing the legend.
+const LEGEND_CHAR_WIDTH: f64 = 7.0;
 
 /// A line plot with mean ± std bands.
 #[derive(Clone, Debug, PartialEq)]
@@ -105,14 +147,30 @@ impl LinePlot {
         }
     }
 
-    /// The SVG document.
+    /// The SVG document: the plot area keeps the plot's `width` × `height` layout and the
+    /// legend is drawn to its right, widening the document.
     pub fn to_svg(&self) -> String {
-        const PALETTE: [&str; 8] = [
-            "#2ca02c", "#1f77b4", "#d62728", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-        ];
+        let colours = series_colours(&self.series);
+        let legend = legend_width(&self.series);
+        let (w, h) = (self.width + legend, self.height);
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
+        );
+        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+        self.draw_panel(&mut s, 0.0, 0.0, &colours, 15.0);
+        draw_legend(&mut s, self.width, 40.0, &self.series, &colours);
+        s.push_str("</svg>\n");
+        s
+    }
+
+    /// Draws the plot (title, axes, bands, lines; no legend) with its top left corner at
+    /// `(ox, oy)`, series `i` in `colours[i]`.
+    fn draw_panel(&self, s: &mut String, ox: f64, oy: f64, colours: &[&str], title_size: f64) {
         let (w, h) = (self.width, self.height);
-        let (left, right, top, bottom) = (70.0, 20.0, 40.0, 55.0);
-        let (pw, ph) = (w - left - right, h - top - bottom);
+        let (left, right, top, bottom) = (ox + 70.0, 20.0, oy + 40.0, 55.0);
+        let (pw, ph) = (w - 70.0 - right, h - 40.0 - bottom);
         let pts = self.series.iter().flat_map(|s| s.points.iter());
         let finite = |v: f64| v.is_finite();
         let (mut x0, mut x1) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -148,16 +206,11 @@ impl LinePlot {
         let sx = |x: f64| left + (x - x0) / (x1 - x0) * pw;
         let sy = |y: f64| top + ph - (y.clamp(y0, y1) - y0) / (y1 - y0) * ph;
 
-        let mut s = String::new();
         let _ = writeln!(
             s,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
-        );
-        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-        let _ = writeln!(
-            s,
-            r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#,
-            w / 2.0,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="{title_size}">{}</text>"#,
+            ox + w / 2.0,
+            oy + 22.0,
             esc(&self.title)
         );
         // Grid and ticks.
@@ -190,18 +243,18 @@ impl LinePlot {
             s,
             r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
             left + pw / 2.0,
-            h - 12.0,
+            oy + h - 12.0,
             esc(&self.x_label)
         );
         let _ = writeln!(
             s,
-            r#"<text transform="translate(18,{:.1}) rotate(-90)" text-anchor="middle">{}</text>"#,
+            r#"<text transform="translate({:.1},{:.1}) rotate(-90)" text-anchor="middle">{}</text>"#,
+            ox + 18.0,
             top + ph / 2.0,
             esc(&self.y_label)
         );
         // Bands, then lines on top.
-        for (i, series) in self.series.iter().enumerate() {
-            let color = PALETTE[i % PALETTE.len()];
+        for (series, color) in self.series.iter().zip(colours) {
             let pts: Vec<&BandPoint> = series
                 .points
                 .iter()
@@ -223,13 +276,12 @@ impl LinePlot {
                 }
                 let _ = writeln!(
                     s,
-                    r#"<polygon points="{}" fill="{color}" fill-opacity="0.18" stroke="none"/>"#,
+                    r#"<polygon points="{}" fill="{color}" fill-opacity="0.15" stroke="none"/>"#,
                     poly.trim_end()
                 );
             }
         }
-        for (i, series) in self.series.iter().enumerate() {
-            let color = PALETTE[i % PALETTE.len()];
+        for (series, color) in self.series.iter().zip(colours) {
             let pts: Vec<(f64, f64)> = series
                 .points
                 .iter()
@@ -242,26 +294,159 @@ impl LinePlot {
             }
             let _ = writeln!(
                 s,
-                r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="2"/>"#,
-                line.trim_end()
+                r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="2"{}/>"#,
+                line.trim_end(),
+                dash_attribute(series.dashed)
             );
         }
-        // Legend, top left inside the plot area.
-        let lx = left + 10.0;
-        for (i, series) in self.series.iter().enumerate() {
-            let color = PALETTE[i % PALETTE.len()];
-            let ly = top + 16.0 + 18.0 * i as f64;
+    }
+}
+
+/// Small multiples: plots side by side in a grid of `columns`, one legend for all of them to
+/// the right. A series name that appears in several panels has one colour and one legend entry.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Figure {
+    pub title: String,
+    pub panels: Vec<LinePlot>,
+    pub columns: usize,
+    /// What a solid and a dashed line mean, shown at the foot of the legend in grey (then
+    /// series differing only in style share one legend entry: their name up to ` (`).
+    pub line_styles: Option<[String; 2]>,
+}
+
+impl Figure {
+    /// The SVG document; each panel keeps its own `width` × `height`, and a row is as high as
+    /// its highest panel.
+    pub fn to_svg(&self) -> String {
+        let columns = self.columns.max(1);
+        let rows: Vec<&[LinePlot]> = self.panels.chunks(columns).collect();
+        let panel_w = self.panels.iter().map(|p| p.width).fold(0.0, f64::max);
+        let row_h: Vec<f64> = rows
+            .iter()
+            .map(|r| r.iter().map(|p| p.height).fold(0.0, f64::max))
+            .collect();
+        // Legend entries: each series name once, in the order it first appears; with line
+        // styles explained, one solid entry per name up to its ` (`.
+        let entry_name = |name: &str| -> String {
+            match &self.line_styles {
+                Some(_) => name.split(" (").next().unwrap_or(name).to_string(),
+                None => name.to_string(),
+            }
+        };
+        let mut entries: Vec<Series> = Vec::new();
+        for p in &self.panels {
+            for series in &p.series {
+                let name = entry_name(&series.name);
+                if !entries.iter().any(|e| e.name == name) {
+                    entries.push(Series {
+                        name,
+                        points: Vec::new(),
+                        dashed: series.dashed && self.line_styles.is_none(),
+                        ..series.clone()
+                    });
+                }
+            }
+        }
+        let entry_colours = series_colours(&entries);
+        let colour_of = |name: &str| {
+            let name = entry_name(name);
+            entries
+                .iter()
+                .position(|e| e.name == name)
+                .map_or(PALETTE[0], |i| entry_colours[i])
+        };
+        let title_h = if self.title.is_empty() { 0.0 } else { 30.0 };
+        let grid_w = panel_w * rows.first().map_or(0, |r| r.len()) as f64;
+        let style_labels: Vec<Series> = self
+            .line_styles
+            .iter()
+            .flatten()
+            .map(|l| Series::new(l.clone(), Vec::new()))
+            .collect();
+        let w = grid_w + legend_width(&entries).max(legend_width(&style_labels));
+        let h = title_h + row_h.iter().sum::<f64>();
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#
+        );
+        let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+        if title_h > 0.0 {
             let _ = writeln!(
                 s,
-                r#"<line x1="{lx}" y1="{ly}" x2="{:.1}" y2="{ly}" stroke="{color}" stroke-width="3"/><text x="{:.1}" y="{:.1}">{}</text>"#,
-                lx + 22.0,
-                lx + 28.0,
-                ly + 4.0,
-                esc(&series.name)
+                r#"<text x="{:.1}" y="22" text-anchor="middle" font-size="16">{}</text>"#,
+                grid_w / 2.0,
+                esc(&self.title)
             );
         }
+        let mut oy = title_h;
+        for (row, &rh) in rows.iter().zip(&row_h) {
+            for (c, panel) in row.iter().enumerate() {
+                let colours: Vec<&str> = panel.series.iter().map(|x| colour_of(&x.name)).collect();
+                panel.draw_panel(&mut s, c as f64 * panel_w, oy, &colours, 14.0);
+            }
+            oy += rh;
+        }
+        let mut legend = entries.clone();
+        let mut legend_colours = entry_colours.clone();
+        if let Some([solid, dashed]) = &self.line_styles {
+            for (label, dashed) in [(solid, false), (dashed, true)] {
+                legend.push(Series::new(label.clone(), Vec::new()).with_dashes(dashed));
+                legend_colours.push("#555555");
+            }
+        }
+        draw_legend(&mut s, grid_w, title_h + 40.0, &legend, &legend_colours);
         s.push_str("</svg>\n");
         s
+    }
+}
+
+/// Each series' colour: its own, else the next palette colour that no series names.
+fn series_colours(series: &[Series]) -> Vec<&'static str> {
+    let named: Vec<&str> = series.iter().filter_map(|s| s.colour).collect();
+    let mut free = PALETTE
+        .iter()
+        .copied()
+        .filter(|c| !named.contains(c))
+        .cycle();
+    series
+        .iter()
+        .map(|s| {
+            s.colour
+                .unwrap_or_else(|| free.next().unwrap_or(PALETTE[0]))
+        })
+        .collect()
+}
+
+fn dash_attribute(dashed: bool) -> &'static str {
+    if dashed {
+        r#" stroke-dasharray="7 4""#
+    } else {
+        ""
+    }
+}
+
+/// Width of the legend column: its sample lines and its longest name.
+fn legend_width(series: &[Series]) -> f64 {
+    let longest = series.iter().map(|s| s.name.chars().count()).max();
+    longest.map_or(0.0, |n| 50.0 + LEGEND_CHAR_WIDTH * n as f64)
+}
+
+/// The legend as a column starting at `(x, y)`: a sample line in each series' colour and
+/// style, then its name.
+fn draw_legend(s: &mut String, x: f64, y: f64, series: &[Series], colours: &[&str]) {
+    let lx = x + 10.0;
+    for (i, (entry, color)) in series.iter().zip(colours).enumerate() {
+        let ly = y + 10.0 + 18.0 * i as f64;
+        let _ = writeln!(
+            s,
+            r#"<line x1="{lx}" y1="{ly}" x2="{:.1}" y2="{ly}" stroke="{color}" stroke-width="3"{}/><text x="{:.1}" y="{:.1}">{}</text>"#,
+            lx + 28.0,
+            dash_attribute(entry.dashed),
+            lx + 34.0,
+            ly + 4.0,
+            esc(&entry.name)
+        );
     }
 }
 
@@ -372,13 +557,10 @@ mod tests {
     #[test]
     fn svg_has_legend_labels_and_bands() {
         let mut p = LinePlot::new("Task <3>", "IRL step", "success");
-        p.series.push(Series {
-            name: "SMIRL".into(),
-            points: aggregate_over_seeds(&[
-                vec![(0.0, 0.0), (1.0, 1.0)],
-                vec![(0.0, 1.0), (1.0, 1.0)],
-            ]),
-        });
+        p.series.push(Series::new(
+            "SMIRL",
+            aggregate_over_seeds(&[vec![(0.0, 0.0), (1.0, 1.0)], vec![(0.0, 1.0), (1.0, 1.0)]]),
+        ));
         let svg = p.to_svg();
         assert!(svg.starts_with("<svg") && svg.ends_with("</svg>\n"));
         assert!(svg.contains(">SMIRL<") && svg.contains(">IRL step<") && svg.contains(">success<"));

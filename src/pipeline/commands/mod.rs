@@ -9,6 +9,7 @@
 //! - [`expert`]: `reacher expert` (train, evaluate and save a task's SAC expert).
 //! - [`irl`]: `reacher --task`, `prepare`, `job`, `aggregate`, `reward` (the IRL pipeline).
 //! - [`draw`]: `reacher draw` (f-IRL's ReacherDraw).
+//! - [`figure`]: `reacher figure` (small multiples of learning curves from a curve table).
 //! - [`office`]: `office` (the Office Gridworld experiments).
 //!
 //! Errors: a command fails with a [`UsageError`] for bad input (an argument, a config, an
@@ -18,6 +19,7 @@
 
 pub mod draw;
 pub mod expert;
+pub mod figure;
 pub mod irl;
 pub mod logs;
 pub mod office;

@@ -256,10 +256,9 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
                     .collect()
             })
             .collect();
-        plot.series.push(Series {
-            name: algo.label().to_string(),
-            points: aggregate_over_seeds(&curves),
-        });
+        plot.series.push(
+            Series::new(algo.label(), aggregate_over_seeds(&curves)).with_colour(algo.colour()),
+        );
     }
     write_file(dir, "success.svg", &plot.to_svg())?;
 
@@ -282,10 +281,9 @@ fn write_outputs(plan: &Plan, runs: &[OfficeRun], dir: &Path) -> Result<()> {
             })
             .collect();
         if !curves.is_empty() {
-            by_interactions.series.push(Series {
-                name: algo.label().to_string(),
-                points: aggregate_over_seeds(&curves),
-            });
+            by_interactions.series.push(
+                Series::new(algo.label(), aggregate_over_seeds(&curves)).with_colour(algo.colour()),
+            );
         }
     }
     if !by_interactions.series.is_empty() {

@@ -142,34 +142,51 @@ pub(super) fn write_reports(
         };
         if conditional {
             for b in Branch::ALL {
-                branch_plot.series.push(Series {
-                    name: format!("{} ({b})", algo.name()),
-                    points: aggregate_over_seeds(&curve(&|r| branch_rate(r, b))),
-                });
+                branch_plot.series.push(
+                    Series::new(
+                        format!("{} ({b})", algo.name()),
+                        aggregate_over_seeds(&curve(&|r| branch_rate(r, b))),
+                    )
+                    .with_colour(algo.colour())
+                    .with_dashes(b == Branch::Cancelled),
+                );
             }
         }
-        success_plot.series.push(Series {
-            name: algo.name().into(),
-            points: aggregate_over_seeds(&curve(&|r| r.success_rate)),
-        });
+        success_plot.series.push(
+            Series::new(
+                algo.name(),
+                aggregate_over_seeds(&curve(&|r| r.success_rate)),
+            )
+            .with_colour(algo.colour()),
+        );
         // Jobs from before the progress metric have none: no curve for them.
         if runs
             .iter()
             .all(|r| r.rows.iter().all(|row| row.progress.is_some()))
         {
-            progress_plot.series.push(Series {
-                name: format!("{} sub-goals", algo.name()),
-                points: aggregate_over_seeds(&curve(&|r| r.progress.unwrap_or(0.0))),
-            });
-            progress_plot.series.push(Series {
-                name: format!("{} end ball", algo.name()),
-                points: aggregate_over_seeds(&curve(&|r| r.final_ball.unwrap_or(0.0))),
-            });
+            progress_plot.series.push(
+                Series::new(
+                    format!("{} sub-goals", algo.name()),
+                    aggregate_over_seeds(&curve(&|r| r.progress.unwrap_or(0.0))),
+                )
+                .with_colour(algo.colour()),
+            );
+            progress_plot.series.push(
+                Series::new(
+                    format!("{} end ball", algo.name()),
+                    aggregate_over_seeds(&curve(&|r| r.final_ball.unwrap_or(0.0))),
+                )
+                .with_colour(algo.colour())
+                .with_dashes(true),
+            );
         }
-        return_plot.series.push(Series {
-            name: algo.name().into(),
-            points: aggregate_over_seeds(&curve(&|r| r.task_return)),
-        });
+        return_plot.series.push(
+            Series::new(
+                algo.name(),
+                aggregate_over_seeds(&curve(&|r| r.task_return)),
+            )
+            .with_colour(algo.colour()),
+        );
         let last = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Result<Vec<f64>, PipelineError> {
             runs.iter()
                 .map(|r| {
