@@ -1019,3 +1019,45 @@ fn initial_events_keep_a_cancel_on_the_first_step() {
         }
     }
 }
+
+/// smirl-paper learns its machine by LRM as the paper's eq. 1 states it: on demonstrations
+/// where an event rule of SMIRL changes the machine (OR base 33: the cancel not predicted;
+/// Composite base 36: a commuted cancel; Composite base 24: event stutter), the settings
+/// `smirl-paper` resolves to give the machine and cost of the learner with no event declared
+/// at all and LRM's reading of unseen label sets (stay), and SMIRL's settings give another.
+#[test]
+fn smirl_paper_learns_lrm_without_event_rules() {
+    use smirl::pipeline::reacher_irl::smirl::lrm_config;
+    use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
+    use smirl::rm::format::write_rm;
+    let vocab = Vocabulary::new("rgbyc");
+    let standard = IrlRunConfig::standard();
+    let paper = standard.for_algo(Algo::SmirlPaper).unwrap();
+    let cases: [(u64, &[(usize, &str)]); 3] = [
+        (33, &OR_BASE33),
+        (36, &COMPOSITE_BASE36),
+        (24, &COMPOSITE_BASE24),
+    ];
+    for (seed, episodes) in cases {
+        let traces = episode_traces(&vocab, episodes);
+        let plain = LrmConfig {
+            max_states: standard.lrm_max_states,
+            tabu_len: standard.lrm_tabu_len,
+            max_steps: standard.lrm_steps,
+            seed,
+            threads: 2,
+            merge: false,
+            reward_weight: 0.0,
+            stutter_invariant: true,
+            ..LrmConfig::default()
+        };
+        assert_eq!(plain.guards, smirl::rm::lrm::Guards::Exact);
+        assert!(plain.events.is_empty());
+        let lrm = learn_rm(&vocab, &traces, &plain).unwrap();
+        let learned = learn_rm(&vocab, &traces, &lrm_config(&paper, seed)).unwrap();
+        assert_eq!(write_rm(&learned.rm), write_rm(&lrm.rm), "base {seed}");
+        assert_eq!(learned.cost, lrm.cost, "base {seed}");
+        let improved = learn_rm(&vocab, &traces, &lrm_config(&standard, seed)).unwrap();
+        assert_ne!(write_rm(&improved.rm), write_rm(&lrm.rm), "base {seed}");
+    }
+}

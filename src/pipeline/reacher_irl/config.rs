@@ -698,6 +698,9 @@ impl IrlRunConfig {
             schedule: BTreeMap::new(),
             ..self.clone()
         };
+        if algo == Algo::SmirlPaper {
+            config.set_paper_mechanisms();
+        }
         let Some(s) = self.schedule.get(algo.name()) else {
             return Ok(config);
         };
@@ -733,6 +736,39 @@ impl IrlRunConfig {
                 })?;
         }
         Ok(config)
+    }
+
+    /// `smirl-paper`'s settings: every mechanism by which `smirl` departs from the paper
+    /// (docs/method.md) at the paper's value — LRM's objective and reading (events predicted,
+    /// no event rules, no fallback starts, guards that stay on unseen label sets), MaxEnt's
+    /// μ_D − μ_π averaged over trajectories, label features of the state, SAC on U × O without
+    /// clock, counterfactual states or shaping, and no final phase, so the job reports its
+    /// loop's own last policy. The schedule, SAC, the reward optimiser, the demonstrations, the
+    /// machine's source and LRM's size and search budget stay the run's, so that the two
+    /// algorithms differ by the mechanisms alone.
+    fn set_paper_mechanisms(&mut self) {
+        self.lrm_predict_events = true;
+        self.lrm_event_stutter = false;
+        self.lrm_commute_events = false;
+        self.lrm_initial_events = false;
+        self.lrm_remember_events = false;
+        self.lrm_borrow_events = false;
+        self.lrm_fallback_starts = 0;
+        self.lrm_guards = Guards::Exact;
+        self.smirl_unseen_touch_sink = false;
+        self.smirl_sink_after_events = false;
+        self.smirl_normalisation = SmirlNormalisation::Trajectories;
+        self.smirl_label_features = LabelFeatures::State;
+        self.smirl_clock = false;
+        self.smirl_clock_frozen = false;
+        self.smirl_counterfactual = 0.0;
+        self.smirl_shaping = 0.0;
+        self.smirl_final_sac_steps = 0;
+        self.smirl_final_checkpoints = 0;
+        self.smirl_final_fresh_steps = 0;
+        self.smirl_final_reset_steps = 0;
+        self.smirl_selection_cut = false;
+        self.smirl_selection_cut_entries = false;
     }
 
     /// The expert cache directory; `None` (an empty `expert_cache_dir`) means the committed

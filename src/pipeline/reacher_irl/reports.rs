@@ -264,7 +264,7 @@ pub(super) fn write_reports(
     let p = &run.prepared;
     write_file(
         &dir.join("summary.md"),
-        &summary_markdown(task.clone(), &summaries, p.rm.as_ref()),
+        &summary_markdown(task.clone(), &summaries, p.rm.as_ref(), p.rm_paper.as_ref()),
     )?;
     let summary = RunSummary {
         out: dir.clone(),
@@ -273,6 +273,7 @@ pub(super) fn write_reports(
         demos_generated: p.demos_generated,
         demo_branches: p.demo_branches,
         rm: p.rm.clone(),
+        rm_paper: p.rm_paper.clone(),
         algos: summaries,
         wall_secs: wall_secs.unwrap_or(f64::NAN),
     };
@@ -401,6 +402,7 @@ pub fn summary_markdown(
     task: ReacherTask,
     summaries: &[AlgoSummary],
     rm: Option<&RmFacts>,
+    rm_paper: Option<&RmFacts>,
 ) -> String {
     let mut s = String::new();
     let conditional = summaries.iter().any(|a| a.final_branch_success.is_some());
@@ -467,13 +469,15 @@ pub fn summary_markdown(
             );
         }
     }
-    if let Some(f) = rm {
-        let _ = writeln!(
-            s,
-            "\nLearned RM: {} states ({} reachable; perfect: {}), refines the perfect machine \
-             along the demos: {}.",
-            f.learned_states, f.learned_reachable, f.perfect_states, f.refines_perfect
-        );
+    for (name, facts) in [("Learned RM", rm), ("smirl-paper's learned RM", rm_paper)] {
+        if let Some(f) = facts {
+            let _ = writeln!(
+                s,
+                "\n{name}: {} states ({} reachable; perfect: {}), refines the perfect machine \
+                 along the demos: {}.",
+                f.learned_states, f.learned_reachable, f.perfect_states, f.refines_perfect
+            );
+        }
     }
     s
 }
