@@ -1017,15 +1017,22 @@ fn final_policy_settings_are_checked() {
     assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
 }
 
-/// LRM's optional keys (search, event memory, borrowed events, commuted events, initial
-/// events, event stutter, event prediction): absent from written configs unless set, read back as set,
-/// bounded (fallback starts too), and a zero start count refused; the error names the field.
+/// LRM's optional keys (fallback starts, commuted events, initial events, event stutter, event
+/// prediction): absent from written configs unless set, read back as set, fallback starts
+/// bounded; the error names the field. The removed ablation keys are refused.
 #[test]
 fn lrm_search_settings_are_checked() {
     let standard = IrlRunConfig::standard();
     let text = standard.to_toml();
-    assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
-    assert!(!text.contains("lrm_remember_events") && !text.contains("lrm_borrow_events"));
+    for removed in [
+        "lrm_starts = 32\n",
+        "lrm_patience = 0\n",
+        "lrm_remember_events = true\n",
+        "lrm_borrow_events = true\n",
+    ] {
+        let key = removed.split(' ').next().unwrap();
+        assert_config_error_names(&format!("{removed}{text}"), key);
+    }
     // Initial events are on in the standard; a config without the key reads false.
     assert!(standard.lrm_initial_events && text.contains("lrm_initial_events = true\n"));
     let without_initial = text.replace("lrm_initial_events = true\n", "");
@@ -1062,10 +1069,9 @@ fn lrm_search_settings_are_checked() {
     let text = without;
     let text = text.replace(
         "lrm_steps = 100\n",
-        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_fallback_starts = 28\nlrm_initial_events = true\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
+        "lrm_steps = 100\nlrm_fallback_starts = 28\nlrm_initial_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
     );
     let c = IrlRunConfig::from_toml(&text, "search.toml").unwrap();
-    assert_eq!((c.lrm_starts, c.lrm_patience), (Some(32), Some(0)));
     assert!(c.lrm_fallback_starts == 28 && c.to_toml().contains("lrm_fallback_starts = 28\n"));
     assert!(c.lrm_initial_events && c.to_toml().contains("lrm_initial_events = true\n"));
     assert_config_error_names(
@@ -1076,7 +1082,7 @@ fn lrm_search_settings_are_checked() {
         &text.replace("lrm_fallback_starts = 28", "lrm_fallback_starts = -1"),
         "lrm_fallback_starts",
     );
-    assert!(c.lrm_remember_events && c.lrm_borrow_events && c.lrm_event_stutter);
+    assert!(c.lrm_event_stutter);
     assert!(c.lrm_commute_events && c.to_toml().contains("lrm_commute_events = true\n"));
     assert_config_error_names(
         &text.replace("lrm_commute_events = true", "lrm_commute_events = 1"),
@@ -1091,17 +1097,6 @@ fn lrm_search_settings_are_checked() {
         IrlRunConfig::from_toml(&c.to_toml(), "again.toml").unwrap(),
         c
     );
-    for (starts, patience, field) in [
-        (Some(0), None, "lrm_starts"),
-        (Some(1_001), None, "lrm_starts"),
-        (None, Some(1_000_001), "lrm_patience"),
-    ] {
-        let mut c = IrlRunConfig::standard();
-        c.lrm_starts = starts;
-        c.lrm_patience = patience;
-        let e = c.validate("test").unwrap_err().to_string();
-        assert!(e.contains(field), "{e}");
-    }
     let mut c = IrlRunConfig::standard();
     c.lrm_fallback_starts = 1_001;
     let e = c.validate("test").unwrap_err().to_string();

@@ -24,8 +24,6 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     assert!(!paper.lrm_event_stutter);
     assert!(!paper.lrm_commute_events);
     assert!(!paper.lrm_initial_events);
-    assert!(!paper.lrm_remember_events);
-    assert!(!paper.lrm_borrow_events);
     assert_eq!(paper.lrm_fallback_starts, 0);
     assert_eq!(paper.lrm_guards, Guards::Exact);
     // MaxEnt on U × O: μ_D − μ_π over trajectories, φ = L(o).

@@ -283,16 +283,6 @@ pub struct IrlRunConfig {
     pub lrm_tabu_len: usize,
     /// LRM: search steps.
     pub lrm_steps: usize,
-    /// LRM: independent Tabu searches (`rm::lrm::LrmConfig::starts`); absent = the learner's
-    /// default, what every run before the key existed used. Omitted from written configs
-    /// when absent.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lrm_starts: Option<usize>,
-    /// LRM: a start ends after this many steps without improving its best machine
-    /// (`rm::lrm::LrmConfig::patience`; 0 = run all `lrm_steps`); absent = the learner's
-    /// default.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lrm_patience: Option<usize>,
     /// LRM: further starts whose machine is kept only when strictly cheaper than the first
     /// starts' best (`rm::lrm::LrmConfig::fallback_starts`); a config without the key reads
     /// as 0, what every run before the key existed used. Omitted from written configs when 0.
@@ -304,16 +294,6 @@ pub struct IrlRunConfig {
     /// key existed used. Omitted from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_initial_events: bool,
-    /// LRM: remember events (`rm::lrm::LrmConfig::remember_events`): the learned machine made
-    /// the product with "cancel seen so far". A config without the key is read as false, what
-    /// every run before the key existed used. Omitted from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub lrm_remember_events: bool,
-    /// LRM: borrow events (`rm::lrm::LrmConfig::borrow_events`): a cancel the demonstrations
-    /// never show in a learned state is read as in a state of the same task stage that saw
-    /// one. A config without the key is read as false. Omitted from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub lrm_borrow_events: bool,
     /// LRM: commute events (`rm::lrm::LrmConfig::commute_events`): a cancel the
     /// demonstrations never show in a learned state is read as if it had come just before the
     /// touch that entered it. True in the standard profile (adopted on its tuning seeds, README
@@ -620,8 +600,6 @@ impl IrlRunConfig {
             lrm_max_states: 10,
             lrm_tabu_len: 10_000,
             lrm_steps: 100,
-            lrm_starts: None,
-            lrm_patience: None,
             // 28 more starts of the same search, kept only when strictly cheaper: the four
             // starts stop at cost 9.70 at held-out Composite 96 where 0 is reachable, and the
             // fallback repairs that without reopening ties (Sequential's tuning jobs 6 of 6,
@@ -632,8 +610,6 @@ impl IrlRunConfig {
             // it in the split's initial state (Sequential's tuning jobs 6 of 6, the other
             // tasks' base-0 machines unchanged; README, "A cancel on the first step").
             lrm_initial_events: true,
-            lrm_remember_events: false,
-            lrm_borrow_events: false,
             // A cancel never seen in a learned state is read as if it came before the touch
             // that entered the state: closes the cancel holes (Composite 6 of 6 tuning jobs, as
             // before; README, "Commuted events").
@@ -751,8 +727,6 @@ impl IrlRunConfig {
         self.lrm_event_stutter = false;
         self.lrm_commute_events = false;
         self.lrm_initial_events = false;
-        self.lrm_remember_events = false;
-        self.lrm_borrow_events = false;
         self.lrm_fallback_starts = 0;
         self.lrm_guards = Guards::Exact;
         self.smirl_unseen_touch_sink = false;
@@ -827,16 +801,6 @@ impl IrlRunConfig {
             (
                 "lrm_tabu_len",
                 self.lrm_tabu_len as u64,
-                MAX_LRM_STEPS as u64,
-            ),
-            (
-                "lrm_starts",
-                self.lrm_starts.unwrap_or(0) as u64,
-                MAX_LRM_STARTS as u64,
-            ),
-            (
-                "lrm_patience",
-                self.lrm_patience.unwrap_or(0) as u64,
                 MAX_LRM_STEPS as u64,
             ),
             (
@@ -1027,9 +991,6 @@ impl IrlRunConfig {
                 "lrm_max_states/lrm_steps/lrm_tabu_len",
                 "must be at least 1",
             );
-        }
-        if self.lrm_starts == Some(0) {
-            return bad("lrm_starts", "must be at least 1");
         }
         if self.threads == 0 {
             return bad("threads", "must be at least 1");

@@ -46,7 +46,7 @@ use crate::pipeline::reacher_expert::Demo;
 use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
-use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig, DEFAULT_PATIENCE, DEFAULT_STARTS};
+use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
 use crate::rm::transform::sink_unseen;
 use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
 
@@ -113,13 +113,9 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
         stutter_invariant: true,
         event_stutter: config.lrm_event_stutter,
         predict_events: config.lrm_predict_events,
-        remember_events: config.lrm_remember_events,
-        borrow_events: config.lrm_borrow_events,
         commute_events: config.lrm_commute_events,
         initial_events: config.lrm_initial_events,
-        // Starts and patience keep the learner's defaults unless set; split moves always.
-        starts: config.lrm_starts.unwrap_or(DEFAULT_STARTS),
-        patience: config.lrm_patience.unwrap_or(DEFAULT_PATIENCE),
+        // Starts, patience and split moves are the learner's defaults.
         fallback_starts: config.lrm_fallback_starts,
         ..LrmConfig::default()
     }
