@@ -614,57 +614,6 @@ fn tiny_smirl_run(
     (tmp, dir, summary)
 }
 
-/// `smirl_unseen_touch_sink`: read as false from configs without the key (and not written
-/// when false); a run prepared with it writes a machine with a sink state that no annotated
-/// expert step (held steps included) is in, says so in its report, and its SMIRL job runs on it.
-#[test]
-fn unseen_touch_sink_is_a_state_no_demonstration_enters() {
-    use smirl::rm::format::parse_rm;
-    let text = IrlRunConfig::standard().to_toml();
-    assert!(!text.contains("smirl_unseen_touch_sink"));
-    assert!(!IrlRunConfig::standard().smirl_unseen_touch_sink);
-    let on = format!("smirl_unseen_touch_sink = true\n{text}");
-    let c = IrlRunConfig::from_toml(&on, "c.toml").unwrap();
-    assert!(c.smirl_unseen_touch_sink);
-    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    let gated = format!("smirl_sink_after_events = true\n{on}");
-    let c = IrlRunConfig::from_toml(&gated, "c.toml").unwrap();
-    assert!(c.smirl_sink_after_events);
-    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    // Where the sink is entered from means nothing without the sink.
-    let alone = format!("smirl_sink_after_events = true\n{text}");
-    assert_config_error_names(&alone, "smirl_sink_after_events");
-
-    let mut config = tiny_config();
-    config.smirl_unseen_touch_sink = true;
-    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::shipped("if").unwrap(), config);
-    let machine = parse_rm(
-        &std::fs::read_to_string(dir.join("rm/learned.txt")).unwrap(),
-        "learned.txt",
-    )
-    .unwrap();
-    let sink = machine.n_states() - 1;
-    let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
-    assert!(
-        report.contains(&format!("state {sink} is the sink")),
-        "{report}"
-    );
-    assert!(machine.transitions().iter().any(|t| t.to == sink));
-    assert!(machine.transitions().iter().all(|t| t.from != sink));
-    let expert =
-        ExpertData::from_bytes(&std::fs::read(dir.join("expert_data.bin")).unwrap()).unwrap();
-    assert!(!expert.learned_states.is_empty());
-    assert!(
-        expert.learned_states.iter().all(|&u| u as usize != sink),
-        "an expert step is in the sink"
-    );
-    let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
-    assert!(
-        metrics.lines().skip(1).any(|l| l.starts_with("smirl,3,")),
-        "{metrics}"
-    );
-}
-
 /// `smirl_selection_cut`: the standard, read as false from configs without the key; a run with it says in its report which balls
 /// the demonstrations touch after the cancel per learned state, and every final-policy
 /// candidate of its SMIRL job carries a cut return, the one the choice reads.
@@ -848,36 +797,6 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     // A demonstration already at the horizon is not extended.
     let full = annotate(std::slice::from_ref(&demo), Some(&rm), Some(2));
     assert_eq!(full.lengths, vec![3]);
-
-    // The sink of unseen touches reads the labels annotate steps on, held steps included:
-    // blue is touched in u2 only while held, so only without holding is it unseen there.
-    use smirl::pipeline::reacher_irl::smirl::{annotated_label_traces, with_unseen_touch_sink};
-    let traces = annotated_label_traces(std::slice::from_ref(&demo), Some(6));
-    let stepped = vec![
-        labels(""),
-        labels("r"),
-        labels("bc"),
-        labels("b"),
-        labels("b"),
-        labels("b"),
-    ];
-    assert_eq!(traces, vec![stepped]);
-    let (sunk, sink) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), Some(6), false);
-    assert_eq!(sink, Some(3));
-    assert_eq!(sunk.next_state(2, labels("b")), 2);
-    assert_eq!(sunk.next_state(2, labels("g")), 3);
-    assert_eq!(
-        sunk.next_state(2, labels("c")),
-        2,
-        "the cancel is not a touch"
-    );
-    let (unheld, _) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), None, false);
-    assert_eq!(unheld.next_state(2, labels("b")), 3);
-    let annotated = annotate(std::slice::from_ref(&demo), Some(&sunk), Some(6));
-    assert!(annotated.learned_states.iter().all(|&u| u != 3));
-    // Every state of this machine is reached without the cancel: after events only, no sink.
-    let (same, none) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), Some(6), true);
-    assert_eq!((same, none), (rm.clone(), None));
 }
 
 /// `expert_data.bin`: what `reacher prepare` hands the jobs reads back exactly, and a file

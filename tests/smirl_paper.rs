@@ -29,7 +29,6 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     // MaxEnt on U × O: μ_D − μ_π over trajectories, φ = L(o).
     assert_eq!(paper.smirl_normalisation, SmirlNormalisation::Trajectories);
     assert_eq!(paper.smirl_label_features, LabelFeatures::State);
-    assert!(!paper.smirl_unseen_touch_sink);
     // The policy on U × O: no clock, no counterfactual states, no shaping.
     assert!(!paper.smirl_clock);
     assert_eq!(paper.smirl_counterfactual, 0.0);

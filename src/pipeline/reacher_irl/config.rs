@@ -168,20 +168,6 @@ pub struct IrlRunConfig {
     /// `"learned"`. Omitted from written configs when `"learned"`.
     #[serde(default, skip_serializing_if = "SmirlMachine::is_learned")]
     pub smirl_machine: SmirlMachine,
-    /// A sink state added to SMIRL's machine, entered by a ball touch no demonstration makes
-    /// in the state it happens in (`smirl::with_unseen_touch_sink`): the learned reward can
-    /// then charge for leaving what the expert does for good (blue after the cancel). A config
-    /// without the key is read as false, what every run before the key existed used. Omitted
-    /// from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub smirl_unseen_touch_sink: bool,
-    /// With `smirl_unseen_touch_sink`: the sink is entered only from learned states the agent
-    /// cannot reach without an exogenous event (`RewardMachine::reachable_without`: the states
-    /// after the cancel), where the expert's behaviour is conditional; elsewhere an unseen
-    /// touch stays where it is, as without the sink. A config without the key is read as false.
-    /// Omitted from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub smirl_sink_after_events: bool,
     /// `smirl`'s label features: `"state"` (L(o) of the state reached, paid on every step a
     /// label holds: the paper's eq. 5) or `"entries"` (the labels that became true on the
     /// step, paid once per entry into a ball). A config without the key is read as
@@ -567,8 +553,6 @@ impl IrlRunConfig {
             smirl_reward_l2: 0.05,
             smirl_normalisation: SmirlNormalisation::EventGatedVisits,
             smirl_machine: SmirlMachine::Learned,
-            smirl_unseen_touch_sink: false,
-            smirl_sink_after_events: false,
             smirl_label_features: LabelFeatures::State,
             smirl_shaping: 1.0,
             // SMIRL's final policy: four candidates 5 000 SAC steps apart on the final reward
@@ -729,8 +713,6 @@ impl IrlRunConfig {
         self.lrm_initial_events = false;
         self.lrm_fallback_starts = 0;
         self.lrm_guards = Guards::Exact;
-        self.smirl_unseen_touch_sink = false;
-        self.smirl_sink_after_events = false;
         self.smirl_normalisation = SmirlNormalisation::Trajectories;
         self.smirl_label_features = LabelFeatures::State;
         self.smirl_clock = false;
@@ -969,12 +951,6 @@ impl IrlRunConfig {
             return bad(
                 "smirl_clock_frozen",
                 "needs smirl_clock = true (it freezes the clock's entry)",
-            );
-        }
-        if self.smirl_sink_after_events && !self.smirl_unseen_touch_sink {
-            return bad(
-                "smirl_sink_after_events",
-                "needs smirl_unseen_touch_sink = true (it says where the sink is entered from)",
             );
         }
         if !(0.0..=1.0).contains(&self.smirl_counterfactual) {

@@ -286,8 +286,6 @@ pub(super) fn write_reports(
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
         "smirl_machine": config.smirl_machine.name(),
-        "smirl_unseen_touch_sink": config.smirl_unseen_touch_sink,
-        "smirl_sink_after_events": config.smirl_sink_after_events,
         "smirl_selection_cut": config.smirl_selection_cut,
         "smirl_selection_cut_entries": config.smirl_selection_cut_entries,
         "smirl_final_sac_steps": config.smirl_final_sac_steps,

@@ -28,7 +28,6 @@ use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{
     annotate, label_traces, learn_machine, lrm_config, seen_after_events, task_machine,
-    with_unseen_touch_sink,
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;
@@ -244,7 +243,7 @@ pub fn prepare(
         let settings = config
             .for_algo(machine.algo())
             .map_err(|e| PipelineError::Run(e.to_string()))?;
-        let (rm, facts, report) = learn_and_report(&settings, &demos, &perfect, seed, hold_to)?;
+        let (rm, facts, report) = learn_and_report(&settings, &demos, &perfect, seed)?;
         let data = annotate(&demos, Some(&rm), hold_to);
         let report = match machine {
             Machine::Smirl => report + &selection_cut_report(&rm, &data, &settings),
@@ -346,7 +345,6 @@ fn learn_and_report(
     demos: &[Demo],
     perfect: &RewardMachine,
     seed: u64,
-    hold_to: Option<usize>,
 ) -> Result<(RewardMachine, RmFacts, String), PipelineError> {
     let config = settings;
     let lrm = lrm_config(config, seed);
@@ -358,11 +356,6 @@ fn learn_and_report(
                 .map_err(|e| PipelineError::Run(format!("LRM cost of the task's machine: {e}")))?;
             (rm, cost, 0.0)
         }
-    };
-    let (rm, sink) = if config.smirl_unseen_touch_sink {
-        with_unseen_touch_sink(&rm, demos, hold_to, config.smirl_sink_after_events)
-    } else {
-        (rm, None)
     };
     let traces: Vec<Vec<LabelSet>> = demos.iter().map(|d| d.labels()).collect();
     let r = refines(&rm, perfect, traces.iter().map(|t| t.as_slice()));
@@ -390,20 +383,6 @@ fn learn_and_report(
         "learned machine: {} states ({} reachable); perfect machine: {} states",
         facts.learned_states, facts.learned_reachable, facts.perfect_states
     );
-    if config.smirl_unseen_touch_sink {
-        let from = if config.smirl_sink_after_events {
-            "the states after an event"
-        } else {
-            "every state"
-        };
-        let line = match sink {
-            Some(s) => format!(
-                "state {s} is the sink of ball touches no demonstration makes, entered from {from}"
-            ),
-            None => format!("no sink: in {from} every ball is touched by some demonstration"),
-        };
-        let _ = writeln!(report, "smirl_unseen_touch_sink: {line}");
-    }
     let _ = writeln!(
         report,
         "refines the perfect machine along the {} demonstrations: {} ({} of {} steps ambiguous)",

@@ -3,9 +3,7 @@
 //!
 //! 1. **Learn the machine** ([`learn_machine`]): LRM's Tabu search on the demonstrations' label
 //!    traces, without rewards (rewards are what IRL learns). (`smirl_machine = "task"`: the
-//!    task's own machine instead, [`task_machine`], an oracle for diagnosis; with
-//!    `smirl_unseen_touch_sink`, plus a sink for touches no demonstration makes,
-//!    [`with_unseen_touch_sink`], an ablation.)
+//!    task's own machine instead, [`task_machine`], an oracle for diagnosis.)
 //! 2. **Annotate** ([`annotate`]): every expert observation o_t gets the learned state
 //!    u_{t−1} its labels are read in (demonstrations held at their final state to the
 //!    horizon, so expert and agent are compared over one T).
@@ -47,7 +45,6 @@ use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
 use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
-use crate::rm::transform::sink_unseen;
 use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
 
 /// The agent's own touches: bit k of a label set is ball k (`env::reacher::BALLS`).
@@ -185,45 +182,6 @@ fn held_observation(last: &[f32; OBS_DIM]) -> [f32; OBS_DIM] {
     held[OBS_JOINT_VEL[1]] = 0.0;
     held[OBS_CANCEL] = 0.0;
     held
-}
-
-/// The label sets the learned machine reads along each demonstration as [`annotate`] steps it,
-/// the held steps to `hold_to` included.
-pub fn annotated_label_traces(demos: &[Demo], hold_to: Option<usize>) -> Vec<Vec<LabelSet>> {
-    let labelling = FeatureMap::reacher_labels();
-    demos
-        .iter()
-        .map(|d| {
-            let mut labels = d.labels();
-            if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
-                let held = labelling.labels_of(&held_observation(&last.next_obs));
-                labels.resize(labels.len().max(horizon), held);
-            }
-            labels
-        })
-        .collect()
-}
-
-/// Step 1b (`smirl_unseen_touch_sink`): the machine with a sink that a ball touch enters from
-/// every state in which no demonstration touches that ball (read as [`annotate`] reads them,
-/// held steps included, so that no demonstration enters it); with `after_events_only`
-/// (`smirl_sink_after_events`), only from states the agent cannot reach without an exogenous
-/// event (after the cancel). Demonstrations never fail, so no learned machine has a failure
-/// state; the sink gives the learned reward a place to say that what the expert never does in
-/// a state — blue after the cancel in IF — leaves the task for good. It is an ordinary state:
-/// the episode goes on, and IRL learns what it is worth.
-pub fn with_unseen_touch_sink(
-    rm: &RewardMachine,
-    demos: &[Demo],
-    hold_to: Option<usize>,
-    after_events_only: bool,
-) -> (RewardMachine, Option<usize>) {
-    let from: Vec<bool> = if after_events_only {
-        rm.reachable_without(EVENTS).iter().map(|&r| !r).collect()
-    } else {
-        vec![true; rm.n_states()]
-    };
-    sink_unseen(rm, &annotated_label_traces(demos, hold_to), TOUCHES, &from)
 }
 
 /// Which features δ_r reads.
