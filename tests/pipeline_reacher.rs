@@ -886,17 +886,12 @@ fn final_policy_settings_are_checked() {
             }
         }
     }
-    // The fresh and the reset agent need the phase's checkpoints, at least one step per
-    // checkpoint and at most the step limit.
+    // The reset agent needs the phase's checkpoints, at least one step per checkpoint and at
+    // most the step limit.
     type Key = fn(&mut IrlRunConfig) -> &mut u64;
-    let keys: [(&str, Key); 2] = [
-        ("smirl_final_fresh_steps", |c| {
-            &mut c.smirl_final_fresh_steps
-        }),
-        ("smirl_final_reset_steps", |c| {
-            &mut c.smirl_final_reset_steps
-        }),
-    ];
+    let keys: [(&str, Key); 1] = [("smirl_final_reset_steps", |c| {
+        &mut c.smirl_final_reset_steps
+    })];
     for (field, key) in keys {
         for (extra, steps, checkpoints, ok) in [
             (150_000, 20_000, 4, true),
@@ -919,8 +914,10 @@ fn final_policy_settings_are_checked() {
         }
     }
     let standard = IrlRunConfig::standard();
-    assert_eq!(standard.smirl_final_fresh_steps, 0);
-    assert!(!standard.to_toml().contains("smirl_final_fresh_steps"));
+    assert_config_error_names(
+        &format!("smirl_final_fresh_steps = 280\n{}", standard.to_toml()),
+        "smirl_final_fresh_steps",
+    );
     assert_eq!(standard.smirl_final_reset_steps, 20_000);
     assert!(standard
         .to_toml()
@@ -1340,25 +1337,6 @@ fn run_with_extra_agent(
     let config = read(&with_dir, "config.toml");
     assert!(config.contains(written), "{config}");
     (without, with)
-}
-
-/// `smirl_final_fresh_steps`: after the co-trained agent's final phase a fresh agent learns the
-/// final reward from scratch, and its checkpoints join the candidates (`agent` = fresh, its
-/// own step count), the rest as [`run_with_extra_agent`] checks.
-#[test]
-fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
-    let (_, with) = run_with_extra_agent(
-        |c, steps| c.smirl_final_fresh_steps = steps,
-        280,
-        "smirl_final_fresh_steps = 280",
-    );
-    let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
-    assert_eq!(
-        agents,
-        ["co-trained", "co-trained", "co-trained", "fresh", "fresh"]
-    );
-    let fresh_steps: Vec<&str> = with[3..].iter().map(|r| r[3].as_str()).collect();
-    assert_eq!(fresh_steps, ["140", "280"]);
 }
 
 /// `smirl_final_reset_steps`: after the co-trained agent's final phase a reset agent (new

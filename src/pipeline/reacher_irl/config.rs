@@ -187,13 +187,6 @@ pub struct IrlRunConfig {
     /// besides the co-trained policy.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub smirl_final_checkpoints: u64,
-    /// SAC environment steps of a fresh agent (new networks and replay, its own seed) on the
-    /// same final reward after the co-trained agent's final phase, with as many checkpoints,
-    /// each one more candidate for the reported policy; 0 = none (every run before the key
-    /// existed). Why: a job whose co-trained agent is stuck can leave a reward that a fresh
-    /// agent solves (`reacher retrain`). Omitted from written configs when 0.
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub smirl_final_fresh_steps: u64,
     /// Gradient updates, then as many SAC environment steps, of a reset agent after the
     /// co-trained (and fresh) agent's final phase: new networks, optimisers, temperature and
     /// seed on a copy of the co-trained agent's replay buffer, which it first learns from alone;
@@ -559,7 +552,6 @@ impl IrlRunConfig {
             // (README, "SMIRL's final policy").
             smirl_final_sac_steps: 20_000,
             smirl_final_checkpoints: 4,
-            smirl_final_fresh_steps: 0,
             // Four more from a reset agent on the co-trained agent's replay buffer (24 of 24
             // tuning jobs; README, "A reset agent").
             smirl_final_reset_steps: 20_000,
@@ -721,7 +713,6 @@ impl IrlRunConfig {
         self.smirl_shaping = 0.0;
         self.smirl_final_sac_steps = 0;
         self.smirl_final_checkpoints = 0;
-        self.smirl_final_fresh_steps = 0;
         self.smirl_final_reset_steps = 0;
         self.smirl_selection_cut = false;
         self.smirl_selection_cut_entries = false;
@@ -914,12 +905,8 @@ impl IrlRunConfig {
             }
             _ => {}
         }
-        // The fresh and the reset agent are more agents of the final phase: each needs its
-        // checkpoints.
-        let extra_agents = [
-            ("smirl_final_fresh_steps", self.smirl_final_fresh_steps),
-            ("smirl_final_reset_steps", self.smirl_final_reset_steps),
-        ];
+        // The reset agent is one more agent of the final phase: it needs its checkpoints.
+        let extra_agents = [("smirl_final_reset_steps", self.smirl_final_reset_steps)];
         for (field, steps) in extra_agents {
             if steps > MAX_SAC_STEPS_PER_ITERATION {
                 return over(field, steps, MAX_SAC_STEPS_PER_ITERATION);

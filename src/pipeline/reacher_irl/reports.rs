@@ -290,7 +290,6 @@ pub(super) fn write_reports(
         "smirl_selection_cut_entries": config.smirl_selection_cut_entries,
         "smirl_final_sac_steps": config.smirl_final_sac_steps,
         "smirl_final_checkpoints": config.smirl_final_checkpoints,
-        "smirl_final_fresh_steps": config.smirl_final_fresh_steps,
         "smirl_final_reset_steps": config.smirl_final_reset_steps,
         "smirl_clock": config.smirl_clock,
         "smirl_clock_frozen": config.smirl_clock_frozen,
@@ -313,7 +312,7 @@ pub(super) fn write_reports(
 
 /// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
 /// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `agent` says
-/// whose policy it is (`co-trained`, `fresh` with `smirl_final_fresh_steps`, `reset` with
+/// whose policy it is (`co-trained`, `reset` with
 /// `smirl_final_reset_steps`), `cut_return`
 /// what the choice read instead of `learned_return` (`smirl_selection_cut`; else empty).
 fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
@@ -439,7 +438,7 @@ pub fn summary_markdown(
         let _ = writeln!(
             s,
             "\nFinal policy (SAC on the final reward held fixed; of the candidates in \
-             final_policy.csv — the co-trained policy, its checkpoints and any fresh or reset agent's — \
+             final_policy.csv — the co-trained policy, its checkpoints and any reset agent's — \
              the one of highest learned return, counted with smirl_selection_cut up to the \
              first touch after the cancel that no demonstration makes):\n"
         );

@@ -16,8 +16,8 @@
 //!       ([`coefficients`]);
 //!    4. reward step(s) on w (Adam, L2).
 //! 4. **Final policy** (`smirl_final_sac_steps` > 0, [`super::final_policy`]): SAC goes on with
-//!    the final reward held fixed (and, with `smirl_final_fresh_steps` > 0, a fresh agent
-//!    learns it from scratch); the candidate of highest learned return is reported
+//!    the final reward held fixed (and, with `smirl_final_reset_steps` > 0, a reset agent
+//!    learns it on a copy of the replay buffer); the candidate of highest learned return is reported
 //!    (`smirl_selection_cut`: each selection episode's return counted up to its first touch
 //!    after the cancel that no demonstration makes, [`seen_after_events`]).
 //!
@@ -513,7 +513,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     }
 
     // Step 4, the final policy: SAC goes on with the final reward, now fixed (shaped by its
-    //    potential), then (`smirl_final_fresh_steps`) a fresh agent learns it from scratch,
+    //    potential), then (`smirl_final_reset_steps`) a reset agent learns it too,
     //    and the candidate of highest learned return (`smirl_selection_cut`: counted up to
     //    the first touch after the cancel that no demonstration makes) is the job's policy.
     let final_policy = if s.smirl_final_sac_steps > 0 {
@@ -530,7 +530,6 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
             steps: s.smirl_final_sac_steps,
             checkpoints: s.smirl_final_checkpoints,
             seed: job.seed,
-            fresh_steps: s.smirl_final_fresh_steps,
             reset_steps: s.smirl_final_reset_steps,
             selection_cut: selection_cut.as_ref(),
             selection_episodes: final_policy::selection_episodes(s),
