@@ -60,37 +60,6 @@ impl SmirlMachine {
     }
 }
 
-/// When the demonstrations' cancel events fire.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DemoCancel {
-    /// Each demonstration's reset draws its cancel event from `env.cancel`, as every agent
-    /// and evaluation episode does (demonstration `i` is reset with `episode_seed(seed, i)`).
-    #[default]
-    Drawn,
-    /// Half the demonstrations have no cancel event and the other half one on each step of
-    /// the cancel window in turn (`earliest_step`, `earliest_step + 1`, …), by taking reset
-    /// seeds of the same stream whose draw is that schedule. Why: with draws, whether any
-    /// demonstration shows a cancel *after* the expert's first sub-goal is luck (Composite's
-    /// expert touches red on steps 6–7 of the window 1–8), and an agent that is faster than
-    /// the expert meets that case in a quarter of its cancel episodes (README, "Stratified
-    /// demonstrations").
-    Stratified,
-}
-
-impl DemoCancel {
-    pub fn name(self) -> &'static str {
-        match self {
-            DemoCancel::Drawn => "drawn",
-            DemoCancel::Stratified => "stratified",
-        }
-    }
-
-    fn is_drawn(&self) -> bool {
-        *self == DemoCancel::Drawn
-    }
-}
-
 /// How demonstrations that end before the time limit (at the task's goal) are compared
 /// with agent rollouts, which always run `env.max_steps` steps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -127,12 +96,6 @@ pub struct IrlRunConfig {
     pub expert_cache_dir: PathBuf,
     /// Number of demonstrations (the paper: 16).
     pub demo_episodes: usize,
-    /// `"drawn"` (each demonstration's cancel event drawn like any episode's) or
-    /// `"stratified"` (half without, half on each step of the window in turn; [`DemoCancel`]).
-    /// A config without the key is read as `"drawn"`, what every run before the key existed
-    /// used. Omitted from written configs when `"drawn"`.
-    #[serde(default, skip_serializing_if = "DemoCancel::is_drawn")]
-    pub demo_cancel: DemoCancel,
     /// `"hold"` (pad demonstrations to the time limit by holding the final state) or
     /// `"none"`.
     pub demo_padding: DemoPadding,
@@ -500,8 +463,6 @@ impl IrlConfigError {
 
 /// Most demonstrations generated.
 pub const MAX_DEMO_EPISODES: usize = 10_000;
-/// Least chance per reset of each draw `demo_cancel = "stratified"` looks for.
-pub const MIN_STRATIFIED_DRAW: f64 = 1e-3;
 /// Most IRL iterations.
 pub const MAX_IRL_ITERATIONS: usize = 100_000;
 /// Most SAC environment steps per IRL iteration.
@@ -530,7 +491,6 @@ impl IrlRunConfig {
             demo_source: DemoSource::Expert,
             expert_cache_dir: PathBuf::new(),
             demo_episodes: 16,
-            demo_cancel: DemoCancel::Drawn,
             demo_padding: DemoPadding::Hold,
             // SMIRL's schedule: 30 IRL iterations (two of three Sequential tuning seeds first
             // solve the task in iterations 16-20), with potential-based shaping of its SAC
@@ -809,24 +769,6 @@ impl IrlRunConfig {
         let non_negative = |x: f64| x.is_finite() && x >= 0.0;
         if self.demo_episodes == 0 {
             return bad("demo_episodes", "must be at least 1");
-        }
-        if self.demo_cancel == DemoCancel::Stratified {
-            // The schedule is found by scanning reset seeds: each wanted draw must be common
-            // enough for the scan to end quickly (crate::pipeline::reacher_irl::demos).
-            let p = self.env.cancel.probability;
-            let window = (self.env.cancel.latest_step - self.env.cancel.earliest_step + 1) as f64;
-            if !(p / window >= MIN_STRATIFIED_DRAW && 1.0 - p >= MIN_STRATIFIED_DRAW) {
-                return bad(
-                    "demo_cancel",
-                    &format!(
-                        "\"stratified\" needs each of its draws (no cancel: {:.3e}; a cancel on \
-                         a given step: env.cancel.probability / window = {:.3e}) to have a \
-                         chance of at least {MIN_STRATIFIED_DRAW:e}",
-                        1.0 - p,
-                        p / window
-                    ),
-                );
-            }
         }
         if self.irl_iterations == 0 {
             return bad("irl_iterations", "must be at least 1");

@@ -282,7 +282,6 @@ pub(super) fn write_reports(
         "summary": summary,
         "seeds": p.seeds,
         "demo_source": config.demo_source.name(),
-        "demo_cancel": config.demo_cancel.name(),
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
         "smirl_machine": config.smirl_machine.name(),
