@@ -1597,3 +1597,37 @@ fn frozen_clock_is_the_clock_without_the_time() {
         serde_json::Value::Bool(true)
     );
 }
+
+/// `smirl_machine = "one_state"`, the control of issue 54 without structure: the run's machine
+/// has one state and no transitions and its report says so, every expert step is in that
+/// state, the SMIRL job learns one weight vector on it and keeps every other mechanism (its
+/// final phase included).
+#[test]
+fn one_state_control_runs_smirl_on_a_one_state_machine() {
+    use smirl::pipeline::reacher_irl::run::JobRecord;
+    use smirl::pipeline::reacher_irl::SmirlMachine;
+    use smirl::rm::format::parse_rm;
+    let text = IrlRunConfig::standard().to_toml();
+    let c = IrlRunConfig::from_toml(&format!("smirl_machine = \"one_state\"\n{text}"), "c.toml")
+        .unwrap();
+    assert_eq!(c.smirl_machine, SmirlMachine::OneState);
+    assert!(c.to_toml().contains("smirl_machine = \"one_state\""));
+
+    let mut config = tiny_config();
+    config.smirl_machine = SmirlMachine::OneState;
+    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::shipped("if").unwrap(), config);
+    let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
+    let machine = parse_rm(&read("rm/learned.txt"), "learned.txt").unwrap();
+    assert_eq!(machine.n_states(), 1);
+    assert!(machine.transitions().is_empty());
+    assert!(read("rm/report.txt").contains("smirl_machine = \"one_state\""));
+    let expert =
+        ExpertData::from_bytes(&std::fs::read(dir.join("expert_data.bin")).unwrap()).unwrap();
+    assert!(!expert.learned_states.is_empty());
+    assert!(expert.learned_states.iter().all(|&u| u == 0));
+    let reward: serde_json::Value =
+        serde_json::from_str(&read("rewards/smirl_seed3.json")).unwrap();
+    assert_eq!(reward["n_states"], 1);
+    let record: JobRecord = serde_json::from_str(&read("jobs/smirl_seed3.json")).unwrap();
+    assert!(record.final_policy.is_some());
+}

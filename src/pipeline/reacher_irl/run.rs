@@ -27,7 +27,8 @@ use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{
-    annotate, label_traces, learn_machine, lrm_config, seen_after_events, task_machine,
+    annotate, label_traces, learn_machine, lrm_config, one_state_machine, seen_after_events,
+    task_machine,
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;
@@ -350,8 +351,12 @@ fn learn_and_report(
     let lrm = lrm_config(config, seed);
     let (rm, cost, secs) = match config.smirl_machine {
         SmirlMachine::Learned => learn_machine(demos, config, seed).map_err(PipelineError::Run)?,
-        SmirlMachine::Task => {
-            let rm = task_machine(perfect).map_err(PipelineError::Run)?;
+        SmirlMachine::Task | SmirlMachine::OneState => {
+            let rm = match config.smirl_machine {
+                SmirlMachine::Task => task_machine(perfect),
+                _ => one_state_machine(perfect.vocab()),
+            }
+            .map_err(PipelineError::Run)?;
             let cost = trace_cost(&rm, &label_traces(demos), trace_reading(&lrm))
                 .map_err(|e| PipelineError::Run(format!("LRM cost of the task's machine: {e}")))?;
             (rm, cost, 0.0)
@@ -371,12 +376,22 @@ fn learn_and_report(
         lrm_secs: secs,
     };
     let mut report = String::new();
-    if config.smirl_machine == SmirlMachine::Task {
-        let _ = writeln!(
-            report,
-            "smirl_machine = \"task\": the \"learned\" machine below is the task's own \
-             (goal and failure states made ordinary, rewards 0), not LRM's: an oracle"
-        );
+    match config.smirl_machine {
+        SmirlMachine::Learned => {}
+        SmirlMachine::Task => {
+            let _ = writeln!(
+                report,
+                "smirl_machine = \"task\": the \"learned\" machine below is the task's own \
+                 (goal and failure states made ordinary, rewards 0), not LRM's: an oracle"
+            );
+        }
+        SmirlMachine::OneState => {
+            let _ = writeln!(
+                report,
+                "smirl_machine = \"one_state\": the \"learned\" machine below has one state, \
+                 not LRM's: the control without structure"
+            );
+        }
     }
     let _ = writeln!(
         report,

@@ -91,6 +91,14 @@ pub fn task_machine(perfect: &RewardMachine) -> Result<RewardMachine, String> {
     .map_err(|e| format!("the task's machine: {e}"))
 }
 
+/// The machine SMIRL reads under `smirl_machine = "one_state"`: one state, no transitions, so
+/// δ_r(u, o) = w_0ᵀ φ(o) and the agent's input carries no machine state; every other mechanism
+/// runs as with LRM's machine (the control that tells what the machine adds).
+pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, String> {
+    RewardMachine::new(vocab.clone(), 1, 0, &[], &[], Vec::new())
+        .map_err(|e| format!("the one-state machine: {e}"))
+}
+
 /// The learner's settings of a run (`seed`: the search's).
 pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
     LrmConfig {
