@@ -370,91 +370,26 @@ fn bad_cancel_windows_are_refused_with_status_2() {
     assert!(err.contains("cancel.latest_step"), "{err}");
 }
 
-/// `demo_cancel = "stratified"`: the demonstrations alternate "no cancel" and a cancel on
-/// each step of the window in turn, from seeds of the run's own stream (so each replays from
-/// its reset seed); `"drawn"` keeps the stream as it was.
+/// The demonstrations are reset from the run's own seed stream (so each replays from its reset
+/// seed and draws its cancel like any episode); the stratified schedule's key is gone.
 #[test]
-fn stratified_demonstrations_cover_every_cancel_step() {
-    use smirl::pipeline::reacher_irl::config::DemoCancel;
+fn demonstrations_are_reset_from_the_runs_stream() {
     use smirl::pipeline::reacher_irl::demos::{demo_reset_seeds, make_demos};
-    let env_config = ReacherConfig::default();
-    let drawn = demo_reset_seeds(&env_config, DemoCancel::Drawn, 16, 7).unwrap();
     let stream: Vec<u64> = (0..16).map(|i| episode_seed(7, i)).collect();
-    assert_eq!(drawn, stream);
-
-    let seeds = demo_reset_seeds(&env_config, DemoCancel::Stratified, 16, 7).unwrap();
-    let mut env = ReacherDelivery::new(env_config.clone()).unwrap();
-    let mut obs = vec![0.0f32; smirl::env::reacher::OBS_DIM];
-    let steps: Vec<Option<usize>> = seeds
-        .iter()
-        .map(|&s| {
-            env.reset(s, &mut obs);
-            env.cancel_step()
-        })
-        .collect();
-    let wanted: Vec<Option<usize>> = (0..16).map(|i| (i % 2 == 1).then_some(1 + i / 2)).collect();
-    assert_eq!(steps, wanted);
-    let stream: Vec<u64> = (0..4096).map(|j| episode_seed(7, j)).collect();
-    assert!(
-        seeds.iter().all(|s| stream.contains(s)),
-        "seeds of the run's stream"
-    );
-    let mut unique = seeds.clone();
-    unique.sort_unstable();
-    unique.dedup();
-    assert_eq!(unique.len(), 16);
-    assert_eq!(
-        seeds,
-        demo_reset_seeds(&env_config, DemoCancel::Stratified, 16, 7).unwrap(),
-        "deterministic"
-    );
-    // More demonstrations than window steps cycle through the window again.
-    let long = demo_reset_seeds(&env_config, DemoCancel::Stratified, 20, 7).unwrap();
-    env.reset(long[17], &mut obs);
-    assert_eq!(env.cancel_step(), Some(1));
-
-    // The run's demonstrations are reset from those seeds.
+    assert_eq!(demo_reset_seeds(16, 7), stream);
     let config = IrlRunConfig {
-        demo_cancel: DemoCancel::Stratified,
         demo_episodes: 6,
         ..IrlRunConfig::quick()
     };
     let demos = make_demos(ReacherTask::shipped("if").unwrap(), &config, None, 7, None).unwrap();
     let used: Vec<u64> = demos.iter().map(|d| d.seed).collect();
-    assert_eq!(used, seeds[..6]);
-}
-
-/// The key is optional (old configs read as drawn, written configs omit it when drawn), round
-/// trips, and a schedule whose draws are too rare to find is refused naming `demo_cancel`.
-#[test]
-fn demo_cancel_key_is_optional_and_checked() {
-    use smirl::pipeline::reacher_irl::config::DemoCancel;
-    let text = IrlRunConfig::quick().to_toml();
-    assert!(!text.contains("demo_cancel"), "{text}");
-    assert_eq!(
-        IrlRunConfig::from_toml(&text, "old.toml")
-            .unwrap()
-            .demo_cancel,
-        DemoCancel::Drawn
-    );
-    let stratified = text.replace(
+    assert_eq!(used, stream[..6]);
+    let text = IrlRunConfig::quick().to_toml().replace(
         "demo_episodes = 8\n",
         "demo_episodes = 8\ndemo_cancel = \"stratified\"\n",
     );
-    let c = IrlRunConfig::from_toml(&stratified, "s.toml").unwrap();
-    assert_eq!(c.demo_cancel, DemoCancel::Stratified);
-    assert!(c.to_toml().contains("demo_cancel = \"stratified\""));
-    for probability in ["1.0", "0.0", "0.005"] {
-        let bad = stratified.replace("probability = 0.5", &format!("probability = {probability}"));
-        let e = IrlRunConfig::from_toml(&bad, "bad.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("bad.toml") && e.contains("demo_cancel"),
-            "{probability}: {e}"
-        );
-    }
-    // The same rule with the drawn default is fine: a schedule that never cancels is allowed.
-    let never = text.replace("probability = 0.5", "probability = 0.0");
-    assert!(IrlRunConfig::from_toml(&never, "never.toml").is_ok());
+    let e = IrlRunConfig::from_toml(&text, "s.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("s.toml") && e.contains("demo_cancel"), "{e}");
 }

@@ -614,57 +614,6 @@ fn tiny_smirl_run(
     (tmp, dir, summary)
 }
 
-/// `smirl_unseen_touch_sink`: read as false from configs without the key (and not written
-/// when false); a run prepared with it writes a machine with a sink state that no annotated
-/// expert step (held steps included) is in, says so in its report, and its SMIRL job runs on it.
-#[test]
-fn unseen_touch_sink_is_a_state_no_demonstration_enters() {
-    use smirl::rm::format::parse_rm;
-    let text = IrlRunConfig::standard().to_toml();
-    assert!(!text.contains("smirl_unseen_touch_sink"));
-    assert!(!IrlRunConfig::standard().smirl_unseen_touch_sink);
-    let on = format!("smirl_unseen_touch_sink = true\n{text}");
-    let c = IrlRunConfig::from_toml(&on, "c.toml").unwrap();
-    assert!(c.smirl_unseen_touch_sink);
-    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    let gated = format!("smirl_sink_after_events = true\n{on}");
-    let c = IrlRunConfig::from_toml(&gated, "c.toml").unwrap();
-    assert!(c.smirl_sink_after_events);
-    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    // Where the sink is entered from means nothing without the sink.
-    let alone = format!("smirl_sink_after_events = true\n{text}");
-    assert_config_error_names(&alone, "smirl_sink_after_events");
-
-    let mut config = tiny_config();
-    config.smirl_unseen_touch_sink = true;
-    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::shipped("if").unwrap(), config);
-    let machine = parse_rm(
-        &std::fs::read_to_string(dir.join("rm/learned.txt")).unwrap(),
-        "learned.txt",
-    )
-    .unwrap();
-    let sink = machine.n_states() - 1;
-    let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
-    assert!(
-        report.contains(&format!("state {sink} is the sink")),
-        "{report}"
-    );
-    assert!(machine.transitions().iter().any(|t| t.to == sink));
-    assert!(machine.transitions().iter().all(|t| t.from != sink));
-    let expert =
-        ExpertData::from_bytes(&std::fs::read(dir.join("expert_data.bin")).unwrap()).unwrap();
-    assert!(!expert.learned_states.is_empty());
-    assert!(
-        expert.learned_states.iter().all(|&u| u as usize != sink),
-        "an expert step is in the sink"
-    );
-    let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
-    assert!(
-        metrics.lines().skip(1).any(|l| l.starts_with("smirl,3,")),
-        "{metrics}"
-    );
-}
-
 /// `smirl_selection_cut`: the standard, read as false from configs without the key; a run with it says in its report which balls
 /// the demonstrations touch after the cancel per learned state, and every final-policy
 /// candidate of its SMIRL job carries a cut return, the one the choice reads.
@@ -848,36 +797,6 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     // A demonstration already at the horizon is not extended.
     let full = annotate(std::slice::from_ref(&demo), Some(&rm), Some(2));
     assert_eq!(full.lengths, vec![3]);
-
-    // The sink of unseen touches reads the labels annotate steps on, held steps included:
-    // blue is touched in u2 only while held, so only without holding is it unseen there.
-    use smirl::pipeline::reacher_irl::smirl::{annotated_label_traces, with_unseen_touch_sink};
-    let traces = annotated_label_traces(std::slice::from_ref(&demo), Some(6));
-    let stepped = vec![
-        labels(""),
-        labels("r"),
-        labels("bc"),
-        labels("b"),
-        labels("b"),
-        labels("b"),
-    ];
-    assert_eq!(traces, vec![stepped]);
-    let (sunk, sink) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), Some(6), false);
-    assert_eq!(sink, Some(3));
-    assert_eq!(sunk.next_state(2, labels("b")), 2);
-    assert_eq!(sunk.next_state(2, labels("g")), 3);
-    assert_eq!(
-        sunk.next_state(2, labels("c")),
-        2,
-        "the cancel is not a touch"
-    );
-    let (unheld, _) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), None, false);
-    assert_eq!(unheld.next_state(2, labels("b")), 3);
-    let annotated = annotate(std::slice::from_ref(&demo), Some(&sunk), Some(6));
-    assert!(annotated.learned_states.iter().all(|&u| u != 3));
-    // Every state of this machine is reached without the cancel: after events only, no sink.
-    let (same, none) = with_unseen_touch_sink(&rm, std::slice::from_ref(&demo), Some(6), true);
-    assert_eq!((same, none), (rm.clone(), None));
 }
 
 /// `expert_data.bin`: what `reacher prepare` hands the jobs reads back exactly, and a file
@@ -967,17 +886,12 @@ fn final_policy_settings_are_checked() {
             }
         }
     }
-    // The fresh and the reset agent need the phase's checkpoints, at least one step per
-    // checkpoint and at most the step limit.
+    // The reset agent needs the phase's checkpoints, at least one step per checkpoint and at
+    // most the step limit.
     type Key = fn(&mut IrlRunConfig) -> &mut u64;
-    let keys: [(&str, Key); 2] = [
-        ("smirl_final_fresh_steps", |c| {
-            &mut c.smirl_final_fresh_steps
-        }),
-        ("smirl_final_reset_steps", |c| {
-            &mut c.smirl_final_reset_steps
-        }),
-    ];
+    let keys: [(&str, Key); 1] = [("smirl_final_reset_steps", |c| {
+        &mut c.smirl_final_reset_steps
+    })];
     for (field, key) in keys {
         for (extra, steps, checkpoints, ok) in [
             (150_000, 20_000, 4, true),
@@ -1000,8 +914,10 @@ fn final_policy_settings_are_checked() {
         }
     }
     let standard = IrlRunConfig::standard();
-    assert_eq!(standard.smirl_final_fresh_steps, 0);
-    assert!(!standard.to_toml().contains("smirl_final_fresh_steps"));
+    assert_config_error_names(
+        &format!("smirl_final_fresh_steps = 280\n{}", standard.to_toml()),
+        "smirl_final_fresh_steps",
+    );
     assert_eq!(standard.smirl_final_reset_steps, 20_000);
     assert!(standard
         .to_toml()
@@ -1017,15 +933,22 @@ fn final_policy_settings_are_checked() {
     assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
 }
 
-/// LRM's optional keys (search, event memory, borrowed events, commuted events, initial
-/// events, event stutter, event prediction): absent from written configs unless set, read back as set,
-/// bounded (fallback starts too), and a zero start count refused; the error names the field.
+/// LRM's optional keys (fallback starts, commuted events, initial events, event stutter, event
+/// prediction): absent from written configs unless set, read back as set, fallback starts
+/// bounded; the error names the field. The removed ablation keys are refused.
 #[test]
 fn lrm_search_settings_are_checked() {
     let standard = IrlRunConfig::standard();
     let text = standard.to_toml();
-    assert!(!text.contains("lrm_starts") && !text.contains("lrm_patience"));
-    assert!(!text.contains("lrm_remember_events") && !text.contains("lrm_borrow_events"));
+    for removed in [
+        "lrm_starts = 32\n",
+        "lrm_patience = 0\n",
+        "lrm_remember_events = true\n",
+        "lrm_borrow_events = true\n",
+    ] {
+        let key = removed.split(' ').next().unwrap();
+        assert_config_error_names(&format!("{removed}{text}"), key);
+    }
     // Initial events are on in the standard; a config without the key reads false.
     assert!(standard.lrm_initial_events && text.contains("lrm_initial_events = true\n"));
     let without_initial = text.replace("lrm_initial_events = true\n", "");
@@ -1062,10 +985,9 @@ fn lrm_search_settings_are_checked() {
     let text = without;
     let text = text.replace(
         "lrm_steps = 100\n",
-        "lrm_steps = 100\nlrm_starts = 32\nlrm_patience = 0\nlrm_fallback_starts = 28\nlrm_initial_events = true\nlrm_remember_events = true\nlrm_borrow_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
+        "lrm_steps = 100\nlrm_fallback_starts = 28\nlrm_initial_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
     );
     let c = IrlRunConfig::from_toml(&text, "search.toml").unwrap();
-    assert_eq!((c.lrm_starts, c.lrm_patience), (Some(32), Some(0)));
     assert!(c.lrm_fallback_starts == 28 && c.to_toml().contains("lrm_fallback_starts = 28\n"));
     assert!(c.lrm_initial_events && c.to_toml().contains("lrm_initial_events = true\n"));
     assert_config_error_names(
@@ -1076,7 +998,7 @@ fn lrm_search_settings_are_checked() {
         &text.replace("lrm_fallback_starts = 28", "lrm_fallback_starts = -1"),
         "lrm_fallback_starts",
     );
-    assert!(c.lrm_remember_events && c.lrm_borrow_events && c.lrm_event_stutter);
+    assert!(c.lrm_event_stutter);
     assert!(c.lrm_commute_events && c.to_toml().contains("lrm_commute_events = true\n"));
     assert_config_error_names(
         &text.replace("lrm_commute_events = true", "lrm_commute_events = 1"),
@@ -1091,17 +1013,6 @@ fn lrm_search_settings_are_checked() {
         IrlRunConfig::from_toml(&c.to_toml(), "again.toml").unwrap(),
         c
     );
-    for (starts, patience, field) in [
-        (Some(0), None, "lrm_starts"),
-        (Some(1_001), None, "lrm_starts"),
-        (None, Some(1_000_001), "lrm_patience"),
-    ] {
-        let mut c = IrlRunConfig::standard();
-        c.lrm_starts = starts;
-        c.lrm_patience = patience;
-        let e = c.validate("test").unwrap_err().to_string();
-        assert!(e.contains(field), "{e}");
-    }
     let mut c = IrlRunConfig::standard();
     c.lrm_fallback_starts = 1_001;
     let e = c.validate("test").unwrap_err().to_string();
@@ -1428,25 +1339,6 @@ fn run_with_extra_agent(
     (without, with)
 }
 
-/// `smirl_final_fresh_steps`: after the co-trained agent's final phase a fresh agent learns the
-/// final reward from scratch, and its checkpoints join the candidates (`agent` = fresh, its
-/// own step count), the rest as [`run_with_extra_agent`] checks.
-#[test]
-fn fresh_agent_checkpoints_join_the_final_policy_candidates() {
-    let (_, with) = run_with_extra_agent(
-        |c, steps| c.smirl_final_fresh_steps = steps,
-        280,
-        "smirl_final_fresh_steps = 280",
-    );
-    let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
-    assert_eq!(
-        agents,
-        ["co-trained", "co-trained", "co-trained", "fresh", "fresh"]
-    );
-    let fresh_steps: Vec<&str> = with[3..].iter().map(|r| r[3].as_str()).collect();
-    assert_eq!(fresh_steps, ["140", "280"]);
-}
-
 /// `smirl_final_reset_steps`: after the co-trained agent's final phase a reset agent (new
 /// networks on its replay buffer) learns from that buffer, then trains on, and its checkpoints
 /// join the candidates (`agent` = reset, step counts going on from the co-trained agent's),
@@ -1704,4 +1596,38 @@ fn frozen_clock_is_the_clock_without_the_time() {
         run_json["smirl_clock_frozen"],
         serde_json::Value::Bool(true)
     );
+}
+
+/// `smirl_machine = "one_state"`, the control of issue 54 without structure: the run's machine
+/// has one state and no transitions and its report says so, every expert step is in that
+/// state, the SMIRL job learns one weight vector on it and keeps every other mechanism (its
+/// final phase included).
+#[test]
+fn one_state_control_runs_smirl_on_a_one_state_machine() {
+    use smirl::pipeline::reacher_irl::run::JobRecord;
+    use smirl::pipeline::reacher_irl::SmirlMachine;
+    use smirl::rm::format::parse_rm;
+    let text = IrlRunConfig::standard().to_toml();
+    let c = IrlRunConfig::from_toml(&format!("smirl_machine = \"one_state\"\n{text}"), "c.toml")
+        .unwrap();
+    assert_eq!(c.smirl_machine, SmirlMachine::OneState);
+    assert!(c.to_toml().contains("smirl_machine = \"one_state\""));
+
+    let mut config = tiny_config();
+    config.smirl_machine = SmirlMachine::OneState;
+    let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::shipped("if").unwrap(), config);
+    let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
+    let machine = parse_rm(&read("rm/learned.txt"), "learned.txt").unwrap();
+    assert_eq!(machine.n_states(), 1);
+    assert!(machine.transitions().is_empty());
+    assert!(read("rm/report.txt").contains("smirl_machine = \"one_state\""));
+    let expert =
+        ExpertData::from_bytes(&std::fs::read(dir.join("expert_data.bin")).unwrap()).unwrap();
+    assert!(!expert.learned_states.is_empty());
+    assert!(expert.learned_states.iter().all(|&u| u == 0));
+    let reward: serde_json::Value =
+        serde_json::from_str(&read("rewards/smirl_seed3.json")).unwrap();
+    assert_eq!(reward["n_states"], 1);
+    let record: JobRecord = serde_json::from_str(&read("jobs/smirl_seed3.json")).unwrap();
+    assert!(record.final_policy.is_some());
 }

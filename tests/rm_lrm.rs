@@ -499,125 +499,6 @@ const IF_BASE9: [(usize, &str); 16] = [
     (22, "r@6 b@13-15 r@22"),
 ];
 
-/// After blue and after a cancel the IF expert goes to red, so LRM's objective has no reason
-/// to tell the two apart and SMIRL's learned machine merges them; only "blue after a cancel
-/// fails" differs, which no demonstration shows. With `remember_events` the machine is the
-/// product with "cancel seen", which separates them at no cost (a finer partition), keeps
-/// the raw and compressed readings alike and at most doubles the states. Regression for
-/// held-out IF base 9 seed 9, whose reward paid blue in the merged state.
-#[test]
-fn remembering_the_cancel_separates_if_branches_that_lrm_merges() {
-    let vocab = Vocabulary::new("rgbyc");
-    let traces = episode_traces(&vocab, &IF_BASE9);
-    let perfect = perfect::load("reacher_if").unwrap();
-    // The perfect machine's states after blue (no cancel) and after a cancel.
-    let (after_blue, after_cancel) = (1, 2);
-    let learn = |remember_events| {
-        let cfg = LrmConfig {
-            remember_events,
-            ..smirl_reacher_cfg(&vocab, 9)
-        };
-        learn_rm(&vocab, &traces, &cfg).unwrap()
-    };
-    let merged_with_both = |rm: &smirl::rm::RewardMachine| {
-        refines(rm, &perfect, read_prefixes(&traces))
-            .seen_with
-            .iter()
-            .any(|s| s.contains(&after_blue) && s.contains(&after_cancel))
-    };
-    let plain = learn(false);
-    assert!(merged_with_both(&plain.rm));
-    let remembered = learn(true);
-    assert!(!merged_with_both(&remembered.rm));
-    assert!(remembered.cost <= plain.cost + 1e-9);
-    assert!(runs_alike(&remembered.rm, &traces).iter().all(|&a| a));
-    assert!(remembered.rm.n_states() <= 2 * plain.rm.n_states());
-}
-
-/// The demonstrations of held-out IF (base seed 12): the normal branch passes red on its way
-/// to blue, and no cancel comes after that pass.
-const IF_BASE12: [(usize, &str); 16] = [
-    (21, "r@5 b@12-14 r@21"),
-    (6, "c@5 r@6"),
-    (15, "c@7 r@15"),
-    (21, "b@12-14 r@21"),
-    (21, "r@5 b@12-15 r@21"),
-    (6, "c@3 r@6"),
-    (22, "r@6 b@13-15 r@22"),
-    (21, "r@6 b@13-15 r@21"),
-    (6, "c@1 r@6"),
-    (6, "c@4 r@6"),
-    (16, "c@7 r@16"),
-    (22, "r@6 b@13-15 r@22"),
-    (22, "b@13-15 r@22"),
-    (18, "c@8 r@18"),
-    (21, "r@6 b@13-15 r@21"),
-    (6, "c@5 r@6"),
-];
-
-/// LRM splits "before blue" by the route (IF base 12: a state for "passing red"), and a
-/// cancel seen only in some of those states is ignored in the others: after passing red, a
-/// cancel left the machine where blue still leads on to red's reward (held-out IF base 12
-/// seed 12's failures, `r@5 c@8 b@20`). With `borrow_events` a cancel never seen in a state
-/// is read as in a state of the same task stage that saw one, so "pass red, then cancel" ends
-/// where "cancel" does; the demonstrations' paths and the cost are unchanged.
-#[test]
-fn borrowed_events_read_a_cancel_after_passing_red_as_a_cancel() {
-    let vocab = Vocabulary::new("rgbyc");
-    let traces = episode_traces(&vocab, &IF_BASE12);
-    let learn = |borrow_events| {
-        let cfg = LrmConfig {
-            remember_events: true,
-            borrow_events,
-            ..smirl_reacher_cfg(&vocab, 12)
-        };
-        learn_rm(&vocab, &traces, &cfg).unwrap()
-    };
-    let state_after = |rm: &smirl::rm::RewardMachine, spans: &str| {
-        let t = &episode_traces(&vocab, &[(10, spans)])[0];
-        (t.labels.iter()).fold(rm.initial(), |u, &l| rm.next_state(u, l))
-    };
-    let (plain, borrowed) = (learn(false), learn(true));
-    // No demonstration shows a cancel on red (`rc`) or after leaving it.
-    let cancelled = state_after(&borrowed.rm, "c@8");
-    assert_eq!(state_after(&borrowed.rm, "r@5-6 c@8"), cancelled);
-    assert_ne!(
-        state_after(&plain.rm, "r@5-6 c@8"),
-        state_after(&plain.rm, "c@8")
-    );
-    assert_eq!(borrowed.rm.n_states(), plain.rm.n_states());
-    assert!((borrowed.cost - plain.cost).abs() < 1e-9);
-    assert!(runs_alike(&borrowed.rm, &traces).iter().all(|&a| a));
-    for t in &traces {
-        let (mut a, mut b) = (plain.rm.initial(), borrowed.rm.initial());
-        for &l in &t.labels {
-            (a, b) = (plain.rm.next_state(a, l), borrowed.rm.next_state(b, l));
-            assert_eq!(a, b, "a demonstration's path changed");
-        }
-    }
-}
-
-/// The event memory multiplies the states by 2^events: more than 4 events are refused.
-#[test]
-fn remembering_more_than_four_events_is_refused() {
-    let vocab = Vocabulary::new("abcde");
-    let traces = episode_traces(&vocab, &[(4, "a@2 b@3")]);
-    let e = learn_rm(
-        &vocab,
-        &traces,
-        &LrmConfig {
-            events: vocab.parse_labels("abcde").unwrap(),
-            remember_events: true,
-            ..cfg(1)
-        },
-    )
-    .unwrap_err();
-    assert!(
-        matches!(&e, LrmError::Config(m) if m.contains("remember_events") && m.contains("5 events")),
-        "{e}"
-    );
-}
-
 /// The demonstrations of held-out Composite (base seed 24) as `reacher replay` lists them: red,
 /// then blue, then yellow, or red and a cancel, then yellow; in three of them the cancel fires
 /// while the fingertip is on red (`rc`), which stays on red for a step or two after.
@@ -1017,5 +898,47 @@ fn initial_events_keep_a_cancel_on_the_first_step() {
             (a, b) = (plain.rm.next_state(a, l), read.rm.next_state(b, l));
             assert_eq!(a, b, "a demonstration's path changed");
         }
+    }
+}
+
+/// smirl-paper learns its machine by LRM as the paper's eq. 1 states it: on demonstrations
+/// where an event rule of SMIRL changes the machine (OR base 33: the cancel not predicted;
+/// Composite base 36: a commuted cancel; Composite base 24: event stutter), the settings
+/// `smirl-paper` resolves to give the machine and cost of the learner with no event declared
+/// at all and LRM's reading of unseen label sets (stay), and SMIRL's settings give another.
+#[test]
+fn smirl_paper_learns_lrm_without_event_rules() {
+    use smirl::pipeline::reacher_irl::smirl::lrm_config;
+    use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
+    use smirl::rm::format::write_rm;
+    let vocab = Vocabulary::new("rgbyc");
+    let standard = IrlRunConfig::standard();
+    let paper = standard.for_algo(Algo::SmirlPaper).unwrap();
+    let cases: [(u64, &[(usize, &str)]); 3] = [
+        (33, &OR_BASE33),
+        (36, &COMPOSITE_BASE36),
+        (24, &COMPOSITE_BASE24),
+    ];
+    for (seed, episodes) in cases {
+        let traces = episode_traces(&vocab, episodes);
+        let plain = LrmConfig {
+            max_states: standard.lrm_max_states,
+            tabu_len: standard.lrm_tabu_len,
+            max_steps: standard.lrm_steps,
+            seed,
+            threads: 2,
+            merge: false,
+            reward_weight: 0.0,
+            stutter_invariant: true,
+            ..LrmConfig::default()
+        };
+        assert_eq!(plain.guards, smirl::rm::lrm::Guards::Exact);
+        assert!(plain.events.is_empty());
+        let lrm = learn_rm(&vocab, &traces, &plain).unwrap();
+        let learned = learn_rm(&vocab, &traces, &lrm_config(&paper, seed)).unwrap();
+        assert_eq!(write_rm(&learned.rm), write_rm(&lrm.rm), "base {seed}");
+        assert_eq!(learned.cost, lrm.cost, "base {seed}");
+        let improved = learn_rm(&vocab, &traces, &lrm_config(&standard, seed)).unwrap();
+        assert_ne!(write_rm(&improved.rm), write_rm(&lrm.rm), "base {seed}");
     }
 }

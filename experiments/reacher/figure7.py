@@ -25,7 +25,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import rundata  # noqa: E402
 
-ORDER = ["smirl", "smirl-smooth", "maxent", "fkl", "js", "rkl"]
+ORDER = ["smirl", "smirl-paper", "smirl-smooth", "maxent", "fkl", "js", "rkl"]
 
 
 def ms(xs):

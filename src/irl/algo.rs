@@ -7,8 +7,11 @@ use std::fmt;
 /// An IRL algorithm.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Algo {
-    /// SMIRL with the paper's label features.
+    /// SMIRL with the paper's label features and the mechanisms of `docs/method.md`.
     Smirl,
+    /// The paper's algorithm: SMIRL with every mechanism of `docs/method.md` at the paper's
+    /// value (LRM's objective, μ_D − μ_π, the policy on U × O, the loop's own final policy).
+    SmirlPaper,
     /// SMIRL with smooth distance features (a documented variant, ReacherDelivery).
     SmirlSmooth,
     /// MaxEnt IRL (tabular on Office, continuous on ReacherDelivery).
@@ -25,8 +28,9 @@ pub enum Algo {
 
 impl Algo {
     /// The ReacherDelivery comparison (paper figure 7).
-    pub const REACHER: [Algo; 6] = [
+    pub const REACHER: [Algo; 7] = [
         Algo::Smirl,
+        Algo::SmirlPaper,
         Algo::SmirlSmooth,
         Algo::MaxEnt,
         Algo::Fkl,
@@ -44,6 +48,7 @@ impl Algo {
     pub fn name(self) -> &'static str {
         match self {
             Algo::Smirl => "smirl",
+            Algo::SmirlPaper => "smirl-paper",
             Algo::SmirlSmooth => "smirl-smooth",
             Algo::MaxEnt => "maxent",
             Algo::Fkl => "fkl",
@@ -57,6 +62,7 @@ impl Algo {
     pub fn label(self) -> &'static str {
         match self {
             Algo::Smirl => "SMIRL",
+            Algo::SmirlPaper => "SMIRL (paper)",
             Algo::SmirlSmooth => "SMIRL (smooth features)",
             Algo::MaxEnt => "MaxEnt IRL",
             Algo::Fkl => "f-IRL (fkl)",
@@ -82,7 +88,7 @@ impl Algo {
 
     /// SMIRL variants act on the product with a learned machine.
     pub fn uses_rm(self) -> bool {
-        matches!(self, Algo::Smirl | Algo::SmirlSmooth)
+        matches!(self, Algo::Smirl | Algo::SmirlPaper | Algo::SmirlSmooth)
     }
 
     /// The f-divergence of an f-IRL algorithm.

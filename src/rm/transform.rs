@@ -1,7 +1,7 @@
 //! Machine-to-machine transformations.
 
 use super::formula::Formula;
-use super::labels::{LabelSet, Vocabulary};
+use super::labels::Vocabulary;
 use super::machine::{RewardMachine, Transition};
 
 /// The machine of a task that restarts when it is completed, as in the paper's expert
@@ -83,86 +83,4 @@ pub fn over_vocabulary(rm: &RewardMachine, vocab: &Vocabulary) -> Result<RewardM
         transitions,
     )
     .expect("formulas over the same propositions keep a valid machine valid"))
-}
-
-/// The machine with one more state, a sink, that a proposition of `props` enters from every
-/// state `u` with `from[u]` in which no trace of `traces` (read from the initial state) makes
-/// it true: what the traces never do in a state leads out of them for good. The sink has no transitions out and
-/// is neither terminal nor a failure state — no reward, no end of an episode; what being there
-/// is worth is left to whatever learns rewards on the machine. Existing transitions keep
-/// priority: a label set one of them takes stays where it went. Returns the machine and the
-/// sink's index, `None` (and the machine as is) when every proposition of `props` was seen in
-/// every state.
-pub fn sink_unseen(
-    rm: &RewardMachine,
-    traces: &[Vec<LabelSet>],
-    props: LabelSet,
-    from: &[bool],
-) -> (RewardMachine, Option<usize>) {
-    assert_eq!(from.len(), rm.n_states(), "one flag per state");
-    // seen[u]: the propositions true on some label set read in state u.
-    let mut seen = vec![0u32; rm.n_states()];
-    for trace in traces {
-        let mut u = rm.initial();
-        for &labels in trace {
-            seen[u] |= labels.0;
-            u = rm.next_state(u, labels);
-        }
-    }
-    let sink = rm.n_states();
-    let mut transitions = rm.transitions().to_vec();
-    for (u, &seen_u) in seen.iter().enumerate() {
-        if !from[u] || rm.is_terminal(u) || rm.is_failure(u) {
-            continue;
-        }
-        let unseen: Vec<Formula> = (0..rm.vocab().len())
-            .filter(|&p| props.contains(p) && seen_u & (1 << p) == 0)
-            .map(Formula::Prop)
-            .collect();
-        let taken: Vec<Formula> = rm
-            .transitions()
-            .iter()
-            .filter(|t| t.from == u)
-            .map(|t| t.formula.clone())
-            .collect();
-        let formula = match (disjunction(unseen), disjunction(taken)) {
-            (None, _) => continue,
-            (Some(unseen), None) => unseen,
-            (Some(unseen), Some(taken)) => {
-                Formula::And(vec![unseen, Formula::Not(Box::new(taken))])
-            }
-        };
-        // Every such label set already taken (a `True` guard): nothing left to sink.
-        if !rm.vocab().all_label_sets().any(|l| formula.eval(l)) {
-            continue;
-        }
-        transitions.push(Transition {
-            from: u,
-            to: sink,
-            formula,
-            reward: 0.0,
-        });
-    }
-    if transitions.len() == rm.transitions().len() {
-        return (rm.clone(), None);
-    }
-    let machine = RewardMachine::new(
-        rm.vocab().clone(),
-        sink + 1,
-        rm.initial(),
-        &rm.terminal_states(),
-        &rm.failure_states(),
-        transitions,
-    )
-    .expect("a sink entered only on label sets no transition takes keeps the machine valid");
-    (machine, Some(sink))
-}
-
-/// `a | b | …` without the one-term wrapper; `None` for no terms.
-fn disjunction(mut terms: Vec<Formula>) -> Option<Formula> {
-    match terms.len() {
-        0 => None,
-        1 => terms.pop(),
-        _ => Some(Formula::Or(terms)),
-    }
 }

@@ -353,7 +353,12 @@ pub fn aggregate(dir: &Path, partial: bool) -> Result<()> {
     let summary = run::aggregate(&run, partial, None).map_err(pipeline_error)?;
     println!(
         "{}",
-        summary_markdown(run.prepared.task, &summary.algos, summary.rm.as_ref())
+        summary_markdown(
+            run.prepared.task,
+            &summary.algos,
+            summary.rm.as_ref(),
+            summary.rm_paper.as_ref(),
+        )
     );
     println!("wrote {}", dir.join("metrics.csv").display());
     Ok(())
@@ -398,7 +403,12 @@ pub fn run(args: IrlRequest) -> Result<()> {
     bars.phase.finish_and_clear();
     println!(
         "\n{}",
-        summary_markdown(task, &summary.algos, summary.rm.as_ref())
+        summary_markdown(
+            task,
+            &summary.algos,
+            summary.rm.as_ref(),
+            summary.rm_paper.as_ref(),
+        )
     );
     println!(
         "run directory: {} (total wall time {:.0} s)",

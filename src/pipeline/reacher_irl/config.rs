@@ -45,6 +45,10 @@ pub enum SmirlMachine {
     /// absorbing states and its rewards zero, so that episodes run on as with a learned
     /// machine: an oracle for diagnosis, telling what the learned machine's shape costs.
     Task,
+    /// One state and no transitions: the control of issue 54 (item 4), SMIRL with every other
+    /// mechanism kept and no structure, telling what the learned machine itself adds.
+    #[serde(rename = "one_state")]
+    OneState,
 }
 
 impl SmirlMachine {
@@ -52,42 +56,12 @@ impl SmirlMachine {
         match self {
             SmirlMachine::Learned => "learned",
             SmirlMachine::Task => "task",
+            SmirlMachine::OneState => "one_state",
         }
     }
 
     pub fn is_learned(&self) -> bool {
         *self == SmirlMachine::Learned
-    }
-}
-
-/// When the demonstrations' cancel events fire.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DemoCancel {
-    /// Each demonstration's reset draws its cancel event from `env.cancel`, as every agent
-    /// and evaluation episode does (demonstration `i` is reset with `episode_seed(seed, i)`).
-    #[default]
-    Drawn,
-    /// Half the demonstrations have no cancel event and the other half one on each step of
-    /// the cancel window in turn (`earliest_step`, `earliest_step + 1`, …), by taking reset
-    /// seeds of the same stream whose draw is that schedule. Why: with draws, whether any
-    /// demonstration shows a cancel *after* the expert's first sub-goal is luck (Composite's
-    /// expert touches red on steps 6–7 of the window 1–8), and an agent that is faster than
-    /// the expert meets that case in a quarter of its cancel episodes (README, "Stratified
-    /// demonstrations").
-    Stratified,
-}
-
-impl DemoCancel {
-    pub fn name(self) -> &'static str {
-        match self {
-            DemoCancel::Drawn => "drawn",
-            DemoCancel::Stratified => "stratified",
-        }
-    }
-
-    fn is_drawn(&self) -> bool {
-        *self == DemoCancel::Drawn
     }
 }
 
@@ -127,12 +101,6 @@ pub struct IrlRunConfig {
     pub expert_cache_dir: PathBuf,
     /// Number of demonstrations (the paper: 16).
     pub demo_episodes: usize,
-    /// `"drawn"` (each demonstration's cancel event drawn like any episode's) or
-    /// `"stratified"` (half without, half on each step of the window in turn; [`DemoCancel`]).
-    /// A config without the key is read as `"drawn"`, what every run before the key existed
-    /// used. Omitted from written configs when `"drawn"`.
-    #[serde(default, skip_serializing_if = "DemoCancel::is_drawn")]
-    pub demo_cancel: DemoCancel,
     /// `"hold"` (pad demonstrations to the time limit by holding the final state) or
     /// `"none"`.
     pub demo_padding: DemoPadding,
@@ -168,20 +136,6 @@ pub struct IrlRunConfig {
     /// `"learned"`. Omitted from written configs when `"learned"`.
     #[serde(default, skip_serializing_if = "SmirlMachine::is_learned")]
     pub smirl_machine: SmirlMachine,
-    /// A sink state added to SMIRL's machine, entered by a ball touch no demonstration makes
-    /// in the state it happens in (`smirl::with_unseen_touch_sink`): the learned reward can
-    /// then charge for leaving what the expert does for good (blue after the cancel). A config
-    /// without the key is read as false, what every run before the key existed used. Omitted
-    /// from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub smirl_unseen_touch_sink: bool,
-    /// With `smirl_unseen_touch_sink`: the sink is entered only from learned states the agent
-    /// cannot reach without an exogenous event (`RewardMachine::reachable_without`: the states
-    /// after the cancel), where the expert's behaviour is conditional; elsewhere an unseen
-    /// touch stays where it is, as without the sink. A config without the key is read as false.
-    /// Omitted from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub smirl_sink_after_events: bool,
     /// `smirl`'s label features: `"state"` (L(o) of the state reached, paid on every step a
     /// label holds: the paper's eq. 5) or `"entries"` (the labels that became true on the
     /// step, paid once per entry into a ball). A config without the key is read as
@@ -201,13 +155,6 @@ pub struct IrlRunConfig {
     /// besides the co-trained policy.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub smirl_final_checkpoints: u64,
-    /// SAC environment steps of a fresh agent (new networks and replay, its own seed) on the
-    /// same final reward after the co-trained agent's final phase, with as many checkpoints,
-    /// each one more candidate for the reported policy; 0 = none (every run before the key
-    /// existed). Why: a job whose co-trained agent is stuck can leave a reward that a fresh
-    /// agent solves (`reacher retrain`). Omitted from written configs when 0.
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub smirl_final_fresh_steps: u64,
     /// Gradient updates, then as many SAC environment steps, of a reset agent after the
     /// co-trained (and fresh) agent's final phase: new networks, optimisers, temperature and
     /// seed on a copy of the co-trained agent's replay buffer, which it first learns from alone;
@@ -283,16 +230,6 @@ pub struct IrlRunConfig {
     pub lrm_tabu_len: usize,
     /// LRM: search steps.
     pub lrm_steps: usize,
-    /// LRM: independent Tabu searches (`rm::lrm::LrmConfig::starts`); absent = the learner's
-    /// default, what every run before the key existed used. Omitted from written configs
-    /// when absent.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lrm_starts: Option<usize>,
-    /// LRM: a start ends after this many steps without improving its best machine
-    /// (`rm::lrm::LrmConfig::patience`; 0 = run all `lrm_steps`); absent = the learner's
-    /// default.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lrm_patience: Option<usize>,
     /// LRM: further starts whose machine is kept only when strictly cheaper than the first
     /// starts' best (`rm::lrm::LrmConfig::fallback_starts`); a config without the key reads
     /// as 0, what every run before the key existed used. Omitted from written configs when 0.
@@ -304,16 +241,6 @@ pub struct IrlRunConfig {
     /// key existed used. Omitted from written configs when false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub lrm_initial_events: bool,
-    /// LRM: remember events (`rm::lrm::LrmConfig::remember_events`): the learned machine made
-    /// the product with "cancel seen so far". A config without the key is read as false, what
-    /// every run before the key existed used. Omitted from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub lrm_remember_events: bool,
-    /// LRM: borrow events (`rm::lrm::LrmConfig::borrow_events`): a cancel the demonstrations
-    /// never show in a learned state is read as in a state of the same task stage that saw
-    /// one. A config without the key is read as false. Omitted from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub lrm_borrow_events: bool,
     /// LRM: commute events (`rm::lrm::LrmConfig::commute_events`): a cancel the
     /// demonstrations never show in a learned state is read as if it had come just before the
     /// touch that entered it. True in the standard profile (adopted on its tuning seeds, README
@@ -541,8 +468,6 @@ impl IrlConfigError {
 
 /// Most demonstrations generated.
 pub const MAX_DEMO_EPISODES: usize = 10_000;
-/// Least chance per reset of each draw `demo_cancel = "stratified"` looks for.
-pub const MIN_STRATIFIED_DRAW: f64 = 1e-3;
 /// Most IRL iterations.
 pub const MAX_IRL_ITERATIONS: usize = 100_000;
 /// Most SAC environment steps per IRL iteration.
@@ -571,7 +496,6 @@ impl IrlRunConfig {
             demo_source: DemoSource::Expert,
             expert_cache_dir: PathBuf::new(),
             demo_episodes: 16,
-            demo_cancel: DemoCancel::Drawn,
             demo_padding: DemoPadding::Hold,
             // SMIRL's schedule: 30 IRL iterations (two of three Sequential tuning seeds first
             // solve the task in iterations 16-20), with potential-based shaping of its SAC
@@ -587,15 +511,12 @@ impl IrlRunConfig {
             smirl_reward_l2: 0.05,
             smirl_normalisation: SmirlNormalisation::EventGatedVisits,
             smirl_machine: SmirlMachine::Learned,
-            smirl_unseen_touch_sink: false,
-            smirl_sink_after_events: false,
             smirl_label_features: LabelFeatures::State,
             smirl_shaping: 1.0,
             // SMIRL's final policy: four candidates 5 000 SAC steps apart on the final reward
             // (README, "SMIRL's final policy").
             smirl_final_sac_steps: 20_000,
             smirl_final_checkpoints: 4,
-            smirl_final_fresh_steps: 0,
             // Four more from a reset agent on the co-trained agent's replay buffer (24 of 24
             // tuning jobs; README, "A reset agent").
             smirl_final_reset_steps: 20_000,
@@ -620,8 +541,6 @@ impl IrlRunConfig {
             lrm_max_states: 10,
             lrm_tabu_len: 10_000,
             lrm_steps: 100,
-            lrm_starts: None,
-            lrm_patience: None,
             // 28 more starts of the same search, kept only when strictly cheaper: the four
             // starts stop at cost 9.70 at held-out Composite 96 where 0 is reachable, and the
             // fallback repairs that without reopening ties (Sequential's tuning jobs 6 of 6,
@@ -632,8 +551,6 @@ impl IrlRunConfig {
             // it in the split's initial state (Sequential's tuning jobs 6 of 6, the other
             // tasks' base-0 machines unchanged; README, "A cancel on the first step").
             lrm_initial_events: true,
-            lrm_remember_events: false,
-            lrm_borrow_events: false,
             // A cancel never seen in a learned state is read as if it came before the touch
             // that entered the state: closes the cancel holes (Composite 6 of 6 tuning jobs, as
             // before; README, "Commuted events").
@@ -698,6 +615,9 @@ impl IrlRunConfig {
             schedule: BTreeMap::new(),
             ..self.clone()
         };
+        if algo == Algo::SmirlPaper {
+            config.set_paper_mechanisms();
+        }
         let Some(s) = self.schedule.get(algo.name()) else {
             return Ok(config);
         };
@@ -733,6 +653,34 @@ impl IrlRunConfig {
                 })?;
         }
         Ok(config)
+    }
+
+    /// `smirl-paper`'s settings: every mechanism by which `smirl` departs from the paper
+    /// (docs/method.md) at the paper's value — LRM's objective and reading (events predicted,
+    /// no event rules, no fallback starts, guards that stay on unseen label sets), MaxEnt's
+    /// μ_D − μ_π averaged over trajectories, label features of the state, SAC on U × O without
+    /// clock, counterfactual states or shaping, and no final phase, so the job reports its
+    /// loop's own last policy. The schedule, SAC, the reward optimiser, the demonstrations, the
+    /// machine's source and LRM's size and search budget stay the run's, so that the two
+    /// algorithms differ by the mechanisms alone.
+    fn set_paper_mechanisms(&mut self) {
+        self.lrm_predict_events = true;
+        self.lrm_event_stutter = false;
+        self.lrm_commute_events = false;
+        self.lrm_initial_events = false;
+        self.lrm_fallback_starts = 0;
+        self.lrm_guards = Guards::Exact;
+        self.smirl_normalisation = SmirlNormalisation::Trajectories;
+        self.smirl_label_features = LabelFeatures::State;
+        self.smirl_clock = false;
+        self.smirl_clock_frozen = false;
+        self.smirl_counterfactual = 0.0;
+        self.smirl_shaping = 0.0;
+        self.smirl_final_sac_steps = 0;
+        self.smirl_final_checkpoints = 0;
+        self.smirl_final_reset_steps = 0;
+        self.smirl_selection_cut = false;
+        self.smirl_selection_cut_entries = false;
     }
 
     /// The expert cache directory; `None` (an empty `expert_cache_dir`) means the committed
@@ -794,16 +742,6 @@ impl IrlRunConfig {
                 MAX_LRM_STEPS as u64,
             ),
             (
-                "lrm_starts",
-                self.lrm_starts.unwrap_or(0) as u64,
-                MAX_LRM_STARTS as u64,
-            ),
-            (
-                "lrm_patience",
-                self.lrm_patience.unwrap_or(0) as u64,
-                MAX_LRM_STEPS as u64,
-            ),
-            (
                 "lrm_fallback_starts",
                 self.lrm_fallback_starts as u64,
                 MAX_LRM_STARTS as u64,
@@ -836,24 +774,6 @@ impl IrlRunConfig {
         let non_negative = |x: f64| x.is_finite() && x >= 0.0;
         if self.demo_episodes == 0 {
             return bad("demo_episodes", "must be at least 1");
-        }
-        if self.demo_cancel == DemoCancel::Stratified {
-            // The schedule is found by scanning reset seeds: each wanted draw must be common
-            // enough for the scan to end quickly (crate::pipeline::reacher_irl::demos).
-            let p = self.env.cancel.probability;
-            let window = (self.env.cancel.latest_step - self.env.cancel.earliest_step + 1) as f64;
-            if !(p / window >= MIN_STRATIFIED_DRAW && 1.0 - p >= MIN_STRATIFIED_DRAW) {
-                return bad(
-                    "demo_cancel",
-                    &format!(
-                        "\"stratified\" needs each of its draws (no cancel: {:.3e}; a cancel on \
-                         a given step: env.cancel.probability / window = {:.3e}) to have a \
-                         chance of at least {MIN_STRATIFIED_DRAW:e}",
-                        1.0 - p,
-                        p / window
-                    ),
-                );
-            }
         }
         if self.irl_iterations == 0 {
             return bad("irl_iterations", "must be at least 1");
@@ -932,12 +852,8 @@ impl IrlRunConfig {
             }
             _ => {}
         }
-        // The fresh and the reset agent are more agents of the final phase: each needs its
-        // checkpoints.
-        let extra_agents = [
-            ("smirl_final_fresh_steps", self.smirl_final_fresh_steps),
-            ("smirl_final_reset_steps", self.smirl_final_reset_steps),
-        ];
+        // The reset agent is one more agent of the final phase: it needs its checkpoints.
+        let extra_agents = [("smirl_final_reset_steps", self.smirl_final_reset_steps)];
         for (field, steps) in extra_agents {
             if steps > MAX_SAC_STEPS_PER_ITERATION {
                 return over(field, steps, MAX_SAC_STEPS_PER_ITERATION);
@@ -971,12 +887,6 @@ impl IrlRunConfig {
                 "needs smirl_clock = true (it freezes the clock's entry)",
             );
         }
-        if self.smirl_sink_after_events && !self.smirl_unseen_touch_sink {
-            return bad(
-                "smirl_sink_after_events",
-                "needs smirl_unseen_touch_sink = true (it says where the sink is entered from)",
-            );
-        }
         if !(0.0..=1.0).contains(&self.smirl_counterfactual) {
             return bad("smirl_counterfactual", "must be a number in [0, 1]");
         }
@@ -991,9 +901,6 @@ impl IrlRunConfig {
                 "lrm_max_states/lrm_steps/lrm_tabu_len",
                 "must be at least 1",
             );
-        }
-        if self.lrm_starts == Some(0) {
-            return bad("lrm_starts", "must be at least 1");
         }
         if self.threads == 0 {
             return bad("threads", "must be at least 1");

@@ -3,12 +3,11 @@
 //! expert helper's [`Demo`] type with the same episode rule: an episode ends when the perfect
 //! machine reaches its goal or failure sink, or at the time limit.
 
-use super::config::{DemoCancel, DemoSource, IrlRunConfig, MIN_STRATIFIED_DRAW};
+use super::config::{DemoSource, IrlRunConfig};
 use crate::env::product::ProductEnv;
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, BALLS, OBS_DIM};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::{ReacherTask, SubgoalPotential};
-use crate::env::ContinuousEnv;
 use crate::log::{LogError, RolloutLogger};
 use crate::pipeline::reacher_expert::{
     committed_expert, default_expert_cache, expert_cache_path, generate_demos_from, record_episode,
@@ -75,7 +74,7 @@ pub fn make_demos(
     seed: u64,
     logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, DemoError> {
-    let resets = demo_reset_seeds(&config.env, config.demo_cancel, config.demo_episodes, seed)?;
+    let resets = demo_reset_seeds(config.demo_episodes, seed);
     match (config.demo_source, expert) {
         (DemoSource::Expert, Some(policy)) => {
             generate_demos_from(policy, task, &config.env, &resets, seed, logger)
@@ -88,57 +87,11 @@ pub fn make_demos(
     }
 }
 
-/// The reset seeds of `n` demonstrations. `Drawn`: `episode_seed(seed, i)` for
-/// demonstration `i`. `Stratified`: demonstration `i` wants no cancel event when `i` is even
-/// and one on step `earliest_step + (i / 2) mod window` when odd; each takes the first unused
-/// seed of the same stream (`episode_seed(seed, j)`, j = 0, 1, …) whose reset draws that, so
-/// the arm start and ball layout stay draws of the environment and a logged demonstration
-/// replays from its seed like any episode.
-pub fn demo_reset_seeds(
-    env_config: &ReacherConfig,
-    demo_cancel: DemoCancel,
-    n: usize,
-    seed: u64,
-) -> Result<Vec<u64>, DemoError> {
-    if demo_cancel == DemoCancel::Drawn {
-        return Ok((0..n as u64).map(|i| episode_seed(seed, i)).collect());
-    }
-    let cancel = &env_config.cancel;
-    // A window the config check refuses (latest < earliest) is one step here, not a panic.
-    let window = cancel.latest_step.saturating_sub(cancel.earliest_step) + 1;
-    // Draw key: 0 = no cancel, 1 + k = a cancel on step earliest_step + k. Per key, the
-    // demonstrations that want it, in order; a reset fills the first still open.
-    let key = |draw: Option<usize>| draw.map_or(0, |step| 1 + step - cancel.earliest_step);
-    let mut slots: Vec<Vec<usize>> = vec![Vec::new(); window + 1];
-    for i in (0..n).rev() {
-        let wanted = (i % 2 == 1).then(|| cancel.earliest_step + (i / 2) % window);
-        slots[key(wanted)].push(i);
-    }
-    let mut env =
-        ReacherDelivery::new(env_config.clone()).map_err(|e| DemoError::Run(e.to_string()))?;
-    let mut obs = vec![0.0f32; OBS_DIM];
-    let mut resets = vec![0u64; n];
-    let mut open = n;
-    // Config validation bounds each wanted draw's chance below by MIN_STRATIFIED_DRAW, so
-    // the rarest one's n/2 hits take about n / (2 · MIN_STRATIFIED_DRAW) resets at worst.
-    let limit = (n as u64).saturating_mul((4.0 / MIN_STRATIFIED_DRAW) as u64);
-    let mut j = 0u64;
-    while open > 0 {
-        if j == limit {
-            return Err(DemoError::Run(format!(
-                "demo_cancel = \"stratified\": {open} of {n} demonstrations found no reset \
-                 with their cancel schedule in the first {limit} seeds of seed {seed}"
-            )));
-        }
-        let reset_seed = episode_seed(seed, j);
-        env.reset(reset_seed, &mut obs);
-        if let Some(slot) = slots.get_mut(key(env.cancel_step())).and_then(Vec::pop) {
-            resets[slot] = reset_seed;
-            open -= 1;
-        }
-        j += 1;
-    }
-    Ok(resets)
+/// The reset seeds of `n` demonstrations: `episode_seed(seed, i)` for demonstration `i`, so
+/// each draws its arm start, ball layout and cancel event like any episode and a logged
+/// demonstration replays from its seed.
+pub fn demo_reset_seeds(n: usize, seed: u64) -> Vec<u64> {
+    (0..n as u64).map(|i| episode_seed(seed, i)).collect()
 }
 
 /// Scripted demonstrations, one from each of `reset_seeds`: at every step the controller aims

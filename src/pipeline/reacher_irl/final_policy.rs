@@ -1,7 +1,7 @@
 //! SMIRL's final policy (`smirl_final_sac_steps` > 0): after the last reward update, SAC goes on
 //! training on the job's final learned reward, now held fixed, and the policy the job reports is
 //! the one of highest learned return among the co-trained policy and the checkpoints of that
-//! phase — and, with `smirl_final_fresh_steps` > 0, the checkpoints of a fresh agent trained on
+//! phase — and, with `smirl_final_reset_steps` > 0, the checkpoints of a reset agent trained on
 //! the same reward after it; with `smirl_selection_cut` (the standard), the return counted as
 //! the cut below says.
 //!
@@ -14,15 +14,10 @@
 //! their own — never the ground truth; every candidate is also judged on the ground truth, so
 //! the choice can be checked against the co-trained policy and the last checkpoint.
 //!
-//! The fresh agent: a co-trained agent that never found the task during the loop (or lost it)
-//! carries its habit into the phase, while the reward it leaves can be right — a SAC agent
-//! started afresh on it solves the task (`reacher retrain`, README "Commuted events"). The
-//! fresh agent has its own networks, replay buffer and seed, the co-trained agent's SAC
-//! settings, environment and reward; its checkpoints are scored like the others, so the
-//! choice still reads the learned reward alone.
-//!
-//! The reset agent (`smirl_final_reset_steps`): the fresh agent learns from nothing; the reset
-//! agent keeps the co-trained agent's data — a copy of its replay buffer, every transition of
+//! The reset agent (`smirl_final_reset_steps`): a co-trained agent that never found the task
+//! during the loop (or lost it) carries its habit into the phase, while the reward it leaves
+//! can be right — a SAC agent started afresh on it solves the task (`reacher retrain`). The
+//! reset agent keeps the co-trained agent's data — a copy of its replay buffer, every transition of
 //! the loop and the phase — with new networks, optimisers and temperature
 //! ([`SacTrainer::with_new_agent`]), learns from that buffer alone first and then trains on.
 //! Why: a co-trained agent can stay stuck on a final reward that a fresh agent solves. Held out
@@ -58,12 +53,10 @@ pub(super) trait ScoredReward: RewardFn {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum FinalAgent {
-    /// The agent of the IRL loop, trained on in the phase (every record before the fresh
+    /// The agent of the IRL loop, trained on in the phase (every record before the reset
     /// agent existed).
     #[default]
     CoTrained,
-    /// The fresh agent of `smirl_final_fresh_steps`.
-    Fresh,
     /// The reset agent of `smirl_final_reset_steps`: new networks on the co-trained agent's
     /// replay buffer.
     Reset,
@@ -73,7 +66,6 @@ impl FinalAgent {
     pub fn name(self) -> &'static str {
         match self {
             FinalAgent::CoTrained => "co-trained",
-            FinalAgent::Fresh => "fresh",
             FinalAgent::Reset => "reset",
         }
     }
@@ -102,7 +94,7 @@ pub struct FinalCandidate {
 }
 
 /// The final-policy phase of a job: its candidates — the co-trained policy first, then its
-/// checkpoints, then the fresh agent's — and which one the job reports.
+/// checkpoints, then the reset agent's — and which one the job reports.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FinalPolicy {
     pub candidates: Vec<FinalCandidate>,
@@ -132,12 +124,9 @@ pub struct FinalPhase<'a> {
     /// Candidates taken along them (evenly spaced, the last at the end), besides the co-trained
     /// policy.
     pub checkpoints: u64,
-    /// The job's seed (selection episodes draw their reset seeds from it, and the fresh agent
+    /// The job's seed (selection episodes draw their reset seeds from it, and the reset agent
     /// its SAC seed).
     pub seed: u64,
-    /// SAC environment steps of the fresh agent (0: none), with `checkpoints` candidates
-    /// along them.
-    pub fresh_steps: u64,
     /// Gradient updates, then as many SAC environment steps, of the reset agent (0: none),
     /// with `checkpoints` candidates along the steps.
     pub reset_steps: u64,
@@ -156,14 +145,11 @@ pub fn selection_episodes(settings: &IrlRunConfig) -> u64 {
     2 * settings.eval_episodes
 }
 
-/// The stream of the fresh agent's SAC seed within the job's seed.
-const FRESH_AGENT_STREAM: u64 = 0xf7e5_a9e7;
 /// The stream of the reset agent's SAC seed within the job's seed.
 const RESET_AGENT_STREAM: u64 = 0x7e5e_7a9e;
 
 /// Runs the phase: `sac`, fresh from the IRL loop, trains on `reward` (the final reward, fixed)
-/// and is scored at each checkpoint; then, with `phase.fresh_steps` > 0, a new agent with the
-/// same SAC settings does the same from scratch; then, with `phase.reset_steps` > 0, a new
+/// and is scored at each checkpoint; then, with `phase.reset_steps` > 0, a new
 /// agent on a copy of `sac`'s replay buffer first learns from that buffer alone and then does
 /// the same. `iterations` is the loop's length (for progress reports).
 pub(super) fn train<E: JobEnv, R: ScoredReward>(
@@ -183,14 +169,12 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         seeds: &selection_seeds,
         cut: phase.selection_cut,
     };
-    let (obs_dim, act_dim) = (env.obs_dim(), env.act_dim());
-    let sac_config = sac.config().clone();
     let co_trained = FinalAgent::CoTrained;
     let mut candidates = vec![candidate(
         sac, co_trained, env, reward, &task, selection, watch,
     )?];
     // `steps` more SAC steps of an agent in `phase.checkpoints` even segments, each ending in
-    // a scored candidate: the co-trained agent's, then the fresh one's, then the reset one's.
+    // a scored candidate: the co-trained agent's, then the reset one's.
     let mut checkpoints = |sac: &mut SacTrainer, reward: &mut R, agent: FinalAgent, steps: u64| {
         let start = sac.env_steps();
         let mut scored = Vec::new();
@@ -203,17 +187,6 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         Ok::<_, String>(scored)
     };
     candidates.extend(checkpoints(sac, reward, co_trained, phase.steps)?);
-    if phase.fresh_steps > 0 {
-        let fresh_seed = episode_seed(phase.seed, FRESH_AGENT_STREAM);
-        let mut fresh = SacTrainer::new(&sac_config, obs_dim, act_dim, fresh_seed)
-            .map_err(|e| format!("the fresh agent: {e}"))?;
-        candidates.extend(checkpoints(
-            &mut fresh,
-            reward,
-            FinalAgent::Fresh,
-            phase.fresh_steps,
-        )?);
-    }
     if phase.reset_steps > 0 {
         // The co-trained agent's data, every transition of the loop and the phase, without
         // what its networks made of it: first updates on the buffer alone (the final reward,

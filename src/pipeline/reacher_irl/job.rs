@@ -314,14 +314,14 @@ pub fn run_job(
     };
     let boxed = |r: MlpReward| (Box::new(r) as Box<dyn RewardModel>, Vec::new(), None);
     let (reward, reward_trace, final_policy) = match algo {
-        Algo::Smirl | Algo::SmirlSmooth => {
+        Algo::Smirl | Algo::SmirlPaper | Algo::SmirlSmooth => {
             let machine = inputs
                 .learned_rm
                 .ok_or_else(|| fail("SMIRL needs a learned reward machine".into()))?;
-            let features = if algo == Algo::Smirl {
-                Features::Labels
-            } else {
+            let features = if algo == Algo::SmirlSmooth {
                 Features::Smooth
+            } else {
+                Features::Labels
             };
             let job = SmirlJob {
                 features,

@@ -39,7 +39,7 @@ pub mod retrain;
 pub mod run;
 pub mod smirl;
 
-pub use config::{DemoCancel, DemoPadding, DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
+pub use config::{DemoPadding, DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
 pub use episodes::AgentBatch;
 pub use job::{reward_lr, run_job, Coefficients, ExpertData, JobResult, MetricsRow};
 pub use run::{run_pipeline, PipelineError, RunObserver, RunRequest, RunSummary};

@@ -72,6 +72,9 @@ pub struct RunSummary {
     /// Conditional tasks: the kept demonstrations per branch.
     pub demo_branches: Option<BranchTally>,
     pub rm: Option<RmFacts>,
+    /// smirl-paper's machine, when the run has that algorithm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rm_paper: Option<RmFacts>,
     pub algos: Vec<AlgoSummary>,
     pub wall_secs: f64,
 }
@@ -99,6 +102,9 @@ pub struct Prepared {
     pub demos_generated: usize,
     pub demo_branches: Option<BranchTally>,
     pub rm: Option<RmFacts>,
+    /// smirl-paper's machine, when the run has that algorithm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rm_paper: Option<RmFacts>,
     pub prepare_secs: f64,
     pub git_commit: String,
 }
@@ -125,8 +131,12 @@ pub struct PreparedRun {
     pub prepared: Prepared,
     pub config: IrlRunConfig,
     pub perfect: RewardMachine,
+    /// SMIRL's (and smirl-smooth's) learned machine.
     pub learned: Option<RewardMachine>,
+    /// The demonstrations, annotated with `learned`'s states when there is one.
     pub expert: ExpertData,
+    /// smirl-paper's learned machine and the demonstrations annotated with it.
+    pub paper: Option<(RewardMachine, ExpertData)>,
 }
 
 /// One finished job as `jobs/<algo>_seed<S>.json` (written last by the job: its presence

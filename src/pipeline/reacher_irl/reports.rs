@@ -281,7 +281,7 @@ pub(super) fn write_reports(
     let p = &run.prepared;
     write_file(
         &dir.join("summary.md"),
-        &summary_markdown(task.clone(), &summaries, p.rm.as_ref()),
+        &summary_markdown(task.clone(), &summaries, p.rm.as_ref(), p.rm_paper.as_ref()),
     )?;
     let summary = RunSummary {
         out: dir.clone(),
@@ -290,6 +290,7 @@ pub(super) fn write_reports(
         demos_generated: p.demos_generated,
         demo_branches: p.demo_branches,
         rm: p.rm.clone(),
+        rm_paper: p.rm_paper.clone(),
         algos: summaries,
         wall_secs: wall_secs.unwrap_or(f64::NAN),
     };
@@ -298,17 +299,13 @@ pub(super) fn write_reports(
         "summary": summary,
         "seeds": p.seeds,
         "demo_source": config.demo_source.name(),
-        "demo_cancel": config.demo_cancel.name(),
         "demo_padding": config.demo_padding.name(),
         "smirl_normalisation": config.smirl_normalisation.name(),
         "smirl_machine": config.smirl_machine.name(),
-        "smirl_unseen_touch_sink": config.smirl_unseen_touch_sink,
-        "smirl_sink_after_events": config.smirl_sink_after_events,
         "smirl_selection_cut": config.smirl_selection_cut,
         "smirl_selection_cut_entries": config.smirl_selection_cut_entries,
         "smirl_final_sac_steps": config.smirl_final_sac_steps,
         "smirl_final_checkpoints": config.smirl_final_checkpoints,
-        "smirl_final_fresh_steps": config.smirl_final_fresh_steps,
         "smirl_final_reset_steps": config.smirl_final_reset_steps,
         "smirl_clock": config.smirl_clock,
         "smirl_clock_frozen": config.smirl_clock_frozen,
@@ -331,7 +328,7 @@ pub(super) fn write_reports(
 
 /// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
 /// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `agent` says
-/// whose policy it is (`co-trained`, `fresh` with `smirl_final_fresh_steps`, `reset` with
+/// whose policy it is (`co-trained`, `reset` with
 /// `smirl_final_reset_steps`), `cut_return`
 /// what the choice read instead of `learned_return` (`smirl_selection_cut`; else empty).
 fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
@@ -418,6 +415,7 @@ pub fn summary_markdown(
     task: ReacherTask,
     summaries: &[AlgoSummary],
     rm: Option<&RmFacts>,
+    rm_paper: Option<&RmFacts>,
 ) -> String {
     let mut s = String::new();
     let conditional = summaries.iter().any(|a| a.final_branch_success.is_some());
@@ -456,7 +454,7 @@ pub fn summary_markdown(
         let _ = writeln!(
             s,
             "\nFinal policy (SAC on the final reward held fixed; of the candidates in \
-             final_policy.csv — the co-trained policy, its checkpoints and any fresh or reset agent's — \
+             final_policy.csv — the co-trained policy, its checkpoints and any reset agent's — \
              the one of highest learned return, counted with smirl_selection_cut up to the \
              first touch after the cancel that no demonstration makes):\n"
         );
@@ -484,13 +482,15 @@ pub fn summary_markdown(
             );
         }
     }
-    if let Some(f) = rm {
-        let _ = writeln!(
-            s,
-            "\nLearned RM: {} states ({} reachable; perfect: {}), refines the perfect machine \
-             along the demos: {}.",
-            f.learned_states, f.learned_reachable, f.perfect_states, f.refines_perfect
-        );
+    for (name, facts) in [("Learned RM", rm), ("smirl-paper's learned RM", rm_paper)] {
+        if let Some(f) = facts {
+            let _ = writeln!(
+                s,
+                "\n{name}: {} states ({} reachable; perfect: {}), refines the perfect machine \
+                 along the demos: {}.",
+                f.learned_states, f.learned_reachable, f.perfect_states, f.refines_perfect
+            );
+        }
     }
     s
 }

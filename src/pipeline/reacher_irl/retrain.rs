@@ -248,14 +248,12 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
         )));
     }
     let reward = if r.algo.uses_rm() {
-        let machine = run
-            .learned
-            .as_ref()
-            .ok_or_else(|| usage("the run has no learned machine".into()))?;
-        let features = if r.algo == Algo::Smirl {
-            Features::Labels
-        } else {
+        let (machine, _) = run.inputs_of(r.algo).map_err(usage)?;
+        let machine = machine.ok_or_else(|| usage("the run has no learned machine".into()))?;
+        let features = if r.algo == Algo::SmirlSmooth {
             Features::Smooth
+        } else {
+            Features::Labels
         };
         let optim = RewardOptimConfig {
             adam: true,
@@ -281,7 +279,7 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
     } else {
         if !r.zero_states.is_empty() {
             return Err(usage(format!(
-                "--zero-state needs a reward per learned-machine state (smirl, smirl-smooth), not {}",
+                "--zero-state needs a reward per learned-machine state (smirl, smirl-paper, smirl-smooth), not {}",
                 r.algo
             )));
         }
@@ -322,8 +320,8 @@ pub fn retrain(
     match reward {
         Reward::Linear(mut reward) => {
             let machine = run
-                .learned
-                .as_ref()
+                .inputs_of(r.algo)?
+                .0
                 .ok_or("the run has no learned machine")?;
             let mut env = product_env(inner, machine, &s);
             let counterfactual = counterfactual_states(&env, &s)?;

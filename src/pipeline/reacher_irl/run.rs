@@ -27,8 +27,8 @@ use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{
-    annotate, label_traces, learn_machine, lrm_config, seen_after_events, task_machine,
-    with_unseen_touch_sink,
+    annotate, label_traces, learn_machine, lrm_config, one_state_machine, seen_after_events,
+    task_machine,
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;
@@ -43,7 +43,7 @@ use crate::rm::dot::to_dot;
 use crate::rm::equiv::{refines, state_counts};
 use crate::rm::format::parse_rm;
 use crate::rm::format::write_rm;
-use crate::rm::lrm::{trace_cost, trace_reading};
+use crate::rm::lrm::{trace_cost, trace_reading, Guards};
 use crate::rm::{LabelSet, RewardMachine};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -106,6 +106,7 @@ fn log_header(
 
 const PREPARED_FILE: &str = "prepare.json";
 const EXPERT_DATA_FILE: &str = "expert_data.bin";
+const EXPERT_DATA_PAPER_FILE: &str = "expert_data_paper.bin";
 
 fn job_stem(algo: Algo, seed: u64) -> String {
     format!("{}_seed{seed}", algo.name())
@@ -230,129 +231,49 @@ pub fn prepare(
         DemoPadding::Hold => Some(config.env.max_steps),
         DemoPadding::None => None,
     };
-    // 2. Reward machine (SMIRL only).
+    // 2. Reward machines (SMIRL only): SMIRL's, shared by smirl-smooth, and smirl-paper's,
+    //    each learned with its algorithm's settings; the demonstrations annotated with each.
     let mut rm_facts = None;
-    // The demonstrations, annotated with the learned machine's states when SMIRL needs one.
-    let expert_data = if algos.iter().any(|a| a.uses_rm()) {
+    let mut rm_paper_facts = None;
+    let mut expert_data = None;
+    for machine in [Machine::Smirl, Machine::Paper] {
+        if !algos.iter().any(|&a| Machine::of(a) == Some(machine)) {
+            continue;
+        }
         observer.phase("lrm");
-        let lrm = lrm_config(config, seed);
-        let (rm, cost, secs) = match config.smirl_machine {
-            SmirlMachine::Learned => {
-                learn_machine(&demos, config, seed).map_err(PipelineError::Run)?
+        let settings = config
+            .for_algo(machine.algo())
+            .map_err(|e| PipelineError::Run(e.to_string()))?;
+        let (rm, facts, report) = learn_and_report(&settings, &demos, &perfect, seed)?;
+        let data = annotate(&demos, Some(&rm), hold_to);
+        let report = match machine {
+            Machine::Smirl => report + &selection_cut_report(&rm, &data, &settings),
+            Machine::Paper => report,
+        };
+        let stem = machine.stem();
+        write_file(&dir.join(format!("rm/{stem}.txt")), &write_rm(&rm))?;
+        write_file(&dir.join(format!("rm/{stem}.dot")), &to_dot(&rm))?;
+        write_file(&dir.join(machine.report_file()), &report)?;
+        let label = match machine {
+            Machine::Smirl => String::new(),
+            Machine::Paper => format!("{}: ", machine.algo()),
+        };
+        let head: Vec<&str> = report.lines().take(2).collect();
+        observer.message(&format!("{label}{}", head.join("; ")));
+        match machine {
+            Machine::Smirl => {
+                rm_facts = Some(facts);
+                expert_data = Some(data);
             }
-            SmirlMachine::Task => {
-                let rm = task_machine(&perfect).map_err(PipelineError::Run)?;
-                let cost =
-                    trace_cost(&rm, &label_traces(&demos), trace_reading(&lrm)).map_err(|e| {
-                        PipelineError::Run(format!("LRM cost of the task's machine: {e}"))
-                    })?;
-                (rm, cost, 0.0)
+            Machine::Paper => {
+                let path = dir.join(EXPERT_DATA_PAPER_FILE);
+                write_atomic(&path, &data.to_bytes()).map_err(|e| io(&path, e))?;
+                rm_paper_facts = Some(facts);
             }
-        };
-        let (rm, sink) = if config.smirl_unseen_touch_sink {
-            with_unseen_touch_sink(&rm, &demos, hold_to, config.smirl_sink_after_events)
-        } else {
-            (rm, None)
-        };
-        let traces: Vec<Vec<LabelSet>> = demos.iter().map(|d| d.labels()).collect();
-        let r = refines(&rm, &perfect, traces.iter().map(|t| t.as_slice()));
-        let counts = state_counts(&rm, None).map_err(|e| PipelineError::Run(e.to_string()))?;
-        let facts = RmFacts {
-            learned_states: rm.n_states(),
-            learned_reachable: counts.reachable,
-            perfect_states: perfect.n_states(),
-            refines_perfect: r.refines,
-            ambiguous_steps: r.ambiguous_steps,
-            total_steps: r.total_steps,
-            lrm_cost: cost,
-            lrm_secs: secs,
-        };
-        let mut report = String::new();
-        if config.smirl_machine == SmirlMachine::Task {
-            let _ = writeln!(
-                report,
-                "smirl_machine = \"task\": the \"learned\" machine below is the task's own \
-                 (goal and failure states made ordinary, rewards 0), not LRM's: an oracle"
-            );
         }
-        let _ = writeln!(
-            report,
-            "learned machine: {} states ({} reachable); perfect machine: {} states",
-            facts.learned_states, facts.learned_reachable, facts.perfect_states
-        );
-        if config.smirl_unseen_touch_sink {
-            let from = if config.smirl_sink_after_events {
-                "the states after an event"
-            } else {
-                "every state"
-            };
-            let line = match sink {
-                Some(s) => format!("state {s} is the sink of ball touches no demonstration makes, entered from {from}"),
-                None => format!("no sink: in {from} every ball is touched by some demonstration"),
-            };
-            let _ = writeln!(report, "smirl_unseen_touch_sink: {line}");
-        }
-        let _ = writeln!(
-            report,
-            "refines the perfect machine along the {} demonstrations: {} ({} of {} steps ambiguous)",
-            demos.len(),
-            facts.refines_perfect,
-            facts.ambiguous_steps,
-            facts.total_steps
-        );
-        // The perfect machine's cost on the same traces says whether a machine that fails to
-        // refine the task lost the search or won it (LRM's objective prefers it).
-        let perfect_cost = trace_cost(&perfect, &label_traces(&demos), trace_reading(&lrm))
-            .map_err(|e| PipelineError::Run(format!("LRM cost of the perfect machine: {e}")))?;
-        let _ = writeln!(
-            report,
-            "LRM cost {:.3} (the perfect machine's on the same traces: {:.3}), {:.2} s",
-            cost, perfect_cost, secs
-        );
-        let _ = writeln!(
-            report,
-            "guards for label sets unseen in a state: {} (events read first: \"{}\")",
-            config.lrm_guards.name(),
-            rm.vocab().format_labels(EVENTS)
-        );
-        for (u, seen) in r.seen_with.iter().enumerate() {
-            let _ = writeln!(
-                report,
-                "learned state {u} seen with perfect states {seen:?}"
-            );
-        }
-        let expert_data = annotate(&demos, Some(&rm), hold_to);
-        if config.smirl_selection_cut {
-            let seen = seen_after_events(&rm, &expert_data, config);
-            let per_state: Vec<String> = (0..rm.n_states())
-                .map(|u| match seen.in_state(u) {
-                    l if l.is_empty() => format!("{u}: -"),
-                    l => format!("{u}: {}", rm.vocab().format_labels(l)),
-                })
-                .collect();
-            let _ = writeln!(
-                report,
-                "smirl_selection_cut: balls the demonstrations touch{} after the cancel, per learned state: {}",
-                if config.smirl_selection_cut_entries { " (touches begun)" } else { "" },
-                per_state.join(", ")
-            );
-        }
-        write_file(&dir.join("rm/learned.txt"), &write_rm(&rm))?;
-        write_file(&dir.join("rm/learned.dot"), &to_dot(&rm))?;
-        write_file(&dir.join("rm/report.txt"), &report)?;
-        observer.message(
-            report
-                .lines()
-                .take(2)
-                .collect::<Vec<_>>()
-                .join("; ")
-                .as_str(),
-        );
-        rm_facts = Some(facts);
-        expert_data
-    } else {
-        annotate(&demos, None, hold_to)
-    };
+    }
+    // The demonstrations as the baselines (and SMIRL) read them.
+    let expert_data = expert_data.unwrap_or_else(|| annotate(&demos, None, hold_to));
     let path = dir.join(EXPERT_DATA_FILE);
     write_atomic(&path, &expert_data.to_bytes()).map_err(|e| io(&path, e))?;
     let prepared = Prepared {
@@ -364,6 +285,7 @@ pub fn prepare(
         demos_generated,
         demo_branches,
         rm: rm_facts,
+        rm_paper: rm_paper_facts,
         prepare_secs: started.elapsed().as_secs_f64(),
         git_commit: crate::GIT_COMMIT.into(),
     };
@@ -372,6 +294,171 @@ pub fn prepare(
         &(serde_json::to_string_pretty(&prepared).expect("JSON serialises") + "\n"),
     )?;
     Ok(prepared)
+}
+
+/// The learned machines of a run, one per setting of LRM's mechanisms an algorithm reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Machine {
+    /// `smirl`'s and `smirl-smooth`'s: `rm/learned.txt`, the demonstrations annotated with it
+    /// in `expert_data.bin`.
+    Smirl,
+    /// `smirl-paper`'s (LRM as the paper's eq. 1): `rm/learned_paper.txt`,
+    /// `expert_data_paper.bin`.
+    Paper,
+}
+
+impl Machine {
+    fn of(algo: Algo) -> Option<Machine> {
+        match algo {
+            Algo::SmirlPaper => Some(Machine::Paper),
+            a if a.uses_rm() => Some(Machine::Smirl),
+            _ => None,
+        }
+    }
+
+    /// The algorithm whose settings learn it.
+    fn algo(self) -> Algo {
+        match self {
+            Machine::Smirl => Algo::Smirl,
+            Machine::Paper => Algo::SmirlPaper,
+        }
+    }
+
+    fn stem(self) -> &'static str {
+        match self {
+            Machine::Smirl => "learned",
+            Machine::Paper => "learned_paper",
+        }
+    }
+
+    fn report_file(self) -> &'static str {
+        match self {
+            Machine::Smirl => "rm/report.txt",
+            Machine::Paper => "rm/report_paper.txt",
+        }
+    }
+}
+
+/// Step 1 of SMIRL under `settings` (an algorithm's resolved settings): the machine (LRM's, or
+/// the task's with `smirl_machine = "task"`), its facts and the report of `rm/report.txt`.
+fn learn_and_report(
+    settings: &IrlRunConfig,
+    demos: &[Demo],
+    perfect: &RewardMachine,
+    seed: u64,
+) -> Result<(RewardMachine, RmFacts, String), PipelineError> {
+    let config = settings;
+    let lrm = lrm_config(config, seed);
+    let (rm, cost, secs) = match config.smirl_machine {
+        SmirlMachine::Learned => learn_machine(demos, config, seed).map_err(PipelineError::Run)?,
+        SmirlMachine::Task | SmirlMachine::OneState => {
+            let rm = match config.smirl_machine {
+                SmirlMachine::Task => task_machine(perfect),
+                _ => one_state_machine(perfect.vocab()),
+            }
+            .map_err(PipelineError::Run)?;
+            let cost = trace_cost(&rm, &label_traces(demos), trace_reading(&lrm))
+                .map_err(|e| PipelineError::Run(format!("LRM cost of the task's machine: {e}")))?;
+            (rm, cost, 0.0)
+        }
+    };
+    let traces: Vec<Vec<LabelSet>> = demos.iter().map(|d| d.labels()).collect();
+    let r = refines(&rm, perfect, traces.iter().map(|t| t.as_slice()));
+    let counts = state_counts(&rm, None).map_err(|e| PipelineError::Run(e.to_string()))?;
+    let facts = RmFacts {
+        learned_states: rm.n_states(),
+        learned_reachable: counts.reachable,
+        perfect_states: perfect.n_states(),
+        refines_perfect: r.refines,
+        ambiguous_steps: r.ambiguous_steps,
+        total_steps: r.total_steps,
+        lrm_cost: cost,
+        lrm_secs: secs,
+    };
+    let mut report = String::new();
+    match config.smirl_machine {
+        SmirlMachine::Learned => {}
+        SmirlMachine::Task => {
+            let _ = writeln!(
+                report,
+                "smirl_machine = \"task\": the \"learned\" machine below is the task's own \
+                 (goal and failure states made ordinary, rewards 0), not LRM's: an oracle"
+            );
+        }
+        SmirlMachine::OneState => {
+            let _ = writeln!(
+                report,
+                "smirl_machine = \"one_state\": the \"learned\" machine below has one state, \
+                 not LRM's: the control without structure"
+            );
+        }
+    }
+    let _ = writeln!(
+        report,
+        "learned machine: {} states ({} reachable); perfect machine: {} states",
+        facts.learned_states, facts.learned_reachable, facts.perfect_states
+    );
+    let _ = writeln!(
+        report,
+        "refines the perfect machine along the {} demonstrations: {} ({} of {} steps ambiguous)",
+        demos.len(),
+        facts.refines_perfect,
+        facts.ambiguous_steps,
+        facts.total_steps
+    );
+    // The perfect machine's cost on the same traces says whether a machine that fails to
+    // refine the task lost the search or won it (LRM's objective prefers it).
+    let perfect_cost = trace_cost(perfect, &label_traces(demos), trace_reading(&lrm))
+        .map_err(|e| PipelineError::Run(format!("LRM cost of the perfect machine: {e}")))?;
+    let _ = writeln!(
+        report,
+        "LRM cost {:.3} (the perfect machine's on the same traces: {:.3}), {:.2} s",
+        cost, perfect_cost, secs
+    );
+    // Only the tree guards read events (first).
+    let events = match config.lrm_guards {
+        Guards::Tree => format!(
+            " (events read first: \"{}\")",
+            rm.vocab().format_labels(EVENTS)
+        ),
+        Guards::Exact => String::new(),
+    };
+    let _ = writeln!(
+        report,
+        "guards for label sets unseen in a state: {}{events}",
+        config.lrm_guards.name()
+    );
+    for (u, seen) in r.seen_with.iter().enumerate() {
+        let _ = writeln!(
+            report,
+            "learned state {u} seen with perfect states {seen:?}"
+        );
+    }
+    Ok((rm, facts, report))
+}
+
+/// The report line of `smirl_selection_cut` (empty without it): the balls the demonstrations
+/// touch after the cancel in each state of `rm`.
+fn selection_cut_report(
+    rm: &RewardMachine,
+    expert_data: &ExpertData,
+    config: &IrlRunConfig,
+) -> String {
+    if !config.smirl_selection_cut {
+        return String::new();
+    }
+    let seen = seen_after_events(rm, expert_data, config);
+    let per_state: Vec<String> = (0..rm.n_states())
+        .map(|u| match seen.in_state(u) {
+            l if l.is_empty() => format!("{u}: -"),
+            l => format!("{u}: {}", rm.vocab().format_labels(l)),
+        })
+        .collect();
+    format!(
+        "smirl_selection_cut: balls the demonstrations touch{} after the cancel, per learned state: {}\n",
+        if config.smirl_selection_cut_entries { " (touches begun)" } else { "" },
+        per_state.join(", ")
+    )
 }
 
 /// Reads a directory `prepare` finished. A directory it did not finish (no `prepare.json`)
@@ -401,17 +488,30 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
     };
     let perfect = rm_file("rm/perfect.txt")?;
     let jobs = prepared.jobs().map_err(usage)?;
-    let learned = if jobs.iter().any(|(a, _)| a.uses_rm()) {
-        Some(rm_file("rm/learned.txt")?)
-    } else {
-        None
+    let needs = |machine: Machine| jobs.iter().any(|&(a, _)| Machine::of(a) == Some(machine));
+    let machine_file = |machine: Machine| -> Result<Option<RewardMachine>, PipelineError> {
+        needs(machine)
+            .then(|| rm_file(&format!("rm/{}.txt", machine.stem())))
+            .transpose()
     };
-    let data_path = dir.join(EXPERT_DATA_FILE);
-    let bytes = crate::input_file::read_bytes(&data_path, crate::nn::codec::MAX_CODEC_FILE_BYTES)
-        .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
-    let expert = ExpertData::from_bytes(&bytes)
-        .and_then(|e| e.check_machine(learned.as_ref()).map(|()| e))
-        .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
+    let expert_file = |name: &str, machine: Option<&RewardMachine>| {
+        let data_path = dir.join(name);
+        let bytes =
+            crate::input_file::read_bytes(&data_path, crate::nn::codec::MAX_CODEC_FILE_BYTES)
+                .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
+        ExpertData::from_bytes(&bytes)
+            .and_then(|e| e.check_machine(machine).map(|()| e))
+            .map_err(|e| usage(format!("{}: {e}", data_path.display())))
+    };
+    let learned = machine_file(Machine::Smirl)?;
+    let expert = expert_file(EXPERT_DATA_FILE, learned.as_ref())?;
+    let paper = match machine_file(Machine::Paper)? {
+        Some(rm) => {
+            let data = expert_file(EXPERT_DATA_PAPER_FILE, Some(&rm))?;
+            Some((rm, data))
+        }
+        None => None,
+    };
     Ok(PreparedRun {
         dir: dir.to_path_buf(),
         prepared,
@@ -419,10 +519,28 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
         perfect,
         learned,
         expert,
+        paper,
     })
 }
 
 impl PreparedRun {
+    /// The learned machine `algo` reads (none for the baselines) and the demonstrations as it
+    /// reads them (annotated with that machine's states).
+    pub fn inputs_of(&self, algo: Algo) -> Result<(Option<&RewardMachine>, &ExpertData), String> {
+        let missing = |file: &str| format!("{}: no {file} for {algo}", self.dir.display());
+        match Machine::of(algo) {
+            None => Ok((None, &self.expert)),
+            Some(Machine::Smirl) => match &self.learned {
+                Some(rm) => Ok((Some(rm), &self.expert)),
+                None => Err(missing("rm/learned.txt")),
+            },
+            Some(Machine::Paper) => match &self.paper {
+                Some((rm, data)) => Ok((Some(rm), data)),
+                None => Err(missing("rm/learned_paper.txt")),
+            },
+        }
+    }
+
     /// The job `(algo, seed)` of this run, or a usage error naming what is not in the plan.
     pub fn job(&self, algo: Algo, seed: u64) -> Result<(Algo, u64), PipelineError> {
         let jobs = self.prepared.jobs().map_err(PipelineError::Usage)?;
@@ -486,14 +604,15 @@ impl PreparedRun {
             let sub = self.dir.join(sub);
             std::fs::create_dir_all(&sub).map_err(|e| format!("{}: {e}", sub.display()))?;
         }
+        let (learned, expert) = self.inputs_of(algo)?;
         let result = run_one(
             self.prepared.task.clone(),
             algo,
             seed,
             &self.config,
             &self.perfect,
-            self.learned.as_ref(),
-            &self.expert,
+            learned,
+            expert,
             &self.dir,
             threads,
             progress,

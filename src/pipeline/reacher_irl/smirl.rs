@@ -3,9 +3,7 @@
 //!
 //! 1. **Learn the machine** ([`learn_machine`]): LRM's Tabu search on the demonstrations' label
 //!    traces, without rewards (rewards are what IRL learns). (`smirl_machine = "task"`: the
-//!    task's own machine instead, [`task_machine`], an oracle for diagnosis; with
-//!    `smirl_unseen_touch_sink`, plus a sink for touches no demonstration makes,
-//!    [`with_unseen_touch_sink`], an ablation.)
+//!    task's own machine instead, [`task_machine`], an oracle for diagnosis.)
 //! 2. **Annotate** ([`annotate`]): every expert observation o_t gets the learned state
 //!    u_{t−1} its labels are read in (demonstrations held at their final state to the
 //!    horizon, so expert and agent are compared over one T).
@@ -18,8 +16,8 @@
 //!       ([`coefficients`]);
 //!    4. reward step(s) on w (Adam, L2).
 //! 4. **Final policy** (`smirl_final_sac_steps` > 0, [`super::final_policy`]): SAC goes on with
-//!    the final reward held fixed (and, with `smirl_final_fresh_steps` > 0, a fresh agent
-//!    learns it from scratch); the candidate of highest learned return is reported
+//!    the final reward held fixed (and, with `smirl_final_reset_steps` > 0, a reset agent
+//!    learns it on a copy of the replay buffer); the candidate of highest learned return is reported
 //!    (`smirl_selection_cut`: each selection episode's return counted up to its first touch
 //!    after the cancel that no demonstration makes, [`seen_after_events`]).
 //!
@@ -46,8 +44,7 @@ use crate::pipeline::reacher_expert::Demo;
 use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
-use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig, DEFAULT_PATIENCE, DEFAULT_STARTS};
-use crate::rm::transform::sink_unseen;
+use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
 use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
 
 /// The agent's own touches: bit k of a label set is ball k (`env::reacher::BALLS`).
@@ -94,6 +91,14 @@ pub fn task_machine(perfect: &RewardMachine) -> Result<RewardMachine, String> {
     .map_err(|e| format!("the task's machine: {e}"))
 }
 
+/// The machine SMIRL reads under `smirl_machine = "one_state"`: one state, no transitions, so
+/// δ_r(u, o) = w_0ᵀ φ(o) and the agent's input carries no machine state; every other mechanism
+/// runs as with LRM's machine (the control that tells what the machine adds).
+pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, String> {
+    RewardMachine::new(vocab.clone(), 1, 0, &[], &[], Vec::new())
+        .map_err(|e| format!("the one-state machine: {e}"))
+}
+
 /// The learner's settings of a run (`seed`: the search's).
 pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
     LrmConfig {
@@ -113,13 +118,9 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
         stutter_invariant: true,
         event_stutter: config.lrm_event_stutter,
         predict_events: config.lrm_predict_events,
-        remember_events: config.lrm_remember_events,
-        borrow_events: config.lrm_borrow_events,
         commute_events: config.lrm_commute_events,
         initial_events: config.lrm_initial_events,
-        // Starts and patience keep the learner's defaults unless set; split moves always.
-        starts: config.lrm_starts.unwrap_or(DEFAULT_STARTS),
-        patience: config.lrm_patience.unwrap_or(DEFAULT_PATIENCE),
+        // Starts, patience and split moves are the learner's defaults.
         fallback_starts: config.lrm_fallback_starts,
         ..LrmConfig::default()
     }
@@ -189,45 +190,6 @@ fn held_observation(last: &[f32; OBS_DIM]) -> [f32; OBS_DIM] {
     held[OBS_JOINT_VEL[1]] = 0.0;
     held[OBS_CANCEL] = 0.0;
     held
-}
-
-/// The label sets the learned machine reads along each demonstration as [`annotate`] steps it,
-/// the held steps to `hold_to` included.
-pub fn annotated_label_traces(demos: &[Demo], hold_to: Option<usize>) -> Vec<Vec<LabelSet>> {
-    let labelling = FeatureMap::reacher_labels();
-    demos
-        .iter()
-        .map(|d| {
-            let mut labels = d.labels();
-            if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
-                let held = labelling.labels_of(&held_observation(&last.next_obs));
-                labels.resize(labels.len().max(horizon), held);
-            }
-            labels
-        })
-        .collect()
-}
-
-/// Step 1b (`smirl_unseen_touch_sink`): the machine with a sink that a ball touch enters from
-/// every state in which no demonstration touches that ball (read as [`annotate`] reads them,
-/// held steps included, so that no demonstration enters it); with `after_events_only`
-/// (`smirl_sink_after_events`), only from states the agent cannot reach without an exogenous
-/// event (after the cancel). Demonstrations never fail, so no learned machine has a failure
-/// state; the sink gives the learned reward a place to say that what the expert never does in
-/// a state — blue after the cancel in IF — leaves the task for good. It is an ordinary state:
-/// the episode goes on, and IRL learns what it is worth.
-pub fn with_unseen_touch_sink(
-    rm: &RewardMachine,
-    demos: &[Demo],
-    hold_to: Option<usize>,
-    after_events_only: bool,
-) -> (RewardMachine, Option<usize>) {
-    let from: Vec<bool> = if after_events_only {
-        rm.reachable_without(EVENTS).iter().map(|&r| !r).collect()
-    } else {
-        vec![true; rm.n_states()]
-    };
-    sink_unseen(rm, &annotated_label_traces(demos, hold_to), TOUCHES, &from)
 }
 
 /// Which features δ_r reads.
@@ -559,7 +521,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     }
 
     // Step 4, the final policy: SAC goes on with the final reward, now fixed (shaped by its
-    //    potential), then (`smirl_final_fresh_steps`) a fresh agent learns it from scratch,
+    //    potential), then (`smirl_final_reset_steps`) a reset agent learns it too,
     //    and the candidate of highest learned return (`smirl_selection_cut`: counted up to
     //    the first touch after the cancel that no demonstration makes) is the job's policy.
     let final_policy = if s.smirl_final_sac_steps > 0 {
@@ -576,7 +538,6 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
             steps: s.smirl_final_sac_steps,
             checkpoints: s.smirl_final_checkpoints,
             seed: job.seed,
-            fresh_steps: s.smirl_final_fresh_steps,
             reset_steps: s.smirl_final_reset_steps,
             selection_cut: selection_cut.as_ref(),
             selection_episodes: final_policy::selection_episodes(s),

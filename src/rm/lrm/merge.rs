@@ -91,57 +91,6 @@ pub(crate) fn merge_states(
     (blocks, part.cells)
 }
 
-/// Gives each event cell that no trace reads the target of the same event in a state of the
-/// same task stage (see [`LrmConfig::borrow_events`]): for every state `u` and every label id
-/// in `events` whose cell `(u, l)` is undefined, the lender is a state `v` that
-/// - observed `l` (weight > 0),
-/// - was observed leaving for the same state as `u` on some label that is not an event
-///   (evidence that both wait for the same sub-goal: "before blue" and "after passing red,
-///   before blue" both go to "after blue" on blue; a stay, such as lingering on a ball just
-///   touched, is no evidence), and
-/// - could merge with `u` if unobserved cells were "don't care" (`try_merge` with
-///   `fill_unobserved`: nothing observed contradicts it);
-///
-/// of those, the one with the most observations of `l` (ties: the smaller `v`). Decided on
-/// the cells as given, so the order of states does not matter; observed cells and every
-/// trace's path are unchanged.
-///
-/// [`LrmConfig::borrow_events`]: super::LrmConfig::borrow_events
-pub(crate) fn borrow_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], events: &[usize]) {
-    let part = Partition {
-        parent: (0..n).collect(),
-        cells: cells.to_vec(),
-    };
-    let observed = &part.cells;
-    for u in 0..n {
-        for &l in events {
-            if observed[u * l_n + l].is_some() {
-                continue;
-            }
-            let seen = |w: usize, k: usize| observed[w * l_n + k].filter(|c| c.weight > 0.0);
-            let same_stage = |v: usize| {
-                (0..l_n).filter(|k| !events.contains(k)).any(|k| {
-                    matches!((seen(u, k), seen(v, k)),
-                        (Some(a), Some(b)) if a.target == b.target && a.target != u && b.target != v)
-                })
-            };
-            let lender = (0..n)
-                .filter(|&v| v != u)
-                .filter_map(|v| seen(v, l).map(|c| (v, c)))
-                .filter(|&(v, _)| same_stage(v))
-                .filter(|&(v, _)| try_merge(&part, l_n, u.min(v), u.max(v), true).is_some())
-                .max_by(|a, b| a.1.weight.total_cmp(&b.1.weight).then(b.0.cmp(&a.0)));
-            if let Some((_, c)) = lender {
-                cells[u * l_n + l] = Some(Cell {
-                    target: c.target,
-                    reward: 0.0,
-                    weight: 0.0,
-                });
-            }
-        }
-    }
-}
-
 /// Gives each event cell that no trace reads the state the traces reach when the event comes
 /// *before* the touch that entered the state (see [`LrmConfig::commute_events`]): for a state
 /// `u` entered from `p` on an observed label `k` without an event, and an event label `l`

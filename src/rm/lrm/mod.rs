@@ -175,22 +175,6 @@ pub struct LrmConfig {
     /// (ReacherDelivery OR and Sequential: "red touched" in two states, before and after the
     /// cancel). Transitions still read the events; the cost changes, the traces do not.
     pub predict_events: bool,
-    /// After the search, make the machine the product of the learned one with the set of
-    /// events (`events`) seen so far (`search::remember_events`), so it remembers that an
-    /// event happened even where the demonstrations' next labels do not depend on it. LRM's
-    /// objective keeps a memory only if it predicts the next label; an event that changes
-    /// what is *forbidden* afterwards (ReacherDelivery IF: blue after a cancel) but not what
-    /// the expert does next is otherwise merged away. At most 4 events. Off by default.
-    pub remember_events: bool,
-    /// After the search, read an event (a proposition of `events`) that the traces never show
-    /// in a state as the traces show it in a state of the same task stage
-    /// (`merge::borrow_events`: one observed to leave for the same state on the same
-    /// non-event label, that nothing observed keeps from merging with it, of those the one
-    /// that saw the event most). The search splits states by what the expert does next (e.g.
-    /// "before blue" and "after passing red, before blue"); an exogenous event seen in only
-    /// one of them would otherwise be ignored in the others (ReacherDelivery IF: a cancel
-    /// after passing red). Traces' paths and the cost are unchanged. Off by default.
-    pub borrow_events: bool,
     /// After the search, read an event (a proposition of `events`) that the traces never show
     /// in a state as if it had come just before the touch that entered the state
     /// (`merge::commute_events`: "red, then cancel" ends where "cancel, then red" does, when
@@ -233,8 +217,6 @@ impl Default for LrmConfig {
             stutter_invariant: false,
             event_stutter: false,
             predict_events: true,
-            remember_events: false,
-            borrow_events: false,
             commute_events: false,
             initial_events: false,
         }
@@ -323,9 +305,8 @@ pub fn learn_rm(
     }
     let data = Data::new(vocab, traces, trace_reading(cfg))?;
     let l_n = data.n_labels().max(1);
-    // The stutter-invariant repair adds at most one state per (state, label set) cell, the
-    // event memory multiplies the states by at most 2^events, and the tables store states as
-    // u16.
+    // The stutter-invariant repair adds at most one state per (state, label set) cell, and
+    // the tables store states as u16.
     if cfg.stutter_invariant && (cfg.max_states + 1) * (1 + l_n) > u16::MAX as usize {
         return Err(LrmError::Config(format!(
             "with stutter_invariant, (max_states + 1) x (1 + label sets) must be at most {}, \
@@ -333,19 +314,6 @@ pub fn learn_rm(
             u16::MAX,
             cfg.max_states,
             l_n
-        )));
-    }
-    let grown = if cfg.stutter_invariant {
-        (cfg.max_states + 1) * (1 + l_n)
-    } else {
-        cfg.max_states + 1
-    };
-    let events = cfg.events.0.count_ones();
-    if cfg.remember_events && (events > 4 || (grown << events) > u16::MAX as usize) {
-        return Err(LrmError::Config(format!(
-            "with remember_events, at most 4 events and 2^events x the most states the search \
-             and its repair can reach at most {}, got {events} events and {grown} states",
-            u16::MAX
         )));
     }
     if !(cfg.reward_weight >= 0.0 && cfg.reward_weight.is_finite()) {
@@ -398,15 +366,7 @@ pub fn learn_rm(
         None => (table, best_cost, final_searcher),
         Some(t) => rescored(t),
     };
-    // With `remember_events`, the product with the events seen so far (see the field).
     let event_bits: Vec<u32> = data.labels.iter().map(|l| l.0 & cfg.events.0).collect();
-    let remembered = (cfg.remember_events && !cfg.events.is_empty())
-        .then(|| search::remember_events(&table, l_n, &event_bits))
-        .filter(|t| t.n_used > table.n_used);
-    let (table, best_cost, final_searcher) = match remembered {
-        None => (table, best_cost, final_searcher),
-        Some(t) => rescored(t),
-    };
     let rows = rows(&table);
     let table = &table;
     let n = table.n_used;
@@ -465,13 +425,10 @@ pub fn learn_rm(
         }
     }
 
-    // Label ids whose set holds an event: the cells borrowing and commuting may fill.
+    // Label ids whose set holds an event: the cells commuting and initial events may fill.
     let event_ids: Vec<usize> = (0..l_n)
         .filter(|&l| event_bits.get(l).is_some_and(|&b| b != 0))
         .collect();
-    if cfg.borrow_events {
-        merge::borrow_events(n, l_n, &mut defined, &event_ids);
-    }
     if cfg.commute_events {
         merge::commute_events(n, l_n, &mut defined, &event_ids);
     }

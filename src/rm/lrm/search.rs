@@ -123,38 +123,6 @@ pub(crate) fn stutter_invariant(t: &Table, l_n: usize, stutter_of: &[Option<u16>
     }
 }
 
-/// The machine of `t` with a memory of events (see [`LrmConfig::remember_events`]): the
-/// product of `t` with the set of events seen so far, `(u, seen)` reading `l` going to
-/// `(delta(u, l), seen | event_bits[l])` (no bits past the end of `event_bits`), keeping the states reachable from `(0, {})` in
-/// breadth-first order. A finer partition of the traces' histories, so the cost can only drop;
-/// stutter invariance is kept (reading `l` again changes neither part).
-///
-/// [`LrmConfig::remember_events`]: super::LrmConfig::remember_events
-pub(crate) fn remember_events(t: &Table, l_n: usize, event_bits: &[u32]) -> Table {
-    let mut index: std::collections::HashMap<(u16, u32), u16> = Default::default();
-    let mut states = vec![(0u16, 0u32)];
-    index.insert((0, 0), 0);
-    let mut delta = Vec::new();
-    let mut k = 0;
-    while k < states.len() {
-        let (u, seen) = states[k];
-        for l in 0..l_n {
-            let bits = event_bits.get(l).copied().unwrap_or(0);
-            let next = (t.delta[u as usize * l_n + l], seen | bits);
-            let id = *index.entry(next).or_insert_with(|| {
-                states.push(next);
-                (states.len() - 1) as u16
-            });
-            delta.push(id);
-        }
-        k += 1;
-    }
-    Table {
-        delta,
-        n_used: states.len(),
-    }
-}
-
 /// A move of the neighbourhood.
 #[derive(Clone, Copy, Debug)]
 enum Move {

@@ -1,0 +1,144 @@
+//! `smirl-paper`, the paper's algorithm kept beside `smirl`: its settings are `smirl`'s with
+//! every mechanism of docs/method.md at the paper's value, and a run gives it its own machine
+//! (LRM as eq. 1; `tests/rm_lrm.rs` checks the machine) and reports its loop's own last policy.
+
+mod irl_run_common;
+use irl_run_common::tiny_config;
+use smirl::irl::smirl::{LabelFeatures, SmirlNormalisation};
+use smirl::pipeline::reacher_irl::run::{open_run, JobRecord};
+use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
+use smirl::rm::format::parse_rm;
+use smirl::rm::lrm::Guards;
+use std::process::Command;
+
+/// Every mechanism by which the standard `smirl` departs from the paper resolves to the paper's
+/// value for `smirl-paper`; everything else (schedule, SAC, reward optimiser, LRM's budget) is
+/// `smirl`'s, so that the two differ by the mechanisms alone.
+#[test]
+fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
+    let standard = IrlRunConfig::standard();
+    let smirl = standard.for_algo(Algo::Smirl).unwrap();
+    let paper = standard.for_algo(Algo::SmirlPaper).unwrap();
+    // LRM: eq. 1 (events predicted), no event rule, no fallback starts, LRM's guards.
+    assert!(paper.lrm_predict_events);
+    assert!(!paper.lrm_event_stutter);
+    assert!(!paper.lrm_commute_events);
+    assert!(!paper.lrm_initial_events);
+    assert_eq!(paper.lrm_fallback_starts, 0);
+    assert_eq!(paper.lrm_guards, Guards::Exact);
+    // MaxEnt on U × O: μ_D − μ_π over trajectories, φ = L(o).
+    assert_eq!(paper.smirl_normalisation, SmirlNormalisation::Trajectories);
+    assert_eq!(paper.smirl_label_features, LabelFeatures::State);
+    // The policy on U × O: no clock, no counterfactual states, no shaping.
+    assert!(!paper.smirl_clock);
+    assert_eq!(paper.smirl_counterfactual, 0.0);
+    assert_eq!(paper.smirl_shaping, 0.0);
+    // No final phase, no choice among candidates.
+    assert_eq!(paper.smirl_final_sac_steps, 0);
+    assert_eq!(paper.smirl_final_checkpoints, 0);
+    assert_eq!(paper.smirl_final_reset_steps, 0);
+    assert!(!paper.smirl_selection_cut);
+    // The standard's smirl differs in each of these (else the test above proves nothing).
+    assert!(!smirl.lrm_predict_events && smirl.lrm_commute_events && smirl.lrm_initial_events);
+    assert!(smirl.lrm_event_stutter && smirl.lrm_fallback_starts > 0);
+    assert_eq!(smirl.lrm_guards, Guards::Tree);
+    assert_eq!(
+        smirl.smirl_normalisation,
+        SmirlNormalisation::EventGatedVisits
+    );
+    assert!(smirl.smirl_clock && smirl.smirl_counterfactual > 0.0 && smirl.smirl_shaping > 0.0);
+    assert!(smirl.smirl_final_sac_steps > 0 && smirl.smirl_selection_cut);
+    // What is not a mechanism is smirl's.
+    let same = IrlRunConfig {
+        lrm_predict_events: smirl.lrm_predict_events,
+        lrm_event_stutter: smirl.lrm_event_stutter,
+        lrm_commute_events: smirl.lrm_commute_events,
+        lrm_initial_events: smirl.lrm_initial_events,
+        lrm_fallback_starts: smirl.lrm_fallback_starts,
+        lrm_guards: smirl.lrm_guards,
+        smirl_normalisation: smirl.smirl_normalisation,
+        smirl_clock: smirl.smirl_clock,
+        smirl_counterfactual: smirl.smirl_counterfactual,
+        smirl_shaping: smirl.smirl_shaping,
+        smirl_final_sac_steps: smirl.smirl_final_sac_steps,
+        smirl_final_checkpoints: smirl.smirl_final_checkpoints,
+        smirl_final_reset_steps: smirl.smirl_final_reset_steps,
+        smirl_selection_cut: smirl.smirl_selection_cut,
+        smirl_selection_cut_entries: smirl.smirl_selection_cut_entries,
+        ..paper.clone()
+    };
+    assert_eq!(same, smirl);
+}
+
+/// A tiny run of `reacher --task if --algo smirl,smirl-paper` through the CLI: smirl-paper gets
+/// its own machine (`rm/learned_paper.txt`, guards that stay on unseen label sets) and
+/// demonstrations annotated with it, learns a reward over that machine's states, runs no final
+/// phase, and the run reports its loop's last policy; smirl keeps its machine and final phase.
+#[test]
+fn smirl_paper_runs_on_its_own_machine_and_reports_its_loops_last_policy() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("tiny.toml");
+    let config = tiny_config();
+    assert!(config.smirl_final_sac_steps > 0 && config.smirl_final_checkpoints > 0);
+    std::fs::write(&cfg, config.to_toml()).unwrap();
+    let out = tmp.path().join("run");
+    let status = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args([
+            "--task",
+            "if",
+            "--algo",
+            "smirl,smirl-paper",
+            "--seed",
+            "2",
+            "--quiet",
+        ])
+        .arg("--config")
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let read = |f: &str| std::fs::read_to_string(out.join(f)).unwrap();
+    let paper_rm = parse_rm(&read("rm/learned_paper.txt"), "learned_paper.txt").unwrap();
+    assert!(read("rm/report_paper.txt").contains("guards for label sets unseen in a state: exact"));
+    assert!(read("rm/report.txt").contains("guards for label sets unseen in a state: tree"));
+
+    // Each SMIRL algorithm reads its own machine and demonstrations annotated with it.
+    let run = open_run(&out).unwrap();
+    let (machine, expert) = run.inputs_of(Algo::SmirlPaper).unwrap();
+    assert_eq!(
+        parse_rm(&read("rm/learned_paper.txt"), "").unwrap(),
+        paper_rm
+    );
+    assert_eq!(machine.unwrap(), &paper_rm);
+    assert!(expert.check_machine(Some(&paper_rm)).is_ok());
+    let (smirl_machine, _) = run.inputs_of(Algo::Smirl).unwrap();
+    assert_eq!(
+        smirl_machine.unwrap(),
+        &parse_rm(&read("rm/learned.txt"), "").unwrap()
+    );
+    let reward: serde_json::Value = serde_json::from_str(&read("rewards/smirl-paper_seed2.json"))
+        .expect("smirl-paper's reward is a linear reward per state");
+    assert_eq!(reward["n_states"], paper_rm.n_states());
+
+    // The paper's job reports its loop's own last policy; smirl's chooses after its final phase.
+    let record = |algo: &str| -> JobRecord {
+        serde_json::from_str(&read(&format!("jobs/{algo}_seed2.json"))).unwrap()
+    };
+    let paper = record("smirl-paper");
+    assert!(paper.final_policy.is_none());
+    let last = paper.rows.last().unwrap();
+    assert_eq!(last.iteration, config.irl_iterations);
+    assert_eq!(paper.reported_success(), last.success_rate);
+    assert!(record("smirl").final_policy.is_some());
+    let summary = read("summary.csv");
+    let row = summary
+        .lines()
+        .find(|l| l.starts_with("if,smirl-paper,1,"))
+        .expect("smirl-paper's row in summary.csv");
+    let reported: f64 = row.split(',').nth(3).unwrap().parse().unwrap();
+    assert!((reported - last.success_rate).abs() < 5e-4, "{row}");
+    let final_policies = read("final_policy.csv");
+    assert!(!final_policies.contains("smirl-paper"));
+}
