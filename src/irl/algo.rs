@@ -73,10 +73,11 @@ impl Algo {
     }
 
     /// The algorithm's colour in every plot (one of [`crate::report::plot::PALETTE`]): SMIRL's
-    /// variants in greens and teal, the baselines each in their own hue.
+    /// variants in green, yellow and teal, the baselines each in their own hue.
     pub fn colour(self) -> &'static str {
         match self {
             Algo::Smirl => "#59a14f",
+            Algo::SmirlPaper => "#edc948",
             Algo::SmirlSmooth => "#76b7b2",
             Algo::MaxEnt => "#4e79a7",
             Algo::Fkl => "#f28e2b",
@@ -102,8 +103,9 @@ impl Algo {
     }
 
     /// Every algorithm of either domain.
-    pub const ALL: [Algo; 7] = [
+    pub const ALL: [Algo; 8] = [
         Algo::Smirl,
+        Algo::SmirlPaper,
         Algo::SmirlSmooth,
         Algo::MaxEnt,
         Algo::Fkl,
