@@ -6,7 +6,8 @@
 //! `cargo run --release --bin env_bench -- --reps 7 --steps 20000`
 
 use clap::Parser;
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, FRAME_SKIP, OBS_DIM};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery, FRAME_SKIP};
+use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
 use smirl::mujoco::{self, Data};
 use std::sync::Arc;
@@ -34,11 +35,12 @@ fn main() -> anyhow::Result<()> {
         args.reps > 0 && args.steps > 0,
         "--reps and --steps must be positive"
     );
-    let mut env = ReacherDelivery::new(ReacherConfig::default())?;
+    let config = ReacherTask::shipped("composite")?.env_config(&ReacherConfig::default())?;
+    let mut env = ReacherDelivery::new(config)?;
     let mut raw = Data::new(Arc::clone(env.model()))?;
     let action = [0.3f32, -0.2];
     let ctrl = [0.3f64, -0.2];
-    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut obs = vec![0.0f32; env.obs_dim()];
 
     let (mut raw_rates, mut env_rates, mut reset_costs) = (vec![], vec![], vec![]);
     let resets = (args.steps / 10).max(1);

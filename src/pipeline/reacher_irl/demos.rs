@@ -5,7 +5,7 @@
 
 use super::config::{DemoCancel, DemoSource, IrlRunConfig, MIN_STRATIFIED_DRAW};
 use crate::env::product::ProductEnv;
-use crate::env::reacher::{ReacherConfig, ReacherDelivery, BALLS, OBS_DIM};
+use crate::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::{ReacherTask, SubgoalPotential};
 use crate::env::ContinuousEnv;
@@ -100,10 +100,18 @@ pub fn demo_reset_seeds(
     n: usize,
     seed: u64,
 ) -> Result<Vec<u64>, DemoError> {
-    if demo_cancel == DemoCancel::Drawn {
+    let layout = env_config
+        .task_layout()
+        .map_err(|e| DemoError::Run(e.to_string()))?;
+    // Stratified by the first event's schedule: `[env.cancel]` for a one-event task.
+    let cancel = match layout.events.as_slice() {
+        [] => None,
+        [_] => Some(env_config.cancel.clone()),
+        [first, ..] => Some(CancelConfig::of(first)),
+    };
+    let (DemoCancel::Stratified, Some(cancel)) = (demo_cancel, cancel) else {
         return Ok((0..n as u64).map(|i| episode_seed(seed, i)).collect());
-    }
-    let cancel = &env_config.cancel;
+    };
     // A window the config check refuses (latest < earliest) is one step here, not a panic.
     let window = cancel.latest_step.saturating_sub(cancel.earliest_step) + 1;
     // Draw key: 0 = no cancel, 1 + k = a cancel on step earliest_step + k. Per key, the
@@ -116,7 +124,7 @@ pub fn demo_reset_seeds(
     }
     let mut env =
         ReacherDelivery::new(env_config.clone()).map_err(|e| DemoError::Run(e.to_string()))?;
-    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut obs = vec![0.0f32; env.obs_dim()];
     let mut resets = vec![0u64; n];
     let mut open = n;
     // Config validation bounds each wanted draw's chance below by MIN_STRATIFIED_DRAW, so
@@ -132,7 +140,7 @@ pub fn demo_reset_seeds(
         }
         let reset_seed = episode_seed(seed, j);
         env.reset(reset_seed, &mut obs);
-        if let Some(slot) = slots.get_mut(key(env.cancel_step())).and_then(Vec::pop) {
+        if let Some(slot) = slots.get_mut(key(env.event_steps()[0])).and_then(Vec::pop) {
             resets[slot] = reset_seed;
             open -= 1;
         }
@@ -142,7 +150,7 @@ pub fn demo_reset_seeds(
 }
 
 /// Scripted demonstrations, one from each of `reset_seeds`: at every step the controller aims
-/// at a ball that advances the task's perfect machine (for a choice such as OR's
+/// at a region that advances the task's perfect machine (for a choice such as OR's
 /// red-or-green, one option drawn per episode from `seed`), holds still once the machine is
 /// done.
 pub fn scripted_demos(
@@ -154,13 +162,14 @@ pub fn scripted_demos(
 ) -> Result<Vec<Demo>, DemoError> {
     let run = |e: String| DemoError::Run(e);
     let rm = task.perfect_rm().map_err(|e| run(e.to_string()))?;
-    let potential = SubgoalPotential::from_rm(&rm);
     let inner = ReacherDelivery::new(env_config.clone()).map_err(|e| run(e.to_string()))?;
+    let potential = SubgoalPotential::from_rm(&rm, inner.layout());
+    let (regions, obs_dim) = (inner.layout().n_regions(), inner.obs_dim());
     let mut env = ProductEnv::new(inner, rm);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5c41_97ed_de30_0000);
     let mut demos = Vec::with_capacity(reset_seeds.len());
     for (i, &reset_seed) in reset_seeds.iter().enumerate() {
-        let pick: usize = rng.gen_range(0..BALLS.len());
+        let pick: usize = rng.gen_range(0..regions.max(1));
         let choices: Vec<Vec<usize>> = (0..env.rm().n_states())
             .map(|u| potential.progress_balls(u).to_vec())
             .collect();
@@ -175,7 +184,7 @@ pub fn scripted_demos(
             reset_seed,
             "demo",
             logger.as_deref_mut(),
-            |obs, labels, rm_state| ctl.act(&obs[..OBS_DIM], labels, Some(rm_state)),
+            |obs, labels, rm_state| ctl.act(&obs[..obs_dim], labels, Some(rm_state)),
         )
         .map_err(|e| match e {
             RecordError::Env { step, source } => run(format!("episode {i}, step {step}: {source}")),

@@ -32,7 +32,6 @@ use super::smirl::{
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::EVENTS;
 use crate::env::reacher_task::{Branch, ReacherTask};
 use crate::input_file::{read_text, MAX_DATA_FILE_BYTES};
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
@@ -99,7 +98,7 @@ fn log_header(
 ) -> Result<RunHeader, PipelineError> {
     // Replay reads the environment config from `env` (time limit, cancel schedule).
     let json = serde_json::json!({ "run": what, "env": config.env, "irl_config": config });
-    let mut header = RunHeader::reacher_shipped(task.id(), seed, json);
+    let mut header = RunHeader::of_task(task.id(), task.task(), seed, json);
     header.reward_machine = Some(write_rm(perfect));
     Ok(header)
 }
@@ -235,7 +234,8 @@ pub fn prepare(
     // The demonstrations, annotated with the learned machine's states when SMIRL needs one.
     let expert_data = if algos.iter().any(|a| a.uses_rm()) {
         observer.phase("lrm");
-        let lrm = lrm_config(config, seed);
+        let layout = task.layout();
+        let lrm = lrm_config(config, seed).map_err(PipelineError::Run)?;
         let (rm, cost, secs) = match config.smirl_machine {
             SmirlMachine::Learned => {
                 learn_machine(&demos, config, seed).map_err(PipelineError::Run)?
@@ -250,7 +250,13 @@ pub fn prepare(
             }
         };
         let (rm, sink) = if config.smirl_unseen_touch_sink {
-            with_unseen_touch_sink(&rm, &demos, hold_to, config.smirl_sink_after_events)
+            with_unseen_touch_sink(
+                &layout,
+                &rm,
+                &demos,
+                hold_to,
+                config.smirl_sink_after_events,
+            )
         } else {
             (rm, None)
         };
@@ -313,7 +319,7 @@ pub fn prepare(
             report,
             "guards for label sets unseen in a state: {} (events read first: \"{}\")",
             config.lrm_guards.name(),
-            rm.vocab().format_labels(EVENTS)
+            rm.vocab().format_labels(layout.events())
         );
         for (u, seen) in r.seen_with.iter().enumerate() {
             let _ = writeln!(
@@ -321,9 +327,9 @@ pub fn prepare(
                 "learned state {u} seen with perfect states {seen:?}"
             );
         }
-        let expert_data = annotate(&demos, Some(&rm), hold_to);
+        let expert_data = annotate(&layout, &demos, Some(&rm), hold_to);
         if config.smirl_selection_cut {
-            let seen = seen_after_events(&rm, &expert_data, config);
+            let seen = seen_after_events(&rm, &expert_data, config).map_err(PipelineError::Run)?;
             let per_state: Vec<String> = (0..rm.n_states())
                 .map(|u| match seen.in_state(u) {
                     l if l.is_empty() => format!("{u}: -"),
@@ -332,7 +338,7 @@ pub fn prepare(
                 .collect();
             let _ = writeln!(
                 report,
-                "smirl_selection_cut: balls the demonstrations touch{} after the cancel, per learned state: {}",
+                "smirl_selection_cut: regions the demonstrations touch{} after an event, per learned state: {}",
                 if config.smirl_selection_cut_entries { " (touches begun)" } else { "" },
                 per_state.join(", ")
             );
@@ -351,7 +357,7 @@ pub fn prepare(
         rm_facts = Some(facts);
         expert_data
     } else {
-        annotate(&demos, None, hold_to)
+        annotate(&task.layout(), &demos, None, hold_to)
     };
     let path = dir.join(EXPERT_DATA_FILE);
     write_atomic(&path, &expert_data.to_bytes()).map_err(|e| io(&path, e))?;
@@ -394,7 +400,11 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
     };
     let prepared: Prepared = serde_json::from_str(&read(PREPARED_FILE)?)
         .map_err(|e| usage(format!("{}: {e}", marker.display())))?;
-    let config = IrlRunConfig::load(&dir.join("config.toml")).map_err(|e| usage(e.to_string()))?;
+    let mut config =
+        IrlRunConfig::load(&dir.join("config.toml")).map_err(|e| usage(e.to_string()))?;
+    config.env = (prepared.task)
+        .env_config(&config.env)
+        .map_err(|e| usage(e.to_string()))?;
     let rm_file = |name: &str| -> Result<RewardMachine, PipelineError> {
         let path = dir.join(name);
         parse_rm(&read(name)?, &path.display().to_string()).map_err(|e| usage(e.to_string()))
@@ -409,7 +419,8 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
     let data_path = dir.join(EXPERT_DATA_FILE);
     let bytes = crate::input_file::read_bytes(&data_path, crate::nn::codec::MAX_CODEC_FILE_BYTES)
         .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
-    let expert = ExpertData::from_bytes(&bytes)
+    let obs_dim = prepared.task.layout().obs_dim();
+    let expert = ExpertData::from_bytes(&bytes, obs_dim)
         .and_then(|e| e.check_machine(learned.as_ref()).map(|()| e))
         .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
     Ok(PreparedRun {
@@ -704,8 +715,14 @@ fn run_one(
     }
     if !result.reward_trace.is_empty() {
         let path = dir.join("rewards").join(format!("{stem}.trace.csv"));
-        write_file(&path, &reward_trace_csv(&result.reward_trace).to_csv())
-            .map_err(|e| e.to_string())?;
+        let letters = (config.env.task_layout())
+            .map_err(|e| e.to_string())?
+            .letters();
+        write_file(
+            &path,
+            &reward_trace_csv(&result.reward_trace, &letters).to_csv(),
+        )
+        .map_err(|e| e.to_string())?;
     }
     Ok(result)
 }
