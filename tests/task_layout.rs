@@ -222,3 +222,63 @@ fn a_task_of_another_shape_runs_the_pipeline_and_its_logs_read_back() {
     assert!(text.contains("vocabulary: abdxz"), "{text}");
 }
 
+/// The second scene shipped as an example (`assets/scenes/six_targets.xml`): the same arm
+/// among six fixed targets, with two task files over it.
+fn six_targets(task: &str) -> ReacherTask {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets/scenes")
+        .join(format!("six_targets_{task}.toml"));
+    ReacherTask::resolve(path.to_str().unwrap()).unwrap()
+}
+
+#[test]
+fn the_six_target_scene_loads_with_its_tasks() {
+    let ring = six_targets("ring");
+    let detour = six_targets("detour");
+    assert_eq!(ring.layout().letters(), "abcdef");
+    assert_eq!(ring.layout().obs_dim(), 8 + 12);
+    assert_eq!(detour.layout().letters(), "abcdefx");
+    assert_eq!(detour.layout().obs_dim(), 8 + 12 + 1);
+    // The targets stay where the scene puts them: t4 0.07 m straight below the base.
+    let t4 = &ring.layout().regions[3];
+    assert!(!t4.movable);
+    assert!(t4.position[0].abs() < 1e-9 && (t4.position[1] + 0.07).abs() < 1e-9);
+    for task in [&ring, &detour] {
+        let mut env = task.make_env(&ReacherConfig::default()).unwrap();
+        let mut obs = vec![0.0f32; env.obs_dim()];
+        env.reset(3, &mut obs);
+        assert_eq!(env.positions(), task.layout().positions().as_slice());
+        // Each target's label holds at its centre, alone.
+        for (k, [x, y]) in task.layout().positions().into_iter().enumerate() {
+            env.set_arm(inverse_kinematics(x, y, 1.0), [0.0, 0.0])
+                .unwrap();
+            assert_eq!(env.labels(), LabelSet(1 << k), "target {k}");
+        }
+    }
+}
+
+#[test]
+fn a_task_over_the_six_target_scene_runs_the_pipeline() {
+    let tmp = tempfile::tempdir().unwrap();
+    let task = six_targets("ring");
+    let mut config = tiny_config();
+    config.env = task.env_config(&config.env).unwrap();
+    let out = tmp.path().join("run");
+    let request = RunRequest {
+        task,
+        algos: vec![Algo::Smirl],
+        seeds: 1,
+        seed: 1,
+        config,
+        out: out.clone(),
+        force: false,
+    };
+    run_pipeline(&request, &Silent).unwrap();
+    let metrics = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    assert!(
+        metrics.lines().any(|l| l.starts_with("smirl,1,")),
+        "{metrics}"
+    );
+    let learned = std::fs::read_to_string(out.join("rm/learned.txt")).unwrap();
+    assert!(learned.contains("vocabulary: abcdef"), "{learned}");
+}
