@@ -401,7 +401,7 @@ fn bad_cancel_windows_are_refused_with_status_2() {
 fn stratified_demonstrations_cover_every_cancel_step() {
     use smirl::pipeline::reacher_irl::config::DemoCancel;
     use smirl::pipeline::reacher_irl::demos::{demo_reset_seeds, make_demos};
-    let env_config = ReacherConfig::default();
+    let env_config = shipped_config(ReacherConfig::default());
     let drawn = demo_reset_seeds(&env_config, DemoCancel::Drawn, 16, 7).unwrap();
     let stream: Vec<u64> = (0..16).map(|i| episode_seed(7, i)).collect();
     assert_eq!(drawn, stream);

@@ -371,7 +371,8 @@ fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cance
         expert.learned_states.extend(states_along(&m, d));
         expert.lengths.push(d.len());
     }
-    let settings = IrlRunConfig::standard();
+    let mut settings = IrlRunConfig::standard();
+    settings.env = shipped_config(settings.env);
     assert!(settings.smirl_selection_cut && settings.smirl_selection_cut_entries);
     let seen = seen_after_events(&m, &expert, &settings).unwrap();
     assert_eq!(

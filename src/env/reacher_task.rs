@@ -359,7 +359,8 @@ impl Potential for SubgoalPotential {
 }
 
 /// ReacherDelivery × the task's perfect machine, with sub-goal shaping of the given scale
-/// (0 for none) for a learner with discount `gamma`.
+/// (0 for none) for a learner with discount `gamma`; `config` runs over the task's layout
+/// ([`ReacherTask::env_config`]).
 pub fn task_env(
     task: ReacherTask,
     config: ReacherConfig,
@@ -369,7 +370,7 @@ pub fn task_env(
     let rm = task
         .perfect_rm()
         .map_err(|e| TaskEnvError::Rm(e.to_string()))?;
-    let env = ReacherDelivery::new(config)?;
+    let env = task.make_env(&config)?;
     let potential = SubgoalPotential::from_rm(&rm, env.layout());
     Ok(ProductEnv::with_shaping(
         env,

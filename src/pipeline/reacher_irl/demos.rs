@@ -67,7 +67,8 @@ pub fn load_expert(task: ReacherTask, cache_dir: Option<&Path>) -> Result<Expert
 /// The demonstrations of a run: `config.demo_episodes` episodes from `config.demo_source`,
 /// reset as [`demo_reset_seeds`] says, seeded by `seed`, each logged to `logger` when given.
 /// `expert` must be the loaded expert when the source is `expert` (load it first with
-/// [`load_expert`] to fail early).
+/// [`load_expert`] to fail early). The episodes run `config.env` over the task's layout
+/// (`ReacherTask::env_config`).
 pub fn make_demos(
     task: ReacherTask,
     config: &IrlRunConfig,
@@ -75,16 +76,17 @@ pub fn make_demos(
     seed: u64,
     logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, DemoError> {
-    let resets = demo_reset_seeds(&config.env, config.demo_cancel, config.demo_episodes, seed)?;
+    let env = (task.env_config(&config.env)).map_err(|e| DemoError::Run(e.to_string()))?;
+    let resets = demo_reset_seeds(&env, config.demo_cancel, config.demo_episodes, seed)?;
     match (config.demo_source, expert) {
         (DemoSource::Expert, Some(policy)) => {
-            generate_demos_from(policy, task, &config.env, &resets, seed, logger)
+            generate_demos_from(policy, task, &env, &resets, seed, logger)
                 .map_err(|e| DemoError::Run(e.to_string()))
         }
         (DemoSource::Expert, None) => Err(DemoError::Run(
             "demo_source is \"expert\" but no expert policy was loaded".into(),
         )),
-        (DemoSource::Scripted, _) => scripted_demos(task, &config.env, &resets, seed, logger),
+        (DemoSource::Scripted, _) => scripted_demos(task, &env, &resets, seed, logger),
     }
 }
 
