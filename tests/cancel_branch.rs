@@ -4,7 +4,7 @@
 //! (headline = the lower branch rate), replay names the branch, and bad cancel windows are
 //! refused with exit status 2.
 
-use smirl::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery, CANCEL_BIT};
+use smirl::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use smirl::env::ContinuousEnv;
 use smirl::pipeline::reacher_expert::{
@@ -15,6 +15,30 @@ use smirl::pipeline::reacher_irl::IrlRunConfig;
 use smirl::rl::sac::{episode_seed, ActMode};
 use smirl::rm::LabelSet;
 use std::process::Command;
+
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
 
 /// Label sets from letters of `rgbyc`, one string per step (`""` = no label).
 fn trace(steps: &[&str]) -> Vec<LabelSet> {
@@ -35,7 +59,7 @@ fn outcome(task: ReacherTask, steps: &[&str]) -> (Option<Branch>, bool) {
     let end = rm.run(&labels).last().map_or(rm.initial(), |&(u, _)| u);
     let success = rm.is_terminal(end) && !rm.is_failure(end);
     (
-        CancelBranch::of(&rm).map(|b| b.of_labels(&rm, labels)),
+        CancelBranch::of(&rm, layout().events()).map(|b| b.of_labels(&rm, labels)),
         success,
     )
 }
@@ -123,12 +147,12 @@ fn default_schedule_cancels_half_the_episodes_early() {
             latest_step: 8
         }
     );
-    let mut env = ReacherDelivery::new(config.clone()).unwrap();
-    let mut obs = vec![0.0f32; smirl::env::reacher::OBS_DIM];
+    let mut env = ReacherDelivery::new(shipped_config(config.clone())).unwrap();
+    let mut obs = vec![0.0f32; obs_dim()];
     let (mut scheduled, n) = (0, 1000u64);
     for i in 0..n {
         env.reset(episode_seed(0, i), &mut obs);
-        if let Some(t) = env.cancel_step() {
+        if let Some(t) = env.event_steps()[0] {
             assert!((1..=8).contains(&t), "{t}");
             scheduled += 1;
         }
@@ -137,14 +161,14 @@ fn default_schedule_cancels_half_the_episodes_early() {
     assert!((436..=564).contains(&scheduled), "{scheduled}");
 
     // The first schedule is still there for comparison: nothing fires before step 10.
-    let mut late = ReacherDelivery::new(ReacherConfig {
+    let mut late = ReacherDelivery::new(shipped_config(ReacherConfig {
         cancel: CancelConfig::LATE,
         ..ReacherConfig::default()
-    })
+    }))
     .unwrap();
     for i in 0..200 {
         late.reset(episode_seed(0, i), &mut obs);
-        if let Some(t) = late.cancel_step() {
+        if let Some(t) = late.event_steps()[0] {
             assert!((10..=60).contains(&t), "{t}");
         }
     }
@@ -183,15 +207,15 @@ fn committed_conditional_experts_take_and_solve_both_branches() {
 
 #[test]
 fn stratified_evaluation_seeds_give_each_branch_its_episodes() {
-    let mut env = ReacherDelivery::new(ReacherConfig::default()).unwrap();
+    let mut env = ReacherDelivery::new(shipped_config(ReacherConfig::default())).unwrap();
     let seeds = stratified_eval_seeds(&mut env, 42, 20);
     assert_eq!(seeds.len(), 40);
-    let mut obs = vec![0.0f32; smirl::env::reacher::OBS_DIM];
+    let mut obs = vec![0.0f32; obs_dim()];
     let with_cancel = seeds
         .iter()
         .filter(|&&s| {
             env.reset(s, &mut obs);
-            env.cancel_step().is_some()
+            env.event_steps()[0].is_some()
         })
         .count();
     assert_eq!(with_cancel, 20);
@@ -205,13 +229,13 @@ fn stratified_evaluation_seeds_give_each_branch_its_episodes() {
         "deterministic"
     );
     // A schedule that never cancels still gives 2 · 20 seeds.
-    let mut never = ReacherDelivery::new(ReacherConfig {
+    let mut never = ReacherDelivery::new(shipped_config(ReacherConfig {
         cancel: CancelConfig {
             probability: 0.0,
             ..CancelConfig::default()
         },
         ..ReacherConfig::default()
-    })
+    }))
     .unwrap();
     assert_eq!(stratified_eval_seeds(&mut never, 42, 20).len(), 40);
 }
@@ -293,12 +317,12 @@ fn quick_if_run_reports_each_branch() {
     let log = smirl::log::read_log(&out.join("logs/demos.mcap")).unwrap();
     let report = smirl::pipeline::replay::replay(&log).unwrap();
     let rm = ReacherTask::shipped("if").unwrap().perfect_rm().unwrap();
-    let branches = CancelBranch::of(&rm).unwrap();
+    let branches = CancelBranch::of(&rm, layout().events()).unwrap();
     for (ep, r) in log.episodes.iter().zip(&report.episodes) {
         let labels = ep.steps.iter().map(|s| LabelSet(s.labels));
         assert_eq!(r.branch, Some(branches.of_labels(&rm, labels)));
         let first = |bit: usize| ep.steps.iter().position(|s| s.labels & (1 << bit) != 0);
-        let cancel_first = match (first(CANCEL_BIT), first(2)) {
+        let cancel_first = match (first(layout().event_bit(0)), first(2)) {
             (Some(c), Some(b)) => c <= b,
             (Some(_), None) => true,
             _ => false,

@@ -1,9 +1,33 @@
 //! The product of ReacherDelivery with the tasks' reward machines, and sub-goal shaping.
 
 use smirl::env::product::{Potential, ProductEnv};
-use smirl::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery, OBS_DIM};
+use smirl::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
 use smirl::env::ContinuousEnv;
+
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
 
 fn ik(x: f64, y: f64) -> [f64; 2] {
     let (l1, l2) = (0.1, 0.11);
@@ -28,7 +52,7 @@ fn touch<P: Potential>(
     ball: usize,
     obs: &mut [f32],
 ) -> smirl::env::product::ProductStep {
-    let b = env.inner().balls()[ball];
+    let b = env.inner().positions()[ball];
     env.inner_mut().set_arm(ik(b[0], b[1]), [0.0, 0.0]).unwrap();
     env.step_product(&[0.0, 0.0], obs).unwrap()
 }
@@ -65,7 +89,7 @@ fn subgoals_follow_the_machines() {
     ];
     for (task, progress, distance) in cases {
         let rm = task.perfect_rm().unwrap();
-        let p = SubgoalPotential::from_rm(&rm);
+        let p = SubgoalPotential::from_rm(&rm, &layout());
         for u in 0..rm.n_states() {
             assert_eq!(p.progress_balls(u), progress[u], "{task} state {u}");
             assert_eq!(p.touches_to_goal(u), distance[u], "{task} state {u}");
@@ -83,10 +107,10 @@ fn sequential_task_runs_through_the_machine() {
     )
     .unwrap();
     let n_states = env.rm().n_states();
-    assert_eq!(env.obs_dim(), OBS_DIM + n_states);
+    assert_eq!(env.obs_dim(), obs_dim() + n_states);
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(0, &mut obs);
-    assert_eq!(&obs[OBS_DIM..], &[1.0, 0.0, 0.0, 0.0, 0.0]);
+    assert_eq!(&obs[obs_dim()..], &[1.0, 0.0, 0.0, 0.0, 0.0]);
     // Out of order: green first changes nothing.
     let s = touch(&mut env, 1, &mut obs);
     assert_eq!(
@@ -96,7 +120,7 @@ fn sequential_task_runs_through_the_machine() {
     for (k, ball) in [0usize, 1, 2].into_iter().enumerate() {
         let s = touch(&mut env, ball, &mut obs);
         assert_eq!(s.rm_state, k + 1);
-        assert_eq!(obs[OBS_DIM + k + 1], 1.0);
+        assert_eq!(obs[obs_dim() + k + 1], 1.0);
         assert!(!s.step.terminated && !s.success);
     }
     let s = touch(&mut env, 3, &mut obs);
@@ -130,7 +154,7 @@ fn if_task_fails_on_blue_after_cancel() {
 fn shaping_telescopes_and_rewards_progress() {
     // With gamma = 1 the shaping terms of an episode sum to Φ(last) − Φ(first).
     let mut env = task_env(ReacherTask::shipped("or").unwrap(), no_cancel(), 1.0, 1.0).unwrap();
-    let potential = SubgoalPotential::from_rm(env.rm());
+    let potential = SubgoalPotential::from_rm(env.rm(), &layout());
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(1, &mut obs);
     let phi0 = potential.potential(env.inner_obs(), 0);
@@ -177,7 +201,7 @@ fn six_step_or_product() -> ProductEnv<ReacherDelivery> {
     let mut config = no_cancel();
     config.max_steps = 6;
     config.cancel.latest_step = 6;
-    let inner = ReacherDelivery::new(config).unwrap();
+    let inner = ReacherDelivery::new(shipped_config(config)).unwrap();
     ProductEnv::new(
         inner,
         ReacherTask::shipped("or").unwrap().perfect_rm().unwrap(),

@@ -4,10 +4,33 @@
 
 mod irl_run_common;
 use irl_run_common::{metrics_column, tiny_config, tiny_rkl_blue_run};
-use smirl::env::reacher::OBS_DIM;
 use smirl::irl::firl::{Divergence, FirlSurrogate};
 use smirl::pipeline::reacher_irl::firl::{coefficients, DemonstrationDraw, IterationRatios, Loss};
 use smirl::pipeline::reacher_irl::{AgentBatch, Algo, DemoPadding, ExpertData, IrlRunConfig};
+
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
 
 const T: usize = 3;
 
@@ -15,7 +38,7 @@ const T: usize = 3;
 /// value per trajectory), so a row says where it came from.
 fn rows(n: usize, first: f32) -> Vec<f32> {
     (0..n)
-        .flat_map(|i| std::iter::repeat(first + i as f32).take(T * OBS_DIM))
+        .flat_map(|i| std::iter::repeat(first + i as f32).take(T * obs_dim()))
         .collect()
 }
 
@@ -50,7 +73,7 @@ fn drawn_demonstrations_join_the_covariance_batch() {
     let loss = Loss::FDivergence(Divergence::Rkl);
     let c = coefficients(loss, &expert(), &agent(), Some(&ratios()), &[1, 1, 0]).unwrap();
     // Rows: the agent's two trajectories, then demonstrations 1, 1 and 0.
-    let firsts: Vec<f32> = c.obs.chunks_exact(T * OBS_DIM).map(|t| t[0]).collect();
+    let firsts: Vec<f32> = c.obs.chunks_exact(T * obs_dim()).map(|t| t[0]).collect();
     assert_eq!(firsts, [0.0, 1.0, 101.0, 101.0, 100.0]);
     let u = [[0.5; T], [0.25; T], [4.0; T], [4.0; T], [8.0; T]].concat();
     let expected = FirlSurrogate::new(Divergence::Rkl, &u, 5, T).unwrap();

@@ -526,9 +526,9 @@ fn run(target: &str, c: &Corpus, i: u64) -> Result<(), String> {
             downstream(&log, &bytes, i)?;
         }
         "expert_data" => {
-            if let Ok(data) = ExpertData::from_bytes(&bytes) {
+            if let Ok(data) = ExpertData::from_bytes(&bytes, 17) {
                 let written = data.to_bytes();
-                let again = ExpertData::from_bytes(&written)
+                let again = ExpertData::from_bytes(&written, 17)
                     .map_err(|e| format!("written expert data does not read back: {e}"))?;
                 if again.to_bytes() != written {
                     return Err("expert data changes in a round trip".into());

@@ -80,8 +80,10 @@ fn replay_refuses_a_log_over_the_file_limit_before_reading_it() {
 fn a_log_that_decodes_past_the_memory_limit_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bomb.mcap");
-    let header = RunHeader::reacher_shipped(
+    let or = smirl::env::reacher_task::ReacherTask::shipped("or").unwrap();
+    let header = RunHeader::of_task(
         "or",
+        or.task(),
         0,
         serde_json::json!({"env": ReacherConfig::default()}),
     );
@@ -93,7 +95,7 @@ fn a_log_that_decodes_past_the_memory_limit_is_refused() {
         qpos: &zeros[..4],
         qvel: &zeros[..4],
         balls: &zeros[..8],
-        cancel_step: None,
+        event_steps: &[None],
         labels: LabelSet::EMPTY,
         rm_state: None,
         obs: &[],
@@ -184,7 +186,7 @@ fn a_prepared_run_with_damaged_files_is_refused_by_its_jobs() {
     // A learned-machine state outside the machine.
     let data_path = run.join("expert_data.bin");
     let original = std::fs::read(&data_path).unwrap();
-    let mut data = ExpertData::from_bytes(&original).unwrap();
+    let mut data = ExpertData::from_bytes(&original, 17).unwrap();
     assert!(!data.learned_states.is_empty());
     data.learned_states[3] = u32::MAX;
     std::fs::write(&data_path, data.to_bytes()).unwrap();

@@ -5,6 +5,30 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::irl::reward::*;
 
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
+
 const OBS: usize = 17;
 
 fn random_obs(rng: &mut ChaCha8Rng, n: usize) -> Vec<f32> {
@@ -207,7 +231,7 @@ fn mlp_reward_saves_loads_and_refuses_bad_input() {
 fn set_lr_changes_the_following_steps() {
     use smirl::irl::smirl::{FeatureMap, LinearRmReward};
     let mut model = LinearRmReward::new(
-        FeatureMap::reacher_labels(),
+        FeatureMap::reacher_labels(&layout()),
         1,
         RewardOptimConfig::adam(0.1),
     )

@@ -13,15 +13,39 @@ use smirl_reference::{
     feature_expectations, log_likelihood_surrogate, maxent_gradient, maxent_step,
 };
 
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
+
 /// A Reacher observation with the fingertip at the given offsets (dx, dy) from each ball
 /// and the cancel flag.
 fn obs_with(deltas: [[f32; 2]; 4], cancel: bool) -> Vec<f32> {
-    let mut o = vec![0.0f32; OBS_DIM];
+    let mut o = vec![0.0f32; obs_dim()];
     for (k, d) in deltas.iter().enumerate() {
         o[8 + 2 * k] = d[0];
         o[9 + 2 * k] = d[1];
     }
-    o[OBS_CANCEL] = if cancel { 1.0 } else { 0.0 };
+    o[layout().event_column(0)] = if cancel { 1.0 } else { 0.0 };
     o
 }
 
@@ -40,7 +64,7 @@ fn nothing() -> Vec<f32> {
 
 #[test]
 fn label_features_are_the_label_bits() {
-    let f = FeatureMap::reacher_labels();
+    let f = FeatureMap::reacher_labels(&layout());
     assert_eq!(f.len(), 5);
     let mut phi = vec![0.0; 5];
     f.features(&touching(2, true), &mut phi);
@@ -53,7 +77,7 @@ fn label_features_are_the_label_bits() {
     f.features(&obs_with([[0.0, -0.0199], FAR, FAR, FAR], false), &mut phi);
     assert_eq!(phi[0], 1.0);
     let labels = f.labels_of(&touching(1, true));
-    assert!(labels.contains(1) && labels.contains(CANCEL_BIT) && !labels.contains(0));
+    assert!(labels.contains(1) && labels.contains(layout().event_bit(0)) && !labels.contains(0));
 }
 
 /// Label entries: a label counts on the step it becomes true, read against the labels before
@@ -61,11 +85,13 @@ fn label_features_are_the_label_bits() {
 #[test]
 fn label_entry_features_count_a_label_on_the_step_it_becomes_true() {
     use smirl::rm::LabelSet;
-    let f = FeatureMap::reacher_label_entries();
-    assert_eq!((f.len(), f.obs_dim()), (5, OBS_DIM + 1));
-    assert!(f.reads_labels_before() && !FeatureMap::reacher_labels().reads_labels_before());
+    let f = FeatureMap::reacher_label_entries(&layout());
+    assert_eq!((f.len(), f.obs_dim()), (5, obs_dim() + 1));
+    assert!(
+        f.reads_labels_before() && !FeatureMap::reacher_labels(&layout()).reads_labels_before()
+    );
     let red = LabelSet::EMPTY.with(0);
-    let red_cancel = red.with(CANCEL_BIT);
+    let red_cancel = red.with(layout().event_bit(0));
     // (observation after the step, labels before it) -> features.
     let cases = [
         (
@@ -87,25 +113,28 @@ fn label_entry_features_count_a_label_on_the_step_it_becomes_true() {
     }
     let mut rows = Vec::new();
     f.step_rows(&obs, &before, &mut rows);
-    assert_eq!(rows.len(), cases.len() * (OBS_DIM + 1));
+    assert_eq!(rows.len(), cases.len() * (obs_dim() + 1));
     let mut phi = vec![0.0; 5];
-    for (row, (_, b, want)) in rows.chunks_exact(OBS_DIM + 1).zip(&cases) {
+    for (row, (_, b, want)) in rows.chunks_exact(obs_dim() + 1).zip(&cases) {
         f.features(row, &mut phi);
         assert_eq!(phi, want, "labels before {b:?}");
         // The labels themselves are read off the observation part as before.
         assert_eq!(
             f.labels_of(row),
-            FeatureMap::reacher_labels().labels_of(&row[..OBS_DIM])
+            FeatureMap::reacher_labels(&layout()).labels_of(&row[..obs_dim()])
         );
     }
     // A state feature map's rows are the observations themselves.
-    FeatureMap::reacher_labels().step_rows(&obs, &[], &mut rows);
+    FeatureMap::reacher_labels(&layout()).step_rows(&obs, &[], &mut rows);
     assert_eq!(rows, obs);
     // The kind and the column go together.
-    let entries_without_column = FeatureMap::new(FeatureKind::LabelEntries, ObsLayout::reacher());
+    let entries_without_column =
+        FeatureMap::new(FeatureKind::LabelEntries, ObsLayout::of(&layout()));
     assert!(entries_without_column.is_err());
-    let labels_with_column =
-        FeatureMap::new(FeatureKind::Labels, ObsLayout::reacher_with_labels_before());
+    let labels_with_column = FeatureMap::new(
+        FeatureKind::Labels,
+        ObsLayout::with_labels_before(&layout()),
+    );
     assert!(labels_with_column.is_err());
 }
 
@@ -124,7 +153,7 @@ fn staying_on_a_ball_pays_every_step_with_state_labels_and_once_with_entries() {
         let mut before = vec![LabelSet::EMPTY];
         for _ in 0..steps_on_red {
             obs.extend(touching(0, false));
-            before.push(features.labels_of(&obs[obs.len() - 2 * OBS_DIM..]));
+            before.push(features.labels_of(&obs[obs.len() - 2 * obs_dim()..]));
         }
         let mut rows = Vec::new();
         features.step_rows(&obs, &before, &mut rows);
@@ -136,10 +165,13 @@ fn staying_on_a_ball_pays_every_step_with_state_labels_and_once_with_entries() {
     };
     for k in [1, 2, 10] {
         assert_eq!(
-            episode_return(FeatureMap::reacher_labels(), k),
+            episode_return(FeatureMap::reacher_labels(&layout()), k),
             2.0 * k as f32
         );
-        assert_eq!(episode_return(FeatureMap::reacher_label_entries(), k), 2.0);
+        assert_eq!(
+            episode_return(FeatureMap::reacher_label_entries(&layout()), k),
+            2.0
+        );
     }
 }
 
@@ -150,7 +182,7 @@ fn label_entry_reward_saves_and_loads_and_old_files_still_load() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("entries.json");
     let mut model = LinearRmReward::new(
-        FeatureMap::reacher_label_entries(),
+        FeatureMap::reacher_label_entries(&layout()),
         2,
         RewardOptimConfig::sgd(0.1),
     )
@@ -159,24 +191,27 @@ fn label_entry_reward_saves_and_loads_and_old_files_still_load() {
     model.set_params(&w).unwrap();
     model.save(&path).unwrap();
     let back = LinearRmReward::load(&path, RewardOptimConfig::sgd(0.1)).unwrap();
-    assert_eq!(back.features(), &FeatureMap::reacher_label_entries());
+    assert_eq!(
+        back.features(),
+        &FeatureMap::reacher_label_entries(&layout())
+    );
     assert_eq!(back.params(), w);
 
     let old = dir.path().join("old.json");
-    let layout = r#"{"obs_dim": 17, "ball_deltas": [[8, 9], [10, 11], [12, 13], [14, 15]],
+    let old_layout = r#"{"obs_dim": 17, "ball_deltas": [[8, 9], [10, 11], [12, 13], [14, 15]],
         "cancel": 16, "touch_radius": 0.02}"#;
     let text = format!(
         r#"{{"format": "smirl-linear-rm-reward/1", "features": {{"kind": {{"kind": "labels"}},
-        "layout": {layout}}}, "n_states": 1, "weights": [[1.0, 0.0, 0.0, 0.0, 0.0]]}}"#
+        "layout": {old_layout}}}, "n_states": 1, "weights": [[1.0, 0.0, 0.0, 0.0, 0.0]]}}"#
     );
     std::fs::write(&old, text).unwrap();
     let back = LinearRmReward::load(&old, RewardOptimConfig::sgd(0.1)).unwrap();
-    assert_eq!(back.features(), &FeatureMap::reacher_labels());
+    assert_eq!(back.features(), &FeatureMap::reacher_labels(&layout()));
     // A file that claims entries without the column is refused, naming the file.
     let bad = dir.path().join("bad.json");
     let text = format!(
         r#"{{"format": "smirl-linear-rm-reward/1", "features": {{"kind": {{"kind": "label_entries"}},
-        "layout": {layout}}}, "n_states": 1, "weights": [[1.0, 0.0, 0.0, 0.0, 0.0]]}}"#
+        "layout": {old_layout}}}, "n_states": 1, "weights": [[1.0, 0.0, 0.0, 0.0, 0.0]]}}"#
     );
     std::fs::write(&bad, text).unwrap();
     let err = LinearRmReward::load(&bad, RewardOptimConfig::sgd(0.1))
@@ -192,7 +227,7 @@ fn label_entry_reward_saves_and_loads_and_old_files_still_load() {
 #[test]
 fn smooth_features_are_gaussian_bumps_in_distance() {
     let sigma = 0.05;
-    let f = FeatureMap::reacher_smooth(sigma).unwrap();
+    let f = FeatureMap::reacher_smooth(&layout(), sigma).unwrap();
     let mut phi = vec![0.0; 5];
     f.features(
         &obs_with([[0.03, 0.04], [0.0, 0.0], FAR, FAR], true),
@@ -205,8 +240,8 @@ fn smooth_features_are_gaussian_bumps_in_distance() {
     let far = 2.0 * f64::from(0.1f32).powi(2);
     assert!((phi[2] - expect(far)).abs() < 1e-12);
     assert_eq!(phi[4], 1.0);
-    assert!(FeatureMap::reacher_smooth(0.0).is_err());
-    assert!(FeatureMap::reacher_smooth(f64::NAN).is_err());
+    assert!(FeatureMap::reacher_smooth(&layout(), 0.0).is_err());
+    assert!(FeatureMap::reacher_smooth(&layout(), f64::NAN).is_err());
 }
 
 #[test]
@@ -221,14 +256,14 @@ fn label_features_agree_with_the_environment_labelling_function() {
         },
         ..ReacherConfig::default()
     };
-    let mut env = ReacherDelivery::new(config).unwrap();
-    let f = FeatureMap::reacher_labels();
-    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut env = ReacherDelivery::new(shipped_config(config)).unwrap();
+    let f = FeatureMap::reacher_labels(&layout());
+    let mut obs = vec![0.0f32; obs_dim()];
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let (mut touches, mut cancels, mut steps) = (0, 0, 0);
     for episode in 0..40u64 {
         env.reset(episode, &mut obs);
-        let ball = DEFAULT_LAYOUT[episode as usize % 4];
+        let ball = layout().positions()[episode as usize % 4];
         for _ in 0..6 {
             let (r, a) = (rng.gen_range(0.0..0.03), rng.gen_range(0.0..6.3f64));
             let angles = inverse_kinematics(ball[0] + r * a.cos(), ball[1] + r * a.sin());
@@ -236,7 +271,7 @@ fn label_features_agree_with_the_environment_labelling_function() {
             let step = env.step(&[0.0, 0.0], &mut obs).unwrap();
             assert_eq!(f.labels_of(&obs), step.labels, "episode {episode}");
             touches += usize::from(step.labels.0 & 0xf != 0);
-            cancels += usize::from(step.labels.contains(CANCEL_BIT));
+            cancels += usize::from(step.labels.contains(layout().event_bit(0)));
             steps += 1;
         }
     }
@@ -312,7 +347,7 @@ fn agent_batch() -> Batch {
 
 #[test]
 fn maxent_gradient_is_expert_minus_agent_feature_expectation() {
-    let f = FeatureMap::reacher_labels();
+    let f = FeatureMap::reacher_labels(&layout());
     let (e, a) = (expert_batch(), agent_batch());
     let mu_d = feature_expectations(&f, 2, &e.view()).unwrap();
     // Expert, per trajectory then averaged over the 2 trajectories:
@@ -353,8 +388,12 @@ fn maxent_gradient_is_expert_minus_agent_feature_expectation() {
         assert!((f64::from(*w) - 0.1 * g).abs() < 1e-6);
     }
     // And the IRL loop's step (coefficients, backward, optimiser step) is the same step.
-    let mut m2 =
-        LinearRmReward::new(FeatureMap::reacher_labels(), 2, RewardOptimConfig::sgd(0.1)).unwrap();
+    let mut m2 = LinearRmReward::new(
+        FeatureMap::reacher_labels(&layout()),
+        2,
+        RewardOptimConfig::sgd(0.1),
+    )
+    .unwrap();
     maxent_step(&mut m2, &e.view(), &a.view()).unwrap();
     assert_eq!(m2.params(), model.params());
 }
@@ -362,7 +401,7 @@ fn maxent_gradient_is_expert_minus_agent_feature_expectation() {
 #[test]
 fn log_likelihood_surrogate_has_the_maxent_gradient() {
     // Smooth features so every weight matters; random weights, L2 on.
-    let f = FeatureMap::reacher_smooth(0.05).unwrap();
+    let f = FeatureMap::reacher_smooth(&layout(), 0.05).unwrap();
     let (e, a) = (expert_batch(), agent_batch());
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     let w: Vec<f64> = (0..10).map(|_| rng.gen_range(-1.0..1.0)).collect();
@@ -386,7 +425,7 @@ fn log_likelihood_surrogate_has_the_maxent_gradient() {
 
 #[test]
 fn linear_reward_is_w_u_dot_phi_and_its_gradient_checks() {
-    let f = FeatureMap::reacher_smooth(0.05).unwrap();
+    let f = FeatureMap::reacher_smooth(&layout(), 0.05).unwrap();
     let mut model = LinearRmReward::new(f.clone(), 3, RewardOptimConfig::adam(0.01)).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(8);
     let w: Vec<f32> = (0..15).map(|_| rng.gen_range(-1.0..1.0)).collect();
@@ -444,7 +483,7 @@ fn linear_reward_saves_and_loads() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("reward.json");
     let mut model = LinearRmReward::new(
-        FeatureMap::reacher_smooth(0.04).unwrap(),
+        FeatureMap::reacher_smooth(&layout(), 0.04).unwrap(),
         2,
         RewardOptimConfig::sgd(0.1),
     )
@@ -546,7 +585,7 @@ fn shared_visit_coefficients_leave_states_the_agent_never_reaches_alone() {
 
 #[test]
 fn learned_subgoal_potential_pulls_towards_the_best_paid_balls_of_each_state() {
-    let f = FeatureMap::reacher_labels();
+    let f = FeatureMap::reacher_labels(&layout());
     // State 0: red 2.0 and green 1.5 attract (≥ ½ of the best), blue 0.5 does not, the
     // cancel weight (3.0) is not a place. State 1: no positive ball weight, no pull.
     #[rustfmt::skip]
@@ -587,7 +626,7 @@ fn learned_subgoal_potential_pulls_towards_the_best_paid_balls_of_each_state() {
 
 #[test]
 fn learned_subgoal_potential_rejects_bad_weights_and_strengths() {
-    let f = FeatureMap::reacher_labels();
+    let f = FeatureMap::reacher_labels(&layout());
     assert!(matches!(
         LearnedSubgoalPotential::from_weights(&f, 2, &[0.0; 9], 1.0),
         Err(RewardError::Length { .. })

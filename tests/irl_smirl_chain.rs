@@ -5,18 +5,42 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use smirl::env::reacher::{DEFAULT_LAYOUT, OBS_DIM};
+
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::*;
+
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
 
 mod smirl_reference;
 
 /// A Reacher observation row with the fingertip at `tip` (only what the features read).
 fn obs_at(tip: [f32; 2]) -> Vec<f32> {
-    let mut o = vec![0.0f32; OBS_DIM];
+    let mut o = vec![0.0f32; obs_dim()];
     o[6] = tip[0];
     o[7] = tip[1];
-    for (k, b) in DEFAULT_LAYOUT.iter().enumerate() {
+    for (k, b) in layout().positions().iter().enumerate() {
         o[8 + 2 * k] = tip[0] - b[0] as f32;
         o[9 + 2 * k] = tip[1] - b[1] as f32;
     }
@@ -35,7 +59,7 @@ fn grid_obs() -> Vec<f32> {
 
 /// Agent's distribution over the grid in RM state u: softmax of the reward.
 fn policy(model: &mut LinearRmReward, grid: &[f32], u: u32) -> Vec<f64> {
-    let n = grid.len() / OBS_DIM;
+    let n = grid.len() / obs_dim();
     let mut r = vec![0.0f32; n];
     model.reward_batch(grid, &vec![u; n], &mut r).unwrap();
     let m = r.iter().fold(f32::MIN, |a, &b| a.max(b));
@@ -57,9 +81,9 @@ fn draw(p: &[f64], rng: &mut ChaCha8Rng) -> usize {
 
 /// Mass the policy puts where ball `k` is touched.
 fn touch_mass(p: &[f64], grid: &[f32], k: usize) -> f64 {
-    let f = FeatureMap::reacher_labels();
+    let f = FeatureMap::reacher_labels(&layout());
     p.iter()
-        .zip(grid.chunks(OBS_DIM))
+        .zip(grid.chunks(obs_dim()))
         .filter(|(_, o)| f.labels_of(o).contains(k))
         .map(|(p, _)| p)
         .sum()
@@ -69,7 +93,7 @@ fn run(features: FeatureMap) -> [f64; 2] {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let grid = grid_obs();
     // Expert trajectories: (touch red, u0), (touch blue, u1).
-    let (red, blue) = (DEFAULT_LAYOUT[0], DEFAULT_LAYOUT[2]);
+    let (red, blue) = (layout().positions()[0], layout().positions()[2]);
     let mut e_obs = Vec::new();
     let mut e_rm = Vec::new();
     for _ in 0..16 {
@@ -89,7 +113,7 @@ fn run(features: FeatureMap) -> [f64; 2] {
         for _ in 0..n {
             for u in 0..2u32 {
                 let s = draw(&p[u as usize], &mut rng);
-                a_obs.extend_from_slice(&grid[s * OBS_DIM..(s + 1) * OBS_DIM]);
+                a_obs.extend_from_slice(&grid[s * obs_dim()..(s + 1) * obs_dim()]);
                 a_rm.push(u);
             }
         }
@@ -115,13 +139,13 @@ fn run(features: FeatureMap) -> [f64; 2] {
 #[test]
 fn smirl_learns_which_ball_to_touch_in_each_rm_state() {
     let grid = grid_obs();
-    let n = grid.len() / OBS_DIM;
+    let n = grid.len() / obs_dim();
     let uniform = vec![1.0 / n as f64; n];
     let start = touch_mass(&uniform, &grid, 0);
     assert!(start < 0.01, "{start}");
     for features in [
-        FeatureMap::reacher_labels(),
-        FeatureMap::reacher_smooth(0.05).unwrap(),
+        FeatureMap::reacher_labels(&layout()),
+        FeatureMap::reacher_smooth(&layout(), 0.05).unwrap(),
     ] {
         let kind = features.kind;
         let [red_in_u0, blue_in_u1] = run(features);

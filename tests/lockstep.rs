@@ -5,7 +5,7 @@
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::smirl::FeatureMap;
 use smirl::log::{LogOptions, RolloutLogger, RunHeader};
@@ -17,20 +17,44 @@ use smirl::pipeline::reacher_irl::lockstep::{play_lockstep, Keep, Lockstep, Play
 use smirl::rl::sac::{draw_noise, episode_seed, ActMode, SacAgent, SacConfig};
 use std::path::Path;
 
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
+
 /// An actor column computed in a batch of 300 has the bits of the same column computed alone,
 /// for the networks SAC uses ((64, 64) and (256, 256) hidden layers).
 #[test]
 fn batched_forward_has_each_columns_bits() {
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     for hidden in [[64, 64], [256, 256]] {
-        let mlp = Mlp::new(&MlpArch::new(OBS_DIM, &hidden, 2 * ACT_DIM), &mut rng);
+        let mlp = Mlp::new(&MlpArch::new(obs_dim(), &hidden, 2 * ACT_DIM), &mut rng);
         let n = 300;
-        let x = DMatrix::from_fn(OBS_DIM, n, |_, _| rng.gen_range(-2.0f32..2.0));
+        let x = DMatrix::from_fn(obs_dim(), n, |_, _| rng.gen_range(-2.0f32..2.0));
         let mut ws = mlp.workspace(n);
         let batched = mlp.forward(&x, &mut ws).clone();
         let mut one = mlp.workspace(1);
         for j in 0..n {
-            let col = DMatrix::from_column_slice(OBS_DIM, 1, x.column(j).as_slice());
+            let col = DMatrix::from_column_slice(obs_dim(), 1, x.column(j).as_slice());
             let alone = mlp.forward(&col, &mut one);
             for i in 0..2 * ACT_DIM {
                 assert_eq!(
@@ -45,15 +69,22 @@ fn batched_forward_has_each_columns_bits() {
 
 fn agent(seed: u64) -> SacAgent {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    SacAgent::new(&SacConfig::default(), OBS_DIM, ACT_DIM, &mut rng)
+    SacAgent::new(&SacConfig::default(), obs_dim(), ACT_DIM, &mut rng)
 }
 
 fn env() -> ReacherDelivery {
-    ReacherDelivery::new(ReacherConfig::default()).unwrap()
+    ReacherDelivery::new(shipped_config(ReacherConfig::default())).unwrap()
 }
 
 fn logger(path: &Path) -> RolloutLogger {
-    let header = RunHeader::reacher_shipped("composite", 0, serde_json::json!({"test": true}));
+    let header = RunHeader::of_task(
+        "composite",
+        smirl::env::reacher_task::ReacherTask::shipped("composite")
+            .unwrap()
+            .task(),
+        0,
+        serde_json::json!({"test": true}),
+    );
     RolloutLogger::create(path, header, LogOptions::default()).unwrap()
 }
 
@@ -80,7 +111,7 @@ fn one_at_a_time(
     let mut env = env();
     let mut rng = ChaCha8Rng::seed_from_u64(99);
     let mut log = logger(log_path);
-    let labelling = FeatureMap::reacher_labels();
+    let labelling = FeatureMap::reacher_labels(&layout());
     let mut batch = AgentBatch::default();
     let mut outcomes = Vec::new();
     for &spec in specs {
@@ -188,7 +219,7 @@ fn lockstep_play_is_one_at_a_time_play() {
         .unwrap()
         .perfect_rm()
         .unwrap();
-    let task = GroundTruthTask::of(&rm);
+    let task = GroundTruthTask::of(&rm, &layout());
     for (mode, decided, n) in [(ActMode::Sample, false, 300), (ActMode::Mean, true, 40)] {
         let specs = specs(n, mode, decided);
         let reference_log = dir.path().join(format!("{mode:?}-reference.mcap"));
@@ -218,7 +249,7 @@ fn lockstep_play_is_one_at_a_time_play() {
 #[test]
 fn lockstep_sampling_needs_the_whole_noise() {
     let rm = ReacherTask::shipped("or").unwrap().perfect_rm().unwrap();
-    let task = GroundTruthTask::of(&rm);
+    let task = GroundTruthTask::of(&rm, &layout());
     let specs = specs(3, ActMode::Sample, false);
     let agent = agent(1);
     let noise = vec![0.0f32; 3 * 100 * ACT_DIM - 1];

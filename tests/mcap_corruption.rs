@@ -127,7 +127,8 @@ fn a_truncated_log_is_used_only_with_allow_partial() {
 fn a_log_without_episodes_does_not_verify() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("empty.mcap");
-    let header = RunHeader::reacher_shipped("or", 0, serde_json::json!({}));
+    let or = smirl::env::reacher_task::ReacherTask::shipped("or").unwrap();
+    let header = RunHeader::of_task("or", or.task(), 0, serde_json::json!({}));
     RolloutLogger::create(&path, header, LogOptions::default())
         .unwrap()
         .finish()

@@ -2,16 +2,40 @@
 //! messages decode with the official schemas (the `foxglove` crate's types, i.e. the field
 //! names `entities`, `spheres`, `cylinders`, `pose`, `position`, …), and whose geometry agrees
 //! with the log (balls at the logged layout, a lit touch zone exactly when a label says the
-//! fingertip touches that ball, "cancel" on the cancel step).
+//! fingertip touches that ball, the event letter "c" on the cancel step).
 
 use foxglove::schemas::{FrameTransforms, SceneUpdate};
 use foxglove::Decode;
-use smirl::env::reacher::{ReacherConfig, CANCEL_BIT, TOUCH_RADIUS};
+use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::schema::StepMsg;
 use smirl::log::{read_log, LogOptions};
 use smirl::pipeline::foxglove_scene::{export_scene, FRAME_WORLD, TOPIC_SCENE, TOPIC_TF};
 use std::process::Command;
+
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
 
 #[test]
 fn the_scene_decodes_with_the_official_schemas_and_matches_the_log() {
@@ -108,11 +132,14 @@ fn the_scene_decodes_with_the_official_schemas_and_matches_the_log() {
                 assert_eq!(events.spheres.len(), touched.len());
                 for &k in &touched {
                     let d = ((tip.x - balls[k][0]).powi(2) + (tip.y - balls[k][1]).powi(2)).sqrt();
-                    assert!(d < TOUCH_RADIUS + 1e-9, "ball {k}: fingertip {d} m away");
+                    assert!(
+                        d < layout().regions[0].radius + 1e-9,
+                        "ball {k}: fingertip {d} m away"
+                    );
                     touches += 1;
                 }
-                let cancel = step.labels >> CANCEL_BIT & 1 == 1;
-                assert_eq!(events.texts.iter().any(|t| t.text == "cancel"), cancel);
+                let cancel = step.labels >> layout().event_bit(0) & 1 == 1;
+                assert_eq!(events.texts.iter().any(|t| t.text == "c"), cancel);
                 cancels += usize::from(cancel);
             }
             _ => {}

@@ -17,8 +17,10 @@ fn shipped_xml() -> std::path::PathBuf {
 }
 
 fn header() -> RunHeader {
-    let mut h = RunHeader::reacher_shipped(
+    let sequential = smirl::env::reacher_task::ReacherTask::shipped("sequential").unwrap();
+    let mut h = RunHeader::of_task(
         "sequential",
+        sequential.task(),
         42,
         serde_json::json!({"env": ReacherConfig::default(), "note": "round trip"}),
     );
@@ -58,7 +60,7 @@ fn every_message_type_round_trips() {
             qpos: &qpos0,
             qvel: &qvel0,
             balls: &balls,
-            cancel_step: Some(37),
+            event_steps: &[Some(37)],
             labels: LabelSet(0b1),
             rm_state: Some(0),
             obs: &obs,
@@ -99,7 +101,7 @@ fn every_message_type_round_trips() {
         qpos: &qpos0,
         qvel: &qvel0,
         balls: &balls,
-        cancel_step: None,
+        event_steps: &[None],
         labels: LabelSet::EMPTY,
         rm_state: None,
         obs: &obs,
@@ -249,7 +251,7 @@ fn every_nth_episode_and_drop_finish_the_file() {
             qpos: &[0.0; 10],
             qvel: &[0.0; 10],
             balls: &[0.0; 8],
-            cancel_step: None,
+            event_steps: &[None],
             labels: LabelSet::EMPTY,
             rm_state: None,
             obs: &[],

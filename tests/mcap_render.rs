@@ -62,7 +62,7 @@ fn logged_episode_renders_to_a_png_with_its_balls_touches_and_cancel() {
     assert!(order.starts_with('r'), "{order}");
     let cancel = log.episodes[1].start.cancel_step as usize;
     if cancel <= pic.steps {
-        assert_eq!(pic.cancel_step, Some(cancel));
+        assert_eq!(pic.event_step, Some(cancel));
     }
 
     let out = dir.path().join("ep1.png");

@@ -12,7 +12,7 @@
 //!   while the evaluation changes.
 
 use smirl::env::product::ProductEnv;
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, OBS_CANCEL, OBS_DIM};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_controller::{ControllerGains, ScriptedController};
 use smirl::env::ContinuousEnv;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
@@ -26,6 +26,30 @@ use smirl::rl::replay::ReplayBatch;
 use smirl::rl::sac::RewardFn;
 use smirl::rm::format::parse_rm;
 use smirl::rm::{LabelSet, RewardMachine};
+
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
 
 const RED: usize = 0;
 const GREEN: usize = 1;
@@ -46,8 +70,8 @@ fn labels(props: &[usize]) -> LabelSet {
 /// An observation row whose labels are `l`: the fingertip 7 mm from every ball of `l` and
 /// 0.5 m from the others, the cancel flag as `l` says.
 fn row_of(l: LabelSet) -> Vec<f32> {
-    let mut r = vec![0.5f32; OBS_DIM];
-    r[OBS_CANCEL] = if l.contains(CANCEL) { 1.0 } else { 0.0 };
+    let mut r = vec![0.5f32; obs_dim()];
+    r[layout().event_column(0)] = if l.contains(CANCEL) { 1.0 } else { 0.0 };
     for b in 0..4 {
         if l.contains(b) {
             r[8 + 2 * b] = 0.005;
@@ -94,7 +118,7 @@ const SHAPING_WEIGHTS: [f32; 3 * K] = [
 /// Φ(u, o) by hand for [`SHAPING_WEIGHTS`] with strength β: −β · (state's largest ball weight)
 /// · (distance to its attracting ball).
 fn potential_by_hand(row: &[f32], beta: f64) -> f64 {
-    let u = (0..3).find(|&u| row[OBS_DIM + u] == 1.0).unwrap();
+    let u = (0..3).find(|&u| row[obs_dim() + u] == 1.0).unwrap();
     let dist = |b: usize| f64::from(row[8 + 2 * b]).hypot(f64::from(row[9 + 2 * b]));
     match u {
         0 => -beta * 1.0 * dist(BLUE),
@@ -107,7 +131,7 @@ fn potential_by_hand(row: &[f32], beta: f64) -> f64 {
 /// driven by the scripted controller to blue then red: every transition (o, o', terminated).
 fn recorded_episode(machine_text: &str, reset_seed: u64) -> Vec<(Vec<f32>, Vec<f32>, bool)> {
     let config = ReacherConfig::default();
-    let inner = ReacherDelivery::new(config.clone()).unwrap();
+    let inner = ReacherDelivery::new(shipped_config(config.clone())).unwrap();
     let mut env = ProductEnv::new(inner, machine(machine_text)).with_clock(config.max_steps);
     let d = env.obs_dim();
     let (mut obs, mut next) = (vec![0.0f32; d], vec![0.0f32; d]);
@@ -115,7 +139,7 @@ fn recorded_episode(machine_text: &str, reset_seed: u64) -> Vec<(Vec<f32>, Vec<f
     let mut controller = ScriptedController::sequence(&[BLUE, RED], ControllerGains::default());
     let mut steps = Vec::new();
     loop {
-        let action = controller.act(&obs[..OBS_DIM], env.inner().labels(), None);
+        let action = controller.act(&obs[..obs_dim()], env.inner().labels(), None);
         let step = env.step(&action, &mut next).unwrap();
         steps.push((obs.clone(), next.clone(), step.terminated));
         std::mem::swap(&mut obs, &mut next);
@@ -139,7 +163,7 @@ fn batch_of(steps: &[(Vec<f32>, Vec<f32>, bool)]) -> ReplayBatch {
 
 /// SMIRL's SAC reward of every transition, unshaped and shaped with strength β and discount γ.
 fn product_rewards(batch: &ReplayBatch, beta: f64, gamma: f64) -> (Vec<f32>, Vec<f32>) {
-    let features = FeatureMap::reacher_labels();
+    let features = FeatureMap::reacher_labels(&layout());
     let mut model = LinearRmReward::new(features.clone(), 3, RewardOptimConfig::adam(0.1)).unwrap();
     model.set_params(&SHAPING_WEIGHTS).unwrap();
     let potential =
@@ -181,7 +205,7 @@ fn shaping_telescopes_along_a_recorded_episode_and_pulls_towards_the_paid_ball()
         let last = steps.last().unwrap();
         assert_eq!(last.2, ends_at_goal, "the episode ends as the machine says");
         // The controller visits blue, then red: the episode passes through every state.
-        let state_of = |row: &[f32]| (0..3).find(|&u| row[OBS_DIM + u] == 1.0).unwrap();
+        let state_of = |row: &[f32]| (0..3).find(|&u| row[obs_dim() + u] == 1.0).unwrap();
         assert_eq!(
             state_of(&last.1),
             2,
@@ -280,7 +304,7 @@ struct Recorded {
 
 fn record(m: &RewardMachine, episodes: &[Vec<LabelSet>]) -> Recorded {
     let mut model = LinearRmReward::new(
-        FeatureMap::reacher_labels(),
+        FeatureMap::reacher_labels(&layout()),
         m.n_states(),
         RewardOptimConfig::adam(0.1),
     )
@@ -347,9 +371,10 @@ fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cance
         expert.learned_states.extend(states_along(&m, d));
         expert.lengths.push(d.len());
     }
-    let settings = IrlRunConfig::standard();
+    let mut settings = IrlRunConfig::standard();
+    settings.env = shipped_config(settings.env);
     assert!(settings.smirl_selection_cut && settings.smirl_selection_cut_entries);
-    let seen = seen_after_events(&m, &expert, &settings);
+    let seen = seen_after_events(&m, &expert, &settings).unwrap();
     assert_eq!(
         seen.in_state(1),
         r,
@@ -488,7 +513,7 @@ fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
         }
         agent.lengths.push(t.len());
     }
-    let features = FeatureMap::reacher_labels();
+    let features = FeatureMap::reacher_labels(&layout());
     let normalisation = IrlRunConfig::standard().smirl_normalisation;
     assert_eq!(normalisation, SmirlNormalisation::EventGatedVisits);
     let got = coefficients(&features, &expert, &agent, normalisation, &m);

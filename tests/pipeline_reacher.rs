@@ -4,7 +4,6 @@
 
 mod irl_run_common;
 use irl_run_common::{metrics_column, tiny_config, tiny_rkl_blue_run};
-use smirl::env::reacher::OBS_DIM;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::{AnnotatedTrajectories, FeatureMap, LinearRmReward, SmirlNormalisation};
@@ -17,9 +16,33 @@ use smirl_reference::maxent_gradient;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
+
 /// An observation row whose fingertip touches ball `ball` (or none), cancel flag off.
 fn row(ball: Option<usize>) -> Vec<f32> {
-    let mut r = vec![0.5f32; OBS_DIM];
+    let mut r = vec![0.5f32; obs_dim()];
     r[16] = 0.0;
     if let Some(b) = ball {
         r[8 + 2 * b] = 0.005;
@@ -51,7 +74,7 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     }
     agent.labels_before = vec![smirl::rm::LabelSet::EMPTY; 3];
     let c = smirl::pipeline::reacher_irl::smirl::coefficients(
-        &FeatureMap::reacher_labels(),
+        &FeatureMap::reacher_labels(&layout()),
         &expert,
         &agent,
         SmirlNormalisation::Trajectories,
@@ -61,13 +84,13 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
         .unwrap(),
     );
     let mut model = LinearRmReward::new(
-        FeatureMap::reacher_labels(),
+        FeatureMap::reacher_labels(&layout()),
         2,
         RewardOptimConfig::adam(0.1),
     )
     .unwrap();
     model.backward(&c.obs, &c.states, &c.coeffs).unwrap();
-    let features = FeatureMap::reacher_labels();
+    let features = FeatureMap::reacher_labels(&layout());
     let ascent = maxent_gradient(
         &features,
         2,
@@ -478,20 +501,20 @@ fn smirl_label_features_key_reads_old_configs_as_state_labels() {
     assert_eq!(without.smirl_label_features, LabelFeatures::State);
     assert_eq!(
         Features::Labels.map(&without).unwrap(),
-        FeatureMap::reacher_labels()
+        FeatureMap::reacher_labels(&layout())
     );
     let entries = text.replace(&line, "smirl_label_features = \"entries\"");
     let c = IrlRunConfig::from_toml(&entries, "c.toml").unwrap();
     assert_eq!(c.smirl_label_features, LabelFeatures::Entries);
     assert_eq!(
         Features::Labels.map(&c).unwrap(),
-        FeatureMap::reacher_label_entries()
+        FeatureMap::reacher_label_entries(&layout())
     );
     assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
     // smirl-smooth reads its smooth features either way.
     assert_eq!(
         Features::Smooth.map(&c).unwrap(),
-        FeatureMap::reacher_smooth(c.smooth_sigma).unwrap()
+        FeatureMap::reacher_smooth(&layout(), c.smooth_sigma).unwrap()
     );
     let bad = text.replace(&line, "smirl_label_features = \"edges\"");
     assert_config_error_names(&bad, "edges");
@@ -727,14 +750,14 @@ fn annotate_holds_the_final_state_to_the_horizon() {
         next[4] = 0.3;
         next[5] = -0.2;
         next[16] = f32::from(u8::from(cancel));
-        let mut labels = FeatureMap::reacher_labels().labels_of(&next);
+        let mut labels = FeatureMap::reacher_labels(&layout()).labels_of(&next);
         if cancel {
             labels = labels.with(4);
         }
         DemoStep {
-            obs: [0.0; OBS_DIM],
+            obs: vec![0.0; obs_dim()],
             action: [0.0; 2],
-            next_obs: next.try_into().unwrap(),
+            next_obs: next,
             labels,
             rm_state: 0,
             env_reward: 0.0,
@@ -743,10 +766,10 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     };
     // Each step starts where the one before ended; the first from an untouched observation.
     let mut steps = vec![step(None, false), step(Some(0), false), step(Some(2), true)];
-    let mut before: [f32; OBS_DIM] = row(None).try_into().unwrap();
+    let mut before: Vec<f32> = row(None);
     for s in &mut steps {
         s.obs = before;
-        before = s.next_obs;
+        before = s.next_obs.clone();
     }
     let demo = Demo {
         seed: 0,
@@ -757,7 +780,7 @@ fn annotate_holds_the_final_state_to_the_horizon() {
         task_return: 1.0,
         env_return: 0.0,
     };
-    let plain = annotate(std::slice::from_ref(&demo), Some(&rm), None);
+    let plain = annotate(&layout(), std::slice::from_ref(&demo), Some(&rm), None);
     assert_eq!(plain.lengths, vec![3]);
     assert_eq!(plain.learned_states, vec![0, 0, 1]);
     // The labels before each step: the first step's observation (here nothing touched), then
@@ -768,7 +791,7 @@ fn annotate_holds_the_final_state_to_the_horizon() {
         vec![labels(""), labels(""), labels("r")]
     );
 
-    let held = annotate(std::slice::from_ref(&demo), Some(&rm), Some(6));
+    let held = annotate(&layout(), std::slice::from_ref(&demo), Some(&rm), Some(6));
     assert_eq!(held.lengths, vec![6]);
     // The last recorded step touched blue with the cancel; the held steps stay on blue.
     let after_blue = vec![
@@ -782,20 +805,20 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     assert_eq!(held.labels_before, after_blue);
     // After the final (blue) step the machine is in u2, where the held blue touch is read.
     assert_eq!(held.learned_states, vec![0, 0, 1, 2, 2, 2]);
-    assert_eq!(&held.obs[..3 * OBS_DIM], &plain.obs[..]);
-    let last = &plain.obs[2 * OBS_DIM..];
+    assert_eq!(&held.obs[..3 * obs_dim()], &plain.obs[..]);
+    let last = &plain.obs[2 * obs_dim()..];
     for t in 3..6 {
-        let r = &held.obs[t * OBS_DIM..(t + 1) * OBS_DIM];
+        let r = &held.obs[t * obs_dim()..(t + 1) * obs_dim()];
         assert_eq!((r[4], r[5], r[16]), (0.0, 0.0, 0.0), "held step {t}");
         assert_eq!(&r[..4], &last[..4]);
         assert_eq!(&r[6..16], &last[6..16]);
         assert_eq!(
-            FeatureMap::reacher_labels().labels_of(r),
+            FeatureMap::reacher_labels(&layout()).labels_of(r),
             vocab.parse_labels("b").unwrap()
         );
     }
     // A demonstration already at the horizon is not extended.
-    let full = annotate(std::slice::from_ref(&demo), Some(&rm), Some(2));
+    let full = annotate(&layout(), std::slice::from_ref(&demo), Some(&rm), Some(2));
     assert_eq!(full.lengths, vec![3]);
 }
 
@@ -805,23 +828,23 @@ fn annotate_holds_the_final_state_to_the_horizon() {
 fn expert_data_round_trips_and_checks_its_arrays() {
     use smirl::rm::LabelSet;
     let mut data = ExpertData {
-        obs: (0..3 * OBS_DIM).map(|i| i as f32 * 0.01).collect(),
+        obs: (0..3 * obs_dim()).map(|i| i as f32 * 0.01).collect(),
         labels_before: vec![LabelSet::EMPTY, LabelSet(1), LabelSet(0b10001)],
         lengths: vec![2, 1],
         learned_states: vec![0, 1, 0],
     };
-    let back = ExpertData::from_bytes(&data.to_bytes()).unwrap();
+    let back = ExpertData::from_bytes(&data.to_bytes(), obs_dim()).unwrap();
     assert_eq!(back.obs, data.obs);
     assert_eq!(back.labels_before, data.labels_before);
     assert_eq!(back.lengths, data.lengths);
     assert_eq!(back.learned_states, data.learned_states);
     data.labels_before.pop();
-    let err = ExpertData::from_bytes(&data.to_bytes())
+    let err = ExpertData::from_bytes(&data.to_bytes(), obs_dim())
         .unwrap_err()
         .to_string();
     assert!(err.contains("labels before"), "{err}");
     let bytes = data.to_bytes();
-    assert!(ExpertData::from_bytes(&bytes[..bytes.len() - 3]).is_err());
+    assert!(ExpertData::from_bytes(&bytes[..bytes.len() - 3], obs_dim()).is_err());
 }
 
 /// The reward learning-rate schedule lr · k^(−p) of a base rate (SMIRL's or the reward
@@ -1621,8 +1644,8 @@ fn one_state_control_runs_smirl_on_a_one_state_machine() {
     assert_eq!(machine.n_states(), 1);
     assert!(machine.transitions().is_empty());
     assert!(read("rm/report.txt").contains("smirl_machine = \"one_state\""));
-    let expert =
-        ExpertData::from_bytes(&std::fs::read(dir.join("expert_data.bin")).unwrap()).unwrap();
+    let bytes = std::fs::read(dir.join("expert_data.bin")).unwrap();
+    let expert = ExpertData::from_bytes(&bytes, obs_dim()).unwrap();
     assert!(!expert.learned_states.is_empty());
     assert!(expert.learned_states.iter().all(|&u| u == 0));
     let reward: serde_json::Value =

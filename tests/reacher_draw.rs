@@ -3,7 +3,7 @@
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use smirl::env::reacher::{ArmStart, ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP};
+use smirl::env::reacher::{ArmStart, ReacherConfig, ReacherDelivery, OBS_TIP};
 use smirl::env::ContinuousEnv;
 use smirl::nn::mlp::Mlp;
 use smirl::pipeline::reacher_draw::{DrawConfig, DrawTarget, TARGET_STD};
@@ -11,14 +11,38 @@ use smirl::pipeline::reacher_irl::IrlConfigError;
 use smirl::rl::sac::{ActMode, ActWorkspace, SacAgent, SacConfig};
 use std::process::Command;
 
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
+
 #[test]
 fn zero_start_puts_the_fingertip_at_full_reach_at_rest() {
     let config = ReacherConfig {
         arm_start: ArmStart::Zero,
         ..ReacherConfig::default()
     };
-    let mut env = ReacherDelivery::new(config).unwrap();
-    let mut obs = vec![0.0; OBS_DIM];
+    let mut env = ReacherDelivery::new(shipped_config(config)).unwrap();
+    let mut obs = vec![0.0; obs_dim()];
     for seed in [0, 1, 99] {
         env.reset(seed, &mut obs);
         assert!((f64::from(obs[OBS_TIP[0]]) - 0.21).abs() < 1e-6, "{obs:?}");

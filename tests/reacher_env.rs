@@ -2,7 +2,9 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use smirl::env::layout::TaskLayout;
 use smirl::env::reacher::*;
+use smirl::env::reacher_task::ReacherTask;
 use smirl::env::{ContinuousEnv, EnvError};
 use smirl::mujoco::{Data, MjError, Model, ObjectKind};
 use std::sync::Arc;
@@ -18,13 +20,26 @@ fn inverse_kinematics(x: f64, y: f64) -> [f64; 2] {
     [q0, q1]
 }
 
+/// The paper's tasks' layout: four balls, one event.
+fn composite() -> ReacherTask {
+    ReacherTask::shipped("composite").unwrap()
+}
+
+fn layout() -> std::sync::Arc<TaskLayout> {
+    composite().layout()
+}
+
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
 fn env(config: ReacherConfig) -> ReacherDelivery {
-    ReacherDelivery::new(config).unwrap()
+    composite().make_env(&config).unwrap()
 }
 
 fn rollout(seed: u64, steps: usize) -> Vec<(Vec<f32>, u32, f64, Vec<f64>)> {
     let mut e = env(ReacherConfig::default());
-    let mut obs = vec![0.0; OBS_DIM];
+    let mut obs = vec![0.0; obs_dim()];
     e.reset(seed, &mut obs);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xabc);
     (0..steps)
@@ -63,7 +78,7 @@ fn same_seed_gives_identical_trajectories() {
 #[test]
 fn fingertip_follows_the_arm_geometry() {
     let mut e = env(ReacherConfig::default());
-    let mut obs = vec![0.0; OBS_DIM];
+    let mut obs = vec![0.0; obs_dim()];
     e.reset(0, &mut obs);
     for &(q0, q1) in &[(0.0, 0.0), (0.5, -1.0), (-2.0, 2.5), (3.0, 0.3)] {
         e.set_arm([q0, q1], [0.0, 0.0]).unwrap();
@@ -88,9 +103,9 @@ fn each_ball_label_fires_exactly_within_touch_radius() {
         },
         ..Default::default()
     });
-    let mut obs = vec![0.0; OBS_DIM];
+    let mut obs = vec![0.0; obs_dim()];
     e.reset(1, &mut obs);
-    for (bit, ball) in e.balls().iter().enumerate() {
+    for (bit, ball) in e.positions().to_vec().iter().enumerate() {
         for &(d, inside) in &[(0.0, true), (0.0199, true), (0.0201, false), (0.05, false)] {
             for k in 0..4 {
                 let phi = k as f64 * std::f64::consts::FRAC_PI_2 + 0.3;
@@ -107,7 +122,7 @@ fn each_ball_label_fires_exactly_within_touch_radius() {
                     e.labels().contains(bit),
                     inside,
                     "ball {} at distance {d}",
-                    BALLS[bit]
+                    layout().regions[bit].anchor.name()
                 );
                 // Only that ball: the default layout keeps balls far apart.
                 assert_eq!(e.labels().0 & !(1 << bit), 0);
@@ -119,34 +134,36 @@ fn each_ball_label_fires_exactly_within_touch_radius() {
 #[test]
 fn labels_after_a_step_match_the_distances() {
     let mut e = env(ReacherConfig::default());
-    let mut obs = vec![0.0; OBS_DIM];
+    let mut obs = vec![0.0; obs_dim()];
     e.reset(3, &mut obs);
-    let ball = e.balls()[2];
+    let ball = e.positions()[2];
     // Start resting on the blue ball; a zero action keeps it there for a step.
     e.set_arm(inverse_kinematics(ball[0], ball[1]), [0.0, 0.0])
         .unwrap();
     let s = e.step(&[0.0, 0.0], &mut obs).unwrap();
     assert!(s.labels.contains(2));
-    assert!((obs[8 + 4] as f64).hypot(obs[9 + 4] as f64) < TOUCH_RADIUS);
+    let [cx, cy] = layout().region_columns(2);
+    assert!((obs[cx] as f64).hypot(obs[cy] as f64) < layout().regions[2].radius);
 }
 
 #[test]
 fn cancel_event_is_reproducible_and_fires_once() {
     let config = ReacherConfig::default();
     let mut e = env(config.clone());
-    let mut obs = vec![0.0; OBS_DIM];
+    let mut obs = vec![0.0; obs_dim()];
     let mut with_cancel = 0;
     for seed in 0..200u64 {
         e.reset(seed, &mut obs);
-        let scheduled = e.cancel_step();
+        let scheduled = e.event_steps()[0];
         let mut fired = vec![];
         for t in 1..=config.max_steps {
             let s = e.step(&[0.1, -0.1], &mut obs).unwrap();
-            if s.labels.contains(CANCEL_BIT) {
+            let (bit, column) = (layout().event_bit(0), layout().event_column(0));
+            if s.labels.contains(bit) {
                 fired.push(t);
-                assert_eq!(obs[OBS_CANCEL], 1.0);
+                assert_eq!(obs[column], 1.0);
             } else {
-                assert_eq!(obs[OBS_CANCEL], 0.0);
+                assert_eq!(obs[column], 0.0);
             }
             assert_eq!(s.truncated, t == config.max_steps);
         }
@@ -156,7 +173,7 @@ fn cancel_event_is_reproducible_and_fires_once() {
             with_cancel += 1;
         }
         e.reset(seed, &mut obs);
-        assert_eq!(e.cancel_step(), scheduled, "same seed, same schedule");
+        assert_eq!(e.event_steps()[0], scheduled, "same seed, same schedule");
     }
     // Binomial(200, 0.5): 100 ± 5σ.
     assert!((65..=135).contains(&with_cancel), "{with_cancel}");
@@ -169,7 +186,7 @@ fn cancel_event_is_reproducible_and_fires_once() {
     });
     for seed in 0..50 {
         never.reset(seed, &mut obs);
-        assert_eq!(never.cancel_step(), None);
+        assert_eq!(never.event_steps(), &[None]);
     }
 }
 
@@ -196,8 +213,8 @@ fn arm_matches_gymnasium_reacher() {
     for g in 0..m.ngeom() {
         assert_eq!(m.geom_collision_masks(g).0, 0, "geom {g} must not collide");
     }
-    for ball in BALLS {
-        let g = m.id(ObjectKind::Geom, ball).unwrap();
+    for region in &layout().regions {
+        let g = m.id(ObjectKind::Geom, region.anchor.name()).unwrap();
         assert_eq!(m.geom_radius(g), 0.02);
     }
     // The arena walls, from their `fromto` attributes: capsules along the square's sides.
@@ -216,7 +233,9 @@ fn arm_matches_gymnasium_reacher() {
         );
         assert_eq!(m.geom_radius(g), 0.02);
     }
-    let ball = m.id(ObjectKind::Geom, BALLS[0]).unwrap();
+    let ball = m
+        .id(ObjectKind::Geom, layout().regions[0].anchor.name())
+        .unwrap();
     assert_eq!(
         m.world_capsule_segment(ball),
         None,
@@ -224,7 +243,7 @@ fn arm_matches_gymnasium_reacher() {
     );
     // One env step is 0.02 s.
     let mut e = env(ReacherConfig::default());
-    let mut obs = vec![0.0; OBS_DIM];
+    let mut obs = vec![0.0; obs_dim()];
     e.reset(0, &mut obs);
     for _ in 0..10 {
         e.step(&[0.0, 0.0], &mut obs).unwrap();
@@ -243,7 +262,7 @@ fn arm_matches_gymnasium_reacher() {
 fn actions_are_clipped_and_bad_actions_rejected() {
     let mut a = env(ReacherConfig::default());
     let mut b = env(ReacherConfig::default());
-    let (mut oa, mut ob) = (vec![0.0; OBS_DIM], vec![0.0; OBS_DIM]);
+    let (mut oa, mut ob) = (vec![0.0; obs_dim()], vec![0.0; obs_dim()]);
     a.reset(5, &mut oa);
     b.reset(5, &mut ob);
     let sa = a.step(&[5.0, -7.0], &mut oa).unwrap();
@@ -273,18 +292,21 @@ fn randomised_layouts_are_reachable_and_seeded() {
     };
     let mut e = env(config.clone());
     // The first scene, whose balls sit on slide joints, places the same layouts.
-    let mut v1 = ReacherDelivery::with_model(v1_model(), config).unwrap();
-    let ball_ids = BALLS.map(|b| e.model().id(ObjectKind::Body, b).unwrap());
-    let mut obs = vec![0.0; OBS_DIM];
+    let v1_config = composite().env_config(&config).unwrap();
+    let mut v1 = ReacherDelivery::with_model(v1_model(), v1_config).unwrap();
+    let ball_ids: Vec<usize> = (layout().regions.iter())
+        .map(|r| e.model().id(ObjectKind::Body, r.anchor.name()).unwrap())
+        .collect();
+    let mut obs = vec![0.0; obs_dim()];
     e.reset(11, &mut obs);
-    let first = e.balls();
+    let first = e.positions().to_vec();
     e.reset(12, &mut obs);
-    assert_ne!(first, e.balls());
+    assert_ne!(first, e.positions());
     e.reset(11, &mut obs);
-    assert_eq!(first, e.balls());
+    assert_eq!(first, e.positions());
     for seed in 0..100 {
         e.reset(seed, &mut obs);
-        let balls = e.balls();
+        let balls = e.positions().to_vec();
         for (i, b) in balls.iter().enumerate() {
             let r = b[0].hypot(b[1]);
             assert!((0.06..0.19).contains(&r));
@@ -292,7 +314,7 @@ fn randomised_layouts_are_reachable_and_seeded() {
             let p = e.body_position(ball_ids[i]);
             assert_eq!([p[0], p[1]], *b);
             v1.reset(seed, &mut obs);
-            assert_eq!(v1.balls(), balls);
+            assert_eq!(v1.positions(), balls);
             assert_eq!([v1.qpos()[2 + 2 * i], v1.qpos()[3 + 2 * i]], *b);
             let p = v1.body_position(ball_ids[i]);
             assert_eq!([p[0], p[1]], *b);
@@ -348,9 +370,8 @@ fn unknown_names_and_wrong_models_are_errors() {
     assert!(v1_model().id(ObjectKind::Joint, "red_x").is_ok());
     assert!(v1_model().id(ObjectKind::Site, "red_x").is_err());
     let plain = Arc::new(Model::from_xml_str("<mujoco><worldbody><body name='b'><joint name='joint0' type='hinge'/><geom size='0.1'/></body></worldbody></mujoco>", "plain").unwrap());
-    let err = ReacherDelivery::with_model(plain, ReacherConfig::default())
-        .err()
-        .unwrap();
+    let config = composite().env_config(&ReacherConfig::default()).unwrap();
+    let err = ReacherDelivery::with_model(plain, config).err().unwrap();
     assert!(err.to_string().contains("joint1"), "{err}");
     // A scene whose ball can be neither moved by mocap nor by slides is refused by name.
     let fixed = smirl::assets::REACHER_XML
@@ -375,7 +396,8 @@ fn invalid_configs_are_rejected() {
         },
         ..Default::default()
     };
-    assert!(ReacherDelivery::new(bad)
+    assert!(composite()
+        .make_env(&bad)
         .err()
         .unwrap()
         .to_string()
@@ -384,7 +406,7 @@ fn invalid_configs_are_rejected() {
         max_steps: 0,
         ..Default::default()
     };
-    assert!(ReacherDelivery::new(bad).is_err());
+    assert!(composite().make_env(&bad).is_err());
     let bad: Result<ReacherConfig, _> = toml::from_str("max_step = 10");
     assert!(bad.unwrap_err().to_string().contains("max_step"));
 }
@@ -418,7 +440,7 @@ fn a_sweeping_arm_touches_at_most_one_ball_of_the_default_layout() {
         },
         ..Default::default()
     });
-    let mut obs = vec![0.0; OBS_DIM];
+    let mut obs = vec![0.0; obs_dim()];
     e.reset(0, &mut obs);
     for i in 0..=600 {
         let q1 = -3.0 + 6.0 * i as f64 / 600.0;
@@ -434,7 +456,7 @@ fn a_sweeping_arm_touches_at_most_one_ball_of_the_default_layout() {
         );
     }
     // ...and every ball can be touched.
-    for (bit, ball) in e.balls().iter().enumerate() {
+    for (bit, ball) in e.positions().to_vec().iter().enumerate() {
         e.set_arm(inverse_kinematics(ball[0], ball[1]), [0.0, 0.0])
             .unwrap();
         assert!(e.labels().contains(bit));

@@ -4,7 +4,7 @@
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use smirl::env::reacher::{ReacherConfig, OBS_DIM};
+use smirl::env::reacher::ReacherConfig;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::nn::{FileError, Mlp, MlpArch};
 use smirl::pipeline::reacher_expert::{
@@ -13,6 +13,30 @@ use smirl::pipeline::reacher_expert::{
 };
 use smirl::rl::sac::{ActMode, SacConfig};
 use std::process::Command;
+
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
 
 fn info() -> PolicyInfo {
     PolicyInfo {
@@ -27,7 +51,7 @@ fn info() -> PolicyInfo {
 /// An untrained policy for `task` with (64, 64) hidden layers.
 fn random_policy(task: ReacherTask, seed: u64) -> ExpertPolicy {
     let states = task.perfect_rm().unwrap().n_states();
-    let arch = MlpArch::new(OBS_DIM + states, &[64, 64], 4);
+    let arch = MlpArch::new(obs_dim() + states, &[64, 64], 4);
     let actor = Mlp::new(&arch, &mut ChaCha8Rng::seed_from_u64(seed));
     ExpertPolicy::new(task, actor, info()).unwrap()
 }
@@ -48,7 +72,7 @@ fn policy_file_round_trip() {
     let mut loaded =
         ExpertPolicy::load(&path, ReacherTask::shipped("if").unwrap(), &[64, 64]).unwrap();
     assert_eq!(loaded.task(), ReacherTask::shipped("if").unwrap());
-    assert_eq!(loaded.obs_dim(), OBS_DIM + 5);
+    assert_eq!(loaded.obs_dim(), obs_dim() + 5);
     assert_eq!(loaded.info(), &info());
     let bits = |p: &ExpertPolicy| -> Vec<u32> {
         p.actor()

@@ -6,7 +6,8 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::assets::{REACHER_V1_XML, REACHER_XML};
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
+use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
 use smirl::log::read_log;
 use smirl::log::schema::sha256_hex;
@@ -77,15 +78,20 @@ fn environments_on_both_models_give_the_same_episodes_bit_for_bit() {
             randomize_balls,
             ..Default::default()
         };
+        // The paper's layout: four balls and the cancel.
+        let config = (ReacherTask::shipped("composite").unwrap())
+            .env_config(&config)
+            .unwrap();
         let mut lean = ReacherDelivery::new(config.clone()).unwrap();
         let mut v1 = ReacherDelivery::with_model(model(REACHER_V1_XML, "v1"), config).unwrap();
-        let (mut oa, mut ob) = (vec![0.0f32; OBS_DIM], vec![0.0f32; OBS_DIM]);
+        let obs_dim = lean.layout().obs_dim();
+        let (mut oa, mut ob) = (vec![0.0f32; obs_dim], vec![0.0f32; obs_dim]);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         for seed in 0..20 {
             lean.reset(seed, &mut oa);
             v1.reset(seed, &mut ob);
-            assert_eq!(lean.balls(), v1.balls());
-            assert_eq!(lean.cancel_step(), v1.cancel_step());
+            assert_eq!(lean.positions(), v1.positions());
+            assert_eq!(lean.event_steps(), v1.event_steps());
             assert_eq!(oa, ob);
             loop {
                 let action = [rng.gen_range(-1.2f32..1.2), rng.gen_range(-1.2f32..1.2)];

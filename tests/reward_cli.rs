@@ -1,8 +1,32 @@
 //! `reacher reward FILE --at x,y`: a baseline's saved reward at fingertip positions.
 
-use smirl::env::reacher::{OBS_DIM, OBS_TIP};
+use smirl::env::reacher::OBS_TIP;
 use smirl::irl::reward::{MlpReward, MlpRewardConfig, RewardModel};
 use std::process::Command;
+
+/// The layout of the paper's tasks (four balls, one event), from a shipped task.
+fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .layout()
+}
+
+/// The observation width of the paper's tasks.
+#[allow(dead_code)]
+fn obs_dim() -> usize {
+    layout().obs_dim()
+}
+
+/// `config` over the paper's tasks' layout (Composite's).
+#[allow(dead_code)]
+fn shipped_config(
+    config: smirl::env::reacher::ReacherConfig,
+) -> smirl::env::reacher::ReacherConfig {
+    smirl::env::reacher_task::ReacherTask::shipped("composite")
+        .unwrap()
+        .env_config(&config)
+        .unwrap()
+}
 
 fn reacher() -> Command {
     Command::new(env!("CARGO_BIN_EXE_reacher"))
@@ -12,11 +36,12 @@ fn reacher() -> Command {
 fn prints_the_saved_reward_at_each_point_and_refuses_bad_input() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("fkl_seed3.bin");
-    let model = MlpReward::new(MlpRewardConfig::paper(OBS_TIP.to_vec(), 1e-3, 3), OBS_DIM).unwrap();
+    let model =
+        MlpReward::new(MlpRewardConfig::paper(OBS_TIP.to_vec(), 1e-3, 3), obs_dim()).unwrap();
     model.save(&path).unwrap();
     let points = [[0.21, 0.0], [-0.0591, 0.0104]];
-    let mut obs = vec![0.0f32; 2 * OBS_DIM];
-    for (row, p) in obs.chunks_exact_mut(OBS_DIM).zip(&points) {
+    let mut obs = vec![0.0f32; 2 * obs_dim()];
+    for (row, p) in obs.chunks_exact_mut(obs_dim()).zip(&points) {
         row[OBS_TIP[0]] = p[0] as f32;
         row[OBS_TIP[1]] = p[1] as f32;
     }

@@ -912,7 +912,11 @@ fn smirl_paper_learns_lrm_without_event_rules() {
     use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
     use smirl::rm::format::write_rm;
     let vocab = Vocabulary::new("rgbyc");
-    let standard = IrlRunConfig::standard();
+    // The events LRM reads are the task's: the paper's tasks declare the cancel.
+    let mut standard = IrlRunConfig::standard();
+    standard.env = (smirl::env::reacher_task::ReacherTask::shipped("composite").unwrap())
+        .env_config(&standard.env)
+        .unwrap();
     let paper = standard.for_algo(Algo::SmirlPaper).unwrap();
     let cases: [(u64, &[(usize, &str)]); 3] = [
         (33, &OR_BASE33),
@@ -935,10 +939,10 @@ fn smirl_paper_learns_lrm_without_event_rules() {
         assert_eq!(plain.guards, smirl::rm::lrm::Guards::Exact);
         assert!(plain.events.is_empty());
         let lrm = learn_rm(&vocab, &traces, &plain).unwrap();
-        let learned = learn_rm(&vocab, &traces, &lrm_config(&paper, seed)).unwrap();
+        let learned = learn_rm(&vocab, &traces, &lrm_config(&paper, seed).unwrap()).unwrap();
         assert_eq!(write_rm(&learned.rm), write_rm(&lrm.rm), "base {seed}");
         assert_eq!(learned.cost, lrm.cost, "base {seed}");
-        let improved = learn_rm(&vocab, &traces, &lrm_config(&standard, seed)).unwrap();
+        let improved = learn_rm(&vocab, &traces, &lrm_config(&standard, seed).unwrap()).unwrap();
         assert_ne!(write_rm(&improved.rm), write_rm(&lrm.rm), "base {seed}");
     }
 }

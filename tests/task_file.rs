@@ -3,8 +3,19 @@
 //! refused with the file, line and key before any work.
 
 use smirl::assets::REACHER_XML;
+use smirl::env::reacher::CancelConfig;
 use smirl::env::reacher::ReacherConfig;
+use smirl::env::reacher_task::ReacherTask;
 use smirl::env::task_file::{Anchor, Task, TaskFileError, TaskProblem, SHIPPED};
+
+/// The ball positions of the paper's tasks (red, green, blue, yellow), as measured from the
+/// paper's scene.
+const PAPER_LAYOUT: [[f64; 2]; 4] = [
+    [0.0975, 0.1689],
+    [-0.0182, -0.1034],
+    [-0.0591, 0.0104],
+    [0.141, -0.0513],
+];
 use smirl::rm::LabelSet;
 use std::path::Path;
 
@@ -66,11 +77,18 @@ fn shipped_tasks_describe_todays_environment() {
         assert_eq!(task.letters(), "rgbyc");
         assert_eq!(task.event_labels(), LabelSet(1 << 4));
         assert_eq!(task.region_labels(), LabelSet(0b1111));
+        // The paper's layout: four balls at their distances from the base, one event.
+        let env = ReacherTask::shipped(name)
+            .unwrap()
+            .env_config(&ReacherConfig::default())
+            .unwrap();
+        assert_eq!(env.ball_layout, PAPER_LAYOUT.to_vec(), "{name}");
         assert_eq!(
-            task.reacher_config().unwrap(),
-            ReacherConfig::default(),
+            (env.max_steps, env.randomize_balls, &env.cancel),
+            (100, false, &CancelConfig::default()),
             "{name}"
         );
+        assert_eq!(task.layout().obs_dim(), 17);
         let shipped = smirl::rm::perfect::reacher(name).unwrap();
         assert_eq!(
             smirl::rm::format::write_rm(&task.machine),
@@ -102,8 +120,9 @@ fn a_file_on_disk_loads_with_its_machine_beside_it() {
     assert_eq!(task.events[0].latest_step, 9);
     assert_eq!(task.event_labels(), LabelSet(0b100));
     assert_eq!(task.episode_steps, 50);
-    // Two regions are not the built-in environment's four balls: refused, not run wrongly.
-    assert!(task.reacher_config().is_err());
+    // Two regions and one event: an observation of 8 + 2·2 + 1 values.
+    assert_eq!(task.layout().obs_dim(), 13);
+    assert_eq!(task.layout().event_column(0), 12);
 
     // The expert key follows the content: the same files give the same hash, a changed
     // machine another.
@@ -127,7 +146,7 @@ fn a_copy_of_a_shipped_task_reproduces_it() {
     let path = dir.path().join("composite.toml");
     std::fs::write(&path, text).unwrap();
     let task = Task::load(&path).unwrap();
-    assert_eq!(task.reacher_config().unwrap(), ReacherConfig::default());
+    assert_eq!(task.layout(), Task::shipped("composite").unwrap().layout());
     assert_eq!(task.name, "composite");
 }
 

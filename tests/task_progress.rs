@@ -9,7 +9,12 @@ use smirl::rm::LabelSet;
 /// machine; returns (fraction of sub-goals, end ball touched).
 fn progress(task: ReacherTask, trace: &[&str]) -> (f64, bool) {
     let rm = task.perfect_rm().unwrap();
-    let p = TaskProgress::of(&rm);
+    let p = TaskProgress::of(
+        &rm,
+        &smirl::env::reacher_task::ReacherTask::shipped("composite")
+            .unwrap()
+            .layout(),
+    );
     let mut u = rm.initial();
     let mut t = p.start(u);
     for step in trace {

@@ -13,7 +13,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use smirl::env::product::ProductEnv;
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, BALLS};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::{task_env, Branch, CancelBranch, ReacherTask, SubgoalPotential};
 use smirl::env::ContinuousEnv;
 use smirl::rm::{LabelSet, RewardMachine};
@@ -46,7 +46,7 @@ type StepTuple<'py> = (
 );
 
 /// A labelled region for a picture: `(name, x, y, radius)`.
-type Region = (&'static str, f64, f64, f64);
+type Region = (String, f64, f64, f64);
 
 /// What every environment of a task shares.
 pub(crate) struct TaskSpec {
@@ -76,7 +76,7 @@ impl TaskSpec {
         Ok(TaskSpec {
             task,
             config,
-            branches: CancelBranch::of(&rm),
+            branches: CancelBranch::of(&rm, task.layout().events()),
             rm,
             shaping,
             gamma,
@@ -258,7 +258,10 @@ impl ReacherCore {
         info.set_item("success", out.success)?;
         info.set_item("failure", out.failure)?;
         info.set_item("step", self.slot.env.inner().steps())?;
-        info.set_item("cancel_step", self.slot.env.inner().cancel_step())?;
+        // The first event's step (the cancel's in the paper's tasks), and every event's.
+        let event_steps = self.slot.env.inner().event_steps();
+        info.set_item("cancel_step", event_steps.first().copied().flatten())?;
+        info.set_item("event_steps", event_steps.to_vec())?;
         if let Some(b) = self.slot.branch(&self.spec) {
             info.set_item("branch", b.name())?;
         }
@@ -282,10 +285,9 @@ impl ReacherCore {
     fn scene(&self) -> ([f64; 2], [f64; 2], Vec<Region>) {
         let inner = self.slot.env.inner();
         let q = inner.qpos();
-        let regions = BALLS
-            .iter()
-            .zip(inner.balls())
-            .map(|(name, [x, y])| (*name, x, y, smirl::env::reacher::TOUCH_RADIUS))
+        let regions = (inner.layout().regions.iter())
+            .zip(inner.positions())
+            .map(|(r, &[x, y])| (r.anchor.name().to_string(), x, y, r.radius))
             .collect();
         ([q[0], q[1]], inner.fingertip(), regions)
     }

@@ -202,7 +202,7 @@ fn write_log(
     }
     let config = serde_json::json!({ "env": spec.config, "source": "smirl.write_log (Python)" });
     let seed0 = episodes.first().map_or(0, |e| e.0);
-    let mut header = RunHeader::reacher_shipped(spec.task.id(), seed0, config);
+    let mut header = RunHeader::of_task(spec.task.id(), spec.task.task(), seed0, config);
     header.reward_machine = Some(smirl::rm::format::write_rm(&spec.rm));
     let options = LogOptions {
         observations,

@@ -9,7 +9,8 @@
 
 use clap::Parser;
 use smirl::assets::{REACHER_V1_XML, REACHER_V1_XML_NAME};
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, FRAME_SKIP, OBS_DIM};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery, FRAME_SKIP};
+use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
 use smirl::mujoco::{self, Data, Model};
 use std::sync::Arc;
@@ -61,12 +62,13 @@ fn main() -> anyhow::Result<()> {
         args.reps > 0 && args.steps > 0,
         "--reps and --steps must be positive"
     );
-    let mut env = ReacherDelivery::new(ReacherConfig::default())?;
+    let config = ReacherTask::shipped("composite")?.env_config(&ReacherConfig::default())?;
+    let mut env = ReacherDelivery::new(config.clone())?;
     let mut raw = Data::new(Arc::clone(env.model()))?;
     let v1_model = Arc::new(Model::from_xml_str(REACHER_V1_XML, REACHER_V1_XML_NAME)?);
-    let mut env_v1 = ReacherDelivery::with_model(Arc::clone(&v1_model), ReacherConfig::default())?;
+    let mut env_v1 = ReacherDelivery::with_model(Arc::clone(&v1_model), config)?;
     let mut raw_v1 = Data::new(v1_model)?;
-    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut obs = vec![0.0f32; env.obs_dim()];
 
     let (mut raw_rates, mut env_rates, mut raw_v1_rates, mut env_v1_rates) =
         (vec![], vec![], vec![], vec![]);

@@ -12,7 +12,8 @@ use anyhow::{Context, Result};
 use clap::Parser;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery, OBS_TIP};
+use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
 use smirl::irl::kde::{brute_force_density, select_columns, Kde};
 use std::fmt::Write as _;
@@ -50,24 +51,26 @@ fn median(mut xs: Vec<f64>) -> f64 {
 
 /// Fingertip positions of random-policy episodes of 30 steps.
 fn reacher_tips(n: usize, seed: u64) -> Result<Vec<f64>> {
-    let mut env = ReacherDelivery::new(ReacherConfig::default()).context("creating the env")?;
+    let config = ReacherTask::shipped("composite")?.env_config(&ReacherConfig::default())?;
+    let mut env = ReacherDelivery::new(config).context("creating the env")?;
+    let obs_dim = env.obs_dim();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut obs = vec![0.0f32; OBS_DIM];
-    let mut rows = Vec::with_capacity(n * OBS_DIM);
+    let mut obs = vec![0.0f32; obs_dim];
+    let mut rows = Vec::with_capacity(n * obs_dim);
     let mut episode = 0u64;
-    while rows.len() < n * OBS_DIM {
+    while rows.len() < n * obs_dim {
         env.reset(seed.wrapping_mul(1_000_003).wrapping_add(episode), &mut obs);
         episode += 1;
         for _ in 0..30 {
             let a = [rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)];
             env.step(&a, &mut obs).context("stepping the env")?;
             rows.extend_from_slice(&obs);
-            if rows.len() == n * OBS_DIM {
+            if rows.len() == n * obs_dim {
                 break;
             }
         }
     }
-    Ok(select_columns(&rows, OBS_DIM, &OBS_TIP)?)
+    Ok(select_columns(&rows, obs_dim, &OBS_TIP)?)
 }
 
 fn disc_points(n: usize, seed: u64) -> Vec<f64> {

@@ -11,7 +11,7 @@ use anyhow::{ensure, Result};
 use clap::Parser;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
 use smirl::irl::smirl::FeatureMap;
@@ -56,11 +56,13 @@ fn main() -> Result<()> {
         .map(|b| b.trim().parse::<usize>())
         .collect::<Result<_, _>>()?;
     ensure!(batches.iter().all(|&b| b > 0), "--batches must be positive");
-    let rm = ReacherTask::shipped("composite")?.perfect_rm()?;
-    let task = GroundTruthTask::of(&rm);
+    let composite = ReacherTask::shipped("composite")?;
+    let rm = composite.perfect_rm()?;
+    let task = GroundTruthTask::of(&rm, &composite.layout());
+    let mut env = ReacherDelivery::new(composite.env_config(&ReacherConfig::default())?)?;
+    let obs_dim = env.obs_dim();
     let mut init = ChaCha8Rng::seed_from_u64(0);
-    let mut agent = SacAgent::new(&SacConfig::default(), OBS_DIM, ACT_DIM, &mut init);
-    let mut env = ReacherDelivery::new(ReacherConfig::default())?;
+    let mut agent = SacAgent::new(&SacConfig::default(), obs_dim, ACT_DIM, &mut init);
     let steps = env.config().max_steps;
     let specs: Vec<EpisodeSpec<'_>> = (0..args.episodes)
         .map(|i| EpisodeSpec {
@@ -71,7 +73,7 @@ fn main() -> Result<()> {
             phase: "agent",
         })
         .collect();
-    let labelling = FeatureMap::reacher_labels();
+    let labelling = FeatureMap::reacher_labels(&composite.layout());
     let total_steps = args.episodes as f64 * steps as f64;
 
     // Variants: (label, batch, threads).
@@ -118,7 +120,7 @@ fn main() -> Result<()> {
 
         // The environment alone: the same resets and steps, a fixed action.
         let t = Instant::now();
-        let mut obs = vec![0.0f32; OBS_DIM];
+        let mut obs = vec![0.0f32; obs_dim];
         for spec in &specs {
             env.reset(spec.reset_seed, &mut obs);
             for _ in 0..steps {

@@ -10,7 +10,8 @@ use anyhow::Result;
 use clap::Parser;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM};
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
+use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
 use smirl::log::{read_log, LogOptions, RolloutLogger, RunHeader};
 use smirl::pipeline::replay::replay;
@@ -55,7 +56,7 @@ fn run(
     episodes: u64,
     mut log: Option<&mut TrainingLog>,
 ) -> Result<f64> {
-    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut obs = vec![0.0f32; env.obs_dim()];
     let t = thread_cpu_secs()?;
     let mut k = 0;
     let observer_err = |e| anyhow::anyhow!("{e}");
@@ -97,8 +98,10 @@ fn main() -> Result<()> {
         args.reps > 0 && args.episodes > 0,
         "--reps and --episodes must be positive"
     );
-    let mut env = ReacherDelivery::new(ReacherConfig::default())?;
-    let task_rm: RewardMachine = smirl::rm::perfect::reacher("sequential")?;
+    let task = ReacherTask::shipped("sequential")?;
+    let env_config = task.env_config(&ReacherConfig::default())?;
+    let mut env = ReacherDelivery::new(env_config.clone())?;
+    let task_rm: RewardMachine = task.perfect_rm()?;
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let mut a = [0.0f32; 2];
     let actions: Vec<[f32; 2]> = (0..10_000)
@@ -119,10 +122,11 @@ fn main() -> Result<()> {
         let cpu_plain = run(&mut env, &actions, args.episodes, None)?;
         let t_plain = wall.elapsed().as_secs_f64();
         let path = dir.join(format!("bench{rep}.mcap"));
-        let mut header = RunHeader::reacher_shipped(
-            "sequential",
+        let mut header = RunHeader::of_task(
+            task.id(),
+            task.task(),
             rep as u64,
-            serde_json::json!({"env": ReacherConfig::default()}),
+            serde_json::json!({ "env": env_config }),
         );
         header.reward_machine = Some(smirl::rm::format::write_rm(&task_rm));
         let t = Instant::now();

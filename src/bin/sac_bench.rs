@@ -298,6 +298,12 @@ fn fmt2(v: &[f64]) -> String {
         .join(" ")
 }
 
+/// The environment of the paper's tasks (Composite's layout).
+fn composite_config() -> Result<ReacherConfig> {
+    let task = smirl::env::reacher_task::ReacherTask::shipped("composite")?;
+    Ok(task.env_config(&ReacherConfig::default())?)
+}
+
 fn main() -> Result<()> {
     let args = Args::parse();
     if let Some(path) = &args.out {
@@ -338,13 +344,13 @@ fn main() -> Result<()> {
                 ("synthetic", args.obs_dim, args.act_dim, m)
             }
             "reacher" => {
-                let mut env = ReacherDelivery::new(ReacherConfig::default())?;
+                let mut env = ReacherDelivery::new(composite_config()?)?;
                 let (o, a) = (env.obs_dim(), env.act_dim());
                 ("ReacherDelivery", o, a, measure(&mut env, &config, &args)?)
             }
             "reacher-onehot" => {
                 let mut env = OneHotAppended {
-                    inner: ReacherDelivery::new(ReacherConfig::default())?,
+                    inner: ReacherDelivery::new(composite_config()?)?,
                     width: 7,
                     slot: 0,
                 };

@@ -1,42 +1,38 @@
-//! ReacherDelivery: Gymnasium's Reacher arm with four coloured balls and a random *cancel*
-//! event (SMIRL paper, section 4.3 and appendix C), stepped through MuJoCo.
+//! ReacherDelivery: Gymnasium's Reacher arm among a task's labelled regions, with the task's
+//! random exogenous events (SMIRL paper, section 4.3 and appendix C), stepped through MuJoCo.
+//! The task's layout ([`super::layout::TaskLayout`]) says which regions and events there are;
+//! the paper's tasks put four coloured balls in the built-in scene and declare one event, the
+//! cancel.
 //!
-//! **Observation** (17 values, `f32`):
-//! `[cos q0, cos q1, sin q0, sin q1, q̇0, q̇1, tip_x, tip_y,
-//!   tip−red (x, y), tip−green (x, y), tip−blue (x, y), tip−yellow (x, y), cancel]`
-//! where `q` are the two arm joint angles, `tip` the fingertip position, and `cancel` is 1
-//! on the step the cancel event fires, 0 otherwise (so the labelling function is a function
-//! of the observation, as the paper's `L: O → 2^P` requires).
+//! **Observation** (`f32`, [`TaskLayout::obs_dim`] values):
+//! `[cos q0, cos q1, sin q0, sin q1, q̇0, q̇1, tip_x, tip_y, tip − region_i (x, y) …, event
+//! flags …]` where `q` are the two arm joint angles, `tip` the fingertip position, and an
+//! event's flag is 1 on the step it fires, 0 otherwise (so the labelling function is a
+//! function of the observation, as the paper's `L: O → 2^P` requires).
 //!
-//! **Labels** (vocabulary `"rgbyc"`): `r`/`g`/`b`/`y` when the fingertip is strictly within
-//! [`TOUCH_RADIUS`] (0.02 m) of that ball's centre; `c` on the step the cancel event fires.
+//! **Labels** (the task's letters, regions then events): a region's bit while the fingertip is
+//! strictly within the region's radius of its centre; an event's bit on the step it fires.
 //!
 //! **Reward** (the environment's own, Gymnasium-style `R = R_d + R_c`): `R_d` is minus the
-//! distance from the fingertip to the nearest ball, `R_c = −Σ a²` of the clipped action. The
-//! tasks' true rewards come from their reward machines, not from this.
+//! distance from the fingertip to the nearest region centre, `R_c = −Σ a²` of the clipped
+//! action. The tasks' true rewards come from their reward machines, not from this.
 //!
 //! **Episode**: Gymnasium's reset (joint angles ~ U(−0.1, 0.1), joint velocities ~
 //! U(−0.005, 0.005)); one step applies the clipped action for 2 MuJoCo steps (0.02 s);
 //! truncation after `max_steps` steps (default 100 = 2 s); the environment never terminates
 //! by itself.
 //!
-//! **Cancel rule**: at reset, with probability `cancel.probability` (default 0.5) the event is
-//! scheduled for one step drawn uniformly from `earliest_step..=latest_step` (default 1..=8,
-//! counted from 1); it fires on that step only. Everything random comes from the reset seed.
-//! The window is early on purpose: a competent arm touches blue after about 9 steps (IF) or
-//! 11–13 (Composite), so with the first schedule (10..=60, [`CancelConfig::LATE`]) the cancel
-//! almost never came before blue and the "unless cancel" branch of IF and Composite never
-//! happened. With 1..=8 about half of all episodes take it.
+//! **Events**: at reset, for each event in label-bit order, with the event's probability it
+//! is scheduled for one step drawn uniformly from its window (counted from 1); it fires on
+//! that step only. Everything random comes from the reset seed, drawn in this order: the
+//! region layout (when randomised), the arm, then each event's schedule.
 //!
-//! **Balls**: a fixed default layout inside the reachable disc (reach 0.21 m). Each ball is at
-//! its own distance from the base — red 0.195 m at 60°, blue 0.06 m at 170°, green 0.105 m at
-//! 260°, yellow 0.15 m at 340° — 0.045 m apart in radius (more than the two touch radii), so
-//! an arm that sweeps at a fixed elbow angle touches at most one ball, and counter-clockwise
-//! the balls come red, blue, green, yellow, not the Sequential order. (A first layout with all
-//! balls at one radius in the order red, green, blue, yellow let a policy that merely spins the
-//! arm complete OR and Sequential.) With `randomize_balls`, each reset draws positions uniformly in the annulus
-//! 0.06–0.19 m with at least 0.08 m between balls.
+//! **Regions**: a fixed layout (the task's positions) or, with `randomize_balls`, positions
+//! drawn at each reset uniformly in the annulus 0.06–0.19 m with at least 0.08 m between
+//! centres. A region whose anchor is a body with slide joints `<body>_x`, `<body>_y` is moved
+//! there; any other region stays where the scene puts it.
 
+use super::layout::{Anchor, Event, Scene, TaskLayout};
 use super::placement::Placement;
 use super::{check_action, ContinuousEnv, EnvError, EnvStep};
 use crate::mujoco::{Data, MjError, Model, ObjectKind};
@@ -47,40 +43,18 @@ use serde::{Deserialize, Serialize};
 
 use std::sync::Arc;
 
-/// Propositions of the domain, in label-bit order: red, green, blue, yellow, cancel.
-pub const VOCABULARY: &str = "rgbyc";
-/// Ball names, in label-bit order (also the body and joint name prefixes in the XML).
-pub const BALLS: [&str; 4] = ["red", "green", "blue", "yellow"];
-/// Label bit of the cancel proposition.
-pub const CANCEL_BIT: usize = 4;
-/// The domain's *events*: propositions true on a single step by construction (the cancel);
-/// the ball propositions hold as long as the fingertip touches the ball. Learned machines
-/// read an event first in a label set they never saw (`rm::lrm::Guards`).
-pub const EVENTS: LabelSet = LabelSet(1 << CANCEL_BIT);
-/// A ball's proposition is true when the fingertip is closer than this to its centre (m).
-pub const TOUCH_RADIUS: f64 = 0.02;
-pub const OBS_DIM: usize = 17;
+pub use super::layout::OBS_TIP;
+pub use super::task_file::{MAX_EPISODE_STEPS, SLIDE_RANGE};
+
 pub const ACT_DIM: usize = 2;
 /// MuJoCo steps per environment step (Gymnasium's frame skip).
 pub const FRAME_SKIP: usize = 2;
-/// Index of the cancel flag in the observation.
-pub const OBS_CANCEL: usize = 16;
-/// Indices of the fingertip position in the observation.
-pub const OBS_TIP: [usize; 2] = [6, 7];
 
-/// The default ball layout (x, y) in metres, in [`BALLS`] order.
-pub const DEFAULT_LAYOUT: [[f64; 2]; 4] = [
-    [0.0975, 0.1689],
-    [-0.0182, -0.1034],
-    [-0.0591, 0.0104],
-    [0.141, -0.0513],
-];
-
-/// When the cancel event fires.
+/// The schedule of a one-event task's event, as a run config's `[env.cancel]` gives it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CancelConfig {
-    /// Chance that an episode has a cancel event at all.
+    /// Chance that an episode has the event at all.
     pub probability: f64,
     /// First step (1-based) the event may fire on.
     pub earliest_step: usize,
@@ -89,18 +63,28 @@ pub struct CancelConfig {
 }
 
 impl CancelConfig {
-    /// The first schedule (steps 10..=60), kept for comparison: it fires after blue in almost
-    /// every IF and Composite episode, so those tasks never take their cancel branch.
+    /// Steps 10..=60, the schedule of `experiments/reacher/config_cancel_late.toml`: it
+    /// fires after blue in almost every IF and Composite episode, so those tasks never take
+    /// their cancel branch.
     pub const LATE: CancelConfig = CancelConfig {
         probability: 0.5,
         earliest_step: 10,
         latest_step: 60,
     };
+
+    /// The schedule of an event of a task.
+    pub fn of(event: &Event) -> CancelConfig {
+        CancelConfig {
+            probability: event.probability,
+            earliest_step: event.earliest_step,
+            latest_step: event.latest_step,
+        }
+    }
 }
 
 impl Default for CancelConfig {
-    /// Steps 1..=8 with probability 0.5: before blue in about half of the IF and Composite
-    /// episodes (measured by `reacher expert`, see experiments/experts/results.md).
+    /// Steps 1..=8 with probability 0.5 (the shipped tasks' schedule): a value of a run
+    /// config's `[env.cancel]` that differs from this overrides the task's.
     fn default() -> Self {
         CancelConfig {
             probability: 0.5,
@@ -110,21 +94,41 @@ impl Default for CancelConfig {
     }
 }
 
-/// Configuration of the environment.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// Configuration of the environment: a run's settings (a run config's `[env]`) over the
+/// task's layout.
+#[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ReacherConfig {
     /// Steps per episode before truncation.
     pub max_steps: usize,
-    /// Ball positions (x, y) in [`BALLS`] order when not randomised.
-    pub ball_layout: [[f64; 2]; 4],
-    /// Draw a new ball layout at every reset.
+    /// Region centres (x, y) in label-bit order when not randomised; empty: the task's.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub ball_layout: Vec<[f64; 2]>,
+    /// Draw a new region layout at every reset.
     pub randomize_balls: bool,
+    /// The schedule of a one-event task's event (the task's own unless it differs from the
+    /// default); a task with another number of events keeps its schedules.
     pub cancel: CancelConfig,
     /// How the arm starts an episode (absent from written configs when `random`, the
     /// default, so configs from before the option read and write unchanged).
     #[serde(skip_serializing_if = "ArmStart::is_random")]
     pub arm_start: ArmStart,
+    /// The task's scene, regions and events, set from the task
+    /// (`env::reacher_task::ReacherTask::env_config`); a config file does not name them.
+    #[serde(skip)]
+    pub layout: Option<Arc<TaskLayout>>,
+}
+
+/// Configurations are equal when their settings are (the layout is the task's, compared as
+/// the task).
+impl PartialEq for ReacherConfig {
+    fn eq(&self, other: &Self) -> bool {
+        self.max_steps == other.max_steps
+            && self.ball_layout == other.ball_layout
+            && self.randomize_balls == other.randomize_balls
+            && self.cancel == other.cancel
+            && self.arm_start == other.arm_start
+    }
 }
 
 /// The arm's state at reset.
@@ -148,10 +152,11 @@ impl Default for ReacherConfig {
     fn default() -> Self {
         ReacherConfig {
             max_steps: 100,
-            ball_layout: DEFAULT_LAYOUT,
+            ball_layout: Vec::new(),
             randomize_balls: false,
             cancel: CancelConfig::default(),
             arm_start: ArmStart::Random,
+            layout: None,
         }
     }
 }
@@ -174,27 +179,34 @@ pub enum ConfigError {
          the cancel window must lie inside the episode"
     )]
     CancelAfterEpisode { latest: usize, max_steps: usize },
-    #[error("ball {ball} at ({}, {}) is outside the layout range ±0.27", crate::quoted::number(*.x), crate::quoted::number(*.y))]
-    BallOutOfRange { ball: &'static str, x: f64, y: f64 },
+    #[error("region {region} at ({}, {}) is outside the layout range ±{SLIDE_RANGE}", crate::quoted::number(*.x), crate::quoted::number(*.y))]
+    BallOutOfRange { region: usize, x: f64, y: f64 },
+    #[error("ball_layout has {given} positions, the task has {regions} regions")]
+    LayoutCount { given: usize, regions: usize },
+    #[error("[env.cancel] sets one event's schedule, the task declares {0} events")]
+    CancelWithoutOneEvent(usize),
+    #[error("no task layout: the environment runs a task's regions and events (ReacherTask::env_config sets them)")]
+    NoLayout,
 }
-
-/// Longest episode a config may ask for (episodes are buffered whole).
-pub const MAX_EPISODE_STEPS: usize = 10_000;
 
 impl ConfigError {
     /// The config key the error is about, as a path below `[env]`.
     pub fn field(&self) -> &'static str {
         match self {
             ConfigError::NoSteps | ConfigError::TooManySteps(_) => "max_steps",
-            ConfigError::CancelProbability(_) => "cancel.probability",
+            ConfigError::CancelProbability(_) | ConfigError::CancelWithoutOneEvent(_) => {
+                "cancel.probability"
+            }
             ConfigError::CancelWindow { .. } => "cancel.earliest_step",
             ConfigError::CancelAfterEpisode { .. } => "cancel.latest_step",
-            ConfigError::BallOutOfRange { .. } => "ball_layout",
+            ConfigError::BallOutOfRange { .. } | ConfigError::LayoutCount { .. } => "ball_layout",
+            ConfigError::NoLayout => "layout",
         }
     }
 }
 
 impl ReacherConfig {
+    /// The settings on their own (without a layout, what a run config can check).
     pub fn validate(&self) -> Result<(), ConfigError> {
         if self.max_steps == 0 {
             return Err(ConfigError::NoSteps);
@@ -216,16 +228,50 @@ impl ReacherConfig {
                 max_steps: self.max_steps,
             });
         }
-        for (i, &[x, y]) in self.ball_layout.iter().enumerate() {
-            if !(x.abs() <= 0.27 && y.abs() <= 0.27) {
-                return Err(ConfigError::BallOutOfRange {
-                    ball: BALLS[i],
-                    x,
-                    y,
+        for (region, &[x, y]) in self.ball_layout.iter().enumerate() {
+            if !(x.abs() <= SLIDE_RANGE && y.abs() <= SLIDE_RANGE) {
+                return Err(ConfigError::BallOutOfRange { region, x, y });
+            }
+        }
+        if let Some(layout) = &self.layout {
+            self.plan(layout)?;
+        }
+        Ok(())
+    }
+
+    /// The task's layout this config runs (an error without one).
+    pub fn task_layout(&self) -> Result<&Arc<TaskLayout>, ConfigError> {
+        self.layout.as_ref().ok_or(ConfigError::NoLayout)
+    }
+
+    /// Region positions and event schedules of `layout` under these settings.
+    fn plan(&self, layout: &TaskLayout) -> Result<(Vec<[f64; 2]>, Vec<CancelConfig>), ConfigError> {
+        let positions = if self.ball_layout.is_empty() {
+            layout.positions()
+        } else if self.ball_layout.len() == layout.n_regions() {
+            self.ball_layout.clone()
+        } else {
+            return Err(ConfigError::LayoutCount {
+                given: self.ball_layout.len(),
+                regions: layout.n_regions(),
+            });
+        };
+        let mut schedules: Vec<CancelConfig> = layout.events.iter().map(CancelConfig::of).collect();
+        if self.cancel != CancelConfig::default() {
+            match schedules.as_mut_slice() {
+                [only] => *only = self.cancel.clone(),
+                _ => return Err(ConfigError::CancelWithoutOneEvent(schedules.len())),
+            }
+        }
+        for s in &schedules {
+            if s.latest_step > self.max_steps {
+                return Err(ConfigError::CancelAfterEpisode {
+                    latest: s.latest_step,
+                    max_steps: self.max_steps,
                 });
             }
         }
-        Ok(())
+        Ok((positions, schedules))
     }
 }
 
@@ -242,28 +288,34 @@ pub enum ReacherError {
 
 /// Where things live in `qpos`/`qvel`/`xpos`, looked up by name once.
 #[derive(Clone, Debug)]
-struct Layout {
+struct Places {
     arm_qpos: [usize; 2],
     arm_dof: [usize; 2],
-    /// How each ball is put at its layout position.
-    balls: [Placement; 4],
+    /// How each movable region's body is put at its layout position, in label-bit order.
+    regions: Vec<Option<Placement>>,
     fingertip_body: usize,
 }
 
-impl Layout {
-    fn find(model: &Model) -> Result<Layout, ReacherError> {
+impl Places {
+    fn find(model: &Model, layout: &TaskLayout) -> Result<Places, ReacherError> {
         let joint = |name: &str| model.id(ObjectKind::Joint, name);
         let j0 = joint("joint0")?;
         let j1 = joint("joint1")?;
-        let mut balls = [Placement::Slides { qpos: 0 }; 4];
-        for (slot, ball) in balls.iter_mut().zip(BALLS) {
-            *slot = Placement::find(model, ball).ok_or_else(|| ReacherError::WrongModel {
-                model: model.source_name().into(),
-                problem: format!(
-                    "ball {ball} is neither a mocap body nor a body with adjacent slide joints \
-                     {ball}_x, {ball}_y"
-                ),
-            })?;
+        let mut regions = Vec::with_capacity(layout.n_regions());
+        for region in &layout.regions {
+            let placement = match (&region.anchor, region.movable) {
+                (Anchor::Body(body), true) => Some(Placement::find(model, body).ok_or_else(
+                    || ReacherError::WrongModel {
+                        model: model.source_name().into(),
+                        problem: format!(
+                            "body {body} is neither a mocap body nor a body with adjacent \
+                             slide joints {body}_x, {body}_y"
+                        ),
+                    },
+                )?),
+                _ => None,
+            };
+            regions.push(placement);
         }
         if model.nu() != ACT_DIM {
             return Err(ReacherError::WrongModel {
@@ -271,52 +323,73 @@ impl Layout {
                 problem: format!("{} actuators, expected {ACT_DIM}", model.nu()),
             });
         }
-        Ok(Layout {
+        Ok(Places {
             arm_qpos: [model.joint_qpos_addr(j0), model.joint_qpos_addr(j1)],
             arm_dof: [model.joint_dof_addr(j0), model.joint_dof_addr(j1)],
-            balls,
+            regions,
             fingertip_body: model.id(ObjectKind::Body, "fingertip")?,
         })
+    }
+}
+
+/// The model of a task's scene.
+pub fn scene_model(scene: &Scene) -> Result<Model, MjError> {
+    match scene {
+        Scene::Builtin => {
+            Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME)
+        }
+        Scene::File(path) => Model::from_xml_path(path),
     }
 }
 
 /// The ReacherDelivery environment.
 pub struct ReacherDelivery {
     config: ReacherConfig,
+    layout: Arc<TaskLayout>,
     data: Data,
-    layout: Layout,
+    places: Places,
     vocab: Vocabulary,
-    balls: [[f64; 2]; 4],
+    radii: Vec<f64>,
+    schedules: Vec<CancelConfig>,
+    /// Region centres of a layout that is not randomised.
+    fixed_positions: Vec<[f64; 2]>,
+    positions: Vec<[f64; 2]>,
     steps: usize,
-    cancel_step: Option<usize>,
+    event_steps: Vec<Option<usize>>,
     last_labels: LabelSet,
     ready: bool,
 }
 
 impl ReacherDelivery {
-    /// The environment on the shipped model.
+    /// The environment on the task's scene (`config.layout`).
     pub fn new(config: ReacherConfig) -> Result<ReacherDelivery, ReacherError> {
-        let model =
-            Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME)?;
+        let layout = config.task_layout()?;
+        let model = scene_model(&layout.scene)?;
         ReacherDelivery::with_model(Arc::new(model), config)
     }
 
-    /// The environment on a given model (which must have the ReacherDelivery bodies/joints).
+    /// The environment on a given model (which must have the arm and the task's anchors).
     pub fn with_model(
         model: Arc<Model>,
         config: ReacherConfig,
     ) -> Result<ReacherDelivery, ReacherError> {
         config.validate()?;
-        let layout = Layout::find(&model)?;
+        let layout = Arc::clone(config.task_layout()?);
+        let (positions, schedules) = config.plan(&layout)?;
+        let places = Places::find(&model, &layout)?;
         let data = Data::new(model)?;
         Ok(ReacherDelivery {
-            balls: config.ball_layout,
+            vocab: layout.vocabulary(),
+            radii: layout.regions.iter().map(|r| r.radius).collect(),
+            event_steps: vec![None; layout.n_events()],
+            layout,
+            fixed_positions: positions.clone(),
+            positions,
+            schedules,
             config,
             data,
-            layout,
-            vocab: Vocabulary::new(VOCABULARY),
+            places,
             steps: 0,
-            cancel_step: None,
             last_labels: LabelSet::EMPTY,
             ready: false,
         })
@@ -324,6 +397,11 @@ impl ReacherDelivery {
 
     pub fn config(&self) -> &ReacherConfig {
         &self.config
+    }
+
+    /// The task's scene, regions and events.
+    pub fn layout(&self) -> &Arc<TaskLayout> {
+        &self.layout
     }
 
     pub fn vocabulary(&self) -> &Vocabulary {
@@ -348,9 +426,9 @@ impl ReacherDelivery {
         self.data.body_xpos(body)
     }
 
-    /// Ball positions of the current episode, in [`BALLS`] order.
-    pub fn balls(&self) -> [[f64; 2]; 4] {
-        self.balls
+    /// Region centres of the current episode, in label-bit order.
+    pub fn positions(&self) -> &[[f64; 2]] {
+        &self.positions
     }
 
     /// Steps taken in the current episode.
@@ -358,9 +436,10 @@ impl ReacherDelivery {
         self.steps
     }
 
-    /// The (1-based) step on which this episode's cancel event fires, if any.
-    pub fn cancel_step(&self) -> Option<usize> {
-        self.cancel_step
+    /// The (1-based) step on which each event fires this episode, if it does, in label-bit
+    /// order.
+    pub fn event_steps(&self) -> &[Option<usize>] {
+        &self.event_steps
     }
 
     /// Labels of the last step (or of the reset state).
@@ -370,102 +449,114 @@ impl ReacherDelivery {
 
     /// Fingertip position (x, y).
     pub fn fingertip(&self) -> [f64; 2] {
-        let p = self.data.body_xpos(self.layout.fingertip_body);
+        let p = self.data.body_xpos(self.places.fingertip_body);
         [p[0], p[1]]
     }
 
     /// Places the arm (joint angles and velocities) without stepping, e.g. for tests and
-    /// scripted states; recomputes positions and labels. Ball layout and cancel schedule stay.
+    /// scripted states; recomputes positions and labels. Region layout and event schedule
+    /// stay.
     pub fn set_arm(&mut self, angles: [f64; 2], velocities: [f64; 2]) -> Result<(), EnvError> {
         for k in 0..2 {
-            self.data.qpos_mut()[self.layout.arm_qpos[k]] = angles[k];
-            self.data.qvel_mut()[self.layout.arm_dof[k]] = velocities[k];
+            self.data.qpos_mut()[self.places.arm_qpos[k]] = angles[k];
+            self.data.qvel_mut()[self.places.arm_dof[k]] = velocities[k];
         }
         self.data
             .forward()
             .map_err(|e| EnvError::Simulation(e.to_string()))?;
-        self.last_labels = self.ball_labels();
+        self.last_labels = self.region_labels();
         Ok(())
     }
 
     /// Restores the start of a logged episode instead of drawing one from a seed: the full
-    /// `qpos`/`qvel`, the ball layout and the cancel step, through the same sequence as
+    /// `qpos`/`qvel`, the region layout and the event steps, through the same sequence as
     /// [`ContinuousEnv::reset`] (MuJoCo data reset, state written, forward), so stepping the
     /// same actions afterwards reproduces the logged run bit for bit. Writes the observation.
     pub fn restore_start(
         &mut self,
         qpos: &[f64],
         qvel: &[f64],
-        balls: [[f64; 2]; 4],
-        cancel_step: Option<usize>,
+        positions: &[[f64; 2]],
+        event_steps: &[Option<usize>],
         obs: &mut [f32],
     ) -> Result<(), EnvError> {
+        if positions.len() != self.positions.len() || event_steps.len() != self.event_steps.len() {
+            return Err(EnvError::Simulation(format!(
+                "a start with {} regions and {} events, the task has {} and {}",
+                positions.len(),
+                event_steps.len(),
+                self.positions.len(),
+                self.event_steps.len()
+            )));
+        }
         self.data.reset();
-        self.balls = balls;
-        // Before the logged qpos, which holds the balls itself on a model with ball slides.
-        self.place_balls();
+        self.positions.copy_from_slice(positions);
+        // Before the logged qpos, which holds the regions itself on a model with slides.
+        self.place_regions();
         self.data
             .set_qpos(qpos)
             .and_then(|()| self.data.set_qvel(qvel))
             .map_err(|e| EnvError::Simulation(e.to_string()))?;
-        self.cancel_step = cancel_step;
+        self.event_steps.copy_from_slice(event_steps);
         self.steps = 0;
         self.data
             .forward()
             .map_err(|e| EnvError::Simulation(e.to_string()))?;
-        self.last_labels = self.ball_labels();
+        self.last_labels = self.region_labels();
         self.ready = true;
         self.write_obs(obs);
         Ok(())
     }
 
-    /// Puts the model's balls at this episode's layout (positions take effect at the next
-    /// forward pass).
-    fn place_balls(&mut self) {
-        for (placement, &b) in self.layout.balls.iter().zip(&self.balls) {
-            placement.place(&mut self.data, b);
+    /// Puts the model's movable regions at this episode's layout (positions take effect at
+    /// the next forward pass).
+    fn place_regions(&mut self) {
+        for (placement, &b) in self.places.regions.iter().zip(&self.positions) {
+            if let Some(placement) = placement {
+                placement.place(&mut self.data, b);
+            }
         }
     }
 
-    /// Labels of the balls the fingertip touches now (no cancel).
-    fn ball_labels(&self) -> LabelSet {
+    /// Labels of the regions the fingertip is in now (no events).
+    fn region_labels(&self) -> LabelSet {
         let tip = self.fingertip();
         let mut labels = LabelSet::EMPTY;
-        for (i, b) in self.balls.iter().enumerate() {
+        for (i, (b, r)) in self.positions.iter().zip(&self.radii).enumerate() {
             let (dx, dy) = (tip[0] - b[0], tip[1] - b[1]);
-            if dx * dx + dy * dy < TOUCH_RADIUS * TOUCH_RADIUS {
+            if dx * dx + dy * dy < r * r {
                 labels = labels.with(i);
             }
         }
         labels
     }
 
-    fn draw_layout(&self, rng: &mut ChaCha8Rng) -> [[f64; 2]; 4] {
+    fn draw_layout(&mut self, rng: &mut ChaCha8Rng) {
         if !self.config.randomize_balls {
-            return self.config.ball_layout;
+            self.positions.copy_from_slice(&self.fixed_positions);
+            return;
         }
-        let mut balls = [[0.0; 2]; 4];
+        let n = self.positions.len();
         let mut placed = 0;
-        while placed < 4 {
+        while placed < n {
             let r = rng.gen_range(0.06..0.19);
             let theta = rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI);
             let candidate = [r * theta.cos(), r * theta.sin()];
-            let clear = balls[..placed]
+            let clear = self.positions[..placed]
                 .iter()
                 .all(|b| (b[0] - candidate[0]).hypot(b[1] - candidate[1]) >= 0.08);
             if clear {
-                balls[placed] = candidate;
+                self.positions[placed] = candidate;
                 placed += 1;
             }
         }
-        balls
     }
 
     fn write_obs(&self, obs: &mut [f32]) {
         let q = self.data.qpos();
         let v = self.data.qvel();
-        let [a0, a1] = self.layout.arm_qpos;
-        let [d0, d1] = self.layout.arm_dof;
+        let [a0, a1] = self.places.arm_qpos;
+        let [d0, d1] = self.places.arm_dof;
         let tip = self.fingertip();
         obs[0] = q[a0].cos() as f32;
         obs[1] = q[a1].cos() as f32;
@@ -475,32 +566,33 @@ impl ReacherDelivery {
         obs[5] = v[d1] as f32;
         obs[6] = tip[0] as f32;
         obs[7] = tip[1] as f32;
-        for (i, b) in self.balls.iter().enumerate() {
-            obs[8 + 2 * i] = (tip[0] - b[0]) as f32;
-            obs[9 + 2 * i] = (tip[1] - b[1]) as f32;
+        for (i, b) in self.positions.iter().enumerate() {
+            let [cx, cy] = self.layout.region_columns(i);
+            obs[cx] = (tip[0] - b[0]) as f32;
+            obs[cy] = (tip[1] - b[1]) as f32;
         }
-        obs[OBS_CANCEL] = if self.last_labels.contains(CANCEL_BIT) {
-            1.0
-        } else {
-            0.0
-        };
+        for e in 0..self.event_steps.len() {
+            let fired = self.last_labels.contains(self.layout.event_bit(e));
+            obs[self.layout.event_column(e)] = if fired { 1.0 } else { 0.0 };
+        }
     }
 
-    /// Gymnasium's reward: minus the distance to the nearest ball, minus Σ a².
+    /// Gymnasium's reward: minus the distance to the nearest region centre, minus Σ a².
     fn reward(&self, action: &[f64; 2]) -> f64 {
         let tip = self.fingertip();
         let nearest = self
-            .balls
+            .positions
             .iter()
             .map(|b| (tip[0] - b[0]).hypot(tip[1] - b[1]))
             .fold(f64::INFINITY, f64::min);
+        let nearest = if nearest.is_finite() { nearest } else { 0.0 };
         -nearest - (action[0] * action[0] + action[1] * action[1])
     }
 }
 
 impl ContinuousEnv for ReacherDelivery {
     fn obs_dim(&self) -> usize {
-        OBS_DIM
+        self.layout.obs_dim()
     }
 
     fn act_dim(&self) -> usize {
@@ -510,28 +602,29 @@ impl ContinuousEnv for ReacherDelivery {
     fn reset(&mut self, seed: u64, obs: &mut [f32]) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         self.data.reset();
-        self.balls = self.draw_layout(&mut rng);
+        self.draw_layout(&mut rng);
         // ArmStart::Zero: the state data.reset() left (qpos0 = 0, at rest), no draw.
         if self.config.arm_start == ArmStart::Random {
             let q = self.data.qpos_mut();
-            for &a in &self.layout.arm_qpos {
+            for &a in &self.places.arm_qpos {
                 q[a] = rng.gen_range(-0.1..0.1);
             }
             for k in 0..2 {
-                let d = self.layout.arm_dof[k];
+                let d = self.places.arm_dof[k];
                 self.data.qvel_mut()[d] = rng.gen_range(-0.005..0.005);
             }
         }
-        self.place_balls();
-        let cancel = &self.config.cancel;
-        self.cancel_step = rng
-            .gen_bool(cancel.probability)
-            .then(|| rng.gen_range(cancel.earliest_step..=cancel.latest_step));
+        self.place_regions();
+        for (step, schedule) in self.event_steps.iter_mut().zip(&self.schedules) {
+            *step = rng
+                .gen_bool(schedule.probability)
+                .then(|| rng.gen_range(schedule.earliest_step..=schedule.latest_step));
+        }
         self.steps = 0;
         // forward only computes positions from a state just written by hand, which cannot
         // trip MuJoCo's error paths on a valid model; if it ever did, step() reports it.
         let _ = self.data.forward();
-        self.last_labels = self.ball_labels();
+        self.last_labels = self.region_labels();
         self.ready = true;
         self.write_obs(obs);
     }
@@ -559,9 +652,11 @@ impl ContinuousEnv for ReacherDelivery {
             )));
         }
         self.steps += 1;
-        let mut labels = self.ball_labels();
-        if self.cancel_step == Some(self.steps) {
-            labels = labels.with(CANCEL_BIT);
+        let mut labels = self.region_labels();
+        for (e, step) in self.event_steps.iter().enumerate() {
+            if *step == Some(self.steps) {
+                labels = labels.with(self.layout.event_bit(e));
+            }
         }
         self.last_labels = labels;
         self.write_obs(obs);

@@ -7,10 +7,11 @@
 //! task's reward machine; those come from the SAC work (`rl::sac`), not from here.
 //!
 //! The controller reads only the observation (joint angles from their cos/sin, joint
-//! velocities, fingertip and ball offsets), the labels and optionally the RM state, so it
-//! drives any ReacherDelivery rollout, including a replayed one.
+//! velocities, fingertip and region offsets), the labels and optionally the RM state, so it
+//! drives any ReacherDelivery rollout, including a replayed one. A target is a region's index,
+//! which is its label bit (`env::layout`).
 
-use crate::env::reacher::{BALLS, OBS_DIM};
+use crate::env::layout::{TaskLayout, OBS_ARM};
 use crate::rm::LabelSet;
 
 /// Length of the first link (joint0 to joint1), m.
@@ -67,7 +68,7 @@ impl Default for ControllerGains {
     }
 }
 
-/// Chooses the next ball (index into [`BALLS`]) from the current labels and RM state;
+/// Chooses the next region (its label bit) from the current labels and RM state;
 /// `None` holds the arm still.
 pub type Chooser = Box<dyn FnMut(LabelSet, Option<usize>) -> Option<usize> + Send>;
 
@@ -88,7 +89,7 @@ pub struct ScriptedController {
 }
 
 impl ScriptedController {
-    /// Visits `balls` (indices into [`BALLS`]) in order, dwelling on each, then holds still.
+    /// Visits `balls` (region indices) in order, dwelling on each, then holds still.
     pub fn sequence(balls: &[usize], gains: ControllerGains) -> ScriptedController {
         ScriptedController {
             plan: Plan::Sequence {
@@ -101,18 +102,24 @@ impl ScriptedController {
         }
     }
 
-    /// The sequence named by ball letters, e.g. `"rgby"` (Sequential task).
+    /// The sequence named by the letters of `layout`'s regions, e.g. `"rgby"` (Sequential
+    /// task).
     pub fn from_letters(
         letters: &str,
+        layout: &TaskLayout,
         gains: ControllerGains,
     ) -> Result<ScriptedController, String> {
         let balls = letters
             .chars()
             .map(|c| {
-                BALLS
+                layout
+                    .regions
                     .iter()
-                    .position(|b| b.starts_with(c))
-                    .ok_or_else(|| format!("'{c}' is not a ball letter (r, g, b, y)"))
+                    .position(|r| r.letter == c)
+                    .ok_or_else(|| {
+                        let known: String = layout.regions.iter().map(|r| r.letter).collect();
+                        format!("'{c}' is not a region letter of the task ({known})")
+                    })
             })
             .collect::<Result<Vec<_>, _>>()?;
         Ok(ScriptedController::sequence(&balls, gains))
@@ -145,10 +152,9 @@ impl ScriptedController {
         self.dwell = 0;
     }
 
-    /// The action for the current observation `obs` (length [`OBS_DIM`]), the labels that
-    /// hold now and the RM state (if any). Components are in [-1, 1].
+    /// The action for the current observation `obs` (a ReacherDelivery observation), the
+    /// labels that hold now and the RM state (if any). Components are in [-1, 1].
     pub fn act(&mut self, obs: &[f32], labels: LabelSet, rm_state: Option<usize>) -> [f32; 2] {
-        assert_eq!(obs.len(), OBS_DIM, "ReacherDelivery observation expected");
         let target = match &mut self.plan {
             Plan::Sequence { balls, next } => {
                 if let Some(&b) = balls.get(*next) {
@@ -170,7 +176,7 @@ impl ScriptedController {
         let goal = match target {
             Some(b) => {
                 let (tip_x, tip_y) = (f(6), f(7));
-                let (bx, by) = (tip_x - f(8 + 2 * b), tip_y - f(9 + 2 * b));
+                let (bx, by) = (tip_x - f(OBS_ARM + 2 * b), tip_y - f(OBS_ARM + 2 * b + 1));
                 // Keep the elbow on the side it is on, so the arm does not flip through the
                 // joint1 limit between targets.
                 if q[1].abs() > 0.2 {
@@ -193,12 +199,17 @@ impl ScriptedController {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::env::reacher::{ReacherConfig, ReacherDelivery, DEFAULT_LAYOUT};
+    use crate::env::reacher::{ReacherConfig, ReacherDelivery};
+    use crate::env::reacher_task::ReacherTask;
     use crate::env::ContinuousEnv;
+
+    fn sequential() -> ReacherTask {
+        ReacherTask::shipped("sequential").unwrap()
+    }
 
     #[test]
     fn ik_inverts_fk() {
-        for &[x, y] in &DEFAULT_LAYOUT {
+        for [x, y] in sequential().layout().positions() {
             for elbow in [1.0, -1.0] {
                 let tip = forward_kinematics(inverse_kinematics(x, y, elbow));
                 assert!((tip[0] - x).abs() < 1e-12 && (tip[1] - y).abs() < 1e-12);
@@ -208,12 +219,18 @@ mod tests {
 
     #[test]
     fn sequence_touches_every_ball_in_order() {
-        let mut env = ReacherDelivery::new(ReacherConfig::default()).unwrap();
+        let task = sequential();
+        let config = task.env_config(&ReacherConfig::default()).unwrap();
+        let mut env = ReacherDelivery::new(config).unwrap();
         for seed in 0..5 {
-            let mut obs = vec![0.0; OBS_DIM];
+            let mut obs = vec![0.0; env.obs_dim()];
             env.reset(seed, &mut obs);
-            let mut ctl =
-                ScriptedController::from_letters("rgby", ControllerGains::default()).unwrap();
+            let mut ctl = ScriptedController::from_letters(
+                "rgby",
+                &task.layout(),
+                ControllerGains::default(),
+            )
+            .unwrap();
             let mut first_touch = vec![];
             let mut labels = env.labels();
             for t in 1..=100 {

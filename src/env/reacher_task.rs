@@ -2,9 +2,10 @@
 //! ship in `assets/tasks/`) and what the product with its reward machine needs: the perfect
 //! machine, a sub-goal potential for shaping, and the product environment.
 
+use super::layout::TaskLayout;
 use super::product::{Potential, ProductEnv};
-use super::reacher::{CancelConfig, ReacherConfig, ReacherDelivery, ReacherError, BALLS};
-use super::task_file::{Task, TaskFileError, TaskShapeError, SHIPPED};
+use super::reacher::{CancelConfig, ConfigError, ReacherConfig, ReacherDelivery, ReacherError};
+use super::task_file::{Task, TaskFileError, SHIPPED};
 use crate::rm::{LabelSet, RewardMachine};
 use std::collections::VecDeque;
 use std::fmt;
@@ -71,11 +72,22 @@ impl ReacherTask {
         Ok((*self.0.machine).clone())
     }
 
+    /// The environment of a run of this task ([`ReacherTask::env_config`] of `configured`).
+    pub fn make_env(&self, configured: &ReacherConfig) -> Result<ReacherDelivery, ReacherError> {
+        ReacherDelivery::new(self.env_config(configured)?)
+    }
+
+    /// The task's scene, regions and events.
+    pub fn layout(&self) -> Arc<TaskLayout> {
+        Arc::new(self.0.layout())
+    }
+
     /// The environment of a run of this task: the task's own, except each value of
     /// `configured` (a run config's `[env]`) that differs from its default (an experiment on
     /// the environment, such as another event schedule or shorter episodes, over the task's
-    /// machine). Refused for a task the ReacherDelivery environment cannot run.
-    pub fn env_config(&self, configured: &ReacherConfig) -> Result<ReacherConfig, TaskShapeError> {
+    /// machine). `[env.cancel]` applies to a task with one event; the region positions to a
+    /// task with as many regions as `ball_layout` has.
+    pub fn env_config(&self, configured: &ReacherConfig) -> Result<ReacherConfig, ConfigError> {
         fn pick<T: PartialEq + Clone>(own: T, configured: &T, default: &T) -> T {
             if configured == default {
                 own
@@ -83,32 +95,46 @@ impl ReacherTask {
                 configured.clone()
             }
         }
-        let own = self.0.reacher_config()?;
+        let task = &self.0;
         let d = ReacherConfig::default();
         let c = configured;
-        Ok(ReacherConfig {
-            max_steps: pick(own.max_steps, &c.max_steps, &d.max_steps),
-            ball_layout: pick(own.ball_layout, &c.ball_layout, &d.ball_layout),
-            randomize_balls: pick(own.randomize_balls, &c.randomize_balls, &d.randomize_balls),
-            cancel: CancelConfig {
-                probability: pick(
-                    own.cancel.probability,
-                    &c.cancel.probability,
-                    &d.cancel.probability,
-                ),
-                earliest_step: pick(
-                    own.cancel.earliest_step,
-                    &c.cancel.earliest_step,
-                    &d.cancel.earliest_step,
-                ),
-                latest_step: pick(
-                    own.cancel.latest_step,
-                    &c.cancel.latest_step,
-                    &d.cancel.latest_step,
-                ),
-            },
+        let cancel = match task.events.as_slice() {
+            [only] => {
+                let own = CancelConfig::of(only);
+                CancelConfig {
+                    probability: pick(
+                        own.probability,
+                        &c.cancel.probability,
+                        &d.cancel.probability,
+                    ),
+                    earliest_step: pick(
+                        own.earliest_step,
+                        &c.cancel.earliest_step,
+                        &d.cancel.earliest_step,
+                    ),
+                    latest_step: pick(
+                        own.latest_step,
+                        &c.cancel.latest_step,
+                        &d.cancel.latest_step,
+                    ),
+                }
+            }
+            _ => c.cancel.clone(),
+        };
+        let resolved = ReacherConfig {
+            max_steps: pick(task.episode_steps, &c.max_steps, &d.max_steps),
+            ball_layout: pick(self.0.layout().positions(), &c.ball_layout, &d.ball_layout),
+            randomize_balls: pick(
+                task.randomize_layout,
+                &c.randomize_balls,
+                &d.randomize_balls,
+            ),
+            cancel,
             arm_start: c.arm_start,
-        })
+            layout: Some(self.layout()),
+        };
+        resolved.validate()?;
+        Ok(resolved)
     }
 }
 
@@ -154,15 +180,16 @@ impl<'de> serde::Deserialize<'de> for ReacherTask {
 }
 
 /// Potential `Φ(o, u) = −(dist(u) · spacing + distance from the fingertip to the nearest
-/// ball that makes progress in u)`, where `dist(u)` is the number of ball touches from `u` to
-/// the goal along the machine (shortest path over single-ball label sets, never through a
-/// failure sink). With `spacing` larger than any fingertip–ball distance, reaching a
-/// sub-goal never lowers the potential. Derived from the machine alone, so it works for any
-/// task over the `rgbyc` vocabulary.
+/// region that makes progress in u)`, where `dist(u)` is the number of region touches from `u`
+/// to the goal along the machine (shortest path over single-region label sets, never through
+/// a failure sink). With `spacing` larger than any fingertip–region distance, reaching a
+/// sub-goal never lowers the potential. Derived from the machine and the task's layout.
 #[derive(Clone, Debug)]
 pub struct SubgoalPotential {
-    /// Balls that move `u` closer to the goal, per machine state.
+    /// Regions that move `u` closer to the goal, per machine state.
     progress: Vec<Vec<usize>>,
+    /// Observation columns of fingertip − region, per region.
+    columns: Vec<[usize; 2]>,
     /// Touches left to the goal per state (`None`: goal unreachable).
     distance: Vec<Option<usize>>,
     spacing: f64,
@@ -172,8 +199,9 @@ pub struct SubgoalPotential {
 pub const DEFAULT_SPACING: f64 = 1.0;
 
 impl SubgoalPotential {
-    pub fn from_rm(rm: &RewardMachine) -> SubgoalPotential {
+    pub fn from_rm(rm: &RewardMachine, layout: &TaskLayout) -> SubgoalPotential {
         let n = rm.n_states();
+        let regions = layout.n_regions();
         let touch = |u: usize, ball: usize| {
             let v = rm.next_state(u, LabelSet::EMPTY.with(ball));
             (v != u && !rm.is_failure(v)).then_some(v)
@@ -185,9 +213,7 @@ impl SubgoalPotential {
         while let Some(v) = queue.pop_front() {
             let d = distance[v].expect("queued states have a distance");
             let reached: Vec<usize> = (0..n)
-                .filter(|&u| {
-                    distance[u].is_none() && (0..BALLS.len()).any(|b| touch(u, b) == Some(v))
-                })
+                .filter(|&u| distance[u].is_none() && (0..regions).any(|b| touch(u, b) == Some(v)))
                 .collect();
             for u in reached {
                 distance[u] = Some(d + 1);
@@ -196,7 +222,7 @@ impl SubgoalPotential {
         }
         let progress = (0..n)
             .map(|u| {
-                (0..BALLS.len())
+                (0..regions)
                     .filter(|&b| match (touch(u, b), distance[u]) {
                         (Some(v), Some(du)) => distance[v].is_some_and(|dv| dv < du),
                         _ => false,
@@ -206,12 +232,13 @@ impl SubgoalPotential {
             .collect();
         SubgoalPotential {
             progress,
+            columns: (0..regions).map(|k| layout.region_columns(k)).collect(),
             distance,
             spacing: DEFAULT_SPACING,
         }
     }
 
-    /// Balls that make progress in state `u`.
+    /// Regions that make progress in state `u`.
     pub fn progress_balls(&self, u: usize) -> &[usize] {
         &self.progress[u]
     }
@@ -231,8 +258,10 @@ pub struct TaskProgress {
     /// Ball touches from each state to the goal (`None`: goal unreachable, e.g. the failure
     /// sink).
     distance: Vec<Option<usize>>,
-    /// Label bits of the balls whose touch can move some state to a terminal one.
+    /// Label bits of the regions whose touch can move some state to a terminal one.
     final_balls: u32,
+    /// Label bits of the regions.
+    touches: LabelSet,
 }
 
 /// Sub-goal bookkeeping of one episode (see [`TaskProgress::track`]).
@@ -244,14 +273,14 @@ pub struct ProgressTracker {
 }
 
 impl TaskProgress {
-    pub fn of(rm: &RewardMachine) -> TaskProgress {
-        let potential = SubgoalPotential::from_rm(rm);
+    pub fn of(rm: &RewardMachine, layout: &TaskLayout) -> TaskProgress {
+        let potential = SubgoalPotential::from_rm(rm, layout);
         let distance = (0..rm.n_states())
             .map(|u| potential.touches_to_goal(u))
             .collect();
         let mut final_balls = 0u32;
         for u in (0..rm.n_states()).filter(|&u| !rm.is_absorbing(u)) {
-            for b in 0..BALLS.len() {
+            for b in 0..layout.n_regions() {
                 if rm.is_terminal(rm.next_state(u, LabelSet::EMPTY.with(b))) {
                     final_balls |= 1 << b;
                 }
@@ -260,6 +289,7 @@ impl TaskProgress {
         TaskProgress {
             distance,
             final_balls,
+            touches: layout.touches(),
         }
     }
 
@@ -285,7 +315,7 @@ impl TaskProgress {
             // Into the failure sink: the sub-goals done so far stay, the rest is lost.
             return;
         };
-        let touched_ball = labels.0 & ((1 << BALLS.len()) - 1) != 0;
+        let touched_ball = labels.0 & self.touches.0 != 0;
         if dv < du && touched_ball {
             t.done += du - dv;
         }
@@ -318,7 +348,10 @@ impl Potential for SubgoalPotential {
         };
         let nearest = self.progress[u]
             .iter()
-            .map(|&b| (obs[8 + 2 * b] as f64).hypot(obs[9 + 2 * b] as f64))
+            .map(|&b| {
+                let [cx, cy] = self.columns[b];
+                (obs[cx] as f64).hypot(obs[cy] as f64)
+            })
             .fold(f64::INFINITY, f64::min);
         let nearest = if nearest.is_finite() { nearest } else { 0.0 };
         -(d as f64 * self.spacing + nearest)
@@ -326,7 +359,8 @@ impl Potential for SubgoalPotential {
 }
 
 /// ReacherDelivery × the task's perfect machine, with sub-goal shaping of the given scale
-/// (0 for none) for a learner with discount `gamma`.
+/// (0 for none) for a learner with discount `gamma`; `config` runs over the task's layout
+/// ([`ReacherTask::env_config`]).
 pub fn task_env(
     task: ReacherTask,
     config: ReacherConfig,
@@ -336,8 +370,8 @@ pub fn task_env(
     let rm = task
         .perfect_rm()
         .map_err(|e| TaskEnvError::Rm(e.to_string()))?;
-    let env = ReacherDelivery::new(config)?;
-    let potential = SubgoalPotential::from_rm(&rm);
+    let env = task.make_env(&config)?;
+    let potential = SubgoalPotential::from_rm(&rm, env.layout());
     Ok(ProductEnv::with_shaping(
         env,
         rm,
@@ -358,9 +392,10 @@ pub enum TaskEnvError {
 /// Which way an episode of a conditional task (IF, Composite) went.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Branch {
-    /// The cancel event did not come before blue was touched (no cancel, or a late one).
+    /// No event opened a branch of the machine (IF, Composite: no cancel before blue).
     Normal,
-    /// The cancel event came before blue was touched: blue is off the task.
+    /// An event opened a branch of the machine (IF, Composite: the cancel came before blue,
+    /// which is off the task).
     Cancelled,
 }
 
@@ -386,24 +421,22 @@ impl fmt::Display for Branch {
     }
 }
 
-/// Label bit of the blue ball (the sub-goal a cancel removes).
-const BLUE_BIT: usize = 2;
-
-/// The states of a task's perfect machine that belong to its "unless cancel" branch: those
-/// in which touching blue fails the task. Read off the machine, so the branch of an episode
-/// is a function of the perfect machine's trace along it; a machine without such states
-/// (OR, Sequential) has no branches.
+/// The states of a task's perfect machine that an exogenous event opened: those the machine
+/// cannot reach without one (IF and Composite: "unless cancel", blue off the task). Read off
+/// the machine, so the branch of an episode is a function of the perfect machine's trace
+/// along it; a machine whose every state is reachable without events (OR, Sequential) has no
+/// branches. Assumes an event that opens states redirects the task (the "unless" reading).
 #[derive(Clone, Debug)]
 pub struct CancelBranch {
     cancelled: Vec<bool>,
 }
 
 impl CancelBranch {
-    /// `None` when the machine has no cancel branch.
-    pub fn of(rm: &RewardMachine) -> Option<CancelBranch> {
-        let blue = LabelSet::EMPTY.with(BLUE_BIT);
+    /// `None` when the machine has no branch opened by one of `events`.
+    pub fn of(rm: &RewardMachine, events: LabelSet) -> Option<CancelBranch> {
+        let free = rm.reachable_without(events);
         let cancelled: Vec<bool> = (0..rm.n_states())
-            .map(|u| !rm.is_absorbing(u) && rm.is_failure(rm.next_state(u, blue)))
+            .map(|u| !rm.is_absorbing(u) && !free[u])
             .collect();
         cancelled
             .iter()

@@ -25,23 +25,19 @@
 //! [`Task::load`] checks everything against the scene and the machine before any work, and
 //! every error names the file, the line and the key.
 
+pub use super::layout::{Anchor, Event, Region, Scene, TaskLayout, BUILTIN_SCENE};
 use super::placement::Placement;
-use super::reacher::{
-    ArmStart, CancelConfig, ReacherConfig, BALLS, MAX_EPISODE_STEPS, TOUCH_RADIUS,
-};
 use crate::config_text::{key_line, read_text_file, toml_error_message};
 use crate::mujoco::{Data, Model, ObjectKind};
 use crate::rm::format::{parse_rm, RmFileError};
 use crate::rm::{LabelSet, RewardMachine};
 use serde::Deserialize;
 use sha2::{Digest, Sha256};
-use std::fmt;
 use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 
-/// `scene = "builtin"`: the ReacherDelivery model built into the binaries
-/// (`assets/reacher_delivery.xml`).
-pub const BUILTIN_SCENE: &str = "builtin";
+/// Longest episode a task or run config may ask for (episodes are buffered whole).
+pub const MAX_EPISODE_STEPS: usize = 10_000;
 /// Most labelled regions of a task.
 pub const MAX_REGIONS: usize = 8;
 /// Most exogenous events of a task.
@@ -96,71 +92,6 @@ struct EventText {
     latest_step: usize,
 }
 
-/// What a region's centre is attached to in the scene.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Anchor {
-    Body(String),
-    Site(String),
-}
-
-impl Anchor {
-    pub fn name(&self) -> &str {
-        match self {
-            Anchor::Body(n) | Anchor::Site(n) => n,
-        }
-    }
-}
-
-impl fmt::Display for Anchor {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Anchor::Body(n) => write!(f, "body '{n}'"),
-            Anchor::Site(n) => write!(f, "site '{n}'"),
-        }
-    }
-}
-
-/// A labelled region: its proposition holds while the fingertip is strictly within `radius`
-/// of its centre.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Region {
-    pub letter: char,
-    pub anchor: Anchor,
-    pub radius: f64,
-    /// Where the layout puts the centre when it is not randomised (x, y); the anchor's place
-    /// in the scene when the file gives none.
-    pub position: [f64; 2],
-    /// The anchor is a body a layout can move ([`Placement::find`]): a mocap body, or a body
-    /// with slide joints `<body>_x`, `<body>_y`.
-    pub movable: bool,
-}
-
-/// An exogenous event: with `probability`, an episode has it on one step drawn uniformly
-/// from `earliest_step..=latest_step` (1-based), and its proposition holds on that step only.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Event {
-    pub letter: char,
-    pub probability: f64,
-    pub earliest_step: usize,
-    pub latest_step: usize,
-}
-
-/// Where a task's scene comes from.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Scene {
-    Builtin,
-    File(PathBuf),
-}
-
-impl fmt::Display for Scene {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Scene::Builtin => f.write_str(crate::assets::REACHER_XML_NAME),
-            Scene::File(p) => write!(f, "{}", p.display()),
-        }
-    }
-}
-
 /// A checked ReacherDelivery task. Label bit `k` is region `k` for `k < regions.len()`, then
 /// the events in file order; the perfect machine's vocabulary lists the same letters in the
 /// same order.
@@ -180,6 +111,10 @@ pub struct Task {
     pub machine_source: String,
     /// SHA-256 of the task file, its scene and its machine (hex): the key of its expert.
     pub content_hash: String,
+    /// The task file's text (logs record it).
+    pub text: String,
+    /// The scene's MJCF text (logs attach it).
+    pub scene_xml: String,
 }
 
 /// Why a task could not be loaded.
@@ -570,6 +505,8 @@ impl Task {
             machine: Arc::new(machine),
             machine_source,
             content_hash,
+            text: text.into(),
+            scene_xml: String::from_utf8_lossy(&scene_text).into_owned(),
         })
     }
 
@@ -592,51 +529,14 @@ impl Task {
         (0..self.regions.len()).fold(LabelSet::EMPTY, |s, k| s.with(k))
     }
 
-    /// The configuration of [`super::reacher::ReacherDelivery`] that runs this task, when the
-    /// task fits it: the built-in scene's four balls (red, green, blue, yellow in label-bit
-    /// order, touched within [`TOUCH_RADIUS`]) and one event.
-    pub fn reacher_config(&self) -> Result<ReacherConfig, TaskShapeError> {
-        let shape_ok = self.scene == Scene::Builtin
-            && self.regions.len() == BALLS.len()
-            && self
-                .regions
-                .iter()
-                .zip(BALLS)
-                .all(|(r, b)| r.anchor == Anchor::Body(b.into()) && r.radius == TOUCH_RADIUS)
-            && self.events.len() == 1;
-        if !shape_ok {
-            return Err(TaskShapeError {
-                task: self.source.clone(),
-            });
+    /// The task's scene, regions and events.
+    pub fn layout(&self) -> TaskLayout {
+        TaskLayout {
+            scene: self.scene.clone(),
+            regions: self.regions.clone(),
+            events: self.events.clone(),
         }
-        let mut ball_layout = [[0.0; 2]; 4];
-        for (slot, r) in ball_layout.iter_mut().zip(&self.regions) {
-            *slot = r.position;
-        }
-        let e = &self.events[0];
-        Ok(ReacherConfig {
-            max_steps: self.episode_steps,
-            ball_layout,
-            randomize_balls: self.randomize_layout,
-            cancel: CancelConfig {
-                probability: e.probability,
-                earliest_step: e.earliest_step,
-                latest_step: e.latest_step,
-            },
-            arm_start: ArmStart::Random,
-        })
     }
-}
-
-/// A task the ReacherDelivery environment cannot run yet.
-#[derive(Debug, thiserror::Error)]
-#[error(
-    "{task}: the ReacherDelivery environment runs tasks over the built-in scene's four balls \
-     (regions on bodies red, green, blue, yellow in this order, radius {TOUCH_RADIUS}) and one \
-     event; other scenes and region sets load and validate but do not run yet"
-)]
-pub struct TaskShapeError {
-    pub task: String,
 }
 
 /// The arm the environment drives: joints `joint0`, `joint1`, two actuators, a fingertip.

@@ -9,7 +9,8 @@
 //! has come — IF's never touch blue then. SMIRL's final phase (`smirl_selection_cut`) scores a
 //! candidate's learned return only up to its first touch that no demonstration makes there.
 //! Before any event nothing is judged: there the expert's behaviour is the task's, and an
-//! agent's other touches are the way it moves.
+//! agent's other touches are the way it moves. The rule assumes "unless" events: after one,
+//! a touch the expert never makes is off the task.
 //!
 //! Touches can be read as entries (`smirl_selection_cut_entries`): a ball counts on the step
 //! its touch begins, not on the steps the fingertip stays on it. Why: the expert brushes a ball

@@ -48,7 +48,7 @@ use super::reward::{
     check_batch, check_coefficients, check_len, save_bytes, RewardError, RewardModel,
     RewardOptimConfig, TensorOptimizer,
 };
-use crate::env::reacher::{OBS_CANCEL, OBS_DIM, TOUCH_RADIUS};
+use crate::env::layout::TaskLayout;
 use crate::input_file::{read_text, MAX_DATA_FILE_BYTES};
 use crate::rm::LabelSet;
 use std::path::Path;
@@ -59,7 +59,7 @@ use std::path::Path;
 pub enum FeatureKind {
     /// φ = L(o), the label bits (the paper's choice).
     Labels,
-    /// φ_k = exp(−d_k²/(2σ²)) per ball, plus the cancel flag (documented variant).
+    /// φ_k = exp(−d_k²/(2σ²)) per region, plus the event flags (documented variant).
     Smooth { sigma: f64 },
     /// φ = L(o_{t+1}) \ L(o_t): the label bits that became true on the step (a ball entered,
     /// the cancel fired). The row carries the labels before the step in the layout's
@@ -67,47 +67,114 @@ pub enum FeatureKind {
     LabelEntries,
 }
 
-/// Where a feature map finds things in an observation row.
+/// Where a feature map finds things in an observation row: the task's regions and events
+/// ([`TaskLayout`]). Label bit k is region k, then one bit per event.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(into = "ObsLayoutFile", try_from = "ObsLayoutFile")]
 pub struct ObsLayout {
     pub obs_dim: usize,
-    /// Columns of (fingertip − ball) x and y, one pair per ball, in label-bit order.
+    /// Columns of (fingertip − region) x and y, one pair per region, in label-bit order.
     pub ball_deltas: Vec<[usize; 2]>,
-    /// Column of the cancel flag (1 on the step the event fires).
-    pub cancel: usize,
-    /// A ball's label is true when the fingertip is strictly closer than this.
-    pub touch_radius: f64,
+    /// Column of each event's flag (1 on the step the event fires), in label-bit order.
+    pub events: Vec<usize>,
+    /// A region's label is true when the fingertip is strictly closer than its radius.
+    pub radii: Vec<f64>,
     /// Column holding the bit mask of the labels *before* the step (`LabelSet::0` as an
     /// `f32`, exact for the few bits there are), for features of the step rather than of the
     /// state ([`FeatureKind::LabelEntries`]); rows are then one column wider than the
     /// observation.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub labels_before: Option<usize>,
 }
 
+/// [`ObsLayout`] as reward files write it: a task with one event names its column `cancel`,
+/// and regions of one radius write it once as `touch_radius`, so the files of the paper's
+/// tasks keep their form.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct ObsLayoutFile {
+    obs_dim: usize,
+    ball_deltas: Vec<[usize; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    cancel: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    events: Option<Vec<usize>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    touch_radius: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    radii: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    labels_before: Option<usize>,
+}
+
+impl From<ObsLayout> for ObsLayoutFile {
+    fn from(l: ObsLayout) -> ObsLayoutFile {
+        let one_radius = l
+            .radii
+            .first()
+            .filter(|&&r| l.radii.iter().all(|&q| q == r));
+        ObsLayoutFile {
+            obs_dim: l.obs_dim,
+            cancel: (l.events.len() == 1).then(|| l.events[0]),
+            events: (l.events.len() != 1).then(|| l.events.clone()),
+            touch_radius: one_radius.copied(),
+            radii: one_radius.is_none().then(|| l.radii.clone()),
+            ball_deltas: l.ball_deltas,
+            labels_before: l.labels_before,
+        }
+    }
+}
+
+impl TryFrom<ObsLayoutFile> for ObsLayout {
+    type Error = String;
+    fn try_from(f: ObsLayoutFile) -> Result<ObsLayout, String> {
+        let events = match (f.cancel, f.events) {
+            (Some(c), None) => vec![c],
+            (None, Some(e)) => e,
+            _ => return Err("a layout gives exactly one of `cancel` and `events`".into()),
+        };
+        let radii = match (f.touch_radius, f.radii) {
+            (Some(r), None) => vec![r; f.ball_deltas.len()],
+            (None, Some(r)) if r.len() == f.ball_deltas.len() => r,
+            _ => {
+                return Err(
+                    "a layout gives `touch_radius` or one radius per region in `radii`".into(),
+                )
+            }
+        };
+        Ok(ObsLayout {
+            obs_dim: f.obs_dim,
+            ball_deltas: f.ball_deltas,
+            events,
+            radii,
+            labels_before: f.labels_before,
+        })
+    }
+}
+
 impl ObsLayout {
-    /// ReacherDelivery's observation layout (see `env::reacher`).
-    pub fn reacher() -> ObsLayout {
+    /// The observation layout of a task (see `env::layout`).
+    pub fn of(task: &TaskLayout) -> ObsLayout {
         ObsLayout {
-            obs_dim: OBS_DIM,
-            ball_deltas: (0..4).map(|k| [8 + 2 * k, 9 + 2 * k]).collect(),
-            cancel: OBS_CANCEL,
-            touch_radius: TOUCH_RADIUS,
+            obs_dim: task.obs_dim(),
+            ball_deltas: (0..task.n_regions())
+                .map(|k| task.region_columns(k))
+                .collect(),
+            events: (0..task.n_events()).map(|e| task.event_column(e)).collect(),
+            radii: task.regions.iter().map(|r| r.radius).collect(),
             labels_before: None,
         }
     }
 
-    /// ReacherDelivery's observation followed by the labels before the step.
-    pub fn reacher_with_labels_before() -> ObsLayout {
+    /// A task's observation followed by the labels before the step.
+    pub fn with_labels_before(task: &TaskLayout) -> ObsLayout {
         ObsLayout {
-            obs_dim: OBS_DIM + 1,
-            labels_before: Some(OBS_DIM),
-            ..ObsLayout::reacher()
+            obs_dim: task.obs_dim() + 1,
+            labels_before: Some(task.obs_dim()),
+            ..ObsLayout::of(task)
         }
     }
 }
 
-/// φ(o): one feature per ball plus the cancel flag.
+/// φ(o): one feature per region plus one per event.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FeatureMap {
     pub kind: FeatureKind,
@@ -128,8 +195,15 @@ impl FeatureMap {
                 "label-entry features need the labels-before column, and only they read it".into(),
             ));
         }
+        if layout.radii.len() != layout.ball_deltas.len() {
+            return Err(RewardError::Config(format!(
+                "{} region radii for {} regions",
+                layout.radii.len(),
+                layout.ball_deltas.len()
+            )));
+        }
         let bad = (layout.ball_deltas.iter().flatten())
-            .chain([&layout.cancel])
+            .chain(&layout.events)
             .chain(layout.labels_before.as_ref())
             .find(|&&c| c >= layout.obs_dim)
             .copied();
@@ -142,32 +216,31 @@ impl FeatureMap {
         Ok(FeatureMap { kind, layout })
     }
 
-    /// The paper's label features on ReacherDelivery.
-    pub fn reacher_labels() -> FeatureMap {
+    /// The paper's label features on a task's observations.
+    pub fn reacher_labels(task: &TaskLayout) -> FeatureMap {
         FeatureMap {
             kind: FeatureKind::Labels,
-            layout: ObsLayout::reacher(),
+            layout: ObsLayout::of(task),
         }
     }
 
-    /// Label entries on ReacherDelivery: rows are the observation after the step and the
-    /// labels before it ([`FeatureMap::step_rows`]).
-    pub fn reacher_label_entries() -> FeatureMap {
+    /// Label entries on a task's observations: rows are the observation after the step and
+    /// the labels before it ([`FeatureMap::step_rows`]).
+    pub fn reacher_label_entries(task: &TaskLayout) -> FeatureMap {
         FeatureMap {
             kind: FeatureKind::LabelEntries,
-            layout: ObsLayout::reacher_with_labels_before(),
+            layout: ObsLayout::with_labels_before(task),
         }
     }
 
-    /// The smooth variant on ReacherDelivery.
-    pub fn reacher_smooth(sigma: f64) -> Result<FeatureMap, RewardError> {
-        FeatureMap::new(FeatureKind::Smooth { sigma }, ObsLayout::reacher())
+    /// The smooth variant on a task's observations.
+    pub fn reacher_smooth(task: &TaskLayout, sigma: f64) -> Result<FeatureMap, RewardError> {
+        FeatureMap::new(FeatureKind::Smooth { sigma }, ObsLayout::of(task))
     }
 
-    /// Number of features: balls + 1 (cancel). For Reacher, bit k of the label set is
-    /// feature k (the cancel proposition's bit, `CANCEL_BIT`, is the last feature).
+    /// Number of features: regions + events; feature k is label bit k.
     pub fn len(&self) -> usize {
-        self.layout.ball_deltas.len() + 1
+        self.layout.ball_deltas.len() + self.layout.events.len()
     }
 
     pub fn is_empty(&self) -> bool {
@@ -176,6 +249,22 @@ impl FeatureMap {
 
     pub fn obs_dim(&self) -> usize {
         self.layout.obs_dim
+    }
+
+    /// Width of the observation the rows carry (without the labels-before column).
+    pub fn observation_dim(&self) -> usize {
+        self.layout.obs_dim - usize::from(self.layout.labels_before.is_some())
+    }
+
+    /// The label bits of the regions (the agent's own touches).
+    pub fn touch_labels(&self) -> LabelSet {
+        (0..self.layout.ball_deltas.len()).fold(LabelSet::EMPTY, |s, k| s.with(k))
+    }
+
+    /// The label bits of the task's exogenous events.
+    pub fn event_labels(&self) -> LabelSet {
+        let nb = self.layout.ball_deltas.len();
+        (0..self.layout.events.len()).fold(LabelSet::EMPTY, |s, e| s.with(nb + e))
     }
 
     /// Whether rows carry the labels before the step after the observation (see
@@ -212,33 +301,37 @@ impl FeatureMap {
         for (k, [cx, cy]) in self.layout.ball_deltas.iter().enumerate() {
             let (dx, dy) = (f64::from(row[*cx]), f64::from(row[*cy]));
             let d2 = dx * dx + dy * dy;
-            let r = self.layout.touch_radius;
+            let r = self.layout.radii[k];
             out[k] = match self.kind {
                 FeatureKind::Labels => f64::from(u8::from(d2 < r * r)),
                 FeatureKind::LabelEntries => f64::from(u8::from(d2 < r * r && !before.contains(k))),
                 FeatureKind::Smooth { sigma } => (-d2 / (2.0 * sigma * sigma)).exp(),
             };
         }
-        let cancel = row[self.layout.cancel] > 0.5 && !before.contains(nb);
-        out[nb] = f64::from(u8::from(cancel));
+        for (e, &c) in self.layout.events.iter().enumerate() {
+            let fired = row[c] > 0.5 && !before.contains(nb + e);
+            out[nb + e] = f64::from(u8::from(fired));
+        }
     }
 
-    /// The label set of a row by the labelling rule: bit k for ball k, bit `balls` (the
-    /// number of balls; 4 = `env::reacher::CANCEL_BIT` for Reacher) for the cancel flag —
-    /// the same rule as the environment's labelling function. The environment decides on the
+    /// The label set of a row by the labelling rule: bit k for region k, then one bit per
+    /// event flag — the same rule as the environment's labelling function. The environment decides on the
     /// `f64` positions and the observation carries `f32` offsets, so the two can disagree
     /// only for a fingertip within ~1e-9 m of a touch circle.
     pub fn labels_of(&self, row: &[f32]) -> LabelSet {
-        let r = self.layout.touch_radius;
         let mut labels = LabelSet::EMPTY;
         for (k, [cx, cy]) in self.layout.ball_deltas.iter().enumerate() {
+            let r = self.layout.radii[k];
             let (dx, dy) = (f64::from(row[*cx]), f64::from(row[*cy]));
             if dx * dx + dy * dy < r * r {
                 labels = labels.with(k);
             }
         }
-        if row[self.layout.cancel] > 0.5 {
-            labels = labels.with(self.layout.ball_deltas.len());
+        let nb = self.layout.ball_deltas.len();
+        for (e, &c) in self.layout.events.iter().enumerate() {
+            if row[c] > 0.5 {
+                labels = labels.with(nb + e);
+            }
         }
         labels
     }
@@ -287,7 +380,8 @@ pub enum SmirlNormalisation {
     /// exogenous event gets no update ([`maxent_coefficients_by_shared_visits`] with the
     /// learned machine's [`reachable_without`](crate::rm::RewardMachine::reachable_without)
     /// the events as the states that keep their pull). The standard profile's (README,
-    /// "Shared visits").
+    /// "Shared visits"). Assumes "unless" events: a state reached only through one is a
+    /// branch the agent cannot be asked to visit.
     #[serde(rename = "event_gated_visits")]
     EventGatedVisits,
 }

@@ -3,8 +3,9 @@
 //! tests, the logging benchmark and `reacher demo`; not the paper's experts (SAC policies).
 
 use super::{LogError, LogOptions, LogSummary, RolloutLogger, RunHeader};
-use crate::env::reacher::{ReacherConfig, ReacherDelivery, OBS_DIM};
+use crate::env::reacher::{ReacherConfig, ReacherDelivery};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
+use crate::env::reacher_task::ReacherTask;
 use crate::env::ContinuousEnv;
 use crate::rm::format::write_rm;
 use crate::rm::RewardMachine;
@@ -12,9 +13,10 @@ use crate::rm::RewardMachine;
 /// What to demonstrate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DemoSpec {
-    /// Task name recorded in the log.
+    /// The task (a shipped name or a task file's path) whose layout the demonstrations run
+    /// in; recorded in the log.
     pub task: String,
-    /// Balls to visit, as letters (`"rgby"` = Sequential).
+    /// Regions to visit, as letters (`"rgby"` = Sequential).
     pub sequence: String,
     pub episodes: u64,
     /// Episode `i` is reset with seed `seed + i`.
@@ -22,6 +24,7 @@ pub struct DemoSpec {
     /// End an episode once the sequence is done (the task is complete) instead of running to
     /// the time limit.
     pub stop_when_done: bool,
+    /// Settings over the task's own (`ReacherTask::env_config`).
     pub env: ReacherConfig,
     /// The task's reward machine, tracked along the episode and logged (state, reward);
     /// with it, an episode also ends when the machine reaches a terminal state.
@@ -38,20 +41,25 @@ pub fn log_scripted_demos(
         path: path.into(),
         problem,
     };
-    let mut env = ReacherDelivery::new(spec.env.clone()).map_err(|e| usage(e.to_string()))?;
+    let task = ReacherTask::resolve(&spec.task).map_err(|e| usage(e.to_string()))?;
+    let env_config = task
+        .env_config(&spec.env)
+        .map_err(|e| usage(e.to_string()))?;
+    let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| usage(e.to_string()))?;
     let config = serde_json::json!({
-        "env": spec.env,
+        "env": env_config,
         "demo": {"sequence": spec.sequence, "episodes": spec.episodes,
                  "stop_when_done": spec.stop_when_done},
     });
-    let mut header = RunHeader::reacher_shipped(&spec.task, spec.seed, config);
+    let mut header = RunHeader::of_task(task.id(), task.task(), spec.seed, config);
     let rm = spec.reward_machine.as_ref();
     header.reward_machine = rm.map(write_rm);
     // A bad sequence is refused before the log file exists.
-    let mut ctl = ScriptedController::from_letters(&spec.sequence, ControllerGains::default())
-        .map_err(usage)?;
+    let mut ctl =
+        ScriptedController::from_letters(&spec.sequence, env.layout(), ControllerGains::default())
+            .map_err(usage)?;
     let mut logger = RolloutLogger::create(path, header, options)?;
-    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut obs = vec![0.0f32; env.obs_dim()];
     for i in 0..spec.episodes {
         let seed = spec.seed.wrapping_add(i);
         env.reset(seed, &mut obs);

@@ -57,6 +57,15 @@ impl<'a> Encoder<'a> {
         }
     }
 
+    /// A repeated `uint32`/`uint64` field, one entry per value, zeros included (unpacked, which
+    /// every protobuf reader accepts).
+    pub fn uints(&mut self, field: u32, vs: impl IntoIterator<Item = u64>) {
+        for v in vs {
+            self.key(field, WIRE_VARINT);
+            self.varint(v);
+        }
+    }
+
     /// A `sint32`/`sint64` field (zigzag), always written (so -1 and 0 are both explicit).
     #[inline]
     pub fn sint(&mut self, field: u32, v: i64) {

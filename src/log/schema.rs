@@ -90,6 +90,27 @@ pub struct RunInfo {
     pub observations: bool,
 }
 
+impl RunInfo {
+    /// The layout of the task the run was made on (`config.task_layout`); a log without the
+    /// record was made on the shipped four-ball layout, read as the shipped task of its name
+    /// (or Composite, which has the same layout, for a task file's log).
+    pub fn task_layout(&self) -> Result<crate::env::layout::TaskLayout, String> {
+        if let Some(v) = self.config.get(super::writer::CONFIG_TASK_LAYOUT) {
+            return serde_json::from_value(v.clone())
+                .map_err(|e| format!("the run's task layout does not parse: {e}"));
+        }
+        let shipped = crate::env::task_file::SHIPPED;
+        let name = if shipped.contains(&self.task.as_str()) {
+            self.task.as_str()
+        } else {
+            "composite"
+        };
+        crate::env::task_file::Task::shipped(name)
+            .map(|t| t.layout())
+            .map_err(|e| e.to_string())
+    }
+}
+
 /// JSON Schema of [`RunInfo`] (draft 2020-12), stored with the `/run` channel.
 pub fn run_json_schema() -> String {
     serde_json::json!({
@@ -168,6 +189,7 @@ pub const EPISODE_START_SPEC: MessageSpec = MessageSpec {
         field("labels", 8, Uint32, false),
         field("rm_state", 9, Sint32, false),
         field("obs", 10, Float, true),
+        field("event_steps", 11, Uint32, true),
     ],
 };
 
@@ -226,14 +248,38 @@ pub struct EpisodeStartMsg {
     pub phase: String,
     pub qpos: Vec<f64>,
     pub qvel: Vec<f64>,
-    /// Ball layout `[x0, y0, x1, y1, …]` (ReacherDelivery; empty elsewhere).
+    /// Region layout `[x0, y0, x1, y1, …]` (ReacherDelivery; empty elsewhere).
     pub balls: Vec<f64>,
-    /// 1-based step of the cancel event, 0 for none.
+    /// A one-event task's 1-based event step, 0 for none.
     pub cancel_step: u32,
     /// Labels of the reset state.
     pub labels: u32,
     pub rm_state: i64,
     pub obs: Vec<f32>,
+    /// Each event's 1-based step (0 for none) of a task with other than one event.
+    pub event_steps: Vec<u32>,
+}
+
+impl EpisodeStartMsg {
+    /// The step of each of a task's `n_events` events (`cancel_step` for a one-event task).
+    pub fn event_steps(&self, n_events: usize) -> Vec<Option<usize>> {
+        let step = |s: u32| (s > 0).then_some(s as usize);
+        if n_events == 1 && self.event_steps.is_empty() {
+            vec![step(self.cancel_step)]
+        } else {
+            self.event_steps.iter().map(|&s| step(s)).collect()
+        }
+    }
+
+    /// The fields of a task's event steps: `cancel_step` for one event, `event_steps` else.
+    pub fn with_event_steps(mut self, steps: &[Option<usize>]) -> EpisodeStartMsg {
+        let code = |s: &Option<usize>| s.map_or(0, |s| s as u32);
+        match steps {
+            [only] => self.cancel_step = code(only),
+            _ => self.event_steps = steps.iter().map(code).collect(),
+        }
+        self
+    }
 }
 
 /// End of an episode (topic `/episode/end`).
@@ -353,6 +399,7 @@ impl EpisodeStartMsg {
         e.uint(8, u64::from(self.labels));
         e.sint(9, self.rm_state);
         e.floats(10, &self.obs);
+        e.uints(11, self.event_steps.iter().map(|&s| u64::from(s)));
     }
 
     pub fn decode(data: &[u8]) -> Result<EpisodeStartMsg, DecodeError> {
@@ -370,6 +417,7 @@ impl EpisodeStartMsg {
                 8 => m.labels = v.as_u32(f)?,
                 9 => m.rm_state = v.as_sint(f)?,
                 10 => v.push_floats(f, &mut m.obs)?,
+                11 => m.event_steps.push(v.as_u32(f)?),
                 _ => {}
             }
         }

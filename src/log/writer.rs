@@ -5,7 +5,8 @@ use super::schema::{
     SCHEMA_VERSION,
 };
 use super::LogError;
-use crate::env::reacher::{ReacherDelivery, VOCABULARY};
+use crate::env::layout::TaskLayout;
+use crate::env::reacher::ReacherDelivery;
 use crate::env::EnvStep;
 use crate::rm::LabelSet;
 use mcap::records::{MessageHeader, Metadata};
@@ -66,39 +67,62 @@ pub struct RunHeader {
     pub reward_machine: Option<String>,
 }
 
-impl RunHeader {
-    /// The header of a ReacherDelivery run on the model at `xml_path`.
-    /// The header of a ReacherDelivery run on the shipped model (built into the binary).
-    pub fn reacher_shipped(task: &str, seed: u64, config: serde_json::Value) -> RunHeader {
-        RunHeader::reacher_with_model(
-            task,
-            seed,
-            config,
-            crate::assets::REACHER_XML_NAME,
-            crate::assets::REACHER_XML,
-        )
-    }
+/// Key of the run config (`RunInfo::config`) that records the task's layout (scene, regions,
+/// events; `env::layout::TaskLayout` as JSON); logs without it were made on the shipped
+/// four-ball layout.
+pub const CONFIG_TASK_LAYOUT: &str = "task_layout";
+/// Key of the run config that records the task file's text.
+pub const CONFIG_TASK_FILE: &str = "task_file";
 
-    fn reacher_with_model(
+impl RunHeader {
+    /// The header of a ReacherDelivery run of a task: its layout, its task file's text
+    /// (recorded in the config under [`CONFIG_TASK_LAYOUT`] and [`CONFIG_TASK_FILE`]) and its
+    /// scene's XML (attached).
+    pub fn reacher(
         task: &str,
+        layout: &TaskLayout,
+        task_file: &str,
+        scene_xml: &str,
         seed: u64,
-        config: serde_json::Value,
-        model_xml_name: &str,
-        model_xml: &str,
+        mut config: serde_json::Value,
     ) -> RunHeader {
+        if let Some(map) = config.as_object_mut() {
+            map.insert(
+                CONFIG_TASK_LAYOUT.into(),
+                serde_json::to_value(layout).unwrap_or_default(),
+            );
+            map.insert(CONFIG_TASK_FILE.into(), task_file.into());
+        }
         RunHeader {
             env: "ReacherDelivery".into(),
             task: task.into(),
             seed,
-            vocabulary: VOCABULARY.into(),
-            obs_dim: crate::env::reacher::OBS_DIM as u32,
+            vocabulary: layout.letters(),
+            obs_dim: layout.obs_dim() as u32,
             act_dim: crate::env::reacher::ACT_DIM as u32,
             step_duration_ns: 20_000_000,
-            model_xml_name: model_xml_name.into(),
-            model_xml: model_xml.into(),
+            model_xml_name: layout.scene.to_string(),
+            model_xml: scene_xml.into(),
             config,
             reward_machine: None,
         }
+    }
+
+    /// [`RunHeader::reacher`] of a loaded task, named as records name it (`id`).
+    pub fn of_task(
+        id: &str,
+        task: &crate::env::task_file::Task,
+        seed: u64,
+        config: serde_json::Value,
+    ) -> RunHeader {
+        RunHeader::reacher(
+            id,
+            &task.layout(),
+            &task.text,
+            &task.scene_xml,
+            seed,
+            config,
+        )
     }
 }
 
@@ -127,7 +151,8 @@ pub struct EpisodeStartRecord<'a> {
     pub qpos: &'a [f64],
     pub qvel: &'a [f64],
     pub balls: &'a [f64],
-    pub cancel_step: Option<usize>,
+    /// Each event's step this episode, in label-bit order.
+    pub event_steps: &'a [Option<usize>],
     pub labels: LabelSet,
     pub rm_state: Option<usize>,
     pub obs: &'a [f32],
@@ -399,7 +424,7 @@ impl RolloutLogger {
             qpos: start.qpos.to_vec(),
             qvel: start.qvel.to_vec(),
             balls: start.balls.to_vec(),
-            cancel_step: start.cancel_step.map_or(0, |s| s as u32),
+            cancel_step: 0,
             labels: start.labels.0,
             rm_state,
             obs: if self.options.observations {
@@ -407,7 +432,9 @@ impl RolloutLogger {
             } else {
                 vec![]
             },
-        };
+            event_steps: Vec::new(),
+        }
+        .with_event_steps(start.event_steps);
         msg.encode(&mut self.batch.data);
         self.batch
             .items
@@ -511,15 +538,14 @@ impl RolloutLogger {
         rm_state: Option<usize>,
         obs: &[f32],
     ) -> Result<bool, LogError> {
-        let balls = env.balls();
-        let flat: Vec<f64> = balls.iter().flatten().copied().collect();
+        let flat: Vec<f64> = env.positions().iter().flatten().copied().collect();
         self.begin_episode(&EpisodeStartRecord {
             seed,
             phase,
             qpos: env.qpos(),
             qvel: env.qvel(),
             balls: &flat,
-            cancel_step: env.cancel_step(),
+            event_steps: env.event_steps(),
             labels: env.labels(),
             rm_state,
             obs,

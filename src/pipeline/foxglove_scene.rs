@@ -1,12 +1,12 @@
 //! Foxglove 3D view of a rollout log (`reacher foxglove LOG --out VIEW.mcap`): a copy of the
 //! log with two more channels in Foxglove's standard schemas, so that opening it in Foxglove
-//! shows the arm moving among the balls in a 3D panel.
+//! shows the arm moving among the task's labelled regions in a 3D panel.
 //!
 //! - `/scene` (`foxglove.SceneUpdate`): entity `arena` (floor and walls, at each episode
-//!   start), `balls` (the four balls at the episode's layout, translucent as in the model),
-//!   `arm` (both links as cylinders and the fingertip as a sphere, at every logged state),
-//!   `events` (a lit touch zone around each ball the fingertip touches, and a "cancel" text
-//!   on the step the cancel fires; empty otherwise).
+//!   start), `balls` (each region's geom at the episode's layout, translucent as in the
+//!   model), `arm` (both links as cylinders and the fingertip as a sphere, at every logged
+//!   state), `events` (a lit touch zone around each region the fingertip is in, and the
+//!   event's letter as text on the step an event fires; empty otherwise).
 //! - `/tf` (`foxglove.FrameTransforms`): frames `link0`, `link1` and `fingertip` in `world`.
 //!
 //! Geometry, colours and sizes come from the log's own model XML; poses from forward
@@ -17,8 +17,8 @@
 //! complete chunks and nothing of the chunk it was cut in. The log itself keeps its size (the
 //! view is a separate file). Schemas are the official ones of the `foxglove` crate.
 
+use crate::env::layout::{Anchor, TaskLayout};
 use crate::env::placement::Placement;
-use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
 use crate::log::schema::{EpisodeStartMsg, StepMsg, TOPIC_EPISODE_START, TOPIC_STEP};
 use crate::log::{read_log_bytes, read_log_file, read_log_records, LogError};
 use crate::mujoco::{Data, Model, ObjectKind};
@@ -78,15 +78,20 @@ fn output_error(path: &Path) -> impl Fn(String) -> SceneError + '_ {
 struct Geometry {
     model: Arc<Model>,
     arm_bodies: [usize; 3],
-    ball_bodies: [usize; 4],
-    /// How each ball is put at its episode's logged position.
-    ball_placements: [Placement; 4],
+    /// Each region's anchor: a body (`true`) or a site, by id.
+    region_anchors: Vec<(bool, usize)>,
+    /// How each movable region is put at its episode's logged position.
+    region_placements: Vec<Option<Placement>>,
     link_radius: f64,
     tip_radius: f64,
-    ball_radius: f64,
+    /// Radius of each region's geom (0 without one) and of its touch zone.
+    ball_radii: Vec<f64>,
+    touch_radii: Vec<f64>,
     link_colour: Color,
     tip_colour: Color,
-    ball_colours: [Color; 4],
+    ball_colours: Vec<Color>,
+    /// Label bit and letter of each event.
+    events: Vec<(usize, char)>,
     walls: Vec<([f64; 3], [f64; 3], f64)>,
     wall_colour: Color,
 }
@@ -101,7 +106,7 @@ fn colour(rgba: [f32; 4], alpha: Option<f64>) -> Color {
 }
 
 impl Geometry {
-    fn new(xml: &str, source: &str) -> Result<Geometry, String> {
+    fn new(xml: &str, source: &str, layout: &TaskLayout) -> Result<Geometry, String> {
         let model = Arc::new(Model::from_xml_str(xml, source).map_err(|e| e.to_string())?);
         let id = |kind, name: &str| model.id(kind, name).map_err(|e| e.to_string());
         let geom = |name: &str| id(ObjectKind::Geom, name);
@@ -110,14 +115,37 @@ impl Geometry {
             id(ObjectKind::Body, "body1")?,
             id(ObjectKind::Body, "fingertip")?,
         ];
-        let mut ball_bodies = [0; 4];
-        let mut ball_colours = [Color::default(); 4];
-        let mut ball_placements = [Placement::Slides { qpos: 0 }; 4];
-        for (k, name) in BALLS.iter().enumerate() {
-            ball_bodies[k] = id(ObjectKind::Body, name)?;
-            ball_placements[k] = Placement::find(&model, name)
-                .ok_or_else(|| format!("ball {name} has neither a mocap body nor slide joints"))?;
-            ball_colours[k] = colour(model.geom_rgba(geom(name)?), None);
+        let mut region_anchors = Vec::with_capacity(layout.n_regions());
+        let mut region_placements = Vec::with_capacity(layout.n_regions());
+        let (mut ball_colours, mut ball_radii) = (Vec::new(), Vec::new());
+        for region in &layout.regions {
+            region_anchors.push(match &region.anchor {
+                Anchor::Body(b) => (true, id(ObjectKind::Body, b)?),
+                Anchor::Site(s) => (false, id(ObjectKind::Site, s)?),
+            });
+            // The geom named as the anchor (the built-in scene's balls) gives the colour.
+            match geom(region.anchor.name()) {
+                Ok(g) => {
+                    ball_colours.push(colour(model.geom_rgba(g), None));
+                    ball_radii.push(model.geom_radius(g));
+                }
+                Err(_) => {
+                    ball_colours.push(Color {
+                        r: 0.55,
+                        g: 0.35,
+                        b: 0.75,
+                        a: 0.3,
+                    });
+                    ball_radii.push(0.0);
+                }
+            }
+            region_placements.push(match (&region.anchor, region.movable) {
+                (Anchor::Body(b), true) => Some(
+                    Placement::find(&model, b)
+                        .ok_or_else(|| format!("body {b} has neither a mocap body nor slides"))?,
+                ),
+                _ => None,
+            });
         }
         let mut walls = Vec::new();
         for name in WALLS {
@@ -130,15 +158,19 @@ impl Geometry {
         Ok(Geometry {
             link_radius: model.geom_radius(geom("link0")?),
             tip_radius: model.geom_radius(geom("fingertip")?),
-            ball_radius: model.geom_radius(geom(BALLS[0])?),
+            ball_radii,
+            touch_radii: layout.regions.iter().map(|r| r.radius).collect(),
+            events: (0..layout.n_events())
+                .map(|e| (layout.event_bit(e), layout.events[e].letter))
+                .collect(),
             link_colour: colour(model.geom_rgba(geom("link0")?), None),
             tip_colour: colour(model.geom_rgba(geom("fingertip")?), None),
             wall_colour: colour(model.geom_rgba(geom(WALLS[0])?), None),
             ball_colours,
             walls,
             arm_bodies,
-            ball_bodies,
-            ball_placements,
+            region_anchors,
+            region_placements,
             model,
         })
     }
@@ -241,18 +273,21 @@ struct Frame {
 }
 
 impl Geometry {
-    /// Puts the balls at an episode's logged layout (x, y of each ball in label order); the
-    /// state's forward pass in [`Geometry::frame`] moves them there.
+    /// Puts the movable regions at an episode's logged layout (x, y of each region in label
+    /// order); the state's forward pass in [`Geometry::frame`] moves them there.
     fn place_balls(&self, data: &mut Data, balls: &[f64]) -> Result<(), String> {
-        if balls.len() != 2 * BALLS.len() {
+        let n = self.region_placements.len();
+        if balls.len() != 2 * n {
             return Err(format!(
-                "the ball layout has {} values, expected {}",
+                "the region layout has {} values, expected {}",
                 balls.len(),
-                2 * BALLS.len()
+                2 * n
             ));
         }
-        for (placement, xy) in self.ball_placements.iter().zip(balls.chunks_exact(2)) {
-            placement.place(data, [xy[0], xy[1]]);
+        for (placement, xy) in self.region_placements.iter().zip(balls.chunks_exact(2)) {
+            if let Some(placement) = placement {
+                placement.place(data, [xy[0], xy[1]]);
+            }
         }
         Ok(())
     }
@@ -270,7 +305,15 @@ impl Geometry {
             .map_err(|e| e.to_string())?;
         let time = timestamp(log_time);
         let [shoulder, elbow, tip] = self.arm_bodies.map(|b| data.body_xpos(b));
-        let balls = self.ball_bodies.map(|b| data.body_xpos(b));
+        let balls: Vec<[f64; 3]> = (self.region_anchors.iter())
+            .map(|&(body, id)| {
+                if body {
+                    data.body_xpos(id)
+                } else {
+                    data.site_xpos(id)
+                }
+            })
+            .collect();
 
         let mut arm = entity("arm", time);
         arm.cylinders = vec![
@@ -286,12 +329,15 @@ impl Geometry {
                     a: 0.35,
                     ..self.ball_colours[k]
                 };
-                events
-                    .spheres
-                    .push(sphere(*p, self.ball_radius + TOUCH_RADIUS, lit));
+                let zone = self.ball_radii[k] + self.touch_radii[k];
+                events.spheres.push(sphere(*p, zone, lit));
             }
         }
-        if labels >> CANCEL_BIT & 1 == 1 {
+        let fired: String = (self.events.iter())
+            .filter(|&&(bit, _)| labels >> bit & 1 == 1)
+            .map(|&(_, letter)| letter)
+            .collect();
+        if !fired.is_empty() {
             events.texts.push(TextPrimitive {
                 pose: at([0.0, 0.0, 0.12]),
                 billboard: true,
@@ -303,7 +349,7 @@ impl Geometry {
                     b: 0.0,
                     a: 1.0,
                 }),
-                text: "cancel".into(),
+                text: fired,
             });
         }
         let mut entities = vec![arm, events];
@@ -311,8 +357,10 @@ impl Geometry {
             let mut ball_entity = entity("balls", time);
             ball_entity.spheres = balls
                 .iter()
-                .zip(self.ball_colours)
-                .map(|(p, c)| sphere(*p, self.ball_radius, c))
+                .zip(&self.ball_colours)
+                .zip(&self.ball_radii)
+                .filter(|(_, &r)| r > 0.0)
+                .map(|((p, c), &r)| sphere(*p, r, *c))
                 .collect();
             let mut arena = entity("arena", time);
             arena.cubes = vec![CubePrimitive {
@@ -414,7 +462,8 @@ pub fn export_scene(
         }
     }
     let xml = log.reacher_model_xml().map_err(&bad_input)?;
-    let geometry = Geometry::new(xml, &format!("{}:model.xml", input.display()))
+    let layout = log.run.task_layout().map_err(&bad_input)?;
+    let geometry = Geometry::new(xml, &format!("{}:model.xml", input.display()), &layout)
         .map_err(|e| bad_input(format!("model.xml: {e}")))?;
     let mut data = Data::new(geometry.model.clone()).map_err(|e| bad_input(e.to_string()))?;
 

@@ -22,9 +22,7 @@
 
 use super::reacher_irl::config::{load_toml_config, parse_toml_config};
 use super::reacher_irl::{Algo, IrlConfigError};
-use crate::env::reacher::{
-    ArmStart, CancelConfig, ReacherConfig, ReacherDelivery, OBS_DIM, OBS_TIP,
-};
+use crate::env::reacher::{ArmStart, CancelConfig, ReacherConfig, ReacherDelivery, OBS_TIP};
 use crate::env::ContinuousEnv;
 use crate::irl::firl::{density_ratio, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
 use crate::irl::kde::Kde;
@@ -303,9 +301,12 @@ impl DrawConfig {
         }
     }
 
-    /// The arm alone: T-step episodes from rest at 0 rad, no cancel event.
-    pub fn env_config(&self) -> ReacherConfig {
-        ReacherConfig {
+    /// The arm alone: T-step episodes from rest at 0 rad, no event, in the scene of the
+    /// paper's tasks (`composite`'s layout; the reward reads the fingertip alone).
+    pub fn env_config(&self) -> Result<ReacherConfig, String> {
+        let task = crate::env::reacher_task::ReacherTask::shipped("composite")
+            .map_err(|e| e.to_string())?;
+        let config = ReacherConfig {
             max_steps: self.horizon,
             arm_start: ArmStart::Zero,
             cancel: CancelConfig {
@@ -314,7 +315,8 @@ impl DrawConfig {
                 latest_step: 1,
             },
             ..ReacherConfig::default()
-        }
+        };
+        task.env_config(&config).map_err(|e| e.to_string())
     }
 }
 
@@ -362,13 +364,15 @@ pub fn run_draw(
     let started = Instant::now();
     let target = config.target;
     let horizon = config.horizon;
-    let mut env = ReacherDelivery::new(config.env_config()).map_err(|e| run("environment", &e))?;
+    let env_config = config.env_config().map_err(|e| run("environment", &e))?;
+    let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| run("environment", &e))?;
+    let obs_dim = env.obs_dim();
     let mut trainer =
-        SacTrainer::new(&config.sac, OBS_DIM, env.act_dim(), seed).map_err(|e| run("SAC", &e))?;
+        SacTrainer::new(&config.sac, obs_dim, env.act_dim(), seed).map_err(|e| run("SAC", &e))?;
     let mut model: Box<dyn RewardModel + Send> = Box::new(
         MlpReward::new(
             MlpRewardConfig::paper(OBS_TIP.to_vec(), config.reward_lr, seed),
-            OBS_DIM,
+            obs_dim,
         )
         .map_err(|e| run("reward", &e))?,
     );
@@ -381,7 +385,7 @@ pub fn run_draw(
     let expert_obs: Vec<f32> = target_samples
         .chunks_exact(2)
         .flat_map(|p| {
-            let mut o = [0.0f32; OBS_DIM];
+            let mut o = vec![0.0f32; obs_dim];
             o[OBS_TIP[0]] = p[0] as f32;
             o[OBS_TIP[1]] = p[1] as f32;
             o
@@ -391,11 +395,11 @@ pub fn run_draw(
     // Rollout environments stepped in lockstep, and the actor's buffers for them.
     let act_dim = env.act_dim();
     let mut lockstep = (0..config.agent_trajectories.min(ROLLOUT_LOCKSTEP))
-        .map(|_| ReacherDelivery::new(config.env_config()))
+        .map(|_| ReacherDelivery::new(env_config.clone()))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| run("environment", &e))?;
     let mut act_ws = ActWorkspace::with_batch(&trainer.agent.actor, lockstep.len());
-    let mut round_obs = vec![0.0f32; lockstep.len() * OBS_DIM];
+    let mut round_obs = vec![0.0f32; lockstep.len() * obs_dim];
     let mut round_actions = vec![0.0f32; lockstep.len() * act_dim];
     let mut rollout_index = 0u64;
     let mut rows = Vec::new();
@@ -434,12 +438,12 @@ pub fn run_draw(
         // 2. Fresh episodes of the stochastic policy: fingertip states s_1..s_T, played
         // `lockstep.len()` at a time so that the actor acts on all of them in one product.
         let n_traj = config.agent_trajectories;
-        let mut agent_obs = vec![0.0f32; n_traj * horizon * OBS_DIM];
+        let mut agent_obs = vec![0.0f32; n_traj * horizon * obs_dim];
         for first in (0..n_traj).step_by(lockstep.len()) {
             let round = lockstep.len().min(n_traj - first);
             for (k, env) in lockstep.iter_mut().take(round).enumerate() {
                 let reset_seed = episode_seed(seed ^ 0x7261_6e64, rollout_index + k as u64);
-                env.reset(reset_seed, &mut round_obs[k * OBS_DIM..(k + 1) * OBS_DIM]);
+                env.reset(reset_seed, &mut round_obs[k * obs_dim..(k + 1) * obs_dim]);
             }
             rollout_index += round as u64;
             for t in 0..horizon {
@@ -451,7 +455,7 @@ pub fn run_draw(
                     &mut round_actions,
                 );
                 for (k, env) in lockstep.iter_mut().take(round).enumerate() {
-                    let o = &mut round_obs[k * OBS_DIM..(k + 1) * OBS_DIM];
+                    let o = &mut round_obs[k * obs_dim..(k + 1) * obs_dim];
                     let step = env
                         .step(&round_actions[k * act_dim..(k + 1) * act_dim], o)
                         .map_err(|e| run("rollout", &e))?;
@@ -461,13 +465,13 @@ pub fn run_draw(
                                 .into(),
                         ));
                     }
-                    let at = ((first + k) * horizon + t) * OBS_DIM;
-                    agent_obs[at..at + OBS_DIM].copy_from_slice(o);
+                    let at = ((first + k) * horizon + t) * obs_dim;
+                    agent_obs[at..at + obs_dim].copy_from_slice(o);
                 }
             }
         }
         tips = agent_obs
-            .chunks_exact(OBS_DIM)
+            .chunks_exact(obs_dim)
             .flat_map(|o| [f64::from(o[OBS_TIP[0]]), f64::from(o[OBS_TIP[1]])])
             .collect();
         // 3. The algorithm's loss coefficients at the agent (and, MaxEnt, expert) states.

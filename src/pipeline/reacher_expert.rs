@@ -25,9 +25,7 @@ pub use config::{expert_sac, ExpertConfig, MAX_EVAL_EPISODES, MAX_TOTAL_STEPS};
 use super::expert::{train_expert, CurvePoint, ExpertOutcome, ExpertProgress, TrainingError};
 use crate::atomic_file::write_atomic;
 use crate::env::product::{Potential, ProductEnv};
-use crate::env::reacher::{
-    ReacherConfig, ReacherDelivery, ACT_DIM, CANCEL_BIT, OBS_DIM, VOCABULARY,
-};
+use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use crate::env::reacher_task::{
     task_env, Branch, BranchTally, CancelBranch, ReacherTask, SubgoalPotential,
 };
@@ -110,10 +108,11 @@ pub enum ExpertError {
     Write { path: String, problem: String },
 }
 
-/// Observation size of `task`'s product environment: 17 + number of machine states.
-fn rm_states(task: ReacherTask) -> Result<usize, PolicyFileError> {
+/// Observation size of `task`'s product environment: the task's observation + number of
+/// machine states.
+fn product_obs_dim(task: ReacherTask) -> Result<usize, PolicyFileError> {
     task.perfect_rm()
-        .map(|rm| rm.n_states())
+        .map(|rm| task.layout().obs_dim() + rm.n_states())
         .map_err(|e| PolicyFileError::Task {
             task: task.name().into(),
             problem: e.to_string(),
@@ -121,7 +120,7 @@ fn rm_states(task: ReacherTask) -> Result<usize, PolicyFileError> {
 }
 
 /// A trained expert: the SAC actor acting on the product observation of the task's
-/// perfect-machine environment, `[inner observation (17) | one-hot machine state]`.
+/// perfect-machine environment, `[inner observation | one-hot machine state]`.
 #[derive(Clone, Debug)]
 pub struct ExpertPolicy {
     task: ReacherTask,
@@ -134,7 +133,7 @@ impl ExpertPolicy {
     /// Wraps a trained actor (head: mean and log-std per action) for `task`; the actor's input
     /// must be the task's product observation.
     pub fn new(task: ReacherTask, actor: Mlp, info: PolicyInfo) -> Result<Self, PolicyFileError> {
-        let obs_dim = OBS_DIM + rm_states(task.clone())?;
+        let obs_dim = product_obs_dim(task.clone())?;
         let arch = actor.arch();
         let expected = MlpArch::new(obs_dim, &hidden_of(&arch), 2 * ACT_DIM);
         if arch != expected {
@@ -231,7 +230,7 @@ impl ExpertPolicy {
                 problem: e.to_string(),
             })
         })?;
-        let expected = MlpArch::new(OBS_DIM + rm_states(task.clone())?, hidden, 2 * ACT_DIM);
+        let expected = MlpArch::new(product_obs_dim(task.clone())?, hidden, 2 * ACT_DIM);
         let mut actor = Mlp::new(&expected, &mut ChaCha8Rng::seed_from_u64(0));
         if let Err(found) = actor.read_into(&mut r).map_err(codec)? {
             return Err(PolicyFileError::Architecture {
@@ -417,13 +416,15 @@ pub fn branch_tally(task: ReacherTask, demos: &[Demo]) -> Result<Option<BranchTa
         task: task.name().into(),
         problem: e.to_string(),
     })?;
-    Ok(CancelBranch::of(&rm).map(|branches| {
-        let mut tally = BranchTally::default();
-        for d in demos {
-            tally.add(d.branch(&branches), d.success);
-        }
-        tally
-    }))
+    Ok(
+        CancelBranch::of(&rm, task.layout().events()).map(|branches| {
+            let mut tally = BranchTally::default();
+            for d in demos {
+                tally.add(d.branch(&branches), d.success);
+            }
+            tally
+        }),
+    )
 }
 
 /// Plays `episodes` episodes of `policy` on its task (no shaping), resets seeded by
@@ -439,6 +440,7 @@ pub fn evaluate_expert(
     let resets: Vec<u64> = (0..episodes).map(|i| episode_seed(seed, i)).collect();
     let demos = run_episodes(policy, env_config, &resets, mode, seed, None)?;
     let n = demos.len().max(1) as f64;
+    let events = policy.task().layout().events();
     let successes = demos.iter().filter(|d| d.success).count() as u64;
     Ok(EvalSummary {
         episodes,
@@ -447,8 +449,10 @@ pub fn evaluate_expert(
         mean_task_return: demos.iter().map(|d| d.task_return).sum::<f64>() / n,
         mean_env_return: demos.iter().map(|d| d.env_return).sum::<f64>() / n,
         mean_length: demos.iter().map(|d| d.steps.len() as f64).sum::<f64>() / n,
-        cancel_episodes: demos.iter().filter(|d| d.cancelled()).count() as u64,
-        cancel_successes: demos.iter().filter(|d| d.cancelled() && d.success).count() as u64,
+        cancel_episodes: demos.iter().filter(|d| d.has_event(events)).count() as u64,
+        cancel_successes: (demos.iter())
+            .filter(|d| d.has_event(events) && d.success)
+            .count() as u64,
         branches: branch_tally(policy.task(), &demos)?,
     })
 }
@@ -457,10 +461,10 @@ pub fn evaluate_expert(
 #[derive(Clone, Debug, PartialEq)]
 pub struct DemoStep {
     /// Inner (ReacherDelivery) observation the action was taken in.
-    pub obs: [f32; OBS_DIM],
+    pub obs: Vec<f32>,
     pub action: [f32; ACT_DIM],
     /// Inner observation after the step.
-    pub next_obs: [f32; OBS_DIM],
+    pub next_obs: Vec<f32>,
     /// Labels after the step, `L(next_obs)`.
     pub labels: LabelSet,
     /// State of the task's *perfect* machine after the step. For evaluation only: SMIRL must
@@ -496,9 +500,9 @@ impl Demo {
         self.steps.iter().map(|s| s.labels).collect()
     }
 
-    /// The cancel event fired during the episode.
-    pub fn cancelled(&self) -> bool {
-        self.steps.iter().any(|s| s.labels.contains(CANCEL_BIT))
+    /// One of `events` (the task's event labels) fired during the episode.
+    pub fn has_event(&self, events: LabelSet) -> bool {
+        self.steps.iter().any(|s| s.labels.0 & events.0 != 0)
     }
 
     /// The branch the episode took, from the perfect machine's states along it.
@@ -558,7 +562,7 @@ pub fn record_episode<P: Potential>(
     }
     let mut labels = demo.initial_labels;
     loop {
-        let before: [f32; OBS_DIM] = env.inner_obs().try_into().expect("inner obs is 17");
+        let before = env.inner_obs().to_vec();
         let action = policy(&obs, labels, env.rm_state());
         let s = env
             .step_product(&action, &mut obs)
@@ -583,7 +587,7 @@ pub fn record_episode<P: Potential>(
         demo.steps.push(DemoStep {
             obs: before,
             action,
-            next_obs: env.inner_obs().try_into().expect("inner obs is 17"),
+            next_obs: env.inner_obs().to_vec(),
             labels,
             rm_state: s.rm_state,
             env_reward: s.env_reward,
@@ -697,9 +701,9 @@ pub fn demo_log_header(
         "env": env_config,
         "expert": policy.info(),
         "policy": "SAC expert, stochastic actions",
-        "vocabulary": VOCABULARY,
     });
-    let mut header = RunHeader::reacher_shipped(policy.task().id(), seed, config);
+    let task = policy.task();
+    let mut header = RunHeader::of_task(task.id(), task.task(), seed, config);
     let rm = policy.task().perfect_rm().map_err(|e| ExpertError::Task {
         task: policy.task().name().into(),
         problem: e.to_string(),
@@ -720,9 +724,8 @@ pub fn train_log_header(
         // Replay reads the environment config from `env` (time limit, cancel schedule).
         "env": config.env,
         "expert_config": config,
-        "vocabulary": VOCABULARY,
     });
-    let mut header = RunHeader::reacher_shipped(task.id(), seed, json);
+    let mut header = RunHeader::of_task(task.id(), task.task(), seed, json);
     let rm = task.perfect_rm().map_err(|e| ExpertError::Task {
         task: task.name().into(),
         problem: e.to_string(),

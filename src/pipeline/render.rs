@@ -8,7 +8,6 @@
 //! logged `qpos` of every step, so the picture shows the episode as it was simulated.
 
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::{BALLS, CANCEL_BIT, TOUCH_RADIUS};
 use crate::env::reacher_task::{Branch, CancelBranch};
 use crate::log::{LoggedEpisode, RolloutLog};
 use crate::mujoco::{Data, Model, ObjectKind};
@@ -75,15 +74,15 @@ pub struct EpisodePicture {
     pub episode: u64,
     pub phase: String,
     pub steps: usize,
-    /// Touches as (1-based step, ball letter), first contact of each touch.
+    /// Touches as (1-based step, region letter), first contact of each touch.
     pub touches: Vec<(usize, char)>,
-    /// 1-based cancel step, when the cancel event fired within the logged steps.
-    pub cancel_step: Option<usize>,
+    /// 1-based step of the first event, when an event fired within the logged steps.
+    pub event_step: Option<usize>,
     /// For a conditional task (IF, Composite): the branch the episode took, by the run's
     /// reward machine along the logged labels.
     pub branch: Option<Branch>,
-    /// Ball centres in pixels, in [`BALLS`] order.
-    pub ball_pixels: [(f64, f64); 4],
+    /// Region centres in pixels, in label-bit order.
+    pub ball_pixels: Vec<(f64, f64)>,
     /// Fingertip at the first and last state, in pixels.
     pub tip_pixels: ((f64, f64), (f64, f64)),
 }
@@ -145,16 +144,35 @@ pub fn render_episode(
         })?;
         walls.push(([a[0], a[1]], [b[0], b[1]], model.geom_radius(g)));
     }
-    let mut ball_colours = [Rgb::BLACK; 4];
-    for (c, name) in ball_colours.iter_mut().zip(BALLS) {
-        *c = colour(model.geom_rgba(id(ObjectKind::Geom, name)?));
+    // Each region in the colour and size of the geom named as its anchor (the built-in
+    // scene's balls), or in a colour of its own with no solid centre.
+    let layout = log.run.task_layout().map_err(&bad)?;
+    let palette = [
+        Rgb(0.55, 0.35, 0.75),
+        Rgb(0.95, 0.55, 0.1),
+        Rgb(0.2, 0.65, 0.65),
+        Rgb(0.6, 0.6, 0.2),
+    ];
+    let mut ball_colours = Vec::with_capacity(layout.n_regions());
+    let mut ball_radii = Vec::with_capacity(layout.n_regions());
+    for (k, region) in layout.regions.iter().enumerate() {
+        match model.id(ObjectKind::Geom, region.anchor.name()) {
+            Ok(g) => {
+                ball_colours.push(colour(model.geom_rgba(g)));
+                ball_radii.push(model.geom_radius(g));
+            }
+            Err(_) => {
+                ball_colours.push(palette[k % palette.len()]);
+                ball_radii.push(0.0);
+            }
+        }
     }
-    let ball_radius = model.geom_radius(id(ObjectKind::Geom, BALLS[0])?);
-    if ep.start.balls.len() != 8 {
+    if ep.start.balls.len() != 2 * layout.n_regions() {
         return Err(bad(format!(
-            "episode {}: {} ball coordinates, expected 8",
+            "episode {}: {} region coordinates, expected {}",
             ep.start.episode,
-            ep.start.balls.len()
+            ep.start.balls.len(),
+            2 * layout.n_regions()
         )));
     }
 
@@ -197,19 +215,22 @@ pub fn render_episode(
     for &(a, b, radius) in &walls {
         canvas.line(px(a), px(b), 2.0 * radius * scale, wall_colour, 1.0);
     }
-    // Balls: the touch zone lightly, the ball itself solid.
-    let mut ball_pixels = [(0.0, 0.0); 4];
+    // Regions: the touch zone lightly, the ball itself solid.
+    let mut ball_pixels = Vec::with_capacity(layout.n_regions());
     for (i, c) in ball_colours.iter().enumerate() {
         let centre = px([ep.start.balls[2 * i], ep.start.balls[2 * i + 1]]);
-        ball_pixels[i] = centre;
+        ball_pixels.push(centre);
+        let (ball_radius, touch_radius) = (ball_radii[i], layout.regions[i].radius);
         canvas.disc(
             centre.0,
             centre.1,
-            (ball_radius + TOUCH_RADIUS) * scale,
+            (ball_radius + touch_radius) * scale,
             c.lighten(0.75),
             1.0,
         );
-        canvas.disc(centre.0, centre.1, ball_radius * scale, *c, 1.0);
+        if ball_radius > 0.0 {
+            canvas.disc(centre.0, centre.1, ball_radius * scale, *c, 1.0);
+        }
     }
     // Arm poses, earliest lightest.
     let n = arm.len();
@@ -238,9 +259,10 @@ pub fn render_episode(
     for w in arm.windows(2) {
         canvas.line(px(w[0][2]), px(w[1][2]), 2.0, path_colour, 1.0);
     }
-    // Touches (rising edges of ball labels) and the cancel step.
+    // Touches (rising edges of region labels) and the first event's step.
     let mut touches = Vec::new();
-    let mut cancel_step = None;
+    let mut event_step = None;
+    let events = layout.events().0;
     let mut prev = ep.start.labels;
     let letters: Vec<char> = log.run.vocabulary.chars().collect();
     for (k, s) in ep.steps.iter().enumerate() {
@@ -254,8 +276,8 @@ pub fn render_episode(
                 canvas.ring(tip_px.0, tip_px.1, 0.018 * scale, 1.5, *c, 1.0);
             }
         }
-        if s.labels & (1 << CANCEL_BIT) != 0 && cancel_step.is_none() {
-            cancel_step = Some(step);
+        if s.labels & events != 0 && event_step.is_none() {
+            event_step = Some(step);
             let d = 0.015 * scale;
             for (dx, dy) in [(d, d), (d, -d)] {
                 canvas.line(
@@ -269,7 +291,7 @@ pub fn render_episode(
         }
         prev = s.labels;
     }
-    // Timeline: a grey bar over the episode's steps, ticks at touches and the cancel step.
+    // Timeline: a grey bar over the episode's steps, ticks at touches and the event step.
     let (left, right) = (8.0, f64::from(size) - 8.0);
     let top = f64::from(size) + 6.0;
     let bottom = f64::from(size + STRIP) - 6.0;
@@ -279,9 +301,10 @@ pub fn render_episode(
     for &(step, letter) in &touches {
         let b = letters.iter().position(|&c| c == letter).unwrap_or(0);
         let x = at(step);
-        canvas.line((x, top), (x, bottom), 3.0, ball_colours[b.min(3)], 1.0);
+        let c = ball_colours.get(b).copied().unwrap_or(Rgb::BLACK);
+        canvas.line((x, top), (x, bottom), 3.0, c, 1.0);
     }
-    if let Some(step) = cancel_step {
+    if let Some(step) = event_step {
         let x = at(step);
         canvas.line((x, top), (x, bottom), 2.0, Rgb::BLACK, 1.0);
     }
@@ -289,7 +312,7 @@ pub fn render_episode(
         .ok()
         .flatten()
         .and_then(|(rm, _)| {
-            let branches = CancelBranch::of(&rm)?;
+            let branches = CancelBranch::of(&rm, layout.events())?;
             Some(branches.of_labels(&rm, ep.steps.iter().map(|s| LabelSet(s.labels))))
         });
     Ok(EpisodePicture {
@@ -299,7 +322,7 @@ pub fn render_episode(
         phase: ep.start.phase.clone(),
         steps: ep.steps.len(),
         touches,
-        cancel_step,
+        event_step,
         ball_pixels,
         tip_pixels: (px(arm[0][2]), px(arm[n - 1][2])),
     })

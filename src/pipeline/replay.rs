@@ -13,7 +13,7 @@
 //! (replay still uses the stored one, which is what the run used; the first shipped model,
 //! `assets/reacher_delivery_v1.xml`, is named as such).
 
-use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM, OBS_DIM};
+use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use crate::env::reacher_task::{Branch, CancelBranch};
 use crate::env::ContinuousEnv;
 use crate::log::schema::{sha256_hex, NO_RM};
@@ -193,7 +193,8 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
         .map_err(|e| cannot(e.to_string()))?;
     // The config matters for the time limit (`truncated`) and for reset(seed) (ball
     // randomisation, cancel schedule); the replayed episodes restore their logged start state.
-    let config: ReacherConfig = match log.run.config.get("env") {
+    let layout = log.run.task_layout().map_err(cannot)?;
+    let mut config: ReacherConfig = match log.run.config.get("env") {
         Some(v) => serde_json::from_value(v.clone()).map_err(|e| {
             cannot(format!(
                 "the run config's `env` section does not parse: {e}"
@@ -208,6 +209,7 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
             ReacherConfig::default()
         }
     };
+    config.layout = Some(Arc::new(layout));
     let mut env =
         ReacherDelivery::with_model(Arc::new(model), config).map_err(|e| cannot(e.to_string()))?;
     let reward_machine = run_reward_machine(log, &mut notes).map_err(cannot)?;
@@ -314,27 +316,33 @@ fn replay_episode(
     rm: Option<&RewardMachine>,
 ) -> Result<EpisodeReplay, String> {
     let start = &ep.start;
-    if start.balls.len() != 8 {
+    let layout = Arc::clone(env.layout());
+    if start.balls.len() != 2 * layout.n_regions() {
         return Err(format!(
-            "{} ball coordinates, expected 8",
-            start.balls.len()
+            "{} region coordinates, expected {}",
+            start.balls.len(),
+            2 * layout.n_regions()
         ));
     }
-    let mut balls = [[0.0; 2]; 4];
-    for (i, b) in balls.iter_mut().enumerate() {
-        *b = [start.balls[2 * i], start.balls[2 * i + 1]];
+    let positions: Vec<[f64; 2]> = start.balls.chunks_exact(2).map(|b| [b[0], b[1]]).collect();
+    let event_steps = start.event_steps(layout.n_events());
+    if event_steps.len() != layout.n_events() {
+        return Err(format!(
+            "{} event steps, expected {}",
+            event_steps.len(),
+            layout.n_events()
+        ));
     }
-    let cancel = (start.cancel_step > 0).then_some(start.cancel_step as usize);
-    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut obs = vec![0.0f32; layout.obs_dim()];
 
     // Does the seed still produce this start? (Informative only.)
     env.reset(start.seed, &mut obs);
     let seed_reproduces_start = env.qpos() == start.qpos.as_slice()
         && env.qvel() == start.qvel.as_slice()
-        && env.balls() == balls
-        && env.cancel_step() == cancel;
+        && env.positions() == positions.as_slice()
+        && env.event_steps() == event_steps.as_slice();
 
-    env.restore_start(&start.qpos, &start.qvel, balls, cancel, &mut obs)
+    env.restore_start(&start.qpos, &start.qvel, &positions, &event_steps, &mut obs)
         .map_err(|e| e.to_string())?;
     let mut result = EpisodeReplay {
         episode: start.episode,
@@ -349,7 +357,7 @@ fn replay_episode(
         rm_checked: false,
         branch: None,
     };
-    let branches = rm.and_then(|rm| CancelBranch::of(rm).map(|b| (rm, b)));
+    let branches = rm.and_then(|rm| CancelBranch::of(rm, layout.events()).map(|b| (rm, b)));
     let mut replayed_labels = Vec::with_capacity(ep.steps.len());
     let mismatch = |step: usize, (what, logged, replayed): (String, String, String)| Mismatch {
         step,

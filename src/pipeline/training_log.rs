@@ -10,8 +10,8 @@
 //! log's `/run` record), as for every other phase of a run.
 
 use crate::env::product::{Potential, ProductEnv};
-use crate::env::reacher::{ReacherDelivery, OBS_DIM};
-use crate::env::EnvStep;
+use crate::env::reacher::ReacherDelivery;
+use crate::env::{ContinuousEnv, EnvStep};
 use crate::log::RolloutLogger;
 use crate::rl::sac::{EpisodeSummary, ObserverError, TrainingObserver};
 use crate::rm::RewardMachine;
@@ -94,7 +94,7 @@ impl<E: ReacherView + ?Sized> TrainingObserver<E> for TrainingLog<'_> {
             reset_seed,
             self.phase,
             Some(u),
-            &obs[..OBS_DIM],
+            &obs[..env.reacher().obs_dim()],
         )?;
         self.open = logged.then_some((u, false));
         Ok(())
@@ -118,7 +118,7 @@ impl<E: ReacherView + ?Sized> TrainingObserver<E> for TrainingLog<'_> {
             action,
             &env.inner_step(step),
             Some((next, reward)),
-            &obs[..OBS_DIM],
+            &obs[..env.reacher().obs_dim()],
         )?;
         Ok(())
     }

@@ -99,14 +99,14 @@ pub fn render(args: RenderRequest) -> Result<()> {
         .map(|(step, ball)| format!("{ball}@{step}"))
         .collect();
     println!(
-        "wrote {}: episode {} [{}], {} steps, touches [{}], cancel {}{}",
+        "wrote {}: episode {} [{}], {} steps, touches [{}], event {}{}",
         args.out.display(),
         picture.episode,
         picture.phase,
         picture.steps,
         touches.join(" "),
         picture
-            .cancel_step
+            .event_step
             .map_or("none".to_string(), |s| format!("at step {s}")),
         picture
             .branch
@@ -277,7 +277,8 @@ pub const MAX_DEMO_EPISODES: u64 = 10_000;
 /// `reacher demo`: logs scripted demonstrations (a ball sequence) to an MCAP file.
 pub fn demo(args: DemoRequest) -> Result<()> {
     // Every argument is checked before the log file is created.
-    args.task
+    let task = args
+        .task
         .parse::<crate::env::reacher_task::ReacherTask>()
         .map_err(|e| usage(format!("--task: {e}")))?;
     if !(1..=MAX_DEMO_EPISODES).contains(&args.episodes) {
@@ -285,20 +286,16 @@ pub fn demo(args: DemoRequest) -> Result<()> {
             "--episodes must be in 1..={MAX_DEMO_EPISODES}"
         )));
     }
-    ScriptedController::from_letters(&args.sequence, ControllerGains::default())
+    ScriptedController::from_letters(&args.sequence, &task.layout(), ControllerGains::default())
         .map_err(|e| usage(format!("--sequence: {e}")))?;
     let mut env = ReacherConfig::default();
     if let Some(p) = args.cancel_probability {
         env.cancel.probability = p;
     }
-    env.validate()
+    task.env_config(&env)
         .map_err(|e| usage(format!("--cancel-probability: {e}")))?;
     check_file(&args.out, args.force).map_err(usage)?;
-    let rm_name = format!("reacher_{}", args.task);
-    let reward_machine = match crate::rm::perfect::text(&rm_name) {
-        Some(_) => Some(crate::rm::perfect::load(&rm_name)?),
-        None => None,
-    };
+    let reward_machine = Some((*task.task().machine).clone());
     let spec = DemoSpec {
         task: args.task,
         sequence: args.sequence,

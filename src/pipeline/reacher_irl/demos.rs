@@ -5,9 +5,10 @@
 
 use super::config::{DemoSource, IrlRunConfig};
 use crate::env::product::ProductEnv;
-use crate::env::reacher::{ReacherConfig, ReacherDelivery, BALLS, OBS_DIM};
+use crate::env::reacher::{ReacherConfig, ReacherDelivery};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::{ReacherTask, SubgoalPotential};
+use crate::env::ContinuousEnv;
 use crate::log::{LogError, RolloutLogger};
 use crate::pipeline::reacher_expert::{
     committed_expert, default_expert_cache, expert_cache_path, generate_demos_from, record_episode,
@@ -66,7 +67,8 @@ pub fn load_expert(task: ReacherTask, cache_dir: Option<&Path>) -> Result<Expert
 /// The demonstrations of a run: `config.demo_episodes` episodes from `config.demo_source`,
 /// reset as [`demo_reset_seeds`] says, seeded by `seed`, each logged to `logger` when given.
 /// `expert` must be the loaded expert when the source is `expert` (load it first with
-/// [`load_expert`] to fail early).
+/// [`load_expert`] to fail early). The episodes run `config.env` over the task's layout
+/// (`ReacherTask::env_config`).
 pub fn make_demos(
     task: ReacherTask,
     config: &IrlRunConfig,
@@ -74,16 +76,17 @@ pub fn make_demos(
     seed: u64,
     logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, DemoError> {
+    let env = (task.env_config(&config.env)).map_err(|e| DemoError::Run(e.to_string()))?;
     let resets = demo_reset_seeds(config.demo_episodes, seed);
     match (config.demo_source, expert) {
         (DemoSource::Expert, Some(policy)) => {
-            generate_demos_from(policy, task, &config.env, &resets, seed, logger)
+            generate_demos_from(policy, task, &env, &resets, seed, logger)
                 .map_err(|e| DemoError::Run(e.to_string()))
         }
         (DemoSource::Expert, None) => Err(DemoError::Run(
             "demo_source is \"expert\" but no expert policy was loaded".into(),
         )),
-        (DemoSource::Scripted, _) => scripted_demos(task, &config.env, &resets, seed, logger),
+        (DemoSource::Scripted, _) => scripted_demos(task, &env, &resets, seed, logger),
     }
 }
 
@@ -95,7 +98,7 @@ pub fn demo_reset_seeds(n: usize, seed: u64) -> Vec<u64> {
 }
 
 /// Scripted demonstrations, one from each of `reset_seeds`: at every step the controller aims
-/// at a ball that advances the task's perfect machine (for a choice such as OR's
+/// at a region that advances the task's perfect machine (for a choice such as OR's
 /// red-or-green, one option drawn per episode from `seed`), holds still once the machine is
 /// done.
 pub fn scripted_demos(
@@ -107,13 +110,14 @@ pub fn scripted_demos(
 ) -> Result<Vec<Demo>, DemoError> {
     let run = |e: String| DemoError::Run(e);
     let rm = task.perfect_rm().map_err(|e| run(e.to_string()))?;
-    let potential = SubgoalPotential::from_rm(&rm);
     let inner = ReacherDelivery::new(env_config.clone()).map_err(|e| run(e.to_string()))?;
+    let potential = SubgoalPotential::from_rm(&rm, inner.layout());
+    let (regions, obs_dim) = (inner.layout().n_regions(), inner.obs_dim());
     let mut env = ProductEnv::new(inner, rm);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5c41_97ed_de30_0000);
     let mut demos = Vec::with_capacity(reset_seeds.len());
     for (i, &reset_seed) in reset_seeds.iter().enumerate() {
-        let pick: usize = rng.gen_range(0..BALLS.len());
+        let pick: usize = rng.gen_range(0..regions.max(1));
         let choices: Vec<Vec<usize>> = (0..env.rm().n_states())
             .map(|u| potential.progress_balls(u).to_vec())
             .collect();
@@ -128,7 +132,7 @@ pub fn scripted_demos(
             reset_seed,
             "demo",
             logger.as_deref_mut(),
-            |obs, labels, rm_state| ctl.act(&obs[..OBS_DIM], labels, Some(rm_state)),
+            |obs, labels, rm_state| ctl.act(&obs[..obs_dim], labels, Some(rm_state)),
         )
         .map_err(|e| match e {
             RecordError::Env { step, source } => run(format!("episode {i}, step {step}: {source}")),

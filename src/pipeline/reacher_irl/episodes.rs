@@ -7,8 +7,9 @@
 
 use super::evaluation::JobWatch;
 use super::lockstep::{play_lockstep, Keep};
+use crate::env::layout::TaskLayout;
 use crate::env::product::ProductEnv;
-use crate::env::reacher::{ReacherDelivery, OBS_DIM};
+use crate::env::reacher::ReacherDelivery;
 use crate::env::reacher_task::{Branch, CancelBranch, ProgressTracker, TaskProgress};
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::irl::smirl::FeatureMap;
@@ -118,11 +119,11 @@ pub struct GroundTruthTask<'a> {
 }
 
 impl<'a> GroundTruthTask<'a> {
-    pub fn of(perfect: &'a RewardMachine) -> GroundTruthTask<'a> {
+    pub fn of(perfect: &'a RewardMachine, layout: &TaskLayout) -> GroundTruthTask<'a> {
         GroundTruthTask {
             perfect,
-            progress: TaskProgress::of(perfect),
-            branches: CancelBranch::of(perfect),
+            progress: TaskProgress::of(perfect, layout),
+            branches: CancelBranch::of(perfect, layout.events()),
         }
     }
 }
@@ -245,7 +246,7 @@ pub struct RecordedEpisode {
     seed: u64,
     phase: String,
     balls: Vec<f64>,
-    cancel_step: Option<usize>,
+    event_steps: Vec<Option<usize>>,
     start_labels: LabelSet,
     start_rm: Option<usize>,
     nq: usize,
@@ -272,7 +273,7 @@ impl RecordedEpisode {
                 qpos: &self.qpos[..nq],
                 qvel: &self.qvel[..nv],
                 balls: &self.balls,
-                cancel_step: self.cancel_step,
+                event_steps: &self.event_steps,
                 labels: self.start_labels,
                 rm_state: self.start_rm,
                 obs: &self.obs[..obs_dim],
@@ -313,8 +314,8 @@ impl EpisodeLog for RecordedEpisode {
         *self = RecordedEpisode {
             seed,
             phase: phase.into(),
-            balls: env.balls().iter().flatten().copied().collect(),
-            cancel_step: env.cancel_step(),
+            balls: env.positions().iter().flatten().copied().collect(),
+            event_steps: env.event_steps().to_vec(),
             start_labels: env.labels(),
             start_rm: rm_state,
             nq: env.qpos().len(),
@@ -383,7 +384,7 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
             spec.reset_seed,
             spec.phase,
             Some(up),
-            &obs[..OBS_DIM],
+            &obs[..env.reacher().obs_dim()],
         )?;
         let max_steps = env.reacher().config().max_steps;
         Ok(EpisodePlay {
@@ -434,14 +435,9 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
         self.out.env_return += env_reward;
         self.out.success |= perfect.is_terminal(u_next) && !perfect.is_failure(u_next);
         let inner = env.inner_step(&step);
-        log.step(
-            env.reacher(),
-            action,
-            &inner,
-            Some((u_next, r)),
-            &next[..OBS_DIM],
-        )?;
-        on_step(&obs[..OBS_DIM], &next[..OBS_DIM], u_before);
+        let d = env.reacher().obs_dim();
+        log.step(env.reacher(), action, &inner, Some((u_next, r)), &next[..d])?;
+        on_step(&obs[..d], &next[..d], u_before);
         self.steps += 1;
         let decided = perfect.is_terminal(u_next) || perfect.is_failure(u_next);
         self.ended = step.terminated
@@ -533,7 +529,7 @@ pub fn train_sac<E: JobEnv, R: RewardFn>(
 /// Agent trajectories as a reward update reads them.
 #[derive(Clone, Debug, Default)]
 pub struct AgentBatch {
-    /// o_1..o_T of every trajectory, row-major, `OBS_DIM` wide.
+    /// o_1..o_T of every trajectory, row-major, one task observation wide.
     pub obs: Vec<f32>,
     /// The labels of o_0..o_{T−1}, the observation before each step, by the labelling rule
     /// on the observation (`FeatureMap::labels_of`), for rewards of the step rather than of
@@ -547,7 +543,7 @@ pub struct AgentBatch {
 impl AgentBatch {
     /// Number of observation rows.
     pub fn n_states(&self) -> usize {
-        self.obs.len() / OBS_DIM
+        self.lengths.iter().sum()
     }
 
     /// Appends `other`'s trajectories after this batch's.
@@ -607,8 +603,8 @@ impl RolloutStream {
         watch: &mut JobWatch<'_, '_>,
     ) -> Result<AgentBatch, String> {
         let mut batch = AgentBatch::default();
-        let task = GroundTruthTask::of(watch.perfect());
-        let labelling = FeatureMap::reacher_labels();
+        let task = GroundTruthTask::of(watch.perfect(), watch.layout());
+        let labelling = FeatureMap::reacher_labels(watch.layout());
         let specs: Vec<EpisodeSpec<'_>> = (0..n)
             .map(|_| {
                 let reset_seed = episode_seed(self.seed, self.next);

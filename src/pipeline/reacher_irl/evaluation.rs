@@ -9,7 +9,8 @@ use super::config::IrlRunConfig;
 use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::job::{JobProgress, MetricsRow};
 use super::lockstep::{play_lockstep, Keep, Lockstep};
-use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
+use crate::env::layout::TaskLayout;
+use crate::env::reacher::{ReacherDelivery, OBS_TIP};
 use crate::env::reacher_task::BranchTally;
 use crate::env::ContinuousEnv;
 use crate::irl::kde::Kde;
@@ -18,6 +19,7 @@ use crate::rl::sac::{episode_seed, ActMode, SacAgent};
 use crate::rm::RewardMachine;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use std::sync::Arc;
 
 /// One ground-truth evaluation.
 #[derive(Clone, Copy, Debug)]
@@ -43,7 +45,7 @@ pub fn stratified_eval_seeds(
     eval_seed: u64,
     per_branch: u64,
 ) -> Vec<u64> {
-    let mut obs = vec![0.0f32; OBS_DIM];
+    let mut obs = vec![0.0f32; env.obs_dim()];
     let target = 2 * per_branch as usize;
     let mut counts = [0u64; 2];
     let mut chosen = Vec::with_capacity(target);
@@ -51,7 +53,7 @@ pub fn stratified_eval_seeds(
     for i in 0..scan {
         let seed = episode_seed(eval_seed, i);
         env.reset(seed, &mut obs);
-        let k = usize::from(env.cancel_step().is_some());
+        let k = usize::from(env.event_steps().iter().any(Option::is_some));
         if counts[k] < per_branch {
             counts[k] += 1;
             chosen.push((i, seed));
@@ -73,6 +75,7 @@ pub fn stratified_eval_seeds(
 /// reset seeds every time, each ended once the task is decided) scored by the perfect machine.
 pub struct GroundTruth<'r> {
     task: GroundTruthTask<'r>,
+    layout: Arc<TaskLayout>,
     eval_seed: u64,
     eval_seeds: Vec<u64>,
 }
@@ -86,7 +89,8 @@ impl<'r> GroundTruth<'r> {
         seed: u64,
         eval_episodes: u64,
     ) -> GroundTruth<'r> {
-        let task = GroundTruthTask::of(perfect);
+        let layout = Arc::clone(env.layout());
+        let task = GroundTruthTask::of(perfect, &layout);
         let eval_seed = episode_seed(seed, 0xe7a1);
         let eval_seeds = match task.branches {
             Some(_) => stratified_eval_seeds(env, eval_seed, eval_episodes),
@@ -96,6 +100,7 @@ impl<'r> GroundTruth<'r> {
         };
         GroundTruth {
             task,
+            layout,
             eval_seed,
             eval_seeds,
         }
@@ -276,6 +281,11 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         self.perfect
     }
 
+    /// The task's layout (observation columns, labels).
+    pub fn layout(&self) -> &TaskLayout {
+        &self.ground_truth.layout
+    }
+
     /// How the job plays its many independent episodes.
     pub fn lockstep(&self) -> Lockstep<'l> {
         self.lockstep
@@ -315,7 +325,7 @@ impl<'r, 'l> JobWatch<'r, 'l> {
     pub fn rollouts(&mut self, batch: &AgentBatch) -> Result<(), String> {
         let inside = self
             .expert_kde
-            .density_columns(&batch.obs, OBS_DIM, &OBS_TIP)
+            .density_columns(&batch.obs, self.ground_truth.layout.obs_dim(), &OBS_TIP)
             .map_err(|e| format!("expert KDE: {e}"))?
             .iter()
             .filter(|&&d| d > 0.0)

@@ -164,7 +164,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     let selection_seeds: Vec<u64> = (0..phase.selection_episodes)
         .map(|i| episode_seed(selection_stream, i))
         .collect();
-    let task = GroundTruthTask::of(watch.perfect());
+    let task = GroundTruthTask::of(watch.perfect(), watch.layout());
     let selection = &Selection {
         seeds: &selection_seeds,
         cut: phase.selection_cut,
@@ -278,7 +278,7 @@ fn selection_returns<E: JobEnv, R: ScoredReward>(
     mut logger: Option<&mut RolloutLogger>,
 ) -> Result<(f64, Option<f64>), String> {
     let mut rng = ChaCha8Rng::seed_from_u64(0);
-    let labelling = FeatureMap::reacher_labels();
+    let labelling = FeatureMap::reacher_labels(env.reacher().layout());
     let mut steps = AgentBatch::default();
     // The labels of each step's next observation, as the demonstrations' are read for the cut.
     let mut labels = Vec::new();

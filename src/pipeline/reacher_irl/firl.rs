@@ -25,7 +25,8 @@ use super::config::IrlRunConfig;
 use super::episodes::{train_sac, AgentBatch, RolloutStream};
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::job::{reward_lr, Coefficients, ExpertData};
-use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
+use crate::env::layout::OBS_ARM;
+use crate::env::reacher::{ReacherDelivery, OBS_TIP};
 use crate::env::ContinuousEnv;
 use crate::irl::discriminator::{Discriminator, DiscriminatorConfig};
 use crate::irl::firl::{
@@ -84,18 +85,21 @@ pub fn density_ratios(
     agent: &AgentBatch,
     at_expert: bool,
 ) -> Result<IterationRatios, String> {
+    let d = expert.obs_dim();
     let fit_agent = |bandwidth: f64| {
-        Kde::fit_columns(&agent.obs, OBS_DIM, &OBS_TIP, bandwidth).map_err(|e| e.to_string())
+        Kde::fit_columns(&agent.obs, d, &OBS_TIP, bandwidth).map_err(|e| e.to_string())
     };
     let guarded = |rho_e: &[f64], rho_a: &[f64]| {
         firl::density_ratio(rho_e, rho_a, DEFAULT_DENSITY_EPS).map_err(|e| e.to_string())
     };
     match ratio {
-        Ratio::Discriminator(d) => {
-            d.train(&expert.obs, &agent.obs, OBS_DIM)
+        Ratio::Discriminator(disc) => {
+            let width = d;
+            let d = disc;
+            d.train(&expert.obs, &agent.obs, width)
                 .map_err(|e| format!("discriminator: {e}"))?;
             ratios_at_both(agent, expert, at_expert, |obs| {
-                Ok(d.log_ratio(obs, OBS_DIM)
+                Ok(d.log_ratio(obs, width)
                     .map_err(|e| format!("discriminator: {e}"))?
                     .into_iter()
                     .map(f64::exp)
@@ -108,10 +112,10 @@ pub fn density_ratios(
         } => {
             let kde_a = fit_agent(*bandwidth)?;
             let log_e = e
-                .log_density_columns(&agent.obs, OBS_DIM, &OBS_TIP)
+                .log_density_columns(&agent.obs, d, &OBS_TIP)
                 .map_err(|e| e.to_string())?;
             let rho_a = kde_a
-                .density_columns(&agent.obs, OBS_DIM, &OBS_TIP)
+                .density_columns(&agent.obs, d, &OBS_TIP)
                 .map_err(|e| e.to_string())?;
             // ρ_θ > 0 at the agent's own states (each is a fitted point).
             let agent_ratios = log_e
@@ -121,13 +125,13 @@ pub fn density_ratios(
                 .collect();
             let expert_ratios = if at_expert {
                 let rho_e: Vec<f64> = e
-                    .log_density_columns(&expert.obs, OBS_DIM, &OBS_TIP)
+                    .log_density_columns(&expert.obs, d, &OBS_TIP)
                     .map_err(|e| e.to_string())?
                     .into_iter()
                     .map(f64::exp)
                     .collect();
                 let rho_a = kde_a
-                    .density_columns(&expert.obs, OBS_DIM, &OBS_TIP)
+                    .density_columns(&expert.obs, d, &OBS_TIP)
                     .map_err(|e| e.to_string())?;
                 guarded(&rho_e, &rho_a)?
             } else {
@@ -145,10 +149,10 @@ pub fn density_ratios(
             let kde_a = fit_agent(*bandwidth)?;
             ratios_at_both(agent, expert, at_expert, |obs| {
                 let rho_e = kde_e
-                    .density_columns(obs, OBS_DIM, &OBS_TIP)
+                    .density_columns(obs, d, &OBS_TIP)
                     .map_err(|e| e.to_string())?;
                 let rho_a = kde_a
-                    .density_columns(obs, OBS_DIM, &OBS_TIP)
+                    .density_columns(obs, d, &OBS_TIP)
                     .map_err(|e| e.to_string())?;
                 guarded(&rho_e, &rho_a)
             })
@@ -214,7 +218,8 @@ pub fn coefficients(
                              {horizon}: f-IRL's covariance batch needs one length"
                         ));
                     }
-                    obs.extend_from_slice(&expert.obs[start * OBS_DIM..(start + len) * OBS_DIM]);
+                    let d = expert.obs_dim();
+                    obs.extend_from_slice(&expert.obs[start * d..(start + len) * d]);
                     u.extend_from_slice(&ratios.expert[start..start + len]);
                 }
             }
@@ -283,16 +288,17 @@ impl DemonstrationDraw {
 pub fn reward_model(settings: &IrlRunConfig, seed: u64) -> Result<MlpReward, RewardError> {
     let mut cfg = MlpRewardConfig::paper(OBS_TIP.to_vec(), settings.mlp_reward_lr, seed);
     cfg.optim.l2 = settings.mlp_reward_l2;
-    MlpReward::new(cfg, OBS_DIM)
+    let layout = (settings.env.task_layout()).map_err(|e| RewardError::Config(e.to_string()))?;
+    MlpReward::new(cfg, layout.obs_dim())
 }
 
 /// The saved reward of a baseline job (`rewards/<algo>_seed<k>.bin`) at fingertip positions
-/// (x, y).
+/// (x, y). The reward reads the fingertip alone, so rows of the arm's columns suffice.
 pub fn baseline_reward_at(path: &Path, points: &[[f64; 2]]) -> Result<Vec<f32>, RewardError> {
-    let mut model = MlpReward::new(MlpRewardConfig::paper(OBS_TIP.to_vec(), 1e-3, 0), OBS_DIM)?;
+    let mut model = MlpReward::new(MlpRewardConfig::paper(OBS_TIP.to_vec(), 1e-3, 0), OBS_ARM)?;
     model.load(path)?;
-    let mut obs = vec![0.0f32; points.len() * OBS_DIM];
-    for (row, p) in obs.chunks_exact_mut(OBS_DIM).zip(points) {
+    let mut obs = vec![0.0f32; points.len() * OBS_ARM];
+    for (row, p) in obs.chunks_exact_mut(OBS_ARM).zip(points) {
         row[OBS_TIP[0]] = p[0] as f32;
         row[OBS_TIP[1]] = p[1] as f32;
     }
@@ -320,9 +326,10 @@ impl<'a> StateReward<'a> {
 impl RewardFn for StateReward<'_> {
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
+        let width = self.model.obs_dim();
         self.obs.clear();
         for next in batch.next_obs.as_slice().chunks_exact(d) {
-            self.obs.extend_from_slice(&next[..OBS_DIM]);
+            self.obs.extend_from_slice(&next[..width]);
         }
         Ok(self.model.reward_batch(&self.obs, &[], out)?)
     }
@@ -352,7 +359,8 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
     let mut env = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
     let mut reward = reward_model(s, job.seed).map_err(|e| e.to_string())?;
     // f-IRL's ρ_E/ρ_θ: the expert's fingertip KDE, or a classifier on its own random stream.
-    let expert_kde = Kde::fit_columns(&job.expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
+    let d = job.expert.obs_dim();
+    let expert_kde = Kde::fit_columns(&job.expert.obs, d, &OBS_TIP, s.kde_bandwidth)
         .map_err(|e| format!("expert KDE: {e}"))?;
     let mut ratio = match (job.loss, s.firl_density_ratio) {
         (Loss::MaxEnt, _) => None,
@@ -362,7 +370,7 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
         }),
         (Loss::FDivergence(_), DensityRatio::GaussianExpert) => Some(Ratio::GaussianExpert {
             expert: Box::new(
-                GaussianKde::fit_columns(&job.expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
+                GaussianKde::fit_columns(&job.expert.obs, d, &OBS_TIP, s.kde_bandwidth)
                     .map_err(|e| format!("expert density: {e}"))?,
             ),
             bandwidth: s.kde_bandwidth,

@@ -11,7 +11,7 @@ use super::firl::{self, BaselineJob, Loss};
 use super::lockstep::Lockstep;
 use super::smirl::{self, Features, SmirlJob};
 use super::Algo;
-use crate::env::reacher::{ReacherDelivery, OBS_DIM, OBS_TIP};
+use crate::env::reacher::{ReacherDelivery, OBS_TIP};
 use crate::env::reacher_task::BranchTally;
 use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, RewardModel};
@@ -26,7 +26,8 @@ pub use super::firl::baseline_reward_at;
 /// What every job of a task shares: the demonstrations as the IRL algorithms see them.
 #[derive(Clone, Debug)]
 pub struct ExpertData {
-    /// Observations o_1..o_T of every demonstration step (row-major, `OBS_DIM` wide): the
+    /// Observations o_1..o_T of every demonstration step (row-major, one task observation
+    /// wide): the
     /// states visited, as the agent's rollouts record them.
     pub obs: Vec<f32>,
     /// The labels of the observation before each step (the reset observation's for a
@@ -42,6 +43,11 @@ pub struct ExpertData {
 impl ExpertData {
     pub fn n_states(&self) -> usize {
         self.lengths.iter().sum()
+    }
+
+    /// Width of an observation row (0 without any).
+    pub fn obs_dim(&self) -> usize {
+        self.obs.len() / self.n_states().max(1)
     }
 
     /// The binary file `reacher prepare` writes for the jobs (`expert_data.bin`): exact
@@ -60,9 +66,9 @@ impl ExpertData {
         w.bytes
     }
 
-    /// Reads [`ExpertData::to_bytes`]; every count is checked against the bytes present and
-    /// the arrays against each other.
-    pub fn from_bytes(bytes: &[u8]) -> Result<ExpertData, CodecError> {
+    /// Reads [`ExpertData::to_bytes`] of a task whose observations are `obs_dim` wide; every
+    /// count is checked against the bytes present and the arrays against each other.
+    pub fn from_bytes(bytes: &[u8], obs_dim: usize) -> Result<ExpertData, CodecError> {
         let mut r = ByteReader::new(bytes);
         r.header(EXPERT_DATA_MAGIC, "smirl expert data", EXPERT_DATA_VERSION)?;
         let obs = r.f32s("observations")?;
@@ -85,11 +91,11 @@ impl ExpertData {
         let steps = lengths
             .iter()
             .try_fold(0usize, |a, &l| a.checked_add(l))
-            .filter(|&t| t.checked_mul(OBS_DIM) == Some(obs.len()))
+            .filter(|&t| t.checked_mul(obs_dim) == Some(obs.len()))
             .ok_or_else(|| CodecError::Invalid {
                 what: "observations",
                 problem: format!(
-                    "{} values do not fill the demonstrations' {n} lengths × {OBS_DIM}",
+                    "{} values do not fill the demonstrations' {n} lengths × {obs_dim}",
                     obs.len()
                 ),
             })?;
@@ -232,7 +238,7 @@ pub enum JobError {
 /// coefficients.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Coefficients {
-    /// Row-major observations, `OBS_DIM` wide.
+    /// Row-major observations, one task observation wide.
     pub obs: Vec<f32>,
     /// Learned-machine state of each row (empty for the baselines).
     pub states: Vec<u32>,
@@ -287,7 +293,7 @@ pub fn run_job(
     };
     // The expert's fingertip density, to measure how much of each iteration's sample it covers
     // (`expert_support`, every algorithm).
-    let expert_kde = Kde::fit_columns(&expert.obs, OBS_DIM, &OBS_TIP, s.kde_bandwidth)
+    let expert_kde = Kde::fit_columns(&expert.obs, expert.obs_dim(), &OBS_TIP, s.kde_bandwidth)
         .map_err(|e| fail(format!("expert KDE: {e}")))?;
     let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| fail(e.to_string()))?;
     let ground_truth = GroundTruth::new(perfect_rm, &mut schedule, seed, s.eval_episodes);

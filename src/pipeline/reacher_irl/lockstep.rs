@@ -186,7 +186,7 @@ fn play_on_thread<'t, E: JobEnv>(
     };
     let (obs_dim, act_dim) = (proto.obs_dim(), proto.act_dim());
     let per_episode = proto.reacher().config().max_steps * act_dim;
-    let labelling = FeatureMap::reacher_labels();
+    let labelling = FeatureMap::reacher_labels(proto.reacher().layout());
     let mut slots: Vec<Slot<'t, '_, E>> = envs
         .into_iter()
         .map(|env| Slot {

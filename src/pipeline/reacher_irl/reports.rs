@@ -8,7 +8,6 @@ use super::records::{
     write_file, AlgoSummary, JobRecord, PipelineError, PreparedRun, RmFacts, RunSummary,
 };
 use super::Algo;
-use crate::env::reacher::VOCABULARY;
 use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
 use crate::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
 use std::fmt::Write as _;
@@ -105,7 +104,7 @@ pub(super) fn write_reports(
         "environment steps",
         "task return",
     );
-    let conditional = CancelBranch::of(&run.perfect).is_some();
+    let conditional = CancelBranch::of(&run.perfect, task.layout().events()).is_some();
     let mut branch_plot = LinePlot::new(
         &format!("ReacherDelivery {task}: success per branch"),
         "environment steps",
@@ -377,8 +376,8 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
 
 /// A SMIRL reward trace as a long table: one row per (iteration, RM state, feature), the
 /// feature named by its proposition (label bit k is feature k).
-pub(super) fn reward_trace_csv(trace: &[RewardTraceRow]) -> CsvTable {
-    let features: Vec<char> = VOCABULARY.chars().collect();
+pub(super) fn reward_trace_csv(trace: &[RewardTraceRow], letters: &str) -> CsvTable {
+    let features: Vec<char> = letters.chars().collect();
     let mut table = CsvTable::new([
         "iteration",
         "rm_state",

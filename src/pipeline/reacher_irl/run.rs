@@ -32,7 +32,6 @@ use super::smirl::{
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::EVENTS;
 use crate::env::reacher_task::{Branch, ReacherTask};
 use crate::input_file::{read_text, MAX_DATA_FILE_BYTES};
 use crate::log::{LogOptions, RolloutLogger, RunHeader};
@@ -99,7 +98,7 @@ fn log_header(
 ) -> Result<RunHeader, PipelineError> {
     // Replay reads the environment config from `env` (time limit, cancel schedule).
     let json = serde_json::json!({ "run": what, "env": config.env, "irl_config": config });
-    let mut header = RunHeader::reacher_shipped(task.id(), seed, json);
+    let mut header = RunHeader::of_task(task.id(), task.task(), seed, json);
     header.reward_machine = Some(write_rm(perfect));
     Ok(header)
 }
@@ -245,9 +244,9 @@ pub fn prepare(
             .for_algo(machine.algo())
             .map_err(|e| PipelineError::Run(e.to_string()))?;
         let (rm, facts, report) = learn_and_report(&settings, &demos, &perfect, seed)?;
-        let data = annotate(&demos, Some(&rm), hold_to);
+        let data = annotate(&task.layout(), &demos, Some(&rm), hold_to);
         let report = match machine {
-            Machine::Smirl => report + &selection_cut_report(&rm, &data, &settings),
+            Machine::Smirl => report + &selection_cut_report(&rm, &data, &settings)?,
             Machine::Paper => report,
         };
         let stem = machine.stem();
@@ -273,7 +272,8 @@ pub fn prepare(
         }
     }
     // The demonstrations as the baselines (and SMIRL) read them.
-    let expert_data = expert_data.unwrap_or_else(|| annotate(&demos, None, hold_to));
+    let expert_data =
+        expert_data.unwrap_or_else(|| annotate(&task.layout(), &demos, None, hold_to));
     let path = dir.join(EXPERT_DATA_FILE);
     write_atomic(&path, &expert_data.to_bytes()).map_err(|e| io(&path, e))?;
     let prepared = Prepared {
@@ -348,7 +348,7 @@ fn learn_and_report(
     seed: u64,
 ) -> Result<(RewardMachine, RmFacts, String), PipelineError> {
     let config = settings;
-    let lrm = lrm_config(config, seed);
+    let lrm = lrm_config(config, seed).map_err(PipelineError::Run)?;
     let (rm, cost, secs) = match config.smirl_machine {
         SmirlMachine::Learned => learn_machine(demos, config, seed).map_err(PipelineError::Run)?,
         SmirlMachine::Task | SmirlMachine::OneState => {
@@ -419,7 +419,7 @@ fn learn_and_report(
     let events = match config.lrm_guards {
         Guards::Tree => format!(
             " (events read first: \"{}\")",
-            rm.vocab().format_labels(EVENTS)
+            rm.vocab().format_labels(lrm.events)
         ),
         Guards::Exact => String::new(),
     };
@@ -437,28 +437,28 @@ fn learn_and_report(
     Ok((rm, facts, report))
 }
 
-/// The report line of `smirl_selection_cut` (empty without it): the balls the demonstrations
-/// touch after the cancel in each state of `rm`.
+/// The report line of `smirl_selection_cut` (empty without it): the regions the demonstrations
+/// touch after an event in each state of `rm`.
 fn selection_cut_report(
     rm: &RewardMachine,
     expert_data: &ExpertData,
     config: &IrlRunConfig,
-) -> String {
+) -> Result<String, PipelineError> {
     if !config.smirl_selection_cut {
-        return String::new();
+        return Ok(String::new());
     }
-    let seen = seen_after_events(rm, expert_data, config);
+    let seen = seen_after_events(rm, expert_data, config).map_err(PipelineError::Run)?;
     let per_state: Vec<String> = (0..rm.n_states())
         .map(|u| match seen.in_state(u) {
             l if l.is_empty() => format!("{u}: -"),
             l => format!("{u}: {}", rm.vocab().format_labels(l)),
         })
         .collect();
-    format!(
-        "smirl_selection_cut: balls the demonstrations touch{} after the cancel, per learned state: {}\n",
+    Ok(format!(
+        "smirl_selection_cut: regions the demonstrations touch{} after an event, per learned state: {}\n",
         if config.smirl_selection_cut_entries { " (touches begun)" } else { "" },
         per_state.join(", ")
-    )
+    ))
 }
 
 /// Reads a directory `prepare` finished. A directory it did not finish (no `prepare.json`)
@@ -481,7 +481,11 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
     };
     let prepared: Prepared = serde_json::from_str(&read(PREPARED_FILE)?)
         .map_err(|e| usage(format!("{}: {e}", marker.display())))?;
-    let config = IrlRunConfig::load(&dir.join("config.toml")).map_err(|e| usage(e.to_string()))?;
+    let mut config =
+        IrlRunConfig::load(&dir.join("config.toml")).map_err(|e| usage(e.to_string()))?;
+    config.env = (prepared.task)
+        .env_config(&config.env)
+        .map_err(|e| usage(e.to_string()))?;
     let rm_file = |name: &str| -> Result<RewardMachine, PipelineError> {
         let path = dir.join(name);
         parse_rm(&read(name)?, &path.display().to_string()).map_err(|e| usage(e.to_string()))
@@ -494,12 +498,13 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
             .then(|| rm_file(&format!("rm/{}.txt", machine.stem())))
             .transpose()
     };
+    let obs_dim = prepared.task.layout().obs_dim();
     let expert_file = |name: &str, machine: Option<&RewardMachine>| {
         let data_path = dir.join(name);
         let bytes =
             crate::input_file::read_bytes(&data_path, crate::nn::codec::MAX_CODEC_FILE_BYTES)
                 .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
-        ExpertData::from_bytes(&bytes)
+        ExpertData::from_bytes(&bytes, obs_dim)
             .and_then(|e| e.check_machine(machine).map(|()| e))
             .map_err(|e| usage(format!("{}: {e}", data_path.display())))
     };
@@ -823,8 +828,14 @@ fn run_one(
     }
     if !result.reward_trace.is_empty() {
         let path = dir.join("rewards").join(format!("{stem}.trace.csv"));
-        write_file(&path, &reward_trace_csv(&result.reward_trace).to_csv())
-            .map_err(|e| e.to_string())?;
+        let letters = (config.env.task_layout())
+            .map_err(|e| e.to_string())?
+            .letters();
+        write_file(
+            &path,
+            &reward_trace_csv(&result.reward_trace, &letters).to_csv(),
+        )
+        .map_err(|e| e.to_string())?;
     }
     Ok(result)
 }

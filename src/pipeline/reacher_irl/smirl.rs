@@ -30,8 +30,9 @@ use super::episodes::{train_sac, AgentBatch, RolloutStream};
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::final_policy::{self, FinalPhase, FinalPolicy};
 use super::job::{reward_lr, Coefficients, ExpertData, RewardTraceRow};
+use crate::env::layout::{TaskLayout, OBS_JOINT_VEL};
 use crate::env::product::ProductEnv;
-use crate::env::reacher::{ReacherDelivery, BALLS, EVENTS, OBS_CANCEL, OBS_DIM, VOCABULARY};
+use crate::env::reacher::ReacherDelivery;
 use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::seen_after_events::SeenAfterEvents;
@@ -47,11 +48,14 @@ use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
 use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
 use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
 
-/// The agent's own touches: bit k of a label set is ball k (`env::reacher::BALLS`).
-const TOUCHES: LabelSet = LabelSet((1 << BALLS.len()) - 1);
-
-/// Observation columns of the two joint velocities (see `env::reacher`).
-const OBS_JOINT_VEL: [usize; 2] = [4, 5];
+/// The task layout a run's environment config carries (`ReacherTask::env_config` sets it).
+fn task_layout(config: &IrlRunConfig) -> Result<&TaskLayout, String> {
+    config
+        .env
+        .task_layout()
+        .map(|l| &**l)
+        .map_err(|e| e.to_string())
+}
 
 /// Step 1: the machine learned from the demonstrations' label traces, with its LRM cost and
 /// search time.
@@ -60,9 +64,9 @@ pub fn learn_machine(
     config: &IrlRunConfig,
     seed: u64,
 ) -> Result<(RewardMachine, f64, f64), String> {
-    let vocab = Vocabulary::new(VOCABULARY);
+    let vocab = task_layout(config)?.vocabulary();
     let traces = label_traces(demos);
-    let cfg = lrm_config(config, seed);
+    let cfg = lrm_config(config, seed)?;
     let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
 }
@@ -99,9 +103,10 @@ pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, String> {
         .map_err(|e| format!("the one-state machine: {e}"))
 }
 
-/// The learner's settings of a run (`seed`: the search's).
-pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
-    LrmConfig {
+/// The learner's settings of a run (`seed`: the search's); the events are the task's.
+pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> Result<LrmConfig, String> {
+    let events = task_layout(config)?.events();
+    Ok(LrmConfig {
         max_states: config.lrm_max_states,
         tabu_len: config.lrm_tabu_len,
         max_steps: config.lrm_steps,
@@ -113,7 +118,7 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
         fill_unobserved: false,
         reward_weight: 0.0,
         guards: config.lrm_guards,
-        events: EVENTS,
+        events,
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
         event_stutter: config.lrm_event_stutter,
@@ -123,7 +128,7 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> LrmConfig {
         // Starts, patience and split moves are the learner's defaults.
         fallback_starts: config.lrm_fallback_starts,
         ..LrmConfig::default()
-    }
+    })
 }
 
 /// The demonstrations' label traces as LRM reads them (no rewards: those are what IRL learns).
@@ -141,12 +146,17 @@ pub fn label_traces(demos: &[Demo]) -> Vec<LabelTrace> {
 /// learned machine's state before the step (the state its labels are read in); with no
 /// machine, the plain observations the baselines read. With `hold_to` = Some(T), a
 /// demonstration shorter than T is extended to T steps by holding its final state: the last
-/// observation with zero joint velocities and no cancel event, its labels recomputed by the
+/// observation with zero joint velocities and no event, its labels recomputed by the
 /// labelling rule, the learned machine stepped on them as on any other step. (The
 /// demonstrator has finished the task; staying put is what it does in the goal, and MaxEnt
 /// IRL and f-IRL compare expert and agent over one fixed horizon T.)
-pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usize>) -> ExpertData {
-    let labelling = FeatureMap::reacher_labels();
+pub fn annotate(
+    layout: &TaskLayout,
+    demos: &[Demo],
+    rm: Option<&RewardMachine>,
+    hold_to: Option<usize>,
+) -> ExpertData {
+    let labelling = FeatureMap::reacher_labels(layout);
     let mut data = ExpertData {
         obs: Vec::new(),
         labels_before: Vec::new(),
@@ -168,12 +178,12 @@ pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usiz
         }
         let mut len = d.steps.len();
         if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
-            let held = held_observation(&last.next_obs);
+            let held = held_observation(layout, &last.next_obs);
             let labels = labelling.labels_of(&held);
-            let mut before = last.next_obs;
+            let mut before = last.next_obs.clone();
             while len < horizon {
                 push(&mut data, &before, &held, labels);
-                before = held;
+                before.clone_from(&held);
                 len += 1;
             }
         }
@@ -183,12 +193,14 @@ pub fn annotate(demos: &[Demo], rm: Option<&RewardMachine>, hold_to: Option<usiz
 }
 
 /// A demonstration's final observation as [`annotate`] holds it: joint velocities zero, no
-/// cancel event.
-fn held_observation(last: &[f32; OBS_DIM]) -> [f32; OBS_DIM] {
-    let mut held = *last;
+/// event.
+fn held_observation(layout: &TaskLayout, last: &[f32]) -> Vec<f32> {
+    let mut held = last.to_vec();
     held[OBS_JOINT_VEL[0]] = 0.0;
     held[OBS_JOINT_VEL[1]] = 0.0;
-    held[OBS_CANCEL] = 0.0;
+    for e in 0..layout.n_events() {
+        held[layout.event_column(e)] = 0.0;
+    }
     held
 }
 
@@ -204,10 +216,13 @@ pub enum Features {
 
 impl Features {
     pub fn map(self, settings: &IrlRunConfig) -> Result<FeatureMap, RewardError> {
+        let layout = task_layout(settings).map_err(RewardError::Config)?;
         match (self, settings.smirl_label_features) {
-            (Features::Labels, LabelFeatures::State) => Ok(FeatureMap::reacher_labels()),
-            (Features::Labels, LabelFeatures::Entries) => Ok(FeatureMap::reacher_label_entries()),
-            (Features::Smooth, _) => FeatureMap::reacher_smooth(settings.smooth_sigma),
+            (Features::Labels, LabelFeatures::State) => Ok(FeatureMap::reacher_labels(layout)),
+            (Features::Labels, LabelFeatures::Entries) => {
+                Ok(FeatureMap::reacher_label_entries(layout))
+            }
+            (Features::Smooth, _) => FeatureMap::reacher_smooth(layout, settings.smooth_sigma),
         }
     }
 }
@@ -241,7 +256,7 @@ pub fn coefficients(
             maxent_coefficients_by_shared_visits(&expert_t, &agent_t, &[])
         }
         SmirlNormalisation::EventGatedVisits => {
-            let free = machine.reachable_without(EVENTS);
+            let free = machine.reachable_without(features.event_labels());
             maxent_coefficients_by_shared_visits(&expert_t, &agent_t, &free)
         }
     };
@@ -302,8 +317,9 @@ impl RewardFn for ProductReward<'_> {
 
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
+        let width = self.model.features().observation_dim();
         // The one-hot block; a clock (`smirl_clock`) comes after it.
-        let block = OBS_DIM..OBS_DIM + self.model.n_states();
+        let block = width..width + self.model.n_states();
         self.next_obs.clear();
         self.labels_before.clear();
         self.states.clear();
@@ -311,10 +327,9 @@ impl RewardFn for ProductReward<'_> {
         let reads_before = features.reads_labels_before();
         let rows = batch.next_obs.as_slice().chunks_exact(d);
         for (next, prev) in rows.zip(batch.obs.as_slice().chunks_exact(d)) {
-            self.next_obs.extend_from_slice(&next[..OBS_DIM]);
+            self.next_obs.extend_from_slice(&next[..width]);
             if reads_before {
-                self.labels_before
-                    .push(features.labels_of(&prev[..OBS_DIM]));
+                self.labels_before.push(features.labels_of(&prev[..width]));
             }
             self.states.push(hot_index(&prev[block.clone()]) as u32);
         }
@@ -377,8 +392,12 @@ pub(super) fn counterfactual_states(
 ) -> Result<Option<CounterfactualRm>, String> {
     (s.smirl_counterfactual > 0.0)
         .then(|| {
-            CounterfactualRm::new(env.rm().clone(), OBS_DIM, s.smirl_counterfactual)
-                .map(|crm| crm.with_trailing_dim(env.trailing_dim()))
+            CounterfactualRm::new(
+                env.rm().clone(),
+                env.inner().obs_dim(),
+                s.smirl_counterfactual,
+            )
+            .map(|crm| crm.with_trailing_dim(env.trailing_dim()))
         })
         .transpose()
         .map_err(|e| e.to_string())
@@ -397,29 +416,31 @@ pub(super) fn shaping_potential(
         .map_err(|e| e.to_string())
 }
 
-/// Step 4's cut (`smirl_selection_cut`): the ball touches the demonstrations make after the
-/// cancel in each state of `machine`, read from their steps as [`annotate`] gives them in it
+/// Step 4's cut (`smirl_selection_cut`): the region touches the demonstrations make after an
+/// event in each state of `machine` (a rule that reads the events with "unless" semantics:
+/// a touch after the event that no demonstration makes is off the task), read from their steps as [`annotate`] gives them in it
 /// (held steps included), as a candidate's selection episodes are read.
 pub fn seen_after_events(
     machine: &RewardMachine,
     expert: &ExpertData,
     settings: &IrlRunConfig,
-) -> SeenAfterEvents {
-    let labelling = FeatureMap::reacher_labels();
+) -> Result<SeenAfterEvents, String> {
+    let layout = task_layout(settings)?;
+    let labelling = FeatureMap::reacher_labels(layout);
     let labels: Vec<LabelSet> = expert
         .obs
-        .chunks_exact(OBS_DIM)
+        .chunks_exact(layout.obs_dim())
         .map(|o| labelling.labels_of(o))
         .collect();
-    SeenAfterEvents::new(
+    Ok(SeenAfterEvents::new(
         machine.n_states(),
         &expert.learned_states,
         &labels,
         &expert.lengths,
-        EVENTS,
-        TOUCHES,
+        layout.events(),
+        layout.touches(),
         settings.smirl_selection_cut_entries,
-    )
+    ))
 }
 
 /// One SMIRL job.
@@ -533,7 +554,8 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
         );
         let selection_cut = s
             .smirl_selection_cut
-            .then(|| seen_after_events(job.machine, job.expert, s));
+            .then(|| seen_after_events(job.machine, job.expert, s))
+            .transpose()?;
         let phase = FinalPhase {
             steps: s.smirl_final_sac_steps,
             checkpoints: s.smirl_final_checkpoints,

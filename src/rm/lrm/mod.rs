@@ -181,15 +181,17 @@ pub struct LrmConfig {
     /// every way into the state agrees). An exogenous event that fires at most once is seen
     /// only at some stages of the task; where the demonstrations never show it (ReacherDelivery
     /// Composite: a cancel after red, before blue, at bases whose experts reach red late), the
-    /// machine would otherwise ignore it there. Traces' paths and the cost are unchanged. Off
-    /// by default.
+    /// machine would otherwise ignore it there. Traces' paths and the cost are unchanged.
+    /// Assumes "unless" events, whose effect does not depend on when they come relative to
+    /// the touch. Off by default.
     pub commute_events: bool,
     /// After the search, read an event that the traces never show in the initial state, when
     /// no other state enters it, as coming on the first step with the label that leaves it
     /// (`merge::initial_events`). The initial-state split makes such a state ("before the
     /// first label"), and only demonstrations whose cancel fired on their first step show an
     /// event there; without any, the guards read a first-step cancel as no cancel
-    /// (ReacherDelivery IF 81, Composite 282). Traces' paths and the cost are unchanged. Off by
+    /// (ReacherDelivery IF 81, Composite 282). Traces' paths and the cost are unchanged.
+    /// Assumes "unless" events, which mean the same on the first step as before it. Off by
     /// default.
     pub initial_events: bool,
 }
