@@ -319,7 +319,7 @@ fn rm_file_errors_name_invisible_characters_and_stay_short() {
     assert!(e.len() < 400, "{} characters: {e}", e.len());
 
     let mut config = ReacherConfig::default();
-    config.ball_layout[0] = [1e300, 0.0];
+    config.ball_layout = vec![[1e300, 0.0]];
     let e = config.validate().unwrap_err().to_string();
     assert!(e.contains("1e300") && e.len() < 120, "{e}");
 }

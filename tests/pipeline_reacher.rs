@@ -497,14 +497,16 @@ fn smirl_label_features_key_reads_old_configs_as_state_labels() {
         .find(|l| l.starts_with("smirl_label_features"))
         .expect("the key is written")
         .to_string();
-    let without = IrlRunConfig::from_toml(&text.replace(&line, ""), "c.toml").unwrap();
+    let mut without = IrlRunConfig::from_toml(&text.replace(&line, ""), "c.toml").unwrap();
+    without.env = shipped_config(without.env);
     assert_eq!(without.smirl_label_features, LabelFeatures::State);
     assert_eq!(
         Features::Labels.map(&without).unwrap(),
         FeatureMap::reacher_labels(&layout())
     );
     let entries = text.replace(&line, "smirl_label_features = \"entries\"");
-    let c = IrlRunConfig::from_toml(&entries, "c.toml").unwrap();
+    let mut c = IrlRunConfig::from_toml(&entries, "c.toml").unwrap();
+    c.env = shipped_config(c.env);
     assert_eq!(c.smirl_label_features, LabelFeatures::Entries);
     assert_eq!(
         Features::Labels.map(&c).unwrap(),
@@ -673,7 +675,7 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
     assert!(
         report.contains(
-            "smirl_selection_cut: balls the demonstrations touch (touches begun) after the cancel"
+            "smirl_selection_cut: regions the demonstrations touch (touches begun) after an event"
         ),
         "{report}"
     );

@@ -170,6 +170,11 @@ pub fn prepare(
         ..
     } = *request;
     let task = task.clone();
+    // The run's environment is its config over the task's layout, as the CLI resolves it.
+    let mut resolved = config.clone();
+    resolved.env =
+        (task.env_config(&config.env)).map_err(|e| PipelineError::Usage(format!("[env]: {e}")))?;
+    let config = &resolved;
     let (mut expert, last_seed) = check_request(request)?;
     let perfect = task
         .perfect_rm()
