@@ -29,9 +29,16 @@ use smirl::rm::{LabelSet, RewardMachine};
 
 /// The layout of the paper's tasks (four balls, one event), from a shipped task.
 fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
-    smirl::env::reacher_task::ReacherTask::shipped("composite")
-        .unwrap()
-        .layout()
+    // Loaded once: loading a task reads its files and builds its scene.
+    static LAYOUT: std::sync::OnceLock<std::sync::Arc<smirl::env::layout::TaskLayout>> =
+        std::sync::OnceLock::new();
+    LAYOUT
+        .get_or_init(|| {
+            smirl::env::reacher_task::ReacherTask::shipped("composite")
+                .unwrap()
+                .layout()
+        })
+        .clone()
 }
 
 /// The observation width of the paper's tasks.
