@@ -377,12 +377,13 @@ fn unknown_names_and_wrong_models_are_errors() {
     let fixed = smirl::assets::REACHER_XML
         .replace(r#"<body mocap="true" name="blue""#, r#"<body name="blue""#);
     let fixed = Arc::new(Model::from_xml_str(&fixed, "fixed.xml").unwrap());
-    let err = ReacherDelivery::with_model(fixed, ReacherConfig::default())
+    let config = composite().env_config(&ReacherConfig::default()).unwrap();
+    let err = ReacherDelivery::with_model(fixed, config)
         .err()
         .unwrap()
         .to_string();
     assert!(
-        err.contains("fixed.xml") && err.contains("ball blue"),
+        err.contains("fixed.xml") && err.contains("body blue"),
         "{err}"
     );
 }
