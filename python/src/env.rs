@@ -73,10 +73,11 @@ impl TaskSpec {
         }
         let rm = task.perfect_rm().map_err(error)?;
         let config = task.env_config(&ReacherConfig::default()).map_err(error)?;
+        let branches = CancelBranch::of(&rm, task.layout().events());
         Ok(TaskSpec {
             task,
             config,
-            branches: CancelBranch::of(&rm, task.layout().events()),
+            branches,
             rm,
             shaping,
             gamma,

@@ -104,7 +104,7 @@ impl LearnedProductCore {
         let obs = vec![0.0; env.obs_dim()];
         Ok(LearnedProductCore {
             task: prepared.prepared.task.name().to_string(),
-            branches: CancelBranch::of(&prepared.perfect),
+            branches: CancelBranch::of(&prepared.perfect, prepared.prepared.task.layout().events()),
             cancelled: false,
             perfect: prepared.perfect,
             task_state: 0,
