@@ -5,36 +5,9 @@ use smirl::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::{task_env, ReacherTask, SubgoalPotential};
 use smirl::env::ContinuousEnv;
 
-/// The layout of the paper's tasks (four balls, one event), from a shipped task.
-fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
-    // Loaded once: loading a task reads its files and builds its scene.
-    static LAYOUT: std::sync::OnceLock<std::sync::Arc<smirl::env::layout::TaskLayout>> =
-        std::sync::OnceLock::new();
-    LAYOUT
-        .get_or_init(|| {
-            smirl::env::reacher_task::ReacherTask::shipped("composite")
-                .unwrap()
-                .layout()
-        })
-        .clone()
-}
-
-/// The observation width of the paper's tasks.
-#[allow(dead_code)]
-fn obs_dim() -> usize {
-    layout().obs_dim()
-}
-
-/// `config` over the paper's tasks' layout (Composite's).
-#[allow(dead_code)]
-fn shipped_config(
-    config: smirl::env::reacher::ReacherConfig,
-) -> smirl::env::reacher::ReacherConfig {
-    smirl::env::reacher_task::ReacherTask::shipped("composite")
-        .unwrap()
-        .env_config(&config)
-        .unwrap()
-}
+#[allow(unused_imports)]
+use shipped_layout::{layout, obs_dim, shipped_config};
+mod shipped_layout;
 
 fn ik(x: f64, y: f64) -> [f64; 2] {
     let (l1, l2) = (0.1, 0.11);

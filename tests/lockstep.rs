@@ -17,36 +17,9 @@ use smirl::pipeline::reacher_irl::lockstep::{play_lockstep, Keep, Lockstep, Play
 use smirl::rl::sac::{draw_noise, episode_seed, ActMode, SacAgent, SacConfig};
 use std::path::Path;
 
-/// The layout of the paper's tasks (four balls, one event), from a shipped task.
-fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
-    // Loaded once: loading a task reads its files and builds its scene.
-    static LAYOUT: std::sync::OnceLock<std::sync::Arc<smirl::env::layout::TaskLayout>> =
-        std::sync::OnceLock::new();
-    LAYOUT
-        .get_or_init(|| {
-            smirl::env::reacher_task::ReacherTask::shipped("composite")
-                .unwrap()
-                .layout()
-        })
-        .clone()
-}
-
-/// The observation width of the paper's tasks.
-#[allow(dead_code)]
-fn obs_dim() -> usize {
-    layout().obs_dim()
-}
-
-/// `config` over the paper's tasks' layout (Composite's).
-#[allow(dead_code)]
-fn shipped_config(
-    config: smirl::env::reacher::ReacherConfig,
-) -> smirl::env::reacher::ReacherConfig {
-    smirl::env::reacher_task::ReacherTask::shipped("composite")
-        .unwrap()
-        .env_config(&config)
-        .unwrap()
-}
+#[allow(unused_imports)]
+use shipped_layout::{layout, obs_dim, shipped_config};
+mod shipped_layout;
 
 /// An actor column computed in a batch of 300 has the bits of the same column computed alone,
 /// for the networks SAC uses ((64, 64) and (256, 256) hidden layers).

@@ -320,8 +320,10 @@ fn rm_file_errors_name_invisible_characters_and_stay_short() {
     let e = parse_rm(&huge, "huge.txt").unwrap_err().to_string();
     assert!(e.len() < 400, "{} characters: {e}", e.len());
 
-    let mut config = ReacherConfig::default();
-    config.ball_layout = vec![[1e300, 0.0]];
+    let config = ReacherConfig {
+        ball_layout: vec![[1e300, 0.0]],
+        ..Default::default()
+    };
     let e = config.validate().unwrap_err().to_string();
     assert!(e.contains("1e300") && e.len() < 120, "{e}");
 }

@@ -11,36 +11,9 @@ use smirl::pipeline::reacher_irl::IrlConfigError;
 use smirl::rl::sac::{ActMode, ActWorkspace, SacAgent, SacConfig};
 use std::process::Command;
 
-/// The layout of the paper's tasks (four balls, one event), from a shipped task.
-fn layout() -> std::sync::Arc<smirl::env::layout::TaskLayout> {
-    // Loaded once: loading a task reads its files and builds its scene.
-    static LAYOUT: std::sync::OnceLock<std::sync::Arc<smirl::env::layout::TaskLayout>> =
-        std::sync::OnceLock::new();
-    LAYOUT
-        .get_or_init(|| {
-            smirl::env::reacher_task::ReacherTask::shipped("composite")
-                .unwrap()
-                .layout()
-        })
-        .clone()
-}
-
-/// The observation width of the paper's tasks.
-#[allow(dead_code)]
-fn obs_dim() -> usize {
-    layout().obs_dim()
-}
-
-/// `config` over the paper's tasks' layout (Composite's).
-#[allow(dead_code)]
-fn shipped_config(
-    config: smirl::env::reacher::ReacherConfig,
-) -> smirl::env::reacher::ReacherConfig {
-    smirl::env::reacher_task::ReacherTask::shipped("composite")
-        .unwrap()
-        .env_config(&config)
-        .unwrap()
-}
+#[allow(unused_imports)]
+use shipped_layout::{layout, obs_dim, shipped_config};
+mod shipped_layout;
 
 #[test]
 fn zero_start_puts_the_fingertip_at_full_reach_at_rest() {
