@@ -74,8 +74,8 @@ fn shipped_tasks_describe_todays_environment() {
     for name in SHIPPED {
         let task = Task::resolve(name).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(task.name, name);
-        assert_eq!(task.letters(), "rgbyc");
-        assert_eq!(task.event_labels(), LabelSet(1 << 4));
+        assert_eq!(task.layout().letters(), "rgbyc");
+        assert_eq!(task.layout().events(), LabelSet(1 << 4));
         assert_eq!(task.region_labels(), LabelSet(0b1111));
         // The paper's layout: four balls at their distances from the base, one event.
         let env = ReacherTask::shipped(name)
@@ -113,12 +113,12 @@ fn a_file_on_disk_loads_with_its_machine_beside_it() {
     let path = write(dir.path(), &task_text(), MACHINE);
     let task = Task::resolve(path.to_str().unwrap()).unwrap();
     assert_eq!(task.name, "t");
-    assert_eq!(task.letters(), "abe");
+    assert_eq!(task.layout().letters(), "abe");
     assert_eq!(task.regions[0].anchor, Anchor::Body("red".into()));
     assert_eq!(task.regions[0].radius, 0.03);
     assert_eq!(task.regions[1].position, [-0.1, 0.05]);
     assert_eq!(task.events[0].latest_step, 9);
-    assert_eq!(task.event_labels(), LabelSet(0b100));
+    assert_eq!(task.layout().events(), LabelSet(0b100));
     assert_eq!(task.episode_steps, 50);
     // Two regions and one event: an observation of 8 + 2·2 + 1 values.
     assert_eq!(task.layout().obs_dim(), 13);

@@ -510,20 +510,6 @@ impl Task {
         })
     }
 
-    /// The task's propositions in label-bit order: regions, then events.
-    pub fn letters(&self) -> String {
-        self.regions
-            .iter()
-            .map(|r| r.letter)
-            .chain(self.events.iter().map(|e| e.letter))
-            .collect()
-    }
-
-    /// The label bits of the task's exogenous events.
-    pub fn event_labels(&self) -> LabelSet {
-        (0..self.events.len()).fold(LabelSet::EMPTY, |s, k| s.with(self.regions.len() + k))
-    }
-
     /// The label bits of the regions (the agent's own touches).
     pub fn region_labels(&self) -> LabelSet {
         (0..self.regions.len()).fold(LabelSet::EMPTY, |s, k| s.with(k))
