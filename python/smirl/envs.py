@@ -43,6 +43,23 @@ def _seed_from(rng: np.random.Generator) -> int:
     return int(rng.integers(0, 2**63))
 
 
+def _reset_seed(seed: int | None, rng: np.random.Generator) -> int:
+    """A reset's seed: the one given, checked, or one drawn from ``rng``."""
+    if seed is None:
+        return _seed_from(rng)
+    if not 0 <= int(seed) <= MAX_SEED:
+        raise ValueError(f"seed must be in 0..2**64, got {seed}")
+    return int(seed)
+
+
+def _checked_action(action, shape) -> np.ndarray:
+    """``action`` as a flat float32 array of ``shape``, or ``ValueError``."""
+    action = np.asarray(action, dtype=np.float32).reshape(-1)
+    if action.shape != shape:
+        raise ValueError(f"action has shape {action.shape}, the environment takes {shape}")
+    return action
+
+
 class ReacherDeliveryEnv(gym.Env):
     """One ReacherDelivery task (``or``, ``sequential``, ``if``, ``composite``, ``blue``).
 
@@ -79,19 +96,12 @@ class ReacherDeliveryEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        if seed is None:
-            seed = _seed_from(self.np_random)
-        if not 0 <= int(seed) <= MAX_SEED:
-            raise ValueError(f"seed must be in 0..2**64, got {seed}")
-        obs = self._core.reset(int(seed))
-        return obs, {"rm_state": self._core.rm_state, "seed": int(seed)}
+        seed = _reset_seed(seed, self.np_random)
+        obs = self._core.reset(seed)
+        return obs, {"rm_state": self._core.rm_state, "seed": seed}
 
     def step(self, action):
-        action = np.asarray(action, dtype=np.float32).reshape(-1)
-        if action.shape != self.action_space.shape:
-            raise ValueError(
-                f"action has shape {action.shape}, the environment takes {self.action_space.shape}"
-            )
+        action = _checked_action(action, self.action_space.shape)
         return self._core.step(action.tolist())
 
     def render(self):
@@ -148,18 +158,11 @@ class LearnedProductEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        if seed is None:
-            seed = _seed_from(self.np_random)
-        if not 0 <= int(seed) <= MAX_SEED:
-            raise ValueError(f"seed must be in 0..2**64, got {seed}")
-        return self._core.reset(int(seed)), {"seed": int(seed)}
+        seed = _reset_seed(seed, self.np_random)
+        return self._core.reset(seed), {"seed": seed}
 
     def step(self, action):
-        action = np.asarray(action, dtype=np.float32).reshape(-1)
-        if action.shape != self.action_space.shape:
-            raise ValueError(
-                f"action has shape {action.shape}, the environment takes {self.action_space.shape}"
-            )
+        action = _checked_action(action, self.action_space.shape)
         return self._core.step(action.tolist())
 
 

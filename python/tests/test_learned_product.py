@@ -1,9 +1,7 @@
 """SMIRL's learned product rebuilt from a run directory (``smirl.make_learned``)."""
 
-import os
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,21 +9,13 @@ from gymnasium.utils.env_checker import check_env
 
 import smirl
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory):
+def run_dir(tmp_path_factory, reacher_bin):
     """A `--quick` SMIRL run of Sequential made by the `reacher` binary."""
-    binary = os.environ.get("SMIRL_REACHER_BIN") or shutil.which("reacher")
-    if binary is None:
-        candidate = ROOT / "target" / "release" / "reacher"
-        binary = str(candidate) if candidate.exists() else None
-    if binary is None:
-        pytest.skip("no reacher binary (build it with cargo build --release)")
     out = tmp_path_factory.mktemp("run") / "sequential"
     subprocess.run(
-        [binary, "--task", "sequential", "--quick", "--algo", "smirl", "--out", str(out), "--quiet"],
+        [reacher_bin, "--task", "sequential", "--quick", "--algo", "smirl", "--out", str(out), "--quiet"],
         check=True,
         capture_output=True,
     )

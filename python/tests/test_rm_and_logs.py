@@ -1,16 +1,11 @@
 """Reward machines, LRM and logs through the package."""
 
-import os
-import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import smirl
-
-ROOT = Path(__file__).resolve().parents[2]
 
 SEQUENCE = """\
 vocabulary: ab
@@ -81,17 +76,11 @@ def test_learn_rm_refuses_bad_traces():
 
 
 @pytest.fixture(scope="module")
-def demo_log(tmp_path_factory):
+def demo_log(tmp_path_factory, reacher_bin):
     """A log written by the `reacher` binary (scripted demonstrations of Composite)."""
-    binary = os.environ.get("SMIRL_REACHER_BIN") or shutil.which("reacher")
-    if binary is None:
-        candidate = ROOT / "target" / "release" / "reacher"
-        binary = str(candidate) if candidate.exists() else None
-    if binary is None:
-        pytest.skip("no reacher binary (build it with cargo build --release)")
     out = tmp_path_factory.mktemp("log") / "demo.mcap"
     subprocess.run(
-        [binary, "demo", "--task", "composite", "--episodes", "6", "--observations", "--out", str(out)],
+        [reacher_bin, "demo", "--task", "composite", "--episodes", "6", "--observations", "--out", str(out)],
         check=True,
         capture_output=True,
     )
@@ -151,13 +140,6 @@ def test_same_seed_same_trajectory_as_the_reacher_binary(demo_log):
                 break
 
 
-def reacher_binary():
-    binary = os.environ.get("SMIRL_REACHER_BIN") or shutil.which("reacher")
-    if binary is None and (ROOT / "target" / "release" / "reacher").exists():
-        binary = str(ROOT / "target" / "release" / "reacher")
-    return binary
-
-
 def python_episodes(task, seeds):
     """Episodes played in Python with random actions, ended where the environment ends them."""
     env = smirl.make(task)
@@ -176,7 +158,7 @@ def python_episodes(task, seeds):
     return episodes
 
 
-def test_write_log_is_read_back_and_replayed_by_the_binary(tmp_path):
+def test_write_log_is_read_back_and_replayed_by_the_binary(tmp_path, reacher_bin):
     episodes = python_episodes("sequential", [3, 4, 5])
     path = tmp_path / "py.mcap"
     steps = smirl.write_log(path, "sequential", episodes)
@@ -187,13 +169,10 @@ def test_write_log_is_read_back_and_replayed_by_the_binary(tmp_path):
         assert ep["seed"] == seed and np.array_equal(ep["actions"], actions)
     with pytest.raises(smirl.SmirlError, match="already exists"):
         smirl.write_log(path, "sequential", episodes)
-    binary = reacher_binary()
-    if binary is None:
-        pytest.skip("no reacher binary")
-    replay = subprocess.run([binary, "replay", "--verify", str(path)], capture_output=True, text=True)
+    replay = subprocess.run([reacher_bin, "replay", "--verify", str(path)], capture_output=True, text=True)
     assert replay.returncode == 0, replay.stdout + replay.stderr
     learned = subprocess.run(
-        [binary, "learn-rm", str(path), "--out", str(tmp_path / "lrm")], capture_output=True, text=True
+        [reacher_bin, "learn-rm", str(path), "--out", str(tmp_path / "lrm")], capture_output=True, text=True
     )
     assert learned.returncode == 0, learned.stdout + learned.stderr
     assert (tmp_path / "lrm" / "learned_rm.txt").exists()

@@ -1,0 +1,21 @@
+"""Fixtures shared by the package's tests."""
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="session")
+def reacher_bin():
+    """The `reacher` binary (SMIRL_REACHER_BIN, else on PATH, else the checkout's release
+    build); the test is skipped without one."""
+    binary = os.environ.get("SMIRL_REACHER_BIN") or shutil.which("reacher")
+    if binary is None and (ROOT / "target" / "release" / "reacher").exists():
+        binary = str(ROOT / "target" / "release" / "reacher")
+    if binary is None:
+        pytest.skip("no reacher binary (build it with cargo build --release)")
+    return binary
