@@ -40,6 +40,12 @@
 //! `assets` (the model, reward machines and committed experts built into the binaries) and
 //! `short_float` (serde helpers for readable configs) import nothing of the crate but each
 //! other and serve every layer.
+//!
+//! `unsafe` is denied everywhere but in three places, each allowed by name: the MuJoCo wrapper
+//! (`mujoco`, the FFI), the `sgemm` call (`nn::gemm`) and restoring SIGPIPE's default action
+//! (`pipeline::commands::exit_quietly_on_closed_pipe`).
+
+#![deny(unsafe_code)]
 
 pub mod assets;
 pub mod atomic_file;
@@ -48,6 +54,7 @@ pub mod env;
 pub mod input_file;
 pub mod irl;
 pub mod log;
+#[allow(unsafe_code)]
 pub mod mujoco;
 pub mod nn;
 pub mod output;

@@ -7,6 +7,8 @@
 //!
 //! `cargo run --release --bin env_bench -- --reps 7 --steps 20000`
 
+#![deny(unsafe_code)]
+
 use clap::Parser;
 use smirl::assets::{REACHER_V1_XML, REACHER_V1_XML_NAME};
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery, FRAME_SKIP};

@@ -8,6 +8,8 @@
 //! several repetitions in this run. Results go to stdout and to `--out`
 //! (default `experiments/irl/kde_bench.txt`).
 
+#![deny(unsafe_code)]
+
 use anyhow::{Context, Result};
 use clap::Parser;
 use rand::{Rng, SeedableRng};

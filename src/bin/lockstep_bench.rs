@@ -7,6 +7,8 @@
 //!
 //! `cargo run --release --bin lockstep_bench -- --reps 5 --episodes 300`
 
+#![deny(unsafe_code)]
+
 use anyhow::{ensure, Result};
 use clap::Parser;
 use rand::SeedableRng;

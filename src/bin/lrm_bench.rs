@@ -27,6 +27,8 @@
 //!
 //! The speed target (issue 3) is under 5 s per Office task at 100 000 transitions on 2 cores.
 
+#![deny(unsafe_code)]
+
 use anyhow::{bail, Context, Result};
 use smirl::env::office::OfficeTask;
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};

@@ -6,6 +6,8 @@
 //!
 //! `cargo run --release --bin mcap_bench -- --reps 7 --episodes 200`
 
+#![deny(unsafe_code)]
+
 use anyhow::Result;
 use clap::Parser;
 use rand::{Rng, SeedableRng};

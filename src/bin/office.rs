@@ -13,6 +13,8 @@
 //!
 //! Exit status: 0 success, 1 failure while running, 2 bad arguments or config.
 
+#![deny(unsafe_code)]
+
 use clap::Parser;
 use smirl::pipeline::commands::{self, office::OfficeRequest};
 use std::path::PathBuf;

@@ -20,6 +20,7 @@
 //! Exit status: 0 success, 1 failure while running, 2 bad arguments or config (clap's own
 //! errors included). An error is printed once, by `main`.
 
+#![deny(unsafe_code)]
 // The doc comments of the argument structs are clap's `--help` text, read in a terminal:
 // `<algo>` and `[sac]` there are placeholders and TOML tables, not HTML or links.
 #![allow(rustdoc::invalid_html_tags, rustdoc::broken_intra_doc_links)]

@@ -6,6 +6,8 @@
 //! in a loop, exactly the `sgemm` calls recorded while running one iteration (shapes and
 //! transposes from `smirl::nn::gemm::trace`). Reported: median over repetitions.
 
+#![deny(unsafe_code)]
+
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 use rand::{Rng, SeedableRng};

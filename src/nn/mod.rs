@@ -14,6 +14,7 @@ pub mod adam;
 pub mod codec;
 pub mod dense;
 pub mod gaussian;
+#[allow(unsafe_code)]
 pub mod gemm;
 pub mod mlp;
 

@@ -40,6 +40,7 @@ impl std::error::Error for UsageError {}
 /// Lets a closed standard output end the process quietly, as it ends `cat` or `grep`: Rust
 /// ignores SIGPIPE, so `reacher replay LOG | head` would otherwise panic in `println!` once
 /// `head` exits. Called first thing by the binaries.
+#[allow(unsafe_code)]
 pub fn exit_quietly_on_closed_pipe() {
     // SAFETY: restores the default action of one signal before any thread is started.
     unsafe {
