@@ -401,35 +401,35 @@ impl ReacherBatch {
         let slots = &mut self.slots;
         let results: Vec<Result<Option<StepOut>, String>> = py.allow_threads(|| {
             let per = n.div_ceil(threads);
-            let mut results: Vec<Result<Option<StepOut>, String>> = Vec::with_capacity(n);
-            std::thread::scope(|s| {
-                let handles: Vec<_> = slots
-                    .chunks_mut(per)
-                    .zip(actions.chunks(per * a))
-                    .map(|(chunk, acts)| {
-                        s.spawn(move || {
-                            chunk
-                                .iter_mut()
-                                .zip(acts.chunks(a))
-                                .map(|(slot, act)| {
-                                    if slot.done {
-                                        Ok(None)
-                                    } else {
-                                        slot.step(spec, act).map(Some)
-                                    }
-                                })
-                                .collect::<Vec<_>>()
-                        })
+            let step_chunk = |chunk: &mut [Slot], acts: &[f32]| {
+                chunk
+                    .iter_mut()
+                    .zip(acts.chunks(a))
+                    .map(|(slot, act)| {
+                        if slot.done {
+                            Ok(None)
+                        } else {
+                            slot.step(spec, act).map(Some)
+                        }
                     })
+                    .collect::<Vec<_>>()
+            };
+            // The calling thread steps the first chunk itself: one thread fewer to start.
+            let mut chunks = slots.chunks_mut(per).zip(actions.chunks(per * a));
+            let (first, first_acts) = chunks.next().expect("a batch holds at least 1 environment");
+            std::thread::scope(|s| {
+                let handles: Vec<_> = chunks
+                    .map(|(chunk, acts)| s.spawn(move || step_chunk(chunk, acts)))
                     .collect();
+                let mut results = step_chunk(first, first_acts);
                 for h in handles {
                     match h.join() {
                         Ok(r) => results.extend(r),
                         Err(_) => results.push(Err("a stepping thread panicked".into())),
                     }
                 }
-            });
-            results
+                results
+            })
         });
         let mut rewards = vec![0.0; n];
         let mut terminated = vec![false; n];
