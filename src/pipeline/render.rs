@@ -30,14 +30,16 @@ impl RenderOptions {
     pub const SIZES: std::ops::RangeInclusive<u32> = 64..=8192;
 
     /// Checks the options on their own (before any log is read).
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), RenderError> {
         if !Self::SIZES.contains(&self.size) {
-            return Err(format!(
-                "picture size {} must be between {} and {} pixels",
-                self.size,
-                Self::SIZES.start(),
-                Self::SIZES.end()
-            ));
+            return Err(RenderError::Options {
+                problem: format!(
+                    "picture size {} must be between {} and {} pixels",
+                    self.size,
+                    Self::SIZES.start(),
+                    Self::SIZES.end()
+                ),
+            });
         }
         Ok(())
     }
@@ -117,11 +119,9 @@ pub fn render_episode(
         path: path.clone(),
         problem,
     };
-    options
-        .validate()
-        .map_err(|problem| RenderError::Options { problem })?;
+    options.validate()?;
     let xml = log.reacher_model_xml().map_err(&bad)?;
-    let ep = pick_episode(log, episode).map_err(&bad)?;
+    let ep = pick_episode(log, episode, &path)?;
     let model = Arc::new(
         Model::from_xml_str(xml, &format!("{path}:model.xml")).map_err(|e| bad(e.to_string()))?,
     );
@@ -329,7 +329,11 @@ pub fn render_episode(
 }
 
 /// The episode with id `episode` (the first one for `None`).
-fn pick_episode(log: &RolloutLog, episode: Option<u64>) -> Result<&LoggedEpisode, String> {
+fn pick_episode<'a>(
+    log: &'a RolloutLog,
+    episode: Option<u64>,
+    path: &str,
+) -> Result<&'a LoggedEpisode, RenderError> {
     let ids = || {
         let ids: Vec<String> = log
             .episodes
@@ -355,6 +359,10 @@ fn pick_episode(log: &RolloutLog, episode: Option<u64>) -> Result<&LoggedEpisode
             .find(|e| e.start.episode == id)
             .ok_or_else(|| format!("episode {id} is not in the log ({})", ids())),
     }
+    .map_err(|problem| RenderError::Input {
+        path: path.into(),
+        problem,
+    })
 }
 
 /// Writes the picture as PNG at `path`, atomically (a failed write leaves no file that looks

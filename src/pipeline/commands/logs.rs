@@ -85,7 +85,7 @@ pub fn render(args: RenderRequest) -> Result<()> {
     };
     options
         .validate()
-        .map_err(|problem| usage(format!("--size: {problem}")))?;
+        .map_err(|e| usage(format!("--size: {e}")))?;
     check_file(&args.out, args.force).map_err(usage)?;
     check_not_input(&args.out, &[&args.file]).map_err(usage)?;
     let log = read_log(&args.file)?;
