@@ -9,9 +9,7 @@ use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-/// Largest uncompressed chunk the reader accepts (the writer's chunks are ~1 MiB; see
-/// [`super::LogOptions::chunk_size`]).
-pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
+pub use super::schema::MAX_CHUNK_BYTES;
 
 /// Largest memory the decoded episodes of one log may take (estimated per message): 1 GiB,
 /// ~4 million steps, above the ~3 million (~80 bytes each) a log of [`MAX_LOG_FILE_BYTES`]

@@ -29,6 +29,18 @@
 use super::proto::{
     file_descriptor_set, DecodeError, Decoder, Encoder, FieldSpec, FieldType, MessageSpec,
 };
+
+/// Largest uncompressed chunk a log may have: the reader refuses a larger one, and the
+/// writer's chunk size stays below half of it (its chunks are ~1 MiB; see
+/// [`super::LogOptions::chunk_size`]).
+pub const MAX_CHUNK_BYTES: u64 = 256 << 20;
+
+/// Key of the run config (`RunInfo::config`) that records the task's layout (scene, regions,
+/// events; `env::layout::TaskLayout` as JSON); logs without it were made on the shipped
+/// four-ball layout.
+pub const CONFIG_TASK_LAYOUT: &str = "task_layout";
+/// Key of the run config that records the task file's text.
+pub const CONFIG_TASK_FILE: &str = "task_file";
 use serde::{Deserialize, Serialize};
 
 /// Version of this schema; readers refuse files with another one.
@@ -95,7 +107,7 @@ impl RunInfo {
     /// record was made on the shipped four-ball layout, read as the shipped task of its name
     /// (or Composite, which has the same layout, for a task file's log).
     pub fn task_layout(&self) -> Result<crate::env::layout::TaskLayout, String> {
-        if let Some(v) = self.config.get(super::writer::CONFIG_TASK_LAYOUT) {
+        if let Some(v) = self.config.get(CONFIG_TASK_LAYOUT) {
             return serde_json::from_value(v.clone())
                 .map_err(|e| format!("the run's task layout does not parse: {e}"));
         }

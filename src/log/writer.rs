@@ -1,8 +1,8 @@
 //! The rollout logger: encodes on the caller's thread, writes MCAP on a background thread.
 
 use super::schema::{
-    self, encode_step, sha256_hex, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepFields, NO_RM,
-    SCHEMA_VERSION,
+    self, encode_step, sha256_hex, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepFields,
+    CONFIG_TASK_FILE, CONFIG_TASK_LAYOUT, MAX_CHUNK_BYTES, NO_RM, SCHEMA_VERSION,
 };
 use super::LogError;
 use crate::env::layout::TaskLayout;
@@ -66,13 +66,6 @@ pub struct RunHeader {
     pub config: serde_json::Value,
     pub reward_machine: Option<String>,
 }
-
-/// Key of the run config (`RunInfo::config`) that records the task's layout (scene, regions,
-/// events; `env::layout::TaskLayout` as JSON); logs without it were made on the shipped
-/// four-ball layout.
-pub const CONFIG_TASK_LAYOUT: &str = "task_layout";
-/// Key of the run config that records the task file's text.
-pub const CONFIG_TASK_FILE: &str = "task_file";
 
 impl RunHeader {
     /// The header of a ReacherDelivery run of a task: its layout, its task file's text
@@ -230,13 +223,13 @@ impl RolloutLogger {
                 problem: "every_nth_episode must be at least 1".into(),
             });
         }
-        if options.chunk_size == 0 || options.chunk_size > super::reader::MAX_CHUNK_BYTES / 2 {
+        if options.chunk_size == 0 || options.chunk_size > MAX_CHUNK_BYTES / 2 {
             return Err(LogError::Usage {
                 path: path.into(),
                 problem: format!(
                     "chunk_size {} must be between 1 and {} bytes",
                     options.chunk_size,
-                    super::reader::MAX_CHUNK_BYTES / 2
+                    MAX_CHUNK_BYTES / 2
                 ),
             });
         }
