@@ -379,9 +379,10 @@ pub enum SmirlNormalisation {
     /// As `Visits`, but a state the agent's batch does not visit *and* cannot reach without an
     /// exogenous event gets no update ([`maxent_coefficients_by_shared_visits`] with the
     /// learned machine's [`reachable_without`](crate::rm::RewardMachine::reachable_without)
-    /// the events as the states that keep their pull). The standard profile's (README,
-    /// "Shared visits"). Assumes "unless" events: a state reached only through one is a
-    /// branch the agent cannot be asked to visit.
+    /// the events as the states that keep their pull). The standard profile's. Assumes only
+    /// that the declared events are exogenous (no policy brings one about): a state every way
+    /// into which needs an event is visited when the environment sends the agent there, so
+    /// the agent cannot be asked to visit it; what the event means does not matter.
     #[serde(rename = "event_gated_visits")]
     EventGatedVisits,
 }
