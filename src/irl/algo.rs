@@ -38,7 +38,7 @@ impl Algo {
         Algo::Js,
     ];
 
-    /// The default set of `reacher --task` (README.md, "ReacherDelivery IRL").
+    /// The default set of `reacher --task` (README.md, "Run it").
     pub const REACHER_DEFAULT: [Algo; 4] =
         [Algo::Smirl, Algo::SmirlSmooth, Algo::MaxEnt, Algo::Fkl];
 

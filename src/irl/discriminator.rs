@@ -7,8 +7,8 @@
 //! expert states labelled 1 and agent states 0, whose logit z(s) = log D − log(1 − D) is, at the
 //! optimum with equal class weights, log ρ_E(s) − log ρ_θ(s). Fitting a KDE to 16
 //! demonstrations instead makes ρ_E exactly zero a kernel radius away from them, so rkl's
-//! −log u is flat (+log 1/ε) over every state the expert did not visit (README, "Positive
-//! controls"). The classifier's logit extrapolates smoothly and is clamped to ±[`LOGIT_CLAMP`].
+//! −log u is flat (+log 1/ε) over every state the expert did not visit (the positive
+//! controls, experiments/reacher/controls/results.md). The classifier's logit extrapolates smoothly and is clamped to ±[`LOGIT_CLAMP`].
 //!
 //! **Training.** Binary cross-entropy with logits, `batch` expert and `batch` agent states per
 //! step drawn with replacement (as the reference code does), Adam with PyTorch's L2

@@ -6,7 +6,7 @@
 //! agent state by −log(ρ_E/ρ_θ), which is the same huge value (log ε) at every state off those
 //! discs, however near the expert's path: an agent that leaves its start disc is punished as
 //! if it had left the arena, and rkl's agents stop on the expert's first states
-//! (README, "Positive controls"). f-IRL's own Reacher experiment has an analytic target with
+//! (experiments/reacher/controls/results.md). f-IRL's own Reacher experiment has an analytic target with
 //! no zero, where log ρ_E grades a state by its distance to the target. A Gaussian kernel gives
 //! the demonstrations that property: log ρ_E(x) ≈ −d(x)²/(2σ²) + const far from the data,
 //! d the distance to the nearest demonstration state.

@@ -15,8 +15,8 @@
 //! Touches can be read as entries (`smirl_selection_cut_entries`): a ball counts on the step
 //! its touch begins, not on the steps the fingertip stays on it. Why: the expert brushes a ball
 //! for one step where an agent lingers for two or three, so the steps after a touch that
-//! entered a state look, read as labels, like a touch no demonstration makes there (held-out
-//! Sequential 78: red held one step longer after a cancel).
+//! entered a state look, read as labels, like a touch no demonstration makes there (Sequential
+//! base 78: red held one step longer after a cancel).
 
 use crate::rm::LabelSet;
 

@@ -431,19 +431,20 @@ pub fn maxent_coefficients_by_visits(
 /// its side is missing, not zero. Taking it as zero raises the expert's features in that state
 /// on every iteration, by the expert's full conditional count however few demonstrations go
 /// there (and Adam turns a gradient of constant sign into a constant step, whatever its
-/// size). Measured on held-out Composite (bases 3 and 24): the states entered by a cancel
-/// after red, which the experts reach and the agents, slower to red than the cancel window,
-/// do not, end with yellow weights of 10–11 against 4 in the normal branch's state; a policy
-/// whose observation cannot tell that the cancel window has passed then keeps waiting for a
-/// cancel after red instead of going to blue (a fresh SAC agent on base 24 seed 25's final
-/// reward: normal branch 0.00; with that state's weights set to 0: 1.00). Whether the agent
+/// size). On Composite the states entered by a cancel after red, which the experts reach and
+/// agents slower to red than the cancel window do not, would end with yellow weights of 10–11
+/// against 4 in the normal branch's state (development bases 3 and 24), and a policy that
+/// cannot tell the cancel window has passed keeps waiting for a cancel after red instead of
+/// going to blue (a fresh SAC agent on base 24 seed 25's final reward: normal branch 0.00;
+/// with that state's weights set to 0: 1.00). Whether the agent
 /// should enter such a state is still learned where the choice is made: in the parent state,
 /// whose transition label is compared as before.
 ///
 /// But that pull is also what draws an agent into a sub-task it has not reached yet (the
 /// expert's counts there raise the state's weights until the agent comes): with no pull at
-/// all (`shared_visits`, every `pull_unvisited` false) IF and Composite tuning jobs never
-/// solved the normal branch (9 of 12, README "Shared visits"). `event_gated_visits` keeps
+/// all (`shared_visits`, every `pull_unvisited` false) 9 of 12 IF and Composite jobs at base 0
+/// never solve the normal branch (*Shared visits*, experiments/archive/README-research-log.md).
+/// `event_gated_visits` keeps
 /// the pull where the agent can enter the state by its own moves and drops it only where
 /// every way in needs the exogenous event, which no policy can bring about.
 pub fn maxent_coefficients_by_shared_visits(
