@@ -17,9 +17,33 @@ fn git(manifest: &str, args: &[&str]) -> Option<String> {
 
 fn main() {
     let manifest = std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR");
-    let commit = git(&manifest, &["rev-parse", "HEAD"]).unwrap_or_default();
+    let mut commit = git(&manifest, &["rev-parse", "HEAD"]).unwrap_or_default();
+    // A build from a checkout whose sources differ from the commit is marked, so that a run
+    // never names a commit it was not built from.
+    let dirty = git(
+        &manifest,
+        &[
+            "status",
+            "--porcelain",
+            "--untracked-files=no",
+            "--",
+            "src",
+            "assets",
+            "mujoco-sys",
+            "build.rs",
+            "Cargo.toml",
+            "Cargo.lock",
+        ],
+    );
+    if !commit.is_empty() && dirty.is_some_and(|d| !d.is_empty()) {
+        commit.push_str("-dirty");
+    }
     println!("cargo:rustc-env=SMIRL_GIT_COMMIT={commit}");
     println!("cargo:rerun-if-changed=build.rs");
+    // Rerun when a source changes, so the dirty mark follows the checkout.
+    for dir in ["src", "assets"] {
+        println!("cargo:rerun-if-changed={dir}");
+    }
     // Rebuild when HEAD moves: watch HEAD itself (a branch switch) and the branch's ref file
     // (a commit). Ask git for their paths: in a worktree `.git` is a file, not a folder.
     for path in ["HEAD", "refs/heads"] {

@@ -47,6 +47,7 @@ use std::process::ExitCode;
 #[derive(Parser)]
 #[command(
     about = "ReacherDelivery: IRL pipeline (--task), rollout logs, replay, offline reward-machine learning",
+    version = concat!(env!("CARGO_PKG_VERSION"), " (commit ", env!("SMIRL_GIT_COMMIT"), ")"),
     args_conflicts_with_subcommands = true
 )]
 struct Cli {
