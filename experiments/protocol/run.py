@@ -4,9 +4,9 @@
 A protocol is two committed files: `experiments/protocol/<name>.md` (what is measured and why,
 for people) and `experiments/protocol/<name>.toml` (the same plan for this script):
 
-    commit = "<40 hex digits>"        # the frozen method; every job's binary must be built from it
+    commit = "<40 hex digits>"        # the frozen method; every job's binary is built from it
     config = "experiments/reacher/config.toml"
-    bases = [5000, 5010, ...]          # base seeds never used before the protocol's commit
+    bases = [...]                      # from `run.py draw-bases NAME`: never used before
 
     [[arm]]                            # one or more
     name = "smirl"                     # the arm's name in the tables
@@ -17,18 +17,25 @@ for people) and `experiments/protocol/<name>.toml` (the same plan for this scrip
     config = "..."                     # optional: this arm's config instead of the protocol's
 
 Usage:
+    python3 experiments/protocol/run.py draw-bases NAME [--n 10] [--spacing 10]
     python3 experiments/protocol/run.py check NAME [--bin REACHER]
     python3 experiments/protocol/run.py run NAME [--bin REACHER] [--until HH:MM] [--max-jobs N]
     python3 experiments/protocol/run.py status NAME
 
-`check` refuses to go on unless both files are committed and unchanged, the binary was built
-from the frozen commit (the commit `reacher prepare` records), no run directory of the
-protocol exists yet, and no seed of it appears in a run directory under runs/ or in a committed
-CSV under experiments/. `run` prepares each (arm config, task, base) run directory under
-`runs/protocol/<name>/` and runs its missing jobs one at a time in the protocol's order (a
-finished job is never rerun, so an interrupted run resumes where it stopped); `--until` starts
-no job after that time of day (UTC), so a session can end between jobs. `status` counts the
-finished jobs. The tables come from `experiments/protocol/table.py`.
+`draw-bases` draws base seeds from a generator seeded by the protocol's name and the current
+commit, so nobody picks them. `check`, once, before the first job: both protocol files are
+committed and clean; the method's sources, the configs and the task files are the same at HEAD
+as at the frozen commit; the binary says (`--version`) it was built from the frozen commit with
+no local change; no seed of the protocol appears in any run directory on this machine
+(`prepare.json` under /work, /tmp and the checkout's runs/) or in any version of any CSV
+git has ever held (columns `seed` and `sac_seed`). It then writes `runs/protocol/<name>/lock.json`
+(the files' blob ids, the binary's sha256). `run` refuses without that lock, or when the protocol
+files, the binary or a seed's run directory differ from it; prepares each (config, task, base)
+run directory under `runs/protocol/<name>/` and runs its missing jobs one at a time, base by
+base (a finished job is never rerun). Every job start and end goes to the append-only
+`ledger.jsonl` beside the lock; a job that exits with an error is recorded as failed and never
+retried; a job killed by a signal (a session ending) is rerun next time. `--until` starts no job
+after that time of day (UTC). The tables come from `experiments/protocol/table.py`.
 """
 
 import argparse
@@ -36,13 +43,19 @@ import csv
 import datetime
 import gzip
 import hashlib
+import io
 import json
 import os
+import random
 import subprocess
 import sys
 import tomllib
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+# Sources of the method: a protocol's HEAD must not differ from its frozen commit in these.
+METHOD_PATHS = ["src", "assets", "mujoco-sys", "build.rs", "Cargo.toml", "Cargo.lock"]
+# Where run directories of this machine are looked for (besides the checkout's runs/).
+SEARCH_ROOTS = ["/work", "/tmp"]
 
 
 def fail(msg):
@@ -50,13 +63,20 @@ def fail(msg):
     sys.exit(2)
 
 
-def git(*args):
-    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True)
+def git(*args, text=True):
+    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=text)
+
+
+def paths(name):
+    return f"experiments/protocol/{name}.md", f"experiments/protocol/{name}.toml"
+
+
+def run_root(name):
+    return os.path.join(ROOT, "runs", "protocol", name)
 
 
 def load(name):
-    md = f"experiments/protocol/{name}.md"
-    spec = f"experiments/protocol/{name}.toml"
+    md, spec = paths(name)
     for f in (md, spec):
         if not os.path.isfile(os.path.join(ROOT, f)):
             fail(f"{f} does not exist")
@@ -74,6 +94,7 @@ def load(name):
     bases = plan["bases"]
     if not bases or len(set(bases)) != len(bases) or not all(isinstance(b, int) and b >= 0 for b in bases):
         fail(f"{spec}: `bases` must be distinct non-negative integers")
+    labels = {}
     for i, arm in enumerate(plan["arm"]):
         for key in ("name", "tasks", "algos", "n_bases", "seeds"):
             if key not in arm:
@@ -82,24 +103,34 @@ def load(name):
             fail(f"{spec}: arm {arm['name']}: n_bases must be in 1..={len(bases)}")
         if not 1 <= arm["seeds"] <= 16:
             fail(f"{spec}: arm {arm['name']}: seeds must be in 1..=16")
+        for task in arm["tasks"]:
+            other = labels.setdefault(task_label(task), task)
+            if other != task:
+                fail(f"{spec}: tasks {other} and {task} have the same name")
+    ordered = sorted(bases)
+    widest = max(arm["seeds"] for arm in plan["arm"])
+    if any(b - a < widest for a, b in zip(ordered, ordered[1:])):
+        fail(f"{spec}: bases closer than {widest} apart share SAC seeds")
     return md, spec, plan
-
-
-def committed_unchanged(path):
-    if git("ls-files", "--error-unmatch", path).returncode != 0:
-        return False
-    return git("diff", "--quiet", "HEAD", "--", path).returncode == 0
-
-
-def run_key(config):
-    """A short name for a config file's contents (arms with their own config get their own run
-    directories)."""
-    with open(os.path.join(ROOT, config), "rb") as fh:
-        return hashlib.sha256(fh.read()).hexdigest()[:8]
 
 
 def task_label(task):
     return os.path.splitext(os.path.basename(task))[0]
+
+
+def configs_and_tasks(plan):
+    files = {plan["config"]}
+    for arm in plan["arm"]:
+        files.add(arm.get("config", plan["config"]))
+        files.update(t for t in arm["tasks"] if t.endswith(".toml"))
+    return sorted(files)
+
+
+def content_key(path):
+    """A short name for a file's contents (arms with their own config get their own run
+    directories)."""
+    with open(os.path.join(ROOT, path), "rb") as fh:
+        return hashlib.sha256(fh.read()).hexdigest()[:8]
 
 
 def plan_runs(name, plan):
@@ -114,9 +145,7 @@ def plan_runs(name, plan):
             config = arm.get("config", plan["config"])
             for task in arm["tasks"]:
                 key = (config, task, base)
-                d = os.path.join(
-                    ROOT, "runs", "protocol", name, f"{task_label(task)}-b{base}-{run_key(config)}"
-                )
+                d = os.path.join(run_root(name), f"{task_label(task)}-b{base}-{content_key(config)}")
                 r = runs.setdefault(key, {"dir": d, "config": config, "task": task, "base": base, "algos": [], "seeds": 0})
                 for algo in arm["algos"]:
                     if algo not in r["algos"]:
@@ -127,127 +156,247 @@ def plan_runs(name, plan):
     return runs, jobs
 
 
-def recorded_commit(run_dir):
-    with open(os.path.join(run_dir, "prepare.json")) as fh:
-        return json.load(fh).get("git_commit")
+def job_file(run_dir, algo, seed):
+    return os.path.join(run_dir, "jobs", f"{algo}_seed{seed}.json")
 
 
-def job_done(run_dir, algo, seed):
-    return os.path.isfile(os.path.join(run_dir, "jobs", f"{algo}_seed{seed}.json"))
+def sha256_of(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def blob(path):
+    return git("rev-parse", f"HEAD:{path}").stdout.strip()
+
+
+def binary_commit(binary):
+    if not os.access(binary, os.X_OK):
+        fail(f"{binary}: no executable (build the frozen commit)")
+    out = subprocess.run([binary, "--version"], capture_output=True, text=True).stdout
+    if "(commit " not in out:
+        fail(f"{binary} --version names no commit: {out.strip()!r}")
+    return out.split("(commit ", 1)[1].split(")", 1)[0]
+
+
+# Seeds used before ---------------------------------------------------------------------------
+
+
+def seeds_in_csv(text):
+    rows = csv.reader(io.StringIO(text))
+    header = next(rows, [])
+    cols = [k for k, h in enumerate(header) if h in ("seed", "sac_seed")]
+    out = set()
+    for row in rows:
+        for k in cols:
+            if k < len(row) and row[k].isdigit():
+                out.add(int(row[k]))
+    return out
 
 
 def used_seeds(skip):
-    """Every seed a run directory under runs/ (outside `skip`) or a committed CSV under
-    experiments/ (its `seed` column) records."""
+    """Every seed a run directory on this machine (outside `skip`) or any version of a CSV in
+    git's history records, with where it was seen."""
     seen = {}
-    for top, dirs, files in os.walk(os.path.join(ROOT, "runs")):
-        if os.path.abspath(top).startswith(skip):
-            dirs[:] = []
-            continue
-        if "prepare.json" in files:
-            with open(os.path.join(top, "prepare.json")) as fh:
-                for s in json.load(fh).get("seeds", []):
-                    seen.setdefault(s, top)
-    for f in git("ls-files", "experiments").stdout.split():
-        if not (f.endswith(".csv") or f.endswith(".csv.gz")):
-            continue
-        opener = gzip.open if f.endswith(".gz") else open
-        with opener(os.path.join(ROOT, f), "rt", newline="") as fh:
-            rows = csv.reader(fh)
-            header = next(rows, [])
-            if "seed" not in header:
+    roots = [os.path.join(ROOT, "runs"), *SEARCH_ROOTS]
+    for root in roots:
+        for top, dirs, files in os.walk(root):
+            dirs[:] = [d for d in dirs if d not in (".git", "target", "node_modules", ".mirror", ".library")]
+            if os.path.commonpath([os.path.abspath(top), skip]) == skip:
+                dirs[:] = []
                 continue
-            k = header.index("seed")
-            for row in rows:
-                if k < len(row) and row[k].isdigit():
-                    seen.setdefault(int(row[k]), f)
+            if "prepare.json" in files:
+                try:
+                    with open(os.path.join(top, "prepare.json")) as fh:
+                        for s in json.load(fh).get("seeds", []):
+                            seen.setdefault(s, top)
+                except (OSError, ValueError):
+                    pass
+    log = git("log", "--all", "--raw", "--no-abbrev", "--format=", "--", "*.csv", "*.csv.gz").stdout
+    blobs = {}
+    for line in log.splitlines():
+        parts = line.split()
+        if len(parts) >= 6 and not parts[3].startswith("0000000"):
+            blobs.setdefault(parts[3], parts[-1])
+    for sha, path in blobs.items():
+        data = git("cat-file", "blob", sha, text=False).stdout
+        if path.endswith(".gz"):
+            try:
+                data = gzip.decompress(data)
+            except OSError:
+                continue
+        for s in seeds_in_csv(data.decode("utf-8", "replace")):
+            seen.setdefault(s, f"{path} (blob {sha[:10]})")
     return seen
 
 
-def check(name, binary, before_run):
+# Commands ------------------------------------------------------------------------------------
+
+
+def draw_bases(name, n, spacing):
+    head = git("rev-parse", "HEAD").stdout.strip()
+    rng = random.Random(hashlib.sha256(f"{name} {head}".encode()).digest())
+    # Blocks of `spacing` seeds in [10 000, 1 000 000): far from every range run by hand.
+    blocks = rng.sample(range(10_000 // spacing, 1_000_000 // spacing), n)
+    bases = [b * spacing for b in blocks]
+    print(f"# drawn by `run.py draw-bases {name} --n {n} --spacing {spacing}` at {head}")
+    print(f"bases = {bases}")
+
+
+def check(name, binary):
     md, spec, plan = load(name)
+    lock_path = os.path.join(run_root(name), "lock.json")
+    if os.path.exists(lock_path):
+        fail(f"{lock_path} exists: `check` runs once, before the first job")
     for f in (md, spec):
-        if not committed_unchanged(f):
+        if git("ls-files", "--error-unmatch", f).returncode != 0 or git("diff", "--quiet", "HEAD", "--", f).returncode != 0:
             fail(f"{f} is not committed, or differs from HEAD: a protocol is committed before it runs")
-    if git("merge-base", "--is-ancestor", plan["commit"], "HEAD").returncode != 0:
-        fail(f"the frozen commit {plan['commit']} is not an ancestor of HEAD")
-    if not os.access(binary, os.X_OK):
-        fail(f"{binary}: no executable (build the frozen commit: see {md})")
+    frozen = plan["commit"]
+    if git("merge-base", "--is-ancestor", frozen, "HEAD").returncode != 0:
+        fail(f"the frozen commit {frozen} is not an ancestor of HEAD")
+    inputs = METHOD_PATHS + configs_and_tasks(plan)
+    if git("diff", "--quiet", frozen, "HEAD", "--", *inputs).returncode != 0:
+        fail(f"HEAD differs from the frozen commit in the method or its inputs (`git diff {frozen[:10]} HEAD -- {' '.join(inputs)}`)")
+    if git("diff", "--quiet", "HEAD", "--", *inputs).returncode != 0:
+        fail("the checkout has uncommitted changes in the method or its inputs")
+    built = binary_commit(binary)
+    if built != frozen:
+        fail(f"{binary} is built from {built}, not the frozen commit {frozen}")
     runs, jobs = plan_runs(name, plan)
-    if before_run:
-        existing = [r["dir"] for r in runs.values() if os.path.exists(r["dir"])]
-        if existing:
-            fail(f"{existing[0]} exists already: `check` is for before the first job")
-        seen = used_seeds(os.path.join(ROOT, "runs", "protocol", name))
-        clash = sorted({j["seed"] for j in jobs} & set(seen))
-        if clash:
-            fail(f"seed {clash[0]} of the protocol was used before: {seen[clash[0]]}")
-    return plan, runs, jobs
+    existing = [r["dir"] for r in runs.values() if os.path.exists(r["dir"])]
+    if existing:
+        fail(f"{existing[0]} exists already: nothing of a protocol runs before its check")
+    seen = used_seeds(run_root(name))
+    clash = sorted({j["seed"] for j in jobs} & set(seen))
+    if clash:
+        fail(f"seed {clash[0]} of the protocol was used before: {seen[clash[0]]}")
+    os.makedirs(run_root(name), exist_ok=True)
+    lock = {
+        "md_blob": blob(md), "toml_blob": blob(spec), "head": git("rev-parse", "HEAD").stdout.strip(),
+        "frozen": frozen, "binary_sha256": sha256_of(binary),
+        "checked_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "jobs": len(jobs),
+    }
+    with open(lock_path, "x") as fh:
+        json.dump(lock, fh, indent=1)
+    print(f"protocol {name}: {len(runs)} run directories, {len(jobs)} jobs; locked in {lock_path}")
 
 
-def prepare(binary, r, commit):
+def read_lock(name):
+    lock_path = os.path.join(run_root(name), "lock.json")
+    if not os.path.isfile(lock_path):
+        fail(f"{lock_path} does not exist: run `run.py check {name}` first")
+    with open(lock_path) as fh:
+        return json.load(fh)
+
+
+def ledger(name, entry):
+    entry["at"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    with open(os.path.join(run_root(name), "ledger.jsonl"), "a") as fh:
+        fh.write(json.dumps(entry) + "\n")
+
+
+def read_ledger(name):
+    path = os.path.join(run_root(name), "ledger.jsonl")
+    if not os.path.isfile(path):
+        return []
+    with open(path) as fh:
+        return [json.loads(line) for line in fh if line.strip()]
+
+
+def failed_jobs(name):
+    return {(e["dir"], e["algo"], e["seed"]) for e in read_ledger(name) if e.get("event") == "failed"}
+
+
+def prepare(binary, r, name, frozen):
     if os.path.isfile(os.path.join(r["dir"], "prepare.json")):
-        got = recorded_commit(r["dir"])
-        if got != commit:
-            fail(f"{r['dir']} was prepared by {got}, not the frozen commit {commit}")
         return
-    os.makedirs(os.path.dirname(r["dir"]), exist_ok=True)
     cmd = [
         binary, "prepare", "--task", r["task"], "--algo", ",".join(r["algos"]),
         "--seeds", str(r["seeds"]), "--seed", str(r["base"]), "--config", r["config"],
         "--out", r["dir"], "--quiet",
     ]
     print("+", " ".join(cmd), flush=True)
+    ledger(name, {"event": "prepare", "dir": r["dir"]})
     if subprocess.run(cmd, cwd=ROOT).returncode != 0:
         fail(f"prepare failed for {r['dir']}")
-    got = recorded_commit(r["dir"])
-    if got != commit:
-        fail(f"{binary} is built from {got}, not the frozen commit {commit} ({r['dir']} is left for inspection)")
+    with open(os.path.join(r["dir"], "prepare.json")) as fh:
+        got = json.load(fh).get("git_commit")
+    if got != frozen:
+        fail(f"{r['dir']} was prepared by {got}, not the frozen commit {frozen}")
+
+
+def run(name, binary, until, max_jobs):
+    md, spec, plan = load(name)
+    lock = read_lock(name)
+    if (blob(md), blob(spec)) != (lock["md_blob"], lock["toml_blob"]) or git("diff", "--quiet", "HEAD", "--", md, spec).returncode != 0:
+        fail(f"{md} or {spec} changed after the protocol was locked")
+    if sha256_of(binary) != lock["binary_sha256"]:
+        fail(f"{binary} is not the binary the protocol was locked with")
+    runs, jobs = plan_runs(name, plan)
+    failed = failed_jobs(name)
+    started = 0
+    for j in jobs:
+        r = runs[j["run"]]
+        if os.path.isfile(job_file(r["dir"], j["algo"], j["seed"])) or (r["dir"], j["algo"], j["seed"]) in failed:
+            continue
+        if until and datetime.datetime.now(datetime.timezone.utc) >= until:
+            print(f"stopping before {j['algo']} seed {j['seed']} of {r['dir']}: --until")
+            break
+        if max_jobs is not None and started >= max_jobs:
+            break
+        prepare(binary, r, name, plan["commit"])
+        cmd = [binary, "job", "--run", r["dir"], "--algo", j["algo"], "--seed", str(j["seed"]), "--quiet"]
+        print("+", " ".join(cmd), flush=True)
+        entry = {"dir": r["dir"], "algo": j["algo"], "seed": j["seed"]}
+        ledger(name, {"event": "start", **entry})
+        code = subprocess.run(cmd, cwd=ROOT).returncode
+        if code < 0:
+            ledger(name, {"event": "killed", "signal": -code, **entry})
+            fail(f"job {j['algo']} seed {j['seed']} of {r['dir']} was killed by signal {-code}; it reruns next time")
+        if code != 0:
+            ledger(name, {"event": "failed", "exit": code, **entry})
+            print(f"job {j['algo']} seed {j['seed']} of {r['dir']} failed (exit {code}): recorded, not retried")
+        else:
+            ledger(name, {"event": "done", "sha256": sha256_of(job_file(r["dir"], j["algo"], j["seed"])), **entry})
+        started += 1
+    status(name)
+
+
+def status(name):
+    _, _, plan = load(name)
+    runs, jobs = plan_runs(name, plan)
+    done = sum(os.path.isfile(job_file(runs[j["run"]]["dir"], j["algo"], j["seed"])) for j in jobs)
+    print(f"{done} of {len(jobs)} jobs finished, {len(failed_jobs(name))} failed")
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("command", choices=["check", "run", "status"])
+    p.add_argument("command", choices=["draw-bases", "check", "run", "status"])
     p.add_argument("name")
     p.add_argument("--bin", default=os.path.join(ROOT, "target", "release", "reacher"))
     p.add_argument("--until", help="start no job after this UTC time of day, HH:MM")
     p.add_argument("--max-jobs", type=int, default=None)
+    p.add_argument("--n", type=int, default=10, help="draw-bases: how many")
+    p.add_argument("--spacing", type=int, default=10, help="draw-bases: seeds per base block")
     args = p.parse_args()
-    if args.command == "status":
-        _, _, plan = load(args.name)
-        runs, jobs = plan_runs(args.name, plan)
-        done = sum(job_done(runs[j["run"]]["dir"], j["algo"], j["seed"]) for j in jobs)
-        print(f"{done} of {len(jobs)} jobs finished")
-        return
-    plan, runs, jobs = check(args.name, args.bin, before_run=args.command == "check")
-    if args.command == "check":
-        print(f"protocol {args.name}: {len(runs)} run directories, {len(jobs)} jobs; ready")
-        return
-    until = None
-    if args.until:
-        h, m = (int(x) for x in args.until.split(":"))
-        now = datetime.datetime.now(datetime.timezone.utc)
-        until = now.replace(hour=h, minute=m, second=0, microsecond=0)
-        if until <= now:
-            until += datetime.timedelta(days=1)
-    started = 0
-    for j in jobs:
-        r = runs[j["run"]]
-        if os.path.isdir(r["dir"]) and job_done(r["dir"], j["algo"], j["seed"]):
-            continue
-        if until and datetime.datetime.now(datetime.timezone.utc) >= until:
-            print(f"stopping before {j['algo']} seed {j['seed']} of {r['dir']}: --until {args.until}")
-            break
-        if args.max_jobs is not None and started >= args.max_jobs:
-            break
-        prepare(args.bin, r, plan["commit"])
-        cmd = [args.bin, "job", "--run", r["dir"], "--algo", j["algo"], "--seed", str(j["seed"]), "--quiet"]
-        print("+", " ".join(cmd), flush=True)
-        if subprocess.run(cmd, cwd=ROOT).returncode != 0:
-            fail(f"job {j['algo']} seed {j['seed']} of {r['dir']} failed")
-        started += 1
-    done = sum(job_done(runs[j["run"]]["dir"], j["algo"], j["seed"]) for j in jobs if os.path.isdir(runs[j["run"]]["dir"]))
-    print(f"{done} of {len(jobs)} jobs finished")
+    if args.command == "draw-bases":
+        draw_bases(args.name, args.n, args.spacing)
+    elif args.command == "check":
+        check(args.name, args.bin)
+    elif args.command == "status":
+        status(args.name)
+    else:
+        until = None
+        if args.until:
+            h, m = (int(x) for x in args.until.split(":"))
+            now = datetime.datetime.now(datetime.timezone.utc)
+            until = now.replace(hour=h, minute=m, second=0, microsecond=0)
+            if until <= now:
+                until += datetime.timedelta(days=1)
+        run(args.name, args.bin, until, args.max_jobs)
 
 
 if __name__ == "__main__":

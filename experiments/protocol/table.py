@@ -5,25 +5,34 @@ and per (task, arm) the summary its protocol names.
 Usage:
     python3 experiments/protocol/table.py NAME [--partial]
 
-Reads `experiments/protocol/NAME.toml` and the jobs `experiments/protocol/run.py` ran under
+Reads `experiments/protocol/NAME.toml`, its lock and ledger, and the jobs `run.py` ran under
 `runs/protocol/NAME/`; writes `experiments/protocol/NAME/jobs.csv` (one row per job) and
-`experiments/protocol/NAME/summary.md`. Without `--partial` it refuses while a job is missing.
+`experiments/protocol/NAME/summary.md`. Without `--partial` it refuses while a planned job has
+neither finished nor failed. A job file whose sha256 differs from the one the ledger recorded
+when it finished is refused; a job file under the protocol's directory that the plan does not
+name is listed, not counted.
 
-Per job, three policies: the loop's own (its last IRL iteration's evaluation), the chosen one
-(the job's reported policy: the final phase's choice by learned return where the algorithm has
-a final phase, else the loop's own) and a random pick among the final phase's candidates (the
-job records it). A policy's score is its success on the lower branch (the branch it does worse
-on; a task without branches has one). A job is solved when that score is at least 0.9.
+Per job, three policies: the loop's own (its last IRL iteration's evaluation); the chosen one
+(the final phase's choice by learned return, for an algorithm with a final phase; an algorithm
+without one has no chosen policy but the loop's own, and the table says so); and a random pick
+among the final phase's candidates, as its expected score (the mean over the candidates: no
+draw). A policy's score is its success on the lower branch (the branch it does worse on; a
+task without branches has one). A job is solved when that score is at least 0.9; a failed job
+(the ledger's record of an error exit) counts as unsolved with score 0.
 
-The summary, per (task, arm) and policy: solved jobs / jobs, and the mean score with a 95 %
-bootstrap interval that resamples base seeds (the SAC seeds of one base share its
-demonstrations and learned machine, so a base is the unit that varies independently): 10 000
-resamples, percentile interval, generator seeded 0.
+The summary, per (task, arm) and policy: solved jobs / jobs with a 95 % Wilson interval, and
+the mean score with a 95 % bootstrap interval that resamples base seeds (the SAC seeds of one
+base share its demonstrations and learned machine, so a base is the unit that varies
+independently): 10 000 resamples, percentile interval, a generator seeded by the cell's name;
+with fewer than 2 bases there is no interval. And the paired difference chosen − loop's own,
+per base, with its bootstrap interval.
 """
 
 import argparse
 import csv
+import hashlib
 import json
+import math
 import os
 import random
 import sys
@@ -39,40 +48,69 @@ def lower_branch(evaluated):
     """(lower-branch success, per-branch successes) of an evaluation row or candidate."""
     branches = evaluated.get("branches")
     if not branches:
-        return evaluated["success_rate"], [evaluated["success_rate"]]
-    rates = [s / e for s, e in zip(branches["successes"], branches["episodes"]) if e > 0]
-    return min(rates) if rates else float("nan"), rates
+        rates = [evaluated["success_rate"]]
+    else:
+        rates = [s / e for s, e in zip(branches["successes"], branches["episodes"]) if e > 0]
+    if not rates or any(r != r for r in rates):
+        raise ValueError(f"no success rate in {evaluated}")
+    return min(rates), rates
 
 
-def policies(record):
-    """(loop, chosen, random pick), each (lower-branch score, per-branch rates) or None."""
-    last = record["rows"][-1]
-    loop = lower_branch(last)
+def policies(record, path):
+    """(loop, chosen or None, random pick's expected score or None); loop and chosen are
+    (lower-branch score, per-branch rates)."""
+    if not record.get("rows"):
+        sys.exit(f"table: {path}: a job record without evaluation rows")
+    loop = lower_branch(record["rows"][-1])
     final = record.get("final_policy")
     if not final:
-        return loop, loop, None
-    cands = final["candidates"]
-    chosen = lower_branch(cands[final["chosen"]])
-    pick = final.get("random_pick")
-    picked = lower_branch(cands[pick]) if pick is not None else None
-    return loop, chosen, picked
+        return loop, None, None
+    cands = [lower_branch(c) for c in final["candidates"]]
+    chosen = cands[final["chosen"]]
+    expected = sum(c[0] for c in cands) / len(cands)
+    return loop, chosen, expected
+
+
+def rng_for(*names):
+    return random.Random(hashlib.sha256(" ".join(map(str, names)).encode()).digest())
 
 
 def bootstrap(by_base, rng):
+    """(mean, low, high) of the per-job values grouped by base; no interval below 2 bases."""
     bases = sorted(by_base)
     if not bases:
-        return float("nan"), float("nan"), float("nan")
+        return None
 
     def mean_of(sample):
         xs = [x for b in sample for x in by_base[b]]
         return sum(xs) / len(xs)
 
+    m = mean_of(bases)
+    if len(bases) < 2:
+        return m, None, None
     means = sorted(mean_of([rng.choice(bases) for _ in bases]) for _ in range(RESAMPLES))
-    return mean_of(bases), means[int(0.025 * RESAMPLES)], means[int(0.975 * RESAMPLES) - 1]
+    return m, means[int(0.025 * RESAMPLES)], means[int(0.975 * RESAMPLES) - 1]
 
 
-def fmt(x):
-    return "-" if x is None or x != x else f"{x:.2f}"
+def wilson(k, n, z=1.959964):
+    if n == 0:
+        return None
+    p = k / n
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return max(0.0, c - h), min(1.0, c + h)
+
+
+def f2(x):
+    return "-" if x is None else f"{x:.2f}"
+
+
+def interval(b):
+    if b is None:
+        return "-"
+    m, lo, hi = b
+    return f"{m:.2f}" if lo is None else f"{m:.2f} [{lo:.2f}, {hi:.2f}]"
 
 
 def main():
@@ -82,63 +120,99 @@ def main():
     args = p.parse_args()
     _, _, plan = protocol.load(args.name)
     runs, jobs = protocol.plan_runs(args.name, plan)
-    rows = []
-    missing = 0
+    ledger = protocol.read_ledger(args.name)
+    finished = {(e["dir"], e["algo"], e["seed"]): e["sha256"] for e in ledger if e.get("event") == "done"}
+    failed = {(e["dir"], e["algo"], e["seed"]) for e in ledger if e.get("event") == "failed"}
+    rows, missing, planned_files = [], 0, set()
     for j in jobs:
         r = runs[j["run"]]
-        path = os.path.join(r["dir"], "jobs", f"{j['algo']}_seed{j['seed']}.json")
+        key = (r["dir"], j["algo"], j["seed"])
+        path = protocol.job_file(*key)
+        planned_files.add(os.path.abspath(path))
+        row = {"arm": j["arm"], "task": protocol.task_label(r["task"]), "base": r["base"], "algo": j["algo"], "seed": j["seed"]}
+        if key in failed:
+            rows.append({**row, "status": "failed", "loop": 0.0, "chosen": None, "random_pick": None,
+                         "loop_branches": "", "chosen_branches": "", "wall_secs": None})
+            continue
         if not os.path.isfile(path):
             missing += 1
             continue
+        if finished.get(key) != protocol.sha256_of(path):
+            sys.exit(f"table: {path} is not the file the ledger recorded when the job finished")
         with open(path) as fh:
             record = json.load(fh)
-        loop, chosen, picked = policies(record)
-        rows.append({
-            "arm": j["arm"], "task": protocol.task_label(r["task"]), "base": r["base"],
-            "algo": j["algo"], "seed": j["seed"],
-            "loop": loop[0], "chosen": chosen[0], "random_pick": picked[0] if picked else None,
-            "chosen_branches": " ".join(f"{x:.2f}" for x in chosen[1]),
-            "wall_secs": round(record.get("wall_secs", float("nan"))),
-        })
+        loop, chosen, expected = policies(record, path)
+        wall = record.get("wall_secs")
+        rows.append({**row, "status": "done", "loop": loop[0], "chosen": chosen[0] if chosen else None,
+                     "random_pick": expected,
+                     "loop_branches": " ".join(f"{x:.2f}" for x in loop[1]),
+                     "chosen_branches": " ".join(f"{x:.2f}" for x in chosen[1]) if chosen else "",
+                     "wall_secs": round(wall) if isinstance(wall, (int, float)) and wall == wall else None})
     if missing and not args.partial:
         sys.exit(f"table: {missing} of {len(jobs)} jobs are missing (--partial for the finished ones)")
+    unplanned = []
+    for top, _, files in os.walk(protocol.run_root(args.name)):
+        for f in files:
+            full = os.path.abspath(os.path.join(top, f))
+            if os.path.basename(top) == "jobs" and f.endswith(".json") and full not in planned_files:
+                unplanned.append(full)
     out = os.path.join(protocol.ROOT, "experiments", "protocol", args.name)
     os.makedirs(out, exist_ok=True)
-    fields = ["arm", "task", "base", "algo", "seed", "loop", "chosen", "random_pick", "chosen_branches", "wall_secs"]
+    fields = ["arm", "task", "base", "algo", "seed", "status", "loop", "chosen", "random_pick",
+              "loop_branches", "chosen_branches", "wall_secs"]
     with open(os.path.join(out, "jobs.csv"), "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=fields)
         w.writeheader()
         for row in rows:
-            w.writerow({k: (fmt(v) if isinstance(v, float) or v is None and k == "random_pick" else v) for k, v in row.items()})
-    rng = random.Random(0)
+            w.writerow({k: (f2(v) if k in ("loop", "chosen", "random_pick") else ("-" if v is None else v)) for k, v in row.items()})
     lines = [
-        f"# Protocol {args.name}: summary ({len(rows)} of {len(jobs)} jobs)",
+        f"# Protocol {args.name}: summary ({len(rows)} of {len(jobs)} jobs"
+        + (f"; {missing} not run yet" if missing else "") + ")",
         "",
         f"`python3 experiments/protocol/table.py {args.name}{' --partial' if args.partial else ''}`; "
-        "every job is in jobs.csv. Score: success on the lower branch; solved: score >= 0.9; "
-        "mean with a 95 % bootstrap interval over base seeds.",
+        "every job is in jobs.csv. Score: success on the lower branch; solved: score >= 0.9 "
+        "(95 % Wilson interval); means with 95 % bootstrap intervals over base seeds; random "
+        "pick: the expected score of a uniform pick among the final phase's candidates; "
+        "chosen − loop: paired by job, bootstrapped over bases. `-`: the algorithm has no final phase.",
         "",
-        "| task | arm | jobs | solved (chosen) | chosen mean [95 %] | loop's own mean [95 %] | random pick mean [95 %] | solved (loop) |",
-        "|---|---|---|---|---|---|---|---|",
+        "| task | arm | jobs (bases) | failed | solved, chosen | chosen mean | solved, loop's own | loop's own mean | random pick mean | chosen − loop |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     keys = []
     for row in rows:
-        k = (row["task"], row["arm"])
-        if k not in keys:
-            keys.append(k)
+        if (row["task"], row["arm"]) not in keys:
+            keys.append((row["task"], row["arm"]))
     for task, arm in keys:
         group = [r for r in rows if r["task"] == task and r["arm"] == arm]
-        cells = []
-        for policy in ("chosen", "loop", "random_pick"):
+        n = len(group)
+        bases = len({r["base"] for r in group})
+
+        def cell(policy, extra=None):
             by_base = {}
             for r in group:
-                if r[policy] is not None:
-                    by_base.setdefault(r["base"], []).append(r[policy])
-            m, lo, hi = bootstrap(by_base, rng)
-            cells.append(f"{fmt(m)} [{fmt(lo)}, {fmt(hi)}]" if by_base else "-")
-        solved = sum(r["chosen"] >= SOLVED for r in group)
-        solved_loop = sum(r["loop"] >= SOLVED for r in group)
-        lines.append(f"| {task} | {arm} | {len(group)} | {solved}/{len(group)} | {cells[0]} | {cells[1]} | {cells[2]} | {solved_loop}/{len(group)} |")
+                v = r[policy] if extra is None else extra(r)
+                if v is not None:
+                    by_base.setdefault(r["base"], []).append(v)
+            return interval(bootstrap(by_base, rng_for(args.name, task, arm, policy, extra is not None)))
+
+        def solved(policy):
+            vals = [r[policy] for r in group if r[policy] is not None or r["status"] == "failed"]
+            if not vals:
+                return "-"
+            k = sum(v is not None and v >= SOLVED for v in vals)
+            lo, hi = wilson(k, len(vals))
+            return f"{k}/{len(vals)} [{lo:.2f}, {hi:.2f}]"
+
+        has_final = any(r["chosen"] is not None for r in group)
+        diff = cell("chosen", lambda r: None if r["chosen"] is None else r["chosen"] - r["loop"]) if has_final else "-"
+        lines.append(
+            f"| {task} | {arm} | {n} ({bases}) | {sum(r['status'] == 'failed' for r in group)} | "
+            f"{solved('chosen') if has_final else '-'} | {cell('chosen') if has_final else '-'} | "
+            f"{solved('loop')} | {cell('loop')} | {cell('random_pick') if has_final else '-'} | {diff} |"
+        )
+    if unplanned:
+        lines += ["", "Job files under the protocol's directory that its plan does not name (not counted):", ""]
+        lines += [f"- {u}" for u in sorted(unplanned)]
     with open(os.path.join(out, "summary.md"), "w") as fh:
         fh.write("\n".join(lines) + "\n")
     print("\n".join(lines))
