@@ -120,6 +120,28 @@ fn fit(samples: &[(LabelSet, usize)], n_props: usize, events: u32, n_classes: us
     }
 }
 
+/// The events among `events` that the state's defined cells show to matter: an event `e`
+/// matters when two defined label sets `l` and `l ∪ {e}` (`e ∉ l`) lead to different
+/// (target, reward) classes. Only those are read first; an event the cells show to change
+/// nothing (the cancel of a task that ignores it) or show nothing about is one proposition
+/// among the others.
+fn events_that_matter(samples: &[(LabelSet, usize)], events: u32) -> u32 {
+    let mut out = 0;
+    for &(l, c) in samples {
+        let with = l.0 & events;
+        if with == 0 {
+            continue;
+        }
+        for e in (0..32).filter(|&e| with >> e & 1 == 1) {
+            let without = l.0 & !(1 << e);
+            if samples.iter().any(|&(m, d)| m.0 == without && d != c) {
+                out |= 1 << e;
+            }
+        }
+    }
+    out
+}
+
 /// Collects (path conjunction, class) for every leaf.
 fn leaves(node: &Node, path: &mut Vec<Formula>, out: &mut Vec<(Formula, usize)>) {
     match node {
@@ -177,7 +199,12 @@ pub(crate) fn tree_machine(
         if samples.is_empty() {
             continue;
         }
-        let tree = fit(&samples, vocab.len(), events, classes.len());
+        let tree = fit(
+            &samples,
+            vocab.len(),
+            events_that_matter(&samples, events),
+            classes.len(),
+        );
         let mut found = Vec::new();
         leaves(&tree, &mut Vec::new(), &mut found);
         for (k, &(target, reward)) in classes.iter().enumerate() {
