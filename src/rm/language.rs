@@ -113,7 +113,11 @@ fn reference_step(reference: &RewardMachine, v: usize, l: LabelSet, failures: Fa
 /// The classes of reference states that pay the same rewards and end (goal, failure) alike
 /// on every continuation over `alphabet`, steps read with `failures` (Moore's partition
 /// refinement): two reference states of one class need no learned state to tell them apart.
-fn reference_classes(reference: &RewardMachine, alphabet: &[LabelSet], failures: Failures) -> Vec<usize> {
+fn reference_classes(
+    reference: &RewardMachine,
+    alphabet: &[LabelSet],
+    failures: Failures,
+) -> Vec<usize> {
     let n = reference.n_states();
     let mut class: Vec<usize> = (0..n)
         .map(|v| usize::from(reference.is_terminal(v)) + 2 * usize::from(reference.is_failure(v)))
@@ -123,7 +127,11 @@ fn reference_classes(reference: &RewardMachine, alphabet: &[LabelSet], failures:
             let row = alphabet
                 .iter()
                 .map(|&l| {
-                    let next = if reference.is_absorbing(v) { v } else { reference_step(reference, v, l, failures) };
+                    let next = if reference.is_absorbing(v) {
+                        v
+                    } else {
+                        reference_step(reference, v, l, failures)
+                    };
                     (class[next], reference.reward(v, l).to_bits())
                 })
                 .collect();
@@ -192,7 +200,11 @@ pub fn undetermined(
             let Some(s2) = language.step(s, l) else {
                 continue;
             };
-            let next = (learned.next_state(u, l), reference_step(reference, v, l, failures), s2);
+            let next = (
+                learned.next_state(u, l),
+                reference_step(reference, v, l, failures),
+                s2,
+            );
             if let std::collections::hash_map::Entry::Vacant(e) = parent.entry(next) {
                 e.insert(Some((node, l)));
                 queue.push_back(next);
@@ -200,4 +212,62 @@ pub fn undetermined(
         }
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rm::format::parse_rm;
+    use crate::rm::perfect;
+
+    fn language() -> LabelLanguage {
+        // rgbyc: the four balls, then the cancel.
+        LabelLanguage {
+            touches: LabelSet(0b1111),
+            events: LabelSet(0b10000),
+        }
+    }
+
+    fn machine(text: &str) -> RewardMachine {
+        parse_rm(&format!("vocabulary: rgbyc\n{text}"), "test").unwrap()
+    }
+
+    #[test]
+    fn the_language_starts_off_the_balls_and_fires_each_event_once() {
+        let lang = language();
+        assert_eq!(lang.alphabet().len(), 10);
+        let (r, g, c) = (LabelSet(1), LabelSet(2), LabelSet(16));
+        assert!(lang.step(lang.start(), r).is_none());
+        let s = lang.step(lang.start(), c).unwrap();
+        assert!(lang.step(s, c).is_none() && lang.step(s, LabelSet(r.0 | c.0)).is_none());
+        let on_red = lang
+            .step(s, LabelSet::EMPTY)
+            .and_then(|s| lang.step(s, r))
+            .unwrap();
+        assert!(lang.step(on_red, g).is_none() && lang.step(on_red, r).is_some());
+    }
+
+    /// IF: a learned machine with IF's states tracks it either way; one that merges "blue
+    /// touched" with "cancelled" tracks it only with failures read as stays (only a touch of
+    /// blue after the cancel, which no demonstration makes, tells them apart); one that
+    /// ignores the cancel tracks it in no reading.
+    #[test]
+    fn if_machines_are_told_apart_by_what_they_track() {
+        let perfect = perfect::load("reacher_if").unwrap();
+        let lang = language();
+        let alphabet = lang.alphabet();
+        let tracks = |rm: &RewardMachine, failures| {
+            undetermined(rm, &perfect, &lang, &alphabet, failures).is_none()
+        };
+        let exact =
+            machine("states: 3\ninitial: 0\n(0, 2, 'c', 0)\n(0, 1, 'b&!c', 0)\n(1, 1, 'r', 0)");
+        assert!(tracks(&exact, Failures::AsStays) && tracks(&exact, Failures::Kept));
+        let merged = machine("states: 2\ninitial: 0\n(0, 1, 'c|b', 0)");
+        assert!(tracks(&merged, Failures::AsStays) && !tracks(&merged, Failures::Kept));
+        let blind = machine("states: 2\ninitial: 0\n(0, 1, 'b', 0)");
+        let cx = undetermined(&blind, &perfect, &lang, &alphabet, Failures::AsStays).unwrap();
+        // A shortest counter-example: the cancel alone leaves the blind machine in its start.
+        assert_eq!(cx.first, Vec::<LabelSet>::new());
+        assert_eq!(cx.second, vec![LabelSet(16)]);
+    }
 }
