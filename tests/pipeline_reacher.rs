@@ -456,8 +456,8 @@ fn shipped_config_is_the_default_profile() {
     assert_eq!(IrlRunConfig::load(&path).unwrap(), IrlRunConfig::standard());
 }
 
-/// Regression: `quick.toml` lagged the quick profile (no `lrm_event_stutter` after event stutter
-/// became the standard), though the README calls it that profile.
+/// Regression: `quick.toml` lagged the quick profile (a setting of the standard missing from
+/// it), though the README calls it that profile.
 #[test]
 fn shipped_quick_config_is_the_quick_profile() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher/quick.toml");
@@ -938,90 +938,74 @@ fn final_policy_settings_are_checked() {
     assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
 }
 
-/// LRM's optional keys (fallback starts, commuted events, initial events, event stutter, event
-/// prediction): absent from written configs unless set, read back as set, fallback starts
-/// bounded; the error names the field. The removed ablation keys are refused.
+/// LRM's mechanisms are not settings: a config that still sets one of their old keys is
+/// refused with the file, the line and the key named (and the ablation keys removed before
+/// them); a config without them reads as the standard.
 #[test]
 fn lrm_search_settings_are_checked() {
-    let standard = IrlRunConfig::standard();
-    let text = standard.to_toml();
+    use smirl::pipeline::reacher_irl::config::REMOVED_KEYS;
+    let text = IrlRunConfig::standard().to_toml();
+    assert!(!text.contains("lrm_guards") && !text.contains("lrm_predict_events"));
     for removed in [
         "lrm_starts = 32\n",
         "lrm_patience = 0\n",
         "lrm_remember_events = true\n",
         "lrm_borrow_events = true\n",
+        "lrm_fallback_starts = 28\n",
+        "lrm_initial_events = true\n",
+        "lrm_guards = \"tree\"\n",
+        "lrm_commute_events = true\n",
+        "lrm_event_stutter = true\n",
+        "lrm_predict_events = false\n",
     ] {
         let key = removed.split(' ').next().unwrap();
         assert_config_error_names(&format!("{removed}{text}"), key);
     }
-    // Initial events are on in the standard; a config without the key reads false.
-    assert!(standard.lrm_initial_events && text.contains("lrm_initial_events = true\n"));
-    let without_initial = text.replace("lrm_initial_events = true\n", "");
-    let old = IrlRunConfig::from_toml(&without_initial, "old.toml").unwrap();
-    assert!(!old.lrm_initial_events && !old.to_toml().contains("lrm_initial_events"));
-    // Fallback starts are on in the standard; a config without the key reads 0.
-    assert!(standard.lrm_fallback_starts == 28 && text.contains("lrm_fallback_starts = 28\n"));
-    let without_fallback = without_initial.replace("lrm_fallback_starts = 28\n", "");
-    let old = IrlRunConfig::from_toml(&without_fallback, "old.toml").unwrap();
-    assert!(old.lrm_fallback_starts == 0 && !old.to_toml().contains("lrm_fallback_starts"));
-    let text = without_fallback;
-    // The standard leaves the cancel out of LRM's prediction; a config without the key reads
-    // LRM's own objective (true), which is not written.
-    assert!(!standard.lrm_predict_events && text.contains("lrm_predict_events = false\n"));
-    let text = text.replace("lrm_predict_events = false\n", "");
-    let plain = IrlRunConfig::from_toml(&text, "old.toml").unwrap();
-    assert!(plain.lrm_predict_events && !plain.to_toml().contains("lrm_predict_events"));
-    // Commuted events are on in the standard; a config without the key reads false.
-    assert!(standard.lrm_commute_events && text.contains("lrm_commute_events = true\n"));
-    let text = text.replace("lrm_commute_events = true\n", "");
-    assert!(
-        !IrlRunConfig::from_toml(&text, "old.toml")
-            .unwrap()
-            .lrm_commute_events
-    );
-    // Event stutter is on in the standard; a config without the key reads false.
-    assert!(text.contains("lrm_event_stutter = true\n"));
-    let without = text.replace("lrm_event_stutter = true\n", "");
-    assert!(
-        !IrlRunConfig::from_toml(&without, "old.toml")
-            .unwrap()
-            .lrm_event_stutter
-    );
-    let text = without;
-    let text = text.replace(
-        "lrm_steps = 100\n",
-        "lrm_steps = 100\nlrm_fallback_starts = 28\nlrm_initial_events = true\nlrm_commute_events = true\nlrm_event_stutter = true\nlrm_predict_events = false\n",
-    );
-    let c = IrlRunConfig::from_toml(&text, "search.toml").unwrap();
-    assert!(c.lrm_fallback_starts == 28 && c.to_toml().contains("lrm_fallback_starts = 28\n"));
-    assert!(c.lrm_initial_events && c.to_toml().contains("lrm_initial_events = true\n"));
-    assert_config_error_names(
-        &text.replace("lrm_initial_events = true", "lrm_initial_events = \"yes\""),
-        "lrm_initial_events",
-    );
-    assert_config_error_names(
-        &text.replace("lrm_fallback_starts = 28", "lrm_fallback_starts = -1"),
-        "lrm_fallback_starts",
-    );
-    assert!(c.lrm_event_stutter);
-    assert!(c.lrm_commute_events && c.to_toml().contains("lrm_commute_events = true\n"));
-    assert_config_error_names(
-        &text.replace("lrm_commute_events = true", "lrm_commute_events = 1"),
-        "lrm_commute_events",
-    );
-    assert!(!c.lrm_predict_events && c.to_toml().contains("lrm_predict_events = false\n"));
-    assert_config_error_names(
-        &text.replace("lrm_predict_events = false", "lrm_predict_events = \"no\""),
-        "lrm_predict_events",
-    );
+    assert_eq!(REMOVED_KEYS.len(), 6);
+    for (key, _) in REMOVED_KEYS {
+        let err = IrlRunConfig::from_toml(&format!("# a\n{key} = false\n{text}"), "c.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("c.toml: line 2: field `") && err.contains(key),
+            "{err}"
+        );
+    }
     assert_eq!(
-        IrlRunConfig::from_toml(&c.to_toml(), "again.toml").unwrap(),
-        c
+        IrlRunConfig::from_toml(&text, "c.toml").unwrap(),
+        IrlRunConfig::standard()
     );
-    let mut c = IrlRunConfig::standard();
-    c.lrm_fallback_starts = 1_001;
-    let e = c.validate("test").unwrap_err().to_string();
-    assert!(e.contains("lrm_fallback_starts"), "{e}");
+}
+
+/// `reacher` refuses a config file that sets a removed LRM key before any work: exit 2, the
+/// file and the key named, nothing written.
+#[test]
+fn a_config_with_a_removed_lrm_key_is_refused_by_the_cli() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("old.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "lrm_guards = \"exact\"\n{}",
+            IrlRunConfig::quick().to_toml()
+        ),
+    )
+    .unwrap();
+    let out = tmp.path().join("run");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args(["--task", "or", "--algo", "smirl", "--quiet", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("old.toml") && stderr.contains("lrm_guards"),
+        "{stderr}"
+    );
+    assert!(!out.exists() && !tmp.path().join("run.partial").exists());
 }
 
 /// `smirl_normalisation`'s three values read back as written; a misspelt one is refused with
@@ -1098,9 +1082,8 @@ fn without_schedules() -> IrlRunConfig {
 }
 
 /// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
-/// issue 13 (20 IRL iterations, no shaping, no event stutter, LRM predicting the cancel, no
-/// commuted events, no fallback starts or initial events, no selection cut or reset agent, a replay buffer of
-/// 100 000), as the runs made with it.
+/// issue 13 (20 IRL iterations, no shaping, no selection cut or reset agent, a replay buffer
+/// of 100 000; its runs' LRM settings are no longer settings), as the runs made with it.
 fn unshaped() -> IrlRunConfig {
     IrlRunConfig {
         sac: smirl::rl::sac::SacConfig {
@@ -1115,11 +1098,6 @@ fn unshaped() -> IrlRunConfig {
         smirl_selection_cut: false,
         smirl_selection_cut_entries: false,
         smirl_clock: false,
-        lrm_event_stutter: false,
-        lrm_predict_events: true,
-        lrm_commute_events: false,
-        lrm_fallback_starts: 0,
-        lrm_initial_events: false,
         smirl_normalisation: SmirlNormalisation::Visits,
         ..IrlRunConfig::standard()
     }
@@ -1188,11 +1166,6 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             smirl_selection_cut_entries: standard.smirl_selection_cut_entries,
             smirl_clock: standard.smirl_clock,
             smirl_normalisation: standard.smirl_normalisation,
-            lrm_event_stutter: true,
-            lrm_predict_events: false,
-            lrm_commute_events: true,
-            lrm_fallback_starts: standard.lrm_fallback_starts,
-            lrm_initial_events: standard.lrm_initial_events,
             ..unshaped_file.for_algo(algo).unwrap()
         };
         assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");

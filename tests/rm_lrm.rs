@@ -6,8 +6,7 @@ use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines};
 use smirl::rm::lrm::synthetic::{expert_like_traces, ExpertStyle};
 use smirl::rm::lrm::{
-    learn_rm, observed_label_sets, trace_cost, trace_reading, LabelTrace, LrmConfig, LrmError,
-    TraceReading,
+    learn_rm, observed_label_sets, trace_cost, LabelTrace, LrmConfig, LrmError, TraceReading,
 };
 use smirl::rm::transform::restart_on_goal;
 use smirl::rm::{perfect, LabelSet, Vocabulary};
@@ -478,27 +477,6 @@ fn smirl_reacher_cfg(vocab: &Vocabulary, seed: u64) -> LrmConfig {
     }
 }
 
-/// The demonstrations of held-out IF (base seed 9) as `reacher replay` lists them: blue then
-/// red, or a cancel then red.
-const IF_BASE9: [(usize, &str); 16] = [
-    (6, "c@2 r@6"),
-    (22, "b@13-15 r@22"),
-    (22, "r@6 b@13-15 r@22"),
-    (14, "r@6 c@7 r@14"),
-    (13, "rc@6 r@13"),
-    (21, "b@13-15 r@21"),
-    (6, "c@4 r@6"),
-    (21, "b@12-15 r@21"),
-    (22, "b@13-15 r@22"),
-    (22, "r@6 b@13-15 r@22"),
-    (22, "r@6 b@13-15 r@22"),
-    (12, "rc@6 r@12"),
-    (21, "r@5 b@12-14 r@21"),
-    (17, "c@8 r@17"),
-    (13, "r@5 c@6 r@13"),
-    (22, "r@6 b@13-15 r@22"),
-];
-
 /// The demonstrations of held-out Composite (base seed 24) as `reacher replay` lists them: red,
 /// then blue, then yellow, or red and a cancel, then yellow; in three of them the cancel fires
 /// while the fingertip is on red (`rc`), which stays on red for a step or two after.
@@ -726,125 +704,6 @@ fn commuted_events_read_a_cancel_after_red_as_a_cancel_before_it() {
     }
 }
 
-/// The demonstrations of held-out Composite (base seed 96) as `reacher replay` lists them:
-/// ten take the cancel branch (red, then yellow), six the normal one (red, blue, yellow).
-const COMPOSITE_BASE96: [(usize, &str); 16] = [
-    (13, "rc@7 r@8 y@13"),
-    (13, "c@4 r@6-7 y@13"),
-    (16, "r@7 rc@8 r@9-10 y@16"),
-    (13, "c@6 r@7-8 y@13"),
-    (13, "c@1 r@6-7 y@13"),
-    (24, "r@7-8 b@16-17 y@24"),
-    (13, "c@4 r@7-8 y@13"),
-    (12, "c@2 r@6-7 y@12"),
-    (12, "c@1 r@6-7 y@12"),
-    (24, "r@7 b@16 y@24"),
-    (24, "r@7-8 b@17 y@24"),
-    (13, "c@5 r@6-8 y@13"),
-    (13, "c@1 r@6-7 y@13"),
-    (23, "r@6-7 b@15-16 y@23"),
-    (23, "r@6-7 b@15-16 y@23"),
-    (24, "r@7-8 b@16-17 y@24"),
-];
-
-/// LRM as the standard SMIRL profile runs it (`experiments/reacher/config.toml`).
-fn smirl_standard_cfg(vocab: &Vocabulary, seed: u64, fallback_starts: usize) -> LrmConfig {
-    LrmConfig {
-        event_stutter: true,
-        predict_events: false,
-        commute_events: true,
-        fallback_starts,
-        ..smirl_reacher_cfg(vocab, seed)
-    }
-}
-
-/// Regression for held-out Composite base 96 (0 of 3 SMIRL jobs): the four starts stop at a
-/// 3-state machine of cost 9.70 that reads a cancel before red as a stay, so "red" and
-/// "cancel, then red" share a state and nothing tells the agent whether blue is still
-/// wanted. The perfect machine costs 0 on these traces; fallback starts reach that cost and
-/// give the cancel before red a state of its own.
-#[test]
-fn fallback_starts_repair_a_search_stuck_above_the_perfect_machines_cost() {
-    let vocab = Vocabulary::new("rgbyc");
-    let traces = episode_traces(&vocab, &COMPOSITE_BASE96);
-    let reading = trace_reading(&smirl_standard_cfg(&vocab, 96, 0));
-    let perfect_cost = trace_cost(
-        &perfect::load("reacher_composite").unwrap(),
-        &traces,
-        reading,
-    )
-    .unwrap();
-    assert!(
-        perfect_cost.abs() < 1e-9,
-        "perfect machine's cost {perfect_cost}"
-    );
-    let standard = learn_rm(&vocab, &traces, &smirl_standard_cfg(&vocab, 96, 0)).unwrap();
-    let fallback = learn_rm(&vocab, &traces, &smirl_standard_cfg(&vocab, 96, 28)).unwrap();
-    assert!(
-        standard.cost > 9.0,
-        "standard search's cost {}",
-        standard.cost
-    );
-    assert!(
-        fallback.cost.abs() < 1e-9,
-        "fallback's cost {}",
-        fallback.cost
-    );
-    assert!(
-        fallback.stats.best_start >= 4,
-        "kept start {}",
-        fallback.stats.best_start
-    );
-    assert_eq!(fallback.stats.start_costs.len(), 32);
-    let red = |rm| state_after(rm, &vocab, 9, "r@6");
-    let cancel_then_red = |rm| state_after(rm, &vocab, 9, "c@3 r@6");
-    assert_eq!(
-        red(&standard.rm),
-        cancel_then_red(&standard.rm),
-        "the merge"
-    );
-    assert_ne!(red(&fallback.rm), cancel_then_red(&fallback.rm));
-}
-
-/// Where no fallback start is strictly cheaper, the result is the four starts' bit for bit —
-/// even when a fallback start reaches the same cost with fewer states, which plain extra
-/// starts (`starts = 32`) would prefer.
-#[test]
-fn fallback_starts_keep_the_first_starts_machine_on_a_tie() {
-    let vocab = Vocabulary::new("rgbyc");
-    let mut plain_differs = 0;
-    for (episodes, seed) in [(&IF_BASE9[..], 9), (&COMPOSITE_BASE36[..], 36)] {
-        let traces = episode_traces(&vocab, episodes);
-        let plain = LrmConfig {
-            starts: 32,
-            ..smirl_standard_cfg(&vocab, seed, 0)
-        };
-        plain_differs += usize::from(
-            learn_rm(&vocab, &traces, &plain).unwrap().rm
-                != learn_rm(&vocab, &traces, &smirl_standard_cfg(&vocab, seed, 0))
-                    .unwrap()
-                    .rm,
-        );
-        let standard = learn_rm(&vocab, &traces, &smirl_standard_cfg(&vocab, seed, 0)).unwrap();
-        let fallback = learn_rm(&vocab, &traces, &smirl_standard_cfg(&vocab, seed, 28)).unwrap();
-        let min_fallback = fallback.stats.start_costs[4..]
-            .iter()
-            .fold(f64::INFINITY, |a, &b| a.min(b));
-        assert!(
-            min_fallback >= standard.cost,
-            "seed {seed}: a strictly cheaper start"
-        );
-        assert_eq!(fallback.rm, standard.rm, "seed {seed}");
-        assert_eq!(fallback.raw, standard.raw, "seed {seed}");
-        assert_eq!(fallback.cost.to_bits(), standard.cost.to_bits());
-        assert!(fallback.stats.best_start < 4);
-    }
-    assert!(
-        plain_differs > 0,
-        "no tie that plain extra starts would break"
-    );
-}
-
 /// The demonstrations of held-out Composite (base seed 282) as `reacher replay` lists them:
 /// none has a cancel on its first step.
 const COMPOSITE_BASE282: [(usize, &str); 16] = [
@@ -879,7 +738,10 @@ fn initial_events_keep_a_cancel_on_the_first_step() {
     let learn = |initial_events| {
         let cfg = LrmConfig {
             initial_events,
-            ..smirl_standard_cfg(&vocab, 282, 28)
+            event_stutter: true,
+            predict_events: false,
+            commute_events: true,
+            ..smirl_reacher_cfg(&vocab, 282)
         };
         learn_rm(&vocab, &traces, &cfg).unwrap()
     };
@@ -939,10 +801,20 @@ fn smirl_paper_learns_lrm_without_event_rules() {
         assert_eq!(plain.guards, smirl::rm::lrm::Guards::Exact);
         assert!(plain.events.is_empty());
         let lrm = learn_rm(&vocab, &traces, &plain).unwrap();
-        let learned = learn_rm(&vocab, &traces, &lrm_config(&paper, seed).unwrap()).unwrap();
+        let learned = learn_rm(
+            &vocab,
+            &traces,
+            &lrm_config(&paper, seed, Algo::SmirlPaper).unwrap(),
+        )
+        .unwrap();
         assert_eq!(write_rm(&learned.rm), write_rm(&lrm.rm), "base {seed}");
         assert_eq!(learned.cost, lrm.cost, "base {seed}");
-        let improved = learn_rm(&vocab, &traces, &lrm_config(&standard, seed).unwrap()).unwrap();
+        let improved = learn_rm(
+            &vocab,
+            &traces,
+            &lrm_config(&standard, seed, Algo::Smirl).unwrap(),
+        )
+        .unwrap();
         assert_ne!(write_rm(&improved.rm), write_rm(&lrm.rm), "base {seed}");
     }
 }

@@ -4,11 +4,13 @@
 
 mod irl_run_common;
 use irl_run_common::tiny_config;
+use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::smirl::{LabelFeatures, SmirlNormalisation};
 use smirl::pipeline::reacher_irl::run::{open_run, JobRecord};
+use smirl::pipeline::reacher_irl::smirl::lrm_config;
 use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
 use smirl::rm::format::parse_rm;
-use smirl::rm::lrm::Guards;
+use smirl::rm::lrm::{Guards, LrmConfig};
 use std::process::Command;
 
 /// Every mechanism by which the standard `smirl` departs from the paper resolves to the paper's
@@ -19,13 +21,36 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     let standard = IrlRunConfig::standard();
     let smirl = standard.for_algo(Algo::Smirl).unwrap();
     let paper = standard.for_algo(Algo::SmirlPaper).unwrap();
-    // LRM: eq. 1 (events predicted), no event rule, no fallback starts, LRM's guards.
-    assert!(paper.lrm_predict_events);
-    assert!(!paper.lrm_event_stutter);
-    assert!(!paper.lrm_commute_events);
-    assert!(!paper.lrm_initial_events);
-    assert_eq!(paper.lrm_fallback_starts, 0);
-    assert_eq!(paper.lrm_guards, Guards::Exact);
+    // LRM: eq. 1 (events predicted), no event rule, LRM's guards; smirl's learner has each.
+    let on_if = IrlRunConfig {
+        env: ReacherTask::shipped("if")
+            .unwrap()
+            .env_config(&standard.env)
+            .unwrap(),
+        ..standard.clone()
+    };
+    let lrm = |algo| lrm_config(&on_if.for_algo(algo).unwrap(), 0, algo).unwrap();
+    let (paper_lrm, smirl_lrm) = (lrm(Algo::SmirlPaper), lrm(Algo::Smirl));
+    assert!(paper_lrm.predict_events && !smirl_lrm.predict_events);
+    assert!(!paper_lrm.event_stutter && smirl_lrm.event_stutter);
+    assert!(!paper_lrm.commute_events && smirl_lrm.commute_events);
+    assert!(!paper_lrm.initial_events && smirl_lrm.initial_events);
+    assert_eq!(
+        (paper_lrm.guards, smirl_lrm.guards),
+        (Guards::Exact, Guards::Tree)
+    );
+    // The same search otherwise.
+    assert_eq!(
+        LrmConfig {
+            predict_events: true,
+            event_stutter: false,
+            commute_events: false,
+            initial_events: false,
+            guards: Guards::Exact,
+            ..smirl_lrm
+        },
+        paper_lrm
+    );
     // MaxEnt on U × O: μ_D − μ_π over trajectories, φ = L(o).
     assert_eq!(paper.smirl_normalisation, SmirlNormalisation::Trajectories);
     assert_eq!(paper.smirl_label_features, LabelFeatures::State);
@@ -39,9 +64,6 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     assert_eq!(paper.smirl_final_reset_steps, 0);
     assert!(!paper.smirl_selection_cut);
     // The standard's smirl differs in each of these (else the test above proves nothing).
-    assert!(!smirl.lrm_predict_events && smirl.lrm_commute_events && smirl.lrm_initial_events);
-    assert!(smirl.lrm_event_stutter && smirl.lrm_fallback_starts > 0);
-    assert_eq!(smirl.lrm_guards, Guards::Tree);
     assert_eq!(
         smirl.smirl_normalisation,
         SmirlNormalisation::EventGatedVisits
@@ -50,12 +72,6 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     assert!(smirl.smirl_final_sac_steps > 0 && smirl.smirl_selection_cut);
     // What is not a mechanism is smirl's.
     let same = IrlRunConfig {
-        lrm_predict_events: smirl.lrm_predict_events,
-        lrm_event_stutter: smirl.lrm_event_stutter,
-        lrm_commute_events: smirl.lrm_commute_events,
-        lrm_initial_events: smirl.lrm_initial_events,
-        lrm_fallback_starts: smirl.lrm_fallback_starts,
-        lrm_guards: smirl.lrm_guards,
         smirl_normalisation: smirl.smirl_normalisation,
         smirl_clock: smirl.smirl_clock,
         smirl_counterfactual: smirl.smirl_counterfactual,

@@ -6,6 +6,7 @@ pub mod equiv;
 pub mod format;
 pub mod formula;
 pub mod labels;
+pub mod language;
 pub mod lrm;
 pub mod machine;
 pub mod perfect;

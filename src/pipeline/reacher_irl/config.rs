@@ -8,7 +8,6 @@ use crate::env::reacher::ReacherConfig;
 use crate::irl::firl::DensityRatio;
 use crate::irl::smirl::{LabelFeatures, SmirlNormalisation};
 use crate::rl::sac::SacConfig;
-use crate::rm::lrm::Guards;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -230,45 +229,6 @@ pub struct IrlRunConfig {
     pub lrm_tabu_len: usize,
     /// LRM: search steps.
     pub lrm_steps: usize,
-    /// LRM: further starts whose machine is kept only when strictly cheaper than the first
-    /// starts' best (`rm::lrm::LrmConfig::fallback_starts`); a config without the key reads
-    /// as 0, what every run before the key existed used. Omitted from written configs when 0.
-    #[serde(default, skip_serializing_if = "is_zero_usize")]
-    pub lrm_fallback_starts: usize,
-    /// LRM: read an event the demonstrations never show in the initial state (the split's
-    /// "before the first label") as coming with the first label (`rm::lrm::LrmConfig::
-    /// initial_events`). A config without the key reads as false, what every run before the
-    /// key existed used. Omitted from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub lrm_initial_events: bool,
-    /// LRM: commute events (`rm::lrm::LrmConfig::commute_events`): a cancel the
-    /// demonstrations never show in a learned state is read as if it had come just before the
-    /// touch that entered it. True in the standard profile (adopted on its tuning seeds, README
-    /// "Commuted events"); a config without the key is read as false, what every run before
-    /// the key existed used. Omitted from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub lrm_commute_events: bool,
-    /// LRM: event stutter (`rm::lrm::LrmConfig::event_stutter`): a step that only drops the
-    /// cancel from the previous label set (`{r}` after `{r, c}`) continues that touch. On in
-    /// the standard profile (adopted on its tuning seeds, README "Event stutter"); a config
-    /// without the key is read as false, what every run before the key existed used. Omitted
-    /// from written configs when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub lrm_event_stutter: bool,
-    /// LRM: whether its objective predicts the cancel among the next label sets
-    /// (`rm::lrm::LrmConfig::predict_events`). False: a learned state pays for itself only by
-    /// predicting which ball comes next, not by remembering that the once-per-episode cancel
-    /// has fired. False in the standard profile (adopted on its tuning seeds, README "Not
-    /// predicting the cancel"); a config without the key is read as true, LRM's objective and
-    /// what every run before the key existed used. Omitted from written configs when true.
-    #[serde(default = "yes", skip_serializing_if = "is_true")]
-    pub lrm_predict_events: bool,
-    /// LRM: how the learned machine reads label sets the demonstrations never showed in a
-    /// state (`rm::lrm::Guards`): `"tree"` (events first) or `"exact"` (stay, LRM's
-    /// reading). A config without the key is read as `"exact"`, which is what every run
-    /// before the key existed used; the committed configs say `"tree"`.
-    #[serde(default)]
-    pub lrm_guards: Guards,
     /// MCAP: log every n-th agent/evaluation episode of each job (demos are all logged);
     /// 0 disables rollout logging.
     pub log_every_nth_episode: u64,
@@ -463,6 +423,58 @@ impl IrlConfigError {
     }
 }
 
+/// Keys a run config no longer has, and why: a config that still sets one was written for a
+/// learner that no longer exists, and is refused rather than read as something else.
+pub const REMOVED_KEYS: [(&str, &str); 6] = [
+    (
+        "lrm_fallback_starts",
+        "LRM has no fallback starts (they changed no development base towards the task's \
+         machine more often than away from it: experiments/lrm/ablation.md)",
+    ),
+    (
+        "lrm_initial_events",
+        "initial events are part of smirl's LRM (docs/method.md)",
+    ),
+    (
+        "lrm_guards",
+        "smirl's LRM reads unseen label sets by its decision trees, smirl-paper's stays \
+         (docs/method.md)",
+    ),
+    (
+        "lrm_commute_events",
+        "commuted events are part of smirl's LRM (docs/method.md)",
+    ),
+    (
+        "lrm_event_stutter",
+        "event stutter is part of smirl's LRM (docs/method.md)",
+    ),
+    (
+        "lrm_predict_events",
+        "smirl's LRM leaves the events out of its prediction, smirl-paper's predicts them \
+         (docs/method.md)",
+    ),
+];
+
+/// Refuses a top-level key of [`REMOVED_KEYS`] in `text` (a document that does not parse is
+/// left to the parser's message).
+fn refuse_removed_keys(text: &str, source_name: &str) -> Result<(), IrlConfigError> {
+    let Ok(table) = text.parse::<toml::Table>() else {
+        return Ok(());
+    };
+    match REMOVED_KEYS
+        .iter()
+        .find(|(key, _)| table.contains_key(*key))
+    {
+        Some((key, why)) => Err(IrlConfigError::Invalid {
+            source_name: source_name.to_string(),
+            field: key.to_string(),
+            problem: format!("is no longer a setting: {why}; delete the line"),
+            line: crate::config_text::key_line(text, key),
+        }),
+        None => Ok(()),
+    }
+}
+
 // Limits of the sizes a config may ask for, checked by `validate` before any work (a typo
 // must be an error naming the key, not an allocation failure an hour later).
 
@@ -481,8 +493,6 @@ pub const MAX_REWARD_STEPS: usize = 100_000;
 pub const MAX_LRM_STATES: usize = crate::rm::lrm::MAX_STATES;
 /// Most LRM search steps and tabu-list entries.
 pub const MAX_LRM_STEPS: usize = crate::rm::lrm::MAX_SEARCH_STEPS;
-/// Most independent LRM searches (each holds its own tables and tabu list).
-pub const MAX_LRM_STARTS: usize = 1_000;
 /// Most worker threads.
 pub const MAX_THREADS: usize = 256;
 /// Most candidates of SMIRL's final-policy phase (each is two evaluations).
@@ -541,26 +551,6 @@ impl IrlRunConfig {
             lrm_max_states: 10,
             lrm_tabu_len: 10_000,
             lrm_steps: 100,
-            // 28 more starts of the same search, kept only when strictly cheaper: the four
-            // starts stop at cost 9.70 at held-out Composite 96 where 0 is reachable, and the
-            // fallback repairs that without reopening ties (Sequential's tuning jobs 6 of 6,
-            // the other tasks' base-0 machines unchanged; README, "A search stuck above the
-            // perfect machine's cost").
-            lrm_fallback_starts: 28,
-            // A cancel on step 1 is read where one on step 2 goes when no demonstration shows
-            // it in the split's initial state (Sequential's tuning jobs 6 of 6, the other
-            // tasks' base-0 machines unchanged; README, "A cancel on the first step").
-            lrm_initial_events: true,
-            // A cancel never seen in a learned state is read as if it came before the touch
-            // that entered the state: closes the cancel holes (Composite 6 of 6 tuning jobs, as
-            // before; README, "Commuted events").
-            lrm_commute_events: true,
-            lrm_event_stutter: true,
-            // LRM is not asked to predict the cancel: otherwise it splits OR's and Sequential's
-            // machines by a cancel they ignore (24 of 24 tuning jobs; README, "Not predicting
-            // the cancel").
-            lrm_predict_events: false,
-            lrm_guards: Guards::Tree,
             log_every_nth_episode: 10,
             threads: 2,
             env: ReacherConfig::default(),
@@ -594,14 +584,21 @@ impl IrlRunConfig {
         }
     }
 
-    /// Parses a TOML document; `source_name` (the file path) prefixes every message.
+    /// Parses a TOML document; `source_name` (the file path) prefixes every message. A key
+    /// of [`REMOVED_KEYS`] is refused, naming it and why.
     pub fn from_toml(text: &str, source_name: &str) -> Result<IrlRunConfig, IrlConfigError> {
+        refuse_removed_keys(text, source_name)?;
         parse_toml_config(text, source_name, IrlRunConfig::validate)
     }
 
-    /// Reads and parses a TOML file.
+    /// Reads and parses a TOML file (as [`IrlRunConfig::from_toml`]).
     pub fn load(path: &Path) -> Result<IrlRunConfig, IrlConfigError> {
-        load_toml_config(path, IrlRunConfig::validate)
+        let text =
+            crate::config_text::read_text_file(path).map_err(|source| IrlConfigError::Io {
+                path: path.display().to_string(),
+                source,
+            })?;
+        IrlRunConfig::from_toml(&text, &path.display().to_string())
     }
 
     pub fn to_toml(&self) -> String {
@@ -656,20 +653,14 @@ impl IrlRunConfig {
     }
 
     /// `smirl-paper`'s settings: every mechanism by which `smirl` departs from the paper
-    /// (docs/method.md) at the paper's value — LRM's objective and reading (events predicted,
-    /// no event rules, no fallback starts, guards that stay on unseen label sets), MaxEnt's
+    /// (docs/method.md) at the paper's value — LRM's are not settings but the learner's
+    /// (`smirl::lrm_config` of `Algo::SmirlPaper`) — MaxEnt's
     /// μ_D − μ_π averaged over trajectories, label features of the state, SAC on U × O without
     /// clock, counterfactual states or shaping, and no final phase, so the job reports its
     /// loop's own last policy. The schedule, SAC, the reward optimiser, the demonstrations, the
     /// machine's source and LRM's size and search budget stay the run's, so that the two
     /// algorithms differ by the mechanisms alone.
     fn set_paper_mechanisms(&mut self) {
-        self.lrm_predict_events = true;
-        self.lrm_event_stutter = false;
-        self.lrm_commute_events = false;
-        self.lrm_initial_events = false;
-        self.lrm_fallback_starts = 0;
-        self.lrm_guards = Guards::Exact;
         self.smirl_normalisation = SmirlNormalisation::Trajectories;
         self.smirl_label_features = LabelFeatures::State;
         self.smirl_clock = false;
@@ -740,11 +731,6 @@ impl IrlRunConfig {
                 "lrm_tabu_len",
                 self.lrm_tabu_len as u64,
                 MAX_LRM_STEPS as u64,
-            ),
-            (
-                "lrm_fallback_starts",
-                self.lrm_fallback_starts as u64,
-                MAX_LRM_STARTS as u64,
             ),
             ("threads", self.threads as u64, MAX_THREADS as u64),
         ] {
@@ -944,14 +930,6 @@ fn is_zero(x: &u64) -> bool {
 
 fn is_zero_usize(x: &usize) -> bool {
     *x == 0
-}
-
-fn yes() -> bool {
-    true
-}
-
-fn is_true(x: &bool) -> bool {
-    *x
 }
 
 fn is_false(x: &bool) -> bool {

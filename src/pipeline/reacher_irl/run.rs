@@ -248,7 +248,8 @@ pub fn prepare(
         let settings = config
             .for_algo(machine.algo())
             .map_err(|e| PipelineError::Run(e.to_string()))?;
-        let (rm, facts, report) = learn_and_report(&settings, &demos, &perfect, seed)?;
+        let (rm, facts, report) =
+            learn_and_report(&settings, machine.algo(), &demos, &perfect, seed)?;
         let data = annotate(&task.layout(), &demos, Some(&rm), hold_to);
         let report = match machine {
             Machine::Smirl => report + &selection_cut_report(&rm, &data, &settings)?,
@@ -348,14 +349,17 @@ impl Machine {
 /// the task's with `smirl_machine = "task"`), its facts and the report of `rm/report.txt`.
 fn learn_and_report(
     settings: &IrlRunConfig,
+    algo: Algo,
     demos: &[Demo],
     perfect: &RewardMachine,
     seed: u64,
 ) -> Result<(RewardMachine, RmFacts, String), PipelineError> {
     let config = settings;
-    let lrm = lrm_config(config, seed).map_err(PipelineError::Run)?;
+    let lrm = lrm_config(config, seed, algo).map_err(PipelineError::Run)?;
     let (rm, cost, secs) = match config.smirl_machine {
-        SmirlMachine::Learned => learn_machine(demos, config, seed).map_err(PipelineError::Run)?,
+        SmirlMachine::Learned => {
+            learn_machine(demos, config, seed, algo).map_err(PipelineError::Run)?
+        }
         SmirlMachine::Task | SmirlMachine::OneState => {
             let rm = match config.smirl_machine {
                 SmirlMachine::Task => task_machine(perfect),
@@ -420,8 +424,8 @@ fn learn_and_report(
         "LRM cost {:.3} (the perfect machine's on the same traces: {:.3}), {:.2} s",
         cost, perfect_cost, secs
     );
-    // Only the tree guards read events (first).
-    let events = match config.lrm_guards {
+    // Only the tree guards read events (first, where the state shows they matter).
+    let events = match lrm.guards {
         Guards::Tree => format!(
             " (events read first: \"{}\")",
             rm.vocab().format_labels(lrm.events)
@@ -431,7 +435,7 @@ fn learn_and_report(
     let _ = writeln!(
         report,
         "guards for label sets unseen in a state: {}{events}",
-        config.lrm_guards.name()
+        lrm.guards.name()
     );
     for (u, seen) in r.seen_with.iter().enumerate() {
         let _ = writeln!(

@@ -41,11 +41,12 @@ use crate::irl::smirl::{
     AnnotatedTrajectories, FeatureMap, LabelFeatures, LearnedSubgoalPotential, LinearRmReward,
     SmirlNormalisation,
 };
+use crate::irl::Algo;
 use crate::pipeline::reacher_expert::Demo;
 use crate::rl::crm::{hot_index, CounterfactualRm};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
-use crate::rm::lrm::{learn_rm, LabelTrace, LrmConfig};
+use crate::rm::lrm::{learn_rm, Guards, LabelTrace, LrmConfig};
 use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
 
 /// The task layout a run's environment config carries (`ReacherTask::env_config` sets it).
@@ -57,16 +58,17 @@ fn task_layout(config: &IrlRunConfig) -> Result<&TaskLayout, String> {
         .map_err(|e| e.to_string())
 }
 
-/// Step 1: the machine learned from the demonstrations' label traces, with its LRM cost and
-/// search time.
+/// Step 1: the machine learned from the demonstrations' label traces by `algo`'s learner
+/// ([`lrm_config`]), with its LRM cost and search time.
 pub fn learn_machine(
     demos: &[Demo],
     config: &IrlRunConfig,
     seed: u64,
+    algo: Algo,
 ) -> Result<(RewardMachine, f64, f64), String> {
     let vocab = task_layout(config)?.vocabulary();
     let traces = label_traces(demos);
-    let cfg = lrm_config(config, seed)?;
+    let cfg = lrm_config(config, seed, algo)?;
     let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
 }
@@ -103,9 +105,18 @@ pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, String> {
         .map_err(|e| format!("the one-state machine: {e}"))
 }
 
-/// The learner's settings of a run (`seed`: the search's); the events are the task's.
-pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> Result<LrmConfig, String> {
+/// The learner of `algo` on a run (`seed`: the search's; size and budget from `config`; the
+/// events are the task's, `TaskLayout::events`).
+///
+/// `smirl-paper`'s is LRM as the paper's eq. 1: the events predicted like any label set, no
+/// cell written after the search, a label set unseen in a state read as a stay. `smirl`'s
+/// adds the mechanisms of docs/method.md, each with what it assumes about the events:
+/// unpredicted events and event stutter (`LrmConfig::predict_events`,
+/// `LrmConfig::event_stutter`), commuted and initial events (`LrmConfig::commute_events`,
+/// `LrmConfig::initial_events`) and tree guards (`Guards::Tree`).
+pub fn lrm_config(config: &IrlRunConfig, seed: u64, algo: Algo) -> Result<LrmConfig, String> {
     let events = task_layout(config)?.events();
+    let smirl = algo != Algo::SmirlPaper;
     Ok(LrmConfig {
         max_states: config.lrm_max_states,
         tabu_len: config.lrm_tabu_len,
@@ -117,16 +128,15 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64) -> Result<LrmConfig, String>
         merge: false,
         fill_unobserved: false,
         reward_weight: 0.0,
-        guards: config.lrm_guards,
+        guards: if smirl { Guards::Tree } else { Guards::Exact },
         events,
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
-        event_stutter: config.lrm_event_stutter,
-        predict_events: config.lrm_predict_events,
-        commute_events: config.lrm_commute_events,
-        initial_events: config.lrm_initial_events,
+        event_stutter: smirl,
+        predict_events: !smirl,
+        commute_events: smirl,
+        initial_events: smirl,
         // Starts, patience and split moves are the learner's defaults.
-        fallback_starts: config.lrm_fallback_starts,
         ..LrmConfig::default()
     })
 }

@@ -1,11 +1,12 @@
 //! Guards for label sets the demonstrations never showed in a state.
 //!
 //! LRM's machine is a table over the *observed* (state, label set) cells; every other cell
-//! means "stay". On Reacher IF and Composite that default is what failed (measured, see
-//! `experiments/reacher/results.md`): the learned policy meets combinations the expert never
-//! produced — the cancel firing while the fingertip is on red (`{r, c}`) in a state where
-//! only `{r}` and `{c}` were seen, or the cancel after red in a state where only `{r, c}`
-//! was seen — and "stay" then keeps asking for blue, a failure once the cancel has fired.
+//! means "stay". An agent meets combinations the expert never produced — the cancel firing
+//! while the fingertip is on red (`{r, c}`) in a state where only `{r}` and `{c}` were seen,
+//! or the cancel after red in a state where only `{r, c}` was seen — and "stay" then keeps
+//! asking for blue, a failure once the cancel has fired. On the development range no IF or
+//! Composite machine read with "stay" tracks its task, against 112 and 37 of 113 with trees
+//! (`experiments/lrm/ablation.md`).
 //!
 //! [`Guards::Tree`] replaces the exact guards of each state by a decision tree over the
 //! propositions, fitted to that state's defined cells (observed cells, and the stays implied
@@ -15,11 +16,17 @@
 //! decided the transitions the state was seen to take. Splits maximise the information gain
 //! over the distinct defined label sets, with one rule ahead of the gain:
 //!
-//! **Events first.** The domain declares which propositions are *events*, true on a single
-//! step by construction ([`LrmConfig::events`](super::LrmConfig::events); Reacher's cancel
-//! `c`, while a ball proposition holds as long as the fingertip touches the ball). An
-//! informative split on an event is taken before any split on another proposition, so an
-//! unseen label set holding an event is read as that event. Reason: an event is gone on the
+//! **Events first, where they matter.** The task declares which propositions are *events*,
+//! true on a single step by construction ([`LrmConfig::events`](super::LrmConfig::events);
+//! Reacher's cancel `c`, while a ball proposition holds as long as the fingertip touches the
+//! ball). In a state whose defined cells show an event to matter — two defined label sets
+//! that differ only by it lead to different targets — an informative split on it is taken
+//! before any split on another proposition, so an unseen label set holding it is read as
+//! that event. Assumption: where an event is shown to change the state, it overrides what
+//! the lasting propositions of the same step say ("unless" semantics: IF's `{b, c}` is the
+//! cancel, not blue). Where the cells show it changes nothing (OR's and Sequential's cancel)
+//! or show nothing about it, it is one proposition among the others and an unseen `{g, c}`
+//! is read by its ball. Reason for reading it first: an event is gone on the
 //! next step, a lasting proposition is still true then and the machine reads it on that
 //! step; reading the event first loses nothing, reading the other first loses the event for
 //! good. The hand-written IF and Composite machines make the same choice (`c` before
@@ -120,6 +127,28 @@ fn fit(samples: &[(LabelSet, usize)], n_props: usize, events: u32, n_classes: us
     }
 }
 
+/// The events among `events` that the state's defined cells show to matter: an event `e`
+/// matters when two defined label sets `l` and `l ∪ {e}` (`e ∉ l`) lead to different
+/// (target, reward) classes. Only those are read first; an event the cells show to change
+/// nothing (the cancel of a task that ignores it) or show nothing about is one proposition
+/// among the others.
+fn events_that_matter(samples: &[(LabelSet, usize)], events: u32) -> u32 {
+    let mut out = 0;
+    for &(l, c) in samples {
+        let with = l.0 & events;
+        if with == 0 {
+            continue;
+        }
+        for e in (0..32).filter(|&e| with >> e & 1 == 1) {
+            let without = l.0 & !(1 << e);
+            if samples.iter().any(|&(m, d)| m.0 == without && d != c) {
+                out |= 1 << e;
+            }
+        }
+    }
+    out
+}
+
 /// Collects (path conjunction, class) for every leaf.
 fn leaves(node: &Node, path: &mut Vec<Formula>, out: &mut Vec<(Formula, usize)>) {
     match node {
@@ -177,7 +206,12 @@ pub(crate) fn tree_machine(
         if samples.is_empty() {
             continue;
         }
-        let tree = fit(&samples, vocab.len(), events, classes.len());
+        let tree = fit(
+            &samples,
+            vocab.len(),
+            events_that_matter(&samples, events),
+            classes.len(),
+        );
         let mut found = Vec::new();
         leaves(&tree, &mut Vec::new(), &mut found);
         for (k, &(target, reward)) in classes.iter().enumerate() {
@@ -250,6 +284,22 @@ mod tests {
         let rm = machine(2, &seen, C);
         assert_eq!(rm.next_state(0, LabelSet(C)), 1);
         assert_eq!(rm.next_state(0, LabelSet(R)), 0);
+    }
+
+    /// OR's and Sequential's start state: the cancel seen alone and with red, changing
+    /// nothing either time ({c} stays as {} does, {r, c} goes where {r} goes). An unseen
+    /// {g, c} is then read by its ball, not as the cancel: the cells show the event does not
+    /// matter here, so it is not read first.
+    #[test]
+    fn an_event_the_cells_show_to_change_nothing_is_not_read_first() {
+        const G: u32 = 1 << 1;
+        let seen = [(0, 0), (C, 0), (R, 1), (R | C, 1), (G, 2)];
+        let rm = machine(3, &seen, C);
+        assert_eq!(rm.next_state(0, LabelSet(G | C)), 2);
+        assert_eq!(rm.next_state(0, LabelSet(B | C)), 0);
+        // A state where the cancel does change something (IF's start) reads it first.
+        let seen = [(0, 0), (C, 2), (R, 0), (G, 1)];
+        assert_eq!(machine(3, &seen, C).next_state(0, LabelSet(G | C)), 2);
     }
 
     #[test]

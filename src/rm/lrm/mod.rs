@@ -33,11 +33,6 @@
 //! - *Patience* ([`LrmConfig::patience`]): a start ends after that many steps without
 //!   improving its best; the time saved pays for the other starts (measured: patience 5 gives
 //!   the same costs as 10 or 20 on Office tasks 1–4 at a third of the time).
-//! - *Fallback starts* ([`LrmConfig::fallback_starts`]): more starts, whose machine is kept
-//!   only when strictly cheaper than the first starts' best. Four starts of patience 5 can
-//!   stop far above the cost that other starts reach (ReacherDelivery Composite, base seed
-//!   96: 9.70 with 3 states where 0 is reachable); the fallback repairs that without
-//!   changing any machine whose cost no further start improves on.
 //!
 //! With these, the learned machines cost less than the perfect ones on every benchmark task
 //! (the objective also rewards predicting the expert's random steps), and refine the perfect
@@ -57,9 +52,10 @@
 //!
 //! **Beyond the reference: guards for unseen label sets.** With [`Guards::Tree`] each
 //! state's transitions are a decision tree over the propositions fitted to the cells the
-//! traces define (the domain's events, [`LrmConfig::events`], are split on first),
+//! traces define (the domain's events, [`LrmConfig::events`], are split on first where the
+//! cells show they matter),
 //! instead of "stay" on every label set the traces never showed in that state; see
-//! `guards.rs` for the reason (Reacher IF/Composite) and the rule.
+//! `guards.rs` for the reason and the rule.
 //!
 //! **Beyond the reference: merging.** The objective adds states that predict the next label
 //! but pay the same rewards. With [`LrmConfig::merge`] (the default) states with the same
@@ -132,10 +128,6 @@ pub struct LrmConfig {
     /// A start ends after this many steps without improving its best cost (0 = run all
     /// `max_steps`, as the reference does).
     pub patience: usize,
-    /// Further starts, after `starts`, whose machine is kept only when strictly cheaper than
-    /// the best of the first `starts` (a repair of a search stuck above the cost others reach
-    /// that leaves ties to the first starts); 0 = none.
-    pub fallback_starts: usize,
     /// Add the split move to the neighbourhood (see `search.rs`); off = the reference's
     /// single-transition neighbourhood.
     pub split_moves: bool,
@@ -146,53 +138,51 @@ pub struct LrmConfig {
     /// How the machine reads label sets never observed in a state (see `guards.rs`):
     /// [`Guards::Exact`] = LRM's (stay).
     pub guards: Guards,
-    /// Propositions the domain declares instantaneous (true on one step by construction),
-    /// which [`Guards::Tree`] reads first; empty = none.
+    /// Propositions the task declares exogenous events (true on one step by construction),
+    /// which [`Guards::Tree`] reads first where they matter and the event rules below read;
+    /// empty = none.
     pub events: LabelSet,
     /// Make the learned machine read raw traces as the search read the compressed ones
     /// (`search::stutter_invariant`): for domains whose label sets hold over several steps
     /// and whose machine is read on every step (ReacherDelivery: the fingertip stays inside a
-    /// ball, and between balls the label set is empty for many steps). Off by default, the
-    /// learner's behaviour before the option existed: Office's restart-on-goal targets pay
-    /// on every step the goal is read, which no stutter invariant machine expresses, and its
-    /// experiments were made without it.
+    /// ball, and between balls the label set is empty for many steps). Off by default:
+    /// Office's restart-on-goal targets pay on every step the goal is read, which no stutter
+    /// invariant machine expresses.
     pub stutter_invariant: bool,
     /// Read a step that only drops an event as a stutter (`Data::new`): after a label set
     /// holding an event (`events`), the same label set without it, when not empty, continues
     /// that entry of the compressed trace, and the learned machine stays on it (the repair of
-    /// `stutter_invariant`, which this needs). Reason: the cancel fires on one step while the
-    /// fingertip is on a ball (`{r, c}`), and the next steps read `{r}` — the same touch, not
-    /// a new one. Read as a new label, it gives the objective a "red, then red" it can send
-    /// anywhere at no cost (ReacherDelivery Composite, base seed 24: the learned machine,
-    /// costing what the perfect one does, took a second red for blue). Off by default.
+    /// `stutter_invariant`, which this needs). Assumes an event is instantaneous and can
+    /// overlap a lasting proposition: the cancel fires on one step while the fingertip is on
+    /// a ball (`{r, c}`), and the next steps read `{r}`, the same touch. Read as a new label,
+    /// "red, then red" is free for the objective to send anywhere. Off by default.
     pub event_stutter: bool,
-    /// Ask the machine to predict the events (`events`) among the next label sets, as LRM
-    /// does (true, the default). False: the objective compares next label sets without them,
-    /// so a state pays for itself only by predicting the *other* propositions. Reason: an
-    /// exogenous event that fires at most once per episode (ReacherDelivery's cancel) is
-    /// predicted better by a machine that remembers it fired — "no second cancel" — whatever
-    /// the expert does, and LRM then splits states by it on tasks that never condition on it
-    /// (ReacherDelivery OR and Sequential: "red touched" in two states, before and after the
-    /// cancel). Transitions still read the events; the cost changes, the traces do not.
+    /// Ask the machine to predict the events (`events`) among the next label sets, as LRM's
+    /// eq. 1 does (true, the default). False: the objective compares next label sets without
+    /// them, so a state pays for itself only by predicting the *other* propositions. Assumes
+    /// the events are exogenous, so that the expert's next step never needs them predicted:
+    /// an event that fires at most once per episode is predicted better by a machine that
+    /// remembers it fired, whatever the expert does, and LRM then splits states by it in
+    /// tasks that never condition on it. Transitions still read the events; the cost changes,
+    /// the traces do not.
     pub predict_events: bool,
     /// After the search, read an event (a proposition of `events`) that the traces never show
     /// in a state as if it had come just before the touch that entered the state
     /// (`merge::commute_events`: "red, then cancel" ends where "cancel, then red" does, when
-    /// every way into the state agrees). An exogenous event that fires at most once is seen
-    /// only at some stages of the task; where the demonstrations never show it (ReacherDelivery
-    /// Composite: a cancel after red, before blue, at bases whose experts reach red late), the
-    /// machine would otherwise ignore it there. Traces' paths and the cost are unchanged.
-    /// Assumes "unless" events, whose effect does not depend on when they come relative to
-    /// the touch. Off by default.
+    /// every way into the state agrees). An event that fires at most once is seen only at
+    /// some stages of the task, and where the demonstrations never show it the machine would
+    /// otherwise ignore it. Assumes order independence: an event's effect does not depend on
+    /// whether it comes just before or just after a touch (true of "unless" events, false of
+    /// one whose meaning changes once a touch has happened). Traces' paths and the cost are
+    /// unchanged. Off by default.
     pub commute_events: bool,
     /// After the search, read an event that the traces never show in the initial state, when
     /// no other state enters it, as coming on the first step with the label that leaves it
     /// (`merge::initial_events`). The initial-state split makes such a state ("before the
-    /// first label"), and only demonstrations whose cancel fired on their first step show an
-    /// event there; without any, the guards read a first-step cancel as no cancel
-    /// (ReacherDelivery IF 81, Composite 282). Traces' paths and the cost are unchanged.
-    /// Assumes "unless" events, which mean the same on the first step as before it. Off by
-    /// default.
+    /// first label"), and only demonstrations whose event fired on their first step show one
+    /// there; without any, the guards would read a first-step event as none. Assumes an event
+    /// means the same on the first step as on the second. Traces' paths and the cost are
+    /// unchanged. Off by default.
     pub initial_events: bool,
 }
 
@@ -211,7 +201,6 @@ impl Default for LrmConfig {
             reward_weight: DEFAULT_REWARD_WEIGHT,
             starts: DEFAULT_STARTS,
             patience: DEFAULT_PATIENCE,
-            fallback_starts: 0,
             split_moves: true,
             split_initial: true,
             guards: Guards::Exact,
@@ -331,7 +320,6 @@ pub fn learn_rm(
         max_steps: cfg.max_steps,
         patience: cfg.patience,
         starts: cfg.starts,
-        fallback_starts: cfg.fallback_starts,
         threads: cfg.threads.max(1),
         seed: cfg.seed,
     });

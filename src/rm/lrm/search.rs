@@ -170,12 +170,6 @@ pub(crate) struct SearchParams {
     pub patience: usize,
     /// Independent starts (at least 1).
     pub starts: usize,
-    /// Further starts (streams `starts..starts + fallback_starts`) whose best machine replaces
-    /// the first `starts`' only when its cost is strictly lower: they repair a search that
-    /// stopped above the cost other starts reach, and never reopen a tie among machines of
-    /// equal cost, so wherever the first starts already found the lowest cost any start
-    /// finds, the result is theirs bit for bit.
-    pub fallback_starts: usize,
     pub threads: usize,
     pub seed: u64,
 }
@@ -635,12 +629,10 @@ impl<'a> Searcher<'a> {
     /// start is an independent Tabu search ([`Searcher::search_from`]) with its own RNG
     /// (stream `k` of the seed), so its result does not depend on which thread runs it; the
     /// best machine over all starts (lowest cost, then fewest states, then lowest start
-    /// index) is returned, the fallback starts counting only when strictly cheaper
-    /// ([`SearchParams::fallback_starts`]). Starts run in parallel (`min(threads, starts)`
+    /// index) is returned. Starts run in parallel (`min(threads, starts)`
     /// workers; the rest of the threads evaluate neighbours within a start).
     pub fn search(&self, p: &SearchParams) -> SearchOutcome {
-        let starts = p.starts.max(1);
-        let total = starts + p.fallback_starts;
+        let total = p.starts.max(1);
         let run_start = |k: usize, threads: usize| -> SearchOutcome {
             let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
             rng.set_stream(k as u64);
@@ -699,13 +691,7 @@ impl<'a> Searcher<'a> {
             }
             best_k
         };
-        let mut best_k = best_of(0..starts);
-        if total > starts {
-            let fallback_k = best_of(starts..total);
-            if outcomes[fallback_k].best_cost < outcomes[best_k].best_cost {
-                best_k = fallback_k;
-            }
-        }
+        let best_k = best_of(0..total);
         let mut total = SearchOutcome {
             best: outcomes[best_k].best.clone(),
             best_cost: outcomes[best_k].best_cost,
