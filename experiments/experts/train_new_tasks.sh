@@ -22,8 +22,10 @@ cd "$(dirname "$0")/../.."
 SEED=${1:-0}
 OUT=experiments/experts/new_tasks
 cargo build --release --bin reacher
-BIN=target/release/reacher
 mkdir -p target/expert-runs "$OUT"
+# A private copy: a rebuild during the hour of training does not change the binary mid-run.
+BIN=target/expert-runs/reacher.train_new_tasks
+cp target/release/reacher "$BIN"
 
 file_of() {
     case $1 in

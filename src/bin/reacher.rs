@@ -236,6 +236,11 @@ struct ExpertArgs {
     /// Expert config (TOML: run settings, [sac], [env]); defaults otherwise.
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Smoke run: 2 000 training steps and 20 evaluation episodes, to check a task end to end
+    /// in seconds. Its policy is no expert, so it stays in --out and is never cached (unless
+    /// --cache names a cache).
+    #[arg(long, conflicts_with = "config")]
+    quick: bool,
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Continue a killed run from its last checkpoint in --out (or start one if --out has no
@@ -251,8 +256,9 @@ struct ExpertArgs {
     #[arg(long, conflicts_with = "resume")]
     force: bool,
     /// Policy cache the trained actor is also copied to, as `expert_<task>.policy` (e.g.
-    /// experiments/experts/cache, the committed experts, which the next build embeds); by
-    /// default it stays in --out only.
+    /// experiments/experts/cache, the committed experts, which the next build embeds), or
+    /// `expert_<name>-<content hash>.policy` for a task file; by default none for a shipped
+    /// task and `experts/` beside a task file (where `reacher --task FILE` looks).
     #[arg(long)]
     cache: Option<PathBuf>,
     /// Log every N-th training episode to OUT/train.mcap (1 = all, 0 = no training log; a
@@ -478,6 +484,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Expert(a)) => expert::run(ExpertRequest {
             task: a.task,
             config: a.config,
+            quick: a.quick,
             seed: a.seed,
             resume: a.resume,
             out: a.out,
