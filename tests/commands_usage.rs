@@ -128,6 +128,7 @@ fn bad_input_to_every_command_is_a_usage_error_and_writes_nothing() {
             seed: 0,
             allow_partial: false,
             no_merge: false,
+            no_events: false,
         }),
         "--max-states must be in 1..=",
     );

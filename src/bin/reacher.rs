@@ -335,6 +335,11 @@ struct LearnRmArgs {
     /// that only ever show the task in order cannot tell its states apart by reward).
     #[arg(long)]
     no_merge: bool,
+    /// Learn as plain LRM, with no declared events. By default the events are those the logs'
+    /// task declares, read by the event rules of SMIRL's learner (the standard profile's
+    /// lrm_* settings), as a run learns its machine.
+    #[arg(long)]
+    no_events: bool,
 }
 
 #[derive(Args)]
@@ -469,6 +474,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             seed: a.seed,
             allow_partial: a.allow_partial,
             no_merge: a.no_merge,
+            no_events: a.no_events,
         }),
         Some(Command::Foxglove(a)) => logs::foxglove(&a.file, &a.out, a.force, a.allow_partial),
         Some(Command::Demo(a)) => logs::demo(DemoRequest {
