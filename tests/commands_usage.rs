@@ -78,6 +78,7 @@ fn bad_input_to_every_command_is_a_usage_error_and_writes_nothing() {
         expert::run(expert::ExpertRequest {
             task: ReacherTask::shipped("if").unwrap(),
             config: Some(missing.clone()),
+            quick: false,
             seed: 0,
             resume: false,
             out: Some(dir.path().join("expert")),
@@ -87,6 +88,21 @@ fn bad_input_to_every_command_is_a_usage_error_and_writes_nothing() {
             quiet: true,
         }),
         "missing.toml",
+    );
+    assert_usage(
+        expert::run(expert::ExpertRequest {
+            task: ReacherTask::shipped("if").unwrap(),
+            config: Some(missing.clone()),
+            quick: true,
+            seed: 0,
+            resume: false,
+            out: Some(dir.path().join("expert")),
+            force: false,
+            cache: None,
+            train_log_every: 1,
+            quiet: true,
+        }),
+        "--quick and --config",
     );
     assert_usage(
         draw::run(draw::DrawRequest {
@@ -112,6 +128,7 @@ fn bad_input_to_every_command_is_a_usage_error_and_writes_nothing() {
             seed: 0,
             allow_partial: false,
             no_merge: false,
+            no_events: false,
         }),
         "--max-states must be in 1..=",
     );

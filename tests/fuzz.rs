@@ -275,9 +275,11 @@ fn corpus(target: &str) -> Corpus {
         reward_arch: None,
     };
     let dir_files = |dir: &str| -> Vec<Vec<u8>> {
+        // The directory's files (`assets/tasks/new/` holds more tasks, not a seed input).
         let mut paths: Vec<PathBuf> = std::fs::read_dir(root().join(dir))
             .unwrap()
             .map(|e| e.unwrap().path())
+            .filter(|p| p.is_file())
             .collect();
         paths.sort();
         paths.iter().map(|p| std::fs::read(p).unwrap()).collect()

@@ -238,6 +238,11 @@ struct ExpertArgs {
     /// Expert config (TOML: run settings, [sac], [env]); defaults otherwise.
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Smoke run: 2 000 training steps and 20 evaluation episodes, to check a task end to end
+    /// in seconds. Its policy is no expert, so it stays in --out and is never cached (unless
+    /// --cache names a cache).
+    #[arg(long, conflicts_with = "config")]
+    quick: bool,
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Continue a killed run from its last checkpoint in --out (or start one if --out has no
@@ -253,8 +258,9 @@ struct ExpertArgs {
     #[arg(long, conflicts_with = "resume")]
     force: bool,
     /// Policy cache the trained actor is also copied to, as `expert_<task>.policy` (e.g.
-    /// experiments/experts/cache, the committed experts, which the next build embeds); by
-    /// default it stays in --out only.
+    /// experiments/experts/cache, the committed experts, which the next build embeds), or
+    /// `expert_<name>-<content hash>.policy` for a task file; by default none for a shipped
+    /// task and `experts/` beside a task file (where `reacher --task FILE` looks).
     #[arg(long)]
     cache: Option<PathBuf>,
     /// Log every N-th training episode to OUT/train.mcap (1 = all, 0 = no training log; a
@@ -331,6 +337,11 @@ struct LearnRmArgs {
     /// that only ever show the task in order cannot tell its states apart by reward).
     #[arg(long)]
     no_merge: bool,
+    /// Learn as plain LRM, with no declared events. By default the events are those the logs'
+    /// task declares, read by the event rules of SMIRL's learner (the standard profile's
+    /// lrm_* settings), as a run learns its machine.
+    #[arg(long)]
+    no_events: bool,
 }
 
 #[derive(Args)]
@@ -465,6 +476,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             seed: a.seed,
             allow_partial: a.allow_partial,
             no_merge: a.no_merge,
+            no_events: a.no_events,
         }),
         Some(Command::Foxglove(a)) => logs::foxglove(&a.file, &a.out, a.force, a.allow_partial),
         Some(Command::Demo(a)) => logs::demo(DemoRequest {
@@ -480,6 +492,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Expert(a)) => expert::run(ExpertRequest {
             task: a.task,
             config: a.config,
+            quick: a.quick,
             seed: a.seed,
             resume: a.resume,
             out: a.out,

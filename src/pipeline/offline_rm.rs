@@ -27,6 +27,14 @@ pub enum OfflineRmError {
         vocabulary: String,
         problem: String,
     },
+    #[error("{path}: its task declares the events \"{found}\", the first log's \"{expected}\"")]
+    Events {
+        path: PathBuf,
+        found: String,
+        expected: String,
+    },
+    #[error("{path}: {problem}")]
+    TaskLayout { path: PathBuf, problem: String },
     #[error("the logs contain no complete episode to learn from")]
     NoTraces,
     #[error("LRM: {0}")]
@@ -39,6 +47,9 @@ pub enum OfflineRmError {
 #[derive(Clone, Debug)]
 pub struct LogTraces {
     pub vocabulary: Vocabulary,
+    /// The exogenous events the logs' task declares (their `/run` record's task layout);
+    /// none for a log whose vocabulary is not its layout's (a log written without a task).
+    pub events: LabelSet,
     pub traces: Vec<LabelTrace>,
     /// Recovery notes for truncated files, naming them.
     pub warnings: Vec<String>,
@@ -57,6 +68,7 @@ pub fn traces_from_logs(logs: &[RolloutLog]) -> Result<LogTraces, OfflineRmError
             problem,
         }
     })?;
+    let events = declared_events(first)?;
     let mut traces = Vec::new();
     let mut warnings = Vec::new();
     let mut skipped_unfinished = 0;
@@ -71,6 +83,14 @@ pub fn traces_from_logs(logs: &[RolloutLog]) -> Result<LogTraces, OfflineRmError
                 path: log.path.clone(),
                 found: log.run.vocabulary.clone(),
                 expected: first.run.vocabulary.clone(),
+            });
+        }
+        let found = declared_events(log)?;
+        if found != events {
+            return Err(OfflineRmError::Events {
+                path: log.path.clone(),
+                found: vocabulary.format_labels(found),
+                expected: vocabulary.format_labels(events),
             });
         }
         if let Some(rec) = &log.recovery {
@@ -92,9 +112,29 @@ pub fn traces_from_logs(logs: &[RolloutLog]) -> Result<LogTraces, OfflineRmError
     }
     Ok(LogTraces {
         vocabulary,
+        events,
         traces,
         warnings,
         skipped_unfinished,
+    })
+}
+
+/// The events `log`'s task declares: its recorded task layout's, when the layout's letters
+/// are the log's vocabulary (a log without a record is read as the shipped task of its name);
+/// none otherwise (a log written without a task, e.g. by `smirl.write_log` over letters of its
+/// own).
+fn declared_events(log: &RolloutLog) -> Result<LabelSet, OfflineRmError> {
+    let layout = log
+        .run
+        .task_layout()
+        .map_err(|problem| OfflineRmError::TaskLayout {
+            path: log.path.clone(),
+            problem,
+        })?;
+    Ok(if layout.letters() == log.run.vocabulary {
+        layout.events()
+    } else {
+        LabelSet::EMPTY
     })
 }
 

@@ -18,6 +18,8 @@ pub struct ExpertRequest {
     pub task: ReacherTask,
     /// Expert config (TOML); `None`: [`ExpertConfig::default`].
     pub config: Option<PathBuf>,
+    /// Smoke run ([`ExpertConfig::smoke`]); its policy goes to `cache` only if one is named.
+    pub quick: bool,
     pub seed: u64,
     /// Continue the run whose checkpoint is in `out`, or start one there.
     pub resume: bool,
@@ -45,9 +47,11 @@ fn eval_seed(seed: u64) -> u64 {
 /// written.
 pub fn run(args: ExpertRequest) -> Result<()> {
     let task = args.task;
-    let mut config = match &args.config {
-        Some(path) => ExpertConfig::load(path).map_err(usage)?,
-        None => ExpertConfig::default(),
+    let mut config = match (&args.config, args.quick) {
+        (Some(_), true) => return Err(usage("--quick and --config exclude each other")),
+        (Some(path), false) => ExpertConfig::load(path).map_err(usage)?,
+        (None, true) => ExpertConfig::smoke(),
+        (None, false) => ExpertConfig::default(),
     };
     config.env = task.env_config(&config.env).map_err(usage)?;
     config
@@ -139,10 +143,12 @@ pub fn run(args: ExpertRequest) -> Result<()> {
 
     let policy_path = out.join("expert.policy");
     policy.save(&policy_path)?;
-    let cache = args
-        .cache
-        .clone()
-        .or_else(|| rx::default_expert_cache(&task));
+    // A smoke policy is no expert: the default cache would hand it to `reacher --task FILE`.
+    let cache = args.cache.clone().or_else(|| {
+        (!args.quick)
+            .then(|| rx::default_expert_cache(&task))
+            .flatten()
+    });
     let cached = match &cache {
         Some(cache) => {
             std::fs::create_dir_all(cache)

@@ -193,6 +193,7 @@ fn train_missing_expert(task: &ReacherTask, config: &IrlRunConfig, quiet: bool) 
             super::expert::run(super::expert::ExpertRequest {
                 task: task.clone(),
                 config: None,
+                quick: false,
                 seed: 0,
                 resume: out.join("expert.ckpt").is_file(),
                 out: Some(out),

@@ -8,9 +8,11 @@ use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::log::demo::{log_scripted_demos, DemoSpec};
 use crate::log::{read_log, LogOptions, RolloutLog};
 use crate::output::{check_file, check_not_input, create_parent};
-use crate::pipeline::offline_rm::{compare, traces_from_files, OfflineRm};
+use crate::pipeline::offline_rm::{compare, traces_from_files, OfflineRm, OfflineRmError};
+use crate::pipeline::reacher_irl::IrlRunConfig;
 use crate::pipeline::render::{render_episode, write_png, RenderOptions};
 use crate::rm::lrm::{LrmConfig, MAX_SEARCH_STEPS, MAX_STATES};
+use crate::rm::LabelSet;
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 
@@ -150,12 +152,15 @@ pub struct LearnRmRequest {
     pub allow_partial: bool,
     /// Keep the search's machine instead of merging reward-indistinguishable states.
     pub no_merge: bool,
+    /// Learn as plain LRM, with no declared events (instead of the logs' task's events read by
+    /// SMIRL's learner's event rules).
+    pub no_events: bool,
 }
 
 /// `reacher learn-rm`: learns a reward machine from the label traces of rollout logs, writes
 /// it as text and DOT, and compares it with a reference machine if one is given.
 pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
-    let cfg = LrmConfig {
+    let mut cfg = LrmConfig {
         max_states: args.max_states,
         max_steps: args.steps,
         seed: args.seed,
@@ -191,7 +196,14 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
         )),
         None => None,
     };
-    let traces = traces_from_files(&args.files, args.allow_partial)?;
+    let traces = traces_from_files(&args.files, args.allow_partial).map_err(|e| match e {
+        // Logs that disagree on their task are bad input; a damaged log is not.
+        OfflineRmError::Vocabulary { .. }
+        | OfflineRmError::BadVocabulary { .. }
+        | OfflineRmError::Events { .. }
+        | OfflineRmError::TaskLayout { .. } => usage(e),
+        e => e.into(),
+    })?;
     if let Some((path, rm)) = &reference {
         if rm.vocab() != &traces.vocabulary {
             return Err(usage(format!(
@@ -202,6 +214,20 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
             )));
         }
     }
+    if !args.no_events {
+        with_event_rules(&mut cfg, traces.events);
+    }
+    println!(
+        "events: {}",
+        match cfg.events {
+            LabelSet::EMPTY if args.no_events => "none (--no-events)".to_string(),
+            LabelSet::EMPTY => "none (the logs' task declares none)".to_string(),
+            e => format!(
+                "{} (declared by the logs' task)",
+                traces.vocabulary.format_labels(e)
+            ),
+        }
+    );
     let learned = crate::rm::lrm::learn_rm(&traces.vocabulary, &traces.traces, &cfg)?;
     let result = OfflineRm { learned, traces };
     for w in &result.traces.warnings {
@@ -249,6 +275,19 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// `cfg` reading `events` as SMIRL's learner does in the standard profile
+/// ([`IrlRunConfig::standard`]'s `lrm_*` event rules and guards), so that a machine learned
+/// offline from a run's logs is learned as the run learned its own.
+fn with_event_rules(cfg: &mut LrmConfig, events: LabelSet) {
+    let standard = IrlRunConfig::standard();
+    cfg.events = events;
+    cfg.guards = standard.lrm_guards;
+    cfg.event_stutter = standard.lrm_event_stutter;
+    cfg.predict_events = standard.lrm_predict_events;
+    cfg.commute_events = standard.lrm_commute_events;
+    cfg.initial_events = standard.lrm_initial_events;
 }
 
 /// The arguments of `reacher demo`.

@@ -148,6 +148,19 @@ impl ExpertConfig {
         load_toml(path, Self::from_toml)
     }
 
+    /// `reacher expert --quick`: a smoke run that checks a task end to end in seconds (2 000
+    /// steps, 1 000 of them random warm-up, 20 evaluation episodes). Its policy is not an
+    /// expert: it solves no task.
+    pub fn smoke() -> Self {
+        Self {
+            total_steps: 2_000,
+            checkpoint_every: 1_000,
+            eval_episodes: 20,
+            progress_window: 20,
+            ..Self::default()
+        }
+    }
+
     /// The training loop's share of the config (everything but the environment and shaping,
     /// which go into the environment the caller builds).
     pub fn training_plan(&self) -> TrainingPlan {
