@@ -7,7 +7,7 @@ use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::LogOptions;
 use smirl::pipeline::offline_rm::{traces_from_files, OfflineRmError};
-use smirl::pipeline::reacher_irl::IrlRunConfig;
+use smirl::pipeline::reacher_irl::smirl::with_event_rules;
 use smirl::rm::format::{read_rm, write_rm};
 use smirl::rm::lrm::{learn_rm, LrmConfig};
 use smirl::rm::LabelSet;
@@ -106,18 +106,12 @@ fn reacher(dir: &Path, args: &[&str]) -> (i32, String) {
 
 /// What `learn-rm` learns by default on these traces with `events`: SMIRL's event rules.
 fn expected_config(events: LabelSet) -> LrmConfig {
-    let standard = IrlRunConfig::standard();
-    LrmConfig {
+    with_event_rules(LrmConfig {
         merge: true,
         stutter_invariant: true,
         events,
-        guards: standard.lrm_guards,
-        event_stutter: standard.lrm_event_stutter,
-        predict_events: standard.lrm_predict_events,
-        commute_events: standard.lrm_commute_events,
-        initial_events: standard.lrm_initial_events,
         ..LrmConfig::default()
-    }
+    })
 }
 
 #[test]

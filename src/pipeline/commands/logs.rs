@@ -9,7 +9,7 @@ use crate::log::demo::{log_scripted_demos, DemoSpec};
 use crate::log::{read_log, LogOptions, RolloutLog};
 use crate::output::{check_file, check_not_input, create_parent};
 use crate::pipeline::offline_rm::{compare, traces_from_files, OfflineRm, OfflineRmError};
-use crate::pipeline::reacher_irl::IrlRunConfig;
+use crate::pipeline::reacher_irl::smirl;
 use crate::pipeline::render::{render_episode, write_png, RenderOptions};
 use crate::rm::lrm::{LrmConfig, MAX_SEARCH_STEPS, MAX_STATES};
 use crate::rm::LabelSet;
@@ -277,17 +277,11 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
     Ok(())
 }
 
-/// `cfg` reading `events` as SMIRL's learner does in the standard profile
-/// ([`IrlRunConfig::standard`]'s `lrm_*` event rules and guards), so that a machine learned
-/// offline from a run's logs is learned as the run learned its own.
+/// `cfg` reading `events` as SMIRL's learner does ([`smirl::with_event_rules`]), so that a
+/// machine learned offline from a run's logs is learned as the run learned its own.
 fn with_event_rules(cfg: &mut LrmConfig, events: LabelSet) {
-    let standard = IrlRunConfig::standard();
     cfg.events = events;
-    cfg.guards = standard.lrm_guards;
-    cfg.event_stutter = standard.lrm_event_stutter;
-    cfg.predict_events = standard.lrm_predict_events;
-    cfg.commute_events = standard.lrm_commute_events;
-    cfg.initial_events = standard.lrm_initial_events;
+    *cfg = smirl::with_event_rules(cfg.clone());
 }
 
 /// The arguments of `reacher demo`.

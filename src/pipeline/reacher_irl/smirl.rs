@@ -116,8 +116,7 @@ pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, String> {
 /// `LrmConfig::initial_events`) and tree guards (`Guards::Tree`).
 pub fn lrm_config(config: &IrlRunConfig, seed: u64, algo: Algo) -> Result<LrmConfig, String> {
     let events = task_layout(config)?.events();
-    let smirl = algo != Algo::SmirlPaper;
-    Ok(LrmConfig {
+    let cfg = LrmConfig {
         max_states: config.lrm_max_states,
         tabu_len: config.lrm_tabu_len,
         max_steps: config.lrm_steps,
@@ -128,17 +127,35 @@ pub fn lrm_config(config: &IrlRunConfig, seed: u64, algo: Algo) -> Result<LrmCon
         merge: false,
         fill_unobserved: false,
         reward_weight: 0.0,
-        guards: if smirl { Guards::Tree } else { Guards::Exact },
+        guards: Guards::Exact,
         events,
         // The product reads the machine on every step, and a label set holds for many.
         stutter_invariant: true,
-        event_stutter: smirl,
-        predict_events: !smirl,
-        commute_events: smirl,
-        initial_events: smirl,
+        event_stutter: false,
+        predict_events: true,
+        commute_events: false,
+        initial_events: false,
         // Starts, patience and split moves are the learner's defaults.
         ..LrmConfig::default()
+    };
+    Ok(if algo == Algo::SmirlPaper {
+        cfg
+    } else {
+        with_event_rules(cfg)
     })
+}
+
+/// `cfg` with `smirl`'s ways of reading the declared events (docs/method.md): tree guards,
+/// event stutter, unpredicted, commuted and initial events. `smirl-paper` learns without them.
+pub fn with_event_rules(cfg: LrmConfig) -> LrmConfig {
+    LrmConfig {
+        guards: Guards::Tree,
+        event_stutter: true,
+        predict_events: false,
+        commute_events: true,
+        initial_events: true,
+        ..cfg
+    }
 }
 
 /// The demonstrations' label traces as LRM reads them (no rewards: those are what IRL learns).
