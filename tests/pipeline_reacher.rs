@@ -1158,7 +1158,8 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             (c.sac.lr, c.sac.alpha, c.sac.auto_alpha),
             (0.003, 1.0, false)
         );
-        assert_eq!(c.sac.replay_capacity, 12_000);
+        // The replay size is the run's, shared by every algorithm.
+        assert_eq!(c.sac.replay_capacity, standard.sac.replay_capacity);
         // Only rkl draws demonstrations into its covariance batch (it fails "blue" without).
         let drawn = if algo == Algo::Rkl { 300 } else { 0 };
         assert_eq!(c.firl_expert_trajectories, drawn, "{algo}");
@@ -1178,11 +1179,15 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
     // The baselines' resolved settings differ only in SMIRL's shaping, the final phase (and
-    // SMIRL's selection cut), the clock, the normalisation and the learned machine (LRM's
-    // keys).
+    // SMIRL's selection cut), the clock, the normalisation, the learned machine (LRM's keys)
+    // and the replay size, which every algorithm shares.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
         let unshaped_algo = unshaped_file.for_algo(algo).unwrap();
         let before = IrlRunConfig {
+            sac: smirl::rl::sac::SacConfig {
+                replay_capacity: standard.sac.replay_capacity,
+                ..unshaped_algo.sac.clone()
+            },
             smirl_shaping: 1.0,
             smirl_final_sac_steps: standard.smirl_final_sac_steps,
             smirl_final_checkpoints: standard.smirl_final_checkpoints,
@@ -1272,6 +1277,12 @@ fn bad_schedules_name_the_key_and_line() {
             3,
         ),
         ("[schedule.fkl.sac]\nlr = -1.0\n", "schedule.fkl.sac.lr", 3),
+        // The replay size is one [sac] setting for every algorithm.
+        (
+            "[schedule.fkl.sac]\nreplay_capacity = 12000\n",
+            "schedule.fkl.sac.replay_capacity",
+            3,
+        ),
     ] {
         let text = format!("{base}\n{table}");
         let err = IrlRunConfig::from_toml(&text, "c.toml")
