@@ -1,4 +1,4 @@
-//! No ground truth reaches SMIRL's learner, its selection or its stopping (GUIDE, "Science";
+//! No ground truth reaches SMIRL's learner — nor a baseline's — its selection or its stopping (GUIDE, "Science";
 //! issue 54, item 6): a job run on a prepared directory whose perfect machine — the task's
 //! ground truth, read by the job from `rm/perfect.txt` and nowhere else — is replaced by
 //! another, with other rewards, learns bit for bit the same reward (weights and data gradient
@@ -19,14 +19,17 @@ use std::path::Path;
 
 const SEED: u64 = 3;
 
-/// What a job reads or writes that no ground truth may change: the learned machine and the
-/// annotated demonstrations (prepared), the learned reward and its trace (the job's).
+/// What a SMIRL job reads or writes that no ground truth may change: the learned machine and
+/// the annotated demonstrations (prepared), the learned reward and its trace (the job's).
 const LEARNED_FILES: [&str; 4] = [
     "rm/learned.txt",
     "expert_data.bin",
     "rewards/smirl_seed3.json",
     "rewards/smirl_seed3.trace.csv",
 ];
+
+/// The same for a baseline (maxent): the demonstrations it reads and the MLP reward it learns.
+const BASELINE_FILES: [&str; 2] = ["expert_data.bin", "rewards/maxent_seed3.bin"];
 
 /// Another task with a cancel branch (as IF's has), and other rewards: the episode succeeds,
 /// with reward 7, on any first step without blue or the cancel; a cancel pays 0.5 and makes
@@ -60,9 +63,20 @@ fn config() -> IrlRunConfig {
 /// Prepares task `task`'s SMIRL run in `dir`, replaces its perfect machine by `perfect` (when
 /// given) and runs its job: the record and the files the job wrote.
 fn job(task: ReacherTask, dir: &Path, perfect: Option<&str>) -> (JobRecord, Vec<Vec<u8>>) {
+    job_of(Algo::Smirl, &LEARNED_FILES, task, dir, perfect)
+}
+
+/// [`job`] of `algo`, returning `files`.
+fn job_of(
+    algo: Algo,
+    files: &[&str],
+    task: ReacherTask,
+    dir: &Path,
+    perfect: Option<&str>,
+) -> (JobRecord, Vec<Vec<u8>>) {
     let request = RunRequest {
         task,
-        algos: vec![Algo::Smirl],
+        algos: vec![algo],
         seeds: 1,
         seed: SEED,
         config: config(),
@@ -77,9 +91,9 @@ fn job(task: ReacherTask, dir: &Path, perfect: Option<&str>) -> (JobRecord, Vec<
     if let Some(text) = perfect {
         assert_eq!(run.perfect, parse_rm(text, "perturbed").unwrap());
     }
-    let (record, ran) = run.run_job(Algo::Smirl, SEED, &|| 1, &|_| {}).unwrap();
+    let (record, ran) = run.run_job(algo, SEED, &|| 1, &|_| {}).unwrap();
     assert!(ran);
-    let files = LEARNED_FILES
+    let files = files
         .iter()
         .map(|f| std::fs::read(dir.join(f)).unwrap())
         .collect();
@@ -122,6 +136,7 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
         assert_eq!(scored(ca), scored(cb), "candidate {k}");
     }
     assert_eq!(fa.chosen, fb.chosen, "the final choice");
+    assert_eq!(fa.random, fb.random, "the random pick");
     // The perturbation took effect: the ground truth judged the same policies differently.
     let judged = |r: &JobRecord| {
         let rows: Vec<(u64, u64)> = (r.rows.iter())
@@ -198,6 +213,34 @@ fn perturbing_the_perfect_machine_to_a_task_without_a_cancel_branch_changes_noth
     );
     for (k, (fa, fb)) in files_a.iter().zip(&files_b).enumerate() {
         assert!(fa == fb, "{} differs", LEARNED_FILES[k]);
+    }
+    assert_same_learning_other_evaluation(&a, &b);
+}
+
+/// A baseline (maxent, whose final phase runs the same routine as SMIRL's) on IF against the
+/// same job judged by [`PERTURBED_CONDITIONAL`]: the demonstrations, the learned MLP reward,
+/// every iteration's learned reward and surrogate loss, the candidates' learned returns, the
+/// choice and the random pick bit-identical; the evaluation different.
+///
+/// Mutation tried (a leak): the candidates' learned return plus their ground-truth success
+/// (`learned_return: learned_return + ev.success_rate` in `final_policy::candidate`): fails at
+/// "candidate 3" (the first candidate the perturbed machine judges differently).
+#[test]
+fn perturbing_the_perfect_machine_leaves_a_baselines_learning_and_choice_unchanged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |name: &str, perfect: Option<&str>| {
+        job_of(
+            Algo::MaxEnt,
+            &BASELINE_FILES,
+            ReacherTask::shipped("if").unwrap(),
+            &tmp.path().join(name),
+            perfect,
+        )
+    };
+    let (a, files_a) = run("true", None);
+    let (b, files_b) = run("perturbed", Some(PERTURBED_CONDITIONAL));
+    for (k, (fa, fb)) in files_a.iter().zip(&files_b).enumerate() {
+        assert!(fa == fb, "{} differs", BASELINE_FILES[k]);
     }
     assert_same_learning_other_evaluation(&a, &b);
 }

@@ -175,11 +175,11 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
                 "{a}: no {phase} episode"
             );
         }
-        // SMIRL's final-policy phase logs its selection and ground-truth episodes too.
+        // The final phase (every algorithm's here) logs its selection and ground-truth
+        // episodes too.
         for phase in ["select", "final"] {
-            assert_eq!(
+            assert!(
                 log.episodes.iter().any(|e| e.start.phase == phase),
-                a.starts_with("smirl"),
                 "{a}: {phase} episodes"
             );
         }
@@ -206,24 +206,24 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
     }
 }
 
-/// `final_policy.csv`: per SMIRL job the co-trained policy and `smirl_final_checkpoints`
-/// candidates, the chosen one the first of highest selection return (the cut return, else the
-/// learned return); the co-trained candidate is
-/// the policy of the last metrics row, judged on the same episodes, so its success is that row's.
+/// `final_policy.csv`: per job (every algorithm with a learned reward has the final phase) the
+/// co-trained policy and `smirl_final_checkpoints` candidates, the chosen one the first of
+/// highest selection return (the cut return, else the learned return), one random pick; the
+/// co-trained candidate is the policy of the last metrics row, judged on the same episodes, so
+/// its success is that row's.
 fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
     let table = std::fs::read_to_string(dir.join("final_policy.csv")).unwrap();
     let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
     let mut lines = table.lines();
     assert_eq!(
         lines.next(),
-        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent,cut_return")
+        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent,cut_return,random")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let config = tiny_config();
     let per_job = config.smirl_final_checkpoints as usize + 1;
-    let smirl: Vec<&&str> = algos.iter().filter(|a| a.starts_with("smirl")).collect();
-    assert_eq!(rows.len(), smirl.len() * per_job, "{table}");
-    for a in smirl {
+    assert_eq!(rows.len(), algos.len() * per_job, "{table}");
+    for a in algos {
         let job: Vec<&Vec<&str>> = rows
             .iter()
             .filter(|r| r[0] == *a && r[1] == seed.to_string())
@@ -238,6 +238,8 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
         let first_best = returns.iter().position(|&x| x == best).unwrap();
         let chosen: Vec<usize> = (0..per_job).filter(|&i| job[i][5] == "1").collect();
         assert_eq!(chosen, vec![first_best], "{table}");
+        let picked = (0..per_job).filter(|&i| job[i][13] == "1").count();
+        assert_eq!(picked, 1, "{table}");
         // Candidates 140 SAC steps apart (two 70-step episodes), the first at the end of the
         // IRL loop: the last metrics row's policy, with its success.
         let last_row: Vec<&str> = metrics
@@ -1134,7 +1136,8 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             (c.sac.lr, c.sac.alpha, c.sac.auto_alpha),
             (0.003, 1.0, false)
         );
-        assert_eq!(c.sac.replay_capacity, 12_000);
+        // The replay size is the run's, shared by every algorithm.
+        assert_eq!(c.sac.replay_capacity, standard.sac.replay_capacity);
         // Only rkl draws demonstrations into its covariance batch (it fails "blue" without).
         let drawn = if algo == Algo::Rkl { 300 } else { 0 };
         assert_eq!(c.firl_expert_trajectories, drawn, "{algo}");
@@ -1153,11 +1156,16 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     // with SMIRL's earlier settings; the baselines' schedules are the same.
     let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
     assert_eq!(unshaped_file, unshaped());
-    // The baselines' resolved settings differ only in SMIRL's shaping, final policy (and its
-    // selection cut and reset agent), clock, normalisation and learned machine (LRM's keys), which only
-    // SMIRL reads.
+    // The baselines' resolved settings differ only in SMIRL's shaping, the final phase (and
+    // SMIRL's selection cut), the clock, the normalisation
+    // and the replay size, which every algorithm shares.
     for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
+        let unshaped_algo = unshaped_file.for_algo(algo).unwrap();
         let before = IrlRunConfig {
+            sac: smirl::rl::sac::SacConfig {
+                replay_capacity: standard.sac.replay_capacity,
+                ..unshaped_algo.sac.clone()
+            },
             smirl_shaping: 1.0,
             smirl_final_sac_steps: standard.smirl_final_sac_steps,
             smirl_final_checkpoints: standard.smirl_final_checkpoints,
@@ -1166,7 +1174,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
             smirl_selection_cut_entries: standard.smirl_selection_cut_entries,
             smirl_clock: standard.smirl_clock,
             smirl_normalisation: standard.smirl_normalisation,
-            ..unshaped_file.for_algo(algo).unwrap()
+            ..unshaped_algo
         };
         assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");
     }
@@ -1242,6 +1250,12 @@ fn bad_schedules_name_the_key_and_line() {
             3,
         ),
         ("[schedule.fkl.sac]\nlr = -1.0\n", "schedule.fkl.sac.lr", 3),
+        // The replay size is one [sac] setting for every algorithm.
+        (
+            "[schedule.fkl.sac]\nreplay_capacity = 12000\n",
+            "schedule.fkl.sac.replay_capacity",
+            3,
+        ),
     ] {
         let text = format!("{base}\n{table}");
         let err = IrlRunConfig::from_toml(&text, "c.toml")
@@ -1286,10 +1300,13 @@ fn run_with_extra_agent(
     };
     let ((_without_tmp, without_dir, _), (_with_tmp, with_dir, _)) = (run(0), run(steps));
     let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
-    assert_eq!(
-        read(&without_dir, "metrics.csv"),
-        read(&with_dir, "metrics.csv")
-    );
+    // The loop's metrics (the columns before the final phase's chosen and random policies).
+    let loop_metrics = |dir: &PathBuf| -> Vec<String> {
+        (read(dir, "metrics.csv").lines())
+            .map(|l| l.split(',').take(16).collect::<Vec<_>>().join(","))
+            .collect()
+    };
+    assert_eq!(loop_metrics(&without_dir), loop_metrics(&with_dir));
     let rows = |dir: &PathBuf| -> Vec<Vec<String>> {
         read(dir, "final_policy.csv")
             .lines()
@@ -1298,9 +1315,9 @@ fn run_with_extra_agent(
             .collect()
     };
     let (without, with) = (rows(&without_dir), rows(&with_dir));
-    // The co-trained candidates are unchanged but for `chosen`.
+    // The co-trained candidates are unchanged but for `chosen` and `random`.
     for (a, b) in without.iter().zip(&with) {
-        assert_eq!((&a[..5], &a[6..]), (&b[..5], &b[6..]));
+        assert_eq!((&a[..5], &a[6..13]), (&b[..5], &b[6..13]));
     }
     let returns: Vec<f64> = with.iter().map(|r| r[4].parse().unwrap()).collect();
     let best = returns.iter().cloned().fold(f64::MIN, f64::max);

@@ -2,14 +2,11 @@
 //! observation ⊕ one-hot machine state, reward from the machine, episode ends when the
 //! machine reaches a terminal (goal) state or a failure sink.
 //!
-//! Optional clock ([`ProductEnv::with_clock`]): one more observation entry after the one-hot
-//! block, the share of the episode's steps still to come (1 at reset, 0 on the last step).
-//! Why: a task whose events can only happen early (ReacherDelivery's cancel comes on steps
-//! 1–8) is not Markovian in (o, u) alone — an agent that cannot tell step 9 from step 1 may
-//! keep waiting for an event that can no longer come (Pardo et al. 2018, "Time limits in
-//! reinforcement learning", give the remaining time as input for this reason).
-//! A frozen clock ([`ProductEnv::with_frozen_clock`]) is its control: the same entry, held at
-//! its reset value, so the same width and first observation without the time.
+//! Optional clock ([`ProductEnv::with_clock`], [`super::clock`] says why): one more
+//! observation entry after the one-hot block, the share of the episode's steps still to come
+//! (1 at reset, 0 on the last step). A frozen clock ([`ProductEnv::with_frozen_clock`]) is its
+//! control: the same entry, held at its reset value, so the same width and first observation
+//! without the time.
 //!
 //! Optional potential-based shaping (Ng, Harada & Russell 1999) adds
 //! `F = γ·Φ(o', u') − Φ(o, u)` to the machine's reward, with `Φ = 0` once the machine is in a
@@ -17,6 +14,7 @@
 //! MDP unchanged, so experts trained with it are experts of the task; it only gives SAC a
 //! gradient toward the current sub-goal where the task reward is a single sparse 1.
 
+use super::clock::Clock;
 use super::{ContinuousEnv, EnvError, EnvStep};
 use crate::rm::product::{one_hot, RmTracker};
 use crate::rm::RewardMachine;
@@ -57,16 +55,6 @@ pub struct ProductEnv<E, P = NoShaping> {
     clock: Clock,
     /// Steps since the last reset.
     steps: usize,
-}
-
-/// The observation entry after the one-hot block, if any.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Clock {
-    None,
-    /// `(horizon − t) / horizon` after step t, clamped at 0; `horizon` ≥ 1.
-    CountDown(usize),
-    /// Always 1, the count-down's value at reset (its control: no time).
-    Frozen,
 }
 
 /// No shaping: the machine's reward only.
@@ -127,7 +115,7 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
 
     /// Observation entries after the one-hot block (1 with a clock, else 0).
     pub fn trailing_dim(&self) -> usize {
-        usize::from(self.clock != Clock::None)
+        self.clock.dim()
     }
 
     pub fn inner(&self) -> &E {
@@ -169,12 +157,8 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
         let k = self.tracker.n_states();
         obs[..n].copy_from_slice(&self.inner_obs);
         one_hot(self.tracker.state(), &mut obs[n..n + k]);
-        match self.clock {
-            Clock::None => {}
-            Clock::CountDown(horizon) => {
-                obs[n + k] = (horizon - self.steps.min(horizon)) as f32 / horizon as f32;
-            }
-            Clock::Frozen => obs[n + k] = 1.0,
+        if let Some(v) = self.clock.value(self.steps) {
+            obs[n + k] = v;
         }
     }
 

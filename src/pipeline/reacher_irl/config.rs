@@ -294,9 +294,10 @@ pub struct AlgoSchedule {
 /// The baselines' schedule in the standard profile: f-IRL's own ReacherDraw settings at the
 /// tasks' 100-step horizon — 800 IRL iterations of 300 SAC steps, 300 fresh trajectories (30 000
 /// states) per reward update, 2 reward steps per iteration, no weight decay on the reward, SAC
-/// lr 3e-3 with a fixed temperature of 1, replay 12 000, 150 random steps first; every 100th
-/// episode logged. Chosen on the Markovian positive control "blue" (seeds 0–2), never on the
-/// paper's tasks: with it fkl, js and MaxEnt solve "blue" in 3 of 3 seeds, with SMIRL's earlier 20 × 5 000
+/// lr 3e-3 with a fixed temperature of 1, 150 random steps first; every 100th episode logged.
+/// The replay size is not the schedule's: it is the run's `[sac]` one, shared by every
+/// algorithm ([`SHARED_SAC_KEYS`]). Chosen on the Markovian positive control "blue" (seeds
+/// 0–2), never on the paper's tasks: with it fkl, js and MaxEnt solve "blue" in 3 of 3 seeds, with SMIRL's earlier 20 × 5 000
 /// schedule the f-IRL variants in none (README, "Positive controls of the baselines").
 /// rkl's also puts 300 drawn demonstrations in each covariance batch beside the 300 agent
 /// trajectories (`firl_expert_trajectories`, f-IRL's code for demonstrations): without them rkl
@@ -304,7 +305,6 @@ pub struct AlgoSchedule {
 pub fn firl_schedule(algo: Algo) -> AlgoSchedule {
     let mut sac = toml::Table::new();
     sac.insert("lr".into(), toml::Value::Float(0.003));
-    sac.insert("replay_capacity".into(), toml::Value::Integer(12_000));
     sac.insert("alpha".into(), toml::Value::Float(1.0));
     sac.insert("auto_alpha".into(), toml::Value::Boolean(false));
     sac.insert("warmup_steps".into(), toml::Value::Integer(150));
@@ -322,6 +322,12 @@ pub fn firl_schedule(algo: Algo) -> AlgoSchedule {
     }
 }
 
+/// `[sac]` keys no `[schedule.<algorithm>.sac]` table may set: settings of the comparison, not
+/// of an algorithm. The replay size: a buffer that drops old transitions makes SAC forget
+/// sub-tasks its policy stopped reaching for, whatever learned the reward, and rewards are
+/// recomputed at sampling time, so a large buffer holds no stale rewards for any algorithm.
+pub const SHARED_SAC_KEYS: [&str; 1] = ["replay_capacity"];
+
 /// The inner SAC of the IRL runs: the paper's IRL settings (`SacConfig::irl`) with Adam lr
 /// 1e-3 instead of 3e-3 and a replay buffer of 200 000 instead of 10 000 transitions.
 /// Why: the learned reward changes every IRL iteration and rewards are recomputed from the
@@ -330,10 +336,11 @@ pub fn firl_schedule(algo: Algo) -> AlgoSchedule {
 /// policy stops reaching for two iterations vanishes from SAC's data; the lower rate keeps
 /// the critics from chasing every reward update. Measured on SMIRL with held-out seeds in
 /// experiments/reacher/results.md (the paper's values are the `paper_sac` ablation). 200 000
-/// keeps every transition of a SMIRL job (150 000 loop steps and the final phase's 20 000):
-/// with 100 000, SAC on a fixed learned reward lost tasks it had solved once the buffer began
-/// dropping its oldest transitions (experiments/reacher/retrain_agents.sh; adopted by the rule
-/// in experiments/reacher/ablations/replay_all.toml).
+/// keeps every transition of a SMIRL job (150 000 loop steps and the final phase's 20 000) and
+/// the last 200 000 of a baseline's 240 000 loop steps: with 100 000, SAC on a fixed learned
+/// reward lost tasks it had solved once the buffer began dropping its oldest transitions
+/// (experiments/reacher/retrain_agents.sh; experiments/reacher/ablations/replay_all.toml). One
+/// value for every algorithm ([`SHARED_SAC_KEYS`]).
 pub fn irl_run_sac() -> SacConfig {
     SacConfig {
         lr: 1e-3,
@@ -639,6 +646,15 @@ impl IrlRunConfig {
             log_every_nth_episode
         );
         if let Some(table) = &s.sac {
+            if let Some(key) = SHARED_SAC_KEYS.iter().find(|k| table.contains_key(**k)) {
+                return Err(IrlConfigError::Invalid {
+                    source_name: String::new(),
+                    field: field(&format!("sac.{key}")),
+                    problem: "is shared by every algorithm: set it in [sac], not per schedule"
+                        .into(),
+                    line: None,
+                });
+            }
             config.sac =
                 SacConfig::from_table(table.clone(), self.sac.clone(), "").map_err(|e| {
                     IrlConfigError::Invalid {

@@ -7,6 +7,7 @@
 
 use super::evaluation::JobWatch;
 use super::lockstep::{play_lockstep, Keep};
+use crate::env::clock::Clocked;
 use crate::env::layout::TaskLayout;
 use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
@@ -24,8 +25,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 
-/// The environment an IRL job's SAC acts in: ReacherDelivery itself (the baselines) or its
-/// product with the learned machine (SMIRL: observation ⊕ one-hot learned state).
+/// The environment an IRL job's SAC acts in: ReacherDelivery itself, with the clock of the
+/// run's settings (the baselines: observation ⊕ clock), or its product with the learned
+/// machine (SMIRL: observation ⊕ one-hot learned state ⊕ clock).
 pub trait JobEnv: ContinuousEnv + ReacherView + Send {
     /// The learned machine's current state (SMIRL's product), `None` for the plain
     /// environment.
@@ -61,6 +63,28 @@ impl JobEnv for ReacherDelivery {
     fn ends_only_at_time_limit(&self) -> bool {
         // ReacherDelivery's step never sets `terminated`.
         true
+    }
+
+    fn step_with_env_reward(
+        &mut self,
+        action: &[f32],
+        obs: &mut [f32],
+    ) -> Result<(EnvStep, f64), EnvError> {
+        self.step(action, obs).map(|s| (s, s.reward))
+    }
+}
+
+impl JobEnv for Clocked<ReacherDelivery> {
+    fn learned_state(&self) -> Option<usize> {
+        None
+    }
+
+    fn fresh(&self) -> Option<Self> {
+        self.inner().fresh().map(|e| Clocked::new(e, self.clock()))
+    }
+
+    fn ends_only_at_time_limit(&self) -> bool {
+        self.inner().ends_only_at_time_limit()
     }
 
     fn step_with_env_reward(

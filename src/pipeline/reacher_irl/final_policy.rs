@@ -1,35 +1,37 @@
-//! SMIRL's final policy (`smirl_final_sac_steps` > 0): after the last reward update, SAC goes on
-//! training on the job's final learned reward, now held fixed, and the policy the job reports is
-//! the one of highest learned return among the co-trained policy and the checkpoints of that
-//! phase — and, with `smirl_final_reset_steps` > 0, the checkpoints of a reset agent trained on
-//! the same reward after it; with `smirl_selection_cut` (the standard), the return counted as
-//! the cut below says.
+//! The final phase of every algorithm with a learned reward (`smirl_final_sac_steps` > 0;
+//! `smirl`, `smirl-smooth`, `maxent`, `fkl`, `rkl`, `js` — not `smirl-paper`, which reports its
+//! loop's own last policy): after the last reward update, SAC goes on training on the job's
+//! final learned reward, now held fixed, and the policy the job reports is the one of highest
+//! learned return among the co-trained policy and the checkpoints of that phase — and, with
+//! `smirl_final_reset_steps` > 0, the checkpoints of a reset agent trained on the same reward
+//! after it. One routine ([`train`]) for every algorithm: they differ only in the reward they
+//! hand it ([`ScoredReward`]: SMIRL's δ_r(u, o) on its product, a baseline's MLP of the
+//! fingertip) and in SMIRL's selection cut below.
 //!
 //! Why: the IRL loop's policy learns along with a moving reward; the one evaluated after the
-//! last iteration trained on the weights before the last update, and on held-out seeds it can
-//! sit in a dip of the loop's oscillation while the reward it leaves behind is right (a fresh
-//! agent on that reward solves the task: README, "Retraining"). The policy a user takes away
+//! last iteration trained on the weights before the last update and can sit in a dip of the
+//! loop's oscillation while the reward it leaves behind is right. The policy a user takes away
 //! should optimise the reward the job returns. The choice reads only that reward — the mean
 //! learned return of each candidate's mean action over selection episodes with reset seeds of
 //! their own — never the ground truth; every candidate is also judged on the ground truth, so
-//! the choice can be checked against the co-trained policy and the last checkpoint.
+//! the choice can be checked against the co-trained policy and against a candidate drawn at
+//! random ([`FinalPolicy::random`], drawn from the job's own seed stream), which tells how
+//! much the choice itself adds over having more candidates.
 //!
 //! The reset agent (`smirl_final_reset_steps`): a co-trained agent that never found the task
 //! during the loop (or lost it) carries its habit into the phase, while the reward it leaves
-//! can be right — a SAC agent started afresh on it solves the task (`reacher retrain`). The
-//! reset agent keeps the co-trained agent's data — a copy of its replay buffer, every transition of
-//! the loop and the phase — with new networks, optimisers and temperature
-//! ([`SacTrainer::with_new_agent`]), learns from that buffer alone first and then trains on.
-//! Why: a co-trained agent can stay stuck on a final reward that a fresh agent solves. Held out
-//! it rescued collapsed Sequential agents but not the Composite misses it was built for, and
-//! twice it found a failing policy the final reward pays as well (README, "A reset agent").
+//! can be right. The reset agent keeps the co-trained agent's data — a copy of its replay
+//! buffer, every transition of the loop and the phase that the buffer still holds — with new
+//! networks, optimisers and temperature ([`SacTrainer::with_new_agent`]), learns from that
+//! buffer alone first and then trains on. Nothing in it reads a reward machine.
 //!
-//! The cut (`smirl_selection_cut`): a learned machine without a failure state lets a policy
-//! that touches blue after the cancel earn about what one that avoids it earns, so the choice
-//! can fall on it (README, "Why the final phase can prefer a policy that fails the cancel
-//! branch"). With the cut, each selection episode counts its learned reward only up to its
-//! first ball touch, after the cancel, that no demonstration makes after a cancel in the same
-//! learned state ([`SeenAfterEvents`]) — still no ground truth, and nothing in training changes.
+//! The cut (`smirl_selection_cut`, SMIRL only: it reads the learned machine's states and
+//! assumes "unless" semantics of the events): a learned machine without a failure state lets a
+//! policy that touches a ball after the cancel earn about what one that avoids it earns, so
+//! the choice can fall on it. With the cut, each selection episode counts its learned reward
+//! only up to its first ball touch, after the cancel, that no demonstration makes after a
+//! cancel in the same learned state ([`SeenAfterEvents`]) — still no ground truth, and nothing
+//! in training changes.
 
 use super::config::IrlRunConfig;
 use super::episodes::{play_episode, train_sac, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
@@ -40,7 +42,7 @@ use crate::irl::smirl::FeatureMap;
 use crate::log::RolloutLogger;
 use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
 use crate::rm::LabelSet;
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// A SAC reward that can also score recorded steps.
@@ -100,6 +102,11 @@ pub struct FinalPolicy {
     pub candidates: Vec<FinalCandidate>,
     /// Index into `candidates`: the first of highest selection return.
     pub chosen: usize,
+    /// Index into `candidates`: one drawn uniformly from the job's own seed stream
+    /// ([`random_pick`]), the yardstick of the choice; `None` in records written before it
+    /// was drawn.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub random: Option<usize>,
 }
 
 impl FinalCandidate {
@@ -113,6 +120,11 @@ impl FinalPolicy {
     /// The reported policy.
     pub fn chosen(&self) -> &FinalCandidate {
         &self.candidates[self.chosen]
+    }
+
+    /// The candidate drawn at random, if the record has one.
+    pub fn random(&self) -> Option<&FinalCandidate> {
+        self.random.and_then(|i| self.candidates.get(i))
     }
 }
 
@@ -137,6 +149,26 @@ pub struct FinalPhase<'a> {
     pub selection_episodes: u64,
 }
 
+impl<'a> FinalPhase<'a> {
+    /// The phase of a job of `settings` with seed `seed`, the same for every algorithm
+    /// (`selection_cut`: SMIRL's, or `None`); `None` when the settings have no final phase
+    /// (`smirl_final_sac_steps` = 0, as `smirl-paper`'s).
+    pub fn of(
+        settings: &IrlRunConfig,
+        seed: u64,
+        selection_cut: Option<&'a SeenAfterEvents>,
+    ) -> Option<FinalPhase<'a>> {
+        (settings.smirl_final_sac_steps > 0).then(|| FinalPhase {
+            steps: settings.smirl_final_sac_steps,
+            checkpoints: settings.smirl_final_checkpoints,
+            seed,
+            reset_steps: settings.smirl_final_reset_steps,
+            selection_cut,
+            selection_episodes: selection_episodes(settings),
+        })
+    }
+}
+
 /// Selection episodes per candidate: twice `eval_episodes` on every task — as many as the
 /// evaluation of a task with a cancel branch plays (`eval_episodes` per branch). Why not the
 /// evaluation's own count: that count says whether the task's perfect machine has a cancel
@@ -147,6 +179,15 @@ pub fn selection_episodes(settings: &IrlRunConfig) -> u64 {
 
 /// The stream of the reset agent's SAC seed within the job's seed.
 const RESET_AGENT_STREAM: u64 = 0x7e5e_7a9e;
+
+/// The stream of the random pick within the job's seed.
+const RANDOM_PICK_STREAM: u64 = 0x7a4d_019c;
+
+/// The random pick among `n` candidates (n ≥ 1) of the job of seed `seed`: uniform, from a
+/// stream of its own (no other draw of the job moves), the same for the same seed and `n`.
+pub fn random_pick(seed: u64, n: usize) -> usize {
+    ChaCha8Rng::seed_from_u64(episode_seed(seed, RANDOM_PICK_STREAM)).gen_range(0..n.max(1))
+}
 
 /// Runs the phase: `sac`, fresh from the IRL loop, trains on `reward` (the final reward, fixed)
 /// and is scored at each checkpoint; then, with `phase.reset_steps` > 0, a new
@@ -204,7 +245,12 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         )?);
     }
     let chosen = choose(&candidates);
-    Ok(FinalPolicy { candidates, chosen })
+    let random = Some(random_pick(phase.seed, candidates.len()));
+    Ok(FinalPolicy {
+        candidates,
+        chosen,
+        random,
+    })
 }
 
 /// Scores the current policy of `sac` (a policy of `agent`): its learned return on the

@@ -14,7 +14,8 @@
 //!    `firl_density_ratio = "discriminator"`, or against a Gaussian KDE of the expert's,
 //!    `"gaussian_expert"`); for MaxEnt T·(mean r over agent states − mean r
 //!    over expert states);
-//! 4. reward steps (Adam). With `firl_expert_trajectories = N`, each f-IRL step first draws N
+//! 4. reward steps (Adam). After the loop, the final phase every algorithm with a learned
+//!    reward shares (`super::final_policy`). With `firl_expert_trajectories = N`, each f-IRL step first draws N
 //!    demonstrations and appends them to the covariance batch, as f-IRL's code for an expert
 //!    given by samples does (`irl_samples.py`): descent raises the reward along them, also
 //!    where the agent has never been.
@@ -24,7 +25,9 @@
 use super::config::IrlRunConfig;
 use super::episodes::{train_sac, AgentBatch, RolloutStream};
 use super::evaluation::{JobWatch, UpdateFacts};
+use super::final_policy::{self, FinalPhase, FinalPolicy};
 use super::job::{reward_lr, Coefficients, ExpertData};
+use crate::env::clock::{Clock, Clocked};
 use crate::env::layout::OBS_ARM;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};
 use crate::env::ContinuousEnv;
@@ -345,6 +348,20 @@ impl super::final_policy::ScoredReward for StateReward<'_> {
     }
 }
 
+/// The environment a baseline's agent learns in: ReacherDelivery with the clock of the run's
+/// settings after its observation (`smirl_clock`, the same setting SMIRL's product reads); the
+/// reward reads the fingertip alone, never the clock.
+pub fn baseline_env(inner: ReacherDelivery, s: &IrlRunConfig) -> Clocked<ReacherDelivery> {
+    let clock = Clock::of(s.smirl_clock, s.smirl_clock_frozen, s.env.max_steps);
+    Clocked::new(inner, clock)
+}
+
+/// What a baseline job returns: the learned reward and the final phase's candidates, if any.
+pub struct BaselineOutcome {
+    pub reward: MlpReward,
+    pub final_policy: Option<FinalPolicy>,
+}
+
 /// One baseline job.
 pub struct BaselineJob<'a> {
     pub loss: Loss,
@@ -353,10 +370,16 @@ pub struct BaselineJob<'a> {
     pub expert: &'a ExpertData,
 }
 
-/// f-IRL's loop (see the module docs); returns the learned reward.
-pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpReward, String> {
+/// f-IRL's loop (see the module docs), then the final phase every algorithm with a learned
+/// reward shares ([`final_policy`]: more SAC on the final MLP held fixed, the candidate of
+/// highest learned return, the MLP's reward summed along each selection episode).
+pub fn train(
+    job: &BaselineJob<'_>,
+    watch: &mut JobWatch<'_, '_>,
+) -> Result<BaselineOutcome, String> {
     let s = job.settings;
-    let mut env = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let mut env = baseline_env(inner, s);
     let mut reward = reward_model(s, job.seed).map_err(|e| e.to_string())?;
     // f-IRL's ρ_E/ρ_θ: the expert's fingertip KDE, or a classifier on its own random stream.
     let d = job.expert.obs_dim();
@@ -446,5 +469,26 @@ pub fn train(job: &BaselineJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<MlpR
             Some(facts),
         )?;
     }
-    Ok(reward)
+
+    // 5. The final phase: SAC on the final reward, now fixed; no selection cut (it reads a
+    //    learned machine, and the baselines have none).
+    let final_policy = match FinalPhase::of(s, job.seed, None) {
+        Some(phase) => {
+            let mut sac_reward = StateReward::new(&mut reward);
+            let iterations = s.irl_iterations;
+            Some(final_policy::train(
+                &mut sac,
+                &mut env,
+                &mut sac_reward,
+                phase,
+                iterations,
+                watch,
+            )?)
+        }
+        None => None,
+    };
+    Ok(BaselineOutcome {
+        reward,
+        final_policy,
+    })
 }

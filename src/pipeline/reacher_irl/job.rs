@@ -7,14 +7,14 @@
 use super::config::IrlRunConfig;
 use super::evaluation::{GroundTruth, JobWatch};
 use super::final_policy::FinalPolicy;
-use super::firl::{self, BaselineJob, Loss};
+use super::firl::{self, BaselineJob, BaselineOutcome, Loss};
 use super::lockstep::Lockstep;
 use super::smirl::{self, Features, SmirlJob};
 use super::Algo;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};
 use crate::env::reacher_task::BranchTally;
 use crate::irl::kde::Kde;
-use crate::irl::reward::{MlpReward, RewardModel};
+use crate::irl::reward::RewardModel;
 use crate::log::RolloutLogger;
 use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
 use crate::rm::{LabelSet, RewardMachine};
@@ -196,7 +196,7 @@ pub struct JobResult {
     /// μ_π − μ_D of each iteration's reward update, one entry per IRL iteration; empty for the
     /// MLP rewards (too many parameters to trace).
     pub reward_trace: Vec<RewardTraceRow>,
-    /// SMIRL with a final-policy phase: its candidates and the reported one.
+    /// Jobs with a final phase: its candidates, the reported one and the random pick.
     pub final_policy: Option<FinalPolicy>,
     pub wall_secs: f64,
 }
@@ -297,11 +297,7 @@ pub fn run_job(
         .map_err(|e| fail(format!("expert KDE: {e}")))?;
     let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| fail(e.to_string()))?;
     let ground_truth = GroundTruth::new(perfect_rm, &mut schedule, seed, s.eval_episodes);
-    let final_steps = if algo.uses_rm() {
-        s.smirl_final_sac_steps
-    } else {
-        0
-    };
+    let final_steps = s.smirl_final_sac_steps;
     let mut watch = JobWatch::new(
         s,
         final_steps,
@@ -318,7 +314,10 @@ pub fn run_job(
         settings: s,
         expert,
     };
-    let boxed = |r: MlpReward| (Box::new(r) as Box<dyn RewardModel>, Vec::new(), None);
+    let boxed = |o: BaselineOutcome| {
+        let reward = Box::new(o.reward) as Box<dyn RewardModel>;
+        (reward, Vec::new(), o.final_policy)
+    };
     let (reward, reward_trace, final_policy) = match algo {
         Algo::Smirl | Algo::SmirlPaper | Algo::SmirlSmooth => {
             let machine = inputs

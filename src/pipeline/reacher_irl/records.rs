@@ -51,13 +51,20 @@ pub struct AlgoSummary {
     /// Conditional tasks: final success on each branch's evaluation episodes, mean and std
     /// over seeds, in [`Branch::ALL`] order.
     pub final_branch_success: Option<[(f64, f64); 2]>,
-    /// Jobs with a final-policy phase (SMIRL): the reported policy's success (the lower
+    /// Jobs with a final phase: the reported (chosen) policy's success (the lower
     /// branch for a conditional task), mean and std over seeds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub final_policy_success: Option<(f64, f64)>,
     /// ... and per branch of a conditional task, in [`Branch::ALL`] order.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub final_policy_branch_success: Option<[(f64, f64); 2]>,
+    /// The final phase's candidate drawn at random (the choice's yardstick), as
+    /// `final_policy_success`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub random_policy_success: Option<(f64, f64)>,
+    /// ... and per branch of a conditional task.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub random_policy_branch_success: Option<[(f64, f64); 2]>,
     /// Mean wall time of a job (seconds).
     pub job_secs_mean: f64,
 }
@@ -146,14 +153,14 @@ pub struct JobRecord {
     pub algo: String,
     pub seed: u64,
     pub rows: Vec<super::MetricsRow>,
-    /// SMIRL's final-policy phase (`final_policy.csv`); absent in jobs without one.
+    /// The final phase (`final_policy.csv`); absent in jobs without one (`smirl-paper`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub final_policy: Option<FinalPolicy>,
     pub wall_secs: f64,
 }
 
 impl JobRecord {
-    /// The success rate the job reports: its final policy's where it has one (SMIRL), else the
+    /// The success rate the job reports: its final policy's where it has one, else the
     /// last IRL iteration's. The two differ when the final phase picked a checkpoint over a
     /// co-trained policy that dipped at the last iteration.
     pub fn reported_success(&self) -> f64 {

@@ -2,7 +2,7 @@
 //! directory: `metrics.csv`, `final_policy.csv`, `summary.csv`, `summary.md`, the plots and
 //! `run.json`, and each SMIRL job's reward trace CSV.
 
-use super::final_policy::FinalPolicy;
+use super::final_policy::{FinalCandidate, FinalPolicy};
 use super::job::RewardTraceRow;
 use super::records::{
     write_file, AlgoSummary, JobRecord, PipelineError, PreparedRun, RmFacts, RunSummary,
@@ -45,10 +45,41 @@ pub(super) fn write_reports(
         "progress",
         "final_ball",
         "expert_support",
+        "chosen_success_rate",
+        "chosen_success_normal",
+        "chosen_success_cancel",
+        "random_success_rate",
+        "random_success_normal",
+        "random_success_cancel",
     ]);
     let optional = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x}"));
+    // The final phase's chosen and randomly picked candidates, beside the loop's own policy
+    // on the job's last row: success (the lower branch) and each branch's.
+    let candidate_cells = |c: Option<&FinalCandidate>| -> [String; 3] {
+        match c {
+            Some(c) => {
+                let rate = |b: Branch| {
+                    c.branches
+                        .and_then(|t| t.rate(b))
+                        .map_or(String::new(), |x| format!("{x}"))
+                };
+                [
+                    format!("{}", c.success_rate),
+                    rate(Branch::Normal),
+                    rate(Branch::Cancelled),
+                ]
+            }
+            None => Default::default(),
+        }
+    };
     for (_, r) in records {
-        for row in &r.rows {
+        let last = r.rows.len().saturating_sub(1);
+        for (i, row) in r.rows.iter().enumerate() {
+            let final_policy = r.final_policy.as_ref().filter(|_| i == last);
+            let [chosen, chosen_normal, chosen_cancel] =
+                candidate_cells(final_policy.map(FinalPolicy::chosen));
+            let [random, random_normal, random_cancel] =
+                candidate_cells(final_policy.and_then(FinalPolicy::random));
             let branch = |f: &dyn Fn(&BranchTally, Branch) -> String| -> [String; 2] {
                 Branch::ALL.map(|b| row.branches.as_ref().map_or(String::new(), |t| f(t, b)))
             };
@@ -72,6 +103,12 @@ pub(super) fn write_reports(
                 optional(row.progress),
                 optional(row.final_ball),
                 optional(row.expert_support),
+                chosen,
+                chosen_normal,
+                chosen_cancel,
+                random,
+                random_normal,
+                random_cancel,
             ]);
         }
     }
@@ -204,15 +241,17 @@ pub(super) fn write_reports(
         } else {
             None
         };
-        // The reported policies of the final-policy phase, when every seed has one.
-        let chosen: Option<Vec<_>> = runs
-            .iter()
-            .map(|r| r.final_policy.as_ref().map(FinalPolicy::chosen))
-            .collect();
-        let final_policy_success = chosen
-            .as_ref()
-            .map(|c| mean_std(&c.iter().map(|c| c.success_rate).collect::<Vec<_>>()));
-        let final_policy_branch_success = chosen.as_ref().filter(|_| conditional).map(|c| {
+        // The chosen and the randomly picked candidates of the final phase, when every seed
+        // has them.
+        let pick =
+            |f: &dyn Fn(&FinalPolicy) -> Option<&FinalCandidate>| -> Option<Vec<FinalCandidate>> {
+                runs.iter()
+                    .map(|r| r.final_policy.as_ref().and_then(f).cloned())
+                    .collect()
+            };
+        let success =
+            |c: &[FinalCandidate]| mean_std(&c.iter().map(|c| c.success_rate).collect::<Vec<_>>());
+        let branch_success = |c: &[FinalCandidate]| {
             Branch::ALL.map(|b| {
                 let rates: Vec<f64> = c
                     .iter()
@@ -220,7 +259,19 @@ pub(super) fn write_reports(
                     .collect();
                 mean_std(&rates)
             })
-        });
+        };
+        let chosen = pick(&|f| Some(f.chosen()));
+        let random = pick(&|f| f.random());
+        let final_policy_success = chosen.as_deref().map(success);
+        let final_policy_branch_success = chosen
+            .as_deref()
+            .filter(|_| conditional)
+            .map(branch_success);
+        let random_policy_success = random.as_deref().map(success);
+        let random_policy_branch_success = random
+            .as_deref()
+            .filter(|_| conditional)
+            .map(branch_success);
         let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
         summaries.push(AlgoSummary {
             algo: algo.name().into(),
@@ -232,6 +283,8 @@ pub(super) fn write_reports(
             final_branch_success,
             final_policy_success,
             final_policy_branch_success,
+            random_policy_success,
+            random_policy_branch_success,
             job_secs_mean: wm,
         });
     }
@@ -255,6 +308,10 @@ pub(super) fn write_reports(
         "final_success_normal_std",
         "final_success_cancel_mean",
         "final_success_cancel_std",
+        "chosen_success_mean",
+        "chosen_success_std",
+        "random_success_mean",
+        "random_success_std",
     ]);
     for s in &summaries {
         let branch_cells = match s.final_branch_success {
@@ -262,6 +319,12 @@ pub(super) fn write_reports(
             None => Default::default(),
         };
         let [nm, ns, cm, cs] = branch_cells;
+        let pair = |x: Option<(f64, f64)>| match x {
+            Some((m, sd)) => [format!("{m:.3}"), format!("{sd:.3}")],
+            None => Default::default(),
+        };
+        let [chosen_m, chosen_s] = pair(s.final_policy_success);
+        let [random_m, random_s] = pair(s.random_policy_success);
         table.push([
             task.name().to_string(),
             s.algo.clone(),
@@ -274,6 +337,10 @@ pub(super) fn write_reports(
             ns,
             cm,
             cs,
+            chosen_m,
+            chosen_s,
+            random_m,
+            random_s,
         ]);
     }
     write_file(&dir.join("summary.csv"), &table.to_csv())?;
@@ -326,7 +393,8 @@ pub(super) fn write_reports(
 }
 
 /// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
-/// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `agent` says
+/// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `random` the
+/// one drawn at random (the choice's yardstick), `agent` says
 /// whose policy it is (`co-trained`, `reset` with
 /// `smirl_final_reset_steps`), `cut_return`
 /// what the choice read instead of `learned_return` (`smirl_selection_cut`; else empty).
@@ -345,6 +413,7 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
         "final_ball",
         "agent",
         "cut_return",
+        "random",
     ]);
     for (_, r) in records {
         let Some(f) = &r.final_policy else { continue };
@@ -368,6 +437,7 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 format!("{}", c.final_ball),
                 c.agent.name().to_string(),
                 c.cut_return.map_or(String::new(), |x| format!("{x:.6}")),
+                u8::from(f.random == Some(i)).to_string(),
             ]);
         }
     }
@@ -452,33 +522,49 @@ pub fn summary_markdown(
     if !with_final.is_empty() {
         let _ = writeln!(
             s,
-            "\nFinal policy (SAC on the final reward held fixed; of the candidates in \
-             final_policy.csv — the co-trained policy, its checkpoints and any reset agent's — \
-             the one of highest learned return, counted with smirl_selection_cut up to the \
-             first touch after the cancel that no demonstration makes):\n"
+            "\nFinal phase (SAC on the final learned reward held fixed; candidates in \
+             final_policy.csv): success{} of the loop's own policy (last iteration), of the \
+             candidate of highest learned return (chosen: the reported policy) and of one \
+             candidate drawn at random from the job's seed:\n",
+            if conditional { " (lower branch)" } else { "" }
         );
         let _ = writeln!(
             s,
-            "| task | algorithm | seeds | success{} |",
-            if conditional {
-                " (lower branch) | normal branch | cancel branch"
-            } else {
-                ""
-            }
+            "| task | algorithm | seeds | loop's own policy | chosen | random pick |"
         );
-        let _ = writeln!(
-            s,
-            "|---|---|---|---|{}",
-            if conditional { "---|---|" } else { "" }
-        );
+        let _ = writeln!(s, "|---|---|---|---|---|---|");
+        let cell = |x: Option<(f64, f64)>| {
+            x.map_or("—".to_string(), |(m, sd)| format!("{m:.2} ± {sd:.2}"))
+        };
         for a in with_final {
-            let (m, sd) = a.final_policy_success.unwrap_or_default();
-            let branches = branch_cells(a.final_policy_branch_success, conditional);
             let _ = writeln!(
                 s,
-                "| {task} | {} | {} | {m:.2} ± {sd:.2} |{branches}",
-                a.algo, a.seeds
+                "| {task} | {} | {} | {:.2} ± {:.2} | {} | {} |",
+                a.algo,
+                a.seeds,
+                a.final_success_mean,
+                a.final_success_std,
+                cell(a.final_policy_success),
+                cell(a.random_policy_success)
             );
+        }
+        if conditional {
+            let _ = writeln!(
+                s,
+                "\nThe chosen policy per branch:\n\n| task | algorithm | seeds | success (lower branch) | normal branch | cancel branch |\n|---|---|---|---|---|---|"
+            );
+            for a in summaries
+                .iter()
+                .filter(|a| a.final_policy_success.is_some())
+            {
+                let (m, sd) = a.final_policy_success.unwrap_or_default();
+                let branches = branch_cells(a.final_policy_branch_success, conditional);
+                let _ = writeln!(
+                    s,
+                    "| {task} | {} | {} | {m:.2} ± {sd:.2} |{branches}",
+                    a.algo, a.seeds
+                );
+            }
         }
     }
     for (name, facts) in [("Learned RM", rm), ("smirl-paper's learned RM", rm_paper)] {

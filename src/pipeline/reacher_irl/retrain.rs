@@ -310,7 +310,7 @@ pub fn retrain(
     } = loaded;
     let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
     let judge = GroundTruth::new(&run.perfect, &mut schedule, r.seed, s.eval_episodes);
-    let mut inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
     let training = Training {
         sac: &s.sac,
         sac_seed: r.sac_seed,
@@ -333,8 +333,9 @@ pub fn retrain(
             training.run(&mut env, &mut sac_reward, &mut on_point)
         }
         Reward::Mlp(mut reward) => {
+            let mut env = firl::baseline_env(inner, &s);
             let mut sac_reward = StateReward::new(&mut reward);
-            training.run(&mut inner, &mut sac_reward, &mut on_point)
+            training.run(&mut env, &mut sac_reward, &mut on_point)
         }
     }
 }

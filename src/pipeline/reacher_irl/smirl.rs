@@ -15,11 +15,10 @@
 //!    3. feature expectations: the loss coefficients whose gradient is μ_π − μ_D per (u, o)
 //!       ([`coefficients`]);
 //!    4. reward step(s) on w (Adam, L2).
-//! 4. **Final policy** (`smirl_final_sac_steps` > 0, [`super::final_policy`]): SAC goes on with
-//!    the final reward held fixed (and, with `smirl_final_reset_steps` > 0, a reset agent
-//!    learns it on a copy of the replay buffer); the candidate of highest learned return is reported
-//!    (`smirl_selection_cut`: each selection episode's return counted up to its first touch
-//!    after the cancel that no demonstration makes, [`seen_after_events`]).
+//! 4. **Final policy** (`smirl_final_sac_steps` > 0): the final phase every algorithm with a
+//!    learned reward shares ([`super::final_policy`]), on δ_r held fixed; SMIRL's own part is
+//!    the selection cut (`smirl_selection_cut`: each selection episode's return counted up to
+//!    its first touch after the cancel that no demonstration makes, [`seen_after_events`]).
 //!
 //! Steps 1–2 run once per task in `reacher prepare` (every SMIRL job of a run shares the
 //! machine); `train` is one (variant, seed) job. Ground-truth evaluation, logging and progress
@@ -572,36 +571,29 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     //    potential), then (`smirl_final_reset_steps`) a reset agent learns it too,
     //    and the candidate of highest learned return (`smirl_selection_cut`: counted up to
     //    the first touch after the cancel that no demonstration makes) is the job's policy.
-    let final_policy = if s.smirl_final_sac_steps > 0 {
-        let potential = shaping_potential(&features, n_states, &reward.params(), s)?;
-        let mut sac_reward = ProductReward::new(
-            &mut reward,
-            counterfactual.as_ref(),
-            potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
-        );
-        let selection_cut = s
-            .smirl_selection_cut
-            .then(|| seen_after_events(job.machine, job.expert, s))
-            .transpose()?;
-        let phase = FinalPhase {
-            steps: s.smirl_final_sac_steps,
-            checkpoints: s.smirl_final_checkpoints,
-            seed: job.seed,
-            reset_steps: s.smirl_final_reset_steps,
-            selection_cut: selection_cut.as_ref(),
-            selection_episodes: final_policy::selection_episodes(s),
-        };
-        let iterations = s.irl_iterations;
-        Some(final_policy::train(
-            &mut sac,
-            &mut env,
-            &mut sac_reward,
-            phase,
-            iterations,
-            watch,
-        )?)
-    } else {
-        None
+    let selection_cut = s
+        .smirl_selection_cut
+        .then(|| seen_after_events(job.machine, job.expert, s))
+        .transpose()?;
+    let final_policy = match FinalPhase::of(s, job.seed, selection_cut.as_ref()) {
+        Some(phase) => {
+            let potential = shaping_potential(&features, n_states, &reward.params(), s)?;
+            let mut sac_reward = ProductReward::new(
+                &mut reward,
+                counterfactual.as_ref(),
+                potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
+            );
+            let iterations = s.irl_iterations;
+            Some(final_policy::train(
+                &mut sac,
+                &mut env,
+                &mut sac_reward,
+                phase,
+                iterations,
+                watch,
+            )?)
+        }
+        None => None,
     };
     Ok(SmirlOutcome {
         reward,

@@ -1,0 +1,205 @@
+//! The final phase every algorithm with a learned reward shares, its random pick, and the
+//! clock every algorithm's agent may get (issue 54, item 4: what is not specific to reward
+//! machines goes to every algorithm).
+
+mod irl_run_common;
+use irl_run_common::{metrics_column, tiny_config};
+use smirl::env::clock::Clock;
+use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
+use smirl::env::reacher_task::ReacherTask;
+use smirl::env::ContinuousEnv;
+use smirl::pipeline::reacher_irl::final_policy::random_pick;
+use smirl::pipeline::reacher_irl::firl::baseline_env;
+use smirl::pipeline::reacher_irl::records::JobRecord;
+use smirl::pipeline::reacher_irl::run::Silent;
+use smirl::pipeline::reacher_irl::{run_pipeline, Algo, IrlRunConfig, RunRequest};
+use std::path::{Path, PathBuf};
+
+const SEED: u64 = 5;
+
+/// One `algo` job on task "blue" (base seed [`SEED`]) with `config`: the temporary directory,
+/// the run directory and the job's record.
+fn tiny_run(algo: Algo, config: IrlRunConfig) -> (tempfile::TempDir, PathBuf, JobRecord) {
+    let tmp = tempfile::tempdir().unwrap();
+    let request = RunRequest {
+        task: ReacherTask::shipped("blue").unwrap(),
+        algos: vec![algo],
+        seeds: 1,
+        seed: SEED,
+        config,
+        out: tmp.path().join("run"),
+        force: false,
+    };
+    run_pipeline(&request, &Silent).unwrap();
+    let dir = tmp.path().join("run");
+    let record = read_record(&dir, algo);
+    (tmp, dir, record)
+}
+
+fn read_record(dir: &Path, algo: Algo) -> JobRecord {
+    let path = dir.join(format!("jobs/{}_seed{SEED}.json", algo.name()));
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// A baseline (maxent) runs the final phase: the co-trained policy, two checkpoints of the
+/// co-trained agent and two of the reset agent; the chosen candidate has the highest learned
+/// return (no selection cut: the baselines have no learned machine), the random pick is one of
+/// the candidates and is [`random_pick`] of the job's seed; metrics.csv shows the loop's own,
+/// the chosen and the randomly picked policy side by side on the job's last row, and the
+/// summary too.
+///
+/// Mutations tried: `firl::train` without its final phase (`final_policy: None`): fails at
+/// "maxent has a final phase"; `choose` keeping the first candidate of *lowest* return (`<`
+/// for `>`): fails at "the chosen candidate has the highest learned return".
+#[test]
+fn a_baseline_runs_the_final_phase_and_chooses_by_its_learned_return() {
+    let mut config = tiny_config();
+    config.smirl_final_reset_steps = 140;
+    let (_tmp, dir, record) = tiny_run(Algo::MaxEnt, config.clone());
+    let f = record
+        .final_policy
+        .as_ref()
+        .expect("maxent has a final phase");
+    let per_agent = config.smirl_final_checkpoints as usize;
+    assert_eq!(f.candidates.len(), 1 + 2 * per_agent);
+    assert!(f.candidates.iter().all(|c| c.cut_return.is_none()));
+    let best = (f.candidates.iter())
+        .map(|c| c.learned_return)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(
+        f.chosen().learned_return,
+        best,
+        "the chosen candidate has the highest learned return"
+    );
+    // The learned returns differ between candidates: they are read, not constant.
+    assert!(
+        f.candidates
+            .iter()
+            .any(|c| c.learned_return != f.candidates[0].learned_return),
+        "{f:?}"
+    );
+    let random = f.random.expect("a random pick");
+    assert!(random < f.candidates.len());
+    assert_eq!(random, random_pick(SEED, f.candidates.len()));
+    // The co-trained candidate is the loop's last policy.
+    let last = record.rows.last().unwrap();
+    assert_eq!(f.candidates[0].success_rate, last.success_rate);
+    assert_eq!(f.candidates[0].env_steps, last.env_steps);
+
+    let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    let chosen = metrics_column(&metrics, "chosen_success_rate");
+    let picked = metrics_column(&metrics, "random_success_rate");
+    let n = chosen.len();
+    assert!(chosen[..n - 1].iter().all(String::is_empty), "{metrics}");
+    assert_eq!(chosen[n - 1], format!("{}", f.chosen().success_rate));
+    assert_eq!(
+        picked[n - 1],
+        format!("{}", f.candidates[random].success_rate)
+    );
+    let summary = std::fs::read_to_string(dir.join("summary.md")).unwrap();
+    assert!(
+        summary.contains("| loop's own policy | chosen | random pick |"),
+        "{summary}"
+    );
+    let table = std::fs::read_to_string(dir.join("final_policy.csv")).unwrap();
+    let marked: Vec<usize> = (table.lines().skip(1).enumerate())
+        .filter(|(_, l)| l.ends_with(",1"))
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(marked, vec![random], "{table}");
+}
+
+/// The random pick: deterministic per (seed, count), always a candidate, and not a constant
+/// (over seeds it reaches every index).
+///
+/// Mutation tried: `random_pick` returning `n - 1`: fails at "every index is drawn".
+#[test]
+fn the_random_pick_is_deterministic_and_among_the_candidates() {
+    for n in 1..12 {
+        let mut seen = vec![false; n];
+        for seed in 0..200 {
+            let k = random_pick(seed, n);
+            assert!(k < n);
+            assert_eq!(k, random_pick(seed, n));
+            seen[k] = true;
+        }
+        assert!(seen.iter().all(|&s| s), "every index is drawn for n = {n}");
+    }
+}
+
+/// The clock reaches a baseline's policy: `baseline_env` appends it after the task
+/// observation (1 at reset, the share of the episode left after each step, frozen at 1 under
+/// `smirl_clock_frozen`, absent without `smirl_clock`), and a baseline job's results change
+/// with it, as they do when its policy sees another input.
+///
+/// Mutation tried: `firl::train` acting in the plain `ReacherDelivery` instead of
+/// `baseline_env`: fails at "the clock changes maxent's job".
+#[test]
+fn the_clock_reaches_the_baselines_policy_observation() {
+    let mut settings = tiny_config();
+    settings.env = ReacherTask::shipped("blue")
+        .unwrap()
+        .env_config(&ReacherConfig::default())
+        .unwrap();
+    let horizon = settings.env.max_steps;
+    let plain = ReacherDelivery::new(settings.env.clone()).unwrap();
+    let d = plain.obs_dim();
+    assert!(
+        settings.smirl_clock,
+        "the standard's, and so the tiny one's"
+    );
+    let mut env = baseline_env(plain, &settings);
+    assert_eq!(env.obs_dim(), d + 1);
+    let mut obs = vec![0.0f32; d + 1];
+    env.reset(7, &mut obs);
+    assert_eq!(obs[d], 1.0);
+    let mut plain_obs = vec![0.0f32; d];
+    let mut twin = ReacherDelivery::new(settings.env.clone()).unwrap();
+    twin.reset(7, &mut plain_obs);
+    assert_eq!(&obs[..d], &plain_obs[..]);
+    for t in 1..=3 {
+        env.step(&[0.3, -0.2], &mut obs).unwrap();
+        twin.step(&[0.3, -0.2], &mut plain_obs).unwrap();
+        assert_eq!(obs[d], (horizon - t) as f32 / horizon as f32);
+        assert_eq!(&obs[..d], &plain_obs[..]);
+    }
+    let frozen = IrlRunConfig {
+        smirl_clock_frozen: true,
+        ..settings.clone()
+    };
+    let inner = ReacherDelivery::new(settings.env.clone()).unwrap();
+    let mut env = baseline_env(inner, &frozen);
+    assert_eq!(env.inner().obs_dim() + 1, env.obs_dim());
+    env.reset(7, &mut obs);
+    env.step(&[0.3, -0.2], &mut obs).unwrap();
+    assert_eq!(obs[d], 1.0);
+    let none = IrlRunConfig {
+        smirl_clock: false,
+        ..settings.clone()
+    };
+    let inner = ReacherDelivery::new(settings.env.clone()).unwrap();
+    assert_eq!(baseline_env(inner, &none).obs_dim(), d);
+    assert_eq!(
+        Clock::of(true, false, horizon),
+        Clock::CountDown(horizon),
+        "the clock's settings"
+    );
+
+    // Through the pipeline: the same job without the clock learns another reward.
+    let mut config = tiny_config();
+    config.smirl_final_sac_steps = 0;
+    config.smirl_final_checkpoints = 0;
+    let (_a, with, _) = tiny_run(Algo::MaxEnt, config.clone());
+    let (_b, without, _) = tiny_run(
+        Algo::MaxEnt,
+        IrlRunConfig {
+            smirl_clock: false,
+            ..config
+        },
+    );
+    let reward = |dir: &Path| std::fs::read(dir.join(format!("rewards/maxent_seed{SEED}.bin")));
+    assert!(
+        reward(&with).unwrap() != reward(&without).unwrap(),
+        "the clock changes maxent's job"
+    );
+}
