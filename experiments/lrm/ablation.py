@@ -1,6 +1,6 @@
 """Table of LRM's mechanisms ablated on the development range (no SAC).
 
-Reads the rows `lrm_ablation` wrote (experiments/lrm/ablation.csv) and writes
+Reads the rows `lrm_ablation` wrote (experiments/lrm/ablation.csv.gz, gzipped) and writes
 experiments/lrm/ablation.md. Run by experiments/lrm/ablation.sh, which says how the rows were made.
 
 Per (variant, task): the bases; the share whose learned machine tracks the task (the perfect
@@ -12,12 +12,16 @@ and the mean number of states. For each ablation: "lost" = bases the standard tr
 variant does not (the mechanism helps there), "gained" = the reverse (it hurts there).
 """
 import csv
+import gzip
+import io
 import sys
 from collections import defaultdict
 
-src = sys.argv[1] if len(sys.argv) > 1 else "experiments/lrm/ablation.csv"
+src = sys.argv[1] if len(sys.argv) > 1 else "experiments/lrm/ablation.csv.gz"
 dst = sys.argv[2] if len(sys.argv) > 2 else "experiments/lrm/ablation.md"
-rows = list(csv.DictReader(open(src)))
+opened = gzip.open(src, "rt", newline="") if src.endswith(".gz") else open(src, newline="")
+with opened as fh:
+    rows = list(csv.DictReader(io.StringIO(fh.read())))
 tasks = ["or", "sequential", "if", "composite"]
 variants = []
 for r in rows:

@@ -5,14 +5,17 @@
 # under smirl-paper's learner, and with the three mechanisms that fail the fold rule off together
 # (src/bin/lrm_ablation.rs); experiments/lrm/ablation.py makes the table. The base list is the
 # whole declared development range, fixed before any result. ablation_before_fold.md is this
-# script's table at commit 66f0e44 (with fallback starts), on which the fold was decided.
+# script's table at commit 66f0e44 (with fallback starts), on which the fold was decided
+# (its rows: ablation_before_fold.csv.gz).
 # Usage: nice -n 10 experiments/lrm/ablation.sh   (about 3 CPU-minutes, one thread)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cargo build --release --bin lrm_ablation >&2
 BASES=0,3-105,153,219,246,282,372,546,549,700,703
-out=experiments/lrm/ablation.csv
-rm -f "$out.partial"
-./target/release/lrm_ablation --tasks or,sequential,if,composite --bases "$BASES" --out "$out.partial"
-mv "$out.partial" "$out"
+out=experiments/lrm/ablation.csv.gz
+partial=experiments/lrm/ablation.csv.partial
+rm -f "$partial"
+./target/release/lrm_ablation --tasks or,sequential,if,composite --bases "$BASES" --out "$partial"
+gzip -n -9 -c "$partial" > "$out"
+rm "$partial"
 python3 experiments/lrm/ablation.py "$out" experiments/lrm/ablation.md
