@@ -215,7 +215,11 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
         }
     }
     if !args.no_events {
-        with_event_rules(&mut cfg, traces.events);
+        // Learned as SMIRL's learner reads the events, as the run learned its own machine.
+        cfg = smirl::with_event_rules(LrmConfig {
+            events: traces.events,
+            ..cfg
+        });
     }
     println!(
         "events: {}",
@@ -275,13 +279,6 @@ pub fn learn_rm(args: LearnRmRequest) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// `cfg` reading `events` as SMIRL's learner does ([`smirl::with_event_rules`]), so that a
-/// machine learned offline from a run's logs is learned as the run learned its own.
-fn with_event_rules(cfg: &mut LrmConfig, events: LabelSet) {
-    cfg.events = events;
-    *cfg = smirl::with_event_rules(cfg.clone());
 }
 
 /// The arguments of `reacher demo`.
