@@ -17,6 +17,7 @@ use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::{task_env, Branch, CancelBranch, ReacherTask, SubgoalPotential};
 use smirl::env::ContinuousEnv;
 use smirl::rm::{LabelSet, RewardMachine};
+use std::sync::{mpsc, Arc};
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<ReacherCore>()?;
@@ -27,6 +28,9 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 
 /// Most environments one batch may hold.
 const MAX_BATCH: usize = 4096;
+
+/// Most threads one batch may step on.
+const MAX_THREADS: usize = 256;
 
 /// Names of the shipped ReacherDelivery tasks.
 #[pyfunction]
@@ -296,12 +300,81 @@ impl ReacherCore {
 
 /// `n` environments of one task stepped together; `step` releases the GIL and spreads the
 /// environments over `threads` threads (the result does not depend on the thread count: each
-/// environment's episode depends on its own seed and actions only).
+/// environment's episode depends on its own seed and actions only). The calling thread steps
+/// the first chunk of environments; each other chunk has a worker thread of its own that lives
+/// as long as the batch, so a step costs one hand-over per worker, not a thread start.
 #[pyclass(module = "smirl._core", unsendable)]
 pub struct ReacherBatch {
-    spec: TaskSpec,
-    slots: Vec<Slot>,
-    threads: usize,
+    spec: Arc<TaskSpec>,
+    /// The environments in chunks of consecutive indices: chunk 0 is stepped by the calling
+    /// thread, chunk `k ≥ 1` by worker `k − 1`, which holds it only while it steps it.
+    chunks: Vec<Vec<Slot>>,
+    workers: Vec<Worker>,
+    n: usize,
+}
+
+/// A chunk's hand-over to a worker and back: the worker receives the chunk with its actions
+/// and returns the chunk with each environment's step result.
+type StepResults = Vec<Result<Option<StepOut>, String>>;
+type Handover = (Vec<Slot>, Vec<f32>);
+type Handback = (Vec<Slot>, StepResults);
+
+/// A worker thread that steps the chunks it is handed until the batch drops its sender.
+struct Worker {
+    to_worker: Option<mpsc::Sender<Handover>>,
+    from_worker: mpsc::Receiver<Handback>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Worker {
+    fn spawn(spec: Arc<TaskSpec>) -> PyResult<Worker> {
+        let (to_worker, inbox) = mpsc::channel::<Handover>();
+        let (outbox, from_worker) = mpsc::channel::<Handback>();
+        let thread = std::thread::Builder::new()
+            .name("smirl-batch".into())
+            .spawn(move || {
+                for (mut chunk, actions) in inbox {
+                    let results = step_chunk(&spec, &mut chunk, &actions);
+                    if outbox.send((chunk, results)).is_err() {
+                        break;
+                    }
+                }
+            })
+            .map_err(|e| error(format!("cannot start a stepping thread: {e}")))?;
+        Ok(Worker {
+            to_worker: Some(to_worker),
+            from_worker,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        // Closing the channel ends the worker's loop.
+        self.to_worker = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Steps every environment of `chunk` whose episode is running with its row of `actions`.
+/// A panic inside an environment becomes that environment's error.
+fn step_chunk(spec: &TaskSpec, chunk: &mut [Slot], actions: &[f32]) -> StepResults {
+    let a = actions.len() / chunk.len().max(1);
+    chunk
+        .iter_mut()
+        .zip(actions.chunks(a.max(1)))
+        .map(|(slot, act)| {
+            if slot.done {
+                return Ok(None);
+            }
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| slot.step(spec, act)))
+                .unwrap_or_else(|_| Err("the environment panicked while stepping".into()))
+                .map(Some)
+        })
+        .collect()
 }
 
 #[pymethods]
@@ -314,31 +387,43 @@ impl ReacherBatch {
                 "a batch holds 1 to {MAX_BATCH} environments, got {n}"
             )));
         }
-        if threads == 0 || threads > 256 {
+        if threads == 0 || threads > MAX_THREADS {
             return Err(PyValueError::new_err(format!(
-                "threads must be in 1..=256, got {threads}"
+                "threads must be in 1..={MAX_THREADS}, got {threads}"
             )));
         }
-        let spec = TaskSpec::new(task, shaping, gamma)?;
-        let slots = (0..n).map(|_| Slot::new(&spec)).collect::<PyResult<_>>()?;
+        let spec = Arc::new(TaskSpec::new(task, shaping, gamma)?);
+        let mut slots = (0..n)
+            .map(|_| Slot::new(&spec))
+            .collect::<PyResult<Vec<_>>>()?;
+        let per = n.div_ceil(threads.min(n));
+        let mut chunks = Vec::new();
+        while !slots.is_empty() {
+            let rest = slots.split_off(per.min(slots.len()));
+            chunks.push(std::mem::replace(&mut slots, rest));
+        }
+        let workers = (1..chunks.len())
+            .map(|_| Worker::spawn(Arc::clone(&spec)))
+            .collect::<PyResult<_>>()?;
         Ok(ReacherBatch {
             spec,
-            slots,
-            threads,
+            chunks,
+            workers,
+            n,
         })
     }
 
     #[getter]
     fn n(&self) -> usize {
-        self.slots.len()
+        self.n
     }
     #[getter]
     fn obs_dim(&self) -> usize {
-        self.slots[0].env.obs_dim()
+        self.chunks[0][0].env.obs_dim()
     }
     #[getter]
     fn act_dim(&self) -> usize {
-        self.slots[0].env.act_dim()
+        self.chunks[0][0].env.act_dim()
     }
     #[getter]
     fn max_steps(&self) -> usize {
@@ -353,6 +438,7 @@ impl ReacherBatch {
         indices: Vec<usize>,
         seeds: Vec<i128>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.usable()?;
         if indices.len() != seeds.len() {
             return Err(PyValueError::new_err(format!(
                 "{} indices but {} seeds",
@@ -360,12 +446,16 @@ impl ReacherBatch {
                 seeds.len()
             )));
         }
+        let n = self.n;
+        let per = self.chunks[0].len();
         for (&i, &s) in indices.iter().zip(&seeds) {
-            let n = self.slots.len();
-            let slot = self.slots.get_mut(i).ok_or_else(|| {
-                PyValueError::new_err(format!("index {i} is not below the batch size {n}"))
-            })?;
-            slot.reset(&self.spec, seed_of(s)?);
+            if i >= n {
+                return Err(PyValueError::new_err(format!(
+                    "index {i} is not below the batch size {n}"
+                )));
+            }
+            let seed = seed_of(s)?;
+            self.chunks[i / per][i % per].reset(&self.spec, seed);
         }
         Ok(self.observations(py))
     }
@@ -387,7 +477,8 @@ impl ReacherBatch {
         Bound<'py, PyArray1<bool>>,
         Bound<'py, PyArray1<i64>>,
     )> {
-        let n = self.slots.len();
+        self.usable()?;
+        let n = self.n;
         let a = self.act_dim();
         if actions.shape() != [n, a] {
             return Err(PyValueError::new_err(format!(
@@ -396,48 +487,15 @@ impl ReacherBatch {
             )));
         }
         let actions: Vec<f32> = actions.as_array().iter().copied().collect();
-        let spec = &self.spec;
-        let threads = self.threads.min(n);
-        let slots = &mut self.slots;
-        let results: Vec<Result<Option<StepOut>, String>> = py.allow_threads(|| {
-            let per = n.div_ceil(threads);
-            let step_chunk = |chunk: &mut [Slot], acts: &[f32]| {
-                chunk
-                    .iter_mut()
-                    .zip(acts.chunks(a))
-                    .map(|(slot, act)| {
-                        if slot.done {
-                            Ok(None)
-                        } else {
-                            slot.step(spec, act).map(Some)
-                        }
-                    })
-                    .collect::<Vec<_>>()
-            };
-            // The calling thread steps the first chunk itself: one thread fewer to start.
-            let mut chunks = slots.chunks_mut(per).zip(actions.chunks(per * a));
-            let (first, first_acts) = chunks.next().expect("a batch holds at least 1 environment");
-            std::thread::scope(|s| {
-                let handles: Vec<_> = chunks
-                    .map(|(chunk, acts)| s.spawn(move || step_chunk(chunk, acts)))
-                    .collect();
-                let mut results = step_chunk(first, first_acts);
-                for h in handles {
-                    match h.join() {
-                        Ok(r) => results.extend(r),
-                        Err(_) => results.push(Err("a stepping thread panicked".into())),
-                    }
-                }
-                results
-            })
-        });
+        let results = py.allow_threads(|| self.step_all(&actions))?;
         let mut rewards = vec![0.0; n];
         let mut terminated = vec![false; n];
         let mut truncated = vec![false; n];
         let mut success = vec![false; n];
         let mut states = vec![0i64; n];
-        for (i, r) in results.into_iter().enumerate() {
-            states[i] = self.slots[i].env.rm_state() as i64;
+        let slots = self.chunks.iter().flatten();
+        for (i, (r, slot)) in results.into_iter().zip(slots).enumerate() {
+            states[i] = slot.env.rm_state() as i64;
             match r.map_err(|e| error(format!("environment {i}: {e}")))? {
                 Some(out) => {
                     rewards[i] = out.reward;
@@ -462,15 +520,63 @@ impl ReacherBatch {
 }
 
 impl ReacherBatch {
+    /// Hands chunks 1.. to their workers, steps chunk 0 here, and takes the chunks back, in
+    /// index order. A chunk a worker does not return (its thread died) leaves the batch
+    /// unusable: every later call says so.
+    fn step_all(&mut self, actions: &[f32]) -> PyResult<StepResults> {
+        let a = actions.len() / self.n;
+        let per = self.chunks[0].len();
+        let mut handed = 0;
+        for (k, worker) in self.workers.iter().enumerate() {
+            let chunk = std::mem::take(&mut self.chunks[k + 1]);
+            let from = (k + 1) * per * a;
+            let rows = actions[from..from + chunk.len() * a].to_vec();
+            let sent = worker.to_worker.as_ref().map(|tx| tx.send((chunk, rows)));
+            if !matches!(sent, Some(Ok(()))) {
+                break;
+            }
+            handed += 1;
+        }
+        let mut results = step_chunk(&self.spec, &mut self.chunks[0], &actions[..per * a]);
+        let mut lost = handed < self.workers.len();
+        for (k, worker) in self.workers.iter().take(handed).enumerate() {
+            match worker.from_worker.recv() {
+                Ok((chunk, r)) => {
+                    self.chunks[k + 1] = chunk;
+                    results.extend(r);
+                }
+                Err(_) => lost = true,
+            }
+        }
+        if lost {
+            return Err(error(
+                "a stepping thread of this batch died; the batch is unusable, make a new one",
+            ));
+        }
+        Ok(results)
+    }
+
+    /// Refuses to work on a batch that lost a chunk.
+    fn usable(&self) -> PyResult<()> {
+        if self.chunks.iter().map(Vec::len).sum::<usize>() == self.n {
+            Ok(())
+        } else {
+            Err(error(
+                "a stepping thread of this batch died; the batch is unusable, make a new one",
+            ))
+        }
+    }
+
     fn observations<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
-        let d = self.slots[0].obs.len();
+        let d = self.chunks[0][0].obs.len();
         let flat: Vec<f32> = self
-            .slots
+            .chunks
             .iter()
+            .flatten()
             .flat_map(|s| s.obs.iter().copied())
             .collect();
         PyArray1::from_vec(py, flat)
-            .reshape([self.slots.len(), d])
+            .reshape([self.n, d])
             .expect("n × obs_dim elements")
     }
 }
