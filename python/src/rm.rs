@@ -152,10 +152,13 @@ impl PyRewardMachine {
 ///
 /// `traces`: label traces, one label-set string per step; `rewards`: optionally, each
 /// trace's per-step rewards; `events`: the propositions the domain declares exogenous
-/// events. Returns `(machine, stats)`.
+/// events; `rules`: `"smirl"` (SMIRL's learner, as `reacher learn-rm` and SMIRL's jobs run it:
+/// tree guards and the event rules of docs/method.md) or `"paper"` (the paper's eq. 1, as
+/// `smirl-paper` runs it). Returns `(machine, stats)`.
 #[pyfunction]
 #[pyo3(signature = (traces, vocabulary, rewards = None, events = "", max_states = 10,
-                    max_steps = 100, seed = 0, starts = 4, merge = true, threads = 1))]
+                    max_steps = 100, seed = 0, starts = 4, merge = true, threads = 1,
+                    rules = "smirl"))]
 #[allow(clippy::too_many_arguments)]
 fn learn_rm(
     py: Python<'_>,
@@ -169,6 +172,7 @@ fn learn_rm(
     starts: usize,
     merge: bool,
     threads: usize,
+    rules: &str,
 ) -> PyResult<(
     PyRewardMachine,
     std::collections::HashMap<&'static str, f64>,
@@ -219,6 +223,15 @@ fn learn_rm(
             rewards: rewards.as_ref().map(|r| r[k].clone()),
         });
     }
+    let smirl_rules = match rules {
+        "smirl" => true,
+        "paper" => false,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "rules must be \"smirl\" or \"paper\", got \"{other}\""
+            )))
+        }
+    };
     let cfg = LrmConfig {
         max_states,
         max_steps,
@@ -228,6 +241,15 @@ fn learn_rm(
         threads,
         events: labels(&vocab, events)?,
         ..LrmConfig::default()
+    };
+    let cfg = if smirl_rules {
+        // SMIRL's learner keeps the machine in place while a label set holds, as the CLI's.
+        smirl::pipeline::reacher_irl::smirl::with_event_rules(LrmConfig {
+            stutter_invariant: true,
+            ..cfg
+        })
+    } else {
+        cfg
     };
     let learned = py
         .allow_threads(|| lrm::learn_rm(&vocab, &label_traces, &cfg))

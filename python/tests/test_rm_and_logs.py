@@ -189,3 +189,23 @@ def test_write_log_refuses_bad_episodes_and_leaves_no_file(tmp_path):
     with pytest.raises(smirl.SmirlError, match="not a finite number"):
         smirl.write_log(path, "blue", [(0, nan)])
     assert not path.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_learn_rm_learns_what_the_reacher_binary_learns(demo_log, reacher_bin, tmp_path):
+    """`smirl.learn_rm` with its defaults (SMIRL's learner, the task's event declared) learns
+    from a log's label traces the machine `reacher learn-rm` learns from the log; the paper's
+    rules are a different learner."""
+    subprocess.run(
+        [reacher_bin, "learn-rm", str(demo_log), "--out", str(tmp_path)],
+        check=True,
+        capture_output=True,
+    )
+    cli = smirl.RewardMachine.from_text((tmp_path / "learned_rm.txt").read_text())
+    episodes = smirl.read_log(demo_log)["episodes"]
+    traces = [list(ep["label_text"]) for ep in episodes]
+    rewards = [[float(r) for r in ep["rm_rewards"]] for ep in episodes]
+    vocab = cli.vocabulary
+    rm, _ = smirl.learn_rm(traces, vocab, rewards=rewards, events="c")
+    assert rm.to_text() == cli.to_text()
+    with pytest.raises(ValueError, match="rules"):
+        smirl.learn_rm(traces, vocab, events="c", rules="mine")
