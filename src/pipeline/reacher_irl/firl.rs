@@ -36,7 +36,6 @@ use super::job::{reward_lr, Coefficients, ExpertData};
 use crate::env::clock::{Clock, Clocked};
 use crate::env::layout::OBS_ARM;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};
-use crate::env::ContinuousEnv;
 use crate::irl::discriminator::{Discriminator, DiscriminatorConfig};
 use crate::irl::firl::{
     self, DensityRatio, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS,
@@ -142,7 +141,7 @@ impl StateMap<'_> {
     /// The reward's rows of a SAC batch of the agent's environment (`obs_dim`: the task
     /// observation's width): the next observation (fingertip), or the state before the step
     /// read from the previous observation's one-hot block with the next fingertip (product).
-    fn sac_rows(&self, batch: &ReplayBatch, obs_dim: usize, out: &mut Vec<f32>) {
+    pub fn sac_rows(&self, batch: &ReplayBatch, obs_dim: usize, out: &mut Vec<f32>) {
         let d = batch.obs.nrows();
         out.clear();
         let next = batch.next_obs.as_slice().chunks_exact(d);
