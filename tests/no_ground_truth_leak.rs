@@ -260,8 +260,9 @@ fn perturbing_the_perfect_machine_leaves_a_baselines_learning_and_choice_unchang
 /// evaluation different.
 ///
 /// Mutation tried (a leak): the control's state map on the job's perfect machine instead of the
-/// learned one (`StateMap::Product(perfect_rm)` in `job::run_job`): fails at
-/// "rewards/fkl-product_seed3.bin differs".
+/// learned one (`StateMap::Product(perfect_rm)` in `job::run_job`): the job fails ("f-IRL needs
+/// agent trajectories of one fixed length": the perfect machine's goal ends the product's
+/// episodes).
 #[test]
 fn perturbing_the_perfect_machine_leaves_a_product_controls_learning_unchanged() {
     let tmp = tempfile::tempdir().unwrap();

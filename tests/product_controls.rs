@@ -76,8 +76,8 @@ fn demo(obs_dim: usize, label_trace: &[&str]) -> Demo {
 /// read in, as SMIRL pairs u_t with o_{t+1}), so the rows are one-hot(0, 0, 1, 1, 1, 2) followed
 /// by each step's fingertip; the baselines' rows are the observations themselves.
 ///
-/// Mutation tried: the one-hot of the state after the step (`u + 1` capped at 2 in
-/// `StateMap::rows`): fails at "row 1".
+/// Mutation tried: the one-hot of the next state in the chain (`u + 1` capped at 2 in
+/// `StateMap::rows`): fails at "row 0".
 #[test]
 fn the_product_rows_follow_the_learned_machine_on_a_recorded_label_sequence() {
     let layout = ReacherTask::shipped("blue").unwrap().layout();
