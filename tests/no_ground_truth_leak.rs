@@ -31,6 +31,14 @@ const LEARNED_FILES: [&str; 4] = [
 /// The same for a baseline (maxent): the demonstrations it reads and the MLP reward it learns.
 const BASELINE_FILES: [&str; 2] = ["expert_data.bin", "rewards/maxent_seed3.bin"];
 
+/// The same for a product control (fkl-product): the learned machine it reads, the annotated
+/// demonstrations and the MLP reward over (one-hot u, fingertip).
+const PRODUCT_FILES: [&str; 3] = [
+    "rm/learned.txt",
+    "expert_data.bin",
+    "rewards/fkl-product_seed3.bin",
+];
+
 /// Another task with a cancel branch (as IF's has), and other rewards: the episode succeeds,
 /// with reward 7, on any first step without blue or the cancel; a cancel pays 0.5 and makes
 /// blue a failure, red after it pays 3.
@@ -241,6 +249,36 @@ fn perturbing_the_perfect_machine_leaves_a_baselines_learning_and_choice_unchang
     let (b, files_b) = run("perturbed", Some(PERTURBED_CONDITIONAL));
     for (k, (fa, fb)) in files_a.iter().zip(&files_b).enumerate() {
         assert!(fa == fb, "{} differs", BASELINE_FILES[k]);
+    }
+    assert_same_learning_other_evaluation(&a, &b);
+}
+
+/// A product control (fkl-product: SMIRL's learned machine, the reward and the densities over
+/// (one-hot u, fingertip)) on IF against the same job judged by [`PERTURBED_CONDITIONAL`]: the
+/// learned machine, the demonstrations, the MLP reward, every iteration's learned reward and
+/// surrogate loss, the candidates' learned returns and the choice bit-identical; the
+/// evaluation different.
+///
+/// Mutation tried (a leak): the control's state map on the job's perfect machine instead of the
+/// learned one (`StateMap::Product(perfect_rm)` in `job::run_job`): the job fails ("f-IRL needs
+/// agent trajectories of one fixed length": the perfect machine's goal ends the product's
+/// episodes).
+#[test]
+fn perturbing_the_perfect_machine_leaves_a_product_controls_learning_unchanged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |name: &str, perfect: Option<&str>| {
+        job_of(
+            Algo::FklProduct,
+            &PRODUCT_FILES,
+            ReacherTask::shipped("if").unwrap(),
+            &tmp.path().join(name),
+            perfect,
+        )
+    };
+    let (a, files_a) = run("true", None);
+    let (b, files_b) = run("perturbed", Some(PERTURBED_CONDITIONAL));
+    for (k, (fa, fb)) in files_a.iter().zip(&files_b).enumerate() {
+        assert!(fa == fb, "{} differs", PRODUCT_FILES[k]);
     }
     assert_same_learning_other_evaluation(&a, &b);
 }

@@ -376,7 +376,8 @@ struct PipelineArgs {
     /// task file (FILE.toml, see docs/tasks.md).
     #[arg(long)]
     task: Option<ReacherTask>,
-    /// Algorithms, comma-separated: smirl, smirl-smooth, maxent, fkl, rkl, js, or all
+    /// Algorithms, comma-separated: smirl, smirl-paper, smirl-smooth, maxent, fkl, rkl, js, or
+    /// all (those seven); the controls maxent-product and fkl-product run only when named
     /// [default: smirl,smirl-smooth,maxent,fkl].
     #[arg(long)]
     algo: Option<String>,

@@ -24,10 +24,16 @@ pub enum Algo {
     Js,
     /// Apprenticeship learning (projection method, Office).
     Apprenticeship,
+    /// Control (ReacherDelivery): continuous MaxEnt IRL on the product with SMIRL's learned
+    /// machine, the reward an MLP of (one-hot u, fingertip).
+    MaxEntProduct,
+    /// Control (ReacherDelivery): f-IRL (fkl) on the product with SMIRL's learned machine,
+    /// the reward and the densities over (one-hot u, fingertip).
+    FklProduct,
 }
 
 impl Algo {
-    /// The ReacherDelivery comparison (paper figure 7).
+    /// The ReacherDelivery comparison (paper figure 7), what `--algo all` runs.
     pub const REACHER: [Algo; 7] = [
         Algo::Smirl,
         Algo::SmirlPaper,
@@ -36,6 +42,23 @@ impl Algo {
         Algo::Fkl,
         Algo::Rkl,
         Algo::Js,
+    ];
+
+    /// The controls of the comparison on ReacherDelivery (docs/algorithms.md): run when named,
+    /// never by `all`, which stays the paper's comparison.
+    pub const REACHER_CONTROLS: [Algo; 2] = [Algo::MaxEntProduct, Algo::FklProduct];
+
+    /// Every ReacherDelivery algorithm: the comparison, then the controls.
+    pub const REACHER_NAMED: [Algo; 9] = [
+        Algo::Smirl,
+        Algo::SmirlPaper,
+        Algo::SmirlSmooth,
+        Algo::MaxEnt,
+        Algo::Fkl,
+        Algo::Rkl,
+        Algo::Js,
+        Algo::MaxEntProduct,
+        Algo::FklProduct,
     ];
 
     /// The default set of `reacher --task` (README.md, "Run it").
@@ -55,6 +78,8 @@ impl Algo {
             Algo::Rkl => "rkl",
             Algo::Js => "js",
             Algo::Apprenticeship => "apprenticeship",
+            Algo::MaxEntProduct => "maxent-product",
+            Algo::FklProduct => "fkl-product",
         }
     }
 
@@ -69,18 +94,21 @@ impl Algo {
             Algo::Rkl => "f-IRL (rkl)",
             Algo::Js => "f-IRL (js)",
             Algo::Apprenticeship => "Apprenticeship IRL",
+            Algo::MaxEntProduct => "MaxEnt IRL (product)",
+            Algo::FklProduct => "f-IRL (fkl, product)",
         }
     }
 
     /// The algorithm's colour in every plot (one of [`crate::report::plot::PALETTE`]): SMIRL's
-    /// variants in green, yellow and teal, the baselines each in their own hue.
+    /// variants in green, yellow and teal, the baselines each in their own hue, a control in
+    /// its baseline's.
     pub fn colour(self) -> &'static str {
         match self {
             Algo::Smirl => "#59a14f",
             Algo::SmirlPaper => "#edc948",
             Algo::SmirlSmooth => "#76b7b2",
-            Algo::MaxEnt => "#4e79a7",
-            Algo::Fkl => "#f28e2b",
+            Algo::MaxEnt | Algo::MaxEntProduct => "#4e79a7",
+            Algo::Fkl | Algo::FklProduct => "#f28e2b",
             Algo::Rkl => "#b07aa1",
             Algo::Js => "#e15759",
             Algo::Apprenticeship => "#9c755f",
@@ -92,9 +120,24 @@ impl Algo {
         matches!(self, Algo::Smirl | Algo::SmirlPaper | Algo::SmirlSmooth)
     }
 
-    /// The f-divergence of an f-IRL algorithm.
-    pub fn divergence(self) -> Option<Divergence> {
+    /// The controls: a baseline on the product with SMIRL's learned machine.
+    pub fn is_product_control(self) -> bool {
+        matches!(self, Algo::MaxEntProduct | Algo::FklProduct)
+    }
+
+    /// The baseline a control runs (its loss and its `[schedule.<base>]` table); the
+    /// algorithm itself otherwise.
+    pub fn base(self) -> Algo {
         match self {
+            Algo::MaxEntProduct => Algo::MaxEnt,
+            Algo::FklProduct => Algo::Fkl,
+            a => a,
+        }
+    }
+
+    /// The f-divergence of an f-IRL algorithm (a control's, its base's).
+    pub fn divergence(self) -> Option<Divergence> {
+        match self.base() {
             Algo::Fkl => Some(Divergence::Fkl),
             Algo::Rkl => Some(Divergence::Rkl),
             Algo::Js => Some(Divergence::Js),
@@ -103,7 +146,7 @@ impl Algo {
     }
 
     /// Every algorithm of either domain.
-    pub const ALL: [Algo; 8] = [
+    pub const ALL: [Algo; 10] = [
         Algo::Smirl,
         Algo::SmirlPaper,
         Algo::SmirlSmooth,
@@ -112,6 +155,8 @@ impl Algo {
         Algo::Rkl,
         Algo::Js,
         Algo::Apprenticeship,
+        Algo::MaxEntProduct,
+        Algo::FklProduct,
     ];
 
     /// The algorithm called `name` (its [`Algo::name`]), of either domain.
@@ -134,20 +179,31 @@ impl Algo {
             })
     }
 
-    /// A ReacherDelivery algorithm by name (a command-line value parser).
+    /// A ReacherDelivery algorithm by name, a control included (a command-line value parser).
     pub fn parse_reacher(name: &str) -> Result<Algo, String> {
-        Algo::parse_in(name, &Algo::REACHER)
+        Algo::parse_in(name, &Algo::REACHER_NAMED)
     }
 
     /// A comma-separated list of `domain`'s algorithms (`all` = every one of them);
     /// duplicates are dropped.
     pub fn parse_list(s: &str, domain: &[Algo]) -> Result<Vec<Algo>, String> {
+        Algo::parse_list_of(s, domain, domain)
+    }
+
+    /// A comma-separated list of ReacherDelivery algorithms: any by name, `all` = the
+    /// comparison ([`Algo::REACHER`]; the controls are named).
+    pub fn parse_reacher_list(s: &str) -> Result<Vec<Algo>, String> {
+        Algo::parse_list_of(s, &Algo::REACHER_NAMED, &Algo::REACHER)
+    }
+
+    /// A comma-separated list of `named`'s algorithms, `all` standing for `all`'s.
+    fn parse_list_of(s: &str, named: &[Algo], all: &[Algo]) -> Result<Vec<Algo>, String> {
         let mut out = Vec::new();
         for part in s.split(',').map(str::trim) {
             let algos: Vec<Algo> = if part == "all" {
-                domain.to_vec()
+                all.to_vec()
             } else {
-                vec![Algo::parse_in(part, domain)?]
+                vec![Algo::parse_in(part, named)?]
             };
             for a in algos {
                 if !out.contains(&a) {

@@ -558,7 +558,13 @@ pub fn run(
                 run.rm = Some(product.model_rm.clone());
             }
         }
-        Algo::SmirlPaper | Algo::SmirlSmooth | Algo::Fkl | Algo::Rkl | Algo::Js => {
+        Algo::SmirlPaper
+        | Algo::SmirlSmooth
+        | Algo::Fkl
+        | Algo::Rkl
+        | Algo::Js
+        | Algo::MaxEntProduct
+        | Algo::FklProduct => {
             return Err(OfficeError::Config(format!(
                 "{algo} is not an Office algorithm (smirl, maxent, apprenticeship)"
             )));

@@ -25,7 +25,8 @@ use std::sync::Mutex;
 pub struct IrlRequest {
     /// The task; `None` is refused (nothing to do).
     pub task: Option<ReacherTask>,
-    /// Algorithms, comma-separated (see [`Algo::parse_list`]); `None`: [`Algo::REACHER_DEFAULT`].
+    /// Algorithms, comma-separated (see [`Algo::parse_reacher_list`]); `None`:
+    /// [`Algo::REACHER_DEFAULT`].
     pub algo: Option<String>,
     /// Seeds per algorithm: `seed`, `seed + 1`, …
     pub seeds: u64,
@@ -140,7 +141,7 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
         ));
     };
     let algos = match &args.algo {
-        Some(s) => Algo::parse_list(s, &Algo::REACHER).map_err(usage)?,
+        Some(s) => Algo::parse_reacher_list(s).map_err(usage)?,
         None => Algo::REACHER_DEFAULT.to_vec(),
     };
     let mut config = match (&args.config, args.quick) {

@@ -613,7 +613,7 @@ impl IrlRunConfig {
     }
 
     /// The settings `algo` runs with: the run's, with `algo`'s `[schedule.<algo>]` fields
-    /// in their place. The schedules were checked by [`IrlRunConfig::validate`].
+    /// in their place (a control's: its baseline's, [`Algo::base`]). The schedules were checked by [`IrlRunConfig::validate`].
     pub fn for_algo(&self, algo: Algo) -> Result<IrlRunConfig, IrlConfigError> {
         let mut config = IrlRunConfig {
             schedule: BTreeMap::new(),
@@ -622,10 +622,12 @@ impl IrlRunConfig {
         if algo == Algo::SmirlPaper {
             config.set_paper_mechanisms();
         }
-        let Some(s) = self.schedule.get(algo.name()) else {
+        // A control runs its baseline's schedule (no table of its own).
+        let base = algo.base();
+        let Some(s) = self.schedule.get(base.name()) else {
             return Ok(config);
         };
-        let field = |name: &str| format!("schedule.{algo}.{name}");
+        let field = |name: &str| format!("schedule.{base}.{name}");
         macro_rules! take {
             ($($f:ident),*) => {$(
                 if let Some(v) = s.$f {

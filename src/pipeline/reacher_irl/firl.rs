@@ -20,17 +20,22 @@
 //!    given by samples does (`irl_samples.py`): descent raises the reward along them, also
 //!    where the agent has never been.
 //!
+//! The controls `maxent-product` and `fkl-product` run this loop with one change, the state
+//! map ([`StateMap::Product`]): the agent acts on the product with SMIRL's learned machine
+//! (observation ⊕ one-hot u ⊕ clock, SMIRL's own environment), and the reward and the
+//! densities read (one-hot u, fingertip) in place of the fingertip, u the machine's state
+//! before the step as SMIRL's δ_r(u_t, o_{t+1}) reads it.
+//!
 //! Ground-truth evaluation, logging and progress watch the loop from outside ([`JobWatch`]).
 
 use super::config::IrlRunConfig;
-use super::episodes::{train_sac, AgentBatch, RolloutStream};
+use super::episodes::{train_sac, AgentBatch, JobEnv, RolloutStream};
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::final_policy::{self, FinalPhase, FinalPolicy};
 use super::job::{reward_lr, Coefficients, ExpertData};
 use crate::env::clock::{Clock, Clocked};
 use crate::env::layout::OBS_ARM;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};
-use crate::env::ContinuousEnv;
 use crate::irl::discriminator::{Discriminator, DiscriminatorConfig};
 use crate::irl::firl::{
     self, DensityRatio, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS,
@@ -38,11 +43,126 @@ use crate::irl::firl::{
 use crate::irl::gaussian_kde::GaussianKde;
 use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel};
+use crate::rl::crm::hot_index;
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{episode_seed, RewardFn, RewardFnError, SacTrainer};
+use crate::rm::product::one_hot;
+use crate::rm::RewardMachine;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use std::borrow::Cow;
 use std::path::Path;
+
+/// What a baseline's reward and densities read of a step, and the environment its agent acts
+/// in.
+#[derive(Clone, Copy, Debug)]
+pub enum StateMap<'a> {
+    /// The baselines: the fingertip of the task observation, the agent on the task's
+    /// observation ⊕ clock.
+    Fingertip,
+    /// The product controls: (one-hot u, fingertip x, y), u this machine's state before the
+    /// step (the state the step's labels are read in); the agent on the product with it.
+    Product(&'a RewardMachine),
+}
+
+impl StateMap<'_> {
+    /// The columns of [`StateMap::rows`] the reward and the densities read.
+    pub fn columns(&self) -> Vec<usize> {
+        match self {
+            StateMap::Fingertip => OBS_TIP.to_vec(),
+            StateMap::Product(m) => (0..m.n_states() + OBS_TIP.len()).collect(),
+        }
+    }
+
+    /// Width of a row of [`StateMap::rows`] for task observations `obs_dim` wide.
+    pub fn width(&self, obs_dim: usize) -> usize {
+        match self {
+            StateMap::Fingertip => obs_dim,
+            StateMap::Product(m) => m.n_states() + OBS_TIP.len(),
+        }
+    }
+
+    /// The rows the reward reads of task observations `obs` (`obs_dim` wide) paired with the
+    /// machine's states before each step: the observations themselves (fingertip), or
+    /// (one-hot u, fingertip) (product; one state per row, each a state of the machine).
+    pub fn rows<'o>(
+        &self,
+        obs: &'o [f32],
+        obs_dim: usize,
+        states: &[u32],
+    ) -> Result<Cow<'o, [f32]>, String> {
+        let StateMap::Product(m) = self else {
+            return Ok(Cow::Borrowed(obs));
+        };
+        let n = m.n_states();
+        let rows = obs.len() / obs_dim.max(1);
+        if states.len() != rows {
+            return Err(format!(
+                "{} learned-machine states for {rows} observations",
+                states.len()
+            ));
+        }
+        let width = self.width(obs_dim);
+        let mut out = vec![0.0f32; rows * width];
+        for ((row, o), &u) in out
+            .chunks_exact_mut(width)
+            .zip(obs.chunks_exact(obs_dim))
+            .zip(states)
+        {
+            if u as usize >= n {
+                return Err(format!("state {u} is not a state of the {n}-state machine"));
+            }
+            one_hot(u as usize, &mut row[..n]);
+            row[n] = o[OBS_TIP[0]];
+            row[n + 1] = o[OBS_TIP[1]];
+        }
+        Ok(Cow::Owned(out))
+    }
+
+    /// The demonstrations as the reward reads them (their learned states kept).
+    pub fn expert<'e>(&self, expert: &'e ExpertData) -> Result<Cow<'e, ExpertData>, String> {
+        match self.rows(&expert.obs, expert.obs_dim(), &expert.learned_states)? {
+            Cow::Borrowed(_) => Ok(Cow::Borrowed(expert)),
+            Cow::Owned(obs) => Ok(Cow::Owned(ExpertData {
+                obs,
+                ..expert.clone()
+            })),
+        }
+    }
+
+    /// An agent batch as the reward reads it (task observations `obs_dim` wide).
+    pub fn agent(&self, batch: AgentBatch, obs_dim: usize) -> Result<AgentBatch, String> {
+        Ok(match self.rows(&batch.obs, obs_dim, &batch.states)? {
+            Cow::Borrowed(_) => batch,
+            Cow::Owned(obs) => AgentBatch { obs, ..batch },
+        })
+    }
+
+    /// The reward's rows of a SAC batch of the agent's environment (`obs_dim`: the task
+    /// observation's width): the next observation (fingertip), or the state before the step
+    /// read from the previous observation's one-hot block with the next fingertip (product).
+    pub fn sac_rows(&self, batch: &ReplayBatch, obs_dim: usize, out: &mut Vec<f32>) {
+        let d = batch.obs.nrows();
+        out.clear();
+        let next = batch.next_obs.as_slice().chunks_exact(d);
+        match self {
+            StateMap::Fingertip => {
+                for next in next {
+                    out.extend_from_slice(&next[..obs_dim]);
+                }
+            }
+            StateMap::Product(m) => {
+                let n = m.n_states();
+                let mut hot = vec![0.0f32; n];
+                for (next, prev) in next.zip(batch.obs.as_slice().chunks_exact(d)) {
+                    one_hot(hot_index(&prev[obs_dim..obs_dim + n]), &mut hot);
+                    out.extend_from_slice(&hot);
+                    out.extend(OBS_TIP.iter().map(|&c| next[c]));
+                }
+            }
+        }
+    }
+}
 
 /// Which baseline.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,15 +202,19 @@ pub struct IterationRatios {
 /// demonstration state it never comes near, so the ratios there carry the ε guard of
 /// `irl::firl` (`(ρ_E + ε)/(ρ_θ + ε)`) whatever the source; at the agent's own states each
 /// source computes them as it always has.
+///
+/// `columns`: what the densities read of the rows (the fingertip of a task observation, or
+/// every column of a product control's rows, [`StateMap::columns`]).
 pub fn density_ratios(
     ratio: &mut Ratio<'_>,
     expert: &ExpertData,
     agent: &AgentBatch,
     at_expert: bool,
+    columns: &[usize],
 ) -> Result<IterationRatios, String> {
     let d = expert.obs_dim();
     let fit_agent = |bandwidth: f64| {
-        Kde::fit_columns(&agent.obs, d, &OBS_TIP, bandwidth).map_err(|e| e.to_string())
+        Kde::fit_columns(&agent.obs, d, columns, bandwidth).map_err(|e| e.to_string())
     };
     let guarded = |rho_e: &[f64], rho_a: &[f64]| {
         firl::density_ratio(rho_e, rho_a, DEFAULT_DENSITY_EPS).map_err(|e| e.to_string())
@@ -115,10 +239,10 @@ pub fn density_ratios(
         } => {
             let kde_a = fit_agent(*bandwidth)?;
             let log_e = e
-                .log_density_columns(&agent.obs, d, &OBS_TIP)
+                .log_density_columns(&agent.obs, d, columns)
                 .map_err(|e| e.to_string())?;
             let rho_a = kde_a
-                .density_columns(&agent.obs, d, &OBS_TIP)
+                .density_columns(&agent.obs, d, columns)
                 .map_err(|e| e.to_string())?;
             // ρ_θ > 0 at the agent's own states (each is a fitted point).
             let agent_ratios = log_e
@@ -128,13 +252,13 @@ pub fn density_ratios(
                 .collect();
             let expert_ratios = if at_expert {
                 let rho_e: Vec<f64> = e
-                    .log_density_columns(&expert.obs, d, &OBS_TIP)
+                    .log_density_columns(&expert.obs, d, columns)
                     .map_err(|e| e.to_string())?
                     .into_iter()
                     .map(f64::exp)
                     .collect();
                 let rho_a = kde_a
-                    .density_columns(&expert.obs, d, &OBS_TIP)
+                    .density_columns(&expert.obs, d, columns)
                     .map_err(|e| e.to_string())?;
                 guarded(&rho_e, &rho_a)?
             } else {
@@ -152,10 +276,10 @@ pub fn density_ratios(
             let kde_a = fit_agent(*bandwidth)?;
             ratios_at_both(agent, expert, at_expert, |obs| {
                 let rho_e = kde_e
-                    .density_columns(obs, d, &OBS_TIP)
+                    .density_columns(obs, d, columns)
                     .map_err(|e| e.to_string())?;
                 let rho_a = kde_a
-                    .density_columns(obs, d, &OBS_TIP)
+                    .density_columns(obs, d, columns)
                     .map_err(|e| e.to_string())?;
                 guarded(&rho_e, &rho_a)
             })
@@ -287,12 +411,17 @@ impl DemonstrationDraw {
     }
 }
 
-/// The baselines' reward model: the paper's (64, 64) MLP on the fingertip, clamped to ±10.
-pub fn reward_model(settings: &IrlRunConfig, seed: u64) -> Result<MlpReward, RewardError> {
-    let mut cfg = MlpRewardConfig::paper(OBS_TIP.to_vec(), settings.mlp_reward_lr, seed);
+/// The baselines' reward model: the paper's (64, 64) MLP on what `map` reads (the fingertip,
+/// or (one-hot u, fingertip) for a product control), clamped to ±10.
+pub fn reward_model(
+    settings: &IrlRunConfig,
+    seed: u64,
+    map: StateMap<'_>,
+) -> Result<MlpReward, RewardError> {
+    let mut cfg = MlpRewardConfig::paper(map.columns(), settings.mlp_reward_lr, seed);
     cfg.optim.l2 = settings.mlp_reward_l2;
     let layout = (settings.env.task_layout()).map_err(|e| RewardError::Config(e.to_string()))?;
-    MlpReward::new(cfg, layout.obs_dim())
+    MlpReward::new(cfg, map.width(layout.obs_dim()))
 }
 
 /// The saved reward of a baseline job (`rewards/<algo>_seed<k>.bin`) at fingertip positions
@@ -310,17 +439,34 @@ pub fn baseline_reward_at(path: &Path, points: &[[f64; 2]]) -> Result<Vec<f32>, 
     Ok(r)
 }
 
-/// SAC's reward: r(o_{t+1}) of every sampled transition, computed when the batch is sampled
-/// so that old transitions follow the reward being optimised now.
+/// SAC's reward: r(o_{t+1}) (a product control: r(u_t, o_{t+1})) of every sampled transition,
+/// computed when the batch is sampled so that old transitions follow the reward being
+/// optimised now.
 pub(super) struct StateReward<'a> {
     model: &'a mut MlpReward,
+    map: StateMap<'a>,
+    /// Width of the task observation at the front of every environment observation.
+    task_obs_dim: usize,
     obs: Vec<f32>,
 }
 
 impl<'a> StateReward<'a> {
+    /// The reward of a baseline's model (on the fingertip).
     pub(super) fn new(model: &'a mut MlpReward) -> StateReward<'a> {
+        let task_obs_dim = model.obs_dim();
+        StateReward::with_map(model, StateMap::Fingertip, task_obs_dim)
+    }
+
+    /// The reward of `model` on the rows `map` makes of task observations `task_obs_dim` wide.
+    pub(super) fn with_map(
+        model: &'a mut MlpReward,
+        map: StateMap<'a>,
+        task_obs_dim: usize,
+    ) -> StateReward<'a> {
         StateReward {
             model,
+            map,
+            task_obs_dim,
             obs: Vec::new(),
         }
     }
@@ -328,21 +474,17 @@ impl<'a> StateReward<'a> {
 
 impl RewardFn for StateReward<'_> {
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
-        let d = batch.obs.nrows();
-        let width = self.model.obs_dim();
-        self.obs.clear();
-        for next in batch.next_obs.as_slice().chunks_exact(d) {
-            self.obs.extend_from_slice(&next[..width]);
-        }
+        (self.map).sac_rows(batch, self.task_obs_dim, &mut self.obs);
         Ok(self.model.reward_batch(&self.obs, &[], out)?)
     }
 }
 
 impl super::final_policy::ScoredReward for StateReward<'_> {
     fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String> {
+        let rows = (self.map).rows(&steps.obs, self.task_obs_dim, &steps.states)?;
         let mut r = vec![0.0f32; steps.n_states()];
         (self.model)
-            .reward_batch(&steps.obs, &[], &mut r)
+            .reward_batch(&rows, &[], &mut r)
             .map_err(|e| e.to_string())?;
         Ok(r)
     }
@@ -367,23 +509,50 @@ pub struct BaselineJob<'a> {
     pub loss: Loss,
     pub seed: u64,
     pub settings: &'a IrlRunConfig,
+    /// The demonstrations (a product control's annotated with its machine's states).
     pub expert: &'a ExpertData,
+    /// What the reward reads and where the agent acts: the baselines' fingertip, or a product
+    /// control's machine.
+    pub map: StateMap<'a>,
 }
 
-/// f-IRL's loop (see the module docs), then the final phase every algorithm with a learned
-/// reward shares ([`final_policy`]: more SAC on the final MLP held fixed, the candidate of
-/// highest learned return, the MLP's reward summed along each selection episode).
+/// f-IRL's loop (see the module docs) in the environment of `job.map`: the task's with its
+/// clock, or (a product control) SMIRL's product with the machine.
 pub fn train(
     job: &BaselineJob<'_>,
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<BaselineOutcome, String> {
     let s = job.settings;
     let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
-    let mut env = baseline_env(inner, s);
-    let mut reward = reward_model(s, job.seed).map_err(|e| e.to_string())?;
-    // f-IRL's ρ_E/ρ_θ: the expert's fingertip KDE, or a classifier on its own random stream.
-    let d = job.expert.obs_dim();
-    let expert_kde = Kde::fit_columns(&job.expert.obs, d, &OBS_TIP, s.kde_bandwidth)
+    match job.map {
+        StateMap::Fingertip => train_in(job, &mut baseline_env(inner, s), watch),
+        StateMap::Product(machine) => train_in(
+            job,
+            &mut super::smirl::product_env(inner, machine, s),
+            watch,
+        ),
+    }
+}
+
+/// f-IRL's loop in `env`, then the final phase every algorithm with a learned reward shares
+/// ([`final_policy`]: more SAC on the final MLP held fixed, the candidate of highest learned
+/// return, the MLP's reward summed along each selection episode).
+fn train_in<E: JobEnv>(
+    job: &BaselineJob<'_>,
+    env: &mut E,
+    watch: &mut JobWatch<'_, '_>,
+) -> Result<BaselineOutcome, String> {
+    let s = job.settings;
+    let map = job.map;
+    let columns = map.columns();
+    let task_obs_dim = job.expert.obs_dim();
+    // The demonstrations as the reward reads them.
+    let expert = map.expert(job.expert)?;
+    let expert = expert.as_ref();
+    let mut reward = reward_model(s, job.seed, map).map_err(|e| e.to_string())?;
+    // f-IRL's ρ_E/ρ_θ: the expert's KDE, or a classifier on its own random stream.
+    let d = expert.obs_dim();
+    let expert_kde = Kde::fit_columns(&expert.obs, d, &columns, s.kde_bandwidth)
         .map_err(|e| format!("expert KDE: {e}"))?;
     let mut ratio = match (job.loss, s.firl_density_ratio) {
         (Loss::MaxEnt, _) => None,
@@ -393,7 +562,7 @@ pub fn train(
         }),
         (Loss::FDivergence(_), DensityRatio::GaussianExpert) => Some(Ratio::GaussianExpert {
             expert: Box::new(
-                GaussianKde::fit_columns(&job.expert.obs, d, &OBS_TIP, s.kde_bandwidth)
+                GaussianKde::fit_columns(&expert.obs, d, &columns, s.kde_bandwidth)
                     .map_err(|e| format!("expert density: {e}"))?,
             ),
             bandwidth: s.kde_bandwidth,
@@ -402,7 +571,7 @@ pub fn train(
             Some(Ratio::Discriminator(Box::new(
                 Discriminator::new(
                     DiscriminatorConfig::firl(),
-                    &OBS_TIP,
+                    &columns,
                     episode_seed(job.seed, 0xd15c),
                 )
                 .map_err(|e| e.to_string())?,
@@ -417,26 +586,28 @@ pub fn train(
         Loss::FDivergence(_) => s.firl_expert_trajectories,
         Loss::MaxEnt => 0,
     };
-    let n_demos = job.expert.lengths.len();
+    let n_demos = expert.lengths.len();
     let mut demo_draw = DemonstrationDraw::new(job.seed);
 
-    watch.iteration_done(0, 0, &mut sac.agent, &mut env, None)?;
+    watch.iteration_done(0, 0, &mut sac.agent, env, None)?;
     for iteration in 1..=s.irl_iterations {
         // 1. SAC on the current reward.
-        let mut sac_reward = StateReward::new(&mut reward);
+        let mut sac_reward = StateReward::with_map(&mut reward, map, task_obs_dim);
         let steps = s.sac_steps_per_iteration;
-        train_sac(&mut sac, &mut env, &mut sac_reward, steps, iteration, watch)?;
+        train_sac(&mut sac, env, &mut sac_reward, steps, iteration, watch)?;
 
         // 2. Rollouts of the stochastic policy.
-        let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
+        let batch = rollouts.collect(&mut sac.agent, env, s.agent_trajectories, watch)?;
+        let batch = map.agent(batch, task_obs_dim)?;
 
         // 3. The density ratios (f-IRL), once per iteration.
         let ratios = match ratio.as_mut() {
             Some(ratio) => Some(density_ratios(
                 ratio,
-                job.expert,
+                expert,
                 &batch,
                 drawn_per_step > 0,
+                &columns,
             )?),
             None => None,
         };
@@ -445,7 +616,7 @@ pub fn train(
         //    demonstrations (f-IRL's samples code); with none drawn, one set of coefficients.
         reward.set_lr(reward_lr(s.mlp_reward_lr, s, iteration));
         let drawn = demo_draw.draw(n_demos, drawn_per_step);
-        let mut c = coefficients(job.loss, job.expert, &batch, ratios.as_ref(), &drawn)?;
+        let mut c = coefficients(job.loss, expert, &batch, ratios.as_ref(), &drawn)?;
         let mut r = vec![0.0f32; c.coeffs.len()];
         reward
             .reward_batch(&c.obs, &c.states, &mut r)
@@ -454,31 +625,25 @@ pub fn train(
         for step in 0..s.reward_steps_per_iteration.max(1) {
             if step > 0 && drawn_per_step > 0 {
                 let drawn = demo_draw.draw(n_demos, drawn_per_step);
-                c = coefficients(job.loss, job.expert, &batch, ratios.as_ref(), &drawn)?;
+                c = coefficients(job.loss, expert, &batch, ratios.as_ref(), &drawn)?;
             }
             reward
                 .update(&c.obs, &c.states, &c.coeffs)
                 .map_err(|e| format!("reward update: {e}"))?;
         }
 
-        watch.iteration_done(
-            iteration,
-            sac.env_steps(),
-            &mut sac.agent,
-            &mut env,
-            Some(facts),
-        )?;
+        watch.iteration_done(iteration, sac.env_steps(), &mut sac.agent, env, Some(facts))?;
     }
 
     // 5. The final phase: SAC on the final reward, now fixed; no selection cut (it reads a
     //    learned machine, and the baselines have none).
     let final_policy = match FinalPhase::of(s, job.seed, None) {
         Some(phase) => {
-            let mut sac_reward = StateReward::new(&mut reward);
+            let mut sac_reward = StateReward::with_map(&mut reward, map, task_obs_dim);
             let iterations = s.irl_iterations;
             Some(final_policy::train(
                 &mut sac,
-                &mut env,
+                env,
                 &mut sac_reward,
                 phase,
                 iterations,

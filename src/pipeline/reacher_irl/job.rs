@@ -7,7 +7,7 @@
 use super::config::IrlRunConfig;
 use super::evaluation::{GroundTruth, JobWatch};
 use super::final_policy::FinalPolicy;
-use super::firl::{self, BaselineJob, BaselineOutcome, Loss};
+use super::firl::{self, BaselineJob, BaselineOutcome, Loss, StateMap};
 use super::lockstep::Lockstep;
 use super::smirl::{self, Features, SmirlJob};
 use super::Algo;
@@ -260,7 +260,8 @@ pub struct JobInputs<'a> {
     pub seed: u64,
     pub settings: &'a IrlRunConfig,
     pub perfect_rm: &'a RewardMachine,
-    /// The learned machine (required for SMIRL, ignored by the baselines).
+    /// The learned machine (required for SMIRL and the product controls, ignored by the
+    /// baselines).
     pub learned_rm: Option<&'a RewardMachine>,
     pub expert: &'a ExpertData,
     /// Where the learned reward's parameters are saved at the end (`None`: not saved).
@@ -313,6 +314,7 @@ pub fn run_job(
         seed,
         settings: s,
         expert,
+        map: StateMap::Fingertip,
     };
     let boxed = |o: BaselineOutcome| {
         let reward = Box::new(o.reward) as Box<dyn RewardModel>;
@@ -344,6 +346,20 @@ pub fn run_job(
         Algo::Fkl | Algo::Rkl | Algo::Js => {
             let div = algo.divergence().expect("f-IRL algorithm");
             firl::train(&baseline(Loss::FDivergence(div)), &mut watch).map(boxed)
+        }
+        Algo::MaxEntProduct | Algo::FklProduct => {
+            let machine = inputs
+                .learned_rm
+                .ok_or_else(|| fail(format!("{algo} needs a learned reward machine")))?;
+            let loss = match algo.divergence() {
+                Some(div) => Loss::FDivergence(div),
+                None => Loss::MaxEnt,
+            };
+            let job = BaselineJob {
+                map: StateMap::Product(machine),
+                ..baseline(loss)
+            };
+            firl::train(&job, &mut watch).map(boxed)
         }
         Algo::Apprenticeship => Err("apprenticeship learning is an Office algorithm".into()),
     }

@@ -123,7 +123,7 @@ impl Prepared {
         let algos = self
             .algos
             .iter()
-            .map(|a| Algo::parse_in(a, &Algo::REACHER))
+            .map(|a| Algo::parse_in(a, &Algo::REACHER_NAMED))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(algos
             .iter()

@@ -211,6 +211,13 @@ enum Reward {
 /// error here is bad input.
 pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>, RetrainError> {
     let usage = RetrainError::Usage;
+    if r.algo.is_product_control() {
+        return Err(usage(format!(
+            "{}: retrain reads a SMIRL or baseline reward; a product control's agent acts on \
+             the product, which retrain does not build",
+            r.algo
+        )));
+    }
     if !Algo::REACHER.contains(&r.algo) {
         return Err(usage(format!(
             "{} is not a ReacherDelivery algorithm",
@@ -283,7 +290,8 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
                 r.algo
             )));
         }
-        let mut reward = firl::reward_model(&s, 0).map_err(|e| usage(e.to_string()))?;
+        let mut reward = firl::reward_model(&s, 0, firl::StateMap::Fingertip)
+            .map_err(|e| usage(e.to_string()))?;
         reward.load(&path).map_err(|e| usage(e.to_string()))?;
         Reward::Mlp(reward)
     };

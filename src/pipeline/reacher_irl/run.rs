@@ -141,6 +141,15 @@ fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), Pi
     config
         .validate("config")
         .map_err(|e| usage(e.to_string()))?;
+    // The controls learn on the machine LRM learns; the task's own would hand them ground truth.
+    if let Some(control) = algos.iter().find(|a| a.is_product_control()) {
+        if config.smirl_machine == SmirlMachine::Task {
+            return Err(usage(format!(
+                "config: smirl_machine = \"task\" gives {control} the task's own machine; the \
+                 product controls read the learned one (use \"learned\" or \"one_state\")"
+            )));
+        }
+    }
     let expert = match config.demo_source {
         DemoSource::Expert => Some(load_expert(task, config.cache_dir()).map_err(|e| match e {
             DemoError::Cache { .. } | DemoError::Missing { .. } => usage(e.to_string()),
@@ -305,8 +314,8 @@ pub fn prepare(
 /// The learned machines of a run, one per setting of LRM's mechanisms an algorithm reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Machine {
-    /// `smirl`'s and `smirl-smooth`'s: `rm/learned.txt`, the demonstrations annotated with it
-    /// in `expert_data.bin`.
+    /// `smirl`'s and `smirl-smooth`'s, and the product controls': `rm/learned.txt`, the
+    /// demonstrations annotated with it in `expert_data.bin`.
     Smirl,
     /// `smirl-paper`'s (LRM as the paper's eq. 1): `rm/learned_paper.txt`,
     /// `expert_data_paper.bin`.
@@ -317,7 +326,7 @@ impl Machine {
     fn of(algo: Algo) -> Option<Machine> {
         match algo {
             Algo::SmirlPaper => Some(Machine::Paper),
-            a if a.uses_rm() => Some(Machine::Smirl),
+            a if a.uses_rm() || a.is_product_control() => Some(Machine::Smirl),
             _ => None,
         }
     }
