@@ -1056,6 +1056,7 @@ fn final_policy_is_the_first_candidate_of_highest_learned_return() {
         branches: None,
         progress: 0.0,
         final_ball: 0.0,
+        final_set: None,
     };
     let c = [
         candidate(10.0, 1.0),
