@@ -391,6 +391,7 @@ fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cance
             branches: None,
             progress: 0.0,
             final_ball: 0.0,
+            final_set: None,
         }
     };
     let (ca, cb) = (candidate(&a, 0.0), candidate(&b_, 1.0));

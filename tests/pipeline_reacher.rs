@@ -212,12 +212,13 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
 /// co-trained candidate is the policy of the last metrics row, judged on the same episodes, so
 /// its success is that row's.
 fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
+    use smirl::pipeline::reacher_irl::evaluation::final_set_episodes;
     let table = std::fs::read_to_string(dir.join("final_policy.csv")).unwrap();
     let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
     let mut lines = table.lines();
     assert_eq!(
         lines.next(),
-        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent,cut_return,random")
+        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent,cut_return,random,final_set_episodes,final_set_success_rate,final_set_success_normal,final_set_success_cancel")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let config = tiny_config();
@@ -240,6 +241,16 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
         assert_eq!(chosen, vec![first_best], "{table}");
         let picked = (0..per_job).filter(|&i| job[i][13] == "1").count();
         assert_eq!(picked, 1, "{table}");
+        // Every candidate judged on the final set too: ⌈50 · eval_episodes / 20⌉ per branch.
+        let per_branch = final_set_episodes(&config);
+        for r in &job {
+            let n: u64 = r[14].parse().unwrap();
+            assert!(n == per_branch || n == 2 * per_branch, "{table}");
+            assert!(
+                (0.0..=1.0).contains(&r[15].parse::<f64>().unwrap()),
+                "{table}"
+            );
+        }
         // Candidates 140 SAC steps apart (two 70-step episodes), the first at the end of the
         // IRL loop: the last metrics row's policy, with its success.
         let last_row: Vec<&str> = metrics
@@ -1056,6 +1067,7 @@ fn final_policy_is_the_first_candidate_of_highest_learned_return() {
         branches: None,
         progress: 0.0,
         final_ball: 0.0,
+        final_set: None,
     };
     let c = [
         candidate(10.0, 1.0),

@@ -28,14 +28,35 @@ committed and clean; the method's sources, the configs and the task files are th
 as at the frozen commit; the binary says (`--version`) it was built from the frozen commit with
 no local change; no seed of the protocol appears in any run directory on this machine
 (`prepare.json` under /work, /tmp and the checkout's runs/) or in any version of any CSV
-git has ever held (columns `seed` and `sac_seed`). It then writes `runs/protocol/<name>/lock.json`
-(the files' blob ids, the binary's sha256). `run` refuses without that lock, or when the protocol
-files, the binary or a seed's run directory differ from it; prepares each (config, task, base)
-run directory under `runs/protocol/<name>/` and runs its missing jobs one at a time, base by
-base (a finished job is never rerun). Every job start and end goes to the append-only
-`ledger.jsonl` beside the lock; a job that exits with an error is recorded as failed and never
-retried; a job killed by a signal (a session ending) is rerun next time. `--until` starts no job
-after that time of day (UTC). The tables come from `experiments/protocol/table.py`.
+git has ever held (columns `seed` and `sac_seed`). It then writes the lock,
+`experiments/protocol/<name>/lock.json` (the files' blob ids, the frozen commit, the binary's
+`--version`), to be committed before the first `run`; a second `check` is refused while a lock
+exists.
+
+The protocol's state lives in git, not in run directories: an evaluation runs over several
+sessions, each on a fresh checkout where runs/ is empty. `run` refuses without a committed lock,
+or when the protocol files, the configs or the task files differ from what was locked, or when
+the binary's `--version` does not name the frozen commit (without `-dirty`); it then prepares
+each (config, task, base) run directory under `runs/protocol/<name>/` as needed (`prepare` is
+deterministic, so a fresh checkout prepares the same directory again) and runs, one at a time,
+base by base, every job the ledger does not record as finished. The ledger,
+`experiments/protocol/<name>/ledger.jsonl`, is append-only and committed after each session:
+every session's binary (its sha256 and `--version`), every job's start and end; a job's `done`
+entry carries the job file's sha256 and everything `table.py` reads from it (`JOB_FIELDS`), so
+the tables need no run directory. A job is finished when the ledger records it done or failed;
+a job file present in runs/ without that entry is run again (`reacher job` returns its record
+without training). A job that exits with an error is recorded as failed and never retried; a
+job killed by a signal (a session ending) is rerun next time. `--until` starts no job after
+that time of day (UTC).
+
+The frozen binary on a fresh checkout: build it from a worktree at the frozen commit,
+    git worktree add ../frozen <commit> && (cd ../frozen && cargo build --release)
+    python3 experiments/protocol/run.py run NAME --bin ../frozen/target/release/reacher
+Its sha256 is not the identity: the release profile keeps line tables, which name the
+directory it was built in, so the same commit built in another checkout has other bytes. The
+lock holds the commit, the binary's `--version` names it (and marks a build with local changes
+`-dirty`), and the ledger records each session's sha256 for the record. The tables come from
+`experiments/protocol/table.py`.
 """
 
 import argparse
@@ -72,7 +93,26 @@ def paths(name):
 
 
 def run_root(name):
+    """Where the run directories go: not committed, lost between sessions."""
     return os.path.join(ROOT, "runs", "protocol", name)
+
+
+def state_dir(name):
+    """Where the lock and the ledger go: committed (beside table.py's jobs.csv, summary.md)."""
+    return os.path.join(ROOT, "experiments", "protocol", name)
+
+
+def lock_path(name):
+    return os.path.join(state_dir(name), "lock.json")
+
+
+def ledger_path(name):
+    return os.path.join(state_dir(name), "ledger.jsonl")
+
+
+def rel(path):
+    """A path as the ledger names it: relative to the checkout, which moves between sessions."""
+    return os.path.relpath(path, ROOT)
 
 
 def load(name):
@@ -172,13 +212,43 @@ def blob(path):
     return git("rev-parse", f"HEAD:{path}").stdout.strip()
 
 
-def binary_commit(binary):
+def binary_version(binary):
+    """(the binary's `--version` line, the commit it names)."""
     if not os.access(binary, os.X_OK):
         fail(f"{binary}: no executable (build the frozen commit)")
-    out = subprocess.run([binary, "--version"], capture_output=True, text=True).stdout
+    out = subprocess.run([binary, "--version"], capture_output=True, text=True).stdout.strip()
     if "(commit " not in out:
-        fail(f"{binary} --version names no commit: {out.strip()!r}")
-    return out.split("(commit ", 1)[1].split(")", 1)[0]
+        fail(f"{binary} --version names no commit: {out!r}")
+    return out, out.split("(commit ", 1)[1].split(")", 1)[0]
+
+
+# What a job's `done` entry keeps of its job file: the final-set scores (success, and per
+# branch episodes and successes) of the loop's final policy and of every final-phase candidate,
+# which one was chosen, and the wall time.
+
+
+def score_of(evaluated):
+    """[success_rate] or [success_rate, episodes_normal, successes_normal, episodes_cancel,
+    successes_cancel] of a final-set evaluation (`None` stays `None`)."""
+    if evaluated is None:
+        return None
+    b = evaluated.get("branches")
+    if not b:
+        return [evaluated["success_rate"]]
+    return [evaluated["success_rate"], b["episodes"][0], b["successes"][0], b["episodes"][1], b["successes"][1]]
+
+
+def job_fields(record):
+    """The compact summary of a job file that the ledger keeps (JOB_FIELDS)."""
+    final = record.get("final_policy")
+    out = {"loop": score_of(record.get("loop_final_set")), "wall_secs": record.get("wall_secs")}
+    if final:
+        out["chosen"] = final["chosen"]
+        out["candidates"] = [score_of(c.get("final_set")) for c in final["candidates"]]
+    return out
+
+
+JOB_FIELDS = ("loop", "wall_secs", "chosen", "candidates")
 
 
 # Seeds used before ---------------------------------------------------------------------------
@@ -247,9 +317,10 @@ def draw_bases(name, n, spacing):
 
 def check(name, binary):
     md, spec, plan = load(name)
-    lock_path = os.path.join(run_root(name), "lock.json")
-    if os.path.exists(lock_path):
-        fail(f"{lock_path} exists: `check` runs once, before the first job")
+    if os.path.exists(lock_path(name)) or git("cat-file", "-e", f"HEAD:{rel(lock_path(name))}").returncode == 0:
+        fail(f"{rel(lock_path(name))} exists: `check` runs once, before the first job")
+    if os.path.exists(ledger_path(name)):
+        fail(f"{rel(ledger_path(name))} exists: `check` runs before the first job")
     for f in (md, spec):
         if git("ls-files", "--error-unmatch", f).returncode != 0 or git("diff", "--quiet", "HEAD", "--", f).returncode != 0:
             fail(f"{f} is not committed, or differs from HEAD: a protocol is committed before it runs")
@@ -261,7 +332,7 @@ def check(name, binary):
         fail(f"HEAD differs from the frozen commit in the method or its inputs (`git diff {frozen[:10]} HEAD -- {' '.join(inputs)}`)")
     if git("diff", "--quiet", "HEAD", "--", *inputs).returncode != 0:
         fail("the checkout has uncommitted changes in the method or its inputs")
-    built = binary_commit(binary)
+    version, built = binary_version(binary)
     if built != frozen:
         fail(f"{binary} is built from {built}, not the frozen commit {frozen}")
     runs, jobs = plan_runs(name, plan)
@@ -272,42 +343,68 @@ def check(name, binary):
     clash = sorted({j["seed"] for j in jobs} & set(seen))
     if clash:
         fail(f"seed {clash[0]} of the protocol was used before: {seen[clash[0]]}")
-    os.makedirs(run_root(name), exist_ok=True)
+    os.makedirs(state_dir(name), exist_ok=True)
     lock = {
         "md_blob": blob(md), "toml_blob": blob(spec), "head": git("rev-parse", "HEAD").stdout.strip(),
-        "frozen": frozen, "binary_sha256": sha256_of(binary),
+        "frozen": frozen, "binary_version": version, "binary_sha256": sha256_of(binary),
+        "inputs": {f: blob(f) for f in configs_and_tasks(plan)},
         "checked_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "jobs": len(jobs),
     }
-    with open(lock_path, "x") as fh:
+    with open(lock_path(name), "x") as fh:
         json.dump(lock, fh, indent=1)
-    print(f"protocol {name}: {len(runs)} run directories, {len(jobs)} jobs; locked in {lock_path}")
+    print(f"protocol {name}: {len(runs)} run directories, {len(jobs)} jobs; locked in "
+          f"{rel(lock_path(name))}: commit it before the first `run`")
 
 
 def read_lock(name):
-    lock_path = os.path.join(run_root(name), "lock.json")
-    if not os.path.isfile(lock_path):
-        fail(f"{lock_path} does not exist: run `run.py check {name}` first")
-    with open(lock_path) as fh:
+    path = rel(lock_path(name))
+    if not os.path.isfile(lock_path(name)):
+        fail(f"{path} does not exist: run `run.py check {name}` first")
+    if git("ls-files", "--error-unmatch", path).returncode != 0 or git("diff", "--quiet", "HEAD", "--", path).returncode != 0:
+        fail(f"{path} is not committed, or differs from HEAD: commit the lock before the first `run`")
+    with open(lock_path(name)) as fh:
         return json.load(fh)
 
 
 def ledger(name, entry):
     entry["at"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-    with open(os.path.join(run_root(name), "ledger.jsonl"), "a") as fh:
-        fh.write(json.dumps(entry) + "\n")
+    with open(ledger_path(name), "a") as fh:
+        fh.write(json.dumps(entry, separators=(",", ":")) + "\n")
+        fh.flush()
+        os.fsync(fh.fileno())
 
 
 def read_ledger(name):
-    path = os.path.join(run_root(name), "ledger.jsonl")
+    path = ledger_path(name)
     if not os.path.isfile(path):
         return []
+    entries = []
     with open(path) as fh:
-        return [json.loads(line) for line in fh if line.strip()]
+        for n, line in enumerate(fh, 1):
+            if not line.strip():
+                continue
+            try:
+                entries.append(json.loads(line))
+            except ValueError as e:
+                if line.endswith("\n"):
+                    fail(f"{rel(path)} line {n}: {e}")
+                # A last line cut off by a session that died mid-write: its job was not done.
+    return entries
 
 
-def failed_jobs(name):
-    return {(e["dir"], e["algo"], e["seed"]) for e in read_ledger(name) if e.get("event") == "failed"}
+def job_key(e):
+    return e["dir"], e["algo"], e["seed"]
+
+
+def finished_jobs(name):
+    """{(run directory relative to the checkout, algo, seed): the ledger's `done` or `failed`
+    entry}: the jobs that are not run again."""
+    out = {}
+    for e in read_ledger(name):
+        if e.get("event") in ("done", "failed"):
+            out[job_key(e)] = e
+    return out
 
 
 def prepare(binary, r, name, frozen):
@@ -319,7 +416,7 @@ def prepare(binary, r, name, frozen):
         "--out", r["dir"], "--quiet",
     ]
     print("+", " ".join(cmd), flush=True)
-    ledger(name, {"event": "prepare", "dir": r["dir"]})
+    ledger(name, {"event": "prepare", "dir": rel(r["dir"])})
     if subprocess.run(cmd, cwd=ROOT).returncode != 0:
         fail(f"prepare failed for {r['dir']}")
     with open(os.path.join(r["dir"], "prepare.json")) as fh:
@@ -333,14 +430,19 @@ def run(name, binary, until, max_jobs):
     lock = read_lock(name)
     if (blob(md), blob(spec)) != (lock["md_blob"], lock["toml_blob"]) or git("diff", "--quiet", "HEAD", "--", md, spec).returncode != 0:
         fail(f"{md} or {spec} changed after the protocol was locked")
-    if sha256_of(binary) != lock["binary_sha256"]:
-        fail(f"{binary} is not the binary the protocol was locked with")
+    inputs = configs_and_tasks(plan)
+    if {f: blob(f) for f in inputs} != lock["inputs"] or git("diff", "--quiet", "HEAD", "--", *inputs).returncode != 0:
+        fail(f"a config or task file of the protocol changed after it was locked ({' '.join(inputs)})")
+    version, built = binary_version(binary)
+    if built != lock["frozen"]:
+        fail(f"{binary} is built from {built}, not the frozen commit {lock['frozen']} (see run.py's docs)")
     runs, jobs = plan_runs(name, plan)
-    failed = failed_jobs(name)
+    finished = finished_jobs(name)
+    ledger(name, {"event": "session", "binary_sha256": sha256_of(binary), "binary_version": version})
     started = 0
     for j in jobs:
         r = runs[j["run"]]
-        if os.path.isfile(job_file(r["dir"], j["algo"], j["seed"])) or (r["dir"], j["algo"], j["seed"]) in failed:
+        if (rel(r["dir"]), j["algo"], j["seed"]) in finished:
             continue
         if until and datetime.datetime.now(datetime.timezone.utc) >= until:
             print(f"stopping before {j['algo']} seed {j['seed']} of {r['dir']}: --until")
@@ -350,7 +452,7 @@ def run(name, binary, until, max_jobs):
         prepare(binary, r, name, plan["commit"])
         cmd = [binary, "job", "--run", r["dir"], "--algo", j["algo"], "--seed", str(j["seed"]), "--quiet"]
         print("+", " ".join(cmd), flush=True)
-        entry = {"dir": r["dir"], "algo": j["algo"], "seed": j["seed"]}
+        entry = {"dir": rel(r["dir"]), "algo": j["algo"], "seed": j["seed"]}
         ledger(name, {"event": "start", **entry})
         code = subprocess.run(cmd, cwd=ROOT).returncode
         if code < 0:
@@ -360,16 +462,22 @@ def run(name, binary, until, max_jobs):
             ledger(name, {"event": "failed", "exit": code, **entry})
             print(f"job {j['algo']} seed {j['seed']} of {r['dir']} failed (exit {code}): recorded, not retried")
         else:
-            ledger(name, {"event": "done", "sha256": sha256_of(job_file(r["dir"], j["algo"], j["seed"])), **entry})
+            path = job_file(r["dir"], j["algo"], j["seed"])
+            with open(path, "rb") as fh:
+                data = fh.read()
+            fields = job_fields(json.loads(data))
+            ledger(name, {"event": "done", "sha256": hashlib.sha256(data).hexdigest(), "job": fields, **entry})
         started += 1
     status(name)
+    print(f"commit {rel(ledger_path(name))}: the next session resumes from it")
 
 
 def status(name):
     _, _, plan = load(name)
     runs, jobs = plan_runs(name, plan)
-    done = sum(os.path.isfile(job_file(runs[j["run"]]["dir"], j["algo"], j["seed"])) for j in jobs)
-    print(f"{done} of {len(jobs)} jobs finished, {len(failed_jobs(name))} failed")
+    finished = finished_jobs(name)
+    states = [finished.get((rel(runs[j["run"]]["dir"]), j["algo"], j["seed"]), {}).get("event") for j in jobs]
+    print(f"{states.count('done')} of {len(jobs)} jobs done, {states.count('failed')} failed")
 
 
 def main():

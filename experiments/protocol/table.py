@@ -1,23 +1,27 @@
 #!/usr/bin/env python3
-"""The tables of a preregistered evaluation, from its run directories: every job as it came out,
-and per (task, arm) the summary its protocol names.
+"""The tables of a preregistered evaluation, from its committed ledger: every job as it came
+out, and per (task, arm) the summary its protocol names.
 
 Usage:
     python3 experiments/protocol/table.py NAME [--partial]
 
-Reads `experiments/protocol/NAME.toml`, its lock and ledger, and the jobs `run.py` ran under
-`runs/protocol/NAME/`; writes `experiments/protocol/NAME/jobs.csv` (one row per job) and
-`experiments/protocol/NAME/summary.md`. Without `--partial` it refuses while a planned job has
-neither finished nor failed. A job file whose sha256 differs from the one the ledger recorded
-when it finished is refused; a job file under the protocol's directory that the plan does not
-name is listed, not counted.
+Reads `experiments/protocol/NAME.toml` and the ledger `run.py` keeps beside the lock,
+`experiments/protocol/NAME/ledger.jsonl` (each finished job's `done` entry carries what this
+script reads of its job file: no run directory is needed); writes
+`experiments/protocol/NAME/jobs.csv` (one row per job) and `experiments/protocol/NAME/summary.md`.
+Without `--partial` it refuses while a planned job has neither finished nor failed. Where a job
+file is still on disk (the session that ran it), a file whose sha256 differs from the one the
+ledger recorded is refused; a job the ledger records that the plan does not name is listed, not
+counted.
 
-Per job, three policies: the loop's own (its last IRL iteration's evaluation); the chosen one
-(the final phase's choice by learned return, for an algorithm with a final phase; an algorithm
-without one has no chosen policy but the loop's own, and the table says so); and a random pick
-among the final phase's candidates, as its expected score (the mean over the candidates: no
-draw). A policy's score is its success on the lower branch (the branch it does worse on; a
-task without branches has one). A job is solved when that score is at least 0.9; a failed job
+Per job, three policies, each scored on the job's final set (its own episodes, 50 per branch
+at the standard config: `final_set_episodes` in src/pipeline/reacher_irl/evaluation.rs, never
+seen by training or the choice): the loop's own (its policy after the last IRL iteration); the
+chosen one (the final phase's choice by learned return, for an algorithm with a final phase; an
+algorithm without one has no chosen policy but the loop's own, and the table says so); and a
+random pick among the final phase's candidates, as its expected score (the mean over the
+candidates: no draw). A policy's score is its success on the lower branch (the branch it does
+worse on; a task without branches has one). A job is solved when that score is at least 0.9; a failed job
 (the ledger's record of an error exit) counts as unsolved with score 0.
 
 The summary, per (task, arm) and policy: solved jobs / jobs with a 95 % Wilson interval, and
@@ -31,7 +35,6 @@ per base, with its bootstrap interval.
 import argparse
 import csv
 import hashlib
-import json
 import math
 import os
 import random
@@ -44,29 +47,28 @@ SOLVED = 0.9
 RESAMPLES = 10_000
 
 
-def lower_branch(evaluated):
-    """(lower-branch success, per-branch successes) of an evaluation row or candidate."""
-    branches = evaluated.get("branches")
-    if not branches:
-        rates = [evaluated["success_rate"]]
+def lower_branch(score, where):
+    """(lower-branch success, per-branch successes) of a final-set score as the ledger keeps it
+    (`run.score_of`)."""
+    if not score:
+        sys.exit(f"table: {where}: no final-set evaluation (a job file of a binary without it)")
+    if len(score) == 1:
+        rates = [score[0]]
     else:
-        rates = [s / e for s, e in zip(branches["successes"], branches["episodes"]) if e > 0]
+        rates = [s / e for e, s in (score[1:3], score[3:5]) if e > 0]
     if not rates or any(r != r for r in rates):
-        raise ValueError(f"no success rate in {evaluated}")
+        sys.exit(f"table: {where}: no success rate in {score}")
     return min(rates), rates
 
 
-def policies(record, path):
-    """(loop, chosen or None, random pick's expected score or None); loop and chosen are
-    (lower-branch score, per-branch rates)."""
-    if not record.get("rows"):
-        sys.exit(f"table: {path}: a job record without evaluation rows")
-    loop = lower_branch(record["rows"][-1])
-    final = record.get("final_policy")
-    if not final:
+def policies(fields, where):
+    """(loop, chosen or None, random pick's expected score or None) of a job's ledger fields;
+    loop and chosen are (lower-branch score, per-branch rates)."""
+    loop = lower_branch(fields.get("loop"), where)
+    if "candidates" not in fields:
         return loop, None, None
-    cands = [lower_branch(c) for c in final["candidates"]]
-    chosen = cands[final["chosen"]]
+    cands = [lower_branch(c, f"{where}, candidate {i}") for i, c in enumerate(fields["candidates"])]
+    chosen = cands[fields["chosen"]]
     expected = sum(c[0] for c in cands) / len(cands)
     return loop, chosen, expected
 
@@ -121,28 +123,35 @@ def main():
     _, _, plan = protocol.load(args.name)
     runs, jobs = protocol.plan_runs(args.name, plan)
     ledger = protocol.read_ledger(args.name)
-    finished = {(e["dir"], e["algo"], e["seed"]): e["sha256"] for e in ledger if e.get("event") == "done"}
-    failed = {(e["dir"], e["algo"], e["seed"]) for e in ledger if e.get("event") == "failed"}
-    rows, missing, planned_files = [], 0, set()
+    finished = {}
+    for e in ledger:
+        if e.get("event") not in ("done", "failed"):
+            continue
+        key = protocol.job_key(e)
+        before = finished.get(key)
+        if before and (before["event"], before.get("sha256")) != (e["event"], e.get("sha256")):
+            sys.exit(f"table: {key} is recorded twice with different outcomes ({before['event']} "
+                     f"{before.get('sha256')}, {e['event']} {e.get('sha256')})")
+        finished[key] = e
+    rows, missing, planned = [], 0, set()
     for j in jobs:
         r = runs[j["run"]]
-        key = (r["dir"], j["algo"], j["seed"])
-        path = protocol.job_file(*key)
-        planned_files.add(os.path.abspath(path))
+        key = (protocol.rel(r["dir"]), j["algo"], j["seed"])
+        planned.add(key)
         row = {"arm": j["arm"], "task": protocol.task_label(r["task"]), "base": r["base"], "algo": j["algo"], "seed": j["seed"]}
-        if key in failed:
+        e = finished.get(key)
+        if e is None:
+            missing += 1
+            continue
+        if e["event"] == "failed":
             rows.append({**row, "status": "failed", "loop": 0.0, "chosen": None, "random_pick": None,
                          "loop_branches": "", "chosen_branches": "", "wall_secs": None})
             continue
-        if not os.path.isfile(path):
-            missing += 1
-            continue
-        if finished.get(key) != protocol.sha256_of(path):
+        path = protocol.job_file(r["dir"], j["algo"], j["seed"])
+        if os.path.isfile(path) and protocol.sha256_of(path) != e["sha256"]:
             sys.exit(f"table: {path} is not the file the ledger recorded when the job finished")
-        with open(path) as fh:
-            record = json.load(fh)
-        loop, chosen, expected = policies(record, path)
-        wall = record.get("wall_secs")
+        loop, chosen, expected = policies(e["job"], f"{key[0]} {j['algo']} seed {j['seed']}")
+        wall = e["job"].get("wall_secs")
         rows.append({**row, "status": "done", "loop": loop[0], "chosen": chosen[0] if chosen else None,
                      "random_pick": expected,
                      "loop_branches": " ".join(f"{x:.2f}" for x in loop[1]),
@@ -150,12 +159,7 @@ def main():
                      "wall_secs": round(wall) if isinstance(wall, (int, float)) and wall == wall else None})
     if missing and not args.partial:
         sys.exit(f"table: {missing} of {len(jobs)} jobs are missing (--partial for the finished ones)")
-    unplanned = []
-    for top, _, files in os.walk(protocol.run_root(args.name)):
-        for f in files:
-            full = os.path.abspath(os.path.join(top, f))
-            if os.path.basename(top) == "jobs" and f.endswith(".json") and full not in planned_files:
-                unplanned.append(full)
+    unplanned = [f"{d} {a} seed {s}" for d, a, s in finished if (d, a, s) not in planned]
     out = os.path.join(protocol.ROOT, "experiments", "protocol", args.name)
     os.makedirs(out, exist_ok=True)
     fields = ["arm", "task", "base", "algo", "seed", "status", "loop", "chosen", "random_pick",
@@ -170,7 +174,7 @@ def main():
         + (f"; {missing} not run yet" if missing else "") + ")",
         "",
         f"`python3 experiments/protocol/table.py {args.name}{' --partial' if args.partial else ''}`; "
-        "every job is in jobs.csv. Score: success on the lower branch; solved: score >= 0.9 "
+        "every job is in jobs.csv. Score: success on the lower branch, on the job's final set; solved: score >= 0.9 "
         "(95 % Wilson interval); means with 95 % bootstrap intervals over base seeds; random "
         "pick: the expected score of a uniform pick among the final phase's candidates; "
         "chosen − loop: paired by job, bootstrapped over bases. `-`: the algorithm has no final phase.",
@@ -211,7 +215,7 @@ def main():
             f"{solved('loop')} | {cell('loop')} | {cell('random_pick') if has_final else '-'} | {diff} |"
         )
     if unplanned:
-        lines += ["", "Job files under the protocol's directory that its plan does not name (not counted):", ""]
+        lines += ["", "Jobs the ledger records that the plan does not name (not counted):", ""]
         lines += [f"- {u}" for u in sorted(unplanned)]
     with open(os.path.join(out, "summary.md"), "w") as fh:
         fh.write("\n".join(lines) + "\n")

@@ -1,9 +1,18 @@
 //! What watches an IRL job without steering it ([`JobWatch`]): the ground-truth evaluation of
-//! the policy after every iteration (the rows of `metrics.csv`), how much of the agent's sample
+//! the policy after every iteration (the rows of `metrics.csv`), the final judgement on a
+//! larger set of episodes of its own ([`final_set_episodes`]), how much of the agent's sample
 //! lies where the expert's density is non-zero, the MCAP log of the job's episodes, and
 //! progress reports. The algorithms call it at fixed points of their loops; nothing it
 //! computes flows back into training (its episodes use their own random streams and reset
 //! seeds).
+//!
+//! The final set: the loop's own final policy (after its last iteration) and every candidate
+//! of the final phase are also judged on [`final_set_episodes`] episodes per branch, from a
+//! reset-seed stream of their own ([`FINAL_SET_STREAM`]), disjoint from the per-iteration
+//! evaluation's and from the selection episodes'. Only the watch holds those seeds: training
+//! and the final phase's choice never see them, so the numbers a preregistered evaluation
+//! reports are measured on episodes nothing in the job was tuned or stopped on, and on more of
+//! them than the per-iteration curve needs.
 
 use super::config::IrlRunConfig;
 use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
@@ -71,6 +80,39 @@ pub fn stratified_eval_seeds(
     chosen.into_iter().map(|(_, seed)| seed).collect()
 }
 
+/// The final set's episodes per branch at the standard `eval_episodes`
+/// ([`STANDARD_EVAL_EPISODES`]); other configs scale it ([`final_set_episodes`]).
+pub const FINAL_SET_EPISODES: u64 = 50;
+
+/// The standard config's `eval_episodes`, at which the final set has [`FINAL_SET_EPISODES`]
+/// per branch.
+pub const STANDARD_EVAL_EPISODES: u64 = 20;
+
+/// The final set's reset-seed stream within the job's seed (the per-iteration evaluation's is
+/// `0xe7a1`, the selection episodes' `0x5e1e_c7ed`).
+pub const FINAL_SET_STREAM: u64 = 0xf1a1_5e75;
+
+/// Episodes per branch of the final set (a task without branches: in all):
+/// [`FINAL_SET_EPISODES`] · `eval_episodes` / [`STANDARD_EVAL_EPISODES`], rounded up — 50 at
+/// the standard 20, 20 at `--quick`'s 8 — so that a quick run's final judgement costs in
+/// proportion to its evaluation. Why scaled rather than fixed: a fixed 50 would make the small
+/// configs' final phase several times slower than their loop's evaluation.
+pub fn final_set_episodes(settings: &IrlRunConfig) -> u64 {
+    (FINAL_SET_EPISODES * settings.eval_episodes).div_ceil(STANDARD_EVAL_EPISODES)
+}
+
+/// A policy's ground-truth evaluation on the final set, as a job record stores it.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FinalSetScore {
+    /// Episodes played (per branch: `branches`).
+    pub episodes: u64,
+    /// Fraction of successful episodes; for a conditional task the lower branch rate.
+    pub success_rate: f64,
+    pub branches: Option<BranchTally>,
+    pub progress: f64,
+    pub final_ball: f64,
+}
+
 /// The ground-truth judge of a job: fixed evaluation episodes (the mean action, from the same
 /// reset seeds every time, each ended once the task is decided) scored by the perfect machine.
 pub struct GroundTruth<'r> {
@@ -89,9 +131,35 @@ impl<'r> GroundTruth<'r> {
         seed: u64,
         eval_episodes: u64,
     ) -> GroundTruth<'r> {
+        Self::of_stream(perfect, env, episode_seed(seed, 0xe7a1), eval_episodes)
+    }
+
+    /// The final set of the job of seed `seed`: `per_branch` episodes per branch
+    /// ([`final_set_episodes`]) from the stream [`FINAL_SET_STREAM`].
+    pub fn final_set(
+        perfect: &'r RewardMachine,
+        env: &mut ReacherDelivery,
+        seed: u64,
+        per_branch: u64,
+    ) -> GroundTruth<'r> {
+        Self::of_stream(
+            perfect,
+            env,
+            episode_seed(seed, FINAL_SET_STREAM),
+            per_branch,
+        )
+    }
+
+    /// `per_branch` episodes per branch (a task without branches: in all) from the reset seeds
+    /// of `eval_seed`'s stream.
+    fn of_stream(
+        perfect: &'r RewardMachine,
+        env: &mut ReacherDelivery,
+        eval_seed: u64,
+        eval_episodes: u64,
+    ) -> GroundTruth<'r> {
         let layout = Arc::clone(env.layout());
         let task = GroundTruthTask::of(perfect, &layout);
-        let eval_seed = episode_seed(seed, 0xe7a1);
         let eval_seeds = match task.branches {
             Some(_) => stratified_eval_seeds(env, eval_seed, eval_episodes),
             None => (0..eval_episodes)
@@ -239,6 +307,10 @@ pub struct JobWatch<'r, 'l> {
     rows: Vec<MetricsRow>,
     /// How the job plays its many independent episodes (rollouts, evaluations).
     lockstep: Lockstep<'l>,
+    /// The final judgement's own episodes (see the module docs); `None`: no final judgement.
+    final_set: Option<GroundTruth<'r>>,
+    /// The loop's own final policy (after its last iteration) on the final set.
+    loop_final_set: Option<FinalSetScore>,
 }
 
 impl<'r, 'l> JobWatch<'r, 'l> {
@@ -265,6 +337,17 @@ impl<'r, 'l> JobWatch<'r, 'l> {
             expert_support: None,
             rows: Vec::with_capacity(iterations + 1),
             lockstep: Lockstep::single_thread(),
+            final_set: None,
+            loop_final_set: None,
+        }
+    }
+
+    /// The watch with a final judgement on `final_set` ([`GroundTruth::final_set`]): the
+    /// loop's final policy and every final-phase candidate are also judged there.
+    pub fn with_final_set(self, final_set: GroundTruth<'r>) -> JobWatch<'r, 'l> {
+        JobWatch {
+            final_set: Some(final_set),
+            ..self
         }
     }
 
@@ -371,6 +454,9 @@ impl<'r, 'l> JobWatch<'r, 'l> {
             final_ball: Some(ev.final_ball),
             expert_support: self.expert_support.take(),
         });
+        if iteration == self.iterations {
+            self.loop_final_set = self.judge_final_set(agent, env)?;
+        }
         (self.progress)(JobProgress {
             iteration,
             iterations: self.iterations,
@@ -391,6 +477,33 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         let logger = self.logger.as_deref_mut();
         self.ground_truth
             .evaluate_logged_as(agent, env, logger, "final", Some(self.lockstep))
+    }
+
+    /// Judges a policy on the final set (`None` without one). Its episodes are not logged:
+    /// the log keeps what the per-iteration evaluation and the final phase played.
+    pub fn judge_final_set<E: JobEnv>(
+        &mut self,
+        agent: &mut SacAgent,
+        env: &mut E,
+    ) -> Result<Option<FinalSetScore>, String> {
+        let Some(final_set) = &self.final_set else {
+            return Ok(None);
+        };
+        let ev =
+            final_set.evaluate_logged_as(agent, env, None, "final-set", Some(self.lockstep))?;
+        Ok(Some(FinalSetScore {
+            episodes: final_set.reset_seeds().len() as u64,
+            success_rate: ev.success_rate,
+            branches: ev.branches,
+            progress: ev.progress,
+            final_ball: ev.final_ball,
+        }))
+    }
+
+    /// The loop's own final policy on the final set (`None` without a final set, or before
+    /// the last iteration).
+    pub fn loop_final_set(&self) -> Option<FinalSetScore> {
+        self.loop_final_set
     }
 
     /// The metrics rows, iteration 0 first.

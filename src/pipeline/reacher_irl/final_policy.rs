@@ -35,7 +35,7 @@
 
 use super::config::IrlRunConfig;
 use super::episodes::{play_episode, train_sac, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
-use super::evaluation::{Evaluation, JobWatch};
+use super::evaluation::{Evaluation, FinalSetScore, JobWatch};
 use crate::env::reacher_task::BranchTally;
 use crate::irl::seen_after_events::SeenAfterEvents;
 use crate::irl::smirl::FeatureMap;
@@ -93,6 +93,10 @@ pub struct FinalCandidate {
     pub branches: Option<BranchTally>,
     pub progress: f64,
     pub final_ball: f64,
+    /// On the final set ([`super::evaluation::final_set_episodes`]): what a preregistered
+    /// evaluation reports; `None` in records written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub final_set: Option<FinalSetScore>,
 }
 
 /// The final-policy phase of a job: its candidates — the co-trained policy first, then its
@@ -177,6 +181,13 @@ pub fn selection_episodes(settings: &IrlRunConfig) -> u64 {
     2 * settings.eval_episodes
 }
 
+/// The reset seeds of the `n` selection episodes of the job of seed `seed`: a stream of their
+/// own within the job's seed.
+pub fn selection_seeds(seed: u64, n: u64) -> Vec<u64> {
+    let stream = episode_seed(seed, 0x5e1e_c7ed);
+    (0..n).map(|i| episode_seed(stream, i)).collect()
+}
+
 /// The stream of the reset agent's SAC seed within the job's seed.
 const RESET_AGENT_STREAM: u64 = 0x7e5e_7a9e;
 
@@ -201,10 +212,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     iterations: usize,
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<FinalPolicy, String> {
-    let selection_stream = episode_seed(phase.seed, 0x5e1e_c7ed);
-    let selection_seeds: Vec<u64> = (0..phase.selection_episodes)
-        .map(|i| episode_seed(selection_stream, i))
-        .collect();
+    let selection_seeds = selection_seeds(phase.seed, phase.selection_episodes);
     let task = GroundTruthTask::of(watch.perfect(), watch.layout());
     let selection = &Selection {
         seeds: &selection_seeds,
@@ -267,6 +275,7 @@ fn candidate<E: JobEnv, R: ScoredReward>(
     let (learned_return, cut_return) =
         selection_returns(&mut sac.agent, env, reward, task, selection, watch.logger())?;
     let ev: Evaluation = watch.judge_final(&mut sac.agent, env)?;
+    let final_set = watch.judge_final_set(&mut sac.agent, env)?;
     Ok(FinalCandidate {
         agent,
         env_steps: sac.env_steps(),
@@ -276,6 +285,7 @@ fn candidate<E: JobEnv, R: ScoredReward>(
         branches: ev.branches,
         progress: ev.progress,
         final_ball: ev.final_ball,
+        final_set,
     })
 }
 

@@ -5,7 +5,7 @@
 //! the metrics rows, the result.
 
 use super::config::IrlRunConfig;
-use super::evaluation::{GroundTruth, JobWatch};
+use super::evaluation::{final_set_episodes, FinalSetScore, GroundTruth, JobWatch};
 use super::final_policy::FinalPolicy;
 use super::firl::{self, BaselineJob, BaselineOutcome, Loss, StateMap};
 use super::lockstep::Lockstep;
@@ -198,6 +198,8 @@ pub struct JobResult {
     pub reward_trace: Vec<RewardTraceRow>,
     /// Jobs with a final phase: its candidates, the reported one and the random pick.
     pub final_policy: Option<FinalPolicy>,
+    /// The loop's own final policy (after its last iteration) on the final set.
+    pub loop_final_set: Option<FinalSetScore>,
     pub wall_secs: f64,
 }
 
@@ -298,6 +300,7 @@ pub fn run_job(
         .map_err(|e| fail(format!("expert KDE: {e}")))?;
     let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| fail(e.to_string()))?;
     let ground_truth = GroundTruth::new(perfect_rm, &mut schedule, seed, s.eval_episodes);
+    let final_set = GroundTruth::final_set(perfect_rm, &mut schedule, seed, final_set_episodes(s));
     let final_steps = s.smirl_final_sac_steps;
     let mut watch = JobWatch::new(
         s,
@@ -308,7 +311,8 @@ pub fn run_job(
         logger,
         progress,
     )
-    .with_lockstep(inputs.lockstep);
+    .with_lockstep(inputs.lockstep)
+    .with_final_set(final_set);
     let baseline = |loss| BaselineJob {
         loss,
         seed,
@@ -369,9 +373,11 @@ pub fn run_job(
             .save(path)
             .map_err(|e| fail(format!("saving the reward: {e}")))?;
     }
+    let loop_final_set = watch.loop_final_set();
     Ok(JobResult {
         algo,
         seed,
+        loop_final_set,
         rows: watch.into_rows(),
         reward_trace,
         final_policy,

@@ -3,6 +3,7 @@
 //! the error a run fails with and the file writer the run and its reports share.
 
 use super::config::IrlRunConfig;
+use super::evaluation::FinalSetScore;
 use super::final_policy::FinalPolicy;
 use super::job::ExpertData;
 use super::Algo;
@@ -156,6 +157,11 @@ pub struct JobRecord {
     /// The final phase (`final_policy.csv`); absent in jobs without one (`smirl-paper`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub final_policy: Option<FinalPolicy>,
+    /// The loop's own final policy (after its last iteration) on the final set
+    /// ([`super::evaluation::final_set_episodes`]); `None` in records written before it
+    /// existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loop_final_set: Option<FinalSetScore>,
     pub wall_secs: f64,
 }
 

@@ -2,6 +2,7 @@
 //! directory: `metrics.csv`, `final_policy.csv`, `summary.csv`, `summary.md`, the plots and
 //! `run.json`, and each SMIRL job's reward trace CSV.
 
+use super::evaluation::FinalSetScore;
 use super::final_policy::{FinalCandidate, FinalPolicy};
 use super::job::RewardTraceRow;
 use super::records::{
@@ -397,7 +398,10 @@ pub(super) fn write_reports(
 /// one drawn at random (the choice's yardstick), `agent` says
 /// whose policy it is (`co-trained`, `reset` with
 /// `smirl_final_reset_steps`), `cut_return`
-/// what the choice read instead of `learned_return` (`smirl_selection_cut`; else empty).
+/// what the choice read instead of `learned_return` (`smirl_selection_cut`; else empty),
+/// `final_set_*` the success on the final set (`evaluation::final_set_episodes`; candidate 0's
+/// is the loop's own final policy's), beside `success_*` on the per-iteration evaluation's
+/// episodes.
 fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
     let mut table = CsvTable::new([
         "algo",
@@ -414,14 +418,22 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
         "agent",
         "cut_return",
         "random",
+        "final_set_episodes",
+        "final_set_success_rate",
+        "final_set_success_normal",
+        "final_set_success_cancel",
     ]);
     for (_, r) in records {
         let Some(f) = &r.final_policy else { continue };
         for (i, c) in f.candidates.iter().enumerate() {
-            let rate = |b: Branch| {
-                c.branches
+            let rate_of = |branches: Option<BranchTally>, b: Branch| {
+                branches
                     .and_then(|t| t.rate(b))
                     .map_or(String::new(), |x| format!("{x}"))
+            };
+            let rate = |b: Branch| rate_of(c.branches, b);
+            let final_set = |f: &dyn Fn(&FinalSetScore) -> String| {
+                c.final_set.as_ref().map_or(String::new(), f)
             };
             table.push([
                 r.algo.clone(),
@@ -438,6 +450,10 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 c.agent.name().to_string(),
                 c.cut_return.map_or(String::new(), |x| format!("{x:.6}")),
                 u8::from(f.random == Some(i)).to_string(),
+                final_set(&|s| s.episodes.to_string()),
+                final_set(&|s| format!("{}", s.success_rate)),
+                final_set(&|s| rate_of(s.branches, Branch::Normal)),
+                final_set(&|s| rate_of(s.branches, Branch::Cancelled)),
             ]);
         }
     }

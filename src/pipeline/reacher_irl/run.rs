@@ -645,6 +645,7 @@ impl PreparedRun {
             seed,
             rows: result.rows,
             final_policy: result.final_policy,
+            loop_final_set: result.loop_final_set,
             wall_secs: result.wall_secs,
         };
         write_file(
