@@ -214,8 +214,6 @@ fn the_clock_counts_down_the_episode() {
     }
 }
 
-/// The frozen clock (the clock's control): the same width and first observation as the clock,
-/// held at 1 on every step of every episode; all else is the product's without a clock.
 #[test]
 fn the_frozen_clock_never_moves() {
     let product = six_step_or_product;
