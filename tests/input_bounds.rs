@@ -56,15 +56,9 @@ fn oversized_irl_configs_name_the_key_its_line_and_the_limit() {
             "10000",
         ),
         (
-            "lrm_max_states",
-            "lrm_max_states = 1000000",
-            "lrm_max_states",
-            "100",
-        ),
-        (
-            "lrm_tabu_len",
-            "lrm_tabu_len = 1000000000",
-            "lrm_tabu_len",
+            "tabu_len",
+            "tabu_len = 1000000000",
+            "lrm.tabu_len",
             "1000000",
         ),
         (

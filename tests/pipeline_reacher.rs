@@ -3,14 +3,14 @@
 //! half-written), bad input exiting 2 without output, and bit-identical metrics per seed.
 
 mod irl_run_common;
-use irl_run_common::{metrics_column, tiny_config, tiny_rkl_blue_run};
+use irl_run_common::tiny_config;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::{AnnotatedTrajectories, FeatureMap, LinearRmReward, SmirlNormalisation};
 mod smirl_reference;
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{
-    run_pipeline, AgentBatch, Algo, DemoSource, ExpertData, IrlRunConfig, RunRequest,
+    run_pipeline, AgentBatch, Algo, ExpertData, IrlRunConfig, RunRequest,
 };
 use smirl_reference::maxent_gradient;
 use std::path::{Path, PathBuf};

@@ -648,9 +648,9 @@ pub const REMOVED_KEYS: [(&str, &str); 50] = [
         "the algorithm: smirl and smirl-smooth relabel every SAC transition to a \
          counterfactual machine state (the old 1.0), smirl-paper none",
     ),
-    ("final_sac_steps", "[final] sac_steps"),
-    ("final_checkpoints", "[final] checkpoints"),
-    ("final_reset_steps", "[final] reset_steps"),
+    ("smirl_final_sac_steps", "[final] sac_steps"),
+    ("smirl_final_checkpoints", "[final] checkpoints"),
+    ("smirl_final_reset_steps", "[final] reset_steps"),
     (
         "smirl_selection_cut",
         "the algorithm: the final choice of smirl and smirl-smooth always cuts (the old true)",
