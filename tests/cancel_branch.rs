@@ -314,7 +314,17 @@ fn quick_if_run_reports_each_branch() {
 #[test]
 fn bad_cancel_windows_are_refused_with_status_2() {
     let tmp = tempfile::tempdir().unwrap();
-    let full = IrlRunConfig::quick().to_toml();
+    // A run config has no cancel window (the task file's [[event]] schedule is).
+    let run = format!(
+        "{}\n[env.cancel]\nlatest_step = 60\n",
+        IrlRunConfig::quick().to_toml()
+    );
+    let e = IrlRunConfig::from_toml(&run, "r.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("env.cancel") && e.contains("[[event]]"), "{e}");
+    // An expert config's window is checked.
+    let full = "[env]\nmax_steps = 100\n[env.cancel]\nprobability = 0.5\nearliest_step = 1\nlatest_step = 8\n";
     let window = "earliest_step = 1\nlatest_step = 8";
     assert!(full.contains(window), "{full}");
     let cases = [
@@ -344,7 +354,7 @@ fn bad_cancel_windows_are_refused_with_status_2() {
         std::fs::write(&cfg, &text).unwrap();
         let out = tmp.path().join("out");
         let o = reacher()
-            .args(["--task", "if", "--config"])
+            .args(["expert", "--task", "if", "--config"])
             .arg(&cfg)
             .arg("--out")
             .arg(&out)

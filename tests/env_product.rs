@@ -213,27 +213,3 @@ fn the_clock_counts_down_the_episode() {
         }
     }
 }
-
-/// The frozen clock (the clock's control): the same width and first observation as the clock,
-/// held at 1 on every step of every episode; all else is the product's without a clock.
-#[test]
-fn the_frozen_clock_never_moves() {
-    let product = six_step_or_product;
-    let (mut plain, mut frozen) = (product(), product().with_frozen_clock());
-    let n = plain.obs_dim();
-    assert_eq!(frozen.obs_dim(), product().with_clock(6).obs_dim());
-    assert_eq!(frozen.trailing_dim(), 1);
-    let (mut a, mut b) = (vec![0.0f32; n], vec![0.0f32; n + 1]);
-    for episode in 0..2 {
-        plain.reset(3 + episode, &mut a);
-        frozen.reset(3 + episode, &mut b);
-        assert_eq!((&a[..], b[n]), (&b[..n], 1.0));
-        for t in 1..=6 {
-            let action = [-0.4f32, 0.25];
-            let p = plain.step_product(&action, &mut a).unwrap();
-            let f = frozen.step_product(&action, &mut b).unwrap();
-            assert_eq!(p, f, "step {t}");
-            assert_eq!((&a[..], b[n]), (&b[..n], 1.0), "step {t}");
-        }
-    }
-}

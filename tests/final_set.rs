@@ -153,7 +153,7 @@ fn stratified_seeds_hold_for_other_events_two_events_and_none() {
 #[test]
 fn the_final_judgement_does_not_steer_the_job() {
     let mut config = tiny_config();
-    config.smirl_final_reset_steps = 140;
+    config.final_reset_steps = 140;
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
     let request = RunRequest {
@@ -185,7 +185,7 @@ fn the_final_judgement_does_not_steer_the_job() {
         let ground_truth = GroundTruth::new(&run.perfect, &mut schedule, SEED, s.eval_episodes);
         let mut watch = JobWatch::new(
             s,
-            s.smirl_final_sac_steps,
+            s.final_sac_steps,
             ground_truth,
             &run.perfect,
             kde,

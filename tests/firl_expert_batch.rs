@@ -6,7 +6,7 @@ mod irl_run_common;
 use irl_run_common::{metrics_column, tiny_config, tiny_rkl_blue_run};
 use smirl::irl::firl::{Divergence, FirlSurrogate};
 use smirl::pipeline::reacher_irl::firl::{coefficients, DemonstrationDraw, IterationRatios, Loss};
-use smirl::pipeline::reacher_irl::{AgentBatch, Algo, DemoPadding, ExpertData, IrlRunConfig};
+use smirl::pipeline::reacher_irl::{AgentBatch, Algo, ExpertData, IrlRunConfig};
 
 #[allow(unused_imports)]
 use shipped_layout::{layout, obs_dim, shipped_config};
@@ -132,17 +132,23 @@ fn demonstrations_are_drawn_as_firl_draws_them() {
 
 #[test]
 fn config_key_round_trips_and_is_checked() {
-    // Written only where it is not 0 (the standard profile: rkl's schedule only).
-    assert!(!IrlRunConfig::quick()
+    // Every config writes it ([firl], required); the standard gives rkl's schedule 300.
+    assert!(IrlRunConfig::quick()
         .to_toml()
-        .contains("firl_expert_trajectories"));
-    let standard = IrlRunConfig::standard().to_toml();
-    assert_eq!(standard.matches("firl_expert_trajectories").count(), 1);
+        .contains("[firl]\nreward_lr = 0.001\nreward_l2 = 0.001\nkde_bandwidth = 0.02\nexpert_trajectories = 0\n"));
+    let standard = IrlRunConfig::standard();
+    assert_eq!(standard.to_toml().matches("expert_trajectories").count(), 2);
+    assert_eq!(
+        standard
+            .for_algo(Algo::Rkl)
+            .unwrap()
+            .firl_expert_trajectories,
+        300
+    );
     let base = tiny_config().to_toml();
+    let text = base.replace("expert_trajectories = 0\n", "expert_trajectories = 5\n");
     let c = IrlRunConfig::from_toml(
-        &format!(
-            "firl_expert_trajectories = 5\n{base}\n[schedule.js]\nfirl_expert_trajectories = 9\n"
-        ),
+        &format!("{text}\n[schedule.js.firl]\nexpert_trajectories = 9\n"),
         "c.toml",
     )
     .unwrap();
@@ -152,22 +158,15 @@ fn config_key_round_trips_and_is_checked() {
     let again = IrlRunConfig::from_toml(&c.to_toml(), "again.toml").unwrap();
     assert_eq!(again, c);
 
-    let mut unpadded = tiny_config();
-    unpadded.demo_padding = DemoPadding::None;
-    let text = format!("firl_expert_trajectories = 5\n{}", unpadded.to_toml());
-    let err = IrlRunConfig::from_toml(&text, "c.toml")
-        .unwrap_err()
-        .to_string();
-    assert!(
-        err.contains("c.toml") && err.contains("firl_expert_trajectories") && err.contains("hold"),
-        "{err}"
+    let text = base.replace(
+        "expert_trajectories = 0\n",
+        "expert_trajectories = 1000000000000\n",
     );
-    let text = format!("firl_expert_trajectories = 1000000000000\n{base}");
     let err = IrlRunConfig::from_toml(&text, "c.toml")
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("firl_expert_trajectories") && err.contains("limit"),
+        err.contains("firl.expert_trajectories") && err.contains("limit"),
         "{err}"
     );
 }
@@ -183,11 +182,8 @@ fn tiny_run_with_demonstrations_in_the_batch() {
     };
     let (alone, written_alone) = run(0);
     let (with, written) = run(6);
-    assert!(!written_alone.contains("firl_expert_trajectories"));
-    assert!(
-        written.contains("firl_expert_trajectories = 6"),
-        "{written}"
-    );
+    assert!(written_alone.contains("expert_trajectories = 0\n"));
+    assert!(written.contains("expert_trajectories = 6\n"), "{written}");
     let losses = |m: &str| metrics_column(m, "surrogate_loss");
     assert_eq!(losses(&alone).len(), losses(&with).len());
     assert_ne!(losses(&alone)[1..], losses(&with)[1..], "{alone}\n{with}");

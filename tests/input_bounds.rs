@@ -36,18 +36,7 @@ fn line_of(text: &str, needle: &str) -> usize {
 #[test]
 fn oversized_irl_configs_name_the_key_its_line_and_the_limit() {
     let cases = [
-        (
-            "hidden",
-            "hidden = [1000000, 1000000]",
-            "sac.hidden",
-            "4096",
-        ),
-        (
-            "hidden",
-            "hidden = [8, 8, 8, 8, 8, 8, 8, 8, 8]",
-            "sac.hidden",
-            "8 layers",
-        ),
+        ("max_states", "max_states = 1000", "lrm.max_states", "100"),
         (
             "replay_capacity",
             "replay_capacity = 1000000000000000",
@@ -55,16 +44,10 @@ fn oversized_irl_configs_name_the_key_its_line_and_the_limit() {
             "4000000",
         ),
         (
-            "batch_size",
-            "batch_size = 100000000",
-            "sac.batch_size",
-            "65536",
-        ),
-        (
-            "updates_per_step",
-            "updates_per_step = 100000",
-            "sac.updates_per_step",
-            "64",
+            "sac_steps",
+            "sac_steps = 1000000000",
+            "final.sac_steps",
+            "100000000",
         ),
         (
             "max_steps",
@@ -73,15 +56,9 @@ fn oversized_irl_configs_name_the_key_its_line_and_the_limit() {
             "10000",
         ),
         (
-            "lrm_max_states",
-            "lrm_max_states = 1000000",
-            "lrm_max_states",
-            "100",
-        ),
-        (
-            "lrm_tabu_len",
-            "lrm_tabu_len = 1000000000",
-            "lrm_tabu_len",
+            "tabu_len",
+            "tabu_len = 1000000000",
+            "lrm.tabu_len",
             "1000000",
         ),
         (
@@ -108,13 +85,12 @@ fn oversized_irl_configs_name_the_key_its_line_and_the_limit() {
             assert!(e.contains(needle), "{line}: expected {needle:?} in: {e}");
         }
     }
-    // A key left at its default is reported at its table's header.
-    let text = with_line("lr", "");
-    let text = text.replace("batch_size = 256", "batch_size = 0");
+    // A key of a table is required like any other.
+    let text = with_line("warmup_steps", "");
     let e = IrlRunConfig::from_toml(&text, "bad.toml")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("sac.batch_size"), "{e}");
+    assert!(e.contains("missing field `warmup_steps`"), "{e}");
     // A missing top-level key is not blamed on line 1.
     let text = with_line("threads", "");
     let e = IrlRunConfig::from_toml(&text, "bad.toml")
@@ -147,7 +123,11 @@ fn oversized_expert_configs_name_the_key_and_line() {
 fn the_cli_refuses_oversized_configs_and_seed_counts_with_exit_2() {
     let tmp = tempfile::tempdir().unwrap();
     let bad = tmp.path().join("bad.toml");
-    std::fs::write(&bad, with_line("hidden", "hidden = [1000000, 1000000]")).unwrap();
+    std::fs::write(
+        &bad,
+        with_line("replay_capacity", "replay_capacity = 1000000000000000"),
+    )
+    .unwrap();
     let out = tmp.path().join("run");
     let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
         .args(["--task", "or", "--config", bad.to_str().unwrap()])
@@ -160,7 +140,7 @@ fn the_cli_refuses_oversized_configs_and_seed_counts_with_exit_2() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    assert!(String::from_utf8_lossy(&o.stderr).contains("sac.hidden"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("sac.replay_capacity"));
     assert!(!out.exists());
 
     let o = Command::new(env!("CARGO_BIN_EXE_office"))

@@ -489,7 +489,7 @@ fn linear_reward_saves_and_loads() {
     assert!(err.contains("missing.json"), "{err}");
 }
 
-/// `SmirlNormalisation::Visits`: a row in state u is weighted by 1 / (number of trajectories
+/// `maxent_coefficients_by_visits`: a row in state u is weighted by 1 / (number of trajectories
 /// of its set that visit u); for a state every trajectory visits it equals the plain
 /// per-trajectory coefficient.
 #[test]
@@ -521,7 +521,7 @@ fn visit_normalised_coefficients_divide_by_trajectories_visiting_the_state() {
     );
 }
 
-/// `SmirlNormalisation::SharedVisits`: where the agent's batch visits a state the coefficients
+/// `maxent_coefficients_by_shared_visits`: where the agent's batch visits a state the coefficients
 /// are the visit-normalised ones; an expert row in a state no agent trajectory reaches gets 0,
 /// so that state's weights are not raised for want of an agent estimate (the regression of
 /// held-out Composite base 24, README "Shared visits").

@@ -353,7 +353,7 @@ fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cance
     }
     let mut settings = IrlRunConfig::standard();
     settings.env = shipped_config(settings.env);
-    assert!(settings.smirl_selection_cut && settings.smirl_selection_cut_entries);
+    assert!(settings.selection_cut());
     let seen = seen_after_events(&m, &expert, &settings).unwrap();
     assert_eq!(
         seen.in_state(1),
@@ -495,7 +495,7 @@ fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
         agent.lengths.push(t.len());
     }
     let features = FeatureMap::reacher_labels(&layout());
-    let normalisation = IrlRunConfig::standard().smirl_normalisation;
+    let normalisation = IrlRunConfig::standard().normalisation();
     assert_eq!(normalisation, SmirlNormalisation::EventGatedVisits);
     let got = coefficients(&features, &expert, &agent, normalisation, &m);
 

@@ -59,11 +59,11 @@ failure: 3
 /// a final phase with a reset agent and the selection cut (entries), a rollout log.
 fn config() -> IrlRunConfig {
     let mut c = tiny_config();
-    c.smirl_final_reset_steps = 140;
+    c.final_reset_steps = 140;
     let standard = IrlRunConfig::standard();
-    assert_eq!(c.smirl_normalisation, standard.smirl_normalisation);
-    assert!(c.smirl_selection_cut && c.smirl_selection_cut_entries && c.smirl_clock);
-    assert!(c.smirl_shaping > 0.0 && c.smirl_counterfactual > 0.0);
+    assert_eq!(c.normalisation(), standard.normalisation());
+    assert!(c.selection_cut() && c.clock());
+    assert!(c.smirl_shaping > 0.0 && c.counterfactual() > 0.0);
     assert!(c.log_every_nth_episode > 0);
     c
 }

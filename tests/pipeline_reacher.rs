@@ -3,14 +3,14 @@
 //! half-written), bad input exiting 2 without output, and bit-identical metrics per seed.
 
 mod irl_run_common;
-use irl_run_common::{metrics_column, tiny_config, tiny_rkl_blue_run};
+use irl_run_common::tiny_config;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::{AnnotatedTrajectories, FeatureMap, LinearRmReward, SmirlNormalisation};
 mod smirl_reference;
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{
-    reward_lr, run_pipeline, AgentBatch, Algo, DemoSource, ExpertData, IrlRunConfig, RunRequest,
+    run_pipeline, AgentBatch, Algo, ExpertData, IrlRunConfig, RunRequest,
 };
 use smirl_reference::maxent_gradient;
 use std::path::{Path, PathBuf};
@@ -207,7 +207,7 @@ fn artefacts(dir: &Path, algos: &[&str], seed: u64) {
 }
 
 /// `final_policy.csv`: per job (every algorithm with a learned reward has the final phase) the
-/// co-trained policy and `smirl_final_checkpoints` candidates, the chosen one the first of
+/// co-trained policy and `final_checkpoints` candidates, the chosen one the first of
 /// highest selection return (the cut return, else the learned return), one random pick; the
 /// co-trained candidate is the policy of the last metrics row, judged on the same episodes, so
 /// its success is that row's.
@@ -222,7 +222,7 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let config = tiny_config();
-    let per_job = config.smirl_final_checkpoints as usize + 1;
+    let per_job = config.final_checkpoints as usize + 1;
     assert_eq!(rows.len(), algos.len() * per_job, "{table}");
     for a in algos {
         let job: Vec<&Vec<&str>> = rows
@@ -406,59 +406,36 @@ fn cli_tiny_run_and_bad_input() {
         assert!(err.contains(needle), "{args:?}: {err}");
         assert!(!bad_out.exists() && !tmp.path().join("bad.partial").exists());
     }
-    // An expert cache from another task is refused before anything is written.
-    let cache = tmp.path().join("cache");
-    std::fs::create_dir_all(&cache).unwrap();
-    std::fs::write(cache.join("expert_or.policy"), b"SMIRLPOL not a policy").unwrap();
-    let mut c = tiny_config();
-    c.demo_source = DemoSource::Expert;
-    c.expert_cache_dir = cache.clone();
-    let p = tmp.path().join("expert.toml");
-    std::fs::write(&p, c.to_toml()).unwrap();
-    let o = reacher()
-        .args(["--task", "or", "--config"])
-        .arg(&p)
-        .arg("--out")
-        .arg(tmp.path().join("bad"))
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    assert!(String::from_utf8_lossy(&o.stderr).contains("expert_or.policy"));
-    assert!(!tmp.path().join("bad").exists());
-    // The subcommands still work next to the top-level arguments.
-    assert_eq!(
-        reacher()
-            .args(["replay", "--help"])
-            .output()
-            .unwrap()
-            .status
-            .code(),
-        Some(0)
-    );
 }
 
+/// Every shipped config of experiments/reacher either parses or, written for the old layout
+/// (a record of the runs made with it), is refused naming an old key and what replaced it.
 #[test]
-fn shipped_configs_parse() {
+fn shipped_configs_parse_or_are_refused_naming_the_replacement() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
-    let mut parsed = 0;
+    let (mut parsed, mut refused) = (Vec::new(), 0);
     for dir in [dir.clone(), dir.join("ablations"), dir.join("controls")] {
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "toml") {
-                IrlRunConfig::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-                parsed += 1;
+                match IrlRunConfig::load(&path) {
+                    Ok(_) => parsed.push(path.file_name().unwrap().to_owned()),
+                    Err(e) => {
+                        let e = e.to_string();
+                        assert!(
+                            e.contains("is no longer a key") && e.contains("replaced by"),
+                            "{}: {e}",
+                            path.display()
+                        );
+                        refused += 1;
+                    }
+                }
             }
         }
     }
-    assert!(
-        parsed >= 20,
-        "config, config_uniform, quick, config_scripted, the three ablations and the controls"
-    );
+    parsed.sort();
+    assert_eq!(parsed, ["config.toml", "quick.toml"]);
+    assert!(refused >= 30, "{refused}");
 }
 
 /// The shipped figure-7 config is the built-in default profile, so `reacher --task t` and
@@ -477,64 +454,22 @@ fn shipped_quick_config_is_the_quick_profile() {
     assert_eq!(IrlRunConfig::load(&path).unwrap(), IrlRunConfig::quick());
 }
 
-/// `smirl_label_features`: a config without the key reads as the paper's state labels (what
-/// every run before the key used); `"entries"` selects label entries and is written back; a
-/// bad value names the key.
+/// `[smirl] machine`: required; `"learned"` in the standard profile, `"task"` read and
+/// written back; a bad value names the file and the value, a config without the key the key.
 #[test]
-fn smirl_label_features_key_reads_old_configs_as_state_labels() {
-    use smirl::irl::smirl::LabelFeatures;
-    use smirl::pipeline::reacher_irl::smirl::Features;
-    let text = IrlRunConfig::standard().to_toml();
-    let line = text
-        .lines()
-        .find(|l| l.starts_with("smirl_label_features"))
-        .expect("the key is written")
-        .to_string();
-    let mut without = IrlRunConfig::from_toml(&text.replace(&line, ""), "c.toml").unwrap();
-    without.env = shipped_config(without.env);
-    assert_eq!(without.smirl_label_features, LabelFeatures::State);
-    assert_eq!(
-        Features::Labels.map(&without).unwrap(),
-        FeatureMap::reacher_labels(&layout())
-    );
-    let entries = text.replace(&line, "smirl_label_features = \"entries\"");
-    let mut c = IrlRunConfig::from_toml(&entries, "c.toml").unwrap();
-    c.env = shipped_config(c.env);
-    assert_eq!(c.smirl_label_features, LabelFeatures::Entries);
-    assert_eq!(
-        Features::Labels.map(&c).unwrap(),
-        FeatureMap::reacher_label_entries(&layout())
-    );
-    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    // smirl-smooth reads its smooth features either way.
-    assert_eq!(
-        Features::Smooth.map(&c).unwrap(),
-        FeatureMap::reacher_smooth(&layout(), c.smooth_sigma).unwrap()
-    );
-    let bad = text.replace(&line, "smirl_label_features = \"edges\"");
-    assert_config_error_names(&bad, "edges");
-}
-
-/// `smirl_machine`: a config without the key reads as LRM's machine (what every run before the
-/// key used) and is written without it; `"task"` is written back; a bad value names the file
-/// and the value.
-#[test]
-fn smirl_machine_key_reads_old_configs_as_the_learned_machine() {
+fn smirl_machine_key_is_required_and_round_trips() {
     use smirl::pipeline::reacher_irl::SmirlMachine;
     let standard = IrlRunConfig::standard();
     let text = standard.to_toml();
-    assert!(
-        !text.contains("smirl_machine"),
-        "the default is not written"
-    );
+    let line = "machine = \"learned\"\n";
+    assert!(text.contains(line), "{text}");
     assert_eq!(standard.smirl_machine, SmirlMachine::Learned);
-    let task = format!("smirl_machine = \"task\"\n{text}");
-    let c = IrlRunConfig::from_toml(&task, "c.toml").unwrap();
+    let c = IrlRunConfig::from_toml(&text.replace(line, "machine = \"task\"\n"), "c.toml").unwrap();
     assert_eq!(c.smirl_machine, SmirlMachine::Task);
     assert_eq!(c.smirl_machine.name(), "task");
     assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    let bad = format!("smirl_machine = \"perfect\"\n{text}");
-    assert_config_error_names(&bad, "perfect");
+    assert_config_error_names(&text.replace(line, "machine = \"perfect\"\n"), "perfect");
+    assert_config_error_names(&text.replace(line, ""), "missing field `machine`");
 }
 
 /// `text`, read as the config file `c.toml`, is refused with an error naming the file and
@@ -632,38 +567,16 @@ fn tiny_smirl_run(
     (tmp, dir, summary)
 }
 
-/// `smirl_selection_cut`: the standard, read as false from configs without the key; a run with it says in its report which balls
+/// The selection cut (smirl's, not a key): a run says in its report which balls
 /// the demonstrations touch after the cancel per learned state, and every final-policy
 /// candidate of its SMIRL job carries a cut return, the one the choice reads.
 #[test]
 fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     use smirl::pipeline::reacher_irl::final_policy::choose;
     use smirl::pipeline::reacher_irl::records::JobRecord;
-    // The standard since its tuning rule was met; a config without the key reads as false.
     let c = IrlRunConfig::standard();
-    assert!(c.smirl_selection_cut);
-    assert_eq!(IrlRunConfig::from_toml(&c.to_toml(), "c.toml").unwrap(), c);
-    assert!(c.smirl_selection_cut_entries);
-    let without = c
-        .to_toml()
-        .replace("smirl_selection_cut = true\n", "")
-        .replace("smirl_selection_cut_entries = true\n", "");
-    assert!(
-        !IrlRunConfig::from_toml(&without, "c.toml")
-            .unwrap()
-            .smirl_selection_cut
-    );
-    // Reading touches as entries is a way of cutting: refused without the cut.
-    let entries = format!("smirl_selection_cut_entries = true\n{without}");
-    assert_config_error_names(&entries, "smirl_selection_cut_entries");
-    let with_cut = format!("smirl_selection_cut = true\n{entries}");
-    let e = IrlRunConfig::from_toml(&with_cut, "c.toml").unwrap();
-    assert!(e.smirl_selection_cut_entries);
-    assert_eq!(IrlRunConfig::from_toml(&e.to_toml(), "c.toml").unwrap(), e);
-
-    let mut config = tiny_config();
-    config.smirl_selection_cut = true;
-    config.smirl_selection_cut_entries = true;
+    assert!(c.selection_cut() && !c.for_algo(Algo::SmirlPaper).unwrap().selection_cut());
+    let config = tiny_config();
     let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::shipped("if").unwrap(), config);
     let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
     assert!(
@@ -687,35 +600,56 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
     assert_eq!(f.chosen, choose(&f.candidates));
 }
 
-/// Keys missing from `[sac]` come from the IRL runs' SAC, not from the paper's preset; a
-/// `preset` key switches the base.
+/// `[sac]` gives five keys, each required; the rest of SAC is the IRL runs' (`irl_run_sac`),
+/// and a config that sets one of its old keys is refused naming what replaced it.
 #[test]
-fn sac_table_defaults_to_the_irl_run_sac() {
+fn sac_table_sets_five_keys_over_the_irl_run_sac() {
     use smirl::pipeline::reacher_irl::config::irl_run_sac;
     use smirl::rl::sac::SacConfig;
-    let mut text = IrlRunConfig::standard().to_toml();
-    let cut = text.find("[sac]").unwrap();
-    text.truncate(cut);
-    let c = IrlRunConfig::from_toml(&format!("{text}[sac]\nbatch_size = 128\n"), "c.toml").unwrap();
+    let text = IrlRunConfig::standard().to_toml();
+    let c = IrlRunConfig::from_toml(
+        &text.replace("warmup_steps = 1000\n", "warmup_steps = 7\n"),
+        "c.toml",
+    )
+    .unwrap();
     assert_eq!(
         c.sac,
         SacConfig {
-            batch_size: 128,
+            warmup_steps: 7,
+            update_after: 7,
             ..irl_run_sac()
         }
     );
-    assert_eq!(c.sac.replay_capacity, 200_000);
-    let c = IrlRunConfig::from_toml(&format!("{text}[sac]\npreset = \"irl\"\n"), "c.toml").unwrap();
-    assert_eq!(c.sac, SacConfig::irl());
-    let without = IrlRunConfig::from_toml(&text, "c.toml").unwrap();
-    assert_eq!(without.sac, irl_run_sac());
-    let err = IrlRunConfig::from_toml(&format!("{text}[sac]\nbatch = 3\n"), "c.toml")
+    assert_eq!(IrlRunConfig::standard().sac, irl_run_sac());
+    assert_config_error_names(&text.replace("alpha = 0.2\n", ""), "missing field `alpha`");
+    for (old, replacement) in [
+        ("batch_size = 128\n", "fixed at 256"),
+        ("update_after = 10\n", "[sac] warmup_steps"),
+        ("preset = \"irl\"\n", "the rest is fixed"),
+    ] {
+        let err =
+            IrlRunConfig::from_toml(&text.replace("[sac]\n", &format!("[sac]\n{old}")), "c.toml")
+                .unwrap_err()
+                .to_string();
+        let key = old.split(' ').next().unwrap();
+        assert!(
+            err.contains("c.toml")
+                && err.contains(&format!("sac.{key}"))
+                && err.contains(replacement),
+            "{err}"
+        );
+    }
+    // A config built in code cannot carry a SAC setting the file could not hold.
+    let mut c = IrlRunConfig::standard();
+    c.sac.batch_size = 64;
+    assert!(c
+        .validate("c")
         .unwrap_err()
-        .to_string();
-    assert!(err.contains("c.toml") && err.contains("batch"), "{err}");
+        .to_string()
+        .contains("sac.batch_size"));
 }
 
-/// `demo_padding = "hold"`: a demonstration that ends at the goal is extended to the time
+/// Every demonstration is held at its final state: a demonstration that ends at the goal is extended to the time
 /// limit by holding its final state (zero joint velocities, no cancel event, the labels of
 /// that state), the learned machine stepping on the held labels; `None` leaves it as is.
 #[test]
@@ -842,48 +776,13 @@ fn expert_data_round_trips_and_checks_its_arrays() {
     assert!(ExpertData::from_bytes(&bytes[..bytes.len() - 3], obs_dim()).is_err());
 }
 
-/// The reward learning-rate schedule lr · k^(−p) of a base rate (SMIRL's or the reward
-/// net's), constant for p = 0.
-#[test]
-fn reward_learning_rate_decays_as_a_power_of_the_iteration() {
-    let mut c = IrlRunConfig::standard();
-    c.smirl_reward_lr = 0.1;
-    c.mlp_reward_lr = 0.001;
-    c.reward_lr_decay = 0.0;
-    for k in [1, 2, 20] {
-        assert_eq!(reward_lr(c.smirl_reward_lr, &c, k), 0.1);
-        assert_eq!(reward_lr(c.mlp_reward_lr, &c, k), 0.001);
-    }
-    c.reward_lr_decay = 0.5;
-    assert_eq!(reward_lr(c.smirl_reward_lr, &c, 1), 0.1);
-    assert!((reward_lr(c.smirl_reward_lr, &c, 4) - 0.05).abs() < 1e-7);
-    assert!((reward_lr(c.mlp_reward_lr, &c, 16) - 0.00025).abs() < 1e-9);
-    c.reward_lr_decay = -0.5;
-    assert!(c.validate("test").is_err());
-}
-
-/// The counterfactual share is a probability; the error names the field.
-#[test]
-fn counterfactual_share_must_be_in_the_unit_interval() {
-    let mut c = IrlRunConfig::standard();
-    for ok in [0.0, 0.5, 1.0] {
-        c.smirl_counterfactual = ok;
-        c.validate("test").unwrap();
-    }
-    for bad in [-0.1, 1.5, f64::NAN] {
-        c.smirl_counterfactual = bad;
-        let e = c.validate("test").unwrap_err().to_string();
-        assert!(e.contains("smirl_counterfactual"), "{e}");
-    }
-}
-
-/// The final-policy phase's keys: checkpoints need steps, lie in 1..=steps and under the
-/// limit; the error names the field.
+/// The final phase's keys are checked together (a message names `[final]`'s key), and a
+/// config without them is refused naming the missing key.
 #[test]
 fn final_policy_settings_are_checked() {
     let mut c = IrlRunConfig::standard();
     // The phase's own keys first, without the standard's reset agent (which needs them).
-    c.smirl_final_reset_steps = 0;
+    c.final_reset_steps = 0;
     for (steps, checkpoints, ok) in [
         (0, 0, true),
         (20_000, 4, true),
@@ -894,22 +793,20 @@ fn final_policy_settings_are_checked() {
         (20_000, 1_001, false),
         (100_000_001, 4, false),
     ] {
-        c.smirl_final_sac_steps = steps;
-        c.smirl_final_checkpoints = checkpoints;
+        c.final_sac_steps = steps;
+        c.final_checkpoints = checkpoints;
         match c.validate("test") {
             Ok(()) => assert!(ok, "{steps} steps, {checkpoints} checkpoints accepted"),
             Err(e) => {
                 assert!(!ok, "{steps}, {checkpoints}: {e}");
-                assert!(e.to_string().contains("smirl_final_"), "{e}");
+                assert!(e.to_string().contains("final."), "{e}");
             }
         }
     }
     // The reset agent needs the phase's checkpoints, at least one step per checkpoint and at
     // most the step limit.
     type Key = fn(&mut IrlRunConfig) -> &mut u64;
-    let keys: [(&str, Key); 1] = [("smirl_final_reset_steps", |c| {
-        &mut c.smirl_final_reset_steps
-    })];
+    let keys: [(&str, Key); 1] = [("final.reset_steps", |c| &mut c.final_reset_steps)];
     for (field, key) in keys {
         for (extra, steps, checkpoints, ok) in [
             (150_000, 20_000, 4, true),
@@ -920,8 +817,8 @@ fn final_policy_settings_are_checked() {
         ] {
             let mut c = c.clone();
             *key(&mut c) = extra;
-            c.smirl_final_sac_steps = steps;
-            c.smirl_final_checkpoints = checkpoints;
+            c.final_sac_steps = steps;
+            c.final_checkpoints = checkpoints;
             match c.validate("test") {
                 Ok(()) => assert!(ok, "{field} {extra} accepted"),
                 Err(e) => {
@@ -932,23 +829,24 @@ fn final_policy_settings_are_checked() {
         }
     }
     let standard = IrlRunConfig::standard();
+    assert_eq!(standard.final_reset_steps, 20_000);
+    let text = standard.to_toml();
+    assert!(text.contains("[final]\nsac_steps = 20000\ncheckpoints = 4\nreset_steps = 20000\n"));
     assert_config_error_names(
-        &format!("smirl_final_fresh_steps = 280\n{}", standard.to_toml()),
-        "smirl_final_fresh_steps",
+        &text.replace(
+            "reset_steps = 20000\n",
+            "reset_steps = 20000\nfresh_steps = 280\n",
+        ),
+        "fresh_steps",
     );
-    assert_eq!(standard.smirl_final_reset_steps, 20_000);
-    assert!(standard
-        .to_toml()
-        .contains("smirl_final_reset_steps = 20000"));
-    // A config without the keys (every run before them) has no final phase.
-    let old = IrlRunConfig::standard()
-        .to_toml()
-        .lines()
-        .filter(|l| !l.starts_with("smirl_final_"))
-        .collect::<Vec<_>>()
-        .join("\n");
-    let c = IrlRunConfig::from_toml(&old, "old.toml").unwrap();
-    assert_eq!((c.smirl_final_sac_steps, c.smirl_final_checkpoints), (0, 0));
+    // A config without a key of the phase is refused (never read as "no final phase").
+    assert_config_error_names(
+        &text.replace("reset_steps = 20000\n", ""),
+        "missing field `reset_steps`",
+    );
+    // The old layout's keys are refused naming their new place.
+    let old = format!("smirl_final_sac_steps = 20000\n{text}");
+    assert_config_error_names(&old, "[final] sac_steps");
 }
 
 /// LRM's mechanisms are not settings: a config that still sets one of their old keys is
@@ -974,13 +872,14 @@ fn lrm_search_settings_are_checked() {
         let key = removed.split(' ').next().unwrap();
         assert_config_error_names(&format!("{removed}{text}"), key);
     }
-    assert_eq!(REMOVED_KEYS.len(), 6);
-    for (key, _) in REMOVED_KEYS {
+    for (key, replacement) in REMOVED_KEYS.iter().filter(|(k, _)| !k.contains('.')) {
         let err = IrlRunConfig::from_toml(&format!("# a\n{key} = false\n{text}"), "c.toml")
             .unwrap_err()
             .to_string();
         assert!(
-            err.starts_with("c.toml: line 2: field `") && err.contains(key),
+            err.starts_with("c.toml: line 2: field `")
+                && err.contains(key)
+                && err.contains(replacement),
             "{err}"
         );
     }
@@ -1021,40 +920,6 @@ fn a_config_with_a_removed_lrm_key_is_refused_by_the_cli() {
     assert!(!out.exists() && !tmp.path().join("run.partial").exists());
 }
 
-/// `smirl_normalisation`'s three values read back as written; a misspelt one is refused with
-/// the file and the key named.
-#[test]
-fn smirl_normalisation_values_round_trip() {
-    let text = IrlRunConfig::standard().to_toml();
-    let current = "smirl_normalisation = \"event_gated_visits\"\n";
-    assert!(text.contains(current), "the standard's value moved");
-    for (value, expected) in [
-        ("visits", SmirlNormalisation::Visits),
-        ("trajectories", SmirlNormalisation::Trajectories),
-        ("shared_visits", SmirlNormalisation::SharedVisits),
-        ("event_gated_visits", SmirlNormalisation::EventGatedVisits),
-    ] {
-        let t = text.replace(current, &format!("smirl_normalisation = \"{value}\"\n"));
-        let c = IrlRunConfig::from_toml(&t, "n.toml").unwrap();
-        assert_eq!(c.smirl_normalisation, expected);
-        assert_eq!(c.smirl_normalisation.name(), value);
-        assert_eq!(
-            IrlRunConfig::from_toml(&c.to_toml(), "again.toml").unwrap(),
-            c
-        );
-    }
-    let t = text.replace(current, "smirl_normalisation = \"shared\"\n");
-    let e = IrlRunConfig::from_toml(&t, "bad.toml")
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("bad.toml") && e.contains("smirl_normalisation"),
-        "{e}"
-    );
-}
-
-/// The reported candidate is the first of highest learned return, whatever its ground truth;
-/// with the selection cut, of highest cut return.
 #[test]
 fn final_policy_is_the_first_candidate_of_highest_learned_return() {
     use smirl::pipeline::reacher_irl::final_policy::{choose, FinalAgent, FinalCandidate};
@@ -1095,39 +960,14 @@ fn without_schedules() -> IrlRunConfig {
     c
 }
 
-/// `config_unshaped.toml`'s settings: the standard profile with SMIRL's settings from before
-/// issue 13 (20 IRL iterations, no shaping, no selection cut or reset agent, a replay buffer
-/// of 100 000; its runs' LRM settings are no longer settings), as the runs made with it.
-fn unshaped() -> IrlRunConfig {
-    IrlRunConfig {
-        sac: smirl::rl::sac::SacConfig {
-            replay_capacity: 100_000,
-            ..IrlRunConfig::standard().sac
-        },
-        irl_iterations: 20,
-        smirl_shaping: 0.0,
-        smirl_final_sac_steps: 0,
-        smirl_final_checkpoints: 0,
-        smirl_final_reset_steps: 0,
-        smirl_selection_cut: false,
-        smirl_selection_cut_entries: false,
-        smirl_clock: false,
-        smirl_normalisation: SmirlNormalisation::Visits,
-        ..IrlRunConfig::standard()
-    }
-}
-
-/// `config_uniform.toml`'s settings: `unshaped()` without the per-algorithm schedules.
+/// The standard profile without schedules: one schedule for every algorithm.
 fn uniform() -> IrlRunConfig {
-    let mut c = unshaped();
-    c.schedule.clear();
-    c
+    without_schedules()
 }
 
 /// The standard profile gives the baselines f-IRL's schedule (800 × 300 SAC steps, 300
 /// trajectories, 2 reward steps, SAC lr 3e-3 with α = 1 fixed, replay 12 000) and SMIRL the
-/// run's own (30 × 5 000 with shaping); `config_unshaped.toml` is it with SMIRL's earlier
-/// settings (20 × 5 000, no shaping), and `config_uniform.toml` that without the schedules.
+/// run's own (30 × 5 000 with shaping).
 #[test]
 fn standard_profile_gives_each_algorithm_its_schedule() {
     let standard = IrlRunConfig::standard();
@@ -1159,37 +999,6 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
         assert_eq!(c, without_schedules(), "{algo}");
         assert_eq!((c.irl_iterations, c.smirl_shaping), (30, 1.0), "{algo}");
     }
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
-    assert_eq!(
-        IrlRunConfig::load(&dir.join("config_uniform.toml")).unwrap(),
-        uniform()
-    );
-    // config_unshaped.toml, which prepared the figure-7 runs of issue 14: the standard profile
-    // with SMIRL's earlier settings; the baselines' schedules are the same.
-    let unshaped_file = IrlRunConfig::load(&dir.join("config_unshaped.toml")).unwrap();
-    assert_eq!(unshaped_file, unshaped());
-    // The baselines' resolved settings differ only in SMIRL's shaping, the final phase (and
-    // SMIRL's selection cut), the clock, the normalisation
-    // and the replay size, which every algorithm shares.
-    for algo in [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js] {
-        let unshaped_algo = unshaped_file.for_algo(algo).unwrap();
-        let before = IrlRunConfig {
-            sac: smirl::rl::sac::SacConfig {
-                replay_capacity: standard.sac.replay_capacity,
-                ..unshaped_algo.sac.clone()
-            },
-            smirl_shaping: 1.0,
-            smirl_final_sac_steps: standard.smirl_final_sac_steps,
-            smirl_final_checkpoints: standard.smirl_final_checkpoints,
-            smirl_final_reset_steps: standard.smirl_final_reset_steps,
-            smirl_selection_cut: standard.smirl_selection_cut,
-            smirl_selection_cut_entries: standard.smirl_selection_cut_entries,
-            smirl_clock: standard.smirl_clock,
-            smirl_normalisation: standard.smirl_normalisation,
-            ..unshaped_algo
-        };
-        assert_eq!(before, standard.for_algo(algo).unwrap(), "{algo}");
-    }
     assert!(IrlRunConfig::quick().schedule.is_empty());
 }
 
@@ -1201,7 +1010,8 @@ fn per_algorithm_schedules_replace_only_their_fields() {
     use smirl::rl::sac::SacConfig;
     let text = uniform().to_toml()
         + "\n[schedule.fkl]\nirl_iterations = 800\nsac_steps_per_iteration = 300\n\
-           agent_trajectories = 300\nreward_steps_per_iteration = 2\nmlp_reward_l2 = 0.0\n\
+           agent_trajectories = 300\nreward_steps_per_iteration = 2\n\
+           \n[schedule.fkl.firl]\nreward_l2 = 0.0\n\
            \n[schedule.fkl.sac]\nlr = 0.003\nalpha = 1.0\nauto_alpha = false\n";
     let c = IrlRunConfig::from_toml(&text, "c.toml").unwrap();
     let standard = uniform();
@@ -1257,8 +1067,14 @@ fn bad_schedules_name_the_key_and_line() {
             3,
         ),
         (
-            "[schedule.rkl]\nkde_bandwidth = -1.0\n",
-            "schedule.rkl.kde_bandwidth",
+            "[schedule.rkl.firl]\nkde_bandwidth = -1.0\n",
+            "schedule.rkl.firl.kde_bandwidth",
+            3,
+        ),
+        // A key of the old layout names its new place.
+        (
+            "[schedule.rkl]\nmlp_reward_l2 = 0.0\n",
+            "[schedule.<algo>.firl] reward_l2",
             3,
         ),
         ("[schedule.fkl.sac]\nlr = -1.0\n", "schedule.fkl.sac.lr", 3),
@@ -1331,7 +1147,14 @@ fn run_with_extra_agent(
     for (a, b) in without.iter().zip(&with) {
         assert_eq!((&a[..5], &a[6..13]), (&b[..5], &b[6..13]));
     }
-    let returns: Vec<f64> = with.iter().map(|r| r[4].parse().unwrap()).collect();
+    // The choice reads the cut return where SMIRL's selection cut applies, else the learned
+    // return.
+    let returns: Vec<f64> = (with.iter())
+        .map(|r| {
+            let cut = &r[12];
+            if cut.is_empty() { &r[4] } else { cut }.parse().unwrap()
+        })
+        .collect();
     let best = returns.iter().cloned().fold(f64::MIN, f64::max);
     let chosen: Vec<usize> = (0..with.len()).filter(|&i| with[i][5] == "1").collect();
     assert_eq!(
@@ -1346,16 +1169,16 @@ fn run_with_extra_agent(
     (without, with)
 }
 
-/// `smirl_final_reset_steps`: after the co-trained agent's final phase a reset agent (new
+/// `final_reset_steps`: after the co-trained agent's final phase a reset agent (new
 /// networks on its replay buffer) learns from that buffer, then trains on, and its checkpoints
 /// join the candidates (`agent` = reset, step counts going on from the co-trained agent's),
 /// the rest as [`run_with_extra_agent`] checks.
 #[test]
 fn reset_agent_checkpoints_join_the_final_policy_candidates() {
     let (without, with) = run_with_extra_agent(
-        |c, steps| c.smirl_final_reset_steps = steps,
+        |c, steps| c.final_reset_steps = steps,
         280,
-        "smirl_final_reset_steps = 280",
+        "\nreset_steps = 280\n",
     );
     assert_eq!(with.len(), without.len() + 2, "{with:?}");
     let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
@@ -1448,98 +1271,22 @@ fn quick_positive_control_run_completes() {
     assert!(out.join("progress.svg").is_file());
 }
 
-/// `firl_density_ratio = "discriminator"` (in an algorithm's schedule here) runs f-IRL on a
-/// classifier's log-ratio: the job completes, its learned reward differs from the KDE run's
-/// on the same seed, and the written config keeps the key; without it the config prints as
-/// before the key existed.
-#[test]
-fn discriminator_density_ratio_runs_and_is_recorded() {
-    assert!(!IrlRunConfig::standard()
-        .to_toml()
-        .contains("firl_density_ratio"));
-    let run = |ratio: Option<&str>| {
-        let mut config = tiny_config();
-        if let Some(ratio) = ratio {
-            let text = format!(
-                "{}\n[schedule.rkl]\nfirl_density_ratio = \"{ratio}\"\n",
-                config.to_toml()
-            );
-            config = IrlRunConfig::from_toml(&text, "c.toml").unwrap();
-        }
-        tiny_rkl_blue_run(config)
-    };
-    let (kde, _) = run(None);
-    let (disc, written) = run(Some("discriminator"));
-    assert!(
-        written.contains("firl_density_ratio = \"discriminator\""),
-        "{written}"
-    );
-    let learned = |m: &str| metrics_column(m, "learned_reward");
-    assert_eq!(learned(&kde).len(), learned(&disc).len());
-    assert_ne!(learned(&kde)[1..], learned(&disc)[1..], "{kde}\n{disc}");
-    let err = IrlRunConfig::from_toml(
-        &format!(
-            "firl_density_ratio = \"classifier\"\n{}",
-            IrlRunConfig::standard().to_toml()
-        ),
-        "c.toml",
-    )
-    .unwrap_err()
-    .to_string();
-    assert!(
-        err.contains("c.toml") && err.contains("line 1") && err.contains("classifier"),
-        "{err}"
-    );
-}
-
-/// `smirl_clock`: SMIRL's agent sees the share of the episode still to come. Read as false
-/// from configs without the key and not written when false; the standard's (its ablation's
-/// config, `ablations/clock.toml`, is the standard); a run with it records it
-/// (config.toml, run.json), trains with counterfactual states on the wider observation (the
-/// relabeller refuses a width it was not built for), replays its log, repeats itself per seed
-/// and differs from the run without a clock; `reacher retrain` on its reward trains in the same
-/// product.
+/// The clock: SMIRL's agent sees the share of the episode still to come (every algorithm's
+/// but smirl-paper's, not a key); a run with it trains with counterfactual states on the wider
+/// observation (the relabeller refuses a width it was not built for), replays its log and
+/// repeats itself per seed; `reacher retrain` on its reward trains in the same product.
 #[test]
 fn clock_widens_smirls_observation_through_the_pipeline() {
     use smirl::pipeline::commands::irl::{retrain, RetrainRequest};
-    let text = unshaped().to_toml();
-    assert!(!text.contains("smirl_clock"));
-    assert!(
-        !IrlRunConfig::from_toml(&text, "c.toml")
-            .unwrap()
-            .smirl_clock
-    );
     let config = tiny_config();
-    assert!(
-        config.smirl_clock,
-        "the standard's, and so the quick profile's"
-    );
-    assert!(config.smirl_counterfactual > 0.0);
-    let written = config.to_toml();
-    assert!(written.contains("smirl_clock = true"), "{written}");
-    assert_eq!(IrlRunConfig::from_toml(&written, "c.toml").unwrap(), config);
-    // The ablation's config is the standard, which has the clock.
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
-    assert_eq!(
-        IrlRunConfig::load(&dir.join("ablations/clock.toml")).unwrap(),
-        IrlRunConfig::load(&dir.join("config.toml")).unwrap()
-    );
-
+    assert!(config.clock() && config.counterfactual() > 0.0);
+    assert!(!config.for_algo(Algo::SmirlPaper).unwrap().clock());
     let (_with_tmp, with, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config.clone());
     let (_again_tmp, again, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config);
-    let no_clock = IrlRunConfig {
-        smirl_clock: false,
-        ..tiny_config()
-    };
-    let (_without_tmp, without, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), no_clock);
     let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
     for file in ["metrics.csv", "final_policy.csv"] {
         assert_eq!(read(&with, file), read(&again, file), "{file}");
     }
-    assert_ne!(read(&with, "metrics.csv"), read(&without, "metrics.csv"));
-    assert!(read(&with, "config.toml").contains("smirl_clock = true"));
-    let run_json: serde_json::Value = serde_json::from_str(&read(&with, "run.json")).unwrap();
-    assert_eq!(run_json["smirl_clock"], serde_json::Value::Bool(true));
     let log = smirl::log::read_log(&with.join("logs/smirl_seed3.mcap")).unwrap();
     let report = smirl::pipeline::replay::replay(&log).unwrap();
     assert!(report.all_match(), "{report}");
@@ -1560,52 +1307,7 @@ fn clock_widens_smirls_observation_through_the_pipeline() {
     assert_eq!(table.lines().count(), 2, "{table}");
 }
 
-/// `smirl_clock_frozen`, the clock's control: refused without the clock; read as false from
-/// configs without the key; a run with it records it and differs from the run with the moving
-/// clock; its ablation config is the standard with only the clock frozen.
-#[test]
-fn frozen_clock_is_the_clock_without_the_time() {
-    let standard = tiny_config();
-    assert!(!standard.smirl_clock_frozen);
-    assert!(!standard.to_toml().contains("smirl_clock_frozen"));
-    let frozen = IrlRunConfig {
-        smirl_clock_frozen: true,
-        ..standard.clone()
-    };
-    let written = frozen.to_toml();
-    assert!(written.contains("smirl_clock_frozen = true"), "{written}");
-    assert_eq!(IrlRunConfig::from_toml(&written, "c.toml").unwrap(), frozen);
-    assert_config_error_names(
-        &written.replace("smirl_clock = true\n", ""),
-        "smirl_clock_frozen",
-    );
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
-    let control = IrlRunConfig::load(&dir.join("ablations/clock_frozen.toml")).unwrap();
-    assert!(control.smirl_clock_frozen);
-    assert_eq!(
-        IrlRunConfig {
-            smirl_clock_frozen: false,
-            ..control
-        },
-        IrlRunConfig::load(&dir.join("config.toml")).unwrap()
-    );
-
-    let (_frozen_tmp, with_frozen, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), frozen);
-    let (_clock_tmp, with_clock, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), standard);
-    let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
-    assert_ne!(
-        read(&with_frozen, "metrics.csv"),
-        read(&with_clock, "metrics.csv")
-    );
-    let run_json: serde_json::Value =
-        serde_json::from_str(&read(&with_frozen, "run.json")).unwrap();
-    assert_eq!(
-        run_json["smirl_clock_frozen"],
-        serde_json::Value::Bool(true)
-    );
-}
-
-/// `smirl_machine = "one_state"`, the control of issue 54 without structure: the run's machine
+/// `[smirl] machine = "one_state"`, the control of issue 54 without structure: the run's machine
 /// has one state and no transitions and its report says so, every expert step is in that
 /// state, the SMIRL job learns one weight vector on it and keeps every other mechanism (its
 /// final phase included).
@@ -1615,10 +1317,13 @@ fn one_state_control_runs_smirl_on_a_one_state_machine() {
     use smirl::pipeline::reacher_irl::SmirlMachine;
     use smirl::rm::format::parse_rm;
     let text = IrlRunConfig::standard().to_toml();
-    let c = IrlRunConfig::from_toml(&format!("smirl_machine = \"one_state\"\n{text}"), "c.toml")
-        .unwrap();
+    let c = IrlRunConfig::from_toml(
+        &text.replace("machine = \"learned\"", "machine = \"one_state\""),
+        "c.toml",
+    )
+    .unwrap();
     assert_eq!(c.smirl_machine, SmirlMachine::OneState);
-    assert!(c.to_toml().contains("smirl_machine = \"one_state\""));
+    assert!(c.to_toml().contains("machine = \"one_state\""));
 
     let mut config = tiny_config();
     config.smirl_machine = SmirlMachine::OneState;
@@ -1637,4 +1342,103 @@ fn one_state_control_runs_smirl_on_a_one_state_machine() {
     assert_eq!(reward["n_states"], 1);
     let record: JobRecord = serde_json::from_str(&read("jobs/smirl_seed3.json")).unwrap();
     assert!(record.final_policy.is_some());
+}
+
+/// The run config's keys: at most 30, each listed on its own line of docs/configuration.md
+/// (the docs and the layout name the same set), each required. Mutations tried: a field added
+/// to a table of `RunFile` without its line in the docs fails at the set comparison; one with
+/// `#[serde(default)]` fails at "read without".
+#[test]
+fn the_config_has_at_most_30_keys_each_documented_and_required() {
+    use smirl::pipeline::reacher_irl::config::layout_keys;
+    let doc = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/configuration.md"),
+    )
+    .unwrap();
+    let section = doc.split("\n## Keys\n").nth(1).unwrap();
+    let section = section.split("\n## ").next().unwrap();
+    let mut documented: Vec<String> = section
+        .lines()
+        .filter_map(|l| l.strip_prefix("| `"))
+        .map(|l| l.split('`').next().unwrap().to_string())
+        .collect();
+    documented.sort();
+    let mut keys = layout_keys();
+    keys.sort();
+    assert_eq!(documented, keys);
+    assert!(keys.len() <= 30, "{} keys", keys.len());
+    // Print, load, print: the same text.
+    let text = IrlRunConfig::standard().to_toml();
+    let loaded = IrlRunConfig::from_toml(&text, "printed").unwrap();
+    assert_eq!(loaded, IrlRunConfig::standard());
+    assert_eq!(loaded.to_toml(), text);
+    // Each key left out: refused naming it.
+    for key in &keys {
+        let (table, name) = match key.split_once('.') {
+            Some((t, k)) => (Some(t), k),
+            None => (None, key.as_str()),
+        };
+        let mut current: Option<&str> = None;
+        let mut removed = 0;
+        let without: String = text
+            .lines()
+            .filter(|l| {
+                if let Some(h) = l.strip_prefix('[') {
+                    current = Some(h.trim_end_matches(']'));
+                }
+                let hit = current == table && l.split(" = ").next() == Some(name);
+                removed += usize::from(hit);
+                !hit
+            })
+            .map(|l| format!("{l}\n"))
+            .collect();
+        assert_eq!(removed, 1, "{key}");
+        let err = IrlRunConfig::from_toml(&without, "c.toml")
+            .expect_err(&format!("read without {key}"))
+            .to_string();
+        assert!(
+            err.contains("c.toml") && err.contains(&format!("missing field `{name}`")),
+            "{key}: {err}"
+        );
+    }
+}
+
+/// The CLI refuses a config without a key (naming it) and one with a removed switch (naming
+/// what replaced it) with exit status 2, before anything is written.
+#[test]
+fn the_cli_refuses_a_missing_key_and_a_removed_switch() {
+    let tmp = tempfile::tempdir().unwrap();
+    let quick = IrlRunConfig::quick().to_toml();
+    for (name, text, needles) in [
+        (
+            "missing.toml",
+            quick.replace("reset_steps = 2000\n", ""),
+            ["missing field `reset_steps`", "missing.toml"],
+        ),
+        (
+            "old.toml",
+            format!("smirl_clock = false\n{quick}"),
+            [
+                "smirl_clock",
+                "every algorithm but smirl-paper has the clock",
+            ],
+        ),
+    ] {
+        let cfg = tmp.path().join(name);
+        std::fs::write(&cfg, text).unwrap();
+        let out = tmp.path().join("run");
+        let o = reacher()
+            .args(["--task", "or", "--algo", "smirl", "--quiet", "--config"])
+            .arg(&cfg)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{stderr}");
+        for needle in needles {
+            assert!(stderr.contains(needle), "{needle}: {stderr}");
+        }
+        assert!(!out.exists());
+    }
 }

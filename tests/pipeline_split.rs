@@ -331,8 +331,9 @@ fn configs_print_shortest_decimals_and_read_back_the_same() {
         .unwrap();
     let text = ok(&o);
     assert!(text.contains("\nlr = 0.001\n"), "{text}");
-    assert!(text.contains("\nmlp_reward_lr = 0.001\n"), "{text}");
-    assert!(text.contains("\ngamma = 0.99\n"), "{text}");
+    assert!(text.contains("\nreward_lr = 0.001\n"), "{text}");
+    assert!(text.contains("\nreward_l2 = 0.05\n"), "{text}");
+    assert!(text.contains("\nkde_bandwidth = 0.02\n"), "{text}");
     assert!(!long_decimal(&text), "{text}");
     assert_eq!(
         IrlRunConfig::from_toml(&text, "printed").unwrap(),
@@ -342,14 +343,12 @@ fn configs_print_shortest_decimals_and_read_back_the_same() {
     let mut c = IrlRunConfig::quick();
     c.mlp_reward_lr = 3.3e-7;
     c.smirl_reward_l2 = 0.123_456_79;
-    c.sac.gamma = 0.999;
-    c.sac.tau = f32::MIN_POSITIVE;
-    c.sac.target_entropy = Some(-1.7);
+    c.sac.alpha = 0.123_456_79;
     let back = IrlRunConfig::from_toml(&c.to_toml(), "written").unwrap();
     assert_eq!(back, c);
     assert_eq!(back.mlp_reward_lr.to_bits(), c.mlp_reward_lr.to_bits());
     assert!(
-        c.to_toml().contains("target_entropy = -1.7"),
+        c.to_toml().contains("alpha = 0.12345679"),
         "{}",
         c.to_toml()
     );

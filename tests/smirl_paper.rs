@@ -5,7 +5,7 @@
 mod irl_run_common;
 use irl_run_common::tiny_config;
 use smirl::env::reacher_task::ReacherTask;
-use smirl::irl::smirl::{LabelFeatures, SmirlNormalisation};
+use smirl::irl::smirl::SmirlNormalisation;
 use smirl::pipeline::reacher_irl::run::{open_run, JobRecord};
 use smirl::pipeline::reacher_irl::smirl::lrm_config;
 use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
@@ -52,35 +52,27 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
         paper_lrm
     );
     // MaxEnt on U × O: μ_D − μ_π over trajectories, φ = L(o).
-    assert_eq!(paper.smirl_normalisation, SmirlNormalisation::Trajectories);
-    assert_eq!(paper.smirl_label_features, LabelFeatures::State);
+    assert_eq!(paper.normalisation(), SmirlNormalisation::Trajectories);
     // The policy on U × O: no clock, no counterfactual states, no shaping.
-    assert!(!paper.smirl_clock);
-    assert_eq!(paper.smirl_counterfactual, 0.0);
+    assert!(!paper.clock());
+    assert_eq!(paper.counterfactual(), 0.0);
     assert_eq!(paper.smirl_shaping, 0.0);
     // No final phase, no choice among candidates.
-    assert_eq!(paper.smirl_final_sac_steps, 0);
-    assert_eq!(paper.smirl_final_checkpoints, 0);
-    assert_eq!(paper.smirl_final_reset_steps, 0);
-    assert!(!paper.smirl_selection_cut);
+    assert_eq!(paper.final_sac_steps, 0);
+    assert_eq!(paper.final_checkpoints, 0);
+    assert_eq!(paper.final_reset_steps, 0);
+    assert!(!paper.selection_cut());
     // The standard's smirl differs in each of these (else the test above proves nothing).
-    assert_eq!(
-        smirl.smirl_normalisation,
-        SmirlNormalisation::EventGatedVisits
-    );
-    assert!(smirl.smirl_clock && smirl.smirl_counterfactual > 0.0 && smirl.smirl_shaping > 0.0);
-    assert!(smirl.smirl_final_sac_steps > 0 && smirl.smirl_selection_cut);
+    assert_eq!(smirl.normalisation(), SmirlNormalisation::EventGatedVisits);
+    assert!(smirl.clock() && smirl.counterfactual() > 0.0 && smirl.smirl_shaping > 0.0);
+    assert!(smirl.final_sac_steps > 0 && smirl.selection_cut());
     // What is not a mechanism is smirl's.
     let same = IrlRunConfig {
-        smirl_normalisation: smirl.smirl_normalisation,
-        smirl_clock: smirl.smirl_clock,
-        smirl_counterfactual: smirl.smirl_counterfactual,
+        paper_mechanisms: false,
         smirl_shaping: smirl.smirl_shaping,
-        smirl_final_sac_steps: smirl.smirl_final_sac_steps,
-        smirl_final_checkpoints: smirl.smirl_final_checkpoints,
-        smirl_final_reset_steps: smirl.smirl_final_reset_steps,
-        smirl_selection_cut: smirl.smirl_selection_cut,
-        smirl_selection_cut_entries: smirl.smirl_selection_cut_entries,
+        final_sac_steps: smirl.final_sac_steps,
+        final_checkpoints: smirl.final_checkpoints,
+        final_reset_steps: smirl.final_reset_steps,
         ..paper.clone()
     };
     assert_eq!(same, smirl);
@@ -95,7 +87,7 @@ fn smirl_paper_runs_on_its_own_machine_and_reports_its_loops_last_policy() {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = tmp.path().join("tiny.toml");
     let config = tiny_config();
-    assert!(config.smirl_final_sac_steps > 0 && config.smirl_final_checkpoints > 0);
+    assert!(config.final_sac_steps > 0 && config.final_checkpoints > 0);
     std::fs::write(&cfg, config.to_toml()).unwrap();
     let out = tmp.path().join("run");
     let status = Command::new(env!("CARGO_BIN_EXE_reacher"))

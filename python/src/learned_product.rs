@@ -1,6 +1,6 @@
 //! The environment SMIRL's agent learns in, for Python: ReacherDelivery × a run's *learned*
 //! machine, paying the run's learned reward. The observation is the environment's, then the
-//! learned state's one-hot, then (with the run's `smirl_clock`) the share of the episode still
+//! learned state's one-hot, then (with the run's clock, every algorithm's but smirl-paper's) the share of the episode still
 //! to come, as in `reacher job`. Episodes never terminate early: they are truncated at the
 //! episode length, whatever the task's machine says, so nothing of the task reaches the agent.
 //! The task's perfect machine is stepped beside it only to fill `info` (`success`, `failure`,
@@ -98,7 +98,7 @@ impl LearnedProductCore {
             )));
         }
         let mut env = ProductEnv::new(inner, learned);
-        if config.smirl_clock {
+        if config.clock() {
             env = env.with_clock(config.env.max_steps);
         }
         let obs = vec![0.0; env.obs_dim()];

@@ -91,7 +91,7 @@ fn main() -> Result<()> {
         let mut config = IrlRunConfig::standard();
         config.env = task.env_config(&config.env)?;
         config.threads = 1;
-        let mut expert = load_expert(task.clone(), config.cache_dir())?;
+        let mut expert = load_expert(task.clone(), None)?;
         for &base in &bases {
             let demos = make_demos(task.clone(), &config, Some(&mut expert), base, None)?;
             let demos: Vec<_> = demos.into_iter().filter(|d| d.success).collect();

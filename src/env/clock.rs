@@ -1,5 +1,5 @@
 //! The agent's clock: one more observation entry, the share of the episode's steps still to
-//! come (1 at reset, 0 from the time limit on), or its control, the entry frozen at 1.
+//! come (1 at reset, 0 from the time limit on).
 //!
 //! Why every learner may get it: the cancel of ReacherDelivery comes only on early steps, so
 //! an observation without time is not Markovian for a task that depends on it — an agent that
@@ -19,25 +19,20 @@ pub enum Clock {
     None,
     /// `(horizon − t) / horizon` after step t, clamped at 0; `horizon` ≥ 1.
     CountDown(usize),
-    /// Always 1, the count-down's value at reset (the clock's control: the same width and
-    /// first observation, no time).
-    Frozen,
 }
 
 impl Clock {
-    /// The clock of a run's settings: none, the count-down over `horizon` steps, or frozen.
+    /// The clock of a run's settings: none, or the count-down over `horizon` steps.
     ///
     /// # Panics
     /// If a count-down is asked for with `horizon` 0 (a programming error: an episode has at
     /// least one step; configs are validated before).
-    pub fn of(clock: bool, frozen: bool, horizon: usize) -> Clock {
-        match (clock, frozen) {
-            (false, _) => Clock::None,
-            (true, true) => Clock::Frozen,
-            (true, false) => {
-                assert!(horizon > 0, "a clock needs an episode of at least one step");
-                Clock::CountDown(horizon)
-            }
+    pub fn of(clock: bool, horizon: usize) -> Clock {
+        if clock {
+            assert!(horizon > 0, "a clock needs an episode of at least one step");
+            Clock::CountDown(horizon)
+        } else {
+            Clock::None
         }
     }
 
@@ -53,7 +48,6 @@ impl Clock {
             Clock::CountDown(horizon) => {
                 Some((horizon - steps.min(horizon)) as f32 / horizon as f32)
             }
-            Clock::Frozen => Some(1.0),
         }
     }
 }

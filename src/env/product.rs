@@ -4,9 +4,7 @@
 //!
 //! Optional clock ([`ProductEnv::with_clock`], [`super::clock`] says why): one more
 //! observation entry after the one-hot block, the share of the episode's steps still to come
-//! (1 at reset, 0 on the last step). A frozen clock ([`ProductEnv::with_frozen_clock`]) is its
-//! control: the same entry, held at its reset value, so the same width and first observation
-//! without the time.
+//! (1 at reset, 0 on the last step).
 //!
 //! Optional potential-based shaping (Ng, Harada & Russell 1999) adds
 //! `F = γ·Φ(o', u') − Φ(o, u)` to the machine's reward, with `Φ = 0` once the machine is in a
@@ -101,15 +99,6 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
     pub fn with_clock(mut self, horizon: usize) -> Self {
         assert!(horizon > 0, "a clock needs an episode of at least one step");
         self.clock = Clock::CountDown(horizon);
-        self
-    }
-
-    /// The product with a frozen clock: the entry of [`with_clock`](Self::with_clock), held at 1
-    /// (its value at reset) on every step. The control of the clock: the same observation width,
-    /// so the same network shapes and initialisation from a seed, and the same first
-    /// observation, but no information about time.
-    pub fn with_frozen_clock(mut self) -> Self {
-        self.clock = Clock::Frozen;
         self
     }
 

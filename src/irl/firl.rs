@@ -59,30 +59,6 @@ use std::str::FromStr;
 /// Default ε of the density-ratio guard (see the module docs).
 pub const DEFAULT_DENSITY_EPS: f64 = 1e-8;
 
-/// Where f-IRL's density ratio u = ρ_E/ρ_θ at the agent's states comes from.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DensityRatio {
-    /// Epanechnikov KDEs of the expert's and the agent's states, u = (ρ_E + ε)/(ρ_θ + ε)
-    /// (the SMIRL paper's description of its baselines).
-    #[default]
-    Kde,
-    /// A classifier's logit, u = exp(z) (f-IRL's code for an expert given by samples; see
-    /// [`super::discriminator`]).
-    Discriminator,
-    /// A Gaussian KDE of the expert's states (bandwidth σ = the KDE bandwidth; no zero
-    /// anywhere, so log ρ_E grades a state by its distance to the demonstrations, see
-    /// [`super::gaussian_kde`]) against the agent's Epanechnikov KDE: u = ρ_E/ρ_θ with no ε.
-    #[serde(rename = "gaussian_expert")]
-    GaussianExpert,
-}
-
-impl DensityRatio {
-    pub fn is_kde(&self) -> bool {
-        *self == DensityRatio::Kde
-    }
-}
-
 /// The f-divergence f-IRL minimises between the expert's and the agent's state marginals.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]

@@ -361,29 +361,22 @@ pub fn maxent_coefficients(
     (per(agent, 1.0), per(expert, -1.0))
 }
 
-/// How SMIRL averages feature counts over trajectories in each RM state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
+/// How SMIRL averages feature counts over trajectories in each RM state (the algorithm's:
+/// `IrlRunConfig::normalisation`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SmirlNormalisation {
     /// μ_X(u) = 1/N_X Σ_τ Σ_t 1[u_t = u] φ(o_t): the plain MaxEnt gradient
     /// ([`maxent_coefficients`]).
     Trajectories,
     /// μ_X(u) = 1/N_X(u) Σ_τ Σ_t 1[u_t = u] φ(o_t) with N_X(u) the number of trajectories of X
-    /// that visit u ([`maxent_coefficients_by_visits`]).
-    Visits,
-    /// As `Visits`, but a state the agent's batch does not visit gets no update: its
-    /// conditional feature expectation has no agent estimate to compare with
-    /// ([`maxent_coefficients_by_shared_visits`]).
-    #[serde(rename = "shared_visits")]
-    SharedVisits,
-    /// As `Visits`, but a state the agent's batch does not visit *and* cannot reach without an
+    /// that visit u ([`maxent_coefficients_by_visits`]), but a state the agent's batch does
+    /// not visit *and* cannot reach without an
     /// exogenous event gets no update ([`maxent_coefficients_by_shared_visits`] with the
     /// learned machine's [`reachable_without`](crate::rm::RewardMachine::reachable_without)
     /// the events as the states that keep their pull). The standard profile's. Assumes only
     /// that the declared events are exogenous (no policy brings one about): a state every way
     /// into which needs an event is visited when the environment sends the agent there, so
     /// the agent cannot be asked to visit it; what the event means does not matter.
-    #[serde(rename = "event_gated_visits")]
     EventGatedVisits,
 }
 
@@ -391,8 +384,6 @@ impl SmirlNormalisation {
     pub fn name(self) -> &'static str {
         match self {
             SmirlNormalisation::Trajectories => "trajectories",
-            SmirlNormalisation::Visits => "visits",
-            SmirlNormalisation::SharedVisits => "shared_visits",
             SmirlNormalisation::EventGatedVisits => "event_gated_visits",
         }
     }
@@ -486,28 +477,6 @@ fn trajectories_visiting(t: &AnnotatedTrajectories<'_>) -> Vec<usize> {
         start += len;
     }
     visits
-}
-
-/// Which label features SMIRL's reward δ_r(u, ·) = w_uᵀ φ reads (`smirl_label_features`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum LabelFeatures {
-    /// φ = L(o_{t+1}), the labels of the state reached — the paper's eq. 5, paid on every
-    /// step the label holds ([`FeatureMap::reacher_labels`]).
-    #[default]
-    State,
-    /// φ = L(o_{t+1}) \ L(o_t), the labels that became true on the step — paid once per
-    /// entry into a ball ([`FeatureMap::reacher_label_entries`]).
-    Entries,
-}
-
-impl LabelFeatures {
-    pub fn name(self) -> &'static str {
-        match self {
-            LabelFeatures::State => "state",
-            LabelFeatures::Entries => "entries",
-        }
-    }
 }
 
 /// Weights are `n_states × n_features` row-major.

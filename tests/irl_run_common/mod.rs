@@ -18,16 +18,15 @@ pub fn tiny_config() -> IrlRunConfig {
     c.lrm_tabu_len = 100;
     c.log_every_nth_episode = 2;
     // SMIRL's final policy: two candidates after the co-trained one, 140 steps apart.
-    c.smirl_final_sac_steps = 280;
-    c.smirl_final_checkpoints = 2;
-    // No reset agent (the standard's, `smirl_final_reset_steps`): tests that want one set it.
-    c.smirl_final_reset_steps = 0;
+    c.final_sac_steps = 280;
+    c.final_checkpoints = 2;
+    // No reset agent (the standard's, `final_reset_steps`): tests that want one set it.
+    c.final_reset_steps = 0;
     // 300 SAC steps are not a whole number of 70-step episodes: each iteration has to finish
     // SAC's episode in progress before the rollouts reset the environment.
     c.env.max_steps = 70;
     c.sac.warmup_steps = 100;
     c.sac.update_after = 100;
-    c.sac.batch_size = 64;
     c
 }
 

@@ -159,7 +159,7 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/reacher-{}", task.name())));
     if config.demo_source == DemoSource::Expert {
-        train_missing_expert(&task, &config, args.quiet)?;
+        train_missing_expert(&task, args.quiet)?;
     }
     Ok(Some(RunRequest {
         task,
@@ -176,14 +176,11 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
 /// --task FILE` would (default expert config, seed 0, run directory `<cache>/runs/<name>-<hash>`),
 /// so that `reacher --task FILE` runs from a task file alone. A shipped task's committed
 /// expert, or any expert already cached, is used as it is.
-fn train_missing_expert(task: &ReacherTask, config: &IrlRunConfig, quiet: bool) -> Result<()> {
-    match load_expert(task.clone(), config.cache_dir()) {
+fn train_missing_expert(task: &ReacherTask, quiet: bool) -> Result<()> {
+    match load_expert(task.clone(), None) {
         Err(DemoError::Missing { path, .. }) => {
-            let cache = config
-                .cache_dir()
-                .map(Path::to_path_buf)
-                .or_else(|| default_expert_cache(task))
-                .context("a missing expert has a cache directory")?;
+            let cache =
+                default_expert_cache(task).context("a missing expert has a cache directory")?;
             let hash = &task.task().content_hash[..16];
             let out = cache.join("runs").join(format!("{}-{hash}", task.name()));
             eprintln!(

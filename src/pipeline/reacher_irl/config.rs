@@ -1,16 +1,19 @@
-//! The run configuration of `reacher --task`: one TOML file, every top-level field required
-//! (a missing or mistyped field is an error naming it), the `env` and `sac` tables default
-//! field-wise to the environment's values and to [`irl_run_sac`]. Optional
+//! The run configuration of `reacher --task`: one TOML file in which every key is required (a
+//! missing, unknown or mistyped key is an error naming it, and a key of the old layout is
+//! refused naming what replaced it, [`REMOVED_KEYS`]). The top level holds what every algorithm
+//! shares (demonstrations, the IRL loop's sizes, evaluation, logging, threads); the tables
+//! `[env]`, `[sac]`, `[smirl]`, `[lrm]`, `[firl]` and `[final]` the rest, and optional
 //! `[schedule.<algorithm>]` tables give one algorithm its own IRL schedule ([`AlgoSchedule`]).
+//! What differs between `smirl` and the paper's `smirl-paper` is not a key: it follows from
+//! the algorithm ([`IrlRunConfig::for_algo`]). Every key: docs/configuration.md.
 
 use super::Algo;
 use crate::env::reacher::ReacherConfig;
-use crate::irl::firl::DensityRatio;
-use crate::irl::smirl::{LabelFeatures, SmirlNormalisation};
+use crate::irl::smirl::SmirlNormalisation;
 use crate::rl::sac::SacConfig;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Where the demonstrations come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -64,45 +67,18 @@ impl SmirlMachine {
     }
 }
 
-/// How demonstrations that end before the time limit (at the task's goal) are compared
-/// with agent rollouts, which always run `env.max_steps` steps.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DemoPadding {
-    /// Extend every demonstration to `env.max_steps` steps by holding its final state (arm
-    /// at rest where the expert finished, no cancel event): the fixed horizon T that MaxEnt
-    /// IRL and f-IRL assume. Without it the learned reward is pushed down wherever the agent
-    /// stays after finishing the task (see experiments/reacher/results.md).
-    Hold,
-    /// Use the demonstrations as recorded (shorter than the agent's rollouts).
-    None,
-}
-
-impl DemoPadding {
-    pub fn name(self) -> &'static str {
-        match self {
-            DemoPadding::Hold => "hold",
-            DemoPadding::None => "none",
-        }
-    }
-}
-
 /// Settings of a `reacher --task` run (see the module docs of [`super`] for what each
-/// phase does).
+/// phase does). Read and written in the layout of [`RunFile`] (tables, every key required).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(into = "RunFile", from = "RunFile")]
 pub struct IrlRunConfig {
-    /// `"expert"` or `"scripted"`.
+    /// `"expert"` (the committed SAC experts built into the binary, or a task file's expert
+    /// cache) or `"scripted"`.
     pub demo_source: DemoSource,
-    /// Directory of cached expert policies (`expert_<task>.policy`); relative paths are
-    /// relative to the working directory. Empty: the committed experts
-    /// (`experiments/experts/cache`, built into the binary).
-    pub expert_cache_dir: PathBuf,
-    /// Number of demonstrations (the paper: 16).
+    /// Number of demonstrations (the paper: 16). Each is held at its final state to
+    /// `env.max_steps` (the fixed horizon T that MaxEnt IRL and f-IRL assume; without it the
+    /// learned reward is pushed down wherever the agent stays after finishing the task).
     pub demo_episodes: usize,
-    /// `"hold"` (pad demonstrations to the time limit by holding the final state) or
-    /// `"none"`.
-    pub demo_padding: DemoPadding,
     /// IRL iterations M (one reward update each).
     pub irl_iterations: usize,
     /// SAC environment steps per IRL iteration K (SAC continues across iterations).
@@ -112,145 +88,288 @@ pub struct IrlRunConfig {
     pub agent_trajectories: usize,
     /// Ground-truth evaluation episodes per IRL iteration (mean action, fixed seeds).
     pub eval_episodes: u64,
-    /// Adam learning rate of the baselines' (64, 64) reward net.
-    #[serde(serialize_with = "crate::short_float::f32")]
+    /// `[firl] reward_lr`: Adam learning rate of the baselines' (64, 64) reward net.
     pub mlp_reward_lr: f32,
-    /// L2 penalty (weight decay) of the reward net.
-    #[serde(serialize_with = "crate::short_float::f32")]
+    /// `[firl] reward_l2`: L2 penalty (weight decay) of the reward net.
     pub mlp_reward_l2: f32,
-    /// Adam learning rate of SMIRL's linear per-RM-state weights.
-    #[serde(serialize_with = "crate::short_float::f32")]
+    /// `[smirl] reward_lr`: Adam learning rate of SMIRL's linear per-RM-state weights.
     pub smirl_reward_lr: f32,
-    /// L2 penalty of SMIRL's weights.
-    #[serde(serialize_with = "crate::short_float::f32")]
+    /// `[smirl] reward_l2`: L2 penalty of SMIRL's weights.
     pub smirl_reward_l2: f32,
-    /// `"visits"` (feature counts of each RM state averaged over the trajectories that visit
-    /// it), `"trajectories"` (the plain MaxEnt average over all trajectories), or
-    /// `"shared_visits"` / `"event_gated_visits"` (as `"visits"`, without the expert's pull on
-    /// a state the agent's batch does not visit: every such state / only those that need the
-    /// cancel to enter; see `irl::smirl::maxent_coefficients_by_shared_visits`).
-    pub smirl_normalisation: SmirlNormalisation,
-    /// The machine SMIRL reads: `"learned"` (LRM's) or `"task"` (the task's own, an oracle
-    /// for diagnosis; see [`SmirlMachine`]). A config without the key is read as
-    /// `"learned"`. Omitted from written configs when `"learned"`.
-    #[serde(default, skip_serializing_if = "SmirlMachine::is_learned")]
+    /// `[smirl] machine`: `"learned"` (LRM's), `"task"` (the task's own, an oracle for
+    /// diagnosis) or `"one_state"` (the control without structure; see [`SmirlMachine`]).
     pub smirl_machine: SmirlMachine,
-    /// `smirl`'s label features: `"state"` (L(o) of the state reached, paid on every step a
-    /// label holds: the paper's eq. 5) or `"entries"` (the labels that became true on the
-    /// step, paid once per entry into a ball). A config without the key is read as
-    /// `"state"`, what every run before the key existed used.
-    #[serde(default)]
-    pub smirl_label_features: LabelFeatures,
-    /// Strength β of SMIRL's potential-based shaping of SAC's reward (per metre, relative to
-    /// the RM state's largest ball weight; see `irl::smirl::LearnedSubgoalPotential`); 0 = the
-    /// learned reward alone.
+    /// `[smirl] shaping`: strength β of SMIRL's potential-based shaping of SAC's reward (per
+    /// metre, relative to the RM state's largest ball weight; see
+    /// `irl::smirl::LearnedSubgoalPotential`); 0 = the learned reward alone.
     pub smirl_shaping: f64,
-    /// SMIRL's final-policy phase (`final_policy`): SAC environment steps on the final learned
-    /// reward, held fixed, after the last IRL iteration; 0 = none (every run before the key
-    /// existed). Omitted from written configs when 0.
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub smirl_final_sac_steps: u64,
-    /// Candidates taken along the final-policy phase (evenly spaced, the last at its end),
-    /// besides the co-trained policy.
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub smirl_final_checkpoints: u64,
-    /// Gradient updates, then as many SAC environment steps, of a reset agent after the
-    /// co-trained (and fresh) agent's final phase: new networks, optimisers, temperature and
-    /// seed on a copy of the co-trained agent's replay buffer, which it first learns from alone;
-    /// `smirl_final_checkpoints` candidates along its steps; 0 = none (every run before the key
-    /// existed). Why: a co-trained agent can stay stuck on the final reward while a fresh agent
-    /// solves it (README, "Composite's five misses"); a reset keeps the loop's data and drops
-    /// the networks' habit (README, "A reset agent", for what it did held out). Omitted from
-    /// written configs when 0.
-    #[serde(default, skip_serializing_if = "is_zero")]
-    pub smirl_final_reset_steps: u64,
-    /// The final phase's choice reads each candidate's learned return only up to its first
-    /// ball touch, after the cancel, that no demonstration makes after a cancel in the same
-    /// learned state (`irl::seen_after_events`); training is unchanged. Why: a learned machine
-    /// without a failure state lets a policy that touches blue after the cancel earn about
-    /// what one that avoids it earns (README, "A choice that reads what the expert does after
-    /// the cancel"). Without the phase (and for the baselines, which have none) it does
-    /// nothing. False for every run before the key existed; omitted when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub smirl_selection_cut: bool,
-    /// With `smirl_selection_cut`: a ball counts as touched on the step its touch begins, not
-    /// on the steps the fingertip stays on it (an agent lingers on a ball the expert brushes,
-    /// README "A choice that reads what the expert does after the cancel"). Refused without
-    /// the cut; false for every run before the key existed; omitted when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub smirl_selection_cut_entries: bool,
-    /// SMIRL's agent sees a clock: the product's observation gets one more entry, the share of
-    /// the episode still to come (`ProductEnv::with_clock`), in the loop, the final phase and
-    /// `reacher retrain`; the reward does not read it. Why: the cancel comes only early in an
-    /// episode, and an agent without a clock cannot tell that it no longer will (README, "A
-    /// clock for the agent": Composite 30 seed 30 and 39 seed 40 waited without a cancel).
-    /// False for every run before the key existed; omitted when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub smirl_clock: bool,
-    /// With `smirl_clock`: the clock entry stays at 1 (`ProductEnv::with_frozen_clock`), the
-    /// clock's control — the same observation width and network initialisation, no time (README,
-    /// "A frozen clock"). Refused without the clock; omitted when false.
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub smirl_clock_frozen: bool,
-    /// Share of each SAC batch of SMIRL that is relabelled to a counterfactual learned-machine
-    /// state (CRM, see `rl::crm`): 0 = only the states the agent was in, 1 = every sampled
-    /// transition from a uniformly drawn state.
-    pub smirl_counterfactual: f64,
-    /// Exponent p of the reward learning-rate schedule lr_k = lr · k^(−p) over IRL iterations
-    /// k = 1, 2, … (every algorithm); 0 = constant.
-    pub reward_lr_decay: f64,
+    /// `[final] sac_steps`: the final-policy phase (`final_policy`) of every algorithm with a
+    /// learned reward but `smirl-paper`: SAC environment steps on the final learned reward,
+    /// held fixed, after the last IRL iteration; 0 = none.
+    pub final_sac_steps: u64,
+    /// `[final] checkpoints`: candidates taken along each agent's final phase (evenly spaced,
+    /// the last at its end), besides the co-trained policy.
+    pub final_checkpoints: u64,
+    /// `[final] reset_steps`: gradient updates, then as many SAC environment steps, of a reset
+    /// agent after the co-trained agent's final phase: new networks, optimisers, temperature
+    /// and seed on a copy of the co-trained agent's replay buffer, which it first learns from
+    /// alone; `final_checkpoints` candidates along its steps; 0 = none. Why: a co-trained
+    /// agent can stay stuck on the final reward while a fresh agent solves it (README,
+    /// "Composite's five misses"); a reset keeps the loop's data and drops the networks' habit.
+    pub final_reset_steps: u64,
     /// Reward optimiser steps per IRL iteration (on the same coefficients).
     pub reward_steps_per_iteration: usize,
-    /// Width σ (m) of `smirl-smooth`'s features exp(−d²/2σ²).
+    /// `[smirl] smooth_sigma`: width σ (m) of `smirl-smooth`'s features exp(−d²/2σ²).
     pub smooth_sigma: f64,
-    /// Epanechnikov KDE bandwidth of f-IRL's fingertip densities (the paper: 0.02).
+    /// `[firl] kde_bandwidth`: Epanechnikov KDE bandwidth of f-IRL's fingertip densities (the
+    /// paper: 0.02).
     pub kde_bandwidth: f64,
-    /// f-IRL's density ratio: `"kde"` (KDEs of both state sets, the SMIRL paper's baselines)
-    /// or `"discriminator"` (a classifier, f-IRL's code for an expert given by samples;
-    /// `irl::discriminator`), or `"gaussian_expert"` (the expert's density a Gaussian KDE of
-    /// bandwidth `kde_bandwidth`, no zeros; `irl::gaussian_kde`). Omitted from written configs when `"kde"`, so configs from
-    /// before the key existed read and write unchanged.
-    #[serde(default, skip_serializing_if = "DensityRatio::is_kde")]
-    pub firl_density_ratio: DensityRatio,
-    /// Demonstrations drawn for every f-IRL reward step and put in its covariance batch beside
-    /// the agent's trajectories (f-IRL's `resample_episodes`: with replacement when more than
-    /// there are demonstrations, else without); 0 = the agent's trajectories alone, the
-    /// covariance of f-IRL's code for an expert given as a density and of every run before
-    /// the key existed. Why: f-IRL's code for an expert given by samples does this (as many
-    /// demonstrations as agent trajectories in its configs), and it is what raises the reward
-    /// where the expert goes and the agent does not (README, "Positive controls"). Needs
-    /// `demo_padding = "hold"` (the covariance wants trajectories of one length). Omitted from
-    /// written configs when 0.
-    #[serde(default, skip_serializing_if = "is_zero_usize")]
+    /// `[firl] expert_trajectories`: demonstrations drawn for every f-IRL reward step and put
+    /// in its covariance batch beside the agent's trajectories (f-IRL's `resample_episodes`:
+    /// with replacement when more than there are demonstrations, else without); 0 = the
+    /// agent's trajectories alone. Why: f-IRL's code for an expert given by samples does this,
+    /// and it is what raises the reward where the expert goes and the agent does not (README,
+    /// "Positive controls").
     pub firl_expert_trajectories: usize,
-    /// LRM: most states of the learned machine (u_max).
+    /// `[lrm] max_states`: most states of the learned machine (u_max).
     pub lrm_max_states: usize,
-    /// LRM: tabu list length.
+    /// `[lrm] tabu_len`: tabu list length.
     pub lrm_tabu_len: usize,
-    /// LRM: search steps.
+    /// `[lrm] steps`: search steps.
     pub lrm_steps: usize,
     /// MCAP: log every n-th agent/evaluation episode of each job (demos are all logged);
     /// 0 disables rollout logging.
     pub log_every_nth_episode: u64,
     /// Worker threads running (algorithm, seed) jobs.
     pub threads: usize,
-    #[serde(default)]
+    /// The environment: `[env] max_steps`; the rest is the task's (its regions and its
+    /// events' schedule, assets/tasks/) and the environment's defaults.
     pub env: ReacherConfig,
-    /// SAC of every job; keys missing from the `[sac]` table come from [`irl_run_sac`]
-    /// (or from the table's `preset`, as in [`SacConfig::from_toml`]).
-    #[serde(default = "irl_run_sac", deserialize_with = "deserialize_irl_run_sac")]
+    /// SAC of every job: `[sac]` sets lr, alpha, auto_alpha, warmup_steps (also the step of
+    /// the first update) and replay_capacity; the rest is [`irl_run_sac`]'s.
     pub sac: SacConfig,
     /// Per-algorithm schedules, keyed by algorithm name (`[schedule.fkl]`): an algorithm
     /// with a table runs with those fields in place of the ones above; the others (and
     /// every field the table leaves out) use the run's. Empty: one schedule for all.
+    pub schedule: BTreeMap<String, AlgoSchedule>,
+    /// `smirl-paper`'s mechanisms instead of `smirl`'s (set by [`IrlRunConfig::for_algo`],
+    /// never a key): MaxEnt's μ_D − μ_π averaged over trajectories, SAC on U × O without
+    /// clock or counterfactual states. See [`IrlRunConfig::clock`] and its neighbours.
+    pub paper_mechanisms: bool,
+}
+
+/// The file layout of [`IrlRunConfig`]: every key required, unknown keys refused.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunFile {
+    pub demo_source: DemoSource,
+    pub demo_episodes: usize,
+    pub irl_iterations: usize,
+    pub sac_steps_per_iteration: u64,
+    pub agent_trajectories: usize,
+    pub reward_steps_per_iteration: usize,
+    pub eval_episodes: u64,
+    pub log_every_nth_episode: u64,
+    pub threads: usize,
+    pub env: EnvKeys,
+    pub sac: SacKeys,
+    pub smirl: SmirlKeys,
+    pub lrm: LrmKeys,
+    pub firl: FirlKeys,
+    #[serde(rename = "final")]
+    pub final_phase: FinalKeys,
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub schedule: BTreeMap<String, AlgoSchedule>,
 }
 
+/// `[env]`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvKeys {
+    pub max_steps: usize,
+}
+
+/// `[sac]`: what the runs vary of SAC; the rest is [`irl_run_sac`]'s.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SacKeys {
+    #[serde(serialize_with = "crate::short_float::f32")]
+    pub lr: f32,
+    #[serde(serialize_with = "crate::short_float::f32")]
+    pub alpha: f32,
+    pub auto_alpha: bool,
+    pub warmup_steps: u64,
+    pub replay_capacity: usize,
+}
+
+/// `[smirl]`: SMIRL's reward and SAC (smirl, smirl-smooth, smirl-paper).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SmirlKeys {
+    pub machine: SmirlMachine,
+    #[serde(serialize_with = "crate::short_float::f32")]
+    pub reward_lr: f32,
+    #[serde(serialize_with = "crate::short_float::f32")]
+    pub reward_l2: f32,
+    pub shaping: f64,
+    pub smooth_sigma: f64,
+}
+
+/// `[lrm]`: LRM's size and search budget (its mechanisms are not settings).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LrmKeys {
+    pub max_states: usize,
+    pub tabu_len: usize,
+    pub steps: usize,
+}
+
+/// `[firl]`: the baselines' reward net (maxent, fkl, rkl, js) and f-IRL's densities.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FirlKeys {
+    #[serde(serialize_with = "crate::short_float::f32")]
+    pub reward_lr: f32,
+    #[serde(serialize_with = "crate::short_float::f32")]
+    pub reward_l2: f32,
+    pub kde_bandwidth: f64,
+    pub expert_trajectories: usize,
+}
+
+/// `[final]`: the final phase of every algorithm with a learned reward but `smirl-paper`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FinalKeys {
+    pub sac_steps: u64,
+    pub checkpoints: u64,
+    pub reset_steps: u64,
+}
+
+impl From<IrlRunConfig> for RunFile {
+    fn from(c: IrlRunConfig) -> RunFile {
+        RunFile {
+            demo_source: c.demo_source,
+            demo_episodes: c.demo_episodes,
+            irl_iterations: c.irl_iterations,
+            sac_steps_per_iteration: c.sac_steps_per_iteration,
+            agent_trajectories: c.agent_trajectories,
+            reward_steps_per_iteration: c.reward_steps_per_iteration,
+            eval_episodes: c.eval_episodes,
+            log_every_nth_episode: c.log_every_nth_episode,
+            threads: c.threads,
+            env: EnvKeys {
+                max_steps: c.env.max_steps,
+            },
+            sac: SacKeys {
+                lr: c.sac.lr,
+                alpha: c.sac.alpha,
+                auto_alpha: c.sac.auto_alpha,
+                warmup_steps: c.sac.warmup_steps,
+                replay_capacity: c.sac.replay_capacity,
+            },
+            smirl: SmirlKeys {
+                machine: c.smirl_machine,
+                reward_lr: c.smirl_reward_lr,
+                reward_l2: c.smirl_reward_l2,
+                shaping: c.smirl_shaping,
+                smooth_sigma: c.smooth_sigma,
+            },
+            lrm: LrmKeys {
+                max_states: c.lrm_max_states,
+                tabu_len: c.lrm_tabu_len,
+                steps: c.lrm_steps,
+            },
+            firl: FirlKeys {
+                reward_lr: c.mlp_reward_lr,
+                reward_l2: c.mlp_reward_l2,
+                kde_bandwidth: c.kde_bandwidth,
+                expert_trajectories: c.firl_expert_trajectories,
+            },
+            final_phase: FinalKeys {
+                sac_steps: c.final_sac_steps,
+                checkpoints: c.final_checkpoints,
+                reset_steps: c.final_reset_steps,
+            },
+            schedule: c.schedule,
+        }
+    }
+}
+
+impl From<RunFile> for IrlRunConfig {
+    fn from(f: RunFile) -> IrlRunConfig {
+        IrlRunConfig {
+            demo_source: f.demo_source,
+            demo_episodes: f.demo_episodes,
+            irl_iterations: f.irl_iterations,
+            sac_steps_per_iteration: f.sac_steps_per_iteration,
+            agent_trajectories: f.agent_trajectories,
+            eval_episodes: f.eval_episodes,
+            mlp_reward_lr: f.firl.reward_lr,
+            mlp_reward_l2: f.firl.reward_l2,
+            smirl_reward_lr: f.smirl.reward_lr,
+            smirl_reward_l2: f.smirl.reward_l2,
+            smirl_machine: f.smirl.machine,
+            smirl_shaping: f.smirl.shaping,
+            final_sac_steps: f.final_phase.sac_steps,
+            final_checkpoints: f.final_phase.checkpoints,
+            final_reset_steps: f.final_phase.reset_steps,
+            reward_steps_per_iteration: f.reward_steps_per_iteration,
+            smooth_sigma: f.smirl.smooth_sigma,
+            kde_bandwidth: f.firl.kde_bandwidth,
+            firl_expert_trajectories: f.firl.expert_trajectories,
+            lrm_max_states: f.lrm.max_states,
+            lrm_tabu_len: f.lrm.tabu_len,
+            lrm_steps: f.lrm.steps,
+            log_every_nth_episode: f.log_every_nth_episode,
+            threads: f.threads,
+            env: ReacherConfig {
+                max_steps: f.env.max_steps,
+                ..ReacherConfig::default()
+            },
+            sac: run_sac(&f.sac),
+            schedule: f.schedule,
+            paper_mechanisms: false,
+        }
+    }
+}
+
+/// The SAC of a `[sac]` table: [`irl_run_sac`] with the table's keys; updates begin when the
+/// warm-up's random steps end.
+fn run_sac(k: &SacKeys) -> SacConfig {
+    SacConfig {
+        lr: k.lr,
+        alpha: k.alpha,
+        auto_alpha: k.auto_alpha,
+        warmup_steps: k.warmup_steps,
+        update_after: k.warmup_steps,
+        replay_capacity: k.replay_capacity,
+        ..irl_run_sac()
+    }
+}
+
+/// The distinct keys of the run config's layout (a table's keys dotted: `smirl.reward_lr`;
+/// `[schedule.<algo>]` overrides not counted): docs/configuration.md lists each.
+pub fn layout_keys() -> Vec<String> {
+    let value = toml::Value::try_from(RunFile::from(IrlRunConfig::standard()))
+        .expect("the standard profile serialises");
+    let mut keys = Vec::new();
+    for (k, v) in value.as_table().expect("a table") {
+        match v {
+            toml::Value::Table(t) if k != "schedule" => {
+                keys.extend(t.keys().map(|sub| format!("{k}.{sub}")))
+            }
+            toml::Value::Table(_) => {}
+            _ => keys.push(k.clone()),
+        }
+    }
+    keys
+}
+
 /// The fields one algorithm may run with its own values of (`[schedule.<algorithm>]`): the
-/// IRL schedule, the baselines' reward optimiser and KDE, rollout logging and SAC. What the
-/// algorithms must share to be compared stays run-wide: the demonstrations, the environment
-/// (episode length, cancel schedule) and the ground-truth evaluation.
+/// IRL schedule, rollout logging, the baselines' reward net and KDE (`[schedule.<a>.firl]`)
+/// and SAC (`[schedule.<a>.sac]`, all but the shared replay size). What the algorithms must
+/// share to be compared stays run-wide: the demonstrations, the environment, the
+/// ground-truth evaluation, the replay size and the final phase.
 ///
 /// Why: f-IRL's own code runs many short IRL iterations (800 × 300 SAC steps, 2 reward steps,
 /// SAC with fixed α = 1) and fails even a one-ball control task under SMIRL's earlier 20 × 5 000
@@ -266,29 +385,61 @@ pub struct AlgoSchedule {
     pub agent_trajectories: Option<usize>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reward_steps_per_iteration: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub log_every_nth_episode: Option<u64>,
+    /// `[firl]` keys that differ from the run's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub firl: Option<FirlSchedule>,
+    /// `[sac]` keys that differ from the run's (which supplies the rest).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sac: Option<SacSchedule>,
+}
+
+/// `[schedule.<algorithm>.firl]`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FirlSchedule {
     #[serde(
         default,
         skip_serializing_if = "Option::is_none",
         serialize_with = "crate::short_float::option_f32"
     )]
-    pub mlp_reward_lr: Option<f32>,
+    pub reward_lr: Option<f32>,
     #[serde(
         default,
         skip_serializing_if = "Option::is_none",
         serialize_with = "crate::short_float::option_f32"
     )]
-    pub mlp_reward_l2: Option<f32>,
+    pub reward_l2: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kde_bandwidth: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub firl_density_ratio: Option<DensityRatio>,
+    pub expert_trajectories: Option<usize>,
+}
+
+/// `[schedule.<algorithm>.sac]`: `replay_capacity` is read only to be refused, naming why
+/// ([`SHARED_SAC_KEYS`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SacSchedule {
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        serialize_with = "crate::short_float::option_f32"
+    )]
+    pub lr: Option<f32>,
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        serialize_with = "crate::short_float::option_f32"
+    )]
+    pub alpha: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub firl_expert_trajectories: Option<usize>,
+    pub auto_alpha: Option<bool>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub log_every_nth_episode: Option<u64>,
-    /// SAC keys that differ from the run's `[sac]` (which supplies the rest).
+    pub warmup_steps: Option<u64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sac: Option<toml::Table>,
+    pub replay_capacity: Option<usize>,
 }
 
 /// The baselines' schedule in the standard profile: f-IRL's own ReacherDraw settings at the
@@ -300,25 +451,27 @@ pub struct AlgoSchedule {
 /// 0–2), never on the paper's tasks: with it fkl, js and MaxEnt solve "blue" in 3 of 3 seeds, with SMIRL's earlier 20 × 5 000
 /// schedule the f-IRL variants in none (README, "Positive controls of the baselines").
 /// rkl's also puts 300 drawn demonstrations in each covariance batch beside the 300 agent
-/// trajectories (`firl_expert_trajectories`, f-IRL's code for demonstrations): without them rkl
-/// fails "blue" under every setting tried, with them (at T = 30) it passes in 3 of 3 seeds.
+/// trajectories (`[firl] expert_trajectories`, f-IRL's code for demonstrations): without them
+/// rkl fails "blue" under every setting tried, with them (at T = 30) it passes in 3 of 3 seeds.
 pub fn firl_schedule(algo: Algo) -> AlgoSchedule {
-    let mut sac = toml::Table::new();
-    sac.insert("lr".into(), toml::Value::Float(0.003));
-    sac.insert("alpha".into(), toml::Value::Float(1.0));
-    sac.insert("auto_alpha".into(), toml::Value::Boolean(false));
-    sac.insert("warmup_steps".into(), toml::Value::Integer(150));
-    sac.insert("update_after".into(), toml::Value::Integer(150));
     AlgoSchedule {
         irl_iterations: Some(800),
         sac_steps_per_iteration: Some(300),
         agent_trajectories: Some(300),
         reward_steps_per_iteration: Some(2),
-        mlp_reward_l2: Some(0.0),
-        firl_expert_trajectories: (algo == Algo::Rkl).then_some(300),
         log_every_nth_episode: Some(100),
-        sac: Some(sac),
-        ..AlgoSchedule::default()
+        firl: Some(FirlSchedule {
+            reward_l2: Some(0.0),
+            expert_trajectories: (algo == Algo::Rkl).then_some(300),
+            ..FirlSchedule::default()
+        }),
+        sac: Some(SacSchedule {
+            lr: Some(0.003),
+            alpha: Some(1.0),
+            auto_alpha: Some(false),
+            warmup_steps: Some(150),
+            replay_capacity: None,
+        }),
     }
 }
 
@@ -347,13 +500,6 @@ pub fn irl_run_sac() -> SacConfig {
         replay_capacity: 200_000,
         ..SacConfig::irl()
     }
-}
-
-fn deserialize_irl_run_sac<'de, D: serde::Deserializer<'de>>(
-    deserializer: D,
-) -> Result<SacConfig, D::Error> {
-    let table = toml::Table::deserialize(deserializer)?;
-    SacConfig::from_table(table, irl_run_sac(), "[sac]").map_err(serde::de::Error::custom)
 }
 
 /// A configuration file or value that cannot be used.
@@ -430,56 +576,209 @@ impl IrlConfigError {
     }
 }
 
-/// Keys a run config no longer has, and why: a config that still sets one was written for a
-/// learner that no longer exists, and is refused rather than read as something else.
-pub const REMOVED_KEYS: [(&str, &str); 6] = [
+/// Keys a run config no longer has, each with what replaced it (dotted for a table's key): a
+/// config that still sets one was written for the old layout or for a mechanism that is now
+/// the method's (or gone), and is refused rather than read as something else. Configs of runs
+/// made with these keys are read by the binary of their commit (their `run.json` names it).
+pub const REMOVED_KEYS: [(&str, &str); 50] = [
     (
         "lrm_fallback_starts",
-        "LRM has no fallback starts (they changed no development base towards the task's \
-         machine more often than away from it: experiments/lrm/ablation.md)",
+        "nothing: LRM has no fallback starts (they changed no development base towards the \
+         task's machine more often than away from it: experiments/lrm/ablation.md)",
     ),
     (
         "lrm_initial_events",
-        "initial events are part of smirl's LRM (docs/method.md)",
+        "nothing: initial events are part of smirl's LRM (docs/method.md)",
     ),
     (
         "lrm_guards",
-        "smirl's LRM reads unseen label sets by its decision trees, smirl-paper's stays \
-         (docs/method.md)",
+        "nothing: smirl's LRM reads unseen label sets by its decision trees, smirl-paper's \
+         stays (docs/method.md)",
     ),
     (
         "lrm_commute_events",
-        "commuted events are part of smirl's LRM (docs/method.md)",
+        "nothing: commuted events are part of smirl's LRM (docs/method.md)",
     ),
     (
         "lrm_event_stutter",
-        "event stutter is part of smirl's LRM (docs/method.md)",
+        "nothing: event stutter is part of smirl's LRM (docs/method.md)",
     ),
     (
         "lrm_predict_events",
-        "smirl's LRM leaves the events out of its prediction, smirl-paper's predicts them \
-         (docs/method.md)",
+        "nothing: smirl's LRM leaves the events out of its prediction, smirl-paper's predicts \
+         them (docs/method.md)",
+    ),
+    ("lrm_max_states", "[lrm] max_states"),
+    ("lrm_tabu_len", "[lrm] tabu_len"),
+    ("lrm_steps", "[lrm] steps"),
+    (
+        "expert_cache_dir",
+        "nothing: demonstrations come from the experts built into the binary (a task file's: \
+         its expert cache, `reacher expert`)",
+    ),
+    (
+        "demo_padding",
+        "nothing: demonstrations are always held at their final state to [env] max_steps \
+         (the old \"hold\")",
+    ),
+    ("mlp_reward_lr", "[firl] reward_lr"),
+    ("mlp_reward_l2", "[firl] reward_l2"),
+    ("kde_bandwidth", "[firl] kde_bandwidth"),
+    ("firl_expert_trajectories", "[firl] expert_trajectories"),
+    (
+        "firl_density_ratio",
+        "nothing: f-IRL's density ratio is always that of two KDEs (the old \"kde\")",
+    ),
+    ("smirl_reward_lr", "[smirl] reward_lr"),
+    ("smirl_reward_l2", "[smirl] reward_l2"),
+    ("smirl_machine", "[smirl] machine"),
+    ("smirl_shaping", "[smirl] shaping"),
+    ("smooth_sigma", "[smirl] smooth_sigma"),
+    (
+        "smirl_normalisation",
+        "the algorithm: smirl and smirl-smooth normalise by event-gated visits, smirl-paper \
+         over trajectories (docs/method.md)",
+    ),
+    (
+        "smirl_label_features",
+        "nothing: SMIRL's label features are those of the state reached (the old \"state\")",
+    ),
+    (
+        "smirl_counterfactual",
+        "the algorithm: smirl and smirl-smooth relabel every SAC transition to a \
+         counterfactual machine state (the old 1.0), smirl-paper none",
+    ),
+    ("smirl_final_sac_steps", "[final] sac_steps"),
+    ("smirl_final_checkpoints", "[final] checkpoints"),
+    ("smirl_final_reset_steps", "[final] reset_steps"),
+    (
+        "smirl_selection_cut",
+        "the algorithm: the final choice of smirl and smirl-smooth always cuts (the old true)",
+    ),
+    (
+        "smirl_selection_cut_entries",
+        "the algorithm: the cut counts a touch on the step it begins (the old true)",
+    ),
+    (
+        "smirl_clock",
+        "the algorithm: every algorithm but smirl-paper has the clock (the old true)",
+    ),
+    (
+        "smirl_clock_frozen",
+        "nothing: the frozen clock (the clock's control) is gone (the old false)",
+    ),
+    (
+        "reward_lr_decay",
+        "nothing: the reward's learning rate is constant (the old 0.0)",
+    ),
+    (
+        "env.randomize_balls",
+        "nothing: the balls are where the task file puts them (the old false)",
+    ),
+    (
+        "env.ball_layout",
+        "the task file's regions (assets/tasks/, docs/tasks.md)",
+    ),
+    (
+        "env.arm_start",
+        "nothing: the arm starts at a random pose (the old \"random\")",
+    ),
+    (
+        "env.cancel",
+        "the task file's [[event]] schedule (assets/tasks/, docs/tasks.md)",
+    ),
+    (
+        "sac.preset",
+        "nothing: [sac] gives its five keys, the rest is fixed (docs/configuration.md)",
+    ),
+    ("sac.hidden", "nothing: fixed at [64, 64]"),
+    ("sac.batch_size", "nothing: fixed at 256"),
+    ("sac.gamma", "nothing: fixed at 0.99"),
+    ("sac.tau", "nothing: fixed at 0.005"),
+    (
+        "sac.target_entropy",
+        "nothing: fixed at −(action dimension)",
+    ),
+    ("sac.updates_per_step", "nothing: fixed at 1"),
+    (
+        "sac.update_after",
+        "[sac] warmup_steps (updates begin when the warm-up ends)",
+    ),
+    (
+        "schedule.*.mlp_reward_lr",
+        "[schedule.<algo>.firl] reward_lr",
+    ),
+    (
+        "schedule.*.mlp_reward_l2",
+        "[schedule.<algo>.firl] reward_l2",
+    ),
+    (
+        "schedule.*.kde_bandwidth",
+        "[schedule.<algo>.firl] kde_bandwidth",
+    ),
+    (
+        "schedule.*.firl_expert_trajectories",
+        "[schedule.<algo>.firl] expert_trajectories",
+    ),
+    (
+        "schedule.*.firl_density_ratio",
+        "nothing: f-IRL's density ratio is always that of two KDEs (the old \"kde\")",
+    ),
+    (
+        "schedule.*.sac.update_after",
+        "[schedule.<algo>.sac] warmup_steps (updates begin when the warm-up ends)",
     ),
 ];
 
-/// Refuses a top-level key of [`REMOVED_KEYS`] in `text` (a document that does not parse is
-/// left to the parser's message).
+/// Refuses the first key of [`REMOVED_KEYS`] that `text` sets (in the table order of the
+/// list; `schedule.*` stands for any algorithm), naming what replaced it. A document that does
+/// not parse is left to the parser's message.
 fn refuse_removed_keys(text: &str, source_name: &str) -> Result<(), IrlConfigError> {
     let Ok(table) = text.parse::<toml::Table>() else {
         return Ok(());
     };
-    match REMOVED_KEYS
-        .iter()
-        .find(|(key, _)| table.contains_key(*key))
-    {
-        Some((key, why)) => Err(IrlConfigError::Invalid {
-            source_name: source_name.to_string(),
-            field: key.to_string(),
-            problem: format!("is no longer a setting: {why}; delete the line"),
-            line: crate::config_text::key_line(text, key),
-        }),
-        None => Ok(()),
+    let lookup = |path: &[&str]| -> bool {
+        let mut t = &table;
+        for (i, part) in path.iter().enumerate() {
+            match t.get(*part) {
+                Some(_) if i + 1 == path.len() => return true,
+                Some(toml::Value::Table(sub)) => t = sub,
+                _ => return false,
+            }
+        }
+        false
+    };
+    let algos: Vec<String> = table
+        .get("schedule")
+        .and_then(|s| s.as_table())
+        .map(|s| s.keys().cloned().collect())
+        .unwrap_or_default();
+    for (key, replacement) in REMOVED_KEYS {
+        let paths: Vec<String> = match key.strip_prefix("schedule.*.") {
+            Some(rest) => algos
+                .iter()
+                .map(|a| format!("schedule.{a}.{rest}"))
+                .collect(),
+            None => vec![key.to_string()],
+        };
+        for path in paths {
+            let parts: Vec<&str> = path.split('.').collect();
+            if lookup(&parts) {
+                return Err(IrlConfigError::Invalid {
+                    source_name: source_name.to_string(),
+                    field: path.clone(),
+                    problem: format!(
+                        "is no longer a key (the run config's layout changed, \
+                         docs/configuration.md; a config of an older commit is read by that \
+                         commit's binary, which its run's prepare.json names); replaced by \
+                         {replacement}"
+                    ),
+                    line: crate::config_text::key_line(text, &path),
+                });
+            }
+        }
     }
+    Ok(())
 }
 
 // Limits of the sizes a config may ask for, checked by `validate` before any work (a typo
@@ -511,9 +810,7 @@ impl IrlRunConfig {
     pub fn standard() -> IrlRunConfig {
         IrlRunConfig {
             demo_source: DemoSource::Expert,
-            expert_cache_dir: PathBuf::new(),
             demo_episodes: 16,
-            demo_padding: DemoPadding::Hold,
             // SMIRL's schedule: 30 IRL iterations (two of three Sequential tuning seeds first
             // solve the task in iterations 16-20), with potential-based shaping of its SAC
             // (Composite's normal branch: 3 of 3 tuning seeds against 1 of 3 without);
@@ -526,34 +823,18 @@ impl IrlRunConfig {
             mlp_reward_l2: 1e-3,
             smirl_reward_lr: 0.1,
             smirl_reward_l2: 0.05,
-            smirl_normalisation: SmirlNormalisation::EventGatedVisits,
             smirl_machine: SmirlMachine::Learned,
-            smirl_label_features: LabelFeatures::State,
             smirl_shaping: 1.0,
-            // SMIRL's final policy: four candidates 5 000 SAC steps apart on the final reward
+            // The final policy: four candidates 5 000 SAC steps apart on the final reward
             // (README, "SMIRL's final policy").
-            smirl_final_sac_steps: 20_000,
-            smirl_final_checkpoints: 4,
+            final_sac_steps: 20_000,
+            final_checkpoints: 4,
             // Four more from a reset agent on the co-trained agent's replay buffer (24 of 24
             // tuning jobs; README, "A reset agent").
-            smirl_final_reset_steps: 20_000,
-            // The choice reads no return earned after a touch, after the cancel, that no
-            // demonstration makes there (24 of 24 tuning jobs; README, "A choice that reads
-            // what the expert does after the cancel").
-            smirl_selection_cut: true,
-            // A ball counts on the step its touch begins (24 of 24 tuning jobs; an agent
-            // lingers on a ball the expert brushes).
-            smirl_selection_cut_entries: true,
-            // The agent sees the episode's remaining time (24 of 24 tuning jobs, every miss of
-            // the reset-agent standard held out solved: README, "A clock for the agent").
-            smirl_clock: true,
-            smirl_clock_frozen: false,
-            smirl_counterfactual: 1.0,
-            reward_lr_decay: 0.0,
+            final_reset_steps: 20_000,
             reward_steps_per_iteration: 5,
             smooth_sigma: 0.05,
             kde_bandwidth: 0.02,
-            firl_density_ratio: DensityRatio::Kde,
             firl_expert_trajectories: 0,
             lrm_max_states: 10,
             lrm_tabu_len: 10_000,
@@ -566,6 +847,7 @@ impl IrlRunConfig {
                 .into_iter()
                 .map(|a| (a.name().to_string(), firl_schedule(a)))
                 .collect(),
+            paper_mechanisms: false,
         }
     }
 
@@ -581,9 +863,9 @@ impl IrlRunConfig {
             eval_episodes: 8,
             lrm_steps: 50,
             log_every_nth_episode: 4,
-            smirl_final_sac_steps: 2_000,
-            smirl_final_checkpoints: 2,
-            smirl_final_reset_steps: 2_000,
+            final_sac_steps: 2_000,
+            final_checkpoints: 2,
+            final_reset_steps: 2_000,
             // One short schedule for every algorithm: a smoke run, not the baselines' 800
             // iterations.
             schedule: BTreeMap::new(),
@@ -592,7 +874,8 @@ impl IrlRunConfig {
     }
 
     /// Parses a TOML document; `source_name` (the file path) prefixes every message. A key
-    /// of [`REMOVED_KEYS`] is refused, naming it and why.
+    /// of [`REMOVED_KEYS`] is refused, naming it and what replaced it; a missing key is
+    /// refused naming it.
     pub fn from_toml(text: &str, source_name: &str) -> Result<IrlRunConfig, IrlConfigError> {
         refuse_removed_keys(text, source_name)?;
         parse_toml_config(text, source_name, IrlRunConfig::validate)
@@ -627,75 +910,106 @@ impl IrlRunConfig {
         let Some(s) = self.schedule.get(base.name()) else {
             return Ok(config);
         };
-        let field = |name: &str| format!("schedule.{base}.{name}");
         macro_rules! take {
-            ($($f:ident),*) => {$(
-                if let Some(v) = s.$f {
-                    config.$f = v;
+            ($from:expr, $($f:ident => $to:expr),*) => {$(
+                if let Some(v) = $from.$f {
+                    $to = v;
                 }
             )*};
         }
-        take!(
-            irl_iterations,
-            sac_steps_per_iteration,
-            agent_trajectories,
-            reward_steps_per_iteration,
-            mlp_reward_lr,
-            mlp_reward_l2,
-            kde_bandwidth,
-            firl_density_ratio,
-            firl_expert_trajectories,
-            log_every_nth_episode
+        take!(s,
+            irl_iterations => config.irl_iterations,
+            sac_steps_per_iteration => config.sac_steps_per_iteration,
+            agent_trajectories => config.agent_trajectories,
+            reward_steps_per_iteration => config.reward_steps_per_iteration,
+            log_every_nth_episode => config.log_every_nth_episode
         );
-        if let Some(table) = &s.sac {
-            if let Some(key) = SHARED_SAC_KEYS.iter().find(|k| table.contains_key(**k)) {
+        if let Some(f) = &s.firl {
+            take!(f,
+                reward_lr => config.mlp_reward_lr,
+                reward_l2 => config.mlp_reward_l2,
+                kde_bandwidth => config.kde_bandwidth,
+                expert_trajectories => config.firl_expert_trajectories
+            );
+        }
+        if let Some(sac) = &s.sac {
+            if sac.replay_capacity.is_some() {
                 return Err(IrlConfigError::Invalid {
                     source_name: String::new(),
-                    field: field(&format!("sac.{key}")),
+                    field: format!("schedule.{base}.sac.{}", SHARED_SAC_KEYS[0]),
                     problem: "is shared by every algorithm: set it in [sac], not per schedule"
                         .into(),
                     line: None,
                 });
             }
-            config.sac =
-                SacConfig::from_table(table.clone(), self.sac.clone(), "").map_err(|e| {
-                    IrlConfigError::Invalid {
-                        source_name: String::new(),
-                        field: field("sac"),
-                        problem: e.to_string(),
-                        line: None,
-                    }
-                })?;
+            take!(sac,
+                lr => config.sac.lr,
+                alpha => config.sac.alpha,
+                auto_alpha => config.sac.auto_alpha,
+                warmup_steps => config.sac.warmup_steps,
+                warmup_steps => config.sac.update_after
+            );
         }
         Ok(config)
     }
 
     /// `smirl-paper`'s settings: every mechanism by which `smirl` departs from the paper
     /// (docs/method.md) at the paper's value — LRM's are not settings but the learner's
-    /// (`smirl::lrm_config` of `Algo::SmirlPaper`) — MaxEnt's
-    /// μ_D − μ_π averaged over trajectories, label features of the state, SAC on U × O without
-    /// clock, counterfactual states or shaping, and no final phase, so the job reports its
-    /// loop's own last policy. The schedule, SAC, the reward optimiser, the demonstrations, the
-    /// machine's source and LRM's size and search budget stay the run's, so that the two
-    /// algorithms differ by the mechanisms alone.
+    /// (`smirl::lrm_config` of `Algo::SmirlPaper`) — MaxEnt's μ_D − μ_π averaged over
+    /// trajectories, SAC on U × O without clock, counterfactual states or shaping, and no
+    /// final phase, so the job reports its loop's own last policy. The schedule, SAC, the
+    /// reward optimiser, the demonstrations, the machine's source and LRM's size and search
+    /// budget stay the run's, so that the two algorithms differ by the mechanisms alone.
     fn set_paper_mechanisms(&mut self) {
-        self.smirl_normalisation = SmirlNormalisation::Trajectories;
-        self.smirl_label_features = LabelFeatures::State;
-        self.smirl_clock = false;
-        self.smirl_clock_frozen = false;
-        self.smirl_counterfactual = 0.0;
+        self.paper_mechanisms = true;
         self.smirl_shaping = 0.0;
-        self.smirl_final_sac_steps = 0;
-        self.smirl_final_checkpoints = 0;
-        self.smirl_final_reset_steps = 0;
-        self.smirl_selection_cut = false;
-        self.smirl_selection_cut_entries = false;
+        self.final_sac_steps = 0;
+        self.final_checkpoints = 0;
+        self.final_reset_steps = 0;
     }
 
-    /// The expert cache directory; `None` (an empty `expert_cache_dir`) means the committed
-    /// experts built into the binary.
-    pub fn cache_dir(&self) -> Option<&Path> {
-        (!self.expert_cache_dir.as_os_str().is_empty()).then_some(self.expert_cache_dir.as_path())
+    /// Whether the agent sees a clock, the share of the episode still to come, after its
+    /// observation (`ProductEnv::with_clock`, `firl::baseline_env`), in the loop, the final
+    /// phase and `reacher retrain`; no reward reads it. Every algorithm but `smirl-paper`.
+    /// Why: the cancel comes only early in an episode, and an agent without a clock cannot
+    /// tell that it no longer will (README, "A clock for the agent").
+    pub fn clock(&self) -> bool {
+        !self.paper_mechanisms
+    }
+
+    /// Share of each SAC batch of SMIRL relabelled to a counterfactual learned-machine state
+    /// (CRM, `rl::crm`): 1 (every sampled transition, from a uniformly drawn state) for smirl
+    /// and smirl-smooth, 0 for smirl-paper.
+    pub fn counterfactual(&self) -> f64 {
+        if self.paper_mechanisms {
+            0.0
+        } else {
+            1.0
+        }
+    }
+
+    /// How SMIRL's MaxEnt coefficients are normalised: event-gated visits (feature counts of
+    /// each learned state averaged over the trajectories that visit it, without the expert's
+    /// pull on a state the agent's batch does not visit when it needs the cancel to enter;
+    /// `irl::smirl`) for smirl and smirl-smooth, the plain average over trajectories for
+    /// smirl-paper.
+    pub fn normalisation(&self) -> SmirlNormalisation {
+        if self.paper_mechanisms {
+            SmirlNormalisation::Trajectories
+        } else {
+            SmirlNormalisation::EventGatedVisits
+        }
+    }
+
+    /// Whether the final phase's choice reads each candidate's learned return only up to its
+    /// first ball touch (counted on the step the touch begins), after the cancel, that no
+    /// demonstration makes after a cancel in the same learned state
+    /// (`irl::seen_after_events`); SMIRL's alone (it reads the learned machine), and only
+    /// with a final phase. Why: a learned machine without a failure state lets a policy that
+    /// touches blue after the cancel earn about what one that avoids it earns (README, "A
+    /// choice that reads what the expert does after the cancel").
+    pub fn selection_cut(&self) -> bool {
+        !self.paper_mechanisms
     }
 
     /// Checks value ranges (named by field).
@@ -740,13 +1054,13 @@ impl IrlRunConfig {
                 MAX_REWARD_STEPS as u64,
             ),
             (
-                "lrm_max_states",
+                "lrm.max_states",
                 self.lrm_max_states as u64,
                 MAX_LRM_STATES as u64,
             ),
-            ("lrm_steps", self.lrm_steps as u64, MAX_LRM_STEPS as u64),
+            ("lrm.steps", self.lrm_steps as u64, MAX_LRM_STEPS as u64),
             (
-                "lrm_tabu_len",
+                "lrm.tabu_len",
                 self.lrm_tabu_len as u64,
                 MAX_LRM_STEPS as u64,
             ),
@@ -759,7 +1073,7 @@ impl IrlRunConfig {
         for (field, episodes) in [
             ("agent_trajectories", self.agent_trajectories as u64),
             (
-                "firl_expert_trajectories",
+                "firl.expert_trajectories",
                 self.firl_expert_trajectories as u64,
             ),
             ("eval_episodes", self.eval_episodes),
@@ -794,24 +1108,17 @@ impl IrlRunConfig {
         if self.eval_episodes == 0 {
             return bad("eval_episodes", "must be at least 1");
         }
-        if self.firl_expert_trajectories > 0 && self.demo_padding != DemoPadding::Hold {
-            return bad(
-                "firl_expert_trajectories",
-                "needs demo_padding = \"hold\": the covariance batch wants demonstrations as \
-                 long as the agent's trajectories",
-            );
-        }
         for (field, v) in [
-            ("mlp_reward_lr", self.mlp_reward_lr),
-            ("smirl_reward_lr", self.smirl_reward_lr),
+            ("firl.reward_lr", self.mlp_reward_lr),
+            ("smirl.reward_lr", self.smirl_reward_lr),
         ] {
             if !positive(f64::from(v)) {
                 return bad(field, "must be a positive number");
             }
         }
         for (field, v) in [
-            ("mlp_reward_l2", self.mlp_reward_l2),
-            ("smirl_reward_l2", self.smirl_reward_l2),
+            ("firl.reward_l2", self.mlp_reward_l2),
+            ("smirl.reward_l2", self.smirl_reward_l2),
         ] {
             if !non_negative(f64::from(v)) {
                 return bad(field, "must be a non-negative number");
@@ -820,94 +1127,102 @@ impl IrlRunConfig {
         if self.reward_steps_per_iteration == 0 {
             return bad("reward_steps_per_iteration", "must be at least 1");
         }
-        if !(self.reward_lr_decay.is_finite() && self.reward_lr_decay >= 0.0) {
-            return bad("reward_lr_decay", "must be a non-negative number");
-        }
         if !(self.smirl_shaping.is_finite() && self.smirl_shaping >= 0.0) {
-            return bad("smirl_shaping", "must be a non-negative number");
+            return bad("smirl.shaping", "must be a non-negative number");
         }
-        if self.smirl_final_sac_steps > MAX_SAC_STEPS_PER_ITERATION {
+        if self.final_sac_steps > MAX_SAC_STEPS_PER_ITERATION {
             return over(
-                "smirl_final_sac_steps",
-                self.smirl_final_sac_steps,
+                "final.sac_steps",
+                self.final_sac_steps,
                 MAX_SAC_STEPS_PER_ITERATION,
             );
         }
-        if self.smirl_final_checkpoints > MAX_FINAL_CHECKPOINTS {
+        if self.final_checkpoints > MAX_FINAL_CHECKPOINTS {
             return over(
-                "smirl_final_checkpoints",
-                self.smirl_final_checkpoints,
+                "final.checkpoints",
+                self.final_checkpoints,
                 MAX_FINAL_CHECKPOINTS,
             );
         }
-        match (self.smirl_final_sac_steps, self.smirl_final_checkpoints) {
+        match (self.final_sac_steps, self.final_checkpoints) {
             (0, 0) => {}
-            (0, _) => {
-                return bad(
-                    "smirl_final_checkpoints",
-                    "needs smirl_final_sac_steps > 0 (there is no final-policy phase to take them from)",
-                )
-            }
+            (0, _) => return bad(
+                "final.checkpoints",
+                "needs [final] sac_steps > 0 (there is no final-policy phase to take them from)",
+            ),
             (steps, k) if k == 0 || k > steps => {
                 return bad(
-                    "smirl_final_checkpoints",
-                    &format!("must be in 1..={steps} (smirl_final_sac_steps), got {k}"),
+                    "final.checkpoints",
+                    &format!("must be in 1..={steps} ([final] sac_steps), got {k}"),
                 )
             }
             _ => {}
         }
         // The reset agent is one more agent of the final phase: it needs its checkpoints.
-        let extra_agents = [("smirl_final_reset_steps", self.smirl_final_reset_steps)];
+        let extra_agents = [("final.reset_steps", self.final_reset_steps)];
         for (field, steps) in extra_agents {
             if steps > MAX_SAC_STEPS_PER_ITERATION {
                 return over(field, steps, MAX_SAC_STEPS_PER_ITERATION);
             }
-            match (steps, self.smirl_final_checkpoints) {
+            match (steps, self.final_checkpoints) {
                 (0, _) => {}
                 (_, 0) => {
                     return bad(
                         field,
-                        "needs the final-policy phase (smirl_final_sac_steps and smirl_final_checkpoints > 0)",
+                        "needs the final-policy phase ([final] sac_steps and checkpoints > 0)",
                     )
                 }
                 (steps, k) if k > steps => {
                     return bad(
                         field,
-                        &format!("must be at least smirl_final_checkpoints ({k}), got {steps}"),
+                        &format!("must be at least [final] checkpoints ({k}), got {steps}"),
                     )
                 }
                 _ => {}
             }
         }
-        if self.smirl_selection_cut_entries && !self.smirl_selection_cut {
-            return bad(
-                "smirl_selection_cut_entries",
-                "needs smirl_selection_cut = true (it says how the cut reads touches)",
-            );
-        }
-        if self.smirl_clock_frozen && !self.smirl_clock {
-            return bad(
-                "smirl_clock_frozen",
-                "needs smirl_clock = true (it freezes the clock's entry)",
-            );
-        }
-        if !(0.0..=1.0).contains(&self.smirl_counterfactual) {
-            return bad("smirl_counterfactual", "must be a number in [0, 1]");
-        }
         if !positive(self.smooth_sigma) {
-            return bad("smooth_sigma", "must be a positive number");
+            return bad("smirl.smooth_sigma", "must be a positive number");
         }
         if !positive(self.kde_bandwidth) {
-            return bad("kde_bandwidth", "must be a positive number");
+            return bad("firl.kde_bandwidth", "must be a positive number");
         }
         if self.lrm_max_states == 0 || self.lrm_steps == 0 || self.lrm_tabu_len == 0 {
             return bad(
-                "lrm_max_states/lrm_steps/lrm_tabu_len",
+                "lrm.max_states/lrm.steps/lrm.tabu_len",
                 "must be at least 1",
             );
         }
         if self.threads == 0 {
             return bad("threads", "must be at least 1");
+        }
+        // The SAC settings that are not keys stay the IRL runs' (a config built in code that
+        // changes one could not be written to its run directory and read back).
+        let fixed = irl_run_sac();
+        for (field, same) in [
+            ("hidden", self.sac.hidden == fixed.hidden),
+            ("batch_size", self.sac.batch_size == fixed.batch_size),
+            ("gamma", self.sac.gamma == fixed.gamma),
+            ("tau", self.sac.tau == fixed.tau),
+            (
+                "target_entropy",
+                self.sac.target_entropy == fixed.target_entropy,
+            ),
+            (
+                "updates_per_step",
+                self.sac.updates_per_step == fixed.updates_per_step,
+            ),
+            (
+                "update_after",
+                self.sac.update_after == self.sac.warmup_steps,
+            ),
+        ] {
+            if !same {
+                return bad(
+                    &format!("sac.{field}"),
+                    "is not a setting of a run: it is irl_run_sac()'s (update_after: warmup_steps)",
+                );
+            }
         }
         match self.sac.validate() {
             Err(crate::rl::sac::ConfigError::Invalid { field, problem }) => {
@@ -940,16 +1255,4 @@ impl IrlRunConfig {
         }
         Ok(())
     }
-}
-
-fn is_zero(x: &u64) -> bool {
-    *x == 0
-}
-
-fn is_zero_usize(x: &usize) -> bool {
-    *x == 0
-}
-
-fn is_false(x: &bool) -> bool {
-    !*x
 }

@@ -1,9 +1,9 @@
-//! The final phase of every algorithm with a learned reward (`smirl_final_sac_steps` > 0;
+//! The final phase of every algorithm with a learned reward (`final_sac_steps` > 0;
 //! `smirl`, `smirl-smooth`, `maxent`, `fkl`, `rkl`, `js` — not `smirl-paper`, which reports its
 //! loop's own last policy): after the last reward update, SAC goes on training on the job's
 //! final learned reward, now held fixed, and the policy the job reports is the one of highest
 //! learned return among the co-trained policy and the checkpoints of that phase — and, with
-//! `smirl_final_reset_steps` > 0, the checkpoints of a reset agent trained on the same reward
+//! `final_reset_steps` > 0, the checkpoints of a reset agent trained on the same reward
 //! after it. One routine ([`train`]) for every algorithm: they differ only in the reward they
 //! hand it ([`ScoredReward`]: SMIRL's δ_r(u, o) on its product, a baseline's MLP of the
 //! fingertip) and in SMIRL's selection cut below.
@@ -18,7 +18,7 @@
 //! random ([`FinalPolicy::random`], drawn from the job's own seed stream), which tells how
 //! much the choice itself adds over having more candidates.
 //!
-//! The reset agent (`smirl_final_reset_steps`): a co-trained agent that never found the task
+//! The reset agent (`final_reset_steps`): a co-trained agent that never found the task
 //! during the loop (or lost it) carries its habit into the phase, while the reward it leaves
 //! can be right. The reset agent keeps the co-trained agent's data — a copy of its replay
 //! buffer, every transition of the loop and the phase that the buffer still holds — with new
@@ -59,7 +59,7 @@ pub enum FinalAgent {
     /// agent existed).
     #[default]
     CoTrained,
-    /// The reset agent of `smirl_final_reset_steps`: new networks on the co-trained agent's
+    /// The reset agent of `final_reset_steps`: new networks on the co-trained agent's
     /// replay buffer.
     Reset,
 }
@@ -156,17 +156,17 @@ pub struct FinalPhase<'a> {
 impl<'a> FinalPhase<'a> {
     /// The phase of a job of `settings` with seed `seed`, the same for every algorithm
     /// (`selection_cut`: SMIRL's, or `None`); `None` when the settings have no final phase
-    /// (`smirl_final_sac_steps` = 0, as `smirl-paper`'s).
+    /// (`final_sac_steps` = 0, as `smirl-paper`'s).
     pub fn of(
         settings: &IrlRunConfig,
         seed: u64,
         selection_cut: Option<&'a SeenAfterEvents>,
     ) -> Option<FinalPhase<'a>> {
-        (settings.smirl_final_sac_steps > 0).then(|| FinalPhase {
-            steps: settings.smirl_final_sac_steps,
-            checkpoints: settings.smirl_final_checkpoints,
+        (settings.final_sac_steps > 0).then(|| FinalPhase {
+            steps: settings.final_sac_steps,
+            checkpoints: settings.final_checkpoints,
             seed,
-            reset_steps: settings.smirl_final_reset_steps,
+            reset_steps: settings.final_reset_steps,
             selection_cut,
             selection_episodes: selection_episodes(settings),
         })

@@ -10,12 +10,10 @@
 //! 3. the density ratios of the batch ([`density_ratios`]) and the loss coefficients
 //!    ([`coefficients`]): for f-IRL the covariance surrogate
 //!    Cov_i(Σ_t h_f(ρ_E/ρ_θ), Σ_t r)/T, the density ratio from an Epanechnikov KDE of the
-//!    agent's fingertip states against the expert's (or from a classifier,
-//!    `firl_density_ratio = "discriminator"`, or against a Gaussian KDE of the expert's,
-//!    `"gaussian_expert"`); for MaxEnt T·(mean r over agent states − mean r
-//!    over expert states);
+//!    agent's fingertip states against the expert's; for MaxEnt T·(mean r over agent states
+//!    − mean r over expert states);
 //! 4. reward steps (Adam). After the loop, the final phase every algorithm with a learned
-//!    reward shares (`super::final_policy`). With `firl_expert_trajectories = N`, each f-IRL step first draws N
+//!    reward shares (`super::final_policy`). With `[firl] expert_trajectories = N`, each f-IRL step first draws N
 //!    demonstrations and appends them to the covariance batch, as f-IRL's code for an expert
 //!    given by samples does (`irl_samples.py`): descent raises the reward along them, also
 //!    where the agent has never been.
@@ -32,15 +30,11 @@ use super::config::IrlRunConfig;
 use super::episodes::{train_sac, AgentBatch, JobEnv, RolloutStream};
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::final_policy::{self, FinalPhase, FinalPolicy};
-use super::job::{reward_lr, Coefficients, ExpertData};
+use super::job::{Coefficients, ExpertData};
 use crate::env::clock::{Clock, Clocked};
 use crate::env::layout::OBS_ARM;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};
-use crate::irl::discriminator::{Discriminator, DiscriminatorConfig};
-use crate::irl::firl::{
-    self, DensityRatio, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS,
-};
-use crate::irl::gaussian_kde::GaussianKde;
+use crate::irl::firl::{self, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
 use crate::irl::kde::Kde;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardError, RewardModel};
 use crate::rl::crm::hot_index;
@@ -177,14 +171,6 @@ pub enum Loss {
 pub enum Ratio<'a> {
     /// The expert's KDE (fitted once) against a KDE of each iteration's agent states.
     Kde { expert: &'a Kde, bandwidth: f64 },
-    /// A classifier of expert vs agent fingertip states, trained further every iteration.
-    Discriminator(Box<Discriminator>),
-    /// The expert's Gaussian KDE (fitted once, no zeros) against a KDE of each iteration's
-    /// agent states.
-    GaussianExpert {
-        expert: Box<GaussianKde>,
-        bandwidth: f64,
-    },
 }
 
 /// f-IRL's density ratios u = ρ_E/ρ_θ of one iteration's agent batch: at the agent's states
@@ -220,55 +206,6 @@ pub fn density_ratios(
         firl::density_ratio(rho_e, rho_a, DEFAULT_DENSITY_EPS).map_err(|e| e.to_string())
     };
     match ratio {
-        Ratio::Discriminator(disc) => {
-            let width = d;
-            let d = disc;
-            d.train(&expert.obs, &agent.obs, width)
-                .map_err(|e| format!("discriminator: {e}"))?;
-            ratios_at_both(agent, expert, at_expert, |obs| {
-                Ok(d.log_ratio(obs, width)
-                    .map_err(|e| format!("discriminator: {e}"))?
-                    .into_iter()
-                    .map(f64::exp)
-                    .collect())
-            })
-        }
-        Ratio::GaussianExpert {
-            expert: e,
-            bandwidth,
-        } => {
-            let kde_a = fit_agent(*bandwidth)?;
-            let log_e = e
-                .log_density_columns(&agent.obs, d, columns)
-                .map_err(|e| e.to_string())?;
-            let rho_a = kde_a
-                .density_columns(&agent.obs, d, columns)
-                .map_err(|e| e.to_string())?;
-            // ρ_θ > 0 at the agent's own states (each is a fitted point).
-            let agent_ratios = log_e
-                .iter()
-                .zip(&rho_a)
-                .map(|(&le, &a)| (le - a.ln()).exp())
-                .collect();
-            let expert_ratios = if at_expert {
-                let rho_e: Vec<f64> = e
-                    .log_density_columns(&expert.obs, d, columns)
-                    .map_err(|e| e.to_string())?
-                    .into_iter()
-                    .map(f64::exp)
-                    .collect();
-                let rho_a = kde_a
-                    .density_columns(&expert.obs, d, columns)
-                    .map_err(|e| e.to_string())?;
-                guarded(&rho_e, &rho_a)?
-            } else {
-                Vec::new()
-            };
-            Ok(IterationRatios {
-                agent: agent_ratios,
-                expert: expert_ratios,
-            })
-        }
         Ratio::Kde {
             expert: kde_e,
             bandwidth,
@@ -491,10 +428,10 @@ impl super::final_policy::ScoredReward for StateReward<'_> {
 }
 
 /// The environment a baseline's agent learns in: ReacherDelivery with the clock of the run's
-/// settings after its observation (`smirl_clock`, the same setting SMIRL's product reads); the
+/// settings after its observation ([`IrlRunConfig::clock`], as SMIRL's product has it); the
 /// reward reads the fingertip alone, never the clock.
 pub fn baseline_env(inner: ReacherDelivery, s: &IrlRunConfig) -> Clocked<ReacherDelivery> {
-    let clock = Clock::of(s.smirl_clock, s.smirl_clock_frozen, s.env.max_steps);
+    let clock = Clock::of(s.clock(), s.env.max_steps);
     Clocked::new(inner, clock)
 }
 
@@ -554,29 +491,12 @@ fn train_in<E: JobEnv>(
     let d = expert.obs_dim();
     let expert_kde = Kde::fit_columns(&expert.obs, d, &columns, s.kde_bandwidth)
         .map_err(|e| format!("expert KDE: {e}"))?;
-    let mut ratio = match (job.loss, s.firl_density_ratio) {
-        (Loss::MaxEnt, _) => None,
-        (Loss::FDivergence(_), DensityRatio::Kde) => Some(Ratio::Kde {
+    let mut ratio = match job.loss {
+        Loss::MaxEnt => None,
+        Loss::FDivergence(_) => Some(Ratio::Kde {
             expert: &expert_kde,
             bandwidth: s.kde_bandwidth,
         }),
-        (Loss::FDivergence(_), DensityRatio::GaussianExpert) => Some(Ratio::GaussianExpert {
-            expert: Box::new(
-                GaussianKde::fit_columns(&expert.obs, d, &columns, s.kde_bandwidth)
-                    .map_err(|e| format!("expert density: {e}"))?,
-            ),
-            bandwidth: s.kde_bandwidth,
-        }),
-        (Loss::FDivergence(_), DensityRatio::Discriminator) => {
-            Some(Ratio::Discriminator(Box::new(
-                Discriminator::new(
-                    DiscriminatorConfig::firl(),
-                    &columns,
-                    episode_seed(job.seed, 0xd15c),
-                )
-                .map_err(|e| e.to_string())?,
-            )))
-        }
     };
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)
         .map_err(|e| e.to_string())?;
@@ -612,9 +532,9 @@ fn train_in<E: JobEnv>(
             None => None,
         };
 
-        // 4. Reward steps, at lr · k^(−reward_lr_decay), each on its own draw of
+        // 4. Reward steps, each on its own draw of
         //    demonstrations (f-IRL's samples code); with none drawn, one set of coefficients.
-        reward.set_lr(reward_lr(s.mlp_reward_lr, s, iteration));
+        reward.set_lr(s.mlp_reward_lr);
         let drawn = demo_draw.draw(n_demos, drawn_per_step);
         let mut c = coefficients(job.loss, expert, &batch, ratios.as_ref(), &drawn)?;
         let mut r = vec![0.0f32; c.coeffs.len()];

@@ -247,15 +247,6 @@ pub struct Coefficients {
     pub coeffs: Vec<f64>,
 }
 
-/// The reward learning rate of IRL iteration `iteration` (1-based): `base` times
-/// iteration^(−`reward_lr_decay`). Why a schedule: the reward update is a stochastic gradient
-/// step on sampled agent trajectories, and Adam takes steps of about lr whatever the size of
-/// the mismatch, so with a constant rate the reward keeps moving by sampling noise after the
-/// feature expectations match; a decaying rate lets it settle.
-pub fn reward_lr(base: f32, settings: &IrlRunConfig, iteration: usize) -> f32 {
-    base * (iteration.max(1) as f32).powf(-(settings.reward_lr_decay as f32))
-}
-
 /// Everything one job reads.
 pub struct JobInputs<'a> {
     pub algo: Algo,
@@ -301,7 +292,7 @@ pub fn run_job(
     let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| fail(e.to_string()))?;
     let ground_truth = GroundTruth::new(perfect_rm, &mut schedule, seed, s.eval_episodes);
     let final_set = GroundTruth::final_set(perfect_rm, &mut schedule, seed, final_set_episodes(s));
-    let final_steps = s.smirl_final_sac_steps;
+    let final_steps = s.final_sac_steps;
     let mut watch = JobWatch::new(
         s,
         final_steps,

@@ -39,9 +39,9 @@ pub mod retrain;
 pub mod run;
 pub mod smirl;
 
-pub use config::{DemoPadding, DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
+pub use config::{DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
 pub use episodes::AgentBatch;
-pub use job::{reward_lr, run_job, Coefficients, ExpertData, JobResult, MetricsRow};
+pub use job::{run_job, Coefficients, ExpertData, JobResult, MetricsRow};
 pub use run::{run_pipeline, PipelineError, RunObserver, RunRequest, RunSummary};
 
 /// The algorithms of the comparison (`Algo::REACHER` runs here).

@@ -366,20 +366,11 @@ pub(super) fn write_reports(
         "summary": summary,
         "seeds": p.seeds,
         "demo_source": config.demo_source.name(),
-        "demo_padding": config.demo_padding.name(),
-        "smirl_normalisation": config.smirl_normalisation.name(),
         "smirl_machine": config.smirl_machine.name(),
-        "smirl_selection_cut": config.smirl_selection_cut,
-        "smirl_selection_cut_entries": config.smirl_selection_cut_entries,
-        "smirl_final_sac_steps": config.smirl_final_sac_steps,
-        "smirl_final_checkpoints": config.smirl_final_checkpoints,
-        "smirl_final_reset_steps": config.smirl_final_reset_steps,
-        "smirl_clock": config.smirl_clock,
-        "smirl_clock_frozen": config.smirl_clock_frozen,
-        "smirl_label_features": config.smirl_label_features.name(),
+        "final_sac_steps": config.final_sac_steps,
+        "final_checkpoints": config.final_checkpoints,
+        "final_reset_steps": config.final_reset_steps,
         "smirl_shaping": config.smirl_shaping,
-        "smirl_counterfactual": config.smirl_counterfactual,
-        "reward_lr_decay": config.reward_lr_decay,
         "git_commit": crate::GIT_COMMIT,
         "prepare_git_commit": p.git_commit,
         "prepare_secs": p.prepare_secs,
@@ -397,8 +388,8 @@ pub(super) fn write_reports(
 /// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `random` the
 /// one drawn at random (the choice's yardstick), `agent` says
 /// whose policy it is (`co-trained`, `reset` with
-/// `smirl_final_reset_steps`), `cut_return`
-/// what the choice read instead of `learned_return` (`smirl_selection_cut`; else empty),
+/// `final_reset_steps`), `cut_return`
+/// what the choice read instead of `learned_return` (SMIRL's selection cut; else empty),
 /// `final_set_*` the success on the final set (`evaluation::final_set_episodes`; candidate 0's
 /// is the loop's own final policy's), beside `success_*` on the per-iteration evaluation's
 /// episodes.

@@ -20,7 +20,7 @@
 //!   `rewards/<algo>_seed<S>.trace.csv`, the weights and data gradient of every IRL iteration.
 //! - `logs/demos.mcap`, `logs/<algo>_seed<S>.mcap` — demos and sampled agent/eval episodes.
 
-use super::config::{DemoPadding, DemoSource, IrlRunConfig, SmirlMachine};
+use super::config::{DemoSource, IrlRunConfig, SmirlMachine};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
 use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
@@ -151,7 +151,7 @@ fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), Pi
         }
     }
     let expert = match config.demo_source {
-        DemoSource::Expert => Some(load_expert(task, config.cache_dir()).map_err(|e| match e {
+        DemoSource::Expert => Some(load_expert(task, None).map_err(|e| match e {
             DemoError::Cache { .. } | DemoError::Missing { .. } => usage(e.to_string()),
             other => PipelineError::Run(other.to_string()),
         })?),
@@ -240,10 +240,10 @@ pub fn prepare(
         ))
     ));
 
-    let hold_to = match config.demo_padding {
-        DemoPadding::Hold => Some(config.env.max_steps),
-        DemoPadding::None => None,
-    };
+    // Every demonstration held at its final state to the time limit: the fixed horizon T
+    // that MaxEnt IRL and f-IRL assume (without it the learned reward is pushed down wherever
+    // the agent stays after finishing the task).
+    let hold_to = Some(config.env.max_steps);
     // 2. Reward machines (SMIRL only): SMIRL's, shared by smirl-smooth, and smirl-paper's,
     //    each learned with its algorithm's settings; the demonstrations annotated with each.
     let mut rm_facts = None;
@@ -455,14 +455,14 @@ fn learn_and_report(
     Ok((rm, facts, report))
 }
 
-/// The report line of `smirl_selection_cut` (empty without it): the regions the demonstrations
+/// The report line of the selection cut ([`IrlRunConfig::selection_cut`]; empty without it): the regions the demonstrations
 /// touch after an event in each state of `rm`.
 fn selection_cut_report(
     rm: &RewardMachine,
     expert_data: &ExpertData,
     config: &IrlRunConfig,
 ) -> Result<String, PipelineError> {
-    if !config.smirl_selection_cut {
+    if !config.selection_cut() {
         return Ok(String::new());
     }
     let seen = seen_after_events(rm, expert_data, config).map_err(PipelineError::Run)?;
@@ -473,8 +473,7 @@ fn selection_cut_report(
         })
         .collect();
     Ok(format!(
-        "smirl_selection_cut: regions the demonstrations touch{} after an event, per learned state: {}\n",
-        if config.smirl_selection_cut_entries { " (touches begun)" } else { "" },
+        "smirl_selection_cut: regions the demonstrations touch (touches begun) after an event, per learned state: {}\n",
         per_state.join(", ")
     ))
 }

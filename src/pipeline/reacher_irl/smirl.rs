@@ -15,9 +15,9 @@
 //!    3. feature expectations: the loss coefficients whose gradient is μ_π − μ_D per (u, o)
 //!       ([`coefficients`]);
 //!    4. reward step(s) on w (Adam, L2).
-//! 4. **Final policy** (`smirl_final_sac_steps` > 0): the final phase every algorithm with a
+//! 4. **Final policy** (`final_sac_steps` > 0): the final phase every algorithm with a
 //!    learned reward shares ([`super::final_policy`]), on δ_r held fixed; SMIRL's own part is
-//!    the selection cut (`smirl_selection_cut`: each selection episode's return counted up to
+//!    the selection cut ([`IrlRunConfig::selection_cut`]: each selection episode's return counted up to
 //!    its first touch after the cancel that no demonstration makes, [`seen_after_events`]).
 //!
 //! Steps 1–2 run once per task in `reacher prepare` (every SMIRL job of a run shares the
@@ -28,7 +28,7 @@ use super::config::IrlRunConfig;
 use super::episodes::{train_sac, AgentBatch, RolloutStream};
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::final_policy::{self, FinalPhase, FinalPolicy};
-use super::job::{reward_lr, Coefficients, ExpertData, RewardTraceRow};
+use super::job::{Coefficients, ExpertData, RewardTraceRow};
 use crate::env::layout::{TaskLayout, OBS_JOINT_VEL};
 use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
@@ -36,9 +36,8 @@ use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::seen_after_events::SeenAfterEvents;
 use crate::irl::smirl::{
-    maxent_coefficients, maxent_coefficients_by_shared_visits, maxent_coefficients_by_visits,
-    AnnotatedTrajectories, FeatureMap, LabelFeatures, LearnedSubgoalPotential, LinearRmReward,
-    SmirlNormalisation,
+    maxent_coefficients, maxent_coefficients_by_shared_visits, AnnotatedTrajectories, FeatureMap,
+    LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
 };
 use crate::irl::Algo;
 use crate::pipeline::reacher_expert::Demo;
@@ -233,8 +232,7 @@ fn held_observation(layout: &TaskLayout, last: &[f32]) -> Vec<f32> {
 /// Which features δ_r reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Features {
-    /// Label bits (`smirl`): of the state, L(o), as in the paper, or of the step, the labels
-    /// that became true on it, as `smirl_label_features` says.
+    /// Label bits (`smirl`, `smirl-paper`): of the state reached, L(o), as in the paper.
     Labels,
     /// exp(−d_k²/2σ²) per ball plus the cancel flag (`smirl-smooth`, a documented variant).
     Smooth,
@@ -243,12 +241,9 @@ pub enum Features {
 impl Features {
     pub fn map(self, settings: &IrlRunConfig) -> Result<FeatureMap, RewardError> {
         let layout = task_layout(settings).map_err(RewardError::Config)?;
-        match (self, settings.smirl_label_features) {
-            (Features::Labels, LabelFeatures::State) => Ok(FeatureMap::reacher_labels(layout)),
-            (Features::Labels, LabelFeatures::Entries) => {
-                Ok(FeatureMap::reacher_label_entries(layout))
-            }
-            (Features::Smooth, _) => FeatureMap::reacher_smooth(layout, settings.smooth_sigma),
+        match self {
+            Features::Labels => Ok(FeatureMap::reacher_labels(layout)),
+            Features::Smooth => FeatureMap::reacher_smooth(layout, settings.smooth_sigma),
         }
     }
 }
@@ -256,7 +251,7 @@ impl Features {
 /// Step 3.3: the rows, learned states and loss coefficients of one reward update — MaxEnt on
 /// U × O, whose parameter gradient is μ_π − μ_D (the negated expert-minus-agent feature
 /// expectation), normalised per trajectory or per trajectory visiting each state
-/// (`smirl_normalisation`). Agent rows first, then expert rows, each as `features` reads a
+/// ([`IrlRunConfig::normalisation`]). Agent rows first, then expert rows, each as `features` reads a
 /// step ([`FeatureMap::step_rows`]).
 pub fn coefficients(
     features: &FeatureMap,
@@ -277,10 +272,6 @@ pub fn coefficients(
     };
     let (mut coeffs, expert_c) = match normalisation {
         SmirlNormalisation::Trajectories => maxent_coefficients(&expert_t, &agent_t),
-        SmirlNormalisation::Visits => maxent_coefficients_by_visits(&expert_t, &agent_t),
-        SmirlNormalisation::SharedVisits => {
-            maxent_coefficients_by_shared_visits(&expert_t, &agent_t, &[])
-        }
         SmirlNormalisation::EventGatedVisits => {
             let free = machine.reachable_without(features.event_labels());
             maxent_coefficients_by_shared_visits(&expert_t, &agent_t, &free)
@@ -344,7 +335,7 @@ impl RewardFn for ProductReward<'_> {
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
         let width = self.model.features().observation_dim();
-        // The one-hot block; a clock (`smirl_clock`) comes after it.
+        // The one-hot block; a clock ([`IrlRunConfig::clock`]) comes after it.
         let block = width..width + self.model.n_states();
         self.next_obs.clear();
         self.labels_before.clear();
@@ -396,40 +387,36 @@ impl super::final_policy::ScoredReward for ProductReward<'_> {
 }
 
 /// The environment SMIRL's agent learns in: ReacherDelivery × the learned machine, with the
-/// clock of `smirl_clock` (frozen with `smirl_clock_frozen`).
+/// clock of [`IrlRunConfig::clock`].
 pub(super) fn product_env(
     inner: ReacherDelivery,
     machine: &RewardMachine,
     s: &IrlRunConfig,
 ) -> ProductEnv<ReacherDelivery> {
     let env = ProductEnv::new(inner, machine.clone());
-    match (s.smirl_clock, s.smirl_clock_frozen) {
-        (true, false) => env.with_clock(s.env.max_steps),
-        (true, true) => env.with_frozen_clock(),
-        (false, _) => env,
+    if s.clock() {
+        env.with_clock(s.env.max_steps)
+    } else {
+        env
     }
 }
 
-/// SMIRL's counterfactual relabelling of SAC batches (`smirl_counterfactual` > 0), for the
+/// SMIRL's counterfactual relabelling of SAC batches ([`IrlRunConfig::counterfactual`] > 0), for the
 /// observations of `env` (its clock, if any, kept as logged).
 pub(super) fn counterfactual_states(
     env: &ProductEnv<ReacherDelivery>,
     s: &IrlRunConfig,
 ) -> Result<Option<CounterfactualRm>, String> {
-    (s.smirl_counterfactual > 0.0)
+    (s.counterfactual() > 0.0)
         .then(|| {
-            CounterfactualRm::new(
-                env.rm().clone(),
-                env.inner().obs_dim(),
-                s.smirl_counterfactual,
-            )
-            .map(|crm| crm.with_trailing_dim(env.trailing_dim()))
+            CounterfactualRm::new(env.rm().clone(), env.inner().obs_dim(), s.counterfactual())
+                .map(|crm| crm.with_trailing_dim(env.trailing_dim()))
         })
         .transpose()
         .map_err(|e| e.to_string())
 }
 
-/// The shaping potential of the weights `w` (`smirl_shaping` > 0; 1 in the standard profile).
+/// The shaping potential of the weights `w` (`[smirl] shaping` > 0; 1 in the standard profile).
 pub(super) fn shaping_potential(
     features: &FeatureMap,
     n_states: usize,
@@ -442,7 +429,7 @@ pub(super) fn shaping_potential(
         .map_err(|e| e.to_string())
 }
 
-/// Step 4's cut (`smirl_selection_cut`): the region touches the demonstrations make after an
+/// Step 4's cut ([`IrlRunConfig::selection_cut`]): the region touches the demonstrations make after an
 /// event in each state of `machine` (a rule that reads the events with "unless" semantics:
 /// a touch after the event that no demonstration makes is off the task), read from their steps as [`annotate`] gives them in it
 /// (held steps included), as a candidate's selection episodes are read.
@@ -465,7 +452,7 @@ pub fn seen_after_events(
         &expert.lengths,
         layout.events(),
         layout.touches(),
-        settings.smirl_selection_cut_entries,
+        true,
     ))
 }
 
@@ -488,7 +475,7 @@ pub struct SmirlOutcome {
     pub final_policy: Option<FinalPolicy>,
 }
 
-/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver, then (`smirl_final_sac_steps` > 0)
+/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver, then (`final_sac_steps` > 0)
 /// the final policy on the final reward ([`final_policy`]).
 pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOutcome, String> {
     let s = job.settings;
@@ -530,18 +517,18 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
             &features,
             job.expert,
             &batch,
-            s.smirl_normalisation,
+            s.normalisation(),
             job.machine,
         );
 
-        // 4. Reward steps, at lr · k^(−reward_lr_decay); the first step's gradient (before
+        // 4. Reward steps; the first step's gradient (before
         //    any step) is the traced data gradient.
         let mut r = vec![0.0f32; c.coeffs.len()];
         reward
             .reward_batch(&c.obs, &c.states, &mut r)
             .map_err(|e| e.to_string())?;
         let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
-        reward.set_lr(reward_lr(s.smirl_reward_lr, s, iteration));
+        reward.set_lr(s.smirl_reward_lr);
         reward
             .backward(&c.obs, &c.states, &c.coeffs)
             .map_err(|e| format!("reward update: {e}"))?;
@@ -568,11 +555,11 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     }
 
     // Step 4, the final policy: SAC goes on with the final reward, now fixed (shaped by its
-    //    potential), then (`smirl_final_reset_steps`) a reset agent learns it too,
-    //    and the candidate of highest learned return (`smirl_selection_cut`: counted up to
+    //    potential), then (`final_reset_steps`) a reset agent learns it too,
+    //    and the candidate of highest learned return (the selection cut: counted up to
     //    the first touch after the cancel that no demonstration makes) is the job's policy.
     let selection_cut = s
-        .smirl_selection_cut
+        .selection_cut()
         .then(|| seen_after_events(job.machine, job.expert, s))
         .transpose()?;
     let final_policy = match FinalPhase::of(s, job.seed, selection_cut.as_ref()) {
