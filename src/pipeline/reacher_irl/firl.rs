@@ -147,10 +147,9 @@ impl StateMap<'_> {
             }
             StateMap::Product(m) => {
                 let n = m.n_states();
-                let mut hot = vec![0.0f32; n];
                 for (next, prev) in next.zip(batch.obs.as_slice().chunks_exact(d)) {
-                    one_hot(hot_index(&prev[obs_dim..obs_dim + n]), &mut hot);
-                    out.extend_from_slice(&hot);
+                    let u = hot_index(&prev[obs_dim..obs_dim + n]);
+                    out.extend((0..n).map(|i| if i == u { 1.0 } else { 0.0 }));
                     out.extend(OBS_TIP.iter().map(|&c| next[c]));
                 }
             }
