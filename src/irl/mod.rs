@@ -10,10 +10,6 @@
 //! - [`kde`]: exact Epanechnikov KDE on a bandwidth-sized cell grid (state marginals).
 //! - [`knn_divergence`]: the k-nearest-neighbour KL estimate between two sample sets, f-IRL's
 //!   measure of how well an agent's state marginal matches a target density.
-//! - [`gaussian_kde`]: a Gaussian KDE with an exact log-density everywhere (f-IRL's expert
-//!   density without zeros, for reverse KL on demonstrations).
-//! - [`discriminator`]: a logistic classifier of expert vs agent states whose logit estimates
-//!   log(ρ_E/ρ_θ), f-IRL's density ratio for an expert given by demonstrations.
 //! - [`firl`]: f-IRL (fkl, rkl, js) and continuous MaxEnt IRL as per-state loss coefficients.
 //! - [`seen_after_events`]: what demonstrations do in each learned state once the cancel has
 //!   come (SMIRL's final-policy choice with `smirl_selection_cut`).
@@ -40,9 +36,7 @@
 //! SAC's steps and the rollouts' physics dominate.
 
 pub mod algo;
-pub mod discriminator;
 pub mod firl;
-pub mod gaussian_kde;
 pub mod kde;
 pub mod knn_divergence;
 pub mod reward;
