@@ -18,6 +18,7 @@ use smirl::env::reacher_task::{task_env, Branch, CancelBranch, ReacherTask, Subg
 use smirl::env::ContinuousEnv;
 use smirl::rm::{LabelSet, RewardMachine};
 use std::sync::{mpsc, Arc};
+use std::time::{Duration, Instant};
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<ReacherCore>()?;
@@ -319,6 +320,26 @@ type StepResults = Vec<Result<Option<StepOut>, String>>;
 type Handover = (Vec<Slot>, Vec<f32>);
 type Handback = (Vec<Slot>, StepResults);
 
+/// How long a thread waiting for a hand-over checks for it before it sleeps. Waking a
+/// sleeping thread costs about 100 µs on a virtual machine (`experiments/python/speed.py`: at
+/// 16 environments two threads stepped no faster than one), more than stepping a chunk of 8
+/// environments; a step loop hands over again within this time, so the waiting thread is
+/// still awake, and a caller that pauses longer costs this much of a core per step at most.
+const HANDOVER_SPIN: Duration = Duration::from_micros(200);
+
+/// `rx.recv()`, checking without sleeping for [`HANDOVER_SPIN`] first.
+fn recv_spinning<T>(rx: &mpsc::Receiver<T>) -> Result<T, mpsc::RecvError> {
+    let start = Instant::now();
+    loop {
+        match rx.try_recv() {
+            Ok(v) => return Ok(v),
+            Err(mpsc::TryRecvError::Disconnected) => return Err(mpsc::RecvError),
+            Err(mpsc::TryRecvError::Empty) if start.elapsed() > HANDOVER_SPIN => return rx.recv(),
+            Err(mpsc::TryRecvError::Empty) => std::hint::spin_loop(),
+        }
+    }
+}
+
 /// A worker thread that steps the chunks it is handed until the batch drops its sender.
 struct Worker {
     to_worker: Option<mpsc::Sender<Handover>>,
@@ -333,7 +354,7 @@ impl Worker {
         let thread = std::thread::Builder::new()
             .name("smirl-batch".into())
             .spawn(move || {
-                for (mut chunk, actions) in inbox {
+                while let Ok((mut chunk, actions)) = recv_spinning(&inbox) {
                     let results = step_chunk(&spec, &mut chunk, &actions);
                     if outbox.send((chunk, results)).is_err() {
                         break;
@@ -540,7 +561,7 @@ impl ReacherBatch {
         let mut results = step_chunk(&self.spec, &mut self.chunks[0], &actions[..per * a]);
         let mut lost = handed < self.workers.len();
         for (k, worker) in self.workers.iter().take(handed).enumerate() {
-            match worker.from_worker.recv() {
+            match recv_spinning(&worker.from_worker) {
                 Ok((chunk, r)) => {
                     self.chunks[k + 1] = chunk;
                     results.extend(r);
