@@ -23,9 +23,9 @@
 //! - **continuous SMIRL**: `pipeline/reacher_irl/smirl.rs` — learn the machine, annotate the
 //!   demonstrations, then per iteration SAC on the product with counterfactual states,
 //!   rollouts, feature expectations, reward step; **f-IRL and continuous MaxEnt**:
-//!   `pipeline/reacher_irl/firl.rs`, the same loop shape; what both loops share (the
-//!   environment, an episode, the SAC phase, the rollouts) is `pipeline/reacher_irl/episodes.rs`
-//!   and what watches them (ground truth, logs, progress) `pipeline/reacher_irl/evaluation.rs`.
+//!   `pipeline/reacher_irl/firl.rs`, the same loop shape; what both loops share is
+//!   `pipeline/reacher_irl/episodes.rs` (the environment, an episode) and `agent_phases.rs`
+//!   (the SAC phase, the rollouts), and what watches them (ground truth, logs, progress) `pipeline/reacher_irl/evaluation.rs`.
 //! - **SAC**: `rl/sac/agent.rs` (one update, top to bottom) and `rl/sac/trainer.rs` (the
 //!   training loop, rewards computed when a batch is sampled).
 //! - **Office SMIRL, MaxEnt and apprenticeship**: `pipeline/office.rs` over `irl/tabular`.

@@ -17,7 +17,7 @@ use smirl::log::writer::EpisodeStartRecord;
 use smirl::log::{read_log, LogError, LogOptions, RolloutLogger, RunHeader, StepRecord};
 use smirl::pipeline::office::OfficeConfig;
 use smirl::pipeline::reacher_expert::ExpertConfig;
-use smirl::pipeline::reacher_irl::job::ExpertData;
+use smirl::pipeline::reacher_irl::ExpertData;
 use smirl::rl::sac::SacConfig;
 use smirl::rm::LabelSet;
 use std::path::Path;

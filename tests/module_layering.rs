@@ -1,7 +1,5 @@
 //! The crate's imports flow one way: the top-level modules follow the layering `src/lib.rs`
-//! draws, and no set of source files imports each other in a circle (except the circles listed
-//! in `KNOWN_CIRCLES`, each to be broken; the test fails when one of them is gone too, so the
-//! list only shrinks).
+//! draws, and no set of source files imports each other in a circle.
 //!
 //! Imports are read from the source text: every path that starts with `crate::` or `super::`,
 //! in `use` trees (with their braces) and in code, resolved to the longest prefix that names a
@@ -9,17 +7,6 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-
-/// Circles of files known today; each entry lists the modules of one circle.
-const KNOWN_CIRCLES: &[&[&str]] = &[&[
-    "pipeline::reacher_irl::episodes",
-    "pipeline::reacher_irl::evaluation",
-    "pipeline::reacher_irl::final_policy",
-    "pipeline::reacher_irl::firl",
-    "pipeline::reacher_irl::job",
-    "pipeline::reacher_irl::lockstep",
-    "pipeline::reacher_irl::smirl",
-]];
 
 /// Layer of each top-level module (`src/lib.rs`): a module imports only modules of a lower
 /// layer, and the shared utilities (layer 0) import only each other.
@@ -391,21 +378,11 @@ fn top_level_modules_import_only_lower_layers() {
 }
 
 #[test]
-fn no_files_import_each_other_in_a_circle_but_the_known_ones() {
-    let found: BTreeSet<BTreeSet<String>> = circles(&graph()).into_iter().collect();
-    let known: BTreeSet<BTreeSet<String>> = KNOWN_CIRCLES
-        .iter()
-        .map(|c| c.iter().map(|m| m.to_string()).collect())
-        .collect();
-    let new: Vec<_> = found.difference(&known).collect();
-    let gone: Vec<_> = known.difference(&found).collect();
+fn no_files_import_each_other_in_a_circle() {
+    let found = circles(&graph());
     assert!(
-        new.is_empty(),
-        "files that import each other in a circle: {new:?}"
-    );
-    assert!(
-        gone.is_empty(),
-        "a known circle is broken or changed (update KNOWN_CIRCLES): {gone:?}"
+        found.is_empty(),
+        "files that import each other in a circle: {found:?}"
     );
 }
 

@@ -10,7 +10,7 @@ use crate::output::{check_not_protected, OutputDir};
 use crate::pipeline::reacher_expert::default_expert_cache;
 use crate::pipeline::reacher_irl::config::DemoSource;
 use crate::pipeline::reacher_irl::demos::{load_expert, DemoError};
-use crate::pipeline::reacher_irl::job::JobProgress;
+use crate::pipeline::reacher_irl::iteration::JobProgress;
 use crate::pipeline::reacher_irl::run::{self, open_run, summary_markdown, JobRecord, PreparedRun};
 use crate::pipeline::reacher_irl::{
     run_pipeline, Algo, IrlRunConfig, PipelineError, RunObserver, RunRequest,

@@ -1,12 +1,9 @@
 //! What every IRL algorithm of the Reacher comparison does with the environment, in one place:
 //! the environment SAC acts in ([`JobEnv`]), one episode with the ground truth tracked
-//! alongside ([`play_episode`]), the SAC phase of an iteration ([`train_sac`]) and the
-//! stochastic rollouts a reward update reads ([`RolloutStream`]). The algorithms
-//! (`super::smirl`, `super::firl`) differ in the reward they hand to SAC and in what they do
-//! with the rollouts, not in any of this.
+//! alongside ([`play_episode`]) and the agent's steps as a reward update reads them
+//! ([`AgentBatch`]). The algorithms (`super::smirl`, `super::firl`) differ in the reward they
+//! hand to SAC and in what they do with the rollouts, not in any of this.
 
-use super::evaluation::JobWatch;
-use super::lockstep::{play_lockstep, Keep};
 use crate::env::clock::Clocked;
 use crate::env::layout::TaskLayout;
 use crate::env::product::ProductEnv;
@@ -16,12 +13,9 @@ use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::irl::smirl::FeatureMap;
 use crate::log::writer::EpisodeStartRecord;
 use crate::log::{RolloutLogger, StepRecord};
-use crate::pipeline::training_log::{ReacherView, TrainingLog};
-use crate::rl::sac::{
-    draw_noise, episode_seed, ActMode, RewardFn, SacAgent, SacTrainer, TrainingObserver,
-};
+use crate::pipeline::training_log::ReacherView;
+use crate::rl::sac::{ActMode, SacAgent};
 use crate::rm::{LabelSet, RewardMachine};
-use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
 
@@ -512,44 +506,6 @@ pub fn play_episode<E: JobEnv>(
     play.finish(&mut log)
 }
 
-/// Phase 1 of an IRL iteration: `steps` more SAC environment steps on `reward` (the reward the
-/// algorithm is learning), SAC's own episodes logged under "train"; then the episode in
-/// progress is played to its end. (Rollouts and evaluation reset the same environment, and
-/// SAC must not resume an episode from the state the last evaluation left it in; with
-/// 100-step episodes and a budget that is a multiple of 100, as in the shipped profiles,
-/// there is nothing to finish.)
-pub fn train_sac<E: JobEnv, R: RewardFn>(
-    sac: &mut SacTrainer,
-    env: &mut E,
-    reward: &mut R,
-    steps: u64,
-    iteration: usize,
-    watch: &mut JobWatch<'_, '_>,
-) -> Result<(), String> {
-    let before = sac.env_steps();
-    let chunk = 1_000u64;
-    let mut done = 0;
-    let perfect = watch.perfect();
-    let (logger, report_progress) = watch.sac_phase(iteration);
-    // One observer for the whole phase: it holds the logged episode in progress across chunks.
-    let mut train_log = logger.map(|l| TrainingLog::new(l, perfect, "train"));
-    while done < steps || !sac.at_episode_boundary() {
-        let n = if done < steps {
-            chunk.min(steps - done)
-        } else {
-            1
-        };
-        let observer = train_log
-            .as_mut()
-            .map(|t| t as &mut dyn TrainingObserver<E>);
-        sac.train_observed(env, reward, n, observer, |_| {})
-            .map_err(|e| format!("SAC: {e}"))?;
-        done += n;
-        report_progress(before + done);
-    }
-    Ok(())
-}
-
 /// Agent trajectories as a reward update reads them.
 #[derive(Clone, Debug, Default)]
 pub struct AgentBatch {
@@ -592,91 +548,5 @@ impl AgentBatch {
         if let Some(u) = learned_state {
             self.states.push(u as u32);
         }
-    }
-}
-
-/// Fresh trajectories of the current stochastic policy, the sample each reward update reads.
-/// Reset seeds come from their own stream (counted across iterations) and actions draw from
-/// their own generator, so rollouts never perturb SAC's random stream.
-pub struct RolloutStream {
-    seed: u64,
-    next: u64,
-    rng: ChaCha8Rng,
-}
-
-impl RolloutStream {
-    pub fn new(seed: u64) -> RolloutStream {
-        RolloutStream {
-            seed: seed ^ 0x7261_6e64,
-            next: 0,
-            rng: ChaCha8Rng::seed_from_u64(episode_seed(seed, 0x0a11_0a11)),
-        }
-    }
-
-    /// Phase 2 of an IRL iteration: `n` episodes to the time limit, each observation with the
-    /// learned state its labels are read in (SMIRL), logged under "agent" and shown to the
-    /// watch. The episodes are played in lockstep (`super::lockstep`, the watch's plan) when
-    /// every one runs to the time limit, so that the noise each draws is known before play;
-    /// otherwise (SMIRL's product, whose machine can end an episode) one after the other,
-    /// since an episode's noise then starts where the previous episode's ended.
-    pub fn collect<E: JobEnv>(
-        &mut self,
-        agent: &mut SacAgent,
-        env: &mut E,
-        n: usize,
-        watch: &mut JobWatch<'_, '_>,
-    ) -> Result<AgentBatch, String> {
-        let mut batch = AgentBatch::default();
-        let task = GroundTruthTask::of(watch.perfect(), watch.layout());
-        let labelling = FeatureMap::reacher_labels(watch.layout());
-        let specs: Vec<EpisodeSpec<'_>> = (0..n)
-            .map(|_| {
-                let reset_seed = episode_seed(self.seed, self.next);
-                self.next += 1;
-                EpisodeSpec {
-                    mode: ActMode::Sample,
-                    reset_seed,
-                    stop_when_decided: false,
-                    with_branch: false,
-                    phase: "agent",
-                }
-            })
-            .collect();
-        if env.ends_only_at_time_limit() {
-            let per_episode = env.reacher().config().max_steps * env.act_dim();
-            let mut noise = vec![0.0f32; n * per_episode];
-            draw_noise(&mut self.rng, &mut noise);
-            let keep = Keep {
-                log: watch.logger().is_some(),
-                steps: true,
-            };
-            let plan = watch.lockstep();
-            let played = play_lockstep(&agent.actor, env, &task, &specs, Some(&noise), plan, keep)?;
-            for p in played {
-                if let (Some(logger), Some(log)) = (watch.logger(), &p.log) {
-                    log.write_to(logger)?;
-                }
-                batch.append(p.steps.unwrap_or_default());
-            }
-        } else {
-            for spec in specs {
-                let mut len = 0;
-                play_episode(
-                    agent,
-                    env,
-                    &task,
-                    spec,
-                    &mut self.rng,
-                    watch.logger(),
-                    |before, after, u| {
-                        batch.push_step(&labelling, before, after, u);
-                        len += 1;
-                    },
-                )?;
-                batch.lengths.push(len);
-            }
-        }
-        watch.rollouts(&batch)?;
-        Ok(batch)
     }
 }

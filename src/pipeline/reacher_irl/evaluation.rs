@@ -16,7 +16,7 @@
 
 use super::config::IrlRunConfig;
 use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
-use super::job::{JobProgress, MetricsRow};
+use super::iteration::{JobProgress, MetricsRow};
 use super::lockstep::{play_lockstep, Keep, Lockstep};
 use crate::env::layout::TaskLayout;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};

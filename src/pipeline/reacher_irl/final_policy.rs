@@ -33,8 +33,9 @@
 //! cancel in the same learned state ([`SeenAfterEvents`]) — still no ground truth, and nothing
 //! in training changes.
 
+use super::agent_phases::train_sac;
 use super::config::IrlRunConfig;
-use super::episodes::{play_episode, train_sac, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
+use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::evaluation::{Evaluation, FinalSetScore, JobWatch};
 use crate::env::reacher_task::BranchTally;
 use crate::irl::seen_after_events::SeenAfterEvents;

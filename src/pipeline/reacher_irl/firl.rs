@@ -26,11 +26,13 @@
 //!
 //! Ground-truth evaluation, logging and progress watch the loop from outside ([`JobWatch`]).
 
+use super::agent_phases::{train_sac, RolloutStream};
 use super::config::IrlRunConfig;
-use super::episodes::{train_sac, AgentBatch, JobEnv, RolloutStream};
+use super::episodes::{AgentBatch, JobEnv};
 use super::evaluation::{JobWatch, UpdateFacts};
+use super::expert_data::ExpertData;
 use super::final_policy::{self, FinalPhase, FinalPolicy};
-use super::job::{Coefficients, ExpertData};
+use super::iteration::Coefficients;
 use crate::env::clock::{Clock, Clocked};
 use crate::env::layout::OBS_ARM;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};

@@ -16,8 +16,8 @@
 //!    documented smooth variant φ_k = exp(−d_k²/2σ²), reported as a separate algorithm, never
 //!    in place of `smirl`) and [`firl::train`] (continuous MaxEnt and f-IRL fkl/rkl/js: SAC on
 //!    the plain 17-dim observation, a (64, 64) reward net on the fingertip clamped ±10). What
-//!    every loop shares is in [`episodes`] (the environment, an episode, the SAC phase, the
-//!    rollouts); [`evaluation`] watches each job from outside (ground truth after every
+//!    every loop shares is in [`episodes`] (the environment, an episode), [`agent_phases`] (the
+//!    SAC phase, the rollouts) and [`iteration`] (what an iteration hands on); [`evaluation`] watches each job from outside (ground truth after every
 //!    iteration, logs, progress); SMIRL's jobs end with [`final_policy`], SAC on the final
 //!    reward held fixed and the policy of highest learned return reported beside the loop's.
 //! 4. **Reports** ([`reports`], from the jobs' [`records`]): metrics CSV, mean ± std plots
@@ -25,12 +25,15 @@
 //!    parameters and MCAP logs. Everything is written into `<out>.partial` and renamed to
 //!    `<out>` at the end.
 
+pub mod agent_phases;
 pub mod config;
 pub mod demos;
 pub mod episodes;
 pub mod evaluation;
+pub mod expert_data;
 pub mod final_policy;
 pub mod firl;
+pub mod iteration;
 pub mod job;
 pub mod lockstep;
 pub mod records;
@@ -41,7 +44,9 @@ pub mod smirl;
 
 pub use config::{DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
 pub use episodes::AgentBatch;
-pub use job::{run_job, Coefficients, ExpertData, JobResult, MetricsRow};
+pub use expert_data::ExpertData;
+pub use iteration::{Coefficients, MetricsRow};
+pub use job::{run_job, JobResult};
 pub use run::{run_pipeline, PipelineError, RunObserver, RunRequest, RunSummary};
 
 /// The algorithms of the comparison (`Algo::REACHER` runs here).

@@ -4,8 +4,8 @@
 
 use super::config::IrlRunConfig;
 use super::evaluation::FinalSetScore;
+use super::expert_data::ExpertData;
 use super::final_policy::FinalPolicy;
-use super::job::ExpertData;
 use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher_task::{BranchTally, ReacherTask};

@@ -4,7 +4,7 @@
 
 use super::evaluation::FinalSetScore;
 use super::final_policy::{FinalCandidate, FinalPolicy};
-use super::job::RewardTraceRow;
+use super::iteration::RewardTraceRow;
 use super::records::{
     write_file, AlgoSummary, JobRecord, PipelineError, PreparedRun, RmFacts, RunSummary,
 };

@@ -22,7 +22,9 @@
 
 use super::config::{DemoSource, IrlRunConfig, SmirlMachine};
 use super::demos::{load_expert, make_demos, DemoError};
-use super::job::{run_job, ExpertData, JobInputs, JobProgress, JobResult};
+use super::expert_data::ExpertData;
+use super::iteration::JobProgress;
+use super::job::{run_job, JobInputs, JobResult};
 use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};

@@ -24,11 +24,13 @@
 //! machine); `train` is one (variant, seed) job. Ground-truth evaluation, logging and progress
 //! watch the loop from outside ([`JobWatch`]).
 
+use super::agent_phases::{train_sac, RolloutStream};
 use super::config::IrlRunConfig;
-use super::episodes::{train_sac, AgentBatch, RolloutStream};
+use super::episodes::AgentBatch;
 use super::evaluation::{JobWatch, UpdateFacts};
+use super::expert_data::ExpertData;
 use super::final_policy::{self, FinalPhase, FinalPolicy};
-use super::job::{Coefficients, ExpertData, RewardTraceRow};
+use super::iteration::{Coefficients, RewardTraceRow};
 use crate::env::layout::{TaskLayout, OBS_JOINT_VEL};
 use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
