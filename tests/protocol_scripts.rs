@@ -1,10 +1,13 @@
 //! experiments/protocol/run.py and table.py on a throwaway repository with a fake `reacher` (a
 //! small Python script that writes job files): a preregistered evaluation resumes on a fresh
 //! checkout from its committed lock and ledger alone — the jobs the ledger records are not run
-//! again, a job killed by a signal is, a failed one never is — and the tables come from the
-//! ledger without any run directory; `check` runs once, and `run` refuses once the protocol or
-//! its config changes after the lock. Seeds here are the fake's, far from every real range;
-//! nothing is written inside the repository's experiments/.
+//! again, a job killed by SIGTERM is (at most twice), a failed one never is — and the tables
+//! come from the ledger without any run directory; a failed job scores 0 for every policy; a
+//! failed or changed prepare fails its run directory's jobs and the plan goes on; a job past its
+//! timeout is killed and failed; `--partial` counts complete bases only; `check` runs once, and
+//! `run` and table.py refuse once the protocol, its config or the scripts change after the lock.
+//! Seeds here are the fake's, far from every real range; nothing is written inside the
+//! repository's experiments/.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -40,32 +43,52 @@ fn write(path: &Path, text: &str) {
     std::fs::write(path, text).unwrap();
 }
 
-/// The fake binary: `--version` names `commit`; `prepare` writes prepare.json; `job` appends
-/// its (algo, seed) to `log`, dies by SIGKILL when listed in FAKE_KILL, exits 1 when listed in
-/// FAKE_FAIL, else writes a job file (as `reacher job`, returning at once when it exists).
-/// Its per-iteration success (the last row's) is 0.01, its final-set scores seed-dependent:
-/// a table that reads the wrong one shows it.
+/// The fake binary: `--version` names `commit`; `prepare` appends `prepare:<task>:<base>` to
+/// `log`, exits 1 when `<task>:<base>` is listed in FAKE_PREPARE_FAIL, else writes config.toml
+/// (threads = 2), rm/learned.txt (its text FAKE_MACHINE), expert_data.bin and prepare.json;
+/// `job` appends its (algo, seed) to `log`, kills itself with SIGTERM when listed in FAKE_TERM,
+/// with SIGSEGV when listed in FAKE_SEGV, sleeps a minute when listed in FAKE_HANG, exits 1
+/// when listed in FAKE_FAIL, else writes a job file (as `reacher job`, returning at once when
+/// it exists). Its per-iteration success (the last row's) is 0.01, its final-set scores
+/// seed-dependent: a table that reads the wrong one shows it.
 fn fake_reacher(path: &Path, commit: &str, log: &Path) {
     let script = format!(
         r#"#!/usr/bin/env python3
-import json, os, signal, sys
+import json, os, signal, sys, time
 a = sys.argv[1:]
 if a == ["--version"]:
     print("smirl 0.1.0 (commit {commit})")
     sys.exit(0)
 opt = {{a[i]: a[i + 1] for i in range(1, len(a) - 1) if a[i].startswith("--")}}
+listed = lambda var, what: what in os.environ.get(var, "").split(",")
 if a[0] == "prepare":
-    os.makedirs(opt["--out"], exist_ok=True)
     base = int(opt["--seed"])
+    with open("{log}", "a") as fh:
+        fh.write(f"prepare:{{opt['--task']}}:{{base}}\n")
+    if listed("FAKE_PREPARE_FAIL", f"{{opt['--task']}}:{{base}}"):
+        sys.exit(1)
+    os.makedirs(os.path.join(opt["--out"], "rm"), exist_ok=True)
+    with open(os.path.join(opt["--out"], "config.toml"), "w") as fh:
+        fh.write("demo_episodes = 16\nthreads = 2\n\n[env]\nmax_steps = 100\n")
+    with open(os.path.join(opt["--out"], "rm", "learned.txt"), "w") as fh:
+        fh.write(os.environ.get("FAKE_MACHINE", "u0 -> u1 on r\n"))
+    with open(os.path.join(opt["--out"], "expert_data.bin"), "wb") as fh:
+        fh.write(b"demonstrations")
     with open(os.path.join(opt["--out"], "prepare.json"), "w") as fh:
-        json.dump({{"seeds": list(range(base, base + int(opt["--seeds"]))), "git_commit": "{commit}"}}, fh)
+        json.dump({{"seeds": list(range(base, base + int(opt["--seeds"]))), "git_commit": "{commit}",
+                   "demos_kept": 15, "demos_generated": 16}}, fh)
     sys.exit(0)
 algo, seed = opt["--algo"], int(opt["--seed"])
 with open("{log}", "a") as fh:
     fh.write(f"{{algo}}:{{seed}}\n")
-if f"{{algo}}:{{seed}}" in os.environ.get("FAKE_KILL", "").split(","):
-    os.kill(os.getpid(), signal.SIGKILL)
-if f"{{algo}}:{{seed}}" in os.environ.get("FAKE_FAIL", "").split(","):
+me = f"{{algo}}:{{seed}}"
+if listed("FAKE_TERM", me):
+    os.kill(os.getpid(), signal.SIGTERM)
+if listed("FAKE_SEGV", me):
+    os.kill(os.getpid(), signal.SIGSEGV)
+if listed("FAKE_HANG", me):
+    time.sleep(60)
+if listed("FAKE_FAIL", me):
     sys.exit(1)
 path = os.path.join(opt["--run"], "jobs", f"{{algo}}_seed{{seed}}.json")
 if os.path.isfile(path):
@@ -97,10 +120,20 @@ with open(path, "w") as fh:
     assert!(o.status.success());
 }
 
-/// A repository with the scripts, a "method" (the frozen commit) and a protocol of bases
-/// `base` and `base + 10` on top. (Each test has bases of its own: `check` refuses seeds found
-/// in any run directory under /tmp, such as another test's.)
-fn protocol_repo(repo: &Path, base: u64) -> String {
+/// The protocol of most tests: bases `base` and `base + 10`, one arm on `or` with smirl and
+/// paper, 2 seeds.
+fn standard_plan(base: u64) -> String {
+    format!(
+        "bases = [{base}, {}]\ntimeout_secs = {{ smirl = 600, paper = 600 }}\n\n[[arm]]\n\
+         name = \"a\"\ntasks = [\"or\"]\nalgos = [\"smirl\", \"paper\"]\nn_bases = 2\nseeds = 2\n",
+        base + 10
+    )
+}
+
+/// A repository with the scripts, a "method" (the frozen commit) and a protocol on top
+/// (`plan`: its toml after `commit` and `config`). (Each test has bases of its own: `check`
+/// refuses seeds found in any run directory under /tmp, such as another test's.)
+fn protocol_repo(repo: &Path, plan: &str) -> String {
     let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
     std::fs::create_dir_all(repo).unwrap();
     git(repo, &["init", "-q", "-b", "main"]);
@@ -114,7 +147,7 @@ fn protocol_repo(repo: &Path, base: u64) -> String {
     write(&repo.join("src/method.rs"), "// the method\n");
     write(
         &repo.join("experiments/reacher/config.toml"),
-        "# a config\n",
+        "# a config\nthreads = 2\n",
     );
     commit_all(repo, "the method");
     let frozen = git(repo, &["rev-parse", "HEAD"]);
@@ -124,12 +157,7 @@ fn protocol_repo(repo: &Path, base: u64) -> String {
     );
     write(
         &repo.join(format!("experiments/protocol/{NAME}.toml")),
-        &format!(
-            "commit = \"{frozen}\"\nconfig = \"experiments/reacher/config.toml\"\n\
-             bases = [{base}, {}]\n\n[[arm]]\nname = \"a\"\ntasks = [\"or\"]\n\
-             algos = [\"smirl\", \"paper\"]\nn_bases = 2\nseeds = 2\n",
-            base + 10
-        ),
+        &format!("commit = \"{frozen}\"\nconfig = \"experiments/reacher/config.toml\"\n{plan}"),
     );
     commit_all(repo, "the protocol");
     frozen
@@ -149,15 +177,75 @@ impl Session<'_> {
     }
 
     fn run(&self, env: &[(&str, &str)]) -> Output {
+        self.run_with(&[], env)
+    }
+
+    fn run_with(&self, args: &[&str], env: &[(&str, &str)]) -> Output {
         let bin = self.bin.to_str().unwrap();
-        self.script("run.py", &["run", NAME, "--bin", bin], env)
+        let mut all = vec!["run", NAME, "--bin", bin];
+        all.extend_from_slice(args);
+        self.script("run.py", &all, env)
+    }
+
+    /// `check`, then the lock committed.
+    fn check_and_lock(&self) {
+        let bin = self.bin.to_str().unwrap();
+        let o = self.script("run.py", &["check", NAME, "--bin", bin], &[]);
+        assert!(o.status.success(), "check: {}", stderr(&o));
+        commit_all(self.repo, "lock");
+    }
+
+    fn table(&self, args: &[&str]) -> Output {
+        let mut all = vec![NAME];
+        all.extend_from_slice(args);
+        self.script("table.py", &all, &[])
+    }
+
+    fn state(&self, file: &str) -> String {
+        let path = self
+            .repo
+            .join(format!("experiments/protocol/{NAME}"))
+            .join(file);
+        std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
     }
 }
 
+/// The row of jobs.csv for (algo, seed), split at commas.
+fn csv_row(jobs: &str, algo: &str, seed: u64) -> Vec<String> {
+    let line = jobs
+        .lines()
+        .find(|l| l.contains(&format!(",{algo},{seed},")))
+        .unwrap_or_else(|| panic!("no row {algo} {seed} in\n{jobs}"));
+    line.split(',').map(String::from).collect()
+}
+
+/// The line of summary.md's exploratory table for (task, arm, algo).
+fn exploratory_row<'a>(summary: &'a str, task: &str, arm: &str, algo: &str) -> &'a str {
+    let tail = summary
+        .split("## Exploratory")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no exploratory section in\n{summary}"));
+    tail.lines()
+        .find(|l| l.starts_with(&format!("| {task} | {arm} | {algo} |")))
+        .unwrap_or_else(|| panic!("no row {task} {arm} {algo} in\n{summary}"))
+}
+
+/// The jobs the fake ran, in order (`algo:seed`).
 fn log_lines(log: &Path) -> Vec<String> {
     std::fs::read_to_string(log)
         .unwrap_or_default()
         .lines()
+        .filter(|l| !l.starts_with("prepare:"))
+        .map(String::from)
+        .collect()
+}
+
+/// The prepares the fake ran, in order (`prepare:task:base`).
+fn prepare_lines(log: &Path) -> Vec<String> {
+    std::fs::read_to_string(log)
+        .unwrap_or_default()
+        .lines()
+        .filter(|l| l.starts_with("prepare:"))
         .map(String::from)
         .collect()
 }
@@ -182,7 +270,7 @@ fn a_protocol_resumes_on_a_fresh_checkout_from_its_committed_ledger() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let first = tmp.path().join("first");
-    let frozen = protocol_repo(&first, 910_000);
+    let frozen = protocol_repo(&first, &standard_plan(910_000));
     let (bin, log) = (tmp.path().join("reacher"), tmp.path().join("jobs.log"));
     fake_reacher(&bin, &frozen, &log);
     let s1 = Session {
@@ -210,8 +298,8 @@ fn a_protocol_resumes_on_a_fresh_checkout_from_its_committed_ledger() {
     assert!(stderr(&o).contains("not committed"), "{}", stderr(&o));
     commit_all(&first, "lock");
 
-    // Session 1: the second job is killed, the session stops there.
-    let o = s1.run(&[("FAKE_KILL", "smirl:910001")]);
+    // Session 1: the second job is killed by SIGTERM (a session ending), the session stops there.
+    let o = s1.run(&[("FAKE_TERM", "smirl:910001")]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert_eq!(log_lines(&log), ["smirl:910000", "smirl:910001"]);
     commit_all(&first, "session 1's ledger");
@@ -290,7 +378,7 @@ fn run_refuses_a_protocol_or_config_changed_after_the_lock() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let repo = tmp.path().join("repo");
-    let frozen = protocol_repo(&repo, 920_000);
+    let frozen = protocol_repo(&repo, &standard_plan(920_000));
     let (bin, log) = (tmp.path().join("reacher"), tmp.path().join("jobs.log"));
     fake_reacher(&bin, &frozen, &log);
     let s = Session {
@@ -336,4 +424,404 @@ fn run_refuses_a_protocol_or_config_changed_after_the_lock() {
     let o = s.run(&[]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(log_lines(&log).len(), 8);
+}
+
+/// Sets up a repository with `plan`, the fake binary and the lock committed.
+fn locked(tmp: &Path, plan: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let repo = tmp.join("repo");
+    let frozen = protocol_repo(&repo, plan);
+    let (bin, log) = (tmp.join("reacher"), tmp.join("jobs.log"));
+    fake_reacher(&bin, &frozen, &log);
+    Session {
+        repo: &repo,
+        bin: &bin,
+    }
+    .check_and_lock();
+    (repo, bin, log)
+}
+
+/// A failed job scores 0 for every policy of its algorithm in jobs.csv and in every mean and
+/// share of the summary; jobs side by side (`--parallel 2`) run on one thread each.
+#[test]
+fn a_failed_job_scores_zero_for_every_policy_in_every_mean() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let (repo, bin, log) = locked(tmp.path(), &standard_plan(940_000));
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let o = s.run_with(&["--parallel", "2"], &[("FAKE_FAIL", "smirl:940011")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(log_lines(&log).len(), 8);
+    let config = std::fs::read_to_string(
+        repo.join("runs/protocol")
+            .join(NAME)
+            .join(
+                std::fs::read_dir(repo.join("runs/protocol").join(NAME))
+                    .unwrap()
+                    .next()
+                    .unwrap()
+                    .unwrap()
+                    .file_name(),
+            )
+            .join("config.toml"),
+    )
+    .unwrap();
+    assert!(config.contains("threads = 1\n"), "{config}");
+    assert!(s.state("ledger.jsonl").contains("\"threads\":1,"));
+    let o = s.table(&[]);
+    assert!(o.status.success(), "table: {}", stderr(&o));
+    let jobs = s.state("jobs.csv");
+    // status, loop, chosen, random_pick, oracle
+    assert_eq!(
+        csv_row(&jobs, "smirl", 940011)[5..10],
+        ["failed", "0.00", "0.00", "0.00", "0.00"]
+    );
+    // Chosen: 0.96 three times and the failed job's 0; the loop's own: 0.0, 0.1, 0.0 and 0;
+    // the random pick: (0.0 + 0.96 + 0.2) / 3, (0.1 + 0.96 + 0.2) / 3, the first again, 0;
+    // the oracle: 0.96 three times and 0. Left out, the failed job would make them 0.96, 0.03,
+    // 0.40 and 0.96.
+    let summary = s.state("summary.md");
+    let row = exploratory_row(&summary, "or", "a", "smirl");
+    let cols: Vec<&str> = row.split('|').map(str::trim).collect();
+    // | task | arm | algo | jobs (bases) | failed | solved, chosen | chosen mean | solved, loop |
+    // loop mean | random pick mean | oracle mean | chosen − loop | ...
+    assert_eq!(cols[4], "4 (2)", "{row}");
+    assert!(cols[6].starts_with("3/4 "), "{row}");
+    assert_eq!(
+        [cols[7], cols[9], cols[10], cols[11]],
+        ["0.72", "0.03", "0.30", "0.72"],
+        "{row}"
+    );
+}
+
+/// A prepare that fails is recorded once, its run directory's jobs count as failed and the
+/// plan goes on; a later session that prepares a directory again with other bytes is refused
+/// the same way; the learned machines are kept in machines.txt.
+#[test]
+fn a_failed_or_changed_prepare_fails_its_jobs_and_the_plan_goes_on() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let plan =
+        "bases = [950000, 950010]\ntimeout_secs = { smirl = 600 }\n\n[[arm]]\nname = \"a\"\n\
+                tasks = [\"or\", \"if\"]\nalgos = [\"smirl\"]\nn_bases = 2\nseeds = 2\n";
+    let (repo, bin, log) = locked(tmp.path(), plan);
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let o = s.run_with(&["--max-jobs", "3"], &[("FAKE_PREPARE_FAIL", "or:950000")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // or-b950000 failed to prepare: its two jobs are failed, the plan went on to if-b950000
+    // and or-b950010.
+    assert_eq!(
+        log_lines(&log),
+        ["smirl:950000", "smirl:950001", "smirl:950010"]
+    );
+    assert_eq!(
+        prepare_lines(&log),
+        [
+            "prepare:or:950000",
+            "prepare:if:950000",
+            "prepare:or:950010"
+        ]
+    );
+    let ledger = s.state("ledger.jsonl");
+    assert_eq!(ledger.matches("\"prepare_failed\"").count(), 1, "{ledger}");
+    assert_eq!(ledger.matches("\"why\":\"prepare\"").count(), 2, "{ledger}");
+    assert!(s.state("machines.txt").contains("u0 -> u1 on r"));
+    commit_all(&repo, "session 1");
+
+    // A fresh checkout whose prepare gives another machine: or-b950010 (one job done) is
+    // refused and its other job failed; if-b950010 is new and runs; the failed prepare of
+    // or-b950000 is not tried again.
+    let second = tmp.path().join("second");
+    let o = run_in(
+        tmp.path(),
+        "git",
+        &[
+            "clone",
+            "-q",
+            repo.to_str().unwrap(),
+            second.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success());
+    std::fs::remove_file(&log).unwrap();
+    let s2 = Session {
+        repo: &second,
+        bin: &bin,
+    };
+    let o = s2.run(&[("FAKE_MACHINE", "u0 -> u2 on r\n")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(log_lines(&log), ["smirl:950010", "smirl:950011"]);
+    assert_eq!(
+        prepare_lines(&log),
+        ["prepare:or:950010", "prepare:if:950010"]
+    );
+    let ledger = s2.state("ledger.jsonl");
+    assert_eq!(ledger.matches("\"prepare_failed\"").count(), 2, "{ledger}");
+    assert!(
+        ledger.contains("prepared again with other bytes"),
+        "{ledger}"
+    );
+    let status = s2.script("run.py", &["status", NAME], &[]);
+    assert!(
+        String::from_utf8_lossy(&status.stdout).contains("5 of 8 jobs done, 3 failed"),
+        "{}",
+        String::from_utf8_lossy(&status.stdout)
+    );
+}
+
+/// A job killed by SIGTERM is rerun at most twice (its third kill fails it); a job killed by
+/// another signal fails at once.
+#[test]
+fn a_job_killed_by_sigterm_reruns_at_most_twice_and_other_signals_fail_it() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let (repo, bin, log) = locked(tmp.path(), &standard_plan(960_000));
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let env = [("FAKE_TERM", "smirl:960001"), ("FAKE_SEGV", "paper:960000")];
+    for session in 1..=3 {
+        let o = s.run(&env);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "session {session}: {}",
+            stderr(&o)
+        );
+    }
+    let ran: Vec<String> = log_lines(&log);
+    assert_eq!(
+        ran.iter().filter(|l| *l == "smirl:960001").count(),
+        3,
+        "{ran:?}"
+    );
+    let ledger = s.state("ledger.jsonl");
+    assert_eq!(
+        ledger.matches("\"event\":\"killed\"").count(),
+        2,
+        "{ledger}"
+    );
+    assert!(
+        ledger.contains("killed by signal 15 on its start 3 of 3"),
+        "{ledger}"
+    );
+    // Session 4 runs the rest, the third kill's job not again; the job that dies by SIGSEGV
+    // fails at once.
+    std::fs::remove_file(&log).unwrap();
+    let o = s.run(&env);
+    assert!(o.status.success(), "session 4: {}", stderr(&o));
+    let ran = log_lines(&log);
+    assert!(!ran.contains(&"smirl:960001".to_string()), "{ran:?}");
+    assert!(ran.contains(&"paper:960000".to_string()), "{ran:?}");
+    let ledger = s.state("ledger.jsonl");
+    assert!(
+        ledger.contains("\"why\":\"killed by signal 11\""),
+        "{ledger}"
+    );
+    // Session 5: nothing left.
+    std::fs::remove_file(&log).unwrap();
+    let o = s.run(&env);
+    assert!(o.status.success(), "session 5: {}", stderr(&o));
+    assert_eq!(log_lines(&log), Vec::<String>::new());
+    let status = s.script("run.py", &["status", NAME], &[]);
+    assert!(String::from_utf8_lossy(&status.stdout).contains("6 of 8 jobs done, 2 failed"));
+}
+
+/// A job running longer than its algorithm's `timeout_secs` is killed and recorded failed.
+#[test]
+fn a_job_past_its_timeout_is_killed_and_failed() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let plan = standard_plan(970_000).replace("smirl = 600", "smirl = 2");
+    let (repo, bin, log) = locked(tmp.path(), &plan);
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let started = std::time::Instant::now();
+    let o = s.run(&[("FAKE_HANG", "smirl:970000")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        started.elapsed().as_secs() < 30,
+        "the hung job was not killed"
+    );
+    assert_eq!(log_lines(&log).len(), 8);
+    let ledger = s.state("ledger.jsonl");
+    assert!(
+        ledger.contains("\"why\":\"timeout\",\"timeout_secs\":2"),
+        "{ledger}"
+    );
+    let o = s.table(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(csv_row(&s.state("jobs.csv"), "smirl", 970000)[5], "failed");
+}
+
+/// `table.py --partial` counts complete bases only (every job of the arm's tier and earlier
+/// tiers on the base finished) and says how many bases each arm reached; without `--partial`
+/// it refuses an unfinished plan.
+#[test]
+fn partial_tables_count_complete_bases_only() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let plan = "bases = [980000, 980010, 980020]\ntimeout_secs = { smirl = 600, paper = 600 }\n\n\
+                [[arm]]\nname = \"a\"\ntasks = [\"or\"]\nalgos = [\"smirl\"]\nn_bases = 3\nseeds = 2\n\n\
+                [[arm]]\nname = \"p\"\ntasks = [\"or\"]\nalgos = [\"paper\"]\nn_bases = 3\nseeds = 1\n\
+                tier = 2\n";
+    let (repo, bin, log) = locked(tmp.path(), plan);
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    // Tier 1 base by base, then tier 2: 5 jobs finish a's bases 980000 and 980010 and start
+    // 980020; p reaches no base.
+    let o = s.run_with(&["--max-jobs", "5"], &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        log_lines(&log),
+        [
+            "smirl:980000",
+            "smirl:980001",
+            "smirl:980010",
+            "smirl:980011",
+            "smirl:980020"
+        ]
+    );
+    let o = s.table(&[]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("missing"), "{}", stderr(&o));
+    let o = s.table(&["--partial"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary = s.state("summary.md");
+    assert!(
+        summary.contains("- a (tier 1): 3 reached, 2 counted, of 3 planned"),
+        "{summary}"
+    );
+    assert!(
+        summary.contains("- p (tier 2): 0 reached, 0 counted, of 3 planned"),
+        "{summary}"
+    );
+    let jobs = s.state("jobs.csv");
+    assert_eq!(jobs.lines().count(), 1 + 4, "{jobs}");
+    assert!(!jobs.contains(",980020,"), "{jobs}");
+    // One more job completes base 980020 for tier 1.
+    let o = s.run_with(&["--max-jobs", "1"], &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = s.table(&["--partial"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(s
+        .state("summary.md")
+        .contains("- a (tier 1): 3 reached, 3 counted, of 3 planned"));
+}
+
+/// table.py refuses to run when table.py or run.py differ from the blobs the lock records,
+/// committed or not, and so does `run`.
+#[test]
+fn table_and_run_refuse_scripts_changed_after_the_lock() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let (repo, bin, _log) = locked(tmp.path(), &standard_plan(990_000));
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let o = s.run(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = s.table(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for script in ["table.py", "run.py"] {
+        let path = repo.join("experiments/protocol").join(script);
+        let before = std::fs::read_to_string(&path).unwrap();
+        std::fs::write(&path, before.clone() + "# a change after the lock\n").unwrap();
+        for committed in [false, true] {
+            if committed {
+                commit_all(&repo, "a change after the lock");
+            }
+            let o = s.table(&[]);
+            assert!(
+                !o.status.success(),
+                "{script} changed, committed {committed}"
+            );
+            assert!(
+                stderr(&o).contains(&format!("experiments/protocol/{script} differ")),
+                "{}",
+                stderr(&o)
+            );
+            let o = s.run(&[]);
+            assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+            assert!(stderr(&o).contains("changed after"), "{}", stderr(&o));
+        }
+        std::fs::write(&path, before).unwrap();
+        commit_all(&repo, "undone");
+    }
+    let o = s.table(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A development protocol (`development = true`) skips the never-used-seed check and says so;
+/// any other protocol refuses a base below 10 000.
+#[test]
+fn only_a_development_protocol_runs_on_development_seeds() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let repo = tmp.path().join("repo");
+    let frozen = protocol_repo(&repo, &standard_plan(0));
+    let (bin, log) = (tmp.path().join("reacher"), tmp.path().join("jobs.log"));
+    fake_reacher(&bin, &frozen, &log);
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let check = || {
+        s.script(
+            "run.py",
+            &["check", NAME, "--bin", bin.to_str().unwrap()],
+            &[],
+        )
+    };
+    let o = check();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("development data"), "{}", stderr(&o));
+    let toml = repo.join(format!("experiments/protocol/{NAME}.toml"));
+    let text = std::fs::read_to_string(&toml).unwrap();
+    std::fs::write(
+        &toml,
+        text.replace("\nbases =", "\ndevelopment = true\nbases ="),
+    )
+    .unwrap();
+    commit_all(&repo, "a rehearsal");
+    let o = check();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("never used is skipped"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
 }

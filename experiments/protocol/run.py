@@ -7,6 +7,9 @@ for people) and `experiments/protocol/<name>.toml` (the same plan for this scrip
     commit = "<40 hex digits>"        # the frozen method; every job's binary is built from it
     config = "experiments/reacher/config.toml"
     bases = [...]                      # from `run.py draw-bases NAME`: never used before
+    development = false                # optional: true marks a rehearsal on development seeds
+    timeout_secs = { smirl = 3600 }    # every algorithm of the plan: a job running longer is
+                                       # killed and counts as failed
 
     [[arm]]                            # one or more
     name = "smirl"                     # the arm's name in the tables
@@ -14,40 +17,68 @@ for people) and `experiments/protocol/<name>.toml` (the same plan for this scrip
     algos = ["smirl"]
     n_bases = 10                       # the first n_bases of `bases`
     seeds = 3                          # SAC seeds B, B+1, ... of each base B
+    tier = 1                           # optional, 1 (default), 2 or 3: the order of the plan
     config = "..."                     # optional: this arm's config instead of the protocol's
+
+    [analysis]                         # optional; what table.py labels primary and secondary
+    primary = "smirl:smirl"            # ARM:ALGO (or a list): P1, its chosen policy on every task
+    paper = "smirl-paper:smirl-paper"  # the same: P2, primary's chosen minus this one's loop's own
+    pools = { paper = ["or", "sequential", "if", "composite"] }   # P2 pooled over these tasks
+    secondary = [["smirl:smirl", "baselines:maxent"]]             # paired comparisons
 
 Usage:
     python3 experiments/protocol/run.py draw-bases NAME [--n 10] [--spacing 10]
     python3 experiments/protocol/run.py check NAME [--bin REACHER]
     python3 experiments/protocol/run.py run NAME [--bin REACHER] [--until HH:MM] [--max-jobs N]
+                                                 [--parallel N]
     python3 experiments/protocol/run.py status NAME
 
 `draw-bases` draws base seeds from a generator seeded by the protocol's name and the current
 commit, so nobody picks them. `check`, once, before the first job: both protocol files are
 committed and clean; the method's sources, the configs and the task files are the same at HEAD
 as at the frozen commit; the binary says (`--version`) it was built from the frozen commit with
-no local change; no seed of the protocol appears in any run directory on this machine
-(`prepare.json` under /work, /tmp and the checkout's runs/) or in any version of any CSV
-git has ever held (columns `seed` and `sac_seed`). It then writes the lock,
-`experiments/protocol/<name>/lock.json` (the files' blob ids, the frozen commit, the binary's
-`--version`), to be committed before the first `run`; a second `check` is refused while a lock
-exists.
+no local change; no SAC seed of a planned job (B..B+seeds-1 of each base B) appears in any run
+directory on this machine (`prepare.json` under /work, /tmp and the checkout's runs/) or in any
+version of any CSV git has ever held (columns `seed` and `sac_seed`). A protocol marked
+`development = true` (a dress rehearsal on development seeds) skips that last check and says so;
+any other protocol refuses a base below 10 000 (every seed below it is development data).
+`check` then writes the lock, `experiments/protocol/<name>/lock.json` (the blob ids of the
+protocol files, of run.py and table.py and of the configs and task files, the frozen commit, the
+binary's `--version` and sha256, `rustc --version` and the MuJoCo library the binary loads), to
+be committed before the first `run`; a second `check` is refused while a lock exists.
 
 The protocol's state lives in git, not in run directories: an evaluation runs over several
 sessions, each on a fresh checkout where runs/ is empty. `run` refuses without a committed lock,
-or when the protocol files, the configs or the task files differ from what was locked, or when
-the binary's `--version` does not name the frozen commit (without `-dirty`); it then prepares
-each (config, task, base) run directory under `runs/protocol/<name>/` as needed (`prepare` is
-deterministic, so a fresh checkout prepares the same directory again) and runs, one at a time,
-base by base, every job the ledger does not record as finished. The ledger,
-`experiments/protocol/<name>/ledger.jsonl`, is append-only and committed after each session:
-every session's binary (its sha256 and `--version`), every job's start and end; a job's `done`
-entry carries the job file's sha256 and everything `table.py` reads from it (`JOB_FIELDS`), so
-the tables need no run directory. A job is finished when the ledger records it done or failed;
-a job file present in runs/ without that entry is run again (`reacher job` returns its record
-without training). A job that exits with an error is recorded as failed and never retried; a
-job killed by a signal (a session ending) is rerun next time. `--until` starts no job after
-that time of day (UTC).
+or when the protocol files, run.py, table.py, the configs or the task files differ from what was
+locked, or when the binary's `--version` does not name the frozen commit (without `-dirty`). It
+runs the plan tier by tier (an arm's `tier`, 1 first), base by base within a tier, every job the
+ledger does not record as finished, `--parallel N` at a time (default 1); with N > 1 each job
+runs on one thread (the run directory's `threads` is set to 1: a job's results do not depend on
+its thread count, tests/lockstep.rs), otherwise with the config's. It prepares each (config,
+task, base) run directory under `runs/protocol/<name>/` when a job first needs it.
+
+The ledger, `experiments/protocol/<name>/ledger.jsonl`, is append-only and committed after each
+session: every session's binary (its sha256 and `--version`), every prepare and every job's start
+and end. A prepare's `prepared` entry holds the sha256 of the learned machines
+(`rm/learned*.txt`) and the annotated demonstrations (`expert_data*.bin`) and the number of
+demonstrations kept; a later session that prepares the directory again (a fresh checkout) and
+gets other bytes is refused (`prepare_failed`), and so is a prepare that exits with an error:
+either is recorded once, every unfinished job of that run directory is recorded failed, and the
+plan goes on. The first prepare of a directory also appends its learned machines to
+`experiments/protocol/<name>/machines.txt` (committed with the ledger: they are what tells a
+wrong machine from a failed RL once the run directories are gone). A job's `done` entry carries
+the job file's sha256 and everything `table.py` reads from it (`JOB_FIELDS`), so the tables need
+no run directory.
+
+A job is finished when the ledger records it done or failed. A job that exits with an error, is
+killed by a signal other than SIGTERM, SIGINT or SIGHUP, or runs longer than its algorithm's
+`timeout_secs` is recorded as failed and never retried. A job killed by SIGTERM, SIGINT or SIGHUP
+(a session ending) is recorded `killed` and rerun by a later session, at most twice: a job is
+started at most three times (every `start` entry counts, also one whose session died without an
+end entry), and its third kill records it failed. Reruns are harmless: a job is seeded and its
+results depend neither on scheduling nor on its thread count. After a kill the session starts no
+further job, waits for the running ones and exits 2. run.py itself passes SIGTERM, SIGINT and
+SIGHUP on to its running jobs. `--until` starts no job after that time of day (UTC).
 
 The frozen binary on a fresh checkout: build it from a worktree at the frozen commit,
     git worktree add ../frozen <commit> && (cd ../frozen && cargo build --release)
@@ -68,15 +99,27 @@ import io
 import json
 import os
 import random
+import re
+import signal
 import subprocess
 import sys
+import time
 import tomllib
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 # Sources of the method: a protocol's HEAD must not differ from its frozen commit in these.
 METHOD_PATHS = ["src", "assets", "mujoco-sys", "build.rs", "Cargo.toml", "Cargo.lock"]
+# What produces the numbers from the runs: locked, and `run` and table.py refuse a change.
+SCRIPTS = ["experiments/protocol/run.py", "experiments/protocol/table.py"]
 # Where run directories of this machine are looked for (besides the checkout's runs/).
 SEARCH_ROOTS = ["/work", "/tmp"]
+# Every seed below this is development data; an evaluation's bases are drawn above it.
+DEVELOPMENT_BELOW = 10_000
+# A session's end: a job killed by one of these is rerun, the others count as failures.
+RERUN_SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
+# A job is started at most this many times (the first run and two reruns after kills).
+MAX_STARTS = 3
+TIERS = (1, 2, 3)
 
 
 def fail(msg):
@@ -110,9 +153,26 @@ def ledger_path(name):
     return os.path.join(state_dir(name), "ledger.jsonl")
 
 
+def machines_path(name):
+    return os.path.join(state_dir(name), "machines.txt")
+
+
 def rel(path):
     """A path as the ledger names it: relative to the checkout, which moves between sessions."""
     return os.path.relpath(path, ROOT)
+
+
+def unit_of(text, spec, what):
+    """An "ARM:ALGO" reference of [analysis] as (arm, algo)."""
+    if not isinstance(text, str) or text.count(":") != 1:
+        fail(f"{spec}: [analysis] {what}: expected \"ARM:ALGO\", got {text!r}")
+    return tuple(text.split(":"))
+
+
+def units_of(refs):
+    """[analysis] primary or paper: one "ARM:ALGO" or a list of them (one algorithm split over
+    arms, such as paper and new tasks at different sizes)."""
+    return [] if refs is None else ([refs] if isinstance(refs, str) else list(refs))
 
 
 def load(name):
@@ -125,16 +185,22 @@ def load(name):
             plan = tomllib.load(fh)
     except tomllib.TOMLDecodeError as e:
         fail(f"{spec}: {e}")
-    for key in ("commit", "config", "bases", "arm"):
+    for key in ("commit", "config", "bases", "arm", "timeout_secs"):
         if key not in plan:
             fail(f"{spec}: missing key `{key}`")
     commit = plan["commit"]
     if not (isinstance(commit, str) and len(commit) == 40 and all(c in "0123456789abcdef" for c in commit)):
         fail(f"{spec}: `commit` must be a full 40-digit commit, got {commit!r}")
+    if not isinstance(plan.get("development", False), bool):
+        fail(f"{spec}: `development` must be true or false")
     bases = plan["bases"]
     if not bases or len(set(bases)) != len(bases) or not all(isinstance(b, int) and b >= 0 for b in bases):
         fail(f"{spec}: `bases` must be distinct non-negative integers")
+    if not plan.get("development", False) and min(bases) < DEVELOPMENT_BELOW:
+        fail(f"{spec}: base {min(bases)} is development data (every seed below {DEVELOPMENT_BELOW}); "
+             "a rehearsal on it says `development = true`")
     labels = {}
+    units = set()
     for i, arm in enumerate(plan["arm"]):
         for key in ("name", "tasks", "algos", "n_bases", "seeds"):
             if key not in arm:
@@ -143,14 +209,39 @@ def load(name):
             fail(f"{spec}: arm {arm['name']}: n_bases must be in 1..={len(bases)}")
         if not 1 <= arm["seeds"] <= 16:
             fail(f"{spec}: arm {arm['name']}: seeds must be in 1..=16")
+        if arm.get("tier", 1) not in TIERS:
+            fail(f"{spec}: arm {arm['name']}: tier must be 1, 2 or 3")
         for task in arm["tasks"]:
             other = labels.setdefault(task_label(task), task)
             if other != task:
                 fail(f"{spec}: tasks {other} and {task} have the same name")
+        for algo in arm["algos"]:
+            t = plan["timeout_secs"].get(algo)
+            if not (isinstance(t, (int, float)) and t > 0):
+                fail(f"{spec}: timeout_secs has no positive entry for algorithm {algo} (arm {arm['name']})")
+            if (arm["name"], algo) in units:
+                fail(f"{spec}: arm {arm['name']} with algorithm {algo} twice")
+            units.add((arm["name"], algo))
     ordered = sorted(bases)
     widest = max(arm["seeds"] for arm in plan["arm"])
     if any(b - a < widest for a, b in zip(ordered, ordered[1:])):
         fail(f"{spec}: bases closer than {widest} apart share SAC seeds")
+    analysis = plan.get("analysis")
+    if analysis is not None:
+        refs = [(k, ref) for k in ("primary", "paper") for ref in units_of(analysis.get(k))]
+        for k, pair in enumerate(analysis.get("secondary", [])):
+            if not (isinstance(pair, list) and len(pair) == 2):
+                fail(f"{spec}: [analysis] secondary {k + 1}: expected [\"ARM:ALGO\", \"ARM:ALGO\"]")
+            refs += [(f"secondary {k + 1}", p) for p in pair]
+        for what, ref in refs:
+            if ref is None:
+                continue
+            if unit_of(ref, spec, what) not in units:
+                fail(f"{spec}: [analysis] {what}: no arm with that algorithm: {ref}")
+        for pool, tasks in analysis.get("pools", {}).items():
+            unknown = [t for t in tasks if t not in labels]
+            if unknown:
+                fail(f"{spec}: [analysis] pools.{pool}: no task {unknown[0]} in the plan")
     return md, spec, plan
 
 
@@ -174,25 +265,27 @@ def content_key(path):
 
 
 def plan_runs(name, plan):
-    """Every run directory (config, task, base, algos, seeds) and job (run, algo, seed), in the
-    order they run: base by base, so that a partial evaluation covers every task and arm."""
+    """Every run directory (config, task, base, algos, seeds) and job (run, algo, seed, arm,
+    tier), in the order they run: tier by tier, base by base within a tier, so that a plan cut
+    by time loses the later tiers first and covers every arm of a tier on the same bases."""
     runs = {}
     jobs = []
-    for j, base in enumerate(plan["bases"]):
-        for arm in plan["arm"]:
-            if j >= arm["n_bases"]:
-                continue
-            config = arm.get("config", plan["config"])
-            for task in arm["tasks"]:
-                key = (config, task, base)
-                d = os.path.join(run_root(name), f"{task_label(task)}-b{base}-{content_key(config)}")
-                r = runs.setdefault(key, {"dir": d, "config": config, "task": task, "base": base, "algos": [], "seeds": 0})
-                for algo in arm["algos"]:
-                    if algo not in r["algos"]:
-                        r["algos"].append(algo)
-                    for s in range(arm["seeds"]):
-                        jobs.append({"arm": arm["name"], "run": key, "algo": algo, "seed": base + s})
-                r["seeds"] = max(r["seeds"], arm["seeds"])
+    for tier in TIERS:
+        for j, base in enumerate(plan["bases"]):
+            for arm in plan["arm"]:
+                if j >= arm["n_bases"] or arm.get("tier", 1) != tier:
+                    continue
+                config = arm.get("config", plan["config"])
+                for task in arm["tasks"]:
+                    key = (config, task, base)
+                    d = os.path.join(run_root(name), f"{task_label(task)}-b{base}-{content_key(config)}")
+                    r = runs.setdefault(key, {"dir": d, "config": config, "task": task, "base": base, "algos": [], "seeds": 0})
+                    for algo in arm["algos"]:
+                        if algo not in r["algos"]:
+                            r["algos"].append(algo)
+                        for s in range(arm["seeds"]):
+                            jobs.append({"arm": arm["name"], "run": key, "algo": algo, "seed": base + s, "tier": tier})
+                    r["seeds"] = max(r["seeds"], arm["seeds"])
     return runs, jobs
 
 
@@ -212,6 +305,11 @@ def blob(path):
     return git("rev-parse", f"HEAD:{path}").stdout.strip()
 
 
+def worktree_blob(path):
+    """The blob id of the file as it is in the checkout (committed or not)."""
+    return git("hash-object", "--", path).stdout.strip()
+
+
 def binary_version(binary):
     """(the binary's `--version` line, the commit it names)."""
     if not os.access(binary, os.X_OK):
@@ -220,6 +318,35 @@ def binary_version(binary):
     if "(commit " not in out:
         fail(f"{binary} --version names no commit: {out!r}")
     return out, out.split("(commit ", 1)[1].split(")", 1)[0]
+
+
+def command_line(*cmd):
+    try:
+        o = subprocess.run(list(cmd), capture_output=True, text=True)
+    except OSError as e:
+        return f"not available ({e.strerror})"
+    return (o.stdout.strip() or o.stderr.strip() or f"exit {o.returncode}") if o.returncode == 0 else f"exit {o.returncode}"
+
+
+def mujoco_version(binary):
+    """The MuJoCo library the binary loads (from `ldd`) and the Debian package that holds it."""
+    libs = [line.strip() for line in command_line("ldd", binary).splitlines() if "mujoco" in line]
+    if not libs:
+        return "no libmujoco in `ldd` of the binary"
+    out = libs[0].split(" (0x", 1)[0]  # without its load address, which changes every run
+    path = libs[0].split("=>", 1)[1].split("(", 1)[0].strip() if "=>" in libs[0] else ""
+    # dpkg names a merged-/usr library by its /usr path.
+    for candidate in ([path, "/usr" + path] if path.startswith("/lib") else [path]) if path else []:
+        owner = command_line("dpkg", "-S", candidate)
+        if ": " in owner and not owner.startswith("exit"):
+            pkg = owner.split(": ", 1)[0]
+            return out + f"; dpkg {pkg} {command_line('dpkg-query', '-W', '-f=${Version}', pkg)}"
+    return out
+
+
+def scripts_changed(lock):
+    """The scripts (run.py, table.py) whose checkout differs from the blob the lock holds."""
+    return [f for f in SCRIPTS if worktree_blob(f) != lock.get("scripts", {}).get(f)]
 
 
 # What a job's `done` entry keeps of its job file: the final-set scores (success, and per
@@ -249,6 +376,21 @@ def job_fields(record):
 
 
 JOB_FIELDS = ("loop", "wall_secs", "chosen", "candidates")
+
+
+def prepare_facts(run_dir):
+    """What the ledger keeps of a prepared run directory: the sha256 of its learned machines
+    and annotated demonstrations, and the demonstrations kept of those generated."""
+    files = {}
+    for sub, pattern in (("rm", r"learned.*\.txt"), ("", r"expert_data.*\.bin")):
+        d = os.path.join(run_dir, sub)
+        for f in sorted(os.listdir(d)) if os.path.isdir(d) else []:
+            if re.fullmatch(pattern, f):
+                files[os.path.join(sub, f) if sub else f] = sha256_of(os.path.join(d, f))
+    with open(os.path.join(run_dir, "prepare.json")) as fh:
+        prepared = json.load(fh)
+    return {"files": files, "demos_kept": prepared.get("demos_kept"),
+            "demos_generated": prepared.get("demos_generated")}
 
 
 # Seeds used before ---------------------------------------------------------------------------
@@ -309,7 +451,7 @@ def draw_bases(name, n, spacing):
     head = git("rev-parse", "HEAD").stdout.strip()
     rng = random.Random(hashlib.sha256(f"{name} {head}".encode()).digest())
     # Blocks of `spacing` seeds in [10 000, 1 000 000): far from every range run by hand.
-    blocks = rng.sample(range(10_000 // spacing, 1_000_000 // spacing), n)
+    blocks = rng.sample(range(DEVELOPMENT_BELOW // spacing, 1_000_000 // spacing), n)
     bases = [b * spacing for b in blocks]
     print(f"# drawn by `run.py draw-bases {name} --n {n} --spacing {spacing}` at {head}")
     print(f"bases = {bases}")
@@ -321,9 +463,9 @@ def check(name, binary):
         fail(f"{rel(lock_path(name))} exists: `check` runs once, before the first job")
     if os.path.exists(ledger_path(name)):
         fail(f"{rel(ledger_path(name))} exists: `check` runs before the first job")
-    for f in (md, spec):
+    for f in (md, spec, *SCRIPTS):
         if git("ls-files", "--error-unmatch", f).returncode != 0 or git("diff", "--quiet", "HEAD", "--", f).returncode != 0:
-            fail(f"{f} is not committed, or differs from HEAD: a protocol is committed before it runs")
+            fail(f"{f} is not committed, or differs from HEAD: a protocol and its scripts are committed before it runs")
     frozen = plan["commit"]
     if git("merge-base", "--is-ancestor", frozen, "HEAD").returncode != 0:
         fail(f"the frozen commit {frozen} is not an ancestor of HEAD")
@@ -339,14 +481,22 @@ def check(name, binary):
     existing = [r["dir"] for r in runs.values() if os.path.exists(r["dir"])]
     if existing:
         fail(f"{existing[0]} exists already: nothing of a protocol runs before its check")
-    seen = used_seeds(run_root(name))
-    clash = sorted({j["seed"] for j in jobs} & set(seen))
-    if clash:
-        fail(f"seed {clash[0]} of the protocol was used before: {seen[clash[0]]}")
+    if plan.get("development", False):
+        print(f"protocol {name} is a development protocol (`development = true`): the check that "
+              "its seeds were never used is skipped")
+    else:
+        seen = used_seeds(run_root(name))
+        clash = sorted({j["seed"] for j in jobs} & set(seen))
+        if clash:
+            fail(f"seed {clash[0]} of the protocol was used before: {seen[clash[0]]}")
     os.makedirs(state_dir(name), exist_ok=True)
     lock = {
         "md_blob": blob(md), "toml_blob": blob(spec), "head": git("rev-parse", "HEAD").stdout.strip(),
         "frozen": frozen, "binary_version": version, "binary_sha256": sha256_of(binary),
+        "scripts": {f: blob(f) for f in SCRIPTS},
+        "rustc": command_line("rustc", "--version"),
+        "mujoco": mujoco_version(binary),
+        "development": plan.get("development", False),
         "inputs": {f: blob(f) for f in configs_and_tasks(plan)},
         "checked_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "jobs": len(jobs),
@@ -397,79 +547,245 @@ def job_key(e):
     return e["dir"], e["algo"], e["seed"]
 
 
-def finished_jobs(name):
+def finished_jobs(name, entries=None):
     """{(run directory relative to the checkout, algo, seed): the ledger's `done` or `failed`
     entry}: the jobs that are not run again."""
     out = {}
-    for e in read_ledger(name):
+    for e in read_ledger(name) if entries is None else entries:
         if e.get("event") in ("done", "failed"):
             out[job_key(e)] = e
     return out
 
 
-def prepare(binary, r, name, frozen):
-    if os.path.isfile(os.path.join(r["dir"], "prepare.json")):
-        return
-    cmd = [
-        binary, "prepare", "--task", r["task"], "--algo", ",".join(r["algos"]),
-        "--seeds", str(r["seeds"]), "--seed", str(r["base"]), "--config", r["config"],
-        "--out", r["dir"], "--quiet",
-    ]
-    print("+", " ".join(cmd), flush=True)
-    ledger(name, {"event": "prepare", "dir": rel(r["dir"])})
-    if subprocess.run(cmd, cwd=ROOT).returncode != 0:
-        fail(f"prepare failed for {r['dir']}")
-    with open(os.path.join(r["dir"], "prepare.json")) as fh:
-        got = json.load(fh).get("git_commit")
-    if got != frozen:
-        fail(f"{r['dir']} was prepared by {got}, not the frozen commit {frozen}")
+class Session:
+    """One `run`: the plan, the ledger's state and the jobs running now."""
+
+    def __init__(self, name, plan, binary, parallel):
+        self.name, self.plan, self.binary, self.parallel = name, plan, binary, parallel
+        entries = read_ledger(name)
+        self.finished = finished_jobs(name, entries)
+        self.starts = {}
+        self.prepared = {}
+        self.refused = set()
+        for e in entries:
+            if e.get("event") == "start":
+                self.starts[job_key(e)] = self.starts.get(job_key(e), 0) + 1
+            elif e.get("event") == "prepared":
+                self.prepared.setdefault(e["dir"], e)
+            elif e.get("event") == "prepare_failed":
+                self.refused.add(e["dir"])
+        self.checked = set()
+        self.running = {}
+        self.stop = None
+
+    def fail_dir(self, r, jobs, why, **details):
+        """A run directory that cannot be used: recorded once, its unfinished jobs failed."""
+        d = rel(r["dir"])
+        if d not in self.refused:
+            ledger(self.name, {"event": "prepare_failed", "dir": d, "why": why, **details})
+            self.refused.add(d)
+        for j in jobs:
+            key = (d, j["algo"], j["seed"])
+            if j["run"] == (r["config"], r["task"], r["base"]) and key not in self.finished:
+                e = {"event": "failed", "why": "prepare", "dir": d, "algo": j["algo"], "seed": j["seed"]}
+                ledger(self.name, e)
+                self.finished[key] = e
+        print(f"run directory {d}: {why}; its unfinished jobs are recorded failed", flush=True)
+
+    def ready(self, r, jobs):
+        """Prepares the run directory if needed and checks it against the ledger: True when its
+        jobs may run."""
+        d = rel(r["dir"])
+        if d in self.refused:
+            self.fail_dir(r, jobs, "prepare failed or was refused before")
+            return False
+        if d in self.checked:
+            return True
+        if not os.path.isfile(os.path.join(r["dir"], "prepare.json")):
+            cmd = [
+                self.binary, "prepare", "--task", r["task"], "--algo", ",".join(r["algos"]),
+                "--seeds", str(r["seeds"]), "--seed", str(r["base"]), "--config", r["config"],
+                "--out", r["dir"], "--quiet",
+            ]
+            print("+", " ".join(cmd), flush=True)
+            ledger(self.name, {"event": "prepare", "dir": d})
+            code = subprocess.run(cmd, cwd=ROOT).returncode
+            if code < 0 and -code in RERUN_SIGNALS:
+                self.stop = f"prepare of {d} was killed by signal {-code}"
+                return False
+            if code != 0:
+                self.fail_dir(r, jobs, f"prepare exited with {code}", exit=code)
+                return False
+        with open(os.path.join(r["dir"], "prepare.json")) as fh:
+            got = json.load(fh).get("git_commit")
+        if got != self.plan["commit"]:
+            fail(f"{r['dir']} was prepared by {got}, not the frozen commit {self.plan['commit']}")
+        facts = prepare_facts(r["dir"])
+        first = self.prepared.get(d)
+        if first is None:
+            e = {"event": "prepared", "dir": d, **facts}
+            ledger(self.name, e)
+            self.prepared[d] = e
+            self.keep_machines(r, facts)
+        elif {k: first.get(k) for k in facts} != facts:
+            self.fail_dir(r, jobs, "prepared again with other bytes than the ledger records", got=facts)
+            return False
+        self.checked.add(d)
+        return True
+
+    def keep_machines(self, r, facts):
+        """The learned machines of a run directory, appended to machines.txt (committed)."""
+        with open(machines_path(self.name), "a") as fh:
+            for f, sha in facts["files"].items():
+                if f.endswith(".txt"):
+                    with open(os.path.join(r["dir"], f)) as src:
+                        text = src.read()
+                    fh.write(f"== {os.path.basename(r['dir'])}/{f} sha256 {sha}\n{text}")
+                    if not text.endswith("\n"):
+                        fh.write("\n")
+
+    def set_threads(self, r):
+        """A job's thread count comes from its run directory's config: 1 when jobs run side by
+        side, else the protocol config's (its results do not depend on it)."""
+        path = os.path.join(r["dir"], "config.toml")
+        with open(path) as fh:
+            text = fh.read()
+        if self.parallel > 1:
+            want = 1
+        else:
+            with open(os.path.join(ROOT, r["config"]), "rb") as fh:
+                want = tomllib.load(fh).get("threads", 1)
+        new, n = re.subn(r"(?m)^threads = \d+$", f"threads = {want}", text, count=1)
+        if n == 1 and new != text:
+            with open(path + ".tmp", "w") as fh:
+                fh.write(new)
+            os.replace(path + ".tmp", path)
+        return want
+
+    def start(self, j, r):
+        cmd = [self.binary, "job", "--run", r["dir"], "--algo", j["algo"], "--seed", str(j["seed"]), "--quiet"]
+        threads = self.set_threads(r)
+        print("+", " ".join(cmd), flush=True)
+        entry = {"dir": rel(r["dir"]), "algo": j["algo"], "seed": j["seed"]}
+        key = job_key(entry)
+        self.starts[key] = self.starts.get(key, 0) + 1
+        ledger(self.name, {"event": "start", "threads": threads, "attempt": self.starts[key], **entry})
+        proc = subprocess.Popen(cmd, cwd=ROOT, start_new_session=True)
+        limit = self.plan["timeout_secs"][j["algo"]]
+        self.running[proc] = {"entry": entry, "r": r, "j": j, "deadline": time.monotonic() + limit,
+                              "limit": limit, "timed_out": False}
+
+    def end(self, proc, code):
+        info = self.running.pop(proc)
+        entry, r, j = info["entry"], info["r"], info["j"]
+        key = job_key(entry)
+        what = f"job {j['algo']} seed {j['seed']} of {r['dir']}"
+        if info["timed_out"]:
+            e = {"event": "failed", "why": "timeout", "timeout_secs": info["limit"], **entry}
+            print(f"{what} ran longer than {info['limit']} s: killed, recorded failed", flush=True)
+        elif code < 0 and -code in RERUN_SIGNALS:
+            if self.starts[key] < MAX_STARTS:
+                ledger(self.name, {"event": "killed", "signal": -code, **entry})
+                self.stop = self.stop or f"{what} was killed by signal {-code}; it reruns next time"
+                return
+            e = {"event": "failed", "why": f"killed by signal {-code} on its start {self.starts[key]} of {MAX_STARTS}",
+                 "signal": -code, **entry}
+            self.stop = self.stop or f"{what} was killed by signal {-code} a third time: recorded failed"
+        elif code < 0:
+            e = {"event": "failed", "why": f"killed by signal {-code}", "signal": -code, **entry}
+            print(f"{what} was killed by signal {-code}: recorded failed, not retried", flush=True)
+        elif code != 0:
+            e = {"event": "failed", "why": "error exit", "exit": code, **entry}
+            print(f"{what} failed (exit {code}): recorded, not retried", flush=True)
+        else:
+            path = job_file(r["dir"], j["algo"], j["seed"])
+            with open(path, "rb") as fh:
+                data = fh.read()
+            e = {"event": "done", "sha256": hashlib.sha256(data).hexdigest(), "job": job_fields(json.loads(data)), **entry}
+        ledger(self.name, e)
+        self.finished[key] = e
+
+    def wait(self):
+        """Until one running job ends; kills a job past its timeout."""
+        while True:
+            for proc in list(self.running):
+                code = proc.poll()
+                if code is not None:
+                    self.end(proc, code)
+                    return
+                info = self.running[proc]
+                if not info["timed_out"] and time.monotonic() > info["deadline"]:
+                    info["timed_out"] = True
+                    os.killpg(proc.pid, signal.SIGKILL)
+            time.sleep(0.2)
+
+    def on_signal(self, signum, _frame):
+        self.stop = self.stop or f"run.py received signal {signum}"
+        for proc in self.running:
+            try:
+                os.killpg(proc.pid, signum)
+            except ProcessLookupError:
+                pass
 
 
-def run(name, binary, until, max_jobs):
+def run(name, binary, until, max_jobs, parallel):
     md, spec, plan = load(name)
     lock = read_lock(name)
     if (blob(md), blob(spec)) != (lock["md_blob"], lock["toml_blob"]) or git("diff", "--quiet", "HEAD", "--", md, spec).returncode != 0:
         fail(f"{md} or {spec} changed after the protocol was locked")
+    changed = scripts_changed(lock)
+    if changed:
+        fail(f"{' and '.join(changed)} changed after the protocol was locked (the lock's blob ids)")
     inputs = configs_and_tasks(plan)
     if {f: blob(f) for f in inputs} != lock["inputs"] or git("diff", "--quiet", "HEAD", "--", *inputs).returncode != 0:
         fail(f"a config or task file of the protocol changed after it was locked ({' '.join(inputs)})")
     version, built = binary_version(binary)
     if built != lock["frozen"]:
         fail(f"{binary} is built from {built}, not the frozen commit {lock['frozen']} (see run.py's docs)")
+    if parallel < 1:
+        fail("--parallel must be at least 1")
     runs, jobs = plan_runs(name, plan)
-    finished = finished_jobs(name)
-    ledger(name, {"event": "session", "binary_sha256": sha256_of(binary), "binary_version": version})
+    s = Session(name, plan, binary, parallel)
+    ledger(name, {"event": "session", "binary_sha256": sha256_of(binary), "binary_version": version,
+                  "parallel": parallel})
+    for sig in RERUN_SIGNALS:
+        signal.signal(sig, s.on_signal)
     started = 0
-    for j in jobs:
-        r = runs[j["run"]]
-        if (rel(r["dir"]), j["algo"], j["seed"]) in finished:
-            continue
-        if until and datetime.datetime.now(datetime.timezone.utc) >= until:
-            print(f"stopping before {j['algo']} seed {j['seed']} of {r['dir']}: --until")
+    pending = iter(jobs)
+    while True:
+        while not s.stop and len(s.running) < parallel:
+            j = next(pending, None)
+            if j is None:
+                break
+            r = runs[j["run"]]
+            key = (rel(r["dir"]), j["algo"], j["seed"])
+            if key in s.finished:
+                continue
+            if until and datetime.datetime.now(datetime.timezone.utc) >= until:
+                s.stop = f"stopping before {j['algo']} seed {j['seed']} of {r['dir']}: --until"
+                break
+            if max_jobs is not None and started >= max_jobs:
+                s.stop = "--max-jobs"
+                break
+            if s.starts.get(key, 0) >= MAX_STARTS:
+                e = {"event": "failed", "why": f"started {MAX_STARTS} times without finishing",
+                     "dir": key[0], "algo": j["algo"], "seed": j["seed"]}
+                ledger(name, e)
+                s.finished[key] = e
+                continue
+            if not s.ready(r, jobs):
+                continue
+            s.start(j, r)
+            started += 1
+        if not s.running:
             break
-        if max_jobs is not None and started >= max_jobs:
-            break
-        prepare(binary, r, name, plan["commit"])
-        cmd = [binary, "job", "--run", r["dir"], "--algo", j["algo"], "--seed", str(j["seed"]), "--quiet"]
-        print("+", " ".join(cmd), flush=True)
-        entry = {"dir": rel(r["dir"]), "algo": j["algo"], "seed": j["seed"]}
-        ledger(name, {"event": "start", **entry})
-        code = subprocess.run(cmd, cwd=ROOT).returncode
-        if code < 0:
-            ledger(name, {"event": "killed", "signal": -code, **entry})
-            fail(f"job {j['algo']} seed {j['seed']} of {r['dir']} was killed by signal {-code}; it reruns next time")
-        if code != 0:
-            ledger(name, {"event": "failed", "exit": code, **entry})
-            print(f"job {j['algo']} seed {j['seed']} of {r['dir']} failed (exit {code}): recorded, not retried")
-        else:
-            path = job_file(r["dir"], j["algo"], j["seed"])
-            with open(path, "rb") as fh:
-                data = fh.read()
-            fields = job_fields(json.loads(data))
-            ledger(name, {"event": "done", "sha256": hashlib.sha256(data).hexdigest(), "job": fields, **entry})
-        started += 1
+        s.wait()
     status(name)
-    print(f"commit {rel(ledger_path(name))}: the next session resumes from it")
+    print(f"commit {rel(ledger_path(name))} and {rel(machines_path(name))}: the next session resumes from them")
+    if s.stop and s.stop not in ("--max-jobs",) and not s.stop.startswith("stopping before"):
+        fail(s.stop)
+    if s.stop and s.stop.startswith("stopping before"):
+        print(s.stop)
 
 
 def status(name):
@@ -487,6 +803,7 @@ def main():
     p.add_argument("--bin", default=os.path.join(ROOT, "target", "release", "reacher"))
     p.add_argument("--until", help="start no job after this UTC time of day, HH:MM")
     p.add_argument("--max-jobs", type=int, default=None)
+    p.add_argument("--parallel", type=int, default=1, help="run: jobs at once (each on one thread when > 1)")
     p.add_argument("--n", type=int, default=10, help="draw-bases: how many")
     p.add_argument("--spacing", type=int, default=10, help="draw-bases: seeds per base block")
     args = p.parse_args()
@@ -504,7 +821,7 @@ def main():
             until = now.replace(hour=h, minute=m, second=0, microsecond=0)
             if until <= now:
                 until += datetime.timedelta(days=1)
-        run(args.name, args.bin, until, args.max_jobs)
+        run(args.name, args.bin, until, args.max_jobs, args.parallel)
 
 
 if __name__ == "__main__":
