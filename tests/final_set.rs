@@ -348,7 +348,9 @@ fn assert_same_but_final_set(what: &str, a: &Watched, b: &Watched) {
 /// episodes (`selection_episodes` = 2 · `eval_episodes`); so the watch is given the final set
 /// directly, as `job::run_job` gives it.
 ///
-/// Mutation tried: see the report of the commit that added this test.
+/// Mutation tried (a leak): the candidates' learned return plus their final-set progress
+/// (`learned_return + final_set.map_or(0.0, |f| f.progress)` in `final_policy::candidate`):
+/// fails at "smirl, a larger final set: candidates …" (candidate 2's learned return).
 #[test]
 fn the_final_sets_size_and_machine_reach_neither_training_nor_the_choice() {
     let mut config = tiny_config();

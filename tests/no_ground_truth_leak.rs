@@ -347,6 +347,13 @@ impl PreparedPair {
 
 /// Every algorithm of the evaluation not tested above, prepared once (the standard mechanisms
 /// at test size, [`config`]).
+///
+/// Mutation tried on the tests of every algorithm with a final phase below (fkl, rkl, js,
+/// maxent-product, the one-state control): the candidates' learned return plus their
+/// ground-truth success (`learned_return + ev.success_rate` in `final_policy::candidate`): each
+/// fails at "candidate 0". The one-state control's test also fails with the rollouts ending
+/// when the perfect machine decides (`stop_when_decided: true` in `RolloutStream::collect`),
+/// at "rewards/smirl_seed3.json differs".
 fn evaluated_algorithms() -> &'static PreparedPair {
     static PAIR: OnceLock<PreparedPair> = OnceLock::new();
     PAIR.get_or_init(|| {
@@ -433,6 +440,10 @@ fn assert_no_leak(pair: &PreparedPair, algo: Algo) -> JobRecord {
 /// smirl-paper (its own learned machine and annotated demonstrations, no final phase: its
 /// loop's last policy is the job's) on IF against the same job judged by
 /// [`PERTURBED_CONDITIONAL`].
+///
+/// Mutation tried (a leak): the reward update's rollouts ending when the perfect machine
+/// decides (`stop_when_decided: true` in `RolloutStream::collect`): fails at
+/// "rewards/smirl-paper_seed3.json differs".
 #[test]
 fn perturbing_the_perfect_machine_leaves_smirl_papers_learning_unchanged() {
     assert_no_leak(evaluated_algorithms(), Algo::SmirlPaper);

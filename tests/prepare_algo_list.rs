@@ -78,7 +78,9 @@ fn prepared_field(dir: &Path, out: &str, key: &str) -> serde_json::Value {
 /// SMIRL's outputs with `--algo smirl` and with the evaluation's list; smirl-paper's with
 /// `--algo smirl-paper` and with that list.
 ///
-/// Mutation tried: see the commit's report.
+/// Mutation tried: SMIRL's machine learned with smirl-paper's settings whenever smirl-paper is
+/// in the list (`config.for_algo(…)` in `run::prepare` given `Algo::SmirlPaper` then): fails
+/// at "rm/report.txt differs".
 #[test]
 fn prepares_machine_and_demonstrations_do_not_depend_on_the_algorithm_list() {
     let tmp = tempfile::tempdir().unwrap();
