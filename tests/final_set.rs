@@ -20,7 +20,6 @@ use smirl::pipeline::reacher_irl::final_policy::{
     selection_episodes, selection_seeds, FinalPolicy,
 };
 use smirl::pipeline::reacher_irl::firl::{self as firl_job, BaselineJob, Loss, StateMap};
-use smirl::pipeline::reacher_irl::job::RewardTraceRow;
 use smirl::pipeline::reacher_irl::records::PreparedRun;
 use smirl::pipeline::reacher_irl::run::{open_run, prepare, Silent};
 use smirl::pipeline::reacher_irl::smirl::{self as smirl_job, Features, SmirlJob};
@@ -251,7 +250,8 @@ fn the_final_judgement_does_not_steer_the_job() {
 /// What a job trains and chooses, and what its final set says.
 struct Watched {
     reward: Vec<f32>,
-    trace: Vec<RewardTraceRow>,
+    /// SMIRL's reward trace: per iteration, (iteration, data gradient, weights).
+    trace: Vec<(usize, Vec<f32>, Vec<f32>)>,
     rows: Vec<MetricsRow>,
     final_policy: FinalPolicy,
     loop_final_set: Option<FinalSetScore>,
@@ -288,7 +288,10 @@ fn watched(run: &PreparedRun, algo: Algo, perfect: &RewardMachine, per_branch: u
                 expert,
             };
             let out = smirl_job::train(&job, &mut watch).unwrap();
-            (out.reward.params(), out.trace, out.final_policy)
+            let trace = (out.trace.iter())
+                .map(|r| (r.iteration, r.data_gradient.clone(), r.weights.clone()))
+                .collect();
+            (out.reward.params(), trace, out.final_policy)
         }
         Algo::MaxEnt => {
             let job = BaselineJob {
