@@ -12,13 +12,20 @@ use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
 use smirl::irl::kde::Kde;
 use smirl::irl::reward::RewardModel;
+use smirl::pipeline::reacher_irl::evaluation::FinalSetScore;
 use smirl::pipeline::reacher_irl::evaluation::{
     final_set_episodes, stratified_eval_seeds, GroundTruth, JobWatch, FINAL_SET_EPISODES,
 };
-use smirl::pipeline::reacher_irl::final_policy::{selection_episodes, selection_seeds};
+use smirl::pipeline::reacher_irl::final_policy::{
+    selection_episodes, selection_seeds, FinalPolicy,
+};
+use smirl::pipeline::reacher_irl::firl::{self as firl_job, BaselineJob, Loss, StateMap};
+use smirl::pipeline::reacher_irl::records::PreparedRun;
 use smirl::pipeline::reacher_irl::run::{open_run, prepare, Silent};
 use smirl::pipeline::reacher_irl::smirl::{self as smirl_job, Features, SmirlJob};
-use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig, RunRequest};
+use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig, MetricsRow, RunRequest};
+use smirl::rm::format::parse_rm;
+use smirl::rm::RewardMachine;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
@@ -238,4 +245,168 @@ fn the_final_judgement_does_not_steer_the_job() {
     assert_eq!(record.rows, rows_b);
     let json = std::fs::read_to_string(dir.join(format!("jobs/smirl_seed{SEED}.json"))).unwrap();
     assert!(json.contains("\"loop_final_set\""));
+}
+
+/// What a job trains and chooses, and what its final set says.
+struct Watched {
+    reward: Vec<f32>,
+    /// SMIRL's reward trace: per iteration, (iteration, data gradient, weights).
+    trace: Vec<(usize, Vec<f32>, Vec<f32>)>,
+    rows: Vec<MetricsRow>,
+    final_policy: FinalPolicy,
+    loop_final_set: Option<FinalSetScore>,
+}
+
+/// `algo`'s job (smirl or maxent) of the prepared `run`, its watch judging the final set by
+/// `perfect` on `per_branch` episodes per branch (the job's own watch: the run's perfect machine
+/// and `final_set_episodes`).
+fn watched(run: &PreparedRun, algo: Algo, perfect: &RewardMachine, per_branch: u64) -> Watched {
+    let s = &run.config.for_algo(algo).unwrap();
+    let (learned, expert) = run.inputs_of(algo).unwrap();
+    let kde = Kde::fit_columns(&expert.obs, expert.obs_dim(), &OBS_TIP, s.kde_bandwidth).unwrap();
+    let mut schedule = ReacherDelivery::new(s.env.clone()).unwrap();
+    let ground_truth = GroundTruth::new(&run.perfect, &mut schedule, SEED, s.eval_episodes);
+    let final_set = GroundTruth::final_set(perfect, &mut schedule, SEED, per_branch);
+    let progress = |_| {};
+    let mut watch = JobWatch::new(
+        s,
+        s.final_sac_steps,
+        ground_truth,
+        &run.perfect,
+        kde,
+        None,
+        &progress,
+    )
+    .with_final_set(final_set);
+    let (reward, trace, final_policy) = match algo {
+        Algo::Smirl => {
+            let job = SmirlJob {
+                features: Features::Labels,
+                seed: SEED,
+                settings: s,
+                machine: learned.unwrap(),
+                expert,
+            };
+            let out = smirl_job::train(&job, &mut watch).unwrap();
+            let trace = (out.trace.iter())
+                .map(|r| (r.iteration, r.data_gradient.clone(), r.weights.clone()))
+                .collect();
+            (out.reward.params(), trace, out.final_policy)
+        }
+        Algo::MaxEnt => {
+            let job = BaselineJob {
+                loss: Loss::MaxEnt,
+                seed: SEED,
+                settings: s,
+                expert,
+                map: StateMap::Fingertip,
+            };
+            let out = firl_job::train(&job, &mut watch).unwrap();
+            (out.reward.params(), Vec::new(), out.final_policy)
+        }
+        other => panic!("{other}: not a case of this test"),
+    };
+    Watched {
+        reward,
+        trace,
+        loop_final_set: watch.loop_final_set(),
+        rows: watch.into_rows(),
+        final_policy: final_policy.expect("a final phase"),
+    }
+}
+
+/// `a` and `b` trained, were evaluated per iteration and chose bit for bit alike: they differ
+/// at most in what the final set says (the loop's final policy's and each candidate's
+/// `final_set`, the `final_set_*` columns of final_policy.csv).
+fn assert_same_but_final_set(what: &str, a: &Watched, b: &Watched) {
+    assert_eq!(a.reward, b.reward, "{what}: reward");
+    assert_eq!(a.trace, b.trace, "{what}: reward trace");
+    assert_eq!(a.rows, b.rows, "{what}: metrics rows");
+    let strip = |f: &FinalPolicy| {
+        let mut f = f.clone();
+        for c in &mut f.candidates {
+            assert!(c.final_set.is_some(), "{what}: every candidate is judged");
+            c.final_set = None;
+        }
+        f
+    };
+    assert_eq!(
+        strip(&a.final_policy),
+        strip(&b.final_policy),
+        "{what}: candidates (steps, learned and cut returns, evaluation), choice, random pick"
+    );
+}
+
+/// The final set does not reach training or selection, whatever it holds: a SMIRL job and a
+/// baseline's (maxent) on IF with the job's own final set (the perfect machine,
+/// `final_set_episodes` = 5 per branch), with three times as many episodes and one more per
+/// branch (a superset: the same stratified stream read further), and with the final set judged
+/// by another machine (Sequential's, no cancel branch: 5 episodes unstratified, other seeds).
+/// Reward, trace, metrics rows, candidates' learned and cut returns, ground-truth
+/// evaluation, choice and random pick are bit-identical; only the final-set scores differ (in
+/// their episode counts at least).
+///
+/// No config setting changes the final set alone: its size is `final_set_episodes`, a function
+/// of `eval_episodes`, which also sets the per-iteration evaluation and the selection
+/// episodes (`selection_episodes` = 2 · `eval_episodes`); so the watch is given the final set
+/// directly, as `job::run_job` gives it.
+///
+/// Mutation tried (a leak): the candidates' learned return plus their final-set progress
+/// (`learned_return + final_set.map_or(0.0, |f| f.progress)` in `final_policy::candidate`):
+/// fails at "smirl, a larger final set: candidates …" (candidate 2's learned return).
+#[test]
+fn the_final_sets_size_and_machine_reach_neither_training_nor_the_choice() {
+    let mut config = tiny_config();
+    config.final_reset_steps = 140;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    let request = RunRequest {
+        task: ReacherTask::shipped("if").unwrap(),
+        algos: vec![Algo::Smirl, Algo::MaxEnt],
+        seeds: 1,
+        seed: SEED,
+        config,
+        out: tmp.path().join("unused"),
+        force: false,
+    };
+    prepare(&request, &dir, &Silent).unwrap();
+    let run = open_run(&dir).unwrap();
+    let n = final_set_episodes(&run.config);
+    assert_eq!(n, 5);
+    let sequential = parse_rm(
+        &std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm/reacher_sequential.txt"),
+        )
+        .unwrap(),
+        "sequential",
+    )
+    .unwrap();
+    for algo in [Algo::Smirl, Algo::MaxEnt] {
+        let own = watched(&run, algo, &run.perfect, n);
+        let larger = watched(&run, algo, &run.perfect, 3 * n + 1);
+        let other = watched(&run, algo, &sequential, n);
+        assert_same_but_final_set(&format!("{algo}, a larger final set"), &own, &larger);
+        assert_same_but_final_set(&format!("{algo}, another machine's"), &own, &other);
+        let episodes = |w: &Watched| {
+            let mut e = vec![w.loop_final_set.unwrap().episodes];
+            (w.final_policy.candidates.iter()).for_each(|c| e.push(c.final_set.unwrap().episodes));
+            e
+        };
+        let k = own.final_policy.candidates.len() + 1;
+        assert_eq!(episodes(&own), vec![2 * n; k], "{algo}");
+        assert_eq!(episodes(&larger), vec![2 * (3 * n + 1); k], "{algo}");
+        assert_eq!(episodes(&other), vec![n; k], "{algo}");
+        assert!(other.loop_final_set.unwrap().branches.is_none(), "{algo}");
+        // The job's own watch is this one: `reacher job` records what `own` found.
+        if algo == Algo::MaxEnt {
+            let (record, _) = run.run_job(algo, SEED, &|| 1, &|_| {}).unwrap();
+            assert_eq!(record.rows, own.rows, "{algo}: the job's rows");
+            assert_eq!(record.loop_final_set, own.loop_final_set, "{algo}");
+            assert_eq!(
+                record.final_policy.as_ref(),
+                Some(&own.final_policy),
+                "{algo}"
+            );
+        }
+    }
 }

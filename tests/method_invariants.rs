@@ -451,7 +451,9 @@ const IF_SPLIT: &str = "vocabulary: rgbyc\nstates: 4\ninitial: 0\n\
 /// Mutations tried: `maxent_coefficients_by_shared_visits` ignoring `pull_unvisited` (every
 /// unvisited state dropped): fails at state 3's −⅓; `coefficients` gating with every state
 /// free (`vec![true; n]`, i.e. plain visits): fails at state 2's 0; `trajectories_visiting`
-/// counting rows instead of trajectories: fails at state 0's coefficients.
+/// counting rows instead of trajectories: fails at state 0's coefficients; the expert rows'
+/// coefficient −1/N_D(u) halved (`per(expert, -0.5)` in `maxent_coefficients_by_visits`):
+/// fails at the coefficients.
 #[test]
 fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
     let m = machine(IF_SPLIT);

@@ -7,15 +7,21 @@
 //! are `reacher prepare`'s (`rm/learned.txt`, `expert_data.bin`): LRM reads the
 //! demonstrations' label traces only (`smirl::learn_machine` takes no perfect machine), and
 //! the job reads them from the directory.
+//!
+//! Every algorithm the evaluation runs is covered: smirl, smirl-paper, the baselines maxent,
+//! fkl, rkl and js, the product controls maxent-product and fkl-product, and the one-state
+//! control (`smirl` with `[smirl] machine = "one_state"`). The perturbed machine changes the
+//! task's structure and its rewards (the true reward a job's `task_return` sums) alike.
 
 mod irl_run_common;
 use irl_run_common::tiny_config;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::pipeline::reacher_irl::records::JobRecord;
 use smirl::pipeline::reacher_irl::run::{open_run, prepare, Silent};
-use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig, RunRequest};
+use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig, RunRequest, SmirlMachine};
 use smirl::rm::format::parse_rm;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 const SEED: u64 = 3;
 
@@ -123,10 +129,17 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
         };
         assert_eq!(learner(ra), learner(rb), "iteration {}", ra.iteration);
     }
-    let (fa, fb) = (
-        a.final_policy.as_ref().unwrap(),
-        b.final_policy.as_ref().unwrap(),
-    );
+    assert_eq!(a.final_policy.is_some(), b.final_policy.is_some());
+    let (Some(fa), Some(fb)) = (a.final_policy.as_ref(), b.final_policy.as_ref()) else {
+        // smirl-paper: no final phase, the loop's own last policy is the job's.
+        let rows = |r: &JobRecord| -> Vec<(u64, u64)> {
+            (r.rows.iter())
+                .map(|x| (x.success_rate.to_bits(), x.task_return.to_bits()))
+                .collect()
+        };
+        assert_ne!(rows(a), rows(b), "the evaluation rows did not change");
+        return;
+    };
     assert!(
         fa.candidates.len() >= 5,
         "co-trained, 2 checkpoints, 2 of the reset agent"
@@ -281,4 +294,193 @@ fn perturbing_the_perfect_machine_leaves_a_product_controls_learning_unchanged()
         assert!(fa == fb, "{} differs", PRODUCT_FILES[k]);
     }
     assert_same_learning_other_evaluation(&a, &b);
+}
+
+/// Copies the tree `from` to `to`.
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
+
+/// A run prepared once on IF and its copy judged by [`PERTURBED_CONDITIONAL`]: the two
+/// directories every job of `algos` runs in, side by side.
+struct PreparedPair {
+    truth: PathBuf,
+    perturbed: PathBuf,
+}
+
+impl PreparedPair {
+    /// Prepares `algos` with `config` in `<CARGO_TARGET_TMPDIR>/no_ground_truth_leak/<name>`
+    /// (replacing what an earlier test run left there), then copies it and replaces the copy's
+    /// perfect machine.
+    fn new(name: &str, algos: Vec<Algo>, config: IrlRunConfig) -> PreparedPair {
+        let root = Path::new(env!("CARGO_TARGET_TMPDIR"))
+            .join("no_ground_truth_leak")
+            .join(name);
+        if root.exists() {
+            std::fs::remove_dir_all(&root).unwrap();
+        }
+        let (truth, perturbed) = (root.join("true"), root.join("perturbed"));
+        let request = RunRequest {
+            task: ReacherTask::shipped("if").unwrap(),
+            algos,
+            seeds: 1,
+            seed: SEED,
+            config,
+            out: root.join("unused"),
+            force: false,
+        };
+        prepare(&request, &truth, &Silent).unwrap();
+        copy_dir(&truth, &perturbed);
+        std::fs::write(perturbed.join("rm/perfect.txt"), PERTURBED_CONDITIONAL).unwrap();
+        PreparedPair { truth, perturbed }
+    }
+}
+
+/// Every algorithm of the evaluation not tested above, prepared once (the standard mechanisms
+/// at test size, [`config`]).
+///
+/// Mutation tried on the tests of every algorithm with a final phase below (fkl, rkl, js,
+/// maxent-product, the one-state control): the candidates' learned return plus their
+/// ground-truth success (`learned_return + ev.success_rate` in `final_policy::candidate`): each
+/// fails at "candidate 0". The one-state control's test also fails with the rollouts ending
+/// when the perfect machine decides (`stop_when_decided: true` in `RolloutStream::collect`),
+/// at "rewards/smirl_seed3.json differs".
+fn evaluated_algorithms() -> &'static PreparedPair {
+    static PAIR: OnceLock<PreparedPair> = OnceLock::new();
+    PAIR.get_or_init(|| {
+        let algos = vec![
+            Algo::SmirlPaper,
+            Algo::Fkl,
+            Algo::Rkl,
+            Algo::Js,
+            Algo::MaxEntProduct,
+        ];
+        PreparedPair::new("algorithms", algos, config())
+    })
+}
+
+/// The one-state control: `smirl` with `[smirl] machine = "one_state"` (as
+/// experiments/reacher/config_one_state.toml runs it) and every other setting [`config`]'s.
+fn one_state_control() -> &'static PreparedPair {
+    static PAIR: OnceLock<PreparedPair> = OnceLock::new();
+    PAIR.get_or_init(|| {
+        let mut c = config();
+        c.smirl_machine = SmirlMachine::OneState;
+        PreparedPair::new("one_state", vec![Algo::Smirl], c)
+    })
+}
+
+/// What a job of `algo` reads that no ground truth may change (its learned machine and
+/// demonstrations) and what it writes (its reward, and SMIRL's trace of weights and data
+/// gradients).
+fn files_of(algo: Algo) -> Vec<String> {
+    let stem = format!("{}_seed{SEED}", algo.name());
+    let mut files = vec![];
+    match algo {
+        Algo::SmirlPaper => files.extend([
+            "rm/learned_paper.txt".to_string(),
+            "expert_data_paper.bin".to_string(),
+        ]),
+        a if a.uses_rm() || a.is_product_control() => files.push("rm/learned.txt".into()),
+        _ => {}
+    }
+    files.push("expert_data.bin".into());
+    if algo.uses_rm() {
+        files.push(format!("rewards/{stem}.json"));
+        files.push(format!("rewards/{stem}.trace.csv"));
+    } else {
+        files.push(format!("rewards/{stem}.bin"));
+    }
+    files
+}
+
+/// Runs `algo`'s job in both directories of `pair`: the learned machine, the demonstrations,
+/// the reward (and trace), every iteration's learned reward and surrogate loss, the
+/// candidates' learned returns, the choice and the random pick bit-identical; the evaluation
+/// different. Returns the true job's record.
+fn assert_no_leak(pair: &PreparedPair, algo: Algo) -> JobRecord {
+    let files = files_of(algo);
+    let run = |dir: &Path| {
+        let run = open_run(dir).unwrap();
+        let (record, ran) = run.run_job(algo, SEED, &|| 1, &|_| {}).unwrap();
+        assert!(ran, "{algo}: a record from an earlier run");
+        let bytes: Vec<Vec<u8>> = (files.iter())
+            .map(|f| std::fs::read(dir.join(f)).unwrap())
+            .collect();
+        (run.perfect, record, bytes)
+    };
+    let (perfect_a, a, files_a) = run(&pair.truth);
+    let (perfect_b, b, files_b) = run(&pair.perturbed);
+    assert_eq!(
+        perfect_b,
+        parse_rm(PERTURBED_CONDITIONAL, "perturbed").unwrap()
+    );
+    assert_ne!(perfect_a, perfect_b);
+    for (k, (fa, fb)) in files_a.iter().zip(&files_b).enumerate() {
+        assert!(fa == fb, "{algo}: {} differs", files[k]);
+    }
+    assert_eq!(
+        a.final_policy.is_some(),
+        algo != Algo::SmirlPaper,
+        "{algo}: every algorithm but smirl-paper has a final phase"
+    );
+    assert_same_learning_other_evaluation(&a, &b);
+    a
+}
+
+/// smirl-paper (its own learned machine and annotated demonstrations, no final phase: its
+/// loop's last policy is the job's) on IF against the same job judged by
+/// [`PERTURBED_CONDITIONAL`].
+///
+/// Mutation tried (a leak): the reward update's rollouts ending when the perfect machine
+/// decides (`stop_when_decided: true` in `RolloutStream::collect`): fails at
+/// "rewards/smirl-paper_seed3.json differs".
+#[test]
+fn perturbing_the_perfect_machine_leaves_smirl_papers_learning_unchanged() {
+    assert_no_leak(evaluated_algorithms(), Algo::SmirlPaper);
+}
+
+/// fkl (f-IRL, forward KL) on IF against the same job judged by [`PERTURBED_CONDITIONAL`].
+#[test]
+fn perturbing_the_perfect_machine_leaves_fkls_learning_and_choice_unchanged() {
+    assert_no_leak(evaluated_algorithms(), Algo::Fkl);
+}
+
+/// rkl (f-IRL, reverse KL) on IF against the same job judged by [`PERTURBED_CONDITIONAL`].
+#[test]
+fn perturbing_the_perfect_machine_leaves_rkls_learning_and_choice_unchanged() {
+    assert_no_leak(evaluated_algorithms(), Algo::Rkl);
+}
+
+/// js (f-IRL, Jensen–Shannon) on IF against the same job judged by [`PERTURBED_CONDITIONAL`].
+#[test]
+fn perturbing_the_perfect_machine_leaves_jss_learning_and_choice_unchanged() {
+    assert_no_leak(evaluated_algorithms(), Algo::Js);
+}
+
+/// The other product control, maxent-product (MaxEnt on the product with SMIRL's learned
+/// machine), on IF against the same job judged by [`PERTURBED_CONDITIONAL`].
+#[test]
+fn perturbing_the_perfect_machine_leaves_maxent_products_learning_and_choice_unchanged() {
+    assert_no_leak(evaluated_algorithms(), Algo::MaxEntProduct);
+}
+
+/// The one-state control (`smirl`, `[smirl] machine = "one_state"`) on IF against the same job
+/// judged by [`PERTURBED_CONDITIONAL`]: its machine has one state (no structure from anywhere,
+/// the perfect machine included), and its learning and choice are bit-identical.
+#[test]
+fn perturbing_the_perfect_machine_leaves_the_one_state_controls_learning_unchanged() {
+    let pair = one_state_control();
+    let learned = std::fs::read_to_string(pair.truth.join("rm/learned.txt")).unwrap();
+    assert_eq!(parse_rm(&learned, "learned").unwrap().n_states(), 1);
+    assert_no_leak(pair, Algo::Smirl);
 }
