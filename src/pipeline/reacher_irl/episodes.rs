@@ -102,12 +102,16 @@ impl JobEnv for ProductEnv<ReacherDelivery> {
     }
 
     fn fresh(&self) -> Option<Self> {
-        None
+        self.inner().fresh().map(|inner| self.around(inner))
     }
 
     fn ends_only_at_time_limit(&self) -> bool {
-        // The machine ends an episode in a terminal or failure state.
-        false
+        // The product ends an episode when its machine enters a terminal or failure state; the
+        // machines SMIRL and the product controls learn in have neither (LRM's,
+        // `smirl::task_machine`, `smirl::one_state_machine`).
+        let rm = self.rm();
+        let ends = (0..rm.n_states()).any(|u| rm.is_absorbing(u));
+        !ends && self.inner().ends_only_at_time_limit()
     }
 
     fn step_with_env_reward(
@@ -617,7 +621,7 @@ impl RolloutStream {
     /// learned state its labels are read in (SMIRL), logged under "agent" and shown to the
     /// watch. The episodes are played in lockstep (`super::lockstep`, the watch's plan) when
     /// every one runs to the time limit, so that the noise each draws is known before play;
-    /// otherwise (SMIRL's product, whose machine can end an episode) one after the other,
+    /// otherwise (a product whose machine has a goal or failure state) one after the other,
     /// since an episode's noise then starts where the previous episode's ended.
     pub fn collect<E: JobEnv>(
         &mut self,
