@@ -178,7 +178,8 @@ fn the_clock_reaches_the_baselines_policy_observation() {
 /// SMIRL's and change nothing else of a baseline's job), as when their policy sees another
 /// input.
 ///
-/// Mutation tried: see the report of the commit that added this test.
+/// Mutation tried: `firl::train` acting in `Clocked::new(inner, Clock::None)` instead of
+/// `baseline_env`: fails at "maxent: the clock changes the reward".
 #[test]
 fn the_baselines_train_with_the_clock() {
     let tmp = tempfile::tempdir().unwrap();

@@ -246,6 +246,10 @@ fn lockstep_play_is_one_at_a_time_play() {
 /// by the first label of an episode, so that evaluation episodes end before the time limit
 /// (ActMode::Mean). A machine with a goal or failure state can end an episode before the time
 /// limit: such a product is not played in lockstep with sampled actions.
+///
+/// Mutations tried: the product's `JobEnv::fresh` returning `None` (as before lockstep reached
+/// the product): fails with "this environment cannot be copied for lockstep play";
+/// `ends_only_at_time_limit` ignoring the machine: fails at the last assertion.
 #[test]
 fn lockstep_play_in_the_product_is_one_at_a_time_play() {
     let dir = tempfile::tempdir().unwrap();
