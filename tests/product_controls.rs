@@ -324,8 +324,10 @@ fn a_control_runs_its_baselines_schedule() {
 /// copied), and what it gives does not depend on how: batch 1 or 32 on one thread, or 32 on
 /// two threads, give the same record, reward and log bytes.
 ///
-/// Mutation tried: the product's `JobEnv::fresh` returning `None` (its rollouts one at a time,
-/// as before): fails at the first assertion.
+/// Mutations tried: the product's `JobEnv::fresh` returning `None` (its rollouts one at a time,
+/// as before): fails at the first assertion; lockstep play reading each step's noise at the
+/// slot's index instead of the episode's (`play_on_thread`): fails at "maxent-product, batch
+/// 32: record".
 #[test]
 fn a_controls_job_is_the_same_whatever_its_lockstep_plan() {
     let tmp = tempfile::tempdir().unwrap();
