@@ -3,15 +3,16 @@
 //! machines goes to every algorithm).
 
 mod irl_run_common;
-use irl_run_common::{metrics_column, tiny_config};
+use irl_run_common::{job_bytes, metrics_column, tiny_config};
 use smirl::env::clock::Clock;
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
 use smirl::pipeline::reacher_irl::final_policy::random_pick;
 use smirl::pipeline::reacher_irl::firl::baseline_env;
+use smirl::pipeline::reacher_irl::lockstep::Lockstep;
 use smirl::pipeline::reacher_irl::records::JobRecord;
-use smirl::pipeline::reacher_irl::run::Silent;
+use smirl::pipeline::reacher_irl::run::{open_run, prepare, Silent};
 use smirl::pipeline::reacher_irl::{run_pipeline, Algo, IrlRunConfig, RunRequest};
 use std::path::{Path, PathBuf};
 
@@ -170,4 +171,47 @@ fn the_clock_reaches_the_baselines_policy_observation() {
         Clock::CountDown(horizon),
         "the clock's settings"
     );
+}
+
+/// The baselines train with the clock: a maxent job and an fkl job learn another reward and
+/// another policy when their settings drop it (`paper_mechanisms`, whose other mechanisms are
+/// SMIRL's and change nothing else of a baseline's job), as when their policy sees another
+/// input.
+///
+/// Mutation tried: `firl::train` acting in `Clocked::new(inner, Clock::None)` instead of
+/// `baseline_env`: fails at "maxent: the clock changes the reward".
+#[test]
+fn the_baselines_train_with_the_clock() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut config = tiny_config();
+    config.final_sac_steps = 0;
+    config.final_checkpoints = 0;
+    let algos = [Algo::MaxEnt, Algo::Fkl];
+    let request = RunRequest {
+        task: ReacherTask::shipped("blue").unwrap(),
+        algos: algos.to_vec(),
+        seeds: 1,
+        seed: SEED,
+        config,
+        out: tmp.path().join("run.unused"),
+        force: false,
+    };
+    prepare(&request, &tmp.path().join("run"), &Silent).unwrap();
+    let run = open_run(&tmp.path().join("run")).unwrap();
+    for algo in algos {
+        let with = run.config.for_algo(algo).unwrap();
+        assert!(with.clock());
+        let without = IrlRunConfig {
+            paper_mechanisms: true,
+            ..with.clone()
+        };
+        assert!(!without.clock());
+        let job = |settings: &IrlRunConfig, name: &str| {
+            let dir = tmp.path().join(format!("{algo}-{name}"));
+            job_bytes(&run, algo, SEED, settings, Lockstep::single_thread(), &dir)
+        };
+        let (a, b) = (job(&with, "clock"), job(&without, "none"));
+        assert!(a.reward != b.reward, "{algo}: the clock changes the reward");
+        assert!(a.log != b.log, "{algo}: the clock changes the policy");
+    }
 }

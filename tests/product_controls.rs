@@ -5,13 +5,16 @@
 //! reproducibly. (That no ground truth reaches them: tests/no_ground_truth_leak.rs.)
 
 mod irl_run_common;
-use irl_run_common::tiny_config;
-use smirl::env::reacher::OBS_TIP;
+use irl_run_common::{job_bytes, tiny_config};
+use smirl::env::product::ProductEnv;
+use smirl::env::reacher::{ReacherDelivery, OBS_TIP};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::reward::{MlpReward, MlpRewardConfig, RewardModel};
 use smirl::pipeline::reacher_expert::{Demo, DemoStep};
+use smirl::pipeline::reacher_irl::episodes::JobEnv;
 use smirl::pipeline::reacher_irl::firl::{baseline_reward_at, reward_model, StateMap};
-use smirl::pipeline::reacher_irl::run::{prepare, Silent};
+use smirl::pipeline::reacher_irl::lockstep::Lockstep;
+use smirl::pipeline::reacher_irl::run::{open_run, prepare, Silent};
 use smirl::pipeline::reacher_irl::smirl::annotate;
 use smirl::pipeline::reacher_irl::{run_pipeline, Algo, RunRequest};
 use smirl::rl::replay::ReplayBatch;
@@ -313,5 +316,72 @@ fn a_control_runs_its_baselines_schedule() {
         let (a, b) = (c.for_algo(control).unwrap(), c.for_algo(base).unwrap());
         assert_eq!(a, b, "{control}");
         assert_ne!(a.irl_iterations, c.irl_iterations, "the table applies");
+    }
+}
+
+/// A control's job plays its rollouts and evaluations in lockstep (the learned machine has no
+/// goal or failure state, so the product ends episodes at the time limit only and can be
+/// copied), and what it gives does not depend on how: batch 1 or 32 on one thread, or 32 on
+/// two threads, give the same record, reward and log bytes.
+///
+/// Mutations tried: the product's `JobEnv::fresh` returning `None` (its rollouts one at a time,
+/// as before): fails at the first assertion; lockstep play reading each step's noise at the
+/// slot's index instead of the episode's (`play_on_thread`): fails at "maxent-product, batch
+/// 32: record".
+#[test]
+fn a_controls_job_is_the_same_whatever_its_lockstep_plan() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut config = tiny_config();
+    config.agent_trajectories = 5;
+    let request = RunRequest {
+        task: ReacherTask::shipped("blue").unwrap(),
+        algos: Algo::REACHER_CONTROLS.to_vec(),
+        seeds: 1,
+        seed: 5,
+        config,
+        out: tmp.path().join("run.unused"),
+        force: false,
+    };
+    prepare(&request, &tmp.path().join("run"), &Silent).unwrap();
+    let run = open_run(&tmp.path().join("run")).unwrap();
+    let learned = run.learned.clone().expect("the controls' machine");
+    let inner = ReacherDelivery::new(run.config.env.clone()).unwrap();
+    let product = ProductEnv::new(inner, learned);
+    assert!(product.ends_only_at_time_limit() && product.fresh().is_some());
+
+    let (one, two) = (|| 1, || 2);
+    let plans = [
+        (
+            "batch 1",
+            Lockstep {
+                batch: 1,
+                threads: &one,
+            },
+        ),
+        (
+            "batch 32",
+            Lockstep {
+                batch: 32,
+                threads: &one,
+            },
+        ),
+        (
+            "batch 32, 2 threads",
+            Lockstep {
+                batch: 32,
+                threads: &two,
+            },
+        ),
+    ];
+    for algo in Algo::REACHER_CONTROLS {
+        let settings = run.config.for_algo(algo).unwrap();
+        let dir = |k: usize| tmp.path().join(format!("{algo}-{k}"));
+        let reference = job_bytes(&run, algo, 5, &settings, plans[0].1, &dir(0));
+        for (k, (what, plan)) in plans.iter().enumerate().skip(1) {
+            let other = job_bytes(&run, algo, 5, &settings, *plan, &dir(k));
+            assert_eq!(reference.record, other.record, "{algo}, {what}: record");
+            assert!(reference.reward == other.reward, "{algo}, {what}: reward");
+            assert!(reference.log == other.log, "{algo}, {what}: log");
+        }
     }
 }

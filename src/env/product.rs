@@ -111,6 +111,28 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
         &self.inner
     }
 
+    /// The same product (machine, shaping, clock) around `inner`, another environment like
+    /// this one's inner, as new: for playing episodes side by side.
+    pub fn around(&self, inner: E) -> Self
+    where
+        P: Clone,
+    {
+        let mut tracker = self.tracker.clone();
+        tracker.reset();
+        ProductEnv {
+            inner_obs: vec![0.0; inner.obs_dim()],
+            inner,
+            tracker,
+            potential: self.potential.clone(),
+            shaping_scale: self.shaping_scale,
+            gamma: self.gamma,
+            last_potential: 0.0,
+            last: None,
+            clock: self.clock,
+            steps: 0,
+        }
+    }
+
     pub fn inner_mut(&mut self) -> &mut E {
         &mut self.inner
     }

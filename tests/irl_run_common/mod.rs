@@ -1,8 +1,13 @@
 //! The tiny IRL run configuration the pipeline tests share.
 
 use smirl::env::reacher_task::ReacherTask;
+use smirl::log::{LogOptions, RolloutLogger, RunHeader};
+use smirl::pipeline::reacher_irl::job::{run_job, JobInputs};
+use smirl::pipeline::reacher_irl::lockstep::Lockstep;
+use smirl::pipeline::reacher_irl::records::{JobRecord, PreparedRun};
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{run_pipeline, Algo, DemoSource, IrlRunConfig, RunRequest};
+use std::path::Path;
 
 /// A tiny but complete configuration: scripted demos, 2 IRL iterations of 300 SAC steps
 /// (seconds per job).
@@ -57,4 +62,62 @@ pub fn metrics_column(metrics: &str, name: &str) -> Vec<String> {
     lines
         .map(|l| l.split(',').nth(col).unwrap().to_string())
         .collect()
+}
+
+/// What one job of a prepared run gives, in bytes: its record as JSON (wall time zeroed), its
+/// saved reward and its rollout log.
+#[allow(dead_code)]
+pub struct JobBytes {
+    pub record: String,
+    pub reward: Vec<u8>,
+    pub log: Vec<u8>,
+}
+
+/// Runs job (`algo`, `seed`) of the prepared run `run` with `settings` (the run's for `algo`,
+/// or changed), its independent episodes played by `plan`, its files in `dir`.
+#[allow(dead_code)]
+pub fn job_bytes(
+    run: &PreparedRun,
+    algo: Algo,
+    seed: u64,
+    settings: &IrlRunConfig,
+    plan: Lockstep<'_>,
+    dir: &Path,
+) -> JobBytes {
+    std::fs::create_dir_all(dir).unwrap();
+    let (learned, expert) = run.inputs_of(algo).unwrap();
+    let reward_path = dir.join("reward");
+    let log_path = dir.join("log.mcap");
+    let task = &run.prepared.task;
+    let header = RunHeader::of_task(task.id(), task.task(), seed, serde_json::json!({}));
+    let options = LogOptions {
+        every_nth_episode: settings.log_every_nth_episode.max(1),
+        ..LogOptions::default()
+    };
+    let mut logger = RolloutLogger::create(&log_path, header, options).unwrap();
+    let inputs = JobInputs {
+        algo,
+        seed,
+        settings,
+        perfect_rm: &run.perfect,
+        learned_rm: learned,
+        expert,
+        reward_path: Some(&reward_path),
+        lockstep: plan,
+    };
+    let result = run_job(&inputs, Some(&mut logger), &|_| {}).unwrap();
+    logger.finish().unwrap();
+    let record = JobRecord {
+        algo: algo.name().into(),
+        seed,
+        rows: result.rows,
+        final_policy: result.final_policy,
+        loop_final_set: result.loop_final_set,
+        wall_secs: 0.0,
+    };
+    JobBytes {
+        record: serde_json::to_string(&record).unwrap(),
+        reward: std::fs::read(&reward_path).unwrap(),
+        log: std::fs::read(&log_path).unwrap(),
+    }
 }

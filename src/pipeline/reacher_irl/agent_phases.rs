@@ -74,7 +74,7 @@ impl RolloutStream {
     /// learned state its labels are read in (SMIRL), logged under "agent" and shown to the
     /// watch. The episodes are played in lockstep (`super::lockstep`, the watch's plan) when
     /// every one runs to the time limit, so that the noise each draws is known before play;
-    /// otherwise (SMIRL's product, whose machine can end an episode) one after the other,
+    /// otherwise (a product whose machine has a goal or failure state) one after the other,
     /// since an episode's noise then starts where the previous episode's ended.
     pub fn collect<E: JobEnv>(
         &mut self,

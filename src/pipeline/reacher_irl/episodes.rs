@@ -96,12 +96,16 @@ impl JobEnv for ProductEnv<ReacherDelivery> {
     }
 
     fn fresh(&self) -> Option<Self> {
-        None
+        self.inner().fresh().map(|inner| self.around(inner))
     }
 
     fn ends_only_at_time_limit(&self) -> bool {
-        // The machine ends an episode in a terminal or failure state.
-        false
+        // The product ends an episode when its machine enters a terminal or failure state; the
+        // machines SMIRL and the product controls learn in have neither (LRM's,
+        // `smirl::task_machine`, `smirl::one_state_machine`).
+        let rm = self.rm();
+        let ends = (0..rm.n_states()).any(|u| rm.is_absorbing(u));
+        !ends && self.inner().ends_only_at_time_limit()
     }
 
     fn step_with_env_reward(
