@@ -554,9 +554,3 @@ impl AgentBatch {
         }
     }
 }
-
-impl From<EpisodeError> for String {
-    fn from(e: EpisodeError) -> String {
-        e.to_string()
-    }
-}

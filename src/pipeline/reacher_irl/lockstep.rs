@@ -284,9 +284,3 @@ fn play_on_thread<'t, E: JobEnv>(
     }
     Ok(played)
 }
-
-impl From<LockstepError> for String {
-    fn from(e: LockstepError) -> String {
-        e.to_string()
-    }
-}

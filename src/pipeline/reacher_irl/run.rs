@@ -366,17 +366,16 @@ fn learn_and_report(
     seed: u64,
 ) -> Result<(RewardMachine, RmFacts, String), PipelineError> {
     let config = settings;
-    let lrm = lrm_config(config, seed, algo).map_err(PipelineError::Run)?;
+    let lrm = lrm_config(config, seed, algo).map_err(|e| PipelineError::Run(e.to_string()))?;
     let (rm, cost, secs) = match config.smirl_machine {
-        SmirlMachine::Learned => {
-            learn_machine(demos, config, seed, algo).map_err(PipelineError::Run)?
-        }
+        SmirlMachine::Learned => learn_machine(demos, config, seed, algo)
+            .map_err(|e| PipelineError::Run(e.to_string()))?,
         SmirlMachine::Task | SmirlMachine::OneState => {
             let rm = match config.smirl_machine {
                 SmirlMachine::Task => task_machine(perfect),
                 _ => one_state_machine(perfect.vocab()),
             }
-            .map_err(PipelineError::Run)?;
+            .map_err(|e| PipelineError::Run(e.to_string()))?;
             let cost = trace_cost(&rm, &label_traces(demos), trace_reading(&lrm))
                 .map_err(|e| PipelineError::Run(format!("LRM cost of the task's machine: {e}")))?;
             (rm, cost, 0.0)
@@ -467,7 +466,8 @@ fn selection_cut_report(
     if !config.selection_cut() {
         return Ok(String::new());
     }
-    let seen = seen_after_events(rm, expert_data, config).map_err(PipelineError::Run)?;
+    let seen = seen_after_events(rm, expert_data, config)
+        .map_err(|e| PipelineError::Run(e.to_string()))?;
     let per_state: Vec<String> = (0..rm.n_states())
         .map(|u| match seen.in_state(u) {
             l if l.is_empty() => format!("{u}: -"),
