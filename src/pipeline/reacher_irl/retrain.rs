@@ -14,7 +14,7 @@ use super::evaluation::{Evaluation, GroundTruth};
 use super::final_policy::{learned_return, ScoredReward};
 use super::firl::{self, StateReward};
 use super::iteration::StepError;
-use super::run::PreparedRun;
+use super::run::{MissingMachine, PreparedRun};
 use super::smirl::{
     counterfactual_states, product_env, shaping_potential, Features, ProductReward,
 };
@@ -190,8 +190,8 @@ pub enum RetrainError {
     #[error("{0}")]
     Usage(String),
     /// The run's files lack what the retraining reads.
-    #[error("{0}")]
-    Input(String),
+    #[error(transparent)]
+    Input(#[from] MissingMachine),
     #[error("the run has no learned machine")]
     NoMachine,
     #[error(transparent)]
@@ -263,7 +263,7 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
         )));
     }
     let reward = if r.algo.uses_rm() {
-        let (machine, _) = run.inputs_of(r.algo).map_err(usage)?;
+        let (machine, _) = run.inputs_of(r.algo).map_err(|e| usage(e.to_string()))?;
         let machine = machine.ok_or_else(|| usage("the run has no learned machine".into()))?;
         let features = if r.algo == Algo::SmirlSmooth {
             Features::Smooth
