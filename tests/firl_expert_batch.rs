@@ -6,6 +6,7 @@ mod irl_run_common;
 use irl_run_common::{metrics_column, tiny_config, tiny_rkl_blue_run};
 use smirl::irl::firl::{Divergence, FirlSurrogate};
 use smirl::pipeline::reacher_irl::firl::{coefficients, DemonstrationDraw, IterationRatios, Loss};
+use smirl::pipeline::reacher_irl::iteration::StepError;
 use smirl::pipeline::reacher_irl::{AgentBatch, Algo, ExpertData, IrlRunConfig};
 
 #[allow(unused_imports)]
@@ -84,19 +85,24 @@ fn drawn_demonstrations_join_the_covariance_batch() {
 fn a_demonstration_the_batch_cannot_take_is_an_error() {
     let loss = Loss::FDivergence(Divergence::Fkl);
     let err = coefficients(loss, &expert(), &agent(), Some(&ratios()), &[2]).unwrap_err();
-    assert!(err.contains("no demonstration 2"), "{err}");
+    assert!(matches!(err, StepError::NoDemonstration(2)), "{err:?}");
+    assert_eq!(err.to_string(), "no demonstration 2");
     let mut short = expert();
     short.lengths = vec![T + 1, T - 1];
     let err = coefficients(loss, &short, &agent(), Some(&ratios()), &[0]).unwrap_err();
-    assert!(err.contains("demonstration 0 has 4 steps"), "{err}");
+    assert!(
+        err.to_string().contains("demonstration 0 has 4 steps"),
+        "{err}"
+    );
     let no_expert_ratios = IterationRatios {
         expert: Vec::new(),
         ..ratios()
     };
     let err = coefficients(loss, &expert(), &agent(), Some(&no_expert_ratios), &[0]).unwrap_err();
-    assert!(
-        err.contains("no density ratios at the demonstrations"),
-        "{err}"
+    assert!(matches!(err, StepError::NoExpertRatios), "{err:?}");
+    assert_eq!(
+        err.to_string(),
+        "f-IRL has no density ratios at the demonstrations"
     );
 }
 

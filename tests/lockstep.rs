@@ -15,7 +15,9 @@ use smirl::nn::{Mlp, MlpArch};
 use smirl::pipeline::reacher_irl::episodes::{
     play_episode, AgentBatch, EpisodeOutcome, EpisodeSpec, GroundTruthTask, JobEnv,
 };
-use smirl::pipeline::reacher_irl::lockstep::{play_lockstep, Keep, Lockstep, PlayedEpisode};
+use smirl::pipeline::reacher_irl::lockstep::{
+    play_lockstep, Keep, Lockstep, LockstepError, PlayedEpisode,
+};
 use smirl::pipeline::reacher_irl::smirl::task_machine;
 use smirl::rl::sac::{draw_noise, episode_seed, ActMode, SacAgent, SacConfig};
 use smirl::rm::format::parse_rm;
@@ -293,5 +295,18 @@ fn lockstep_sampling_needs_the_whole_noise() {
         Keep::default(),
     )
     .unwrap_err();
-    assert!(err.contains("noise"), "{err}");
+    assert!(
+        matches!(
+            err,
+            LockstepError::NoiseLength {
+                per_episode: 200,
+                episodes: 3
+            }
+        ),
+        "{err:?}"
+    );
+    assert_eq!(
+        err.to_string(),
+        "lockstep sampling needs 200 noise values for each of 3 episodes"
+    );
 }

@@ -13,6 +13,7 @@ use smirl::irl::reward::{MlpReward, MlpRewardConfig, RewardModel};
 use smirl::pipeline::reacher_expert::{Demo, DemoStep};
 use smirl::pipeline::reacher_irl::episodes::JobEnv;
 use smirl::pipeline::reacher_irl::firl::{baseline_reward_at, reward_model, StateMap};
+use smirl::pipeline::reacher_irl::iteration::StepError;
 use smirl::pipeline::reacher_irl::lockstep::Lockstep;
 use smirl::pipeline::reacher_irl::run::{open_run, prepare, Silent};
 use smirl::pipeline::reacher_irl::smirl::annotate;
@@ -115,7 +116,14 @@ fn the_product_rows_follow_the_learned_machine_on_a_recorded_label_sequence() {
     assert_eq!(plain.obs, data.obs);
     // A state the machine does not have is refused, not read past the one-hot block.
     let err = map.rows(&data.obs[..d], d, &[3]).unwrap_err();
-    assert!(err.contains("not a state"), "{err}");
+    assert!(
+        matches!(err, StepError::UnknownState { state: 3, n: 3 }),
+        "{err:?}"
+    );
+    assert_eq!(
+        err.to_string(),
+        "state 3 is not a state of the 3-state machine"
+    );
 }
 
 /// SAC's reward rows on the product (observation ⊕ one-hot u ⊕ clock): the state before the

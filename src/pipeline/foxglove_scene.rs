@@ -21,7 +21,7 @@ use crate::env::layout::{Anchor, TaskLayout};
 use crate::env::placement::Placement;
 use crate::log::schema::{EpisodeStartMsg, StepMsg, TOPIC_EPISODE_START, TOPIC_STEP};
 use crate::log::{read_log_bytes, read_log_file, read_log_records, LogError};
-use crate::mujoco::{Data, Model, ObjectKind};
+use crate::mujoco::{Data, MjError, Model, ObjectKind};
 use foxglove::schemas::{
     Color, CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms, Pose, Quaternion,
     SceneEntity, SceneUpdate, SpherePrimitive, TextPrimitive, Timestamp, Vector3,
@@ -47,6 +47,28 @@ pub enum SceneError {
     Input { path: PathBuf, problem: String },
     #[error("{path}: {problem}")]
     Output { path: PathBuf, problem: String },
+}
+
+/// A logged model the scene cannot be drawn from.
+#[derive(Debug, thiserror::Error)]
+enum GeometryError {
+    #[error(transparent)]
+    MuJoCo(#[from] MjError),
+    #[error("body {0} has neither a mocap body nor slides")]
+    NotMovable(String),
+    #[error("wall {0} is not a capsule of the world body")]
+    NotCapsule(&'static str),
+}
+
+/// A logged state the scene cannot be drawn from, or whose messages cannot be written.
+#[derive(Debug, thiserror::Error)]
+enum FrameError {
+    #[error(transparent)]
+    MuJoCo(#[from] MjError),
+    #[error("the region layout has {got} values, expected {expected}")]
+    RegionLayout { got: usize, expected: usize },
+    #[error(transparent)]
+    Mcap(#[from] mcap::McapError),
 }
 
 /// What the export wrote.
@@ -106,9 +128,9 @@ fn colour(rgba: [f32; 4], alpha: Option<f64>) -> Color {
 }
 
 impl Geometry {
-    fn new(xml: &str, source: &str, layout: &TaskLayout) -> Result<Geometry, String> {
-        let model = Arc::new(Model::from_xml_str(xml, source).map_err(|e| e.to_string())?);
-        let id = |kind, name: &str| model.id(kind, name).map_err(|e| e.to_string());
+    fn new(xml: &str, source: &str, layout: &TaskLayout) -> Result<Geometry, GeometryError> {
+        let model = Arc::new(Model::from_xml_str(xml, source)?);
+        let id = |kind, name: &str| model.id(kind, name);
         let geom = |name: &str| id(ObjectKind::Geom, name);
         let arm_bodies = [
             id(ObjectKind::Body, "body0")?,
@@ -142,7 +164,7 @@ impl Geometry {
             region_placements.push(match (&region.anchor, region.movable) {
                 (Anchor::Body(b), true) => Some(
                     Placement::find(&model, b)
-                        .ok_or_else(|| format!("body {b} has neither a mocap body nor slides"))?,
+                        .ok_or_else(|| GeometryError::NotMovable(b.clone()))?,
                 ),
                 _ => None,
             });
@@ -152,7 +174,7 @@ impl Geometry {
             let g = geom(name)?;
             let (a, b) = model
                 .world_capsule_segment(g)
-                .ok_or_else(|| format!("wall {name} is not a capsule of the world body"))?;
+                .ok_or(GeometryError::NotCapsule(name))?;
             walls.push((a, b, model.geom_radius(g)));
         }
         Ok(Geometry {
@@ -275,14 +297,13 @@ struct Frame {
 impl Geometry {
     /// Puts the movable regions at an episode's logged layout (x, y of each region in label
     /// order); the state's forward pass in [`Geometry::frame`] moves them there.
-    fn place_balls(&self, data: &mut Data, balls: &[f64]) -> Result<(), String> {
+    fn place_balls(&self, data: &mut Data, balls: &[f64]) -> Result<(), FrameError> {
         let n = self.region_placements.len();
         if balls.len() != 2 * n {
-            return Err(format!(
-                "the region layout has {} values, expected {}",
-                balls.len(),
-                2 * n
-            ));
+            return Err(FrameError::RegionLayout {
+                got: balls.len(),
+                expected: 2 * n,
+            });
         }
         for (placement, xy) in self.region_placements.iter().zip(balls.chunks_exact(2)) {
             if let Some(placement) = placement {
@@ -299,10 +320,8 @@ impl Geometry {
         labels: u32,
         episode_start: bool,
         log_time: u64,
-    ) -> Result<Frame, String> {
-        data.set_qpos(qpos)
-            .and_then(|()| data.forward())
-            .map_err(|e| e.to_string())?;
+    ) -> Result<Frame, MjError> {
+        data.set_qpos(qpos).and_then(|()| data.forward())?;
         let time = timestamp(log_time);
         let [shoulder, elbow, tip] = self.arm_bodies.map(|b| data.body_xpos(b));
         let balls: Vec<[f64; 3]> = (self.region_anchors.iter())
@@ -600,7 +619,7 @@ impl<W: std::io::Write + std::io::Seek> ViewWriter<'_, W> {
         labels: u32,
         start: bool,
         log_time: u64,
-    ) -> Result<(), String> {
+    ) -> Result<(), FrameError> {
         let frame = self
             .geometry
             .frame(self.data, qpos, labels, start, log_time)?;
@@ -608,17 +627,15 @@ impl<W: std::io::Write + std::io::Seek> ViewWriter<'_, W> {
             (self.scene_channel, encoded(&frame.scene)),
             (self.tf_channel, encoded(&frame.transforms)),
         ] {
-            self.writer
-                .write_to_known_channel(
-                    &mcap::records::MessageHeader {
-                        channel_id,
-                        sequence: self.sequence,
-                        log_time,
-                        publish_time: log_time,
-                    },
-                    &payload,
-                )
-                .map_err(|e| e.to_string())?;
+            self.writer.write_to_known_channel(
+                &mcap::records::MessageHeader {
+                    channel_id,
+                    sequence: self.sequence,
+                    log_time,
+                    publish_time: log_time,
+                },
+                &payload,
+            )?;
         }
         self.sequence = self.sequence.wrapping_add(1);
         self.scenes += 1;

@@ -22,7 +22,10 @@
 
 use super::reacher_irl::config::{load_toml_config, parse_toml_config};
 use super::reacher_irl::{Algo, IrlConfigError};
-use crate::env::reacher::{ArmStart, CancelConfig, ReacherConfig, ReacherDelivery, OBS_TIP};
+use crate::env::reacher::{
+    ArmStart, CancelConfig, ConfigError, ReacherConfig, ReacherDelivery, OBS_TIP,
+};
+use crate::env::task_file::TaskFileError;
 use crate::env::ContinuousEnv;
 use crate::irl::firl::{density_ratio, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
 use crate::irl::kde::Kde;
@@ -36,7 +39,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The expert's fingertip density.
@@ -95,17 +98,45 @@ impl DrawTarget {
     }
 }
 
+/// A target name that is neither `gaussian` nor `mixture`.
+#[derive(Debug, thiserror::Error)]
+#[error("unknown target '{0}' (expected gaussian or mixture)")]
+pub struct UnknownTarget(pub String);
+
 impl std::str::FromStr for DrawTarget {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownTarget;
+    fn from_str(s: &str) -> Result<Self, UnknownTarget> {
         match s {
             "gaussian" => Ok(DrawTarget::Gaussian),
             "mixture" => Ok(DrawTarget::Mixture),
-            _ => Err(format!(
-                "unknown target '{s}' (expected gaussian or mixture)"
-            )),
+            _ => Err(UnknownTarget(s.into())),
         }
     }
+}
+
+/// The arm's environment that cannot be made: the shipped scene or its config.
+#[derive(Debug, thiserror::Error)]
+pub enum ArmEnvError {
+    #[error(transparent)]
+    Task(#[from] TaskFileError),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+}
+
+/// A finished run that cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteRunError {
+    #[error("the run made no KL estimate")]
+    NoEstimate,
+    #[error("{}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    #[error(transparent)]
+    Png(#[from] png::EncodingError),
 }
 
 /// A ReacherDraw run's settings; defaults are f-IRL's (`../shared/notes/firl.md`) except
@@ -303,9 +334,8 @@ impl DrawConfig {
 
     /// The arm alone: T-step episodes from rest at 0 rad, no event, in the scene of the
     /// paper's tasks (`composite`'s layout; the reward reads the fingertip alone).
-    pub fn env_config(&self) -> Result<ReacherConfig, String> {
-        let task = crate::env::reacher_task::ReacherTask::shipped("composite")
-            .map_err(|e| e.to_string())?;
+    pub fn env_config(&self) -> Result<ReacherConfig, ArmEnvError> {
+        let task = crate::env::reacher_task::ReacherTask::shipped("composite")?;
         let config = ReacherConfig {
             max_steps: self.horizon,
             arm_start: ArmStart::Zero,
@@ -316,7 +346,7 @@ impl DrawConfig {
             },
             ..ReacherConfig::default()
         };
-        task.env_config(&config).map_err(|e| e.to_string())
+        Ok(task.env_config(&config)?)
     }
 }
 
@@ -549,7 +579,7 @@ const VIEW_HALF_WIDTH: f64 = 0.3;
 /// A PNG of two panels over the arena: the target density (left) and a histogram of the
 /// agent's fingertip states (right), each shaded relative to its own maximum, with the
 /// arm's reach (0.21 m) as a ring and the start (0.21, 0) as a dot.
-pub fn density_picture(target: DrawTarget, tips: &[f64]) -> Result<Vec<u8>, String> {
+pub fn density_picture(target: DrawTarget, tips: &[f64]) -> Result<Vec<u8>, png::EncodingError> {
     const PANEL: u32 = 300;
     const BINS: usize = 60;
     const GAP: u32 = 20;
@@ -601,7 +631,7 @@ pub fn density_picture(target: DrawTarget, tips: &[f64]) -> Result<Vec<u8>, Stri
         let (sx, sy) = to_px(0.21, 0.0);
         canvas.disc(sx, sy, 3.0, Rgb(0.8, 0.1, 0.1), 1.0);
     }
-    canvas.to_png().map_err(|e| e.to_string())
+    canvas.to_png()
 }
 
 /// What `summary.json` of a run records: the first and last KL estimates and their ratios.
@@ -713,20 +743,19 @@ pub fn write_run(
     seed: u64,
     config: &DrawConfig,
     result: &DrawResult,
-) -> Result<DrawSummary, String> {
-    let summary =
-        DrawSummary::of(algo, seed, config, result).ok_or("the run made no KL estimate")?;
+) -> Result<DrawSummary, WriteRunError> {
+    let summary = DrawSummary::of(algo, seed, config, result).ok_or(WriteRunError::NoEstimate)?;
     let write = |name: &str, bytes: &[u8]| {
         let path = dir.join(name);
         crate::atomic_file::write_atomic(&path, bytes)
-            .map_err(|e| format!("{}: {e}", path.display()))
+            .map_err(|source| WriteRunError::Write { path, source })
     };
     write("config.toml", config.to_toml().as_bytes())?;
     write(
         "metrics.csv",
         metrics_csv(algo, seed, &result.rows).as_bytes(),
     )?;
-    let json = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    let json = serde_json::to_string_pretty(&summary)?;
     write("summary.json", json.as_bytes())?;
     write(
         "density.png",

@@ -15,11 +15,11 @@
 
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use crate::env::reacher_task::{Branch, CancelBranch};
-use crate::env::ContinuousEnv;
+use crate::env::{ContinuousEnv, EnvError};
 use crate::log::schema::{sha256_hex, NO_RM};
 use crate::log::{LoggedEpisode, RolloutLog};
 use crate::mujoco::Model;
-use crate::rm::format::{parse_rm, write_rm};
+use crate::rm::format::{parse_rm, write_rm, RmFileError};
 use crate::rm::{perfect, LabelSet, RewardMachine};
 use std::fmt;
 use std::sync::Arc;
@@ -29,6 +29,22 @@ use std::sync::Arc;
 pub enum ReplayError {
     #[error("{path}: cannot replay: {problem}")]
     Cannot { path: String, problem: String },
+}
+
+/// A reward machine stored in the run record that does not parse (a damaged file).
+#[derive(Debug, thiserror::Error)]
+#[error("the stored reward machine does not parse: {0}")]
+pub struct StoredMachineError(#[source] pub RmFileError);
+
+/// An episode that cannot be replayed: its logged start does not fit the environment.
+#[derive(Debug, thiserror::Error)]
+pub enum EpisodeReplayError {
+    #[error("{got} region coordinates, expected {expected}")]
+    Regions { got: usize, expected: usize },
+    #[error("{got} event steps, expected {expected}")]
+    EventSteps { got: usize, expected: usize },
+    #[error(transparent)]
+    Env(#[from] EnvError),
 }
 
 /// The first difference found in an episode.
@@ -212,7 +228,7 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
     config.layout = Some(Arc::new(layout));
     let mut env =
         ReacherDelivery::with_model(Arc::new(model), config).map_err(|e| cannot(e.to_string()))?;
-    let reward_machine = run_reward_machine(log, &mut notes).map_err(cannot)?;
+    let reward_machine = run_reward_machine(log, &mut notes).map_err(|e| cannot(e.to_string()))?;
     let rm = reward_machine.as_ref().map(|(rm, _)| rm);
     let started = std::time::Instant::now();
     let mut episodes = Vec::with_capacity(log.episodes.len());
@@ -242,7 +258,7 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
 pub(crate) fn run_reward_machine(
     log: &RolloutLog,
     notes: &mut Vec<String>,
-) -> Result<Option<(RewardMachine, String)>, String> {
+) -> Result<Option<(RewardMachine, String)>, StoredMachineError> {
     let shipped_name = format!("reacher_{}", log.run.task);
     let shipped = perfect::text(&shipped_name).and_then(|_| perfect::load(&shipped_name).ok());
     if let Some(text) = &log.run.reward_machine {
@@ -250,7 +266,7 @@ pub(crate) fn run_reward_machine(
             text,
             &format!("{}: /run reward_machine", log.path.display()),
         )
-        .map_err(|e| format!("the stored reward machine does not parse: {e}"))?;
+        .map_err(StoredMachineError)?;
         if let Some(s) = shipped.as_ref().filter(|s| write_rm(s) != write_rm(&rm)) {
             notes.push(format!(
                 "the run's reward machine ({} states) differs from the shipped {} ({} states); re-tracking the stored one",
@@ -314,24 +330,22 @@ fn replay_episode(
     env: &mut ReacherDelivery,
     ep: &LoggedEpisode,
     rm: Option<&RewardMachine>,
-) -> Result<EpisodeReplay, String> {
+) -> Result<EpisodeReplay, EpisodeReplayError> {
     let start = &ep.start;
     let layout = Arc::clone(env.layout());
     if start.balls.len() != 2 * layout.n_regions() {
-        return Err(format!(
-            "{} region coordinates, expected {}",
-            start.balls.len(),
-            2 * layout.n_regions()
-        ));
+        return Err(EpisodeReplayError::Regions {
+            got: start.balls.len(),
+            expected: 2 * layout.n_regions(),
+        });
     }
     let positions: Vec<[f64; 2]> = start.balls.chunks_exact(2).map(|b| [b[0], b[1]]).collect();
     let event_steps = start.event_steps(layout.n_events());
     if event_steps.len() != layout.n_events() {
-        return Err(format!(
-            "{} event steps, expected {}",
-            event_steps.len(),
-            layout.n_events()
-        ));
+        return Err(EpisodeReplayError::EventSteps {
+            got: event_steps.len(),
+            expected: layout.n_events(),
+        });
     }
     let mut obs = vec![0.0f32; layout.obs_dim()];
 
@@ -342,8 +356,7 @@ fn replay_episode(
         && env.positions() == positions.as_slice()
         && env.event_steps() == event_steps.as_slice();
 
-    env.restore_start(&start.qpos, &start.qvel, &positions, &event_steps, &mut obs)
-        .map_err(|e| e.to_string())?;
+    env.restore_start(&start.qpos, &start.qvel, &positions, &event_steps, &mut obs)?;
     let mut result = EpisodeReplay {
         episode: start.episode,
         seed: start.seed,

@@ -313,7 +313,8 @@ pub fn job(args: JobRequest) -> Result<()> {
                 p.iteration, p.iterations, p.success_rate
             ));
         })
-        .map_err(|e| anyhow::anyhow!(e))
+        // The job's message as it displays (its typed sources are already in it).
+        .map_err(|e| anyhow::anyhow!(e.to_string()))
         .with_context(|| format!("{algo} seed {seed} in {}", args.run.display()))?;
     bar.finish_and_clear();
     if ran {
@@ -532,7 +533,7 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
         table.push_str(&line);
         table.push('\n');
     })
-    .map_err(|e| anyhow::anyhow!(e))?;
+    .map_err(|e| anyhow::anyhow!(e.to_string()))?;
     // Only `retrain/` itself is created: a run directory that went away while the agent
     // trained is not recreated around the table (the table is on standard output).
     let retrain_dir = out.parent().expect("a file in retrain/");

@@ -5,6 +5,7 @@
 
 use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::evaluation::JobWatch;
+use super::iteration::StepError;
 use super::lockstep::{play_lockstep, Keep};
 use crate::irl::smirl::FeatureMap;
 use crate::pipeline::training_log::TrainingLog;
@@ -27,7 +28,7 @@ pub fn train_sac<E: JobEnv, R: RewardFn>(
     steps: u64,
     iteration: usize,
     watch: &mut JobWatch<'_, '_>,
-) -> Result<(), String> {
+) -> Result<(), StepError> {
     let before = sac.env_steps();
     let chunk = 1_000u64;
     let mut done = 0;
@@ -45,7 +46,7 @@ pub fn train_sac<E: JobEnv, R: RewardFn>(
             .as_mut()
             .map(|t| t as &mut dyn TrainingObserver<E>);
         sac.train_observed(env, reward, n, observer, |_| {})
-            .map_err(|e| format!("SAC: {e}"))?;
+            .map_err(StepError::Sac)?;
         done += n;
         report_progress(before + done);
     }
@@ -82,7 +83,7 @@ impl RolloutStream {
         env: &mut E,
         n: usize,
         watch: &mut JobWatch<'_, '_>,
-    ) -> Result<AgentBatch, String> {
+    ) -> Result<AgentBatch, StepError> {
         let mut batch = AgentBatch::default();
         let task = GroundTruthTask::of(watch.perfect(), watch.layout());
         let labelling = FeatureMap::reacher_labels(watch.layout());

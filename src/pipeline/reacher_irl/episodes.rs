@@ -12,12 +12,22 @@ use crate::env::reacher_task::{Branch, CancelBranch, ProgressTracker, TaskProgre
 use crate::env::{ContinuousEnv, EnvError, EnvStep};
 use crate::irl::smirl::FeatureMap;
 use crate::log::writer::EpisodeStartRecord;
-use crate::log::{RolloutLogger, StepRecord};
+use crate::log::{LogError, RolloutLogger, StepRecord};
 use crate::pipeline::training_log::ReacherView;
 use crate::rl::sac::{ActMode, SacAgent};
 use crate::rm::{LabelSet, RewardMachine};
 use rand_chacha::ChaCha8Rng;
 use std::sync::Arc;
+
+/// An episode that cannot be played or logged: the environment's step or the log writer
+/// failed (the message is theirs).
+#[derive(Debug, thiserror::Error)]
+pub enum EpisodeError {
+    #[error(transparent)]
+    Env(#[from] EnvError),
+    #[error(transparent)]
+    Log(#[from] LogError),
+}
 
 /// The environment an IRL job's SAC acts in: ReacherDelivery itself, with the clock of the
 /// run's settings (the baselines: observation ⊕ clock), or its product with the learned
@@ -176,7 +186,7 @@ pub trait EpisodeLog {
         phase: &str,
         rm_state: Option<usize>,
         obs: &[f32],
-    ) -> Result<(), String>;
+    ) -> Result<(), EpisodeError>;
     /// A step of `env` (state read after it).
     fn step(
         &mut self,
@@ -185,8 +195,8 @@ pub trait EpisodeLog {
         step: &EnvStep,
         rm: Option<(usize, f64)>,
         obs: &[f32],
-    ) -> Result<(), String>;
-    fn end(&mut self, success: bool) -> Result<(), String>;
+    ) -> Result<(), EpisodeError>;
+    fn end(&mut self, success: bool) -> Result<(), EpisodeError>;
 }
 
 /// No log.
@@ -200,7 +210,7 @@ impl EpisodeLog for NoLog {
         _: &str,
         _: Option<usize>,
         _: &[f32],
-    ) -> Result<(), String> {
+    ) -> Result<(), EpisodeError> {
         Ok(())
     }
     fn step(
@@ -210,10 +220,10 @@ impl EpisodeLog for NoLog {
         _: &EnvStep,
         _: Option<(usize, f64)>,
         _: &[f32],
-    ) -> Result<(), String> {
+    ) -> Result<(), EpisodeError> {
         Ok(())
     }
-    fn end(&mut self, _: bool) -> Result<(), String> {
+    fn end(&mut self, _: bool) -> Result<(), EpisodeError> {
         Ok(())
     }
 }
@@ -226,12 +236,12 @@ impl EpisodeLog for Option<&mut RolloutLogger> {
         phase: &str,
         rm_state: Option<usize>,
         obs: &[f32],
-    ) -> Result<(), String> {
+    ) -> Result<(), EpisodeError> {
         match self {
             Some(l) => l
                 .begin_reacher_episode(env, seed, phase, rm_state, obs)
                 .map(|_| ())
-                .map_err(|e| e.to_string()),
+                .map_err(EpisodeError::from),
             None => Ok(()),
         }
     }
@@ -243,18 +253,18 @@ impl EpisodeLog for Option<&mut RolloutLogger> {
         step: &EnvStep,
         rm: Option<(usize, f64)>,
         obs: &[f32],
-    ) -> Result<(), String> {
+    ) -> Result<(), EpisodeError> {
         match self {
             Some(l) => l
                 .reacher_step(env, action, step, rm, obs)
-                .map_err(|e| e.to_string()),
+                .map_err(EpisodeError::from),
             None => Ok(()),
         }
     }
 
-    fn end(&mut self, success: bool) -> Result<(), String> {
+    fn end(&mut self, success: bool) -> Result<(), EpisodeError> {
         match self {
-            Some(l) => l.end_episode(success).map_err(|e| e.to_string()),
+            Some(l) => l.end_episode(success).map_err(EpisodeError::from),
             None => Ok(()),
         }
     }
@@ -284,41 +294,37 @@ pub struct RecordedEpisode {
 
 impl RecordedEpisode {
     /// Writes the episode into `logger`, as if it had been logged while played.
-    pub fn write_to(&self, logger: &mut RolloutLogger) -> Result<(), String> {
+    pub fn write_to(&self, logger: &mut RolloutLogger) -> Result<(), EpisodeError> {
         let (nq, nv) = (self.nq, self.nv);
         let obs_dim = self.obs.len() / (self.steps.len() + 1);
         let act_dim = self.actions.len() / self.steps.len().max(1);
-        logger
-            .begin_episode(&EpisodeStartRecord {
-                seed: self.seed,
-                phase: &self.phase,
-                qpos: &self.qpos[..nq],
-                qvel: &self.qvel[..nv],
-                balls: &self.balls,
-                event_steps: &self.event_steps,
-                labels: self.start_labels,
-                rm_state: self.start_rm,
-                obs: &self.obs[..obs_dim],
-            })
-            .map_err(|e| e.to_string())?;
+        logger.begin_episode(&EpisodeStartRecord {
+            seed: self.seed,
+            phase: &self.phase,
+            qpos: &self.qpos[..nq],
+            qvel: &self.qvel[..nv],
+            balls: &self.balls,
+            event_steps: &self.event_steps,
+            labels: self.start_labels,
+            rm_state: self.start_rm,
+            obs: &self.obs[..obs_dim],
+        })?;
         for (t, (step, rm)) in self.steps.iter().enumerate() {
             let k = t + 1;
-            logger
-                .step(&StepRecord {
-                    action: &self.actions[t * act_dim..k * act_dim],
-                    reward: step.reward,
-                    labels: step.labels,
-                    rm: *rm,
-                    qpos: &self.qpos[k * nq..(k + 1) * nq],
-                    qvel: &self.qvel[k * nv..(k + 1) * nv],
-                    obs: &self.obs[k * obs_dim..(k + 1) * obs_dim],
-                    terminated: step.terminated,
-                    truncated: step.truncated,
-                })
-                .map_err(|e| e.to_string())?;
+            logger.step(&StepRecord {
+                action: &self.actions[t * act_dim..k * act_dim],
+                reward: step.reward,
+                labels: step.labels,
+                rm: *rm,
+                qpos: &self.qpos[k * nq..(k + 1) * nq],
+                qvel: &self.qvel[k * nv..(k + 1) * nv],
+                obs: &self.obs[k * obs_dim..(k + 1) * obs_dim],
+                terminated: step.terminated,
+                truncated: step.truncated,
+            })?;
         }
         match self.success {
-            Some(success) => logger.end_episode(success).map_err(|e| e.to_string()),
+            Some(success) => logger.end_episode(success).map_err(EpisodeError::from),
             None => Ok(()),
         }
     }
@@ -332,7 +338,7 @@ impl EpisodeLog for RecordedEpisode {
         phase: &str,
         rm_state: Option<usize>,
         obs: &[f32],
-    ) -> Result<(), String> {
+    ) -> Result<(), EpisodeError> {
         *self = RecordedEpisode {
             seed,
             phase: phase.into(),
@@ -357,7 +363,7 @@ impl EpisodeLog for RecordedEpisode {
         step: &EnvStep,
         rm: Option<(usize, f64)>,
         obs: &[f32],
-    ) -> Result<(), String> {
+    ) -> Result<(), EpisodeError> {
         self.qpos.extend_from_slice(env.qpos());
         self.qvel.extend_from_slice(env.qvel());
         self.obs.extend_from_slice(obs);
@@ -366,7 +372,7 @@ impl EpisodeLog for RecordedEpisode {
         Ok(())
     }
 
-    fn end(&mut self, success: bool) -> Result<(), String> {
+    fn end(&mut self, success: bool) -> Result<(), EpisodeError> {
         self.success = Some(success);
         Ok(())
     }
@@ -396,7 +402,7 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
         spec: EpisodeSpec<'p>,
         obs: &mut [f32],
         log: &mut dyn EpisodeLog,
-    ) -> Result<EpisodePlay<'t, 'p>, String> {
+    ) -> Result<EpisodePlay<'t, 'p>, EpisodeError> {
         let perfect = task.perfect;
         let branches = task.branches.as_ref().filter(|_| spec.with_branch);
         env.reset(spec.reset_seed, obs);
@@ -443,12 +449,10 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
         next: &mut [f32],
         log: &mut dyn EpisodeLog,
         mut on_step: impl FnMut(&[f32], &[f32], Option<usize>),
-    ) -> Result<(), String> {
+    ) -> Result<(), EpisodeError> {
         let perfect = self.task.perfect;
         let u_before = env.learned_state();
-        let (step, env_reward) = env
-            .step_with_env_reward(action, next)
-            .map_err(|e| e.to_string())?;
+        let (step, env_reward) = env.step_with_env_reward(action, next)?;
         let (u_next, r) = perfect.step(self.up, step.labels);
         (self.task.progress).track(&mut self.tracker, self.up, u_next, step.labels);
         self.up = u_next;
@@ -470,7 +474,7 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
     }
 
     /// Ends the log and reports the outcome.
-    pub fn finish(self, log: &mut dyn EpisodeLog) -> Result<EpisodeOutcome, String> {
+    pub fn finish(self, log: &mut dyn EpisodeLog) -> Result<EpisodeOutcome, EpisodeError> {
         log.end(self.out.success)?;
         let mut out = self.out;
         out.progress = self.tracker.fraction();
@@ -496,7 +500,7 @@ pub fn play_episode<E: JobEnv>(
     rng: &mut ChaCha8Rng,
     logger: Option<&mut RolloutLogger>,
     mut on_step: impl FnMut(&[f32], &[f32], Option<usize>),
-) -> Result<EpisodeOutcome, String> {
+) -> Result<EpisodeOutcome, EpisodeError> {
     let mut log = logger;
     let mut obs = vec![0.0f32; env.obs_dim()];
     let mut next = vec![0.0f32; env.obs_dim()];

@@ -16,7 +16,7 @@
 
 use super::config::IrlRunConfig;
 use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
-use super::iteration::{JobProgress, MetricsRow};
+use super::iteration::{JobProgress, MetricsRow, StepError};
 use super::lockstep::{play_lockstep, Keep, Lockstep};
 use crate::env::layout::TaskLayout;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};
@@ -190,7 +190,7 @@ impl<'r> GroundTruth<'r> {
         agent: &mut SacAgent,
         env: &mut E,
         logger: Option<&mut RolloutLogger>,
-    ) -> Result<Evaluation, String> {
+    ) -> Result<Evaluation, StepError> {
         self.evaluate_logged_as(agent, env, logger, "eval", None)
     }
 
@@ -203,7 +203,7 @@ impl<'r> GroundTruth<'r> {
         mut logger: Option<&mut RolloutLogger>,
         phase: &str,
         plan: Option<Lockstep<'_>>,
-    ) -> Result<Evaluation, String> {
+    ) -> Result<Evaluation, StepError> {
         let specs: Vec<EpisodeSpec<'_>> = (self.eval_seeds.iter())
             .map(|&reset_seed| EpisodeSpec {
                 mode: ActMode::Mean,
@@ -405,11 +405,11 @@ impl<'r, 'l> JobWatch<'r, 'l> {
     /// The agent's rollouts of this iteration: the share of their fingertip states inside the
     /// support of the expert's Epanechnikov KDE (within the bandwidth of some demonstration
     /// state), where f-IRL's density ratio can be anything but 0.
-    pub fn rollouts(&mut self, batch: &AgentBatch) -> Result<(), String> {
+    pub fn rollouts(&mut self, batch: &AgentBatch) -> Result<(), StepError> {
         let inside = self
             .expert_kde
             .density_columns(&batch.obs, self.ground_truth.layout.obs_dim(), &OBS_TIP)
-            .map_err(|e| format!("expert KDE: {e}"))?
+            .map_err(StepError::ExpertKde)?
             .iter()
             .filter(|&&d| d > 0.0)
             .count();
@@ -426,7 +426,7 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         agent: &mut SacAgent,
         env: &mut E,
         update: Option<UpdateFacts>,
-    ) -> Result<(), String> {
+    ) -> Result<(), StepError> {
         // The untrained policy's evaluation is not logged.
         let logger = if iteration == 0 {
             None
@@ -473,7 +473,7 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         &mut self,
         agent: &mut SacAgent,
         env: &mut E,
-    ) -> Result<Evaluation, String> {
+    ) -> Result<Evaluation, StepError> {
         let logger = self.logger.as_deref_mut();
         self.ground_truth
             .evaluate_logged_as(agent, env, logger, "final", Some(self.lockstep))
@@ -485,7 +485,7 @@ impl<'r, 'l> JobWatch<'r, 'l> {
         &mut self,
         agent: &mut SacAgent,
         env: &mut E,
-    ) -> Result<Option<FinalSetScore>, String> {
+    ) -> Result<Option<FinalSetScore>, StepError> {
         let Some(final_set) = &self.final_set else {
             return Ok(None);
         };

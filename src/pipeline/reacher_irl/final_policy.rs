@@ -37,6 +37,7 @@ use super::agent_phases::train_sac;
 use super::config::IrlRunConfig;
 use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, JobEnv};
 use super::evaluation::{Evaluation, FinalSetScore, JobWatch};
+use super::iteration::StepError;
 use crate::env::reacher_task::BranchTally;
 use crate::irl::seen_after_events::SeenAfterEvents;
 use crate::irl::smirl::FeatureMap;
@@ -49,7 +50,7 @@ use rand_chacha::ChaCha8Rng;
 /// A SAC reward that can also score recorded steps.
 pub(super) trait ScoredReward: RewardFn {
     /// The learned reward of every step of `steps`.
-    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String>;
+    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, StepError>;
 }
 
 /// Which agent a candidate is a policy of.
@@ -212,7 +213,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     phase: FinalPhase<'_>,
     iterations: usize,
     watch: &mut JobWatch<'_, '_>,
-) -> Result<FinalPolicy, String> {
+) -> Result<FinalPolicy, StepError> {
     let selection_seeds = selection_seeds(phase.seed, phase.selection_episodes);
     let task = GroundTruthTask::of(watch.perfect(), watch.layout());
     let selection = &Selection {
@@ -234,7 +235,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
             train_sac(sac, env, reward, n, iterations + 1, watch)?;
             scored.push(candidate(sac, agent, env, reward, &task, selection, watch)?);
         }
-        Ok::<_, String>(scored)
+        Ok::<_, StepError>(scored)
     };
     candidates.extend(checkpoints(sac, reward, co_trained, phase.steps)?);
     if phase.reset_steps > 0 {
@@ -245,7 +246,7 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         let mut reset = sac.with_new_agent(episode_seed(phase.seed, RESET_AGENT_STREAM));
         reset
             .update_from_replay(reward, phase.reset_steps)
-            .map_err(|e| format!("the reset agent: {e}"))?;
+            .map_err(StepError::ResetAgent)?;
         candidates.extend(checkpoints(
             &mut reset,
             reward,
@@ -272,7 +273,7 @@ fn candidate<E: JobEnv, R: ScoredReward>(
     task: &GroundTruthTask<'_>,
     selection: &Selection<'_>,
     watch: &mut JobWatch<'_, '_>,
-) -> Result<FinalCandidate, String> {
+) -> Result<FinalCandidate, StepError> {
     let (learned_return, cut_return) =
         selection_returns(&mut sac.agent, env, reward, task, selection, watch.logger())?;
     let ev: Evaluation = watch.judge_final(&mut sac.agent, env)?;
@@ -316,7 +317,7 @@ pub(super) fn learned_return<E: JobEnv, R: ScoredReward>(
     task: &GroundTruthTask<'_>,
     reset_seeds: &[u64],
     logger: Option<&mut RolloutLogger>,
-) -> Result<f64, String> {
+) -> Result<f64, StepError> {
     let selection = Selection {
         seeds: reset_seeds,
         cut: None,
@@ -333,7 +334,7 @@ fn selection_returns<E: JobEnv, R: ScoredReward>(
     task: &GroundTruthTask<'_>,
     selection: &Selection<'_>,
     mut logger: Option<&mut RolloutLogger>,
-) -> Result<(f64, Option<f64>), String> {
+) -> Result<(f64, Option<f64>), StepError> {
     let mut rng = ChaCha8Rng::seed_from_u64(0);
     let labelling = FeatureMap::reacher_labels(env.reacher().layout());
     let mut steps = AgentBatch::default();
@@ -377,24 +378,22 @@ pub fn selection_returns_of(
     labels: &[LabelSet],
     lengths: &[usize],
     cut: Option<&SeenAfterEvents>,
-) -> Result<(f64, Option<f64>), String> {
+) -> Result<(f64, Option<f64>), StepError> {
     let steps = lengths.iter().sum::<usize>();
     if rewards.len() != steps {
-        return Err(format!(
-            "{} learned rewards for {steps} selection steps",
-            rewards.len()
-        ));
+        return Err(StepError::SelectionRewards {
+            rewards: rewards.len(),
+            steps,
+        });
     }
     if cut.is_some() && states.len() != labels.len() {
-        return Err(
-            "the selection cut reads learned-machine states, and this agent has none".into(),
-        );
+        return Err(StepError::CutWithoutStates);
     }
     if cut.is_some() && labels.len() != steps {
-        return Err(format!(
-            "{} label sets for {steps} selection steps",
-            labels.len()
-        ));
+        return Err(StepError::SelectionLabels {
+            labels: labels.len(),
+            steps,
+        });
     }
     let episodes = lengths.len().max(1) as f64;
     let full = rewards.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes;

@@ -32,7 +32,7 @@ use super::episodes::{AgentBatch, JobEnv};
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::expert_data::ExpertData;
 use super::final_policy::{self, FinalPhase, FinalPolicy};
-use super::iteration::Coefficients;
+use super::iteration::{Coefficients, StepError};
 use crate::env::clock::{Clock, Clocked};
 use crate::env::layout::OBS_ARM;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};
@@ -86,17 +86,17 @@ impl StateMap<'_> {
         obs: &'o [f32],
         obs_dim: usize,
         states: &[u32],
-    ) -> Result<Cow<'o, [f32]>, String> {
+    ) -> Result<Cow<'o, [f32]>, StepError> {
         let StateMap::Product(m) = self else {
             return Ok(Cow::Borrowed(obs));
         };
         let n = m.n_states();
         let rows = obs.len() / obs_dim.max(1);
         if states.len() != rows {
-            return Err(format!(
-                "{} learned-machine states for {rows} observations",
-                states.len()
-            ));
+            return Err(StepError::StateCount {
+                states: states.len(),
+                rows,
+            });
         }
         let width = self.width(obs_dim);
         let mut out = vec![0.0f32; rows * width];
@@ -106,7 +106,7 @@ impl StateMap<'_> {
             .zip(states)
         {
             if u as usize >= n {
-                return Err(format!("state {u} is not a state of the {n}-state machine"));
+                return Err(StepError::UnknownState { state: u, n });
             }
             one_hot(u as usize, &mut row[..n]);
             row[n] = o[OBS_TIP[0]];
@@ -116,7 +116,7 @@ impl StateMap<'_> {
     }
 
     /// The demonstrations as the reward reads them (their learned states kept).
-    pub fn expert<'e>(&self, expert: &'e ExpertData) -> Result<Cow<'e, ExpertData>, String> {
+    pub fn expert<'e>(&self, expert: &'e ExpertData) -> Result<Cow<'e, ExpertData>, StepError> {
         match self.rows(&expert.obs, expert.obs_dim(), &expert.learned_states)? {
             Cow::Borrowed(_) => Ok(Cow::Borrowed(expert)),
             Cow::Owned(obs) => Ok(Cow::Owned(ExpertData {
@@ -127,7 +127,7 @@ impl StateMap<'_> {
     }
 
     /// An agent batch as the reward reads it (task observations `obs_dim` wide).
-    pub fn agent(&self, batch: AgentBatch, obs_dim: usize) -> Result<AgentBatch, String> {
+    pub fn agent(&self, batch: AgentBatch, obs_dim: usize) -> Result<AgentBatch, StepError> {
         Ok(match self.rows(&batch.obs, obs_dim, &batch.states)? {
             Cow::Borrowed(_) => batch,
             Cow::Owned(obs) => AgentBatch { obs, ..batch },
@@ -198,13 +198,13 @@ pub fn density_ratios(
     agent: &AgentBatch,
     at_expert: bool,
     columns: &[usize],
-) -> Result<IterationRatios, String> {
+) -> Result<IterationRatios, StepError> {
     let d = expert.obs_dim();
     let fit_agent = |bandwidth: f64| {
-        Kde::fit_columns(&agent.obs, d, columns, bandwidth).map_err(|e| e.to_string())
+        Kde::fit_columns(&agent.obs, d, columns, bandwidth).map_err(StepError::Kde)
     };
     let guarded = |rho_e: &[f64], rho_a: &[f64]| {
-        firl::density_ratio(rho_e, rho_a, DEFAULT_DENSITY_EPS).map_err(|e| e.to_string())
+        firl::density_ratio(rho_e, rho_a, DEFAULT_DENSITY_EPS).map_err(StepError::Surrogate)
     };
     match ratio {
         Ratio::Kde {
@@ -213,12 +213,8 @@ pub fn density_ratios(
         } => {
             let kde_a = fit_agent(*bandwidth)?;
             ratios_at_both(agent, expert, at_expert, |obs| {
-                let rho_e = kde_e
-                    .density_columns(obs, d, columns)
-                    .map_err(|e| e.to_string())?;
-                let rho_a = kde_a
-                    .density_columns(obs, d, columns)
-                    .map_err(|e| e.to_string())?;
+                let rho_e = kde_e.density_columns(obs, d, columns)?;
+                let rho_a = kde_a.density_columns(obs, d, columns)?;
                 guarded(&rho_e, &rho_a)
             })
         }
@@ -231,8 +227,8 @@ fn ratios_at_both(
     agent: &AgentBatch,
     expert: &ExpertData,
     at_expert: bool,
-    mut ratios_at: impl FnMut(&[f32]) -> Result<Vec<f64>, String>,
-) -> Result<IterationRatios, String> {
+    mut ratios_at: impl FnMut(&[f32]) -> Result<Vec<f64>, StepError>,
+) -> Result<IterationRatios, StepError> {
     Ok(IterationRatios {
         agent: ratios_at(&agent.obs)?,
         expert: if at_expert {
@@ -253,35 +249,32 @@ pub fn coefficients(
     agent: &AgentBatch,
     ratios: Option<&IterationRatios>,
     drawn: &[usize],
-) -> Result<Coefficients, String> {
+) -> Result<Coefficients, StepError> {
     let n_agent = agent.lengths.iter().sum::<usize>();
     if agent.lengths.is_empty() || n_agent == 0 {
-        return Err("no agent trajectories".into());
+        return Err(StepError::NoAgentTrajectories);
     }
     let horizon = agent.lengths[0];
     match loss {
         Loss::FDivergence(div) => {
             if agent.lengths.iter().any(|&l| l != horizon) {
-                return Err("f-IRL needs agent trajectories of one fixed length".into());
+                return Err(StepError::UnequalAgentLengths);
             }
-            let ratios = ratios.ok_or("f-IRL needs density ratios")?;
+            let ratios = ratios.ok_or(StepError::NoRatios)?;
             let mut obs = agent.obs.clone();
             let mut u = ratios.agent.clone();
             if !drawn.is_empty() {
                 let starts = demonstration_starts(&expert.lengths);
                 if ratios.expert.len() != expert.n_states() {
-                    return Err("f-IRL has no density ratios at the demonstrations".into());
+                    return Err(StepError::NoExpertRatios);
                 }
                 for &k in drawn {
                     let (start, len) = match (starts.get(k), expert.lengths.get(k)) {
                         (Some(&start), Some(&len)) => (start, len),
-                        _ => return Err(format!("no demonstration {k}")),
+                        _ => return Err(StepError::NoDemonstration(k)),
                     };
                     if len != horizon {
-                        return Err(format!(
-                            "demonstration {k} has {len} steps, the agent's trajectories \
-                             {horizon}: f-IRL's covariance batch needs one length"
-                        ));
+                        return Err(StepError::DemonstrationLength { k, len, horizon });
                     }
                     let d = expert.obs_dim();
                     obs.extend_from_slice(&expert.obs[start * d..(start + len) * d]);
@@ -289,8 +282,7 @@ pub fn coefficients(
                 }
             }
             let n_traj = agent.lengths.len() + drawn.len();
-            let surrogate =
-                FirlSurrogate::new(div, &u, n_traj, horizon).map_err(|e| e.to_string())?;
+            let surrogate = FirlSurrogate::new(div, &u, n_traj, horizon)?;
             Ok(Coefficients {
                 obs,
                 states: Vec::new(),
@@ -299,8 +291,7 @@ pub fn coefficients(
         }
         Loss::MaxEnt => {
             let n_expert = expert.n_states();
-            let c =
-                MaxEntCoefficients::new(n_agent, n_expert, horizon).map_err(|e| e.to_string())?;
+            let c = MaxEntCoefficients::new(n_agent, n_expert, horizon)?;
             let mut coeffs = vec![c.agent; n_agent];
             coeffs.extend(std::iter::repeat(c.expert).take(n_expert));
             Ok(Coefficients {
@@ -418,12 +409,10 @@ impl RewardFn for StateReward<'_> {
 }
 
 impl super::final_policy::ScoredReward for StateReward<'_> {
-    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String> {
+    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, StepError> {
         let rows = (self.map).rows(&steps.obs, self.task_obs_dim, &steps.states)?;
         let mut r = vec![0.0f32; steps.n_states()];
-        (self.model)
-            .reward_batch(&rows, &[], &mut r)
-            .map_err(|e| e.to_string())?;
+        (self.model).reward_batch(&rows, &[], &mut r)?;
         Ok(r)
     }
 }
@@ -459,9 +448,9 @@ pub struct BaselineJob<'a> {
 pub fn train(
     job: &BaselineJob<'_>,
     watch: &mut JobWatch<'_, '_>,
-) -> Result<BaselineOutcome, String> {
+) -> Result<BaselineOutcome, StepError> {
     let s = job.settings;
-    let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let inner = ReacherDelivery::new(s.env.clone())?;
     match job.map {
         StateMap::Fingertip => train_in(job, &mut baseline_env(inner, s), watch),
         StateMap::Product(machine) => train_in(
@@ -479,7 +468,7 @@ fn train_in<E: JobEnv>(
     job: &BaselineJob<'_>,
     env: &mut E,
     watch: &mut JobWatch<'_, '_>,
-) -> Result<BaselineOutcome, String> {
+) -> Result<BaselineOutcome, StepError> {
     let s = job.settings;
     let map = job.map;
     let columns = map.columns();
@@ -487,11 +476,11 @@ fn train_in<E: JobEnv>(
     // The demonstrations as the reward reads them.
     let expert = map.expert(job.expert)?;
     let expert = expert.as_ref();
-    let mut reward = reward_model(s, job.seed, map).map_err(|e| e.to_string())?;
+    let mut reward = reward_model(s, job.seed, map)?;
     // f-IRL's ρ_E/ρ_θ: the expert's KDE, or a classifier on its own random stream.
     let d = expert.obs_dim();
     let expert_kde = Kde::fit_columns(&expert.obs, d, &columns, s.kde_bandwidth)
-        .map_err(|e| format!("expert KDE: {e}"))?;
+        .map_err(StepError::ExpertKde)?;
     let mut ratio = match job.loss {
         Loss::MaxEnt => None,
         Loss::FDivergence(_) => Some(Ratio::Kde {
@@ -499,8 +488,7 @@ fn train_in<E: JobEnv>(
             bandwidth: s.kde_bandwidth,
         }),
     };
-    let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)
-        .map_err(|e| e.to_string())?;
+    let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
     let mut rollouts = RolloutStream::new(job.seed);
     // f-IRL's demonstrations in the covariance batch (f-IRL only: MaxEnt's loss has them all).
     let drawn_per_step = match job.loss {
@@ -539,9 +527,7 @@ fn train_in<E: JobEnv>(
         let drawn = demo_draw.draw(n_demos, drawn_per_step);
         let mut c = coefficients(job.loss, expert, &batch, ratios.as_ref(), &drawn)?;
         let mut r = vec![0.0f32; c.coeffs.len()];
-        reward
-            .reward_batch(&c.obs, &c.states, &mut r)
-            .map_err(|e| e.to_string())?;
+        reward.reward_batch(&c.obs, &c.states, &mut r)?;
         let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
         for step in 0..s.reward_steps_per_iteration.max(1) {
             if step > 0 && drawn_per_step > 0 {
@@ -550,7 +536,7 @@ fn train_in<E: JobEnv>(
             }
             reward
                 .update(&c.obs, &c.states, &c.coeffs)
-                .map_err(|e| format!("reward update: {e}"))?;
+                .map_err(StepError::RewardUpdate)?;
         }
 
         watch.iteration_done(iteration, sac.env_steps(), &mut sac.agent, env, Some(facts))?;

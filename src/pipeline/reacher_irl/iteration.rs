@@ -1,8 +1,80 @@
 //! What one IRL iteration hands on: the batch of its reward update ([`Coefficients`]), the
 //! ground-truth evaluation it is watched with ([`MetricsRow`], [`JobProgress`]) and, for SMIRL,
-//! how the weights moved ([`RewardTraceRow`]).
+//! how the weights moved ([`RewardTraceRow`]); and why a step of an IRL loop fails
+//! ([`StepError`]).
 
+use super::episodes::EpisodeError;
+use super::lockstep::LockstepError;
+use crate::env::reacher::{ConfigError, ReacherError};
 use crate::env::reacher_task::BranchTally;
+use crate::irl::firl::SurrogateError;
+use crate::irl::kde::KdeError;
+use crate::irl::reward::RewardError;
+use crate::rl::crm::CrmError;
+use crate::rl::sac::{ConfigError as SacConfigError, SacError};
+
+/// A step of an IRL job's loop that failed: its episodes, SAC, the reward, the density
+/// ratios or the batch of a reward update.
+#[derive(Debug, thiserror::Error)]
+pub enum StepError {
+    #[error(transparent)]
+    Episode(#[from] EpisodeError),
+    #[error(transparent)]
+    Lockstep(#[from] LockstepError),
+    #[error(transparent)]
+    Environment(#[from] ReacherError),
+    /// The run's environment config names no task layout.
+    #[error(transparent)]
+    TaskLayout(#[from] ConfigError),
+    #[error(transparent)]
+    SacConfig(#[from] SacConfigError),
+    #[error("SAC: {0}")]
+    Sac(SacError),
+    #[error("the reset agent: {0}")]
+    ResetAgent(SacError),
+    #[error(transparent)]
+    Counterfactual(#[from] CrmError),
+    #[error(transparent)]
+    Reward(#[from] RewardError),
+    #[error("reward update: {0}")]
+    RewardUpdate(RewardError),
+    #[error("expert KDE: {0}")]
+    ExpertKde(KdeError),
+    /// The agent's density (f-IRL's ratio).
+    #[error(transparent)]
+    Kde(#[from] KdeError),
+    #[error(transparent)]
+    Surrogate(#[from] SurrogateError),
+    #[error("{states} learned-machine states for {rows} observations")]
+    StateCount { states: usize, rows: usize },
+    #[error("state {state} is not a state of the {n}-state machine")]
+    UnknownState { state: u32, n: usize },
+    #[error("no agent trajectories")]
+    NoAgentTrajectories,
+    #[error("f-IRL needs agent trajectories of one fixed length")]
+    UnequalAgentLengths,
+    #[error("f-IRL needs density ratios")]
+    NoRatios,
+    #[error("f-IRL has no density ratios at the demonstrations")]
+    NoExpertRatios,
+    #[error("no demonstration {0}")]
+    NoDemonstration(usize),
+    #[error(
+        "demonstration {k} has {len} steps, the agent's trajectories {horizon}: f-IRL's \
+         covariance batch needs one length"
+    )]
+    DemonstrationLength {
+        k: usize,
+        len: usize,
+        horizon: usize,
+    },
+    #[error("{rewards} learned rewards for {steps} selection steps")]
+    SelectionRewards { rewards: usize, steps: usize },
+    #[error("the selection cut reads learned-machine states, and this agent has none")]
+    CutWithoutStates,
+    #[error("{labels} label sets for {steps} selection steps")]
+    SelectionLabels { labels: usize, steps: usize },
+}
 
 /// One row of the metrics table: the ground-truth evaluation after `iteration` IRL
 /// iterations (0 = the untrained policy).

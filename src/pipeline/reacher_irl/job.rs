@@ -8,7 +8,7 @@ use super::evaluation::{final_set_episodes, FinalSetScore, GroundTruth, JobWatch
 use super::expert_data::ExpertData;
 use super::final_policy::FinalPolicy;
 use super::firl::{self, BaselineJob, BaselineOutcome, Loss, StateMap};
-use super::iteration::{JobProgress, MetricsRow, RewardTraceRow};
+use super::iteration::{JobProgress, MetricsRow, RewardTraceRow, StepError};
 use super::lockstep::Lockstep;
 use super::smirl::{self, Features, SmirlJob};
 use super::Algo;
@@ -47,6 +47,14 @@ pub enum JobError {
         algo: Algo,
         seed: u64,
         problem: String,
+    },
+    /// A step of the algorithm's loop failed.
+    #[error("{algo} seed {seed}: {problem}")]
+    Step {
+        algo: Algo,
+        seed: u64,
+        #[source]
+        problem: StepError,
     },
 }
 
@@ -159,9 +167,17 @@ pub fn run_job(
             };
             firl::train(&job, &mut watch).map(boxed)
         }
-        Algo::Apprenticeship => Err("apprenticeship learning is an Office algorithm".into()),
+        Algo::Apprenticeship => {
+            return Err(fail(
+                "apprenticeship learning is an Office algorithm".into(),
+            ))
+        }
     }
-    .map_err(fail)?;
+    .map_err(|problem| JobError::Step {
+        algo,
+        seed,
+        problem,
+    })?;
     if let Some(path) = reward_path {
         reward
             .save(path)

@@ -10,12 +10,32 @@
 //! handed back in episode order.
 
 use super::episodes::{
-    AgentBatch, EpisodeLog, EpisodeOutcome, EpisodePlay, EpisodeSpec, GroundTruthTask, JobEnv,
-    NoLog, RecordedEpisode,
+    AgentBatch, EpisodeError, EpisodeLog, EpisodeOutcome, EpisodePlay, EpisodeSpec,
+    GroundTruthTask, JobEnv, NoLog, RecordedEpisode,
 };
 use crate::irl::smirl::FeatureMap;
 use crate::nn::Mlp;
 use crate::rl::sac::{ActMode, ActWorkspace};
+
+/// Episodes that cannot be played in lockstep, or one of them failing.
+#[derive(Debug, thiserror::Error)]
+pub enum LockstepError {
+    #[error(transparent)]
+    Episode(#[from] EpisodeError),
+    #[error("lockstep episodes must share one action mode")]
+    MixedModes,
+    #[error("lockstep sampling needs {per_episode} noise values for each of {episodes} episodes")]
+    NoiseLength { per_episode: usize, episodes: usize },
+    #[error("this environment cannot be copied for lockstep play")]
+    NotCopyable,
+    #[error("a rollout thread panicked")]
+    ThreadPanicked,
+    #[error(
+        "the episode of reset seed {reset_seed} ended after {steps} steps, before the time \
+         limit: sampled lockstep play needs episodes of the full length"
+    )]
+    EndedEarly { reset_seed: u64, steps: usize },
+}
 
 /// Environments one thread steps together by default: wide enough that the actor's weights are
 /// packed once for many observations, narrow enough that the environments' MuJoCo data stay
@@ -75,13 +95,13 @@ pub fn play_lockstep<'t, E: JobEnv>(
     noise: Option<&[f32]>,
     plan: Lockstep<'_>,
     keep: Keep,
-) -> Result<Vec<PlayedEpisode>, String> {
+) -> Result<Vec<PlayedEpisode>, LockstepError> {
     let Some(first) = specs.first() else {
         return Ok(Vec::new());
     };
     let mode = first.mode;
     if specs.iter().any(|s| s.mode != mode) {
-        return Err("lockstep episodes must share one action mode".into());
+        return Err(LockstepError::MixedModes);
     }
     let max_steps = proto.reacher().config().max_steps;
     let per_episode = max_steps * proto.act_dim();
@@ -89,10 +109,10 @@ pub fn play_lockstep<'t, E: JobEnv>(
         (ActMode::Mean, _) => None,
         (ActMode::Sample, Some(n)) if n.len() == specs.len() * per_episode => Some(n),
         (ActMode::Sample, _) => {
-            return Err(format!(
-                "lockstep sampling needs {per_episode} noise values for each of {} episodes",
-                specs.len()
-            ))
+            return Err(LockstepError::NoiseLength {
+                per_episode,
+                episodes: specs.len(),
+            })
         }
     };
     let threads = (plan.threads)().clamp(1, specs.len());
@@ -106,7 +126,7 @@ pub fn play_lockstep<'t, E: JobEnv>(
             (0..width)
                 .map(|_| proto.fresh())
                 .collect::<Option<Vec<E>>>()
-                .ok_or("this environment cannot be copied for lockstep play")?,
+                .ok_or(LockstepError::NotCopyable)?,
         );
     }
     let play_chunk = |i: usize, envs: Vec<E>| {
@@ -119,7 +139,7 @@ pub fn play_lockstep<'t, E: JobEnv>(
     if threads == 1 {
         return play_chunk(0, own);
     }
-    let results: Vec<Result<Vec<PlayedEpisode>, String>> = std::thread::scope(|scope| {
+    let results: Vec<Result<Vec<PlayedEpisode>, LockstepError>> = std::thread::scope(|scope| {
         let handles: Vec<_> = envs
             .enumerate()
             .map(|(i, e)| scope.spawn(move || play_chunk(i + 1, e)))
@@ -128,7 +148,7 @@ pub fn play_lockstep<'t, E: JobEnv>(
         for h in handles {
             results.push(
                 h.join()
-                    .unwrap_or_else(|_| Err("a rollout thread panicked".into())),
+                    .unwrap_or_else(|_| Err(LockstepError::ThreadPanicked)),
             );
         }
         results
@@ -157,7 +177,7 @@ fn start_next<'t, 'p, E: JobEnv>(
     obs: &mut [f32],
     started: &mut usize,
     keep: Keep,
-) -> Result<(), String> {
+) -> Result<(), LockstepError> {
     slot.episode = None;
     if *started < specs.len() {
         let j = *started;
@@ -179,7 +199,7 @@ fn play_on_thread<'t, E: JobEnv>(
     specs: &[EpisodeSpec<'_>],
     noise: Option<&[f32]>,
     keep: Keep,
-) -> Result<Vec<PlayedEpisode>, String> {
+) -> Result<Vec<PlayedEpisode>, LockstepError> {
     let width = envs.len();
     let Some(proto) = envs.first() else {
         return Ok(Vec::new());
@@ -243,12 +263,10 @@ fn play_on_thread<'t, E: JobEnv>(
                 let j = *j;
                 let (_, play) = slot.episode.take().expect("the slot plays an episode");
                 if noise.is_some() && play.steps() * act_dim != per_episode {
-                    return Err(format!(
-                        "the episode of reset seed {} ended after {} steps, before the time \
-                         limit: sampled lockstep play needs episodes of the full length",
-                        specs[j].reset_seed,
-                        play.steps()
-                    ));
+                    return Err(LockstepError::EndedEarly {
+                        reset_seed: specs[j].reset_seed,
+                        steps: play.steps(),
+                    });
                 }
                 let length = play.steps();
                 let log: &mut dyn EpisodeLog = if keep.log { &mut slot.log } else { &mut NoLog };

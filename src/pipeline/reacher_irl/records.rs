@@ -26,6 +26,11 @@ pub enum PipelineError {
     Run(String),
 }
 
+/// A plan (`prepare.json`) that names an algorithm this binary does not know.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UnknownAlgo(pub String);
+
 /// Facts about the learned machine.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct RmFacts {
@@ -120,12 +125,13 @@ pub struct Prepared {
 impl Prepared {
     /// The (algorithm, seed) jobs, in the order `--index` counts them: algorithms outer,
     /// seeds inner.
-    pub fn jobs(&self) -> Result<Vec<(Algo, u64)>, String> {
+    pub fn jobs(&self) -> Result<Vec<(Algo, u64)>, UnknownAlgo> {
         let algos = self
             .algos
             .iter()
             .map(|a| Algo::parse_in(a, &Algo::REACHER_NAMED))
-            .collect::<Result<Vec<_>, _>>()?;
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(UnknownAlgo)?;
         Ok(algos
             .iter()
             .flat_map(|&a| self.seeds.iter().map(move |&s| (a, s)))

@@ -13,7 +13,8 @@ use super::episodes::JobEnv;
 use super::evaluation::{Evaluation, GroundTruth};
 use super::final_policy::{learned_return, ScoredReward};
 use super::firl::{self, StateReward};
-use super::run::PreparedRun;
+use super::iteration::StepError;
+use super::run::{MissingMachine, PreparedRun};
 use super::smirl::{
     counterfactual_states, product_env, shaping_potential, Features, ProductReward,
 };
@@ -188,6 +189,13 @@ pub fn reward_path(dir: &Path, algo: Algo, seed: u64) -> PathBuf {
 pub enum RetrainError {
     #[error("{0}")]
     Usage(String),
+    /// The run's files lack what the retraining reads.
+    #[error(transparent)]
+    Input(#[from] MissingMachine),
+    #[error("the run has no learned machine")]
+    NoMachine,
+    #[error(transparent)]
+    Step(#[from] StepError),
 }
 
 /// A job's final reward, loaded and checked against its run: everything a retraining needs
@@ -255,7 +263,7 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
         )));
     }
     let reward = if r.algo.uses_rm() {
-        let (machine, _) = run.inputs_of(r.algo).map_err(usage)?;
+        let (machine, _) = run.inputs_of(r.algo).map_err(|e| usage(e.to_string()))?;
         let machine = machine.ok_or_else(|| usage("the run has no learned machine".into()))?;
         let features = if r.algo == Algo::SmirlSmooth {
             Features::Smooth
@@ -308,7 +316,7 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
 pub fn retrain(
     loaded: LoadedReward<'_>,
     mut on_point: impl FnMut(&RetrainPoint),
-) -> Result<Vec<RetrainPoint>, String> {
+) -> Result<Vec<RetrainPoint>, RetrainError> {
     let LoadedReward {
         run,
         settings: s,
@@ -316,9 +324,9 @@ pub fn retrain(
         steps,
         reward,
     } = loaded;
-    let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let mut schedule = ReacherDelivery::new(s.env.clone()).map_err(StepError::from)?;
     let judge = GroundTruth::new(&run.perfect, &mut schedule, r.seed, s.eval_episodes);
-    let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let inner = ReacherDelivery::new(s.env.clone()).map_err(StepError::from)?;
     let training = Training {
         sac: &s.sac,
         sac_seed: r.sac_seed,
@@ -328,13 +336,15 @@ pub fn retrain(
     match reward {
         Reward::Linear(mut reward) => {
             let machine = run
-                .inputs_of(r.algo)?
+                .inputs_of(r.algo)
+                .map_err(RetrainError::Input)?
                 .0
-                .ok_or("the run has no learned machine")?;
+                .ok_or(RetrainError::NoMachine)?;
             let mut env = product_env(inner, machine, &s);
-            let counterfactual = counterfactual_states(&env, &s)?;
+            let counterfactual = counterfactual_states(&env, &s).map_err(StepError::from)?;
             let potential =
-                shaping_potential(reward.features(), machine.n_states(), &reward.params(), &s)?;
+                shaping_potential(reward.features(), machine.n_states(), &reward.params(), &s)
+                    .map_err(StepError::from)?;
             let gamma = f64::from(s.sac.gamma);
             let shaping = potential.as_ref().map(|p| (p, gamma));
             let mut sac_reward = ProductReward::new(&mut reward, counterfactual.as_ref(), shaping);
@@ -379,9 +389,9 @@ impl Training<'_> {
         env: &mut E,
         reward: &mut R,
         on_point: &mut impl FnMut(&RetrainPoint),
-    ) -> Result<Vec<RetrainPoint>, String> {
+    ) -> Result<Vec<RetrainPoint>, RetrainError> {
         let mut sac = SacTrainer::new(self.sac, env.obs_dim(), env.act_dim(), self.sac_seed)
-            .map_err(|e| e.to_string())?;
+            .map_err(StepError::from)?;
         let mut points = Vec::new();
         for k in 1..=self.segments.evaluations {
             let mut sums = SegmentSums::default();
@@ -392,11 +402,11 @@ impl Training<'_> {
             };
             let n = self.segments.end(k).saturating_sub(sac.env_steps());
             sac.train_observed(env, reward, n, None, &mut keep)
-                .map_err(|e| format!("SAC: {e}"))?;
+                .map_err(StepError::Sac)?;
             // Evaluation resets the environment: finish SAC's episode first.
             while !sac.at_episode_boundary() {
                 sac.train_observed(env, reward, 1, None, &mut keep)
-                    .map_err(|e| format!("SAC: {e}"))?;
+                    .map_err(StepError::Sac)?;
             }
             let point = RetrainPoint {
                 env_steps: sac.env_steps(),

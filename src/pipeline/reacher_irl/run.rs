@@ -20,11 +20,11 @@
 //!   `rewards/<algo>_seed<S>.trace.csv`, the weights and data gradient of every IRL iteration.
 //! - `logs/demos.mcap`, `logs/<algo>_seed<S>.mcap` — demos and sampled agent/eval episodes.
 
-use super::config::{DemoSource, IrlRunConfig, SmirlMachine};
+use super::config::{DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
 use super::demos::{load_expert, make_demos, DemoError};
 use super::expert_data::ExpertData;
 use super::iteration::JobProgress;
-use super::job::{run_job, JobInputs, JobResult};
+use super::job::{run_job, JobError, JobInputs, JobResult};
 use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
@@ -34,9 +34,10 @@ use super::smirl::{
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;
+use crate::env::reacher::ConfigError;
 use crate::env::reacher_task::{Branch, ReacherTask};
 use crate::input_file::{read_text, MAX_DATA_FILE_BYTES};
-use crate::log::{LogOptions, RolloutLogger, RunHeader};
+use crate::log::{LogError, LogOptions, RolloutLogger, RunHeader};
 use crate::output::OutputDir;
 use crate::pipeline::reacher_expert::Demo;
 use crate::pipeline::reacher_expert::{branch_tally, ExpertPolicy};
@@ -366,17 +367,16 @@ fn learn_and_report(
     seed: u64,
 ) -> Result<(RewardMachine, RmFacts, String), PipelineError> {
     let config = settings;
-    let lrm = lrm_config(config, seed, algo).map_err(PipelineError::Run)?;
+    let lrm = lrm_config(config, seed, algo).map_err(|e| PipelineError::Run(e.to_string()))?;
     let (rm, cost, secs) = match config.smirl_machine {
-        SmirlMachine::Learned => {
-            learn_machine(demos, config, seed, algo).map_err(PipelineError::Run)?
-        }
+        SmirlMachine::Learned => learn_machine(demos, config, seed, algo)
+            .map_err(|e| PipelineError::Run(e.to_string()))?,
         SmirlMachine::Task | SmirlMachine::OneState => {
             let rm = match config.smirl_machine {
                 SmirlMachine::Task => task_machine(perfect),
                 _ => one_state_machine(perfect.vocab()),
             }
-            .map_err(PipelineError::Run)?;
+            .map_err(|e| PipelineError::Run(e.to_string()))?;
             let cost = trace_cost(&rm, &label_traces(demos), trace_reading(&lrm))
                 .map_err(|e| PipelineError::Run(format!("LRM cost of the task's machine: {e}")))?;
             (rm, cost, 0.0)
@@ -467,7 +467,8 @@ fn selection_cut_report(
     if !config.selection_cut() {
         return Ok(String::new());
     }
-    let seen = seen_after_events(rm, expert_data, config).map_err(PipelineError::Run)?;
+    let seen = seen_after_events(rm, expert_data, config)
+        .map_err(|e| PipelineError::Run(e.to_string()))?;
     let per_state: Vec<String> = (0..rm.n_states())
         .map(|u| match seen.in_state(u) {
             l if l.is_empty() => format!("{u}: -"),
@@ -510,7 +511,7 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
         parse_rm(&read(name)?, &path.display().to_string()).map_err(|e| usage(e.to_string()))
     };
     let perfect = rm_file("rm/perfect.txt")?;
-    let jobs = prepared.jobs().map_err(usage)?;
+    let jobs = prepared.jobs().map_err(usage_of)?;
     let needs = |machine: Machine| jobs.iter().any(|&(a, _)| Machine::of(a) == Some(machine));
     let machine_file = |machine: Machine| -> Result<Option<RewardMachine>, PipelineError> {
         needs(machine)
@@ -547,11 +548,68 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
     })
 }
 
+/// A prepared run without the machine (and its annotated demonstrations) an algorithm reads.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: no {file} for {algo}", dir.display())]
+pub struct MissingMachine {
+    pub dir: PathBuf,
+    pub file: &'static str,
+    pub algo: Algo,
+}
+
+/// A job record (`jobs/<algo>_seed<S>.json`) that cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error("{}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    Parse {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
+}
+
+/// One job of a prepared run that failed, before, while or after it ran.
+#[derive(Debug, thiserror::Error)]
+pub enum JobRunError {
+    #[error("{}: {source}", path.display())]
+    CreateDir {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    MissingMachine(#[from] MissingMachine),
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    /// The algorithm's schedule in the run's config.
+    #[error(transparent)]
+    Config(#[from] IrlConfigError),
+    #[error(transparent)]
+    TaskLayout(#[from] ConfigError),
+    #[error(transparent)]
+    Log(#[from] LogError),
+    #[error(transparent)]
+    Job(#[from] JobError),
+    /// Writing the job's files (the log header, the reward trace, the record).
+    #[error(transparent)]
+    Write(#[from] PipelineError),
+}
+
 impl PreparedRun {
     /// The learned machine `algo` reads (none for the baselines) and the demonstrations as it
     /// reads them (annotated with that machine's states).
-    pub fn inputs_of(&self, algo: Algo) -> Result<(Option<&RewardMachine>, &ExpertData), String> {
-        let missing = |file: &str| format!("{}: no {file} for {algo}", self.dir.display());
+    pub fn inputs_of(
+        &self,
+        algo: Algo,
+    ) -> Result<(Option<&RewardMachine>, &ExpertData), MissingMachine> {
+        let missing = |file: &'static str| MissingMachine {
+            dir: self.dir.clone(),
+            file,
+            algo,
+        };
         match Machine::of(algo) {
             None => Ok((None, &self.expert)),
             Some(Machine::Smirl) => match &self.learned {
@@ -567,7 +625,7 @@ impl PreparedRun {
 
     /// The job `(algo, seed)` of this run, or a usage error naming what is not in the plan.
     pub fn job(&self, algo: Algo, seed: u64) -> Result<(Algo, u64), PipelineError> {
-        let jobs = self.prepared.jobs().map_err(PipelineError::Usage)?;
+        let jobs = self.prepared.jobs().map_err(usage_of)?;
         if !jobs.iter().any(|&(a, _)| a == algo) {
             return Err(PipelineError::Usage(format!(
                 "{}: algorithm '{algo}' is not in this run (prepared: {})",
@@ -588,7 +646,7 @@ impl PreparedRun {
 
     /// The `index`-th job (algorithms outer, seeds inner), as `reacher job --index` counts.
     pub fn job_at(&self, index: usize) -> Result<(Algo, u64), PipelineError> {
-        let jobs = self.prepared.jobs().map_err(PipelineError::Usage)?;
+        let jobs = self.prepared.jobs().map_err(usage_of)?;
         jobs.get(index).copied().ok_or_else(|| {
             PipelineError::Usage(format!(
                 "{}: job index {index} is outside 0..{} (the run has {} jobs)",
@@ -617,16 +675,17 @@ impl PreparedRun {
         seed: u64,
         threads: &(dyn Fn() -> usize + Sync),
         progress: &(dyn Fn(JobProgress) + Sync),
-    ) -> Result<(JobRecord, bool), String> {
+    ) -> Result<(JobRecord, bool), JobRunError> {
         let record_path = self.record_path(algo, seed);
         if record_path.is_file() {
-            return read_record(&record_path).map(|r| (r, false));
+            return Ok((read_record(&record_path)?, false));
         }
         // A run directory checked out from git has no `logs/` (ignored: the MCAP files are
         // large) and, before its first job is committed, no `rewards/` or `jobs/`.
         for sub in ["rewards", "logs", "jobs"] {
             let sub = self.dir.join(sub);
-            std::fs::create_dir_all(&sub).map_err(|e| format!("{}: {e}", sub.display()))?;
+            std::fs::create_dir_all(&sub)
+                .map_err(|source| JobRunError::CreateDir { path: sub, source })?;
         }
         let (learned, expert) = self.inputs_of(algo)?;
         let result = run_one(
@@ -652,8 +711,7 @@ impl PreparedRun {
         write_file(
             &record_path,
             &(serde_json::to_string(&record).expect("JSON serialises") + "\n"),
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         Ok((record, true))
     }
 
@@ -662,17 +720,27 @@ impl PreparedRun {
         Ok(self
             .prepared
             .jobs()
-            .map_err(PipelineError::Usage)?
+            .map_err(usage_of)?
             .into_iter()
             .filter(|&(a, s)| !self.record_path(a, s).is_file())
             .collect())
     }
 }
 
-fn read_record(path: &Path) -> Result<JobRecord, String> {
-    let text =
-        read_text(path, MAX_DATA_FILE_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+/// A usage error with the message of `e`.
+fn usage_of(e: impl std::fmt::Display) -> PipelineError {
+    PipelineError::Usage(e.to_string())
+}
+
+fn read_record(path: &Path) -> Result<JobRecord, RecordError> {
+    let text = read_text(path, MAX_DATA_FILE_BYTES).map_err(|source| RecordError::Read {
+        path: path.into(),
+        source,
+    })?;
+    serde_json::from_str(&text).map_err(|source| RecordError::Parse {
+        path: path.into(),
+        source,
+    })
 }
 
 /// Phase 3 (`reacher aggregate`): metrics, summary, plots and `run.json` from the finished
@@ -692,16 +760,16 @@ pub fn aggregate(
              --partial)",
             run.dir.display(),
             missing.len(),
-            run.prepared.jobs().map_err(PipelineError::Usage)?.len(),
+            run.prepared.jobs().map_err(usage_of)?.len(),
             names.join(", ")
         )));
     }
     let mut records = Vec::new();
-    for (algo, seed) in run.prepared.jobs().map_err(PipelineError::Usage)? {
+    for (algo, seed) in run.prepared.jobs().map_err(usage_of)? {
         if missing.contains(&(algo, seed)) {
             continue;
         }
-        let record = read_record(&run.record_path(algo, seed)).map_err(PipelineError::Usage)?;
+        let record = read_record(&run.record_path(algo, seed)).map_err(usage_of)?;
         records.push((algo, record));
     }
     if records.is_empty() {
@@ -734,7 +802,7 @@ pub fn run_pipeline(
     let run = open_run(&partial)?;
 
     observer.phase("irl");
-    let jobs = run.prepared.jobs().map_err(PipelineError::Run)?;
+    let jobs = (run.prepared.jobs()).map_err(|e| PipelineError::Run(e.to_string()))?;
     let labels: Vec<String> = jobs.iter().map(|(a, s)| format!("{a} seed {s}")).collect();
     observer.jobs(
         &labels,
@@ -763,7 +831,7 @@ pub fn run_pipeline(
                     Err(e) => {
                         failures
                             .lock()
-                            .expect("no job panics while holding the lock")[i] = Some(e)
+                            .expect("no job panics while holding the lock")[i] = Some(e.to_string())
                     }
                 }
             });
@@ -804,28 +872,24 @@ fn run_one(
     dir: &Path,
     threads: &(dyn Fn() -> usize + Sync),
     progress: &(dyn Fn(JobProgress) + Sync),
-) -> Result<JobResult, String> {
+) -> Result<JobResult, JobRunError> {
     // The algorithm's own schedule, if the config gives it one.
-    let config = &config.for_algo(algo).map_err(|e| e.to_string())?;
+    let config = &config.for_algo(algo)?;
     let stem = job_stem(algo, seed);
     let reward_path = dir.join("rewards").join(format!(
         "{stem}.{}",
         if algo.uses_rm() { "json" } else { "bin" }
     ));
     let mut logger = if config.log_every_nth_episode > 0 {
-        let header = log_header(task, seed, config, &format!("irl {algo}"), perfect)
-            .map_err(|e| e.to_string())?;
-        Some(
-            RolloutLogger::create(
-                &dir.join("logs").join(format!("{stem}.mcap")),
-                header,
-                LogOptions {
-                    every_nth_episode: config.log_every_nth_episode,
-                    ..LogOptions::default()
-                },
-            )
-            .map_err(|e| e.to_string())?,
-        )
+        let header = log_header(task, seed, config, &format!("irl {algo}"), perfect)?;
+        Some(RolloutLogger::create(
+            &dir.join("logs").join(format!("{stem}.mcap")),
+            header,
+            LogOptions {
+                every_nth_episode: config.log_every_nth_episode,
+                ..LogOptions::default()
+            },
+        )?)
     } else {
         None
     };
@@ -842,20 +906,17 @@ fn run_one(
             threads,
         },
     };
-    let result = run_job(&inputs, logger.as_mut(), progress).map_err(|e| e.to_string())?;
+    let result = run_job(&inputs, logger.as_mut(), progress)?;
     if let Some(l) = logger {
-        l.finish().map_err(|e| e.to_string())?;
+        l.finish()?;
     }
     if !result.reward_trace.is_empty() {
         let path = dir.join("rewards").join(format!("{stem}.trace.csv"));
-        let letters = (config.env.task_layout())
-            .map_err(|e| e.to_string())?
-            .letters();
+        let letters = (config.env.task_layout())?.letters();
         write_file(
             &path,
             &reward_trace_csv(&result.reward_trace, &letters).to_csv(),
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
     }
     Ok(result)
 }

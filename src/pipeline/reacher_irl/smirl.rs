@@ -30,10 +30,10 @@ use super::episodes::AgentBatch;
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::expert_data::ExpertData;
 use super::final_policy::{self, FinalPhase, FinalPolicy};
-use super::iteration::{Coefficients, RewardTraceRow};
+use super::iteration::{Coefficients, RewardTraceRow, StepError};
 use crate::env::layout::{TaskLayout, OBS_JOINT_VEL};
 use crate::env::product::ProductEnv;
-use crate::env::reacher::ReacherDelivery;
+use crate::env::reacher::{ConfigError, ReacherDelivery};
 use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::seen_after_events::SeenAfterEvents;
@@ -43,19 +43,29 @@ use crate::irl::smirl::{
 };
 use crate::irl::Algo;
 use crate::pipeline::reacher_expert::Demo;
-use crate::rl::crm::{hot_index, CounterfactualRm};
+use crate::rl::crm::{hot_index, CounterfactualRm, CrmError};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{RewardFn, RewardFnError, SacTrainer};
-use crate::rm::lrm::{learn_rm, Guards, LabelTrace, LrmConfig};
-use crate::rm::{LabelSet, RewardMachine, Transition, Vocabulary};
+use crate::rm::lrm::{learn_rm, Guards, LabelTrace, LrmConfig, LrmError};
+use crate::rm::{LabelSet, RewardMachine, RmError, Transition, Vocabulary};
+
+/// A machine for SMIRL that cannot be made (steps 1 and 2).
+#[derive(Debug, thiserror::Error)]
+pub enum MachineError {
+    /// The run's environment config names no task layout.
+    #[error(transparent)]
+    TaskLayout(#[from] ConfigError),
+    #[error("LRM: {0}")]
+    Lrm(LrmError),
+    #[error("the task's machine: {0}")]
+    Task(RmError),
+    #[error("the one-state machine: {0}")]
+    OneState(RmError),
+}
 
 /// The task layout a run's environment config carries (`ReacherTask::env_config` sets it).
-fn task_layout(config: &IrlRunConfig) -> Result<&TaskLayout, String> {
-    config
-        .env
-        .task_layout()
-        .map(|l| &**l)
-        .map_err(|e| e.to_string())
+fn task_layout(config: &IrlRunConfig) -> Result<&TaskLayout, ConfigError> {
+    config.env.task_layout().map(|l| &**l)
 }
 
 /// Step 1: the machine learned from the demonstrations' label traces by `algo`'s learner
@@ -65,11 +75,11 @@ pub fn learn_machine(
     config: &IrlRunConfig,
     seed: u64,
     algo: Algo,
-) -> Result<(RewardMachine, f64, f64), String> {
+) -> Result<(RewardMachine, f64, f64), MachineError> {
     let vocab = task_layout(config)?.vocabulary();
     let traces = label_traces(demos);
     let cfg = lrm_config(config, seed, algo)?;
-    let learned = learn_rm(&vocab, &traces, &cfg).map_err(|e| format!("LRM: {e}"))?;
+    let learned = learn_rm(&vocab, &traces, &cfg).map_err(MachineError::Lrm)?;
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
 }
 
@@ -77,7 +87,7 @@ pub fn learn_machine(
 /// machine's states and guards with no goal or failure state and no rewards — what a learned
 /// machine looks like — so that episodes run on past the goal as they do with LRM's machine
 /// and only the machine's shape differs.
-pub fn task_machine(perfect: &RewardMachine) -> Result<RewardMachine, String> {
+pub fn task_machine(perfect: &RewardMachine) -> Result<RewardMachine, MachineError> {
     let transitions = perfect
         .transitions()
         .iter()
@@ -94,15 +104,14 @@ pub fn task_machine(perfect: &RewardMachine) -> Result<RewardMachine, String> {
         &[],
         transitions,
     )
-    .map_err(|e| format!("the task's machine: {e}"))
+    .map_err(MachineError::Task)
 }
 
 /// The machine SMIRL reads under `smirl_machine = "one_state"`: one state, no transitions, so
 /// δ_r(u, o) = w_0ᵀ φ(o) and the agent's input carries no machine state; every other mechanism
 /// runs as with LRM's machine (the control that tells what the machine adds).
-pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, String> {
-    RewardMachine::new(vocab.clone(), 1, 0, &[], &[], Vec::new())
-        .map_err(|e| format!("the one-state machine: {e}"))
+pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, MachineError> {
+    RewardMachine::new(vocab.clone(), 1, 0, &[], &[], Vec::new()).map_err(MachineError::OneState)
 }
 
 /// The learner of `algo` on a run (`seed`: the search's; size and budget from `config`; the
@@ -114,7 +123,7 @@ pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, String> {
 /// unpredicted events and event stutter (`LrmConfig::predict_events`,
 /// `LrmConfig::event_stutter`), commuted and initial events (`LrmConfig::commute_events`,
 /// `LrmConfig::initial_events`) and tree guards (`Guards::Tree`).
-pub fn lrm_config(config: &IrlRunConfig, seed: u64, algo: Algo) -> Result<LrmConfig, String> {
+pub fn lrm_config(config: &IrlRunConfig, seed: u64, algo: Algo) -> Result<LrmConfig, ConfigError> {
     let events = task_layout(config)?.events();
     let cfg = LrmConfig {
         max_states: config.lrm_max_states,
@@ -242,7 +251,7 @@ pub enum Features {
 
 impl Features {
     pub fn map(self, settings: &IrlRunConfig) -> Result<FeatureMap, RewardError> {
-        let layout = task_layout(settings).map_err(RewardError::Config)?;
+        let layout = task_layout(settings).map_err(|e| RewardError::Config(e.to_string()))?;
         match self {
             Features::Labels => Ok(FeatureMap::reacher_labels(layout)),
             Features::Smooth => FeatureMap::reacher_smooth(layout, settings.smooth_sigma),
@@ -377,13 +386,11 @@ impl RewardFn for ProductReward<'_> {
 }
 
 impl super::final_policy::ScoredReward for ProductReward<'_> {
-    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, String> {
+    fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, StepError> {
         let features = self.model.features();
         features.step_rows(&steps.obs, &steps.labels_before, &mut self.rows);
         let mut r = vec![0.0f32; steps.n_states()];
-        (self.model)
-            .reward_batch(&self.rows, &steps.states, &mut r)
-            .map_err(|e| e.to_string())?;
+        (self.model).reward_batch(&self.rows, &steps.states, &mut r)?;
         Ok(r)
     }
 }
@@ -408,14 +415,13 @@ pub(super) fn product_env(
 pub(super) fn counterfactual_states(
     env: &ProductEnv<ReacherDelivery>,
     s: &IrlRunConfig,
-) -> Result<Option<CounterfactualRm>, String> {
+) -> Result<Option<CounterfactualRm>, CrmError> {
     (s.counterfactual() > 0.0)
         .then(|| {
             CounterfactualRm::new(env.rm().clone(), env.inner().obs_dim(), s.counterfactual())
                 .map(|crm| crm.with_trailing_dim(env.trailing_dim()))
         })
         .transpose()
-        .map_err(|e| e.to_string())
 }
 
 /// The shaping potential of the weights `w` (`[smirl] shaping` > 0; 1 in the standard profile).
@@ -424,11 +430,10 @@ pub(super) fn shaping_potential(
     n_states: usize,
     w: &[f32],
     s: &IrlRunConfig,
-) -> Result<Option<LearnedSubgoalPotential>, String> {
+) -> Result<Option<LearnedSubgoalPotential>, RewardError> {
     (s.smirl_shaping > 0.0)
         .then(|| LearnedSubgoalPotential::from_weights(features, n_states, w, s.smirl_shaping))
         .transpose()
-        .map_err(|e| e.to_string())
 }
 
 /// Step 4's cut ([`IrlRunConfig::selection_cut`]): the region touches the demonstrations make after an
@@ -439,7 +444,7 @@ pub fn seen_after_events(
     machine: &RewardMachine,
     expert: &ExpertData,
     settings: &IrlRunConfig,
-) -> Result<SeenAfterEvents, String> {
+) -> Result<SeenAfterEvents, ConfigError> {
     let layout = task_layout(settings)?;
     let labelling = FeatureMap::reacher_labels(layout);
     let labels: Vec<LabelSet> = expert
@@ -479,22 +484,20 @@ pub struct SmirlOutcome {
 
 /// Step 3: MaxEnt IRL on U × O with SAC as the inner solver, then (`final_sac_steps` > 0)
 /// the final policy on the final reward ([`final_policy`]).
-pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOutcome, String> {
+pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOutcome, StepError> {
     let s = job.settings;
     let n_states = job.machine.n_states();
-    let inner = ReacherDelivery::new(s.env.clone()).map_err(|e| e.to_string())?;
+    let inner = ReacherDelivery::new(s.env.clone())?;
     let mut env = product_env(inner, job.machine, s);
-    let features = job.features.map(s).map_err(|e| e.to_string())?;
+    let features = job.features.map(s)?;
     let optim = RewardOptimConfig {
         adam: true,
         lr: s.smirl_reward_lr,
         l2: s.smirl_reward_l2,
     };
-    let mut reward =
-        LinearRmReward::new(features.clone(), n_states, optim).map_err(|e| e.to_string())?;
+    let mut reward = LinearRmReward::new(features.clone(), n_states, optim)?;
     let counterfactual = counterfactual_states(&env, s)?;
-    let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)
-        .map_err(|e| e.to_string())?;
+    let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
     let mut rollouts = RolloutStream::new(job.seed);
     let mut trace = Vec::with_capacity(s.irl_iterations);
 
@@ -526,20 +529,18 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
         // 4. Reward steps; the first step's gradient (before
         //    any step) is the traced data gradient.
         let mut r = vec![0.0f32; c.coeffs.len()];
-        reward
-            .reward_batch(&c.obs, &c.states, &mut r)
-            .map_err(|e| e.to_string())?;
+        reward.reward_batch(&c.obs, &c.states, &mut r)?;
         let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
         reward.set_lr(s.smirl_reward_lr);
         reward
             .backward(&c.obs, &c.states, &c.coeffs)
-            .map_err(|e| format!("reward update: {e}"))?;
+            .map_err(StepError::RewardUpdate)?;
         let data_gradient = reward.grad();
         reward.step();
         for _ in 1..s.reward_steps_per_iteration {
             reward
                 .update(&c.obs, &c.states, &c.coeffs)
-                .map_err(|e| format!("reward update: {e}"))?;
+                .map_err(StepError::RewardUpdate)?;
         }
         trace.push(RewardTraceRow {
             iteration,
