@@ -434,8 +434,34 @@ fn shipped_configs_parse_or_are_refused_naming_the_replacement() {
         }
     }
     parsed.sort();
-    assert_eq!(parsed, ["config.toml", "quick.toml"]);
+    assert_eq!(
+        parsed,
+        [
+            "config.toml",
+            "config_one_state.toml",
+            "quick.toml",
+            "quick_one_state.toml"
+        ]
+    );
     assert!(refused >= 30, "{refused}");
+}
+
+/// The one-state control's configs are the standard and quick profiles with a one-state machine
+/// and nothing else changed, as the evaluation's protocol says.
+#[test]
+fn one_state_configs_differ_from_their_profiles_in_the_machine_only() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher");
+    for (file, mut profile) in [
+        ("config_one_state.toml", IrlRunConfig::standard()),
+        ("quick_one_state.toml", IrlRunConfig::quick()),
+    ] {
+        profile.smirl_machine = smirl::pipeline::reacher_irl::SmirlMachine::OneState;
+        assert_eq!(
+            IrlRunConfig::load(&dir.join(file)).unwrap(),
+            profile,
+            "{file}"
+        );
+    }
 }
 
 /// The shipped figure-7 config is the built-in default profile, so `reacher --task t` and
