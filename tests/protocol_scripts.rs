@@ -14,6 +14,17 @@ use std::process::{Command, Output};
 
 const NAME: &str = "tmp_resume_test";
 
+/// A fresh checkout of `from` at `to` (a session on another machine).
+fn clone(from: &Path, to: &Path) {
+    let o = run_in(
+        from.parent().unwrap(),
+        "git",
+        &["clone", "-q", from.to_str().unwrap(), to.to_str().unwrap()],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 fn run_in(dir: &Path, program: &str, args: &[&str], env: &[(&str, &str)]) -> Output {
     let mut c = Command::new(program);
     c.args(args).current_dir(dir);
@@ -307,18 +318,7 @@ fn a_protocol_resumes_on_a_fresh_checkout_from_its_committed_ledger() {
     // Session 2 on a fresh clone (no runs/): the done job is not run again, the killed one is;
     // one job fails.
     let second = tmp.path().join("second");
-    let o = run_in(
-        tmp.path(),
-        "git",
-        &[
-            "clone",
-            "-q",
-            first.to_str().unwrap(),
-            second.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(o.status.success());
+    clone(&first, &second);
     assert!(!second.join("runs").exists());
     std::fs::remove_file(&log).unwrap();
     let s2 = Session {
@@ -543,18 +543,7 @@ fn a_failed_or_changed_prepare_fails_its_jobs_and_the_plan_goes_on() {
     // refused and its other job failed; if-b950010 is new and runs; the failed prepare of
     // or-b950000 is not tried again.
     let second = tmp.path().join("second");
-    let o = run_in(
-        tmp.path(),
-        "git",
-        &[
-            "clone",
-            "-q",
-            repo.to_str().unwrap(),
-            second.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(o.status.success());
+    clone(&repo, &second);
     std::fs::remove_file(&log).unwrap();
     let s2 = Session {
         repo: &second,
