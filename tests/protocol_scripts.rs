@@ -814,3 +814,64 @@ fn only_a_development_protocol_runs_on_development_seeds() {
         String::from_utf8_lossy(&o.stdout)
     );
 }
+
+/// The goal's reading needs 5 bases ("too few bases" below, whatever the scores), and a
+/// secondary comparison with a unit `[analysis] control_failed` names is called in neither
+/// direction while the same comparison with another unit is called.
+#[test]
+fn readings_need_five_bases_and_failed_controls_are_not_called() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let plan = "bases = [930000, 930010, 930020, 930030, 930040]\n\
+                timeout_secs = { smirl = 600, paper = 600 }\n\n\
+                [[arm]]\nname = \"a\"\ntasks = [\"or\"]\nalgos = [\"smirl\"]\nn_bases = 5\nseeds = 1\n\n\
+                [[arm]]\nname = \"b\"\ntasks = [\"or\"]\nalgos = [\"paper\"]\nn_bases = 5\nseeds = 1\n\n\
+                [[arm]]\nname = \"c\"\ntasks = [\"or\"]\nalgos = [\"paper\"]\nn_bases = 5\nseeds = 1\n\n\
+                [analysis]\nprimary = \"a:smirl\"\n\
+                secondary = [[\"a:smirl\", \"b:paper\"], [\"a:smirl\", \"c:paper\"]]\n\
+                control_failed = [\"c:paper\"]\n";
+    let (repo, bin, _log) = locked(tmp.path(), plan);
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    // Two bases (b and c plan the same paper job, so a base is two jobs): smirl's chosen
+    // policy solves both (0.96), yet no reading.
+    let o = s.run_with(&["--max-jobs", "4"], &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = s.table(&["--partial"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary = s.state("summary.md");
+    let p1 = summary
+        .lines()
+        .find(|l| l.starts_with("| or | 2 (2) |"))
+        .unwrap_or_else(|| panic!("no P1 row in\n{summary}"));
+    assert!(p1.contains("| too few bases |"), "{p1}");
+    // All five bases: met; a:smirl against b:paper is called, against c:paper not.
+    let o = s.run(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = s.table(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary = s.state("summary.md");
+    let p1 = summary
+        .lines()
+        .find(|l| l.starts_with("| or | 5 (5) |"))
+        .unwrap_or_else(|| panic!("no P1 row in\n{summary}"));
+    assert!(p1.contains("| met |"), "{p1}");
+    let row = |b: &str| {
+        summary
+            .lines()
+            .find(|l| l.starts_with(&format!("| or | a:smirl | {b} |")))
+            .unwrap_or_else(|| panic!("no secondary row for {b} in\n{summary}"))
+            .to_string()
+    };
+    assert!(row("b:paper").contains("5/5 vs 0/5: A called"), "{}", row("b:paper"));
+    assert!(
+        row("c:paper").contains("5/5 vs 0/5: control failed, not called"),
+        "{}",
+        row("c:paper")
+    );
+}

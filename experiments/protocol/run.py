@@ -25,6 +25,8 @@ for people) and `experiments/protocol/<name>.toml` (the same plan for this scrip
     paper = "smirl-paper:smirl-paper"  # the same: P2, primary's chosen minus this one's loop's own
     pools = { paper = ["or", "sequential", "if", "composite"] }   # P2 pooled over these tasks
     secondary = [["smirl:smirl", "baselines:maxent"]]             # paired comparisons
+    control_failed = ["baselines:maxent"]  # optional: units that failed a positive control;
+                                           # their secondary comparisons are not called
 
 Usage:
     python3 experiments/protocol/run.py draw-bases NAME [--n 10] [--spacing 10]
@@ -228,7 +230,7 @@ def load(name):
         fail(f"{spec}: bases closer than {widest} apart share SAC seeds")
     analysis = plan.get("analysis")
     if analysis is not None:
-        refs = [(k, ref) for k in ("primary", "paper") for ref in units_of(analysis.get(k))]
+        refs = [(k, ref) for k in ("primary", "paper", "control_failed") for ref in units_of(analysis.get(k))]
         for k, pair in enumerate(analysis.get("secondary", [])):
             if not (isinstance(pair, list) and len(pair) == 2):
                 fail(f"{spec}: [analysis] secondary {k + 1}: expected [\"ARM:ALGO\", \"ARM:ALGO\"]")

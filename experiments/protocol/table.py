@@ -42,14 +42,16 @@ adjusted.
 Sections, as the protocol's `[analysis]` names them:
 - Primary. P1: the primary unit's chosen policy on each of its tasks: solved share, mean score,
   and the goal's reading: *met* when the solved share is >= 0.9, *missed* when the clustered
-  interval's upper bound is < 0.9, else *not resolved*; beside it the loop's own solved share and
+  interval's upper bound is < 0.9, else *not resolved*, and *too few bases* for a cell of fewer
+  than 5 bases whatever its scores; beside it the loop's own solved share and
   whether it is within 5 points of the chosen one (loop >= chosen - 0.05, on the solved shares).
   P2: primary chosen minus the paper unit's loop's own, paired by (base, SAC seed), per task and
   pooled over each of `[analysis] pools`; beside it the same with the primary's loop's own.
 - Secondary: each pair of units, paired by (base, SAC seed), on the reported policy (chosen, or
   the loop's own without a final phase) and on the loop's own: a difference is called only when
   there are at least 3 pairs and one side solves all of them and the other none; anything else
-  is "not resolved at this size".
+  is "not resolved at this size". A pair with a unit `[analysis] control_failed` names (an arm
+  that failed its positive control) is reported and called in neither direction.
 - Exploratory: every cell, with the random pick, the oracle best candidate, chosen - loop, the
   demonstrations kept per base, flagged branches and wall time.
 """
@@ -75,6 +77,8 @@ MIN_BOOTSTRAP_BASES = 5
 FEW_EPISODES = 10
 # Called only with this many pairs or more, one side solving all and the other none.
 MIN_CALL_PAIRS = 3
+# Fewest bases a cell's goal reading needs: below it the reading is "too few bases".
+MIN_READING_BASES = 5
 # Algorithms known to have no final phase (when the ledger has no finished job to tell).
 NO_FINAL_PHASE = {"smirl-paper"}
 
@@ -199,6 +203,8 @@ class Cell:
         """The goal's reading on the chosen (reported) policy's solved share."""
         if self.did_not_run:
             return "did not run"
+        if self.bases < MIN_READING_BASES:
+            return "too few bases"
         _, p = self.share(self.reported())
         _, hi = wilson(p, self.bases)
         return "met" if p >= SOLVED else ("missed" if hi < SOLVED else "not resolved")
@@ -210,11 +216,13 @@ def pairs_of(a, b):
     return {(r["base"], r["seed"]): (r, rb[(r["base"], r["seed"])]) for r in a.rows if (r["base"], r["seed"]) in rb}
 
 
-def call(pairs, pa, pb, a_name, b_name):
+def call(pairs, pa, pb, a_name, b_name, control_failed=False):
     n = len(pairs)
     ka = sum(ra[pa] >= SOLVED for ra, _ in pairs.values())
     kb = sum(rb[pb] >= SOLVED for _, rb in pairs.values())
     text = f"{ka}/{n} vs {kb}/{n}"
+    if control_failed:
+        return text + ": control failed, not called"
     if n >= MIN_CALL_PAIRS and ka == n and kb == 0:
         return text + f": {a_name} called"
     if n >= MIN_CALL_PAIRS and kb == n and ka == 0:
@@ -361,7 +369,8 @@ def main():
         pa_name = ", ".join(protocol.units_of(analysis["primary"]))
         lines += ["", "## Primary (confirmatory)", "",
                   f"P1: {pa_name}, chosen policy. Goal read on the solved share: met at >= 0.9, "
-                  "missed when the upper bound (n = bases) is < 0.9, else not resolved.", "",
+                  "missed when the upper bound (n = bases) is < 0.9, else not resolved; with fewer than "
+                  f"{MIN_READING_BASES} bases, too few bases (no claim).", "",
                   "| task | jobs (bases) | failed | solved, chosen | mean, chosen | goal | solved, loop's own | loop's own within 5 points |",
                   "|---|---|---|---|---|---|---|---|"]
         for task in tasks:
@@ -400,10 +409,13 @@ def main():
                 lines.append(f"| {label} | {n} ({len(dc)}) | {mean_text(dc, rng('P2c', label), True)} | "
                              f"{mean_text(dl, rng('P2l', label), True)} |")
     if analysis.get("secondary"):
+        control_failed = set(protocol.units_of(analysis.get("control_failed")))
         lines += ["", "## Secondary (descriptive)", "",
                   f"Paired by (base, SAC seed). Called only with >= {MIN_CALL_PAIRS} pairs, one side solving all "
                   "and the other none; else not resolved at this size. Reported policy: chosen, or the loop's own "
-                  "for an algorithm without a final phase.", "",
+                  "for an algorithm without a final phase. A comparison with an arm that failed its positive "
+                  "control (`[analysis] control_failed`: "
+                  + (", ".join(sorted(control_failed)) or "none") + ") is called in neither direction.", "",
                   "| task | A | B | pairs | solved, reported | solved, loop's own |", "|---|---|---|---|---|---|"]
         for a_ref, b_ref in analysis["secondary"]:
             ua, ub = tuple(a_ref.split(":")), tuple(b_ref.split(":"))
@@ -415,8 +427,10 @@ def main():
                     lines.append(f"| {task} | {a_ref} | {b_ref} | - | did not run | did not run |")
                     continue
                 pr = pairs_of(ca, cb)
+                cf = a_ref in control_failed or b_ref in control_failed
                 lines.append(f"| {task} | {a_ref} | {b_ref} | {len(pr)} | "
-                             f"{call(pr, ca.reported(), cb.reported(), 'A', 'B')} | {call(pr, 'loop', 'loop', 'A', 'B')} |")
+                             f"{call(pr, ca.reported(), cb.reported(), 'A', 'B', cf)} | "
+                             f"{call(pr, 'loop', 'loop', 'A', 'B', cf)} |")
     lines += ["", "## Exploratory", "",
               "Every cell. Random pick: the expected score of a uniform pick among the final phase's candidates; "
               "oracle: the best candidate on the final set (after the fact). `-`: no final phase. Few episodes: jobs "
