@@ -868,7 +868,11 @@ fn readings_need_five_bases_and_failed_controls_are_not_called() {
             .unwrap_or_else(|| panic!("no secondary row for {b} in\n{summary}"))
             .to_string()
     };
-    assert!(row("b:paper").contains("5/5 vs 0/5: A called"), "{}", row("b:paper"));
+    assert!(
+        row("b:paper").contains("5/5 vs 0/5: A called"),
+        "{}",
+        row("b:paper")
+    );
     assert!(
         row("c:paper").contains("5/5 vs 0/5: control failed, not called"),
         "{}",
