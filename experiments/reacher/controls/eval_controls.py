@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The evaluation's positive controls on development base 0 (experiments/protocol/eval1*.md):
-every arm on `blue` (three SAC seeds) and the baselines and product controls on `or` (one),
-run by `run_controls.sh`. Reads the job files of the control run directories, keeps what the
+every arm on `blue` (three SAC seeds) and the product controls on `or` (one); maxent and fkl ran
+`or` too, reported beside the controls but not one of them (`or`'s order, red or green and then
+blue, is not a function of the fingertip their reward reads). Reads the job files of the control run directories, keeps what the
 table needs in `eval_controls.csv` (one row per job: the final-set scores of the loop's own
 policy and of every final-phase candidate, the choice, the wall time), and prints the table of
 `results-eval1.md` from that file alone.
@@ -9,7 +10,7 @@ policy and of every final-phase candidate, the choice, the wall time), and print
 A job's score is its lower branch's success on the final set (50 episodes per branch, a seed
 stream nothing trains or selects on). An arm passes a control when its reported policy (the
 final phase's choice; the loop's own for smirl-paper, which has no final phase) scores >= 0.9 in
-at least 2 of its 3 jobs on blue, and in its one job on or.
+at least 2 of its 3 jobs on blue, and (product controls) in its one job on or.
 
 Usage: python3 experiments/reacher/controls/eval_controls.py [--add RUN_DIR:ARM ...]
   --add reads RUN_DIR/jobs/*.json into the CSV under the arm's name, or each job under its
@@ -29,6 +30,8 @@ COLUMNS = ["task", "arm", "algo", "seed", "loop", "chosen", "candidates", "wall_
 SOLVED = 0.9
 # Jobs each control plans per arm (SAC seeds of base 0), and how many must be solved.
 PLANNED = {"blue": (3, 2), "or": (1, 1)}
+# The arms `or` is a control of: those whose reward reads the learned machine's state.
+OR_CONTROL_ARMS = {"maxent-product", "fkl-product"}
 
 
 def score(evaluated):
@@ -117,7 +120,10 @@ def table():
     print("|---|---|---|---|")
     for (task, arm), ok in sorted(verdict.items()):
         planned, need = PLANNED.get(task, (len(ok), len(ok)))
-        if sum(ok) >= need:
+        if task == "or" and arm not in OR_CONTROL_ARMS:
+            old = "pass" if sum(ok) >= need else "FAIL"
+            verdict_txt = f"{old} under 24d2403's rule; not a control since the amendment in eval1.md"
+        elif sum(ok) >= need:
             verdict_txt = f"pass (needs {need} of {planned})"
         elif sum(ok) + planned - len(ok) < need:
             verdict_txt = f"FAIL (needs {need} of {planned})"
