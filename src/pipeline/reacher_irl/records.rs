@@ -182,3 +182,17 @@ impl JobRecord {
         }
     }
 }
+
+/// A job's record keeps everything of its result but the reward trace (written beside it).
+impl From<super::JobResult> for JobRecord {
+    fn from(result: super::JobResult) -> Self {
+        JobRecord {
+            algo: result.algo.name().into(),
+            seed: result.seed,
+            rows: result.rows,
+            final_policy: result.final_policy,
+            loop_final_set: result.loop_final_set,
+            wall_secs: result.wall_secs,
+        }
+    }
+}

@@ -700,14 +700,7 @@ impl PreparedRun {
             threads,
             progress,
         )?;
-        let record = JobRecord {
-            algo: algo.name().into(),
-            seed,
-            rows: result.rows,
-            final_policy: result.final_policy,
-            loop_final_set: result.loop_final_set,
-            wall_secs: result.wall_secs,
-        };
+        let record = JobRecord::from(result);
         write_file(
             &record_path,
             &(serde_json::to_string(&record).expect("JSON serialises") + "\n"),
