@@ -6,6 +6,7 @@ mod sac_common;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sac_common::PointReach;
+use smirl::env::ContinuousEnv;
 use smirl::nn::{ByteReader, ByteWriter};
 use smirl::rl::replay::{ReplayBatch, ReplayBuffer};
 use smirl::rl::sac::{ActMode, SacAgent, SacConfig};
@@ -124,4 +125,31 @@ fn rollout_reports_chained_steps_and_is_seeded() {
     }
     assert!(steps.iter().all(|s| s.2[0].abs() <= 1.0));
     assert_eq!(record(&mut agent, &mut env).1, steps);
+
+    // The same episode by hand: reset, then one action drawn from the stream and one step at a
+    // time. The episode loop neither draws nor steps more than that, nor in another order.
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let mut obs = vec![0.0f32; 2];
+    env.reset(77, &mut obs);
+    let mut action = vec![0.0f32; 1];
+    let mut env_return = 0.0;
+    for (t, o, a, next) in &steps {
+        assert_eq!(&obs, o, "step {t}");
+        agent.act(&obs, ActMode::Sample, &mut rng, &mut action);
+        assert_eq!(&action, a, "step {t}");
+        env_return += env.step(&action, &mut obs).unwrap().reward;
+        assert_eq!(&obs, next, "step {t}");
+    }
+    assert_eq!(summary.env_return, env_return);
+
+    // A step budget cuts the episode; a budget of 0 plays nothing.
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let cut = agent
+        .rollout(&mut env, ActMode::Sample, 77, 6, &mut rng, |_| {})
+        .unwrap();
+    assert_eq!((cut.length, cut.terminated), (6, false));
+    let none = agent
+        .rollout(&mut env, ActMode::Sample, 77, 0, &mut rng, |_| {})
+        .unwrap();
+    assert_eq!((none.length, none.env_return), (0, 0.0));
 }

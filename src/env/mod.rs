@@ -64,6 +64,7 @@ pub fn check_action(action: &[f32], expected: usize) -> Result<(), EnvError> {
 }
 
 pub mod clock;
+pub mod episode;
 pub mod layout;
 pub mod placement;
 pub mod product;

@@ -14,12 +14,14 @@
 //! the task's perfect machine is 1 when the task is completed, else 0 (success = return).
 
 use crate::env::office::{OfficeTask, OfficeWorld};
+use crate::irl::tabular::maxent::MaxEntError;
 use crate::irl::tabular::{
     evaluate_policy, greedy_policy, trivial_rm, Apprenticeship, ApprenticeshipConfig, DemoConfig,
     Demonstration, MaxEntConfig, OfficeExpert, ProductIrl,
 };
 use crate::report::CsvTable;
-use crate::rl::tabular::finite_horizon_greedy;
+use crate::rl::tabular::{finite_horizon_greedy, TabularError};
+use crate::rm::lrm::LrmError;
 use crate::rm::RewardMachine;
 use std::time::Instant;
 
@@ -143,8 +145,16 @@ pub struct OfficeConfig {
 pub enum OfficeError {
     #[error("invalid configuration: {0}")]
     Config(String),
+    #[error("learning the reward machine: {0}")]
+    Lrm(LrmError),
+    /// The product MDP, its planning and policy evaluation.
+    #[error(transparent)]
+    Tabular(TabularError),
+    #[error(transparent)]
+    MaxEnt(MaxEntError),
+    /// Apprenticeship learning's setup (its layer reports a message).
     #[error("{0}")]
-    Run(String),
+    Apprenticeship(String),
 }
 
 /// The key a nested config's error is about: `table`, then the setting its message names
@@ -419,7 +429,7 @@ pub fn learn_structure(
     };
     learn_rm(world.vocab(), &traces, &cfg)
         .map(|learned| learned.rm)
-        .map_err(|e| OfficeError::Run(format!("learning the reward machine: {e}")))
+        .map_err(OfficeError::Lrm)
 }
 
 /// Runs one algorithm on one task and seed. `progress` receives a line per IRL step.
@@ -472,12 +482,11 @@ pub fn run(
                 ));
             }
             let t_irl = Instant::now();
-            let product =
-                ProductIrl::new(world, model).map_err(|e| OfficeError::Run(e.to_string()))?;
+            let product = ProductIrl::new(world, model).map_err(OfficeError::Tabular)?;
             let annotated = product.annotate(&demos);
             let mut irl = product
                 .maxent(&annotated, cfg.maxent)
-                .map_err(|e| OfficeError::Run(e.to_string()))?;
+                .map_err(OfficeError::MaxEnt)?;
             let mut warm = Vec::new();
             let evaluate = |theta: &[f64], warm: &mut Vec<u8>| {
                 let reward = product.features.reward(theta);
@@ -497,7 +506,7 @@ pub fn run(
                         .map(|_| actions)
                     }
                 }
-                .map_err(|e| OfficeError::Run(e.to_string()))?;
+                .map_err(OfficeError::Tabular)?;
                 Ok::<_, OfficeError>(evaluate_policy(
                     world,
                     &product.model_rm,
@@ -517,11 +526,9 @@ pub fn run(
                 elapsed_s: t0.elapsed().as_secs_f64(),
             });
             for m in 1..=cfg.maxent.max_steps {
-                irl.step().map_err(|e| OfficeError::Run(e.to_string()))?;
+                irl.step().map_err(OfficeError::MaxEnt)?;
                 // Likelihood and gradient at the new parameters (cached by L-BFGS).
-                let info = irl
-                    .current_info()
-                    .map_err(|e| OfficeError::Run(e.to_string()))?;
+                let info = irl.current_info().map_err(OfficeError::MaxEnt)?;
                 run.converged = irl.converged(&info);
                 let e = evaluate(&irl.theta, &mut warm)?;
                 run.steps.push(StepMetrics {
@@ -572,14 +579,14 @@ pub fn run(
         Algo::Apprenticeship => {
             let t_irl = Instant::now();
             let mut app = Apprenticeship::new(world, &demos, cfg.apprenticeship, seed)
-                .map_err(OfficeError::Run)?;
+                .map_err(OfficeError::Apprenticeship)?;
             let one_state = trivial_rm(world.vocab());
             let mut interactions = 0;
             let mut step = 0;
             let mut weights = Vec::new();
             let mut returns = Vec::new();
             while !app.done() {
-                let s = app.step().map_err(|e| OfficeError::Run(e.to_string()))?;
+                let s = app.step().map_err(OfficeError::Tabular)?;
                 interactions += s.interactions;
                 let e = evaluate_policy(world, &one_state, &s.policy, gt, horizon);
                 returns.push(e.gt_return);

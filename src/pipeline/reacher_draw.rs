@@ -22,18 +22,24 @@
 
 use super::reacher_irl::config::{load_toml_config, parse_toml_config};
 use super::reacher_irl::{Algo, IrlConfigError};
+use crate::env::reacher::ReacherError;
 use crate::env::reacher::{
     ArmStart, CancelConfig, ConfigError, ReacherConfig, ReacherDelivery, OBS_TIP,
 };
 use crate::env::task_file::TaskFileError;
-use crate::env::ContinuousEnv;
+use crate::env::{ContinuousEnv, EnvError};
+use crate::irl::firl::SurrogateError;
 use crate::irl::firl::{density_ratio, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
 use crate::irl::kde::Kde;
+use crate::irl::kde::KdeError;
 use crate::irl::knn_divergence::knn_kl;
+use crate::irl::knn_divergence::KnnError;
+use crate::irl::reward::RewardError;
 use crate::irl::reward::{MlpReward, MlpRewardConfig, RewardModel};
 use crate::report::raster::{Canvas, Rgb};
 use crate::rl::replay::ReplayBatch;
 use crate::rl::sac::{episode_seed, ActMode, ActWorkspace, SacConfig, SacTrainer};
+use crate::rl::sac::{ConfigError as SacConfigError, SacError};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -219,8 +225,39 @@ pub enum DrawError {
         "{algo} is not a ReacherDraw algorithm (maxent, fkl, rkl, js: SMIRL needs labelled events)"
     )]
     Algo { algo: Algo },
-    #[error("{0}")]
-    Run(String),
+    #[error("environment: {0}")]
+    ArmConfig(ArmEnvError),
+    #[error("environment: {0}")]
+    Arm(ReacherError),
+    #[error("SAC: {0}")]
+    SacConfig(SacConfigError),
+    #[error("SAC: {0}")]
+    Sac(SacError),
+    /// Building the reward net.
+    #[error("reward: {0}")]
+    RewardNet(RewardError),
+    /// The learned reward's values (for SAC's transitions or the loss's states).
+    #[error("learned reward: {0}")]
+    LearnedReward(RewardError),
+    #[error("rollout: {0}")]
+    Rollout(EnvError),
+    /// A rollout episode that ended at `step` (from 0), before the horizon.
+    #[error("an episode ended before the horizon (ReacherDraw's episodes are never done)")]
+    EarlyEnd { step: usize, horizon: usize },
+    #[error("agent KDE: {0}")]
+    AgentKde(KdeError),
+    #[error("density ratio: {0}")]
+    DensityRatio(SurrogateError),
+    #[error("f-IRL surrogate: {0}")]
+    Surrogate(SurrogateError),
+    #[error("MaxEnt: {0}")]
+    MaxEnt(SurrogateError),
+    #[error("reward update: {0}")]
+    RewardUpdate(RewardError),
+    #[error("forward KL: {0}")]
+    ForwardKl(KnnError),
+    #[error("reverse KL: {0}")]
+    ReverseKl(KnnError),
 }
 
 impl DrawConfig {
@@ -390,21 +427,20 @@ pub fn run_draw(
         return Err(DrawError::Algo { algo });
     }
     config.validate("ReacherDraw config")?;
-    let run = |what: &str, e: &dyn std::fmt::Display| DrawError::Run(format!("{what}: {e}"));
     let started = Instant::now();
     let target = config.target;
     let horizon = config.horizon;
-    let env_config = config.env_config().map_err(|e| run("environment", &e))?;
-    let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| run("environment", &e))?;
+    let env_config = config.env_config().map_err(DrawError::ArmConfig)?;
+    let mut env = ReacherDelivery::new(env_config.clone()).map_err(DrawError::Arm)?;
     let obs_dim = env.obs_dim();
     let mut trainer =
-        SacTrainer::new(&config.sac, obs_dim, env.act_dim(), seed).map_err(|e| run("SAC", &e))?;
+        SacTrainer::new(&config.sac, obs_dim, env.act_dim(), seed).map_err(DrawError::SacConfig)?;
     let mut model: Box<dyn RewardModel + Send> = Box::new(
         MlpReward::new(
             MlpRewardConfig::paper(OBS_TIP.to_vec(), config.reward_lr, seed),
             obs_dim,
         )
-        .map_err(|e| run("reward", &e))?,
+        .map_err(DrawError::RewardNet)?,
     );
     let target_samples = target.sample(
         config.expert_samples,
@@ -427,7 +463,7 @@ pub fn run_draw(
     let mut lockstep = (0..config.agent_trajectories.min(ROLLOUT_LOCKSTEP))
         .map(|_| ReacherDelivery::new(env_config.clone()))
         .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| run("environment", &e))?;
+        .map_err(DrawError::Arm)?;
     let mut act_ws = ActWorkspace::with_batch(&trainer.agent.actor, lockstep.len());
     let mut round_obs = vec![0.0f32; lockstep.len() * obs_dim];
     let mut round_actions = vec![0.0f32; lockstep.len() * act_dim];
@@ -453,16 +489,16 @@ pub fn run_draw(
                     config.sac_steps_per_iteration,
                     |_| {},
                 )
-                .map_err(|e| run("SAC", &e))?;
+                .map_err(DrawError::Sac)?;
             // Play the episode in progress to its end: the rollouts below reset the same
             // environment, and SAC must not resume from the state they leave.
             while !trainer.at_episode_boundary() {
                 trainer
                     .train(&mut env, &mut reward_fn, 1, |_| {})
-                    .map_err(|e| run("SAC", &e))?;
+                    .map_err(DrawError::Sac)?;
             }
             if let Some(e) = reward_error.take() {
-                return Err(run("learned reward", &e));
+                return Err(DrawError::LearnedReward(e));
             }
         }
         // 2. Fresh episodes of the stochastic policy: fingertip states s_1..s_T, played
@@ -488,12 +524,9 @@ pub fn run_draw(
                     let o = &mut round_obs[k * obs_dim..(k + 1) * obs_dim];
                     let step = env
                         .step(&round_actions[k * act_dim..(k + 1) * act_dim], o)
-                        .map_err(|e| run("rollout", &e))?;
+                        .map_err(DrawError::Rollout)?;
                     if step.terminated || (step.truncated && t + 1 < horizon) {
-                        return Err(DrawError::Run(
-                            "an episode ended before the horizon (ReacherDraw's episodes are never done)"
-                                .into(),
-                        ));
+                        return Err(DrawError::EarlyEnd { step: t, horizon });
                     }
                     let at = ((first + k) * horizon + t) * obs_dim;
                     agent_obs[at..at + obs_dim].copy_from_slice(o);
@@ -508,7 +541,7 @@ pub fn run_draw(
         let (obs, coeffs) = match algo.divergence() {
             Some(divergence) => {
                 let kde_agent =
-                    Kde::fit(&tips, 2, config.kde_bandwidth).map_err(|e| run("agent KDE", &e))?;
+                    Kde::fit(&tips, 2, config.kde_bandwidth).map_err(DrawError::AgentKde)?;
                 let mut rho_agent = vec![0.0; tips.len() / 2];
                 kde_agent.density_batch(&tips, &mut rho_agent);
                 let rho_target: Vec<f64> = tips
@@ -516,15 +549,15 @@ pub fn run_draw(
                     .map(|p| target.density(p[0], p[1]))
                     .collect();
                 let ratios = density_ratio(&rho_target, &rho_agent, DEFAULT_DENSITY_EPS)
-                    .map_err(|e| run("density ratio", &e))?;
+                    .map_err(DrawError::DensityRatio)?;
                 let s = FirlSurrogate::new(divergence, &ratios, config.agent_trajectories, horizon)
-                    .map_err(|e| run("f-IRL surrogate", &e))?;
+                    .map_err(DrawError::Surrogate)?;
                 (agent_obs, s.coefficients)
             }
             None => {
                 let n_agent = tips.len() / 2;
                 let c = MaxEntCoefficients::new(n_agent, config.expert_samples, horizon)
-                    .map_err(|e| run("MaxEnt", &e))?;
+                    .map_err(DrawError::MaxEnt)?;
                 let mut coeffs = vec![c.agent; n_agent];
                 coeffs.extend(std::iter::repeat(c.expert).take(config.expert_samples));
                 ([agent_obs.as_slice(), &expert_obs].concat(), coeffs)
@@ -533,7 +566,7 @@ pub fn run_draw(
         let mut r = vec![0.0f32; coeffs.len()];
         model
             .reward_batch(&obs, &[], &mut r)
-            .map_err(|e| run("learned reward", &e))?;
+            .map_err(DrawError::LearnedReward)?;
         let surrogate_loss: f64 = r.iter().zip(&coeffs).map(|(&r, c)| f64::from(r) * c).sum();
         let n_agent = tips.len() / 2;
         let learned_reward =
@@ -542,14 +575,12 @@ pub fn run_draw(
         for _ in 0..config.reward_steps_per_iteration {
             model
                 .update(&obs, &[], &coeffs)
-                .map_err(|e| run("reward update", &e))?;
+                .map_err(DrawError::RewardUpdate)?;
         }
         // 5. The KLs to the target, on this iteration's states.
         if iteration == 1 || iteration % config.eval_every == 0 || iteration == config.iterations {
-            let forward_kl =
-                knn_kl(&target_samples, &tips, 2, 3).map_err(|e| run("forward KL", &e))?;
-            let reverse_kl =
-                knn_kl(&tips, &target_samples, 2, 3).map_err(|e| run("reverse KL", &e))?;
+            let forward_kl = knn_kl(&target_samples, &tips, 2, 3).map_err(DrawError::ForwardKl)?;
+            let reverse_kl = knn_kl(&tips, &target_samples, 2, 3).map_err(DrawError::ReverseKl)?;
             let row = DrawRow {
                 iteration,
                 env_steps: trainer.env_steps(),

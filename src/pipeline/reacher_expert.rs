@@ -29,7 +29,7 @@ use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use crate::env::reacher_task::{
     task_env, Branch, BranchTally, CancelBranch, ReacherTask, SubgoalPotential,
 };
-use crate::env::{ContinuousEnv, EnvError, EnvStep};
+use crate::env::{episode, ContinuousEnv, EnvError, EnvStep};
 use crate::log::{LogError, RolloutLogger, RunHeader};
 use crate::nn::codec::{read_file, save_file, ByteReader, ByteWriter, CodecError, FileError};
 use crate::nn::{Mlp, MlpArch};
@@ -540,66 +540,75 @@ pub fn record_episode<P: Potential>(
     mut logger: Option<&mut RolloutLogger>,
     mut policy: impl FnMut(&[f32], LabelSet, usize) -> [f32; ACT_DIM],
 ) -> Result<Demo, RecordError> {
-    let mut obs = vec![0.0f32; env.obs_dim()];
-    env.reset(reset_seed, &mut obs);
-    let mut demo = Demo {
-        seed: reset_seed,
-        initial_rm_state: env.rm_state(),
-        initial_labels: env.inner().labels(),
-        steps: Vec::new(),
-        success: false,
-        task_return: 0.0,
-        env_return: 0.0,
-    };
-    if let Some(l) = logger.as_deref_mut() {
-        l.begin_reacher_episode(
-            env.inner(),
-            reset_seed,
-            phase,
-            Some(env.rm_state()),
-            env.inner_obs(),
-        )?;
-    }
-    let mut labels = demo.initial_labels;
-    loop {
-        let before = env.inner_obs().to_vec();
-        let action = policy(&obs, labels, env.rm_state());
-        let s = env
-            .step_product(&action, &mut obs)
-            .map_err(|source| RecordError::Env {
-                step: demo.steps.len() as u64,
-                source,
-            })?;
-        labels = s.step.labels;
-        if let Some(l) = logger.as_deref_mut() {
-            let inner_step = EnvStep {
-                reward: s.env_reward,
-                ..s.step
+    let (demo, logger) = episode::play(
+        env,
+        reset_seed,
+        // The time limit (`truncated`) ends the episode.
+        u64::MAX,
+        |env, _| {
+            let demo = Demo {
+                seed: reset_seed,
+                initial_rm_state: env.rm_state(),
+                initial_labels: env.inner().labels(),
+                steps: Vec::new(),
+                success: false,
+                task_return: 0.0,
+                env_return: 0.0,
             };
-            l.reacher_step(
-                env.inner(),
-                &action,
-                &inner_step,
-                Some((s.rm_state, s.task_reward)),
-                env.inner_obs(),
-            )?;
-        }
-        demo.steps.push(DemoStep {
-            obs: before,
-            action,
-            next_obs: env.inner_obs().to_vec(),
-            labels,
-            rm_state: s.rm_state,
-            env_reward: s.env_reward,
-            task_reward: s.task_reward,
-        });
-        demo.task_return += s.task_reward;
-        demo.env_return += s.env_reward;
-        demo.success |= s.success;
-        if s.step.terminated || s.step.truncated {
-            break;
-        }
-    }
+            if let Some(l) = logger.as_deref_mut() {
+                l.begin_reacher_episode(
+                    env.inner(),
+                    reset_seed,
+                    phase,
+                    Some(env.rm_state()),
+                    env.inner_obs(),
+                )?;
+            }
+            Ok::<_, RecordError>((demo, logger))
+        },
+        // The inner environment's labels are those of its last step (of the reset state at
+        // first).
+        |env, obs, action| {
+            action.copy_from_slice(&policy(obs, env.inner().labels(), env.rm_state()))
+        },
+        |(demo, logger), env, step| {
+            let before = env.inner_obs().to_vec();
+            let s = env
+                .step_product(step.action, step.next_obs)
+                .map_err(|source| RecordError::Env {
+                    step: step.t,
+                    source,
+                })?;
+            if let Some(l) = logger.as_deref_mut() {
+                let inner_step = EnvStep {
+                    reward: s.env_reward,
+                    ..s.step
+                };
+                l.reacher_step(
+                    env.inner(),
+                    step.action,
+                    &inner_step,
+                    Some((s.rm_state, s.task_reward)),
+                    env.inner_obs(),
+                )?;
+            }
+            let mut action = [0.0f32; ACT_DIM];
+            action.copy_from_slice(step.action);
+            demo.steps.push(DemoStep {
+                obs: before,
+                action,
+                next_obs: env.inner_obs().to_vec(),
+                labels: s.step.labels,
+                rm_state: s.rm_state,
+                env_reward: s.env_reward,
+                task_reward: s.task_reward,
+            });
+            demo.task_return += s.task_reward;
+            demo.env_return += s.env_reward;
+            demo.success |= s.success;
+            Ok(s.step.terminated || s.step.truncated)
+        },
+    )?;
     if let Some(l) = logger {
         l.end_episode(demo.success)?;
     }

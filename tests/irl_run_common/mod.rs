@@ -108,12 +108,8 @@ pub fn job_bytes(
     let result = run_job(&inputs, Some(&mut logger), &|_| {}).unwrap();
     logger.finish().unwrap();
     let record = JobRecord {
-        algo: algo.name().into(),
-        seed,
-        rows: result.rows,
-        final_policy: result.final_policy,
-        loop_final_set: result.loop_final_set,
         wall_secs: 0.0,
+        ..JobRecord::from(result)
     };
     JobBytes {
         record: serde_json::to_string(&record).unwrap(),

@@ -127,8 +127,8 @@ pub struct JobRequest {
 
 fn pipeline_error(e: PipelineError) -> anyhow::Error {
     match e {
-        PipelineError::Usage(m) => usage(m),
-        PipelineError::Run(m) => anyhow::anyhow!(m),
+        e if e.is_usage() => usage(e),
+        e => anyhow::anyhow!(e.to_string()),
     }
 }
 
@@ -285,9 +285,7 @@ pub fn job(args: JobRequest) -> Result<()> {
     let (algo, seed) = match (args.index, args.algo, args.seed) {
         (Some(i), _, _) => run.job_at(i),
         (None, Some(a), Some(s)) => run.job(a, s),
-        _ => Err(PipelineError::Usage(
-            "give --index, or --algo and --seed".into(),
-        )),
+        _ => Err(PipelineError::NoJobGiven),
     }
     .map_err(pipeline_error)?;
     let bar = if args.quiet {
@@ -390,9 +388,9 @@ pub fn run(args: IrlRequest) -> Result<()> {
     };
     let summary = match run_pipeline(&request, &bars) {
         Ok(s) => s,
-        Err(PipelineError::Usage(m)) => return Err(usage(m)),
-        Err(PipelineError::Run(m)) => {
-            return Err(anyhow::anyhow!(m)).with_context(|| {
+        Err(e) if e.is_usage() => return Err(usage(e)),
+        Err(e) => {
+            return Err(anyhow::anyhow!(e.to_string())).with_context(|| {
                 format!(
                     "reacher --task {task} (incomplete output left in {}.partial)",
                     out.display()

@@ -5,16 +5,19 @@
 
 use super::config::{DemoSource, IrlRunConfig};
 use crate::env::product::ProductEnv;
-use crate::env::reacher::{ReacherConfig, ReacherDelivery};
+use crate::env::reacher::{ConfigError, ReacherConfig, ReacherDelivery, ReacherError};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::{ReacherTask, SubgoalPotential};
 use crate::env::ContinuousEnv;
+use crate::env::EnvError;
 use crate::log::{LogError, RolloutLogger};
+use crate::pipeline::reacher_expert::ExpertError;
 use crate::pipeline::reacher_expert::{
     committed_expert, default_expert_cache, expert_cache_path, generate_demos_from, record_episode,
     Demo, ExpertPolicy, RecordError,
 };
 use crate::rl::sac::episode_seed;
+use crate::rm::format::RmFileError;
 use crate::rm::LabelSet;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -29,8 +32,25 @@ pub enum DemoError {
     /// No expert in the cache yet (`reacher --task FILE` trains one).
     #[error("expert cache {path}: {problem}")]
     Missing { path: String, problem: String },
+    /// The run's environment over the task's layout.
     #[error("demonstrations: {0}")]
-    Run(String),
+    Env(ConfigError),
+    /// Demonstrations from the expert policy.
+    #[error("demonstrations: {0}")]
+    Expert(ExpertError),
+    #[error("demonstrations: demo_source is \"expert\" but no expert policy was loaded")]
+    NoExpert,
+    #[error("demonstrations: {0}")]
+    PerfectMachine(RmFileError),
+    #[error("demonstrations: {0}")]
+    Arm(ReacherError),
+    /// A scripted demonstration's step.
+    #[error("demonstrations: episode {index}, step {step}: {source}")]
+    Episode {
+        index: usize,
+        step: u64,
+        source: EnvError,
+    },
     #[error(transparent)]
     Log(#[from] LogError),
 }
@@ -76,16 +96,14 @@ pub fn make_demos(
     seed: u64,
     logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, DemoError> {
-    let env = (task.env_config(&config.env)).map_err(|e| DemoError::Run(e.to_string()))?;
+    let env = (task.env_config(&config.env)).map_err(DemoError::Env)?;
     let resets = demo_reset_seeds(config.demo_episodes, seed);
     match (config.demo_source, expert) {
         (DemoSource::Expert, Some(policy)) => {
             generate_demos_from(policy, task, &env, &resets, seed, logger)
-                .map_err(|e| DemoError::Run(e.to_string()))
+                .map_err(DemoError::Expert)
         }
-        (DemoSource::Expert, None) => Err(DemoError::Run(
-            "demo_source is \"expert\" but no expert policy was loaded".into(),
-        )),
+        (DemoSource::Expert, None) => Err(DemoError::NoExpert),
         (DemoSource::Scripted, _) => scripted_demos(task, &env, &resets, seed, logger),
     }
 }
@@ -108,9 +126,8 @@ pub fn scripted_demos(
     seed: u64,
     mut logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, DemoError> {
-    let run = |e: String| DemoError::Run(e);
-    let rm = task.perfect_rm().map_err(|e| run(e.to_string()))?;
-    let inner = ReacherDelivery::new(env_config.clone()).map_err(|e| run(e.to_string()))?;
+    let rm = task.perfect_rm().map_err(DemoError::PerfectMachine)?;
+    let inner = ReacherDelivery::new(env_config.clone()).map_err(DemoError::Arm)?;
     let potential = SubgoalPotential::from_rm(&rm, inner.layout());
     let (regions, obs_dim) = (inner.layout().n_regions(), inner.obs_dim());
     let mut env = ProductEnv::new(inner, rm);
@@ -135,7 +152,11 @@ pub fn scripted_demos(
             |obs, labels, rm_state| ctl.act(&obs[..obs_dim], labels, Some(rm_state)),
         )
         .map_err(|e| match e {
-            RecordError::Env { step, source } => run(format!("episode {i}, step {step}: {source}")),
+            RecordError::Env { step, source } => DemoError::Episode {
+                index: i,
+                step,
+                source,
+            },
             RecordError::Log(e) => DemoError::Log(e),
         })?;
         demos.push(demo);

@@ -9,7 +9,7 @@ use crate::env::layout::TaskLayout;
 use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
 use crate::env::reacher_task::{Branch, CancelBranch, ProgressTracker, TaskProgress};
-use crate::env::{ContinuousEnv, EnvError, EnvStep};
+use crate::env::{episode, ContinuousEnv, EnvError, EnvStep};
 use crate::irl::smirl::FeatureMap;
 use crate::log::writer::EpisodeStartRecord;
 use crate::log::{LogError, RolloutLogger, StepRecord};
@@ -395,17 +395,17 @@ pub struct EpisodePlay<'t, 'p> {
 }
 
 impl<'t, 'p> EpisodePlay<'t, 'p> {
-    /// Resets `env` with the spec's seed (first observation into `obs`) and starts the log.
+    /// Starts the episode `env` was just reset to (with the spec's seed; first observation
+    /// `obs`) and its log.
     pub fn begin<E: JobEnv>(
-        env: &mut E,
+        env: &E,
         task: &'t GroundTruthTask<'t>,
         spec: EpisodeSpec<'p>,
-        obs: &mut [f32],
+        obs: &[f32],
         log: &mut dyn EpisodeLog,
     ) -> Result<EpisodePlay<'t, 'p>, EpisodeError> {
         let perfect = task.perfect;
         let branches = task.branches.as_ref().filter(|_| spec.with_branch);
-        env.reset(spec.reset_seed, obs);
         let up = perfect.initial();
         log.begin(
             env.reacher(),
@@ -501,16 +501,21 @@ pub fn play_episode<E: JobEnv>(
     logger: Option<&mut RolloutLogger>,
     mut on_step: impl FnMut(&[f32], &[f32], Option<usize>),
 ) -> Result<EpisodeOutcome, EpisodeError> {
-    let mut log = logger;
-    let mut obs = vec![0.0f32; env.obs_dim()];
-    let mut next = vec![0.0f32; env.obs_dim()];
-    let mut action = vec![0.0f32; env.act_dim()];
-    let mut play = EpisodePlay::begin(env, task, spec, &mut obs, &mut log)?;
-    while !play.ended() {
-        agent.act(&obs, spec.mode, rng, &mut action);
-        play.step(env, &action, &obs, &mut next, &mut log, &mut on_step)?;
-        std::mem::swap(&mut obs, &mut next);
-    }
+    let max_steps = env.reacher().config().max_steps as u64;
+    let (play, mut log) = episode::play(
+        env,
+        spec.reset_seed,
+        max_steps,
+        |env, obs| {
+            let mut log = logger;
+            EpisodePlay::begin(env, task, spec, obs, &mut log).map(|play| (play, log))
+        },
+        |_, obs, action| agent.act(obs, spec.mode, rng, action),
+        |(play, log), env, s| {
+            play.step(env, s.action, s.obs, s.next_obs, log, &mut on_step)?;
+            Ok(play.ended())
+        },
+    )?;
     play.finish(&mut log)
 }
 

@@ -3,7 +3,7 @@
 //! continuous MaxEnt IRL, which shares f-IRL's loop and differs only in its loss.
 //!
 //! The reward is a (64, 64) MLP of the fingertip position, clamped to ±10. Per iteration
-//! ([`train`]):
+//! ([`train`], the loop of [`super::irl_loop`]):
 //! 1. SAC on the plain ReacherDelivery with the current reward r(o_{t+1}), recomputed when a
 //!    batch is sampled (the same agent and replay buffer throughout);
 //! 2. fresh rollouts of the stochastic policy (N trajectories of the fixed length T);
@@ -26,12 +26,12 @@
 //!
 //! Ground-truth evaluation, logging and progress watch the loop from outside ([`JobWatch`]).
 
-use super::agent_phases::{train_sac, RolloutStream};
 use super::config::IrlRunConfig;
 use super::episodes::{AgentBatch, JobEnv};
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::expert_data::ExpertData;
-use super::final_policy::{self, FinalPhase, FinalPolicy};
+use super::final_policy::{FinalPhase, FinalPolicy};
+use super::irl_loop;
 use super::iteration::{Coefficients, StepError};
 use crate::env::clock::{Clock, Clocked};
 use crate::env::layout::OBS_ARM;
@@ -461,9 +461,10 @@ pub fn train(
     }
 }
 
-/// f-IRL's loop in `env`, then the final phase every algorithm with a learned reward shares
-/// ([`final_policy`]: more SAC on the final MLP held fixed, the candidate of highest learned
-/// return, the MLP's reward summed along each selection episode).
+/// f-IRL's loop in `env` ([`irl_loop::run`] with the baselines' reward, [`BaselineReward`]),
+/// then the final phase every algorithm with a learned reward shares ([`super::final_policy`]: more
+/// SAC on the final MLP held fixed, the candidate of highest learned return, the MLP's reward
+/// summed along each selection episode).
 fn train_in<E: JobEnv>(
     job: &BaselineJob<'_>,
     env: &mut E,
@@ -472,95 +473,113 @@ fn train_in<E: JobEnv>(
     let s = job.settings;
     let map = job.map;
     let columns = map.columns();
-    let task_obs_dim = job.expert.obs_dim();
     // The demonstrations as the reward reads them.
     let expert = map.expert(job.expert)?;
     let expert = expert.as_ref();
-    let mut reward = reward_model(s, job.seed, map)?;
     // f-IRL's ρ_E/ρ_θ: the expert's KDE, or a classifier on its own random stream.
     let d = expert.obs_dim();
     let expert_kde = Kde::fit_columns(&expert.obs, d, &columns, s.kde_bandwidth)
         .map_err(StepError::ExpertKde)?;
-    let mut ratio = match job.loss {
-        Loss::MaxEnt => None,
-        Loss::FDivergence(_) => Some(Ratio::Kde {
-            expert: &expert_kde,
-            bandwidth: s.kde_bandwidth,
-        }),
+    let mut learner = BaselineReward {
+        reward: reward_model(s, job.seed, map)?,
+        ratio: match job.loss {
+            Loss::MaxEnt => None,
+            Loss::FDivergence(_) => Some(Ratio::Kde {
+                expert: &expert_kde,
+                bandwidth: s.kde_bandwidth,
+            }),
+        },
+        // f-IRL's demonstrations in the covariance batch (f-IRL only: MaxEnt's loss has them
+        // all).
+        drawn_per_step: match job.loss {
+            Loss::FDivergence(_) => s.firl_expert_trajectories,
+            Loss::MaxEnt => 0,
+        },
+        demo_draw: DemonstrationDraw::new(job.seed),
+        task_obs_dim: job.expert.obs_dim(),
+        columns,
+        expert,
+        job,
     };
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
-    let mut rollouts = RolloutStream::new(job.seed);
-    // f-IRL's demonstrations in the covariance batch (f-IRL only: MaxEnt's loss has them all).
-    let drawn_per_step = match job.loss {
-        Loss::FDivergence(_) => s.firl_expert_trajectories,
-        Loss::MaxEnt => 0,
-    };
-    let n_demos = expert.lengths.len();
-    let mut demo_draw = DemonstrationDraw::new(job.seed);
+    // The final phase has no selection cut (it reads a learned machine, and the baselines have
+    // none).
+    let final_phase = FinalPhase::of(s, job.seed, None);
+    let final_policy = irl_loop::run(&mut learner, &mut sac, env, s, job.seed, final_phase, watch)?;
+    Ok(BaselineOutcome {
+        reward: learner.reward,
+        final_policy,
+    })
+}
 
-    watch.iteration_done(0, 0, &mut sac.agent, env, None)?;
-    for iteration in 1..=s.irl_iterations {
-        // 1. SAC on the current reward.
-        let mut sac_reward = StateReward::with_map(&mut reward, map, task_obs_dim);
-        let steps = s.sac_steps_per_iteration;
-        train_sac(&mut sac, env, &mut sac_reward, steps, iteration, watch)?;
+/// The baselines' reward in the IRL loop: the MLP on what `job.map` reads and its f-IRL
+/// (or MaxEnt) update.
+struct BaselineReward<'a> {
+    reward: MlpReward,
+    /// f-IRL's density ratio (`None`: MaxEnt).
+    ratio: Option<Ratio<'a>>,
+    /// Demonstrations drawn into each reward step's covariance batch (0: MaxEnt).
+    drawn_per_step: usize,
+    demo_draw: DemonstrationDraw,
+    task_obs_dim: usize,
+    /// What the densities read of a row ([`StateMap::columns`]).
+    columns: Vec<usize>,
+    /// The demonstrations as the reward reads them.
+    expert: &'a ExpertData,
+    job: &'a BaselineJob<'a>,
+}
 
-        // 2. Rollouts of the stochastic policy.
-        let batch = rollouts.collect(&mut sac.agent, env, s.agent_trajectories, watch)?;
-        let batch = map.agent(batch, task_obs_dim)?;
+impl irl_loop::RewardLearner for BaselineReward<'_> {
+    type SacReward<'r>
+        = StateReward<'r>
+    where
+        Self: 'r;
 
-        // 3. The density ratios (f-IRL), once per iteration.
-        let ratios = match ratio.as_mut() {
+    fn sac_reward(&mut self) -> Result<StateReward<'_>, StepError> {
+        let map = self.job.map;
+        Ok(StateReward::with_map(
+            &mut self.reward,
+            map,
+            self.task_obs_dim,
+        ))
+    }
+
+    fn update(&mut self, _iteration: usize, batch: AgentBatch) -> Result<UpdateFacts, StepError> {
+        let (s, loss, expert) = (self.job.settings, self.job.loss, self.expert);
+        let batch = self.job.map.agent(batch, self.task_obs_dim)?;
+
+        // The density ratios (f-IRL), once per iteration.
+        let drawn_per_step = self.drawn_per_step;
+        let ratios = match self.ratio.as_mut() {
             Some(ratio) => Some(density_ratios(
                 ratio,
                 expert,
                 &batch,
                 drawn_per_step > 0,
-                &columns,
+                &self.columns,
             )?),
             None => None,
         };
 
-        // 4. Reward steps, each on its own draw of
-        //    demonstrations (f-IRL's samples code); with none drawn, one set of coefficients.
+        // Reward steps, each on its own draw of demonstrations (f-IRL's samples code); with
+        // none drawn, one set of coefficients.
+        let reward = &mut self.reward;
+        let n_demos = expert.lengths.len();
         reward.set_lr(s.mlp_reward_lr);
-        let drawn = demo_draw.draw(n_demos, drawn_per_step);
-        let mut c = coefficients(job.loss, expert, &batch, ratios.as_ref(), &drawn)?;
+        let drawn = self.demo_draw.draw(n_demos, drawn_per_step);
+        let mut c = coefficients(loss, expert, &batch, ratios.as_ref(), &drawn)?;
         let mut r = vec![0.0f32; c.coeffs.len()];
         reward.reward_batch(&c.obs, &c.states, &mut r)?;
         let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
         for step in 0..s.reward_steps_per_iteration.max(1) {
             if step > 0 && drawn_per_step > 0 {
-                let drawn = demo_draw.draw(n_demos, drawn_per_step);
-                c = coefficients(job.loss, expert, &batch, ratios.as_ref(), &drawn)?;
+                let drawn = self.demo_draw.draw(n_demos, drawn_per_step);
+                c = coefficients(loss, expert, &batch, ratios.as_ref(), &drawn)?;
             }
             reward
                 .update(&c.obs, &c.states, &c.coeffs)
                 .map_err(StepError::RewardUpdate)?;
         }
-
-        watch.iteration_done(iteration, sac.env_steps(), &mut sac.agent, env, Some(facts))?;
+        Ok(facts)
     }
-
-    // 5. The final phase: SAC on the final reward, now fixed; no selection cut (it reads a
-    //    learned machine, and the baselines have none).
-    let final_policy = match FinalPhase::of(s, job.seed, None) {
-        Some(phase) => {
-            let mut sac_reward = StateReward::with_map(&mut reward, map, task_obs_dim);
-            let iterations = s.irl_iterations;
-            Some(final_policy::train(
-                &mut sac,
-                env,
-                &mut sac_reward,
-                phase,
-                iterations,
-                watch,
-            )?)
-        }
-        None => None,
-    };
-    Ok(BaselineOutcome {
-        reward,
-        final_policy,
-    })
 }

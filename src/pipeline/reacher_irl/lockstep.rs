@@ -184,7 +184,8 @@ fn start_next<'t, 'p, E: JobEnv>(
         *started += 1;
         slot.steps = AgentBatch::default();
         let log: &mut dyn EpisodeLog = if keep.log { &mut slot.log } else { &mut NoLog };
-        let play = EpisodePlay::begin(&mut slot.env, task, specs[j], obs, log)?;
+        slot.env.reset(specs[j].reset_seed, obs);
+        let play = EpisodePlay::begin(&slot.env, task, specs[j], obs, log)?;
         slot.episode = Some((j, play));
     }
     Ok(())

@@ -11,13 +11,15 @@
 //!    the learned machine's size and whether it refines the perfect one along the demos
 //!    (`rm::equiv::refines`).
 //! 3. **IRL**: one job per (algorithm, seed) ([`job::run_job`]) on a pool of worker threads,
-//!    each algorithm's loop in one file — [`smirl::train`] (SAC on ReacherDelivery × learned
+//!    each algorithm in one file — [`smirl::train`] (SAC on ReacherDelivery × learned
 //!    RM, δ_r(u, o) = w_uᵀ φ(o); `smirl` uses the paper's φ = labels, `smirl-smooth` the
 //!    documented smooth variant φ_k = exp(−d_k²/2σ²), reported as a separate algorithm, never
 //!    in place of `smirl`) and [`firl::train`] (continuous MaxEnt and f-IRL fkl/rkl/js: SAC on
-//!    the plain 17-dim observation, a (64, 64) reward net on the fingertip clamped ±10). What
-//!    every loop shares is in [`episodes`] (the environment, an episode), [`agent_phases`] (the
-//!    SAC phase, the rollouts) and [`iteration`] (what an iteration hands on); [`evaluation`] watches each job from outside (ground truth after every
+//!    the plain 17-dim observation, a (64, 64) reward net on the fingertip clamped ±10), each
+//!    the loop of [`irl_loop`] (SAC, rollouts, reward update, evaluation, per iteration) with
+//!    its own reward. What every loop shares is in [`episodes`] (the environment, an episode),
+//!    [`agent_phases`] (the SAC phase, the rollouts) and [`iteration`] (what an iteration
+//!    hands on); [`evaluation`] watches each job from outside (ground truth after every
 //!    iteration, logs, progress); SMIRL's jobs end with [`final_policy`], SAC on the final
 //!    reward held fixed and the policy of highest learned return reported beside the loop's.
 //! 4. **Reports** ([`reports`], from the jobs' [`records`]): metrics CSV, mean ± std plots
@@ -33,6 +35,7 @@ pub mod evaluation;
 pub mod expert_data;
 pub mod final_policy;
 pub mod firl;
+pub mod irl_loop;
 pub mod iteration;
 pub mod job;
 pub mod lockstep;

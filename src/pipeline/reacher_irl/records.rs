@@ -2,13 +2,24 @@
 //! `jobs/<algo>_seed<S>.json`, the directory read back) and what a finished run reports, with
 //! the error a run fails with and the file writer the run and its reports share.
 
-use super::config::IrlRunConfig;
+use super::config::{IrlConfigError, IrlRunConfig};
+use super::demos::DemoError;
 use super::evaluation::FinalSetScore;
 use super::expert_data::ExpertData;
 use super::final_policy::FinalPolicy;
+use super::run::{JobRunError, RecordError as JobRecordError};
+use super::smirl::MachineError;
 use super::Algo;
 use crate::atomic_file::write_atomic;
+use crate::env::reacher::ConfigError;
 use crate::env::reacher_task::{BranchTally, ReacherTask};
+use crate::log::LogError;
+use crate::nn::codec::CodecError;
+use crate::output::OutputError;
+use crate::pipeline::reacher_expert::ExpertError;
+use crate::rm::equiv::EquivError;
+use crate::rm::format::RmFileError;
+use crate::rm::lrm::LrmError;
 use crate::rm::RewardMachine;
 use std::path::{Path, PathBuf};
 
@@ -16,14 +27,198 @@ use std::path::{Path, PathBuf};
 #[cfg(doc)]
 use crate::env::reacher_task::Branch;
 
-/// A run that could not start (bad input: nothing written) or failed while running.
+/// A run that could not start (bad input: nothing written, [`PipelineError::is_usage`]) or
+/// failed while running.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
-    /// Bad input, found before anything was written.
-    #[error("{0}")]
-    Usage(String),
-    #[error("{0}")]
-    Run(String),
+    #[error("no algorithm selected")]
+    NoAlgorithm,
+    #[error("--seeds must be at least 1")]
+    NoSeeds,
+    #[error("--seeds {seeds} is more than the limit of {limit} seeds per run")]
+    TooManySeeds { seeds: u64, limit: u64 },
+    #[error("--seed {seed} + --seeds {seeds} overflows")]
+    SeedOverflow { seed: u64, seeds: u64 },
+    /// The run's config (the request's, or a run directory's `config.toml`).
+    #[error(transparent)]
+    Config(IrlConfigError),
+    #[error(
+        "config: smirl_machine = \"task\" gives {control} the task's own machine; the product \
+         controls read the learned one (use \"learned\" or \"one_state\")"
+    )]
+    TaskMachineForControl { control: Algo },
+    /// The demonstrations: bad input when the expert cache is missing or refused
+    /// ([`DemoError::Cache`], [`DemoError::Missing`]), else a failure while producing them.
+    #[error(transparent)]
+    Demos(DemoError),
+    /// The request's `[env]` over the task's layout.
+    #[error("[env]: {0}")]
+    Env(ConfigError),
+    /// A run directory's environment over its task's layout.
+    #[error(transparent)]
+    RunEnv(ConfigError),
+    /// The task's own machine.
+    #[error(transparent)]
+    PerfectMachine(RmFileError),
+    /// Writing a file or directory of the run.
+    #[error("{}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Log(LogError),
+    #[error("none of the {generated} demonstrations completes task '{task}'")]
+    NoCompleteDemos { generated: usize, task: ReacherTask },
+    #[error(transparent)]
+    Branches(ExpertError),
+    /// An algorithm's resolved settings in the run's config.
+    #[error("{source}")]
+    AlgoSettings { algo: Algo, source: IrlConfigError },
+    /// The task layout the machine learning reads.
+    #[error(transparent)]
+    TaskLayout(ConfigError),
+    #[error(transparent)]
+    Machine(MachineError),
+    #[error("LRM cost of the task's machine: {0}")]
+    TaskMachineCost(LrmError),
+    #[error("LRM cost of the perfect machine: {0}")]
+    PerfectMachineCost(LrmError),
+    #[error(transparent)]
+    StateCounts(EquivError),
+    #[error(
+        "{}: not a prepared run directory (no {file}: run `reacher prepare --out {}` first, or \
+         let it finish)",
+        dir.display(),
+        dir.display()
+    )]
+    NotPrepared { dir: PathBuf, file: &'static str },
+    /// Reading a file of a run directory.
+    #[error("{}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    ParsePlan {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
+    /// A machine file of a run directory.
+    #[error(transparent)]
+    MachineFile(RmFileError),
+    #[error(transparent)]
+    Plan(UnknownAlgo),
+    /// A run directory's annotated demonstrations.
+    #[error("{}: {source}", path.display())]
+    ExpertData { path: PathBuf, source: CodecError },
+    #[error(
+        "{}: algorithm '{algo}' is not in this run (prepared: {})",
+        dir.display(),
+        prepared.join(", ")
+    )]
+    AlgoNotInRun {
+        dir: PathBuf,
+        algo: Algo,
+        prepared: Vec<String>,
+    },
+    #[error("{}: seed {seed} is outside this run's seeds {first}..={last}", dir.display())]
+    SeedNotInRun {
+        dir: PathBuf,
+        seed: u64,
+        first: u64,
+        last: u64,
+    },
+    #[error(
+        "{}: job index {index} is outside 0..{jobs} (the run has {jobs} jobs)",
+        dir.display()
+    )]
+    JobIndexNotInRun {
+        dir: PathBuf,
+        index: usize,
+        jobs: usize,
+    },
+    #[error("give --index, or --algo and --seed")]
+    NoJobGiven,
+    #[error(
+        "{}: {} of {jobs} jobs have not finished: {} (run them with `reacher job`, or pass \
+         --partial)",
+        dir.display(),
+        missing.len(),
+        missing.join(", ")
+    )]
+    JobsUnfinished {
+        dir: PathBuf,
+        /// The unfinished jobs' stems (`<algo>_seed<S>`).
+        missing: Vec<String>,
+        jobs: usize,
+    },
+    #[error("{}: no job has finished yet", dir.display())]
+    NoJobFinished { dir: PathBuf },
+    /// A finished job's record, read back to aggregate.
+    #[error(transparent)]
+    Record(JobRecordError),
+    #[error("{algo} seed {seed}: no metrics rows")]
+    NoMetricsRows { algo: Algo, seed: u64 },
+    /// The output directory of `reacher --task`, checked before anything is written.
+    #[error(transparent)]
+    OutputDir(OutputError),
+    /// Starting or committing the output directory.
+    #[error(transparent)]
+    Output(OutputError),
+    /// The first job of `reacher --task` that failed (the others ran on).
+    #[error("{source}")]
+    JobFailed {
+        algo: Algo,
+        seed: u64,
+        source: Box<JobRunError>,
+    },
+}
+
+impl PipelineError {
+    /// Bad input, found before anything was written (the binaries exit with the usage code).
+    pub fn is_usage(&self) -> bool {
+        use PipelineError as E;
+        match self {
+            E::Demos(e) => matches!(e, DemoError::Cache { .. } | DemoError::Missing { .. }),
+            E::NoAlgorithm
+            | E::NoSeeds
+            | E::TooManySeeds { .. }
+            | E::SeedOverflow { .. }
+            | E::Config(_)
+            | E::TaskMachineForControl { .. }
+            | E::Env(_)
+            | E::RunEnv(_)
+            | E::NotPrepared { .. }
+            | E::Read { .. }
+            | E::ParsePlan { .. }
+            | E::MachineFile(_)
+            | E::Plan(_)
+            | E::ExpertData { .. }
+            | E::AlgoNotInRun { .. }
+            | E::SeedNotInRun { .. }
+            | E::JobIndexNotInRun { .. }
+            | E::NoJobGiven
+            | E::JobsUnfinished { .. }
+            | E::NoJobFinished { .. }
+            | E::Record(_)
+            | E::NoMetricsRows { .. }
+            | E::OutputDir(_) => true,
+            E::PerfectMachine(_)
+            | E::Write { .. }
+            | E::Log(_)
+            | E::NoCompleteDemos { .. }
+            | E::Branches(_)
+            | E::AlgoSettings { .. }
+            | E::TaskLayout(_)
+            | E::Machine(_)
+            | E::TaskMachineCost(_)
+            | E::PerfectMachineCost(_)
+            | E::StateCounts(_)
+            | E::Output(_)
+            | E::JobFailed { .. } => false,
+        }
+    }
 }
 
 /// A plan (`prepare.json`) that names an algorithm this binary does not know.
@@ -92,8 +287,11 @@ pub struct RunSummary {
     pub wall_secs: f64,
 }
 
-pub(super) fn io(path: &Path, e: impl std::fmt::Display) -> PipelineError {
-    PipelineError::Run(format!("{}: {e}", path.display()))
+pub(super) fn io(path: &Path, source: std::io::Error) -> PipelineError {
+    PipelineError::Write {
+        path: path.into(),
+        source,
+    }
 }
 
 pub(super) fn write_file(path: &Path, text: &str) -> Result<(), PipelineError> {
@@ -179,6 +377,20 @@ impl JobRecord {
         match &self.final_policy {
             Some(final_policy) => final_policy.chosen().success_rate,
             None => self.rows.last().map_or(0.0, |r| r.success_rate),
+        }
+    }
+}
+
+/// A job's record keeps everything of its result but the reward trace (written beside it).
+impl From<super::JobResult> for JobRecord {
+    fn from(result: super::JobResult) -> Self {
+        JobRecord {
+            algo: result.algo.name().into(),
+            seed: result.seed,
+            rows: result.rows,
+            final_policy: result.final_policy,
+            loop_final_set: result.loop_final_set,
+            wall_secs: result.wall_secs,
         }
     }
 }

@@ -227,9 +227,10 @@ pub(super) fn write_reports(
         let last = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Result<Vec<f64>, PipelineError> {
             runs.iter()
                 .map(|r| {
-                    r.rows.last().map(f).ok_or_else(|| {
-                        PipelineError::Usage(format!("{algo} seed {}: no metrics rows", r.seed))
-                    })
+                    r.rows
+                        .last()
+                        .map(f)
+                        .ok_or_else(|| PipelineError::NoMetricsRows { algo, seed: r.seed })
                 })
                 .collect()
         };

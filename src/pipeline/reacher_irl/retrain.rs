@@ -8,7 +8,7 @@
 //! environment (the product with the learned machine for SMIRL, with counterfactual states as
 //! configured) and the evaluation episodes are the job's own; only SAC's seed is new.
 
-use super::config::IrlRunConfig;
+use super::config::{IrlConfigError, IrlRunConfig};
 use super::episodes::JobEnv;
 use super::evaluation::{Evaluation, GroundTruth};
 use super::final_policy::{learned_return, ScoredReward};
@@ -20,10 +20,12 @@ use super::smirl::{
 };
 use super::Algo;
 use crate::env::reacher::ReacherDelivery;
-use crate::irl::reward::MlpReward;
+use crate::irl::reward::{MlpReward, RewardError};
 use crate::irl::reward::{RewardModel, RewardOptimConfig};
 use crate::irl::smirl::LinearRmReward;
-use crate::rl::sac::{SacConfig, SacTrainer, StepOutcome, UpdateStats};
+use crate::rl::sac::{
+    ConfigError as SacConfigError, SacConfig, SacTrainer, StepOutcome, UpdateStats,
+};
 use std::path::{Path, PathBuf};
 
 /// Most SAC steps of one retraining.
@@ -77,7 +79,6 @@ impl AgentSettings {
     /// naming its line, and the stem must be a plain name (letters, digits, `-`, `_`).
     pub fn load(path: &Path) -> Result<AgentSettings, RetrainError> {
         let source = path.display().to_string();
-        let usage = |m: String| RetrainError::Usage(format!("{source}: {m}"));
         let name = path
             .file_stem()
             .and_then(|s| s.to_str())
@@ -85,13 +86,17 @@ impl AgentSettings {
             .to_string();
         let plain = |c: char| c.is_ascii_alphanumeric() || c == '-' || c == '_';
         if name.is_empty() || name.len() > MAX_AGENT_NAME || !name.chars().all(plain) {
-            return Err(usage(format!(
-                "the file's stem names the table: it must be 1 to {MAX_AGENT_NAME} letters, digits, '-' or '_'"
-            )));
+            return Err(RetrainError::AgentName { path: path.into() });
         }
-        let text = crate::config_text::read_text_file(path).map_err(|e| usage(e.to_string()))?;
-        let keys: AgentKeys = toml::from_str(&text)
-            .map_err(|e| usage(crate::config_text::toml_error_message(&text, &e)))?;
+        let text =
+            crate::config_text::read_text_file(path).map_err(|source| RetrainError::ReadAgent {
+                path: path.into(),
+                source,
+            })?;
+        let keys: AgentKeys = toml::from_str(&text).map_err(|e| RetrainError::ParseAgent {
+            path: path.into(),
+            message: crate::config_text::toml_error_message(&text, &e),
+        })?;
         Ok(AgentSettings {
             name,
             source,
@@ -104,13 +109,13 @@ impl AgentSettings {
     fn apply(&self, mut s: IrlRunConfig) -> Result<IrlRunConfig, RetrainError> {
         if let Some(table) = &self.keys.sac {
             s.sac = SacConfig::from_table(table.clone(), s.sac.clone(), &self.source)
-                .map_err(|e| RetrainError::Usage(e.to_string()))?;
+                .map_err(RetrainError::AgentSac)?;
         }
         if let Some(shaping) = self.keys.smirl_shaping {
             s.smirl_shaping = shaping;
         }
         s.validate(&self.source)
-            .map_err(|e| RetrainError::Usage(e.at_key_line(&self.text).to_string()))?;
+            .map_err(|e| RetrainError::Config(e.at_key_line(&self.text)))?;
         Ok(s)
     }
 }
@@ -187,8 +192,60 @@ pub fn reward_path(dir: &Path, algo: Algo, seed: u64) -> PathBuf {
 /// Why a retraining cannot run: bad input, found before any training.
 #[derive(Debug, thiserror::Error)]
 pub enum RetrainError {
-    #[error("{0}")]
-    Usage(String),
+    #[error(
+        "{}: the file's stem names the table: it must be 1 to {MAX_AGENT_NAME} letters, digits, '-' or '_'",
+        path.display()
+    )]
+    AgentName { path: PathBuf },
+    #[error("{}: {source}", path.display())]
+    ReadAgent {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// An agent settings file that is not TOML of its keys: the message names the line.
+    #[error("{}: {message}", path.display())]
+    ParseAgent { path: PathBuf, message: String },
+    /// An agent settings file's `[sac]` table.
+    #[error(transparent)]
+    AgentSac(SacConfigError),
+    /// The settings retrained with (the job's algorithm's, under an agent settings file).
+    #[error(transparent)]
+    Config(IrlConfigError),
+    #[error(
+        "{algo}: retrain reads a SMIRL or baseline reward; a product control's agent acts on \
+         the product, which retrain does not build"
+    )]
+    ProductControl { algo: Algo },
+    #[error("{algo} is not a ReacherDelivery algorithm")]
+    NotReacher { algo: Algo },
+    #[error("--steps must be in 1..={max}, got {steps}")]
+    Steps { steps: u64, max: u64 },
+    #[error("--evaluations must be in 1..={steps} (the steps), got {evaluations}")]
+    Evaluations { evaluations: u64, steps: u64 },
+    #[error("{}: no learned reward (has job {algo} seed {seed} finished?)", path.display())]
+    NoReward {
+        path: PathBuf,
+        algo: Algo,
+        seed: u64,
+    },
+    /// The job's reward file or the reward it is read into.
+    #[error(transparent)]
+    Reward(RewardError),
+    #[error(
+        "{}: not a {algo} reward of this run's {states}-state machine",
+        path.display()
+    )]
+    ForeignReward {
+        path: PathBuf,
+        algo: Algo,
+        states: usize,
+    },
+    #[error("--zero-state {state}: {source}")]
+    ZeroState { state: usize, source: RewardError },
+    #[error(
+        "--zero-state needs a reward per learned-machine state (smirl, smirl-paper, smirl-smooth), not {algo}"
+    )]
+    ZeroStateNeedsMachine { algo: Algo },
     /// The run's files lack what the retraining reads.
     #[error(transparent)]
     Input(#[from] MissingMachine),
@@ -218,24 +275,13 @@ enum Reward {
 /// Step 1 (no training, nothing written): checks the request and loads the job's reward. Every
 /// error here is bad input.
 pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>, RetrainError> {
-    let usage = RetrainError::Usage;
     if r.algo.is_product_control() {
-        return Err(usage(format!(
-            "{}: retrain reads a SMIRL or baseline reward; a product control's agent acts on \
-             the product, which retrain does not build",
-            r.algo
-        )));
+        return Err(RetrainError::ProductControl { algo: r.algo });
     }
     if !Algo::REACHER.contains(&r.algo) {
-        return Err(usage(format!(
-            "{} is not a ReacherDelivery algorithm",
-            r.algo
-        )));
+        return Err(RetrainError::NotReacher { algo: r.algo });
     }
-    let mut s = run
-        .config
-        .for_algo(r.algo)
-        .map_err(|e| usage(e.to_string()))?;
+    let mut s = run.config.for_algo(r.algo).map_err(RetrainError::Config)?;
     if let Some(agent) = &r.agent {
         s = agent.apply(s)?;
     }
@@ -243,28 +289,28 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
         .steps
         .unwrap_or(s.sac_steps_per_iteration * s.irl_iterations as u64);
     if steps == 0 || steps > MAX_RETRAIN_STEPS {
-        return Err(usage(format!(
-            "--steps must be in 1..={MAX_RETRAIN_STEPS}, got {steps}"
-        )));
+        return Err(RetrainError::Steps {
+            steps,
+            max: MAX_RETRAIN_STEPS,
+        });
     }
     if r.evaluations == 0 || r.evaluations > steps {
-        return Err(usage(format!(
-            "--evaluations must be in 1..={steps} (the steps), got {}",
-            r.evaluations
-        )));
+        return Err(RetrainError::Evaluations {
+            evaluations: r.evaluations,
+            steps,
+        });
     }
     let path = reward_path(&run.dir, r.algo, r.seed);
     if !path.is_file() {
-        return Err(usage(format!(
-            "{}: no learned reward (has job {} seed {} finished?)",
-            path.display(),
-            r.algo,
-            r.seed
-        )));
+        return Err(RetrainError::NoReward {
+            path,
+            algo: r.algo,
+            seed: r.seed,
+        });
     }
     let reward = if r.algo.uses_rm() {
-        let (machine, _) = run.inputs_of(r.algo).map_err(|e| usage(e.to_string()))?;
-        let machine = machine.ok_or_else(|| usage("the run has no learned machine".into()))?;
+        let (machine, _) = run.inputs_of(r.algo)?;
+        let machine = machine.ok_or(RetrainError::NoMachine)?;
         let features = if r.algo == Algo::SmirlSmooth {
             Features::Smooth
         } else {
@@ -275,32 +321,28 @@ pub fn load<'a>(run: &'a PreparedRun, r: &Retraining) -> Result<LoadedReward<'a>
             lr: s.smirl_reward_lr,
             l2: s.smirl_reward_l2,
         };
-        let mut reward = LinearRmReward::load(&path, optim).map_err(|e| usage(e.to_string()))?;
-        let expected = features.map(&s).map_err(|e| usage(e.to_string()))?;
+        let mut reward = LinearRmReward::load(&path, optim).map_err(RetrainError::Reward)?;
+        let expected = features.map(&s).map_err(RetrainError::Reward)?;
         if reward.features() != &expected || reward.n_states() != machine.n_states() {
-            return Err(usage(format!(
-                "{}: not a {} reward of this run's {}-state machine",
-                path.display(),
-                r.algo,
-                machine.n_states()
-            )));
+            return Err(RetrainError::ForeignReward {
+                path,
+                algo: r.algo,
+                states: machine.n_states(),
+            });
         }
         for &u in &r.zero_states {
             reward
                 .zero_state(u)
-                .map_err(|e| usage(format!("--zero-state {u}: {e}")))?;
+                .map_err(|source| RetrainError::ZeroState { state: u, source })?;
         }
         Reward::Linear(reward)
     } else {
         if !r.zero_states.is_empty() {
-            return Err(usage(format!(
-                "--zero-state needs a reward per learned-machine state (smirl, smirl-paper, smirl-smooth), not {}",
-                r.algo
-            )));
+            return Err(RetrainError::ZeroStateNeedsMachine { algo: r.algo });
         }
-        let mut reward = firl::reward_model(&s, 0, firl::StateMap::Fingertip)
-            .map_err(|e| usage(e.to_string()))?;
-        reward.load(&path).map_err(|e| usage(e.to_string()))?;
+        let mut reward =
+            firl::reward_model(&s, 0, firl::StateMap::Fingertip).map_err(RetrainError::Reward)?;
+        reward.load(&path).map_err(RetrainError::Reward)?;
         Reward::Mlp(reward)
     };
     Ok(LoadedReward {

@@ -21,7 +21,7 @@
 //! - `logs/demos.mcap`, `logs/<algo>_seed<S>.mcap` — demos and sampled agent/eval episodes.
 
 use super::config::{DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
-use super::demos::{load_expert, make_demos, DemoError};
+use super::demos::{load_expert, make_demos};
 use super::expert_data::ExpertData;
 use super::iteration::JobProgress;
 use super::job::{run_job, JobError, JobInputs, JobResult};
@@ -126,38 +126,30 @@ fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), Pi
         ..
     } = *request;
     let task = task.clone();
-    let usage = PipelineError::Usage;
     if algos.is_empty() {
-        return Err(usage("no algorithm selected".into()));
+        return Err(PipelineError::NoAlgorithm);
     }
     if seeds == 0 {
-        return Err(usage("--seeds must be at least 1".into()));
+        return Err(PipelineError::NoSeeds);
     }
     if seeds > MAX_SEEDS {
-        return Err(usage(format!(
-            "--seeds {seeds} is more than the limit of {MAX_SEEDS} seeds per run"
-        )));
+        return Err(PipelineError::TooManySeeds {
+            seeds,
+            limit: MAX_SEEDS,
+        });
     }
     let last_seed = seed
         .checked_add(seeds - 1)
-        .ok_or_else(|| usage(format!("--seed {seed} + --seeds {seeds} overflows")))?;
-    config
-        .validate("config")
-        .map_err(|e| usage(e.to_string()))?;
+        .ok_or(PipelineError::SeedOverflow { seed, seeds })?;
+    config.validate("config").map_err(PipelineError::Config)?;
     // The controls learn on the machine LRM learns; the task's own would hand them ground truth.
     if let Some(control) = algos.iter().find(|a| a.is_product_control()) {
         if config.smirl_machine == SmirlMachine::Task {
-            return Err(usage(format!(
-                "config: smirl_machine = \"task\" gives {control} the task's own machine; the \
-                 product controls read the learned one (use \"learned\" or \"one_state\")"
-            )));
+            return Err(PipelineError::TaskMachineForControl { control: *control });
         }
     }
     let expert = match config.demo_source {
-        DemoSource::Expert => Some(load_expert(task, None).map_err(|e| match e {
-            DemoError::Cache { .. } | DemoError::Missing { .. } => usage(e.to_string()),
-            other => PipelineError::Run(other.to_string()),
-        })?),
+        DemoSource::Expert => Some(load_expert(task, None).map_err(PipelineError::Demos)?),
         DemoSource::Scripted => None,
     };
     Ok((expert, last_seed))
@@ -166,7 +158,7 @@ fn check_request(request: &RunRequest) -> Result<(Option<ExpertPolicy>, u64), Pi
 /// Phase 1 of a run (`reacher prepare`): checks the request, then writes into `dir` (created
 /// if missing) the config, the perfect machine, the demonstrations (`logs/demos.mcap`), for
 /// SMIRL the learned machine and its report, the annotated expert data the jobs read, and
-/// last `prepare.json`. Bad input is [`PipelineError::Usage`], found before anything is
+/// last `prepare.json`. Bad input ([`PipelineError::is_usage`]) is found before anything is
 /// written.
 pub fn prepare(
     request: &RunRequest,
@@ -184,13 +176,10 @@ pub fn prepare(
     let task = task.clone();
     // The run's environment is its config over the task's layout, as the CLI resolves it.
     let mut resolved = config.clone();
-    resolved.env =
-        (task.env_config(&config.env)).map_err(|e| PipelineError::Usage(format!("[env]: {e}")))?;
+    resolved.env = (task.env_config(&config.env)).map_err(PipelineError::Env)?;
     let config = &resolved;
     let (mut expert, last_seed) = check_request(request)?;
-    let perfect = task
-        .perfect_rm()
-        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let perfect = task.perfect_rm().map_err(PipelineError::PerfectMachine)?;
 
     for sub in ["rm", "rewards", "logs", "jobs"] {
         std::fs::create_dir_all(dir.join(sub)).map_err(|e| io(dir, e))?;
@@ -210,7 +199,7 @@ pub fn prepare(
             ..LogOptions::default()
         },
     )
-    .map_err(|e| PipelineError::Run(e.to_string()))?;
+    .map_err(PipelineError::Log)?;
     let all_demos = make_demos(
         task.clone(),
         config,
@@ -218,19 +207,17 @@ pub fn prepare(
         seed,
         Some(&mut logger),
     )
-    .map_err(|e| PipelineError::Run(e.to_string()))?;
-    logger
-        .finish()
-        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    .map_err(PipelineError::Demos)?;
+    logger.finish().map_err(PipelineError::Log)?;
     let demos_generated = all_demos.len();
     let demos: Vec<Demo> = all_demos.into_iter().filter(|d| d.success).collect();
     if demos.is_empty() {
-        return Err(PipelineError::Run(format!(
-            "none of the {demos_generated} demonstrations completes task '{task}'"
-        )));
+        return Err(PipelineError::NoCompleteDemos {
+            generated: demos_generated,
+            task,
+        });
     }
-    let demo_branches =
-        branch_tally(task.clone(), &demos).map_err(|e| PipelineError::Run(e.to_string()))?;
+    let demo_branches = branch_tally(task.clone(), &demos).map_err(PipelineError::Branches)?;
     observer.message(&format!(
         "demonstrations: {} of {demos_generated} complete the task ({} source), {} steps{}",
         demos.len(),
@@ -257,9 +244,13 @@ pub fn prepare(
             continue;
         }
         observer.phase("lrm");
-        let settings = config
-            .for_algo(machine.algo())
-            .map_err(|e| PipelineError::Run(e.to_string()))?;
+        let settings =
+            config
+                .for_algo(machine.algo())
+                .map_err(|source| PipelineError::AlgoSettings {
+                    algo: machine.algo(),
+                    source,
+                })?;
         let (rm, facts, report) =
             learn_and_report(&settings, machine.algo(), &demos, &perfect, seed)?;
         let data = annotate(&task.layout(), &demos, Some(&rm), hold_to);
@@ -367,24 +358,25 @@ fn learn_and_report(
     seed: u64,
 ) -> Result<(RewardMachine, RmFacts, String), PipelineError> {
     let config = settings;
-    let lrm = lrm_config(config, seed, algo).map_err(|e| PipelineError::Run(e.to_string()))?;
+    let lrm = lrm_config(config, seed, algo).map_err(PipelineError::TaskLayout)?;
     let (rm, cost, secs) = match config.smirl_machine {
-        SmirlMachine::Learned => learn_machine(demos, config, seed, algo)
-            .map_err(|e| PipelineError::Run(e.to_string()))?,
+        SmirlMachine::Learned => {
+            learn_machine(demos, config, seed, algo).map_err(PipelineError::Machine)?
+        }
         SmirlMachine::Task | SmirlMachine::OneState => {
             let rm = match config.smirl_machine {
                 SmirlMachine::Task => task_machine(perfect),
                 _ => one_state_machine(perfect.vocab()),
             }
-            .map_err(|e| PipelineError::Run(e.to_string()))?;
+            .map_err(PipelineError::Machine)?;
             let cost = trace_cost(&rm, &label_traces(demos), trace_reading(&lrm))
-                .map_err(|e| PipelineError::Run(format!("LRM cost of the task's machine: {e}")))?;
+                .map_err(PipelineError::TaskMachineCost)?;
             (rm, cost, 0.0)
         }
     };
     let traces: Vec<Vec<LabelSet>> = demos.iter().map(|d| d.labels()).collect();
     let r = refines(&rm, perfect, traces.iter().map(|t| t.as_slice()));
-    let counts = state_counts(&rm, None).map_err(|e| PipelineError::Run(e.to_string()))?;
+    let counts = state_counts(&rm, None).map_err(PipelineError::StateCounts)?;
     let facts = RmFacts {
         learned_states: rm.n_states(),
         learned_reachable: counts.reachable,
@@ -429,7 +421,7 @@ fn learn_and_report(
     // The perfect machine's cost on the same traces says whether a machine that fails to
     // refine the task lost the search or won it (LRM's objective prefers it).
     let perfect_cost = trace_cost(perfect, &label_traces(demos), trace_reading(&lrm))
-        .map_err(|e| PipelineError::Run(format!("LRM cost of the perfect machine: {e}")))?;
+        .map_err(PipelineError::PerfectMachineCost)?;
     let _ = writeln!(
         report,
         "LRM cost {:.3} (the perfect machine's on the same traces: {:.3}), {:.2} s",
@@ -467,8 +459,7 @@ fn selection_cut_report(
     if !config.selection_cut() {
         return Ok(String::new());
     }
-    let seen = seen_after_events(rm, expert_data, config)
-        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let seen = seen_after_events(rm, expert_data, config).map_err(PipelineError::TaskLayout)?;
     let per_state: Vec<String> = (0..rm.n_states())
         .map(|u| match seen.in_state(u) {
             l if l.is_empty() => format!("{u}: -"),
@@ -482,36 +473,35 @@ fn selection_cut_report(
 }
 
 /// Reads a directory `prepare` finished. A directory it did not finish (no `prepare.json`)
-/// or whose files do not parse is [`PipelineError::Usage`].
+/// or whose files do not parse is bad input ([`PipelineError::is_usage`]).
 pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
-    let usage = PipelineError::Usage;
     let marker = dir.join(PREPARED_FILE);
     if !marker.is_file() {
-        return Err(usage(format!(
-            "{}: not a prepared run directory (no {PREPARED_FILE}: run `reacher prepare --out {}` \
-             first, or let it finish)",
-            dir.display(),
-            dir.display()
-        )));
+        return Err(PipelineError::NotPrepared {
+            dir: dir.into(),
+            file: PREPARED_FILE,
+        });
     }
     let read = |name: &str| {
         let path = dir.join(name);
         crate::config_text::read_text_file(&path)
-            .map_err(|e| usage(format!("{}: {e}", path.display())))
+            .map_err(|source| PipelineError::Read { path, source })
     };
-    let prepared: Prepared = serde_json::from_str(&read(PREPARED_FILE)?)
-        .map_err(|e| usage(format!("{}: {e}", marker.display())))?;
-    let mut config =
-        IrlRunConfig::load(&dir.join("config.toml")).map_err(|e| usage(e.to_string()))?;
+    let prepared: Prepared =
+        serde_json::from_str(&read(PREPARED_FILE)?).map_err(|source| PipelineError::ParsePlan {
+            path: marker.clone(),
+            source,
+        })?;
+    let mut config = IrlRunConfig::load(&dir.join("config.toml")).map_err(PipelineError::Config)?;
     config.env = (prepared.task)
         .env_config(&config.env)
-        .map_err(|e| usage(e.to_string()))?;
+        .map_err(PipelineError::RunEnv)?;
     let rm_file = |name: &str| -> Result<RewardMachine, PipelineError> {
         let path = dir.join(name);
-        parse_rm(&read(name)?, &path.display().to_string()).map_err(|e| usage(e.to_string()))
+        parse_rm(&read(name)?, &path.display().to_string()).map_err(PipelineError::MachineFile)
     };
     let perfect = rm_file("rm/perfect.txt")?;
-    let jobs = prepared.jobs().map_err(usage_of)?;
+    let jobs = prepared.jobs().map_err(PipelineError::Plan)?;
     let needs = |machine: Machine| jobs.iter().any(|&(a, _)| Machine::of(a) == Some(machine));
     let machine_file = |machine: Machine| -> Result<Option<RewardMachine>, PipelineError> {
         needs(machine)
@@ -523,10 +513,16 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
         let data_path = dir.join(name);
         let bytes =
             crate::input_file::read_bytes(&data_path, crate::nn::codec::MAX_CODEC_FILE_BYTES)
-                .map_err(|e| usage(format!("{}: {e}", data_path.display())))?;
+                .map_err(|source| PipelineError::Read {
+                    path: data_path.clone(),
+                    source,
+                })?;
         ExpertData::from_bytes(&bytes, obs_dim)
             .and_then(|e| e.check_machine(machine).map(|()| e))
-            .map_err(|e| usage(format!("{}: {e}", data_path.display())))
+            .map_err(|source| PipelineError::ExpertData {
+                path: data_path,
+                source,
+            })
     };
     let learned = machine_file(Machine::Smirl)?;
     let expert = expert_file(EXPERT_DATA_FILE, learned.as_ref())?;
@@ -625,36 +621,35 @@ impl PreparedRun {
 
     /// The job `(algo, seed)` of this run, or a usage error naming what is not in the plan.
     pub fn job(&self, algo: Algo, seed: u64) -> Result<(Algo, u64), PipelineError> {
-        let jobs = self.prepared.jobs().map_err(usage_of)?;
+        let jobs = self.prepared.jobs().map_err(PipelineError::Plan)?;
         if !jobs.iter().any(|&(a, _)| a == algo) {
-            return Err(PipelineError::Usage(format!(
-                "{}: algorithm '{algo}' is not in this run (prepared: {})",
-                self.dir.display(),
-                self.prepared.algos.join(", ")
-            )));
+            return Err(PipelineError::AlgoNotInRun {
+                dir: self.dir.clone(),
+                algo,
+                prepared: self.prepared.algos.clone(),
+            });
         }
         if !self.prepared.seeds.contains(&seed) {
-            return Err(PipelineError::Usage(format!(
-                "{}: seed {seed} is outside this run's seeds {}..={}",
-                self.dir.display(),
-                self.prepared.seeds[0],
-                self.prepared.seeds[self.prepared.seeds.len() - 1]
-            )));
+            return Err(PipelineError::SeedNotInRun {
+                dir: self.dir.clone(),
+                seed,
+                first: self.prepared.seeds[0],
+                last: self.prepared.seeds[self.prepared.seeds.len() - 1],
+            });
         }
         Ok((algo, seed))
     }
 
     /// The `index`-th job (algorithms outer, seeds inner), as `reacher job --index` counts.
     pub fn job_at(&self, index: usize) -> Result<(Algo, u64), PipelineError> {
-        let jobs = self.prepared.jobs().map_err(usage_of)?;
-        jobs.get(index).copied().ok_or_else(|| {
-            PipelineError::Usage(format!(
-                "{}: job index {index} is outside 0..{} (the run has {} jobs)",
-                self.dir.display(),
-                jobs.len(),
-                jobs.len()
-            ))
-        })
+        let jobs = self.prepared.jobs().map_err(PipelineError::Plan)?;
+        jobs.get(index)
+            .copied()
+            .ok_or_else(|| PipelineError::JobIndexNotInRun {
+                dir: self.dir.clone(),
+                index,
+                jobs: jobs.len(),
+            })
     }
 
     fn record_path(&self, algo: Algo, seed: u64) -> PathBuf {
@@ -700,14 +695,7 @@ impl PreparedRun {
             threads,
             progress,
         )?;
-        let record = JobRecord {
-            algo: algo.name().into(),
-            seed,
-            rows: result.rows,
-            final_policy: result.final_policy,
-            loop_final_set: result.loop_final_set,
-            wall_secs: result.wall_secs,
-        };
+        let record = JobRecord::from(result);
         write_file(
             &record_path,
             &(serde_json::to_string(&record).expect("JSON serialises") + "\n"),
@@ -720,16 +708,11 @@ impl PreparedRun {
         Ok(self
             .prepared
             .jobs()
-            .map_err(usage_of)?
+            .map_err(PipelineError::Plan)?
             .into_iter()
             .filter(|&(a, s)| !self.record_path(a, s).is_file())
             .collect())
     }
-}
-
-/// A usage error with the message of `e`.
-fn usage_of(e: impl std::fmt::Display) -> PipelineError {
-    PipelineError::Usage(e.to_string())
 }
 
 fn read_record(path: &Path) -> Result<JobRecord, RecordError> {
@@ -755,28 +738,24 @@ pub fn aggregate(
     let missing = run.missing_jobs()?;
     if !missing.is_empty() && !allow_partial {
         let names: Vec<String> = missing.iter().map(|&(a, s)| job_stem(a, s)).collect();
-        return Err(PipelineError::Usage(format!(
-            "{}: {} of {} jobs have not finished: {} (run them with `reacher job`, or pass \
-             --partial)",
-            run.dir.display(),
-            missing.len(),
-            run.prepared.jobs().map_err(usage_of)?.len(),
-            names.join(", ")
-        )));
+        return Err(PipelineError::JobsUnfinished {
+            dir: run.dir.clone(),
+            missing: names,
+            jobs: run.prepared.jobs().map_err(PipelineError::Plan)?.len(),
+        });
     }
     let mut records = Vec::new();
-    for (algo, seed) in run.prepared.jobs().map_err(usage_of)? {
+    for (algo, seed) in run.prepared.jobs().map_err(PipelineError::Plan)? {
         if missing.contains(&(algo, seed)) {
             continue;
         }
-        let record = read_record(&run.record_path(algo, seed)).map_err(usage_of)?;
+        let record = read_record(&run.record_path(algo, seed)).map_err(PipelineError::Record)?;
         records.push((algo, record));
     }
     if records.is_empty() {
-        return Err(PipelineError::Usage(format!(
-            "{}: no job has finished yet",
-            run.dir.display()
-        )));
+        return Err(PipelineError::NoJobFinished {
+            dir: run.dir.clone(),
+        });
     }
     write_reports(run, &records, wall_secs)
 }
@@ -784,32 +763,29 @@ pub fn aggregate(
 /// Runs everything in one process and writes the run directory: [`prepare`], every job on a
 /// pool of `threads` workers, [`aggregate`] — the same three phases `reacher prepare`, `job`
 /// and `aggregate` run one process each. Bad input (algorithm list, expert cache) is reported
-/// as [`PipelineError::Usage`] before anything is written.
+/// as bad input ([`PipelineError::is_usage`]) before anything is written.
 pub fn run_pipeline(
     request: &RunRequest,
     observer: &dyn RunObserver,
 ) -> Result<RunSummary, PipelineError> {
     let started = Instant::now();
     let out = &request.out;
-    let output =
-        OutputDir::check(out, request.force).map_err(|e| PipelineError::Usage(e.to_string()))?;
+    let output = OutputDir::check(out, request.force).map_err(PipelineError::OutputDir)?;
     check_request(request)?;
     // From here on, output goes to <out>.partial.
-    let partial = output
-        .begin()
-        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    let partial = output.begin().map_err(PipelineError::Output)?;
     prepare(request, &partial, observer)?;
     let run = open_run(&partial)?;
 
     observer.phase("irl");
-    let jobs = (run.prepared.jobs()).map_err(|e| PipelineError::Run(e.to_string()))?;
+    let jobs = (run.prepared.jobs()).map_err(PipelineError::Plan)?;
     let labels: Vec<String> = jobs.iter().map(|(a, s)| format!("{a} seed {s}")).collect();
     observer.jobs(
         &labels,
         run.config.sac_steps_per_iteration * run.config.irl_iterations as u64,
     );
     let next = AtomicUsize::new(0);
-    let failures: Mutex<Vec<Option<String>>> = Mutex::new(jobs.iter().map(|_| None).collect());
+    let failures: Mutex<Vec<Option<JobRunError>>> = Mutex::new(jobs.iter().map(|_| None).collect());
     // The run's threads are shared by the jobs running: a worker with no job left lends its
     // thread to the others, and a run of fewer jobs than threads gives each the rest.
     let threads = run.config.threads;
@@ -831,28 +807,28 @@ pub fn run_pipeline(
                     Err(e) => {
                         failures
                             .lock()
-                            .expect("no job panics while holding the lock")[i] = Some(e.to_string())
+                            .expect("no job panics while holding the lock")[i] = Some(e)
                     }
                 }
             });
         }
     });
-    if let Some(e) = failures
-        .into_inner()
-        .expect("workers finished")
-        .into_iter()
-        .flatten()
-        .next()
+    if let Some(((algo, seed), e)) = jobs
+        .iter()
+        .zip(failures.into_inner().expect("workers finished"))
+        .find_map(|(&job, e)| e.map(|e| (job, e)))
     {
-        return Err(PipelineError::Run(e));
+        return Err(PipelineError::JobFailed {
+            algo,
+            seed,
+            source: Box::new(e),
+        });
     }
 
     observer.phase("reports");
     let mut summary = aggregate(&run, false, Some(started.elapsed().as_secs_f64()))?;
     // Complete: replace the previous run directory (checked to be ours).
-    output
-        .commit(&partial)
-        .map_err(|e| PipelineError::Run(e.to_string()))?;
+    output.commit(&partial).map_err(PipelineError::Output)?;
     summary.out = out.clone();
     summary.wall_secs = started.elapsed().as_secs_f64();
     Ok(summary)

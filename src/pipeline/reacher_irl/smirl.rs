@@ -7,7 +7,7 @@
 //! 2. **Annotate** ([`annotate`]): every expert observation o_t gets the learned state
 //!    u_{t−1} its labels are read in (demonstrations held at their final state to the
 //!    horizon, so expert and agent are compared over one T).
-//! 3. **IRL on U × O** ([`train`]), per iteration:
+//! 3. **IRL on U × O** ([`train`], the loop of [`super::irl_loop`]), per iteration:
 //!    1. SAC on the product ReacherDelivery × learned machine (observation ⊕ one-hot u) with
 //!       the current reward δ_r(u, o) = w_uᵀ φ(o), a share of every batch moved to
 //!       counterfactual machine states (CRM);
@@ -24,12 +24,12 @@
 //! machine); `train` is one (variant, seed) job. Ground-truth evaluation, logging and progress
 //! watch the loop from outside ([`JobWatch`]).
 
-use super::agent_phases::{train_sac, RolloutStream};
 use super::config::IrlRunConfig;
 use super::episodes::AgentBatch;
 use super::evaluation::{JobWatch, UpdateFacts};
 use super::expert_data::ExpertData;
-use super::final_policy::{self, FinalPhase, FinalPolicy};
+use super::final_policy::{FinalPhase, FinalPolicy};
+use super::irl_loop;
 use super::iteration::{Coefficients, RewardTraceRow, StepError};
 use crate::env::layout::{TaskLayout, OBS_JOINT_VEL};
 use crate::env::product::ProductEnv;
@@ -482,8 +482,9 @@ pub struct SmirlOutcome {
     pub final_policy: Option<FinalPolicy>,
 }
 
-/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver, then (`final_sac_steps` > 0)
-/// the final policy on the final reward ([`final_policy`]).
+/// Step 3: MaxEnt IRL on U × O with SAC as the inner solver (the loop of [`super::irl_loop`]
+/// with SMIRL's reward, `SmirlReward`), then (`final_sac_steps` > 0) the final policy on the
+/// final reward ([`super::final_policy`]).
 pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOutcome, StepError> {
     let s = job.settings;
     let n_states = job.machine.n_states();
@@ -495,39 +496,85 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
         lr: s.smirl_reward_lr,
         l2: s.smirl_reward_l2,
     };
-    let mut reward = LinearRmReward::new(features.clone(), n_states, optim)?;
-    let counterfactual = counterfactual_states(&env, s)?;
+    let mut learner = SmirlReward {
+        reward: LinearRmReward::new(features.clone(), n_states, optim)?,
+        counterfactual: counterfactual_states(&env, s)?,
+        potential: None,
+        features,
+        job,
+        trace: Vec::with_capacity(s.irl_iterations),
+    };
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
-    let mut rollouts = RolloutStream::new(job.seed);
-    let mut trace = Vec::with_capacity(s.irl_iterations);
+    // Step 4, the final policy, after the loop's last iteration: SAC goes on with the final
+    // reward, now fixed (shaped by its potential), then (`final_reset_steps`) a reset agent
+    // learns it too, and the candidate of highest learned return (the selection cut: counted
+    // up to the first touch after the cancel that no demonstration makes) is the job's policy.
+    let selection_cut = s
+        .selection_cut()
+        .then(|| seen_after_events(job.machine, job.expert, s))
+        .transpose()?;
+    let final_phase = FinalPhase::of(s, job.seed, selection_cut.as_ref());
+    let final_policy = irl_loop::run(
+        &mut learner,
+        &mut sac,
+        &mut env,
+        s,
+        job.seed,
+        final_phase,
+        watch,
+    )?;
+    Ok(SmirlOutcome {
+        reward: learner.reward,
+        trace: learner.trace,
+        final_policy,
+    })
+}
 
-    watch.iteration_done(0, 0, &mut sac.agent, &mut env, None)?;
-    for iteration in 1..=s.irl_iterations {
-        // 1. SAC on the product with the current δ_r (shaped by the potential of the current
-        //    weights when `smirl_shaping` > 0), counterfactual states in every batch.
-        let potential = shaping_potential(&features, n_states, &reward.params(), s)?;
-        let mut sac_reward = ProductReward::new(
-            &mut reward,
-            counterfactual.as_ref(),
-            potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
-        );
-        let steps = s.sac_steps_per_iteration;
-        train_sac(&mut sac, &mut env, &mut sac_reward, steps, iteration, watch)?;
+/// SMIRL's reward in the IRL loop: δ_r(u, o) = w_uᵀ φ(o) and its MaxEnt update on U × O.
+struct SmirlReward<'j> {
+    reward: LinearRmReward,
+    features: FeatureMap,
+    /// CRM's counterfactual machine states, moved into a share of every SAC batch.
+    counterfactual: Option<CounterfactualRm>,
+    /// The shaping potential of the current weights (`smirl_shaping` > 0).
+    potential: Option<LearnedSubgoalPotential>,
+    job: &'j SmirlJob<'j>,
+    trace: Vec<RewardTraceRow>,
+}
 
-        // 2. Rollouts of the stochastic policy, each observation with its learned state.
-        let batch = rollouts.collect(&mut sac.agent, &mut env, s.agent_trajectories, watch)?;
+impl irl_loop::RewardLearner for SmirlReward<'_> {
+    type SacReward<'a>
+        = ProductReward<'a>
+    where
+        Self: 'a;
 
-        // 3. Feature expectations: coefficients of μ_π − μ_D per (u, o).
+    /// SAC on the product with the current δ_r (shaped by the potential of the current weights
+    /// when `smirl_shaping` > 0), counterfactual states in every batch.
+    fn sac_reward(&mut self) -> Result<ProductReward<'_>, StepError> {
+        let s = self.job.settings;
+        let n_states = self.job.machine.n_states();
+        self.potential = shaping_potential(&self.features, n_states, &self.reward.params(), s)?;
+        Ok(ProductReward::new(
+            &mut self.reward,
+            self.counterfactual.as_ref(),
+            self.potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
+        ))
+    }
+
+    fn update(&mut self, iteration: usize, batch: AgentBatch) -> Result<UpdateFacts, StepError> {
+        let s = self.job.settings;
+        let reward = &mut self.reward;
+        // Feature expectations: coefficients of μ_π − μ_D per (u, o).
         let c = coefficients(
-            &features,
-            job.expert,
+            &self.features,
+            self.job.expert,
             &batch,
             s.normalisation(),
-            job.machine,
+            self.job.machine,
         );
 
-        // 4. Reward steps; the first step's gradient (before
-        //    any step) is the traced data gradient.
+        // Reward steps; the first step's gradient (before any step) is the traced data
+        // gradient.
         let mut r = vec![0.0f32; c.coeffs.len()];
         reward.reward_batch(&c.obs, &c.states, &mut r)?;
         let facts = UpdateFacts::of(&r, &c.coeffs, batch.n_states());
@@ -542,52 +589,11 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
                 .update(&c.obs, &c.states, &c.coeffs)
                 .map_err(StepError::RewardUpdate)?;
         }
-        trace.push(RewardTraceRow {
+        self.trace.push(RewardTraceRow {
             iteration,
             data_gradient,
             weights: reward.params(),
         });
-
-        watch.iteration_done(
-            iteration,
-            sac.env_steps(),
-            &mut sac.agent,
-            &mut env,
-            Some(facts),
-        )?;
+        Ok(facts)
     }
-
-    // Step 4, the final policy: SAC goes on with the final reward, now fixed (shaped by its
-    //    potential), then (`final_reset_steps`) a reset agent learns it too,
-    //    and the candidate of highest learned return (the selection cut: counted up to
-    //    the first touch after the cancel that no demonstration makes) is the job's policy.
-    let selection_cut = s
-        .selection_cut()
-        .then(|| seen_after_events(job.machine, job.expert, s))
-        .transpose()?;
-    let final_policy = match FinalPhase::of(s, job.seed, selection_cut.as_ref()) {
-        Some(phase) => {
-            let potential = shaping_potential(&features, n_states, &reward.params(), s)?;
-            let mut sac_reward = ProductReward::new(
-                &mut reward,
-                counterfactual.as_ref(),
-                potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
-            );
-            let iterations = s.irl_iterations;
-            Some(final_policy::train(
-                &mut sac,
-                &mut env,
-                &mut sac_reward,
-                phase,
-                iterations,
-                watch,
-            )?)
-        }
-        None => None,
-    };
-    Ok(SmirlOutcome {
-        reward,
-        trace,
-        final_policy,
-    })
 }

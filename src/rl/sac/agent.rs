@@ -2,7 +2,7 @@
 
 use super::episode::{EpisodeSummary, RolloutStep};
 use super::{SacConfig, SacError};
-use crate::env::ContinuousEnv;
+use crate::env::{episode, ContinuousEnv};
 use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
 use crate::nn::{gaussian, Adam, AdamConfig, BackwardMode, Mlp, MlpArch, MlpWorkspace};
 use crate::rl::replay::ReplayBatch;
@@ -301,39 +301,37 @@ impl SacAgent {
                 });
             }
         }
-        let mut obs = vec![0.0; self.obs_dim];
-        let mut next_obs = vec![0.0; self.obs_dim];
-        let mut action = vec![0.0; self.act_dim];
-        env.reset(reset_seed, &mut obs);
-        let mut summary = EpisodeSummary {
+        let summary = EpisodeSummary {
             index: 0,
             env_return: 0.0,
             final_reward: 0.0,
             length: 0,
             terminated: false,
         };
-        for step in 0..max_steps {
-            self.act(&obs, mode, rng, &mut action);
-            let s = env
-                .step(&action, &mut next_obs)
-                .map_err(|source| SacError::Env { step, source })?;
-            on_step(&RolloutStep {
-                t: step,
-                obs: &obs,
-                action: &action,
-                next_obs: &next_obs,
-                env_step: s,
-            });
-            summary.env_return += s.reward;
-            summary.final_reward = s.reward;
-            summary.length += 1;
-            std::mem::swap(&mut obs, &mut next_obs);
-            if s.terminated || s.truncated {
-                summary.terminated = s.terminated;
-                break;
-            }
-        }
-        Ok(summary)
+        episode::play(
+            env,
+            reset_seed,
+            max_steps,
+            |_, _| Ok(summary),
+            |_, obs, action| self.act(obs, mode, rng, action),
+            |summary, env, s| {
+                let step = env
+                    .step(s.action, s.next_obs)
+                    .map_err(|source| SacError::Env { step: s.t, source })?;
+                on_step(&RolloutStep {
+                    t: s.t,
+                    obs: s.obs,
+                    action: s.action,
+                    next_obs: s.next_obs,
+                    env_step: step,
+                });
+                summary.env_return += step.reward;
+                summary.final_reward = step.reward;
+                summary.length += 1;
+                summary.terminated = step.terminated;
+                Ok(step.terminated || step.truncated)
+            },
+        )
     }
 
     /// Writes observations into the critic input's observation rows.
