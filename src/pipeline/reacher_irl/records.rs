@@ -7,7 +7,7 @@ use super::demos::DemoError;
 use super::evaluation::FinalSetScore;
 use super::expert_data::ExpertData;
 use super::final_policy::FinalPolicy;
-use super::run::{JobRunError, RecordError as JobRecordError};
+use super::job::JobError;
 use super::smirl::MachineError;
 use super::Algo;
 use crate::atomic_file::write_atomic;
@@ -157,7 +157,7 @@ pub enum PipelineError {
     NoJobFinished { dir: PathBuf },
     /// A finished job's record, read back to aggregate.
     #[error(transparent)]
-    Record(JobRecordError),
+    Record(RecordError),
     #[error("{algo} seed {seed}: no metrics rows")]
     NoMetricsRows { algo: Algo, seed: u64 },
     /// The output directory of `reacher --task`, checked before anything is written.
@@ -393,4 +393,54 @@ impl From<super::JobResult> for JobRecord {
             wall_secs: result.wall_secs,
         }
     }
+}
+
+/// A prepared run without the machine (and its annotated demonstrations) an algorithm reads.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: no {file} for {algo}", dir.display())]
+pub struct MissingMachine {
+    pub dir: PathBuf,
+    pub file: &'static str,
+    pub algo: Algo,
+}
+
+/// A job record (`jobs/<algo>_seed<S>.json`) that cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error("{}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: {source}", path.display())]
+    Parse {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
+}
+
+/// One job of a prepared run that failed, before, while or after it ran.
+#[derive(Debug, thiserror::Error)]
+pub enum JobRunError {
+    #[error("{}: {source}", path.display())]
+    CreateDir {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    MissingMachine(#[from] MissingMachine),
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    /// The algorithm's schedule in the run's config.
+    #[error(transparent)]
+    Config(#[from] IrlConfigError),
+    #[error(transparent)]
+    TaskLayout(#[from] ConfigError),
+    #[error(transparent)]
+    Log(#[from] LogError),
+    #[error(transparent)]
+    Job(#[from] JobError),
+    /// Writing the job's files (the log header, the reward trace, the record).
+    #[error(transparent)]
+    Write(#[from] PipelineError),
 }

@@ -20,11 +20,11 @@
 //!   `rewards/<algo>_seed<S>.trace.csv`, the weights and data gradient of every IRL iteration.
 //! - `logs/demos.mcap`, `logs/<algo>_seed<S>.mcap` — demos and sampled agent/eval episodes.
 
-use super::config::{DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
+use super::config::{DemoSource, IrlRunConfig, SmirlMachine};
 use super::demos::{load_expert, make_demos};
 use super::expert_data::ExpertData;
 use super::iteration::JobProgress;
-use super::job::{run_job, JobError, JobInputs, JobResult};
+use super::job::{run_job, JobInputs, JobResult};
 use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
@@ -34,10 +34,9 @@ use super::smirl::{
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;
-use crate::env::reacher::ConfigError;
 use crate::env::reacher_task::{Branch, ReacherTask};
 use crate::input_file::{read_text, MAX_DATA_FILE_BYTES};
-use crate::log::{LogError, LogOptions, RolloutLogger, RunHeader};
+use crate::log::{LogOptions, RolloutLogger, RunHeader};
 use crate::output::OutputDir;
 use crate::pipeline::reacher_expert::Demo;
 use crate::pipeline::reacher_expert::{branch_tally, ExpertPolicy};
@@ -54,7 +53,8 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 pub use super::records::{
-    AlgoSummary, JobRecord, PipelineError, Prepared, PreparedRun, RmFacts, RunSummary,
+    AlgoSummary, JobRecord, JobRunError, MissingMachine, PipelineError, Prepared, PreparedRun,
+    RecordError, RmFacts, RunSummary,
 };
 pub use super::reports::summary_markdown;
 
@@ -542,56 +542,6 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
         expert,
         paper,
     })
-}
-
-/// A prepared run without the machine (and its annotated demonstrations) an algorithm reads.
-#[derive(Debug, thiserror::Error)]
-#[error("{}: no {file} for {algo}", dir.display())]
-pub struct MissingMachine {
-    pub dir: PathBuf,
-    pub file: &'static str,
-    pub algo: Algo,
-}
-
-/// A job record (`jobs/<algo>_seed<S>.json`) that cannot be read.
-#[derive(Debug, thiserror::Error)]
-pub enum RecordError {
-    #[error("{}: {source}", path.display())]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{}: {source}", path.display())]
-    Parse {
-        path: PathBuf,
-        source: serde_json::Error,
-    },
-}
-
-/// One job of a prepared run that failed, before, while or after it ran.
-#[derive(Debug, thiserror::Error)]
-pub enum JobRunError {
-    #[error("{}: {source}", path.display())]
-    CreateDir {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error(transparent)]
-    MissingMachine(#[from] MissingMachine),
-    #[error(transparent)]
-    Record(#[from] RecordError),
-    /// The algorithm's schedule in the run's config.
-    #[error(transparent)]
-    Config(#[from] IrlConfigError),
-    #[error(transparent)]
-    TaskLayout(#[from] ConfigError),
-    #[error(transparent)]
-    Log(#[from] LogError),
-    #[error(transparent)]
-    Job(#[from] JobError),
-    /// Writing the job's files (the log header, the reward trace, the record).
-    #[error(transparent)]
-    Write(#[from] PipelineError),
 }
 
 impl PreparedRun {
