@@ -534,7 +534,7 @@ impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
     type Facts = DrawFacts;
     type Error = DrawError;
 
-    /// 1. SAC on the current reward r(o_{t+1}) of each replayed transition.
+    /// Phase 1: SAC on the current reward r(o_{t+1}) of each replayed transition.
     fn sac_phase(&mut self, _iteration: usize) -> Result<(), DrawError> {
         let mut reward_error = None;
         // The plain environment's observations are the reward's input rows as stored.
@@ -561,7 +561,7 @@ impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
         }
     }
 
-    /// 2. Fresh episodes of the stochastic policy: fingertip states s_1..s_T, played
+    /// Phase 2: fresh episodes of the stochastic policy, fingertip states s_1..s_T, played
     /// `lockstep.len()` at a time so that the actor acts on all of them in one product.
     fn rollouts(&mut self, _iteration: usize) -> Result<Vec<f32>, DrawError> {
         let (n_traj, horizon) = (self.config.agent_trajectories, self.config.horizon);
@@ -607,8 +607,8 @@ impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
         Ok(agent_obs)
     }
 
-    /// 3. The algorithm's loss coefficients at the agent (and, MaxEnt, expert) states, then
-    /// the reward steps on them.
+    /// Phase 3: the algorithm's loss coefficients at the agent (and, MaxEnt, expert) states,
+    /// then the reward steps on them.
     fn reward_update(
         &mut self,
         _iteration: usize,
@@ -662,8 +662,8 @@ impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
         Ok(facts)
     }
 
-    /// 4. Every `eval_every` iterations (and the first and last), the KLs to the target on
-    /// this iteration's states.
+    /// Phase 4: every `eval_every` iterations (and the first and last), the KLs to the target
+    /// on this iteration's states.
     fn record(&mut self, iteration: usize, facts: DrawFacts) -> Result<(), DrawError> {
         let config = self.config;
         if iteration == 1 || iteration % config.eval_every == 0 || iteration == config.iterations {
