@@ -15,12 +15,14 @@
 //! forward and reverse KL between those draws and the agent's fingertip states, by the kNN
 //! estimator ([`crate::irl::knn_divergence`], k = 3), as f-IRL reports it.
 //!
-//! One IRL iteration, top to bottom in [`run_draw`]: SAC continues on the current reward for
+//! One IRL iteration, the one IRL loop's ([`irl_loop::iterate`]) with ReacherDraw's phases,
+//! top to bottom in `DrawPhases`' impl: SAC continues on the current reward for
 //! `sac_steps_per_iteration` steps; `agent_trajectories` fresh episodes of the stochastic
-//! policy; the algorithm's per-state loss coefficients; `reward_steps_per_iteration` Adam
+//! policy; the algorithm's per-state loss coefficients and `reward_steps_per_iteration` Adam
 //! steps of the reward; every `eval_every` iterations the two KLs.
 
 use super::reacher_irl::config::{load_toml_config, parse_toml_config};
+use super::reacher_irl::irl_loop::{self, IrlPhases};
 use super::reacher_irl::{Algo, IrlConfigError};
 use crate::env::reacher::ReacherError;
 use crate::env::reacher::{
@@ -416,33 +418,32 @@ pub struct DrawResult {
 
 /// Runs one ReacherDraw job: `algo` (maxent, fkl, rkl, js) on `config`, seeded by `seed`
 /// (SAC, rollouts and target samples have their own streams). `on_row` sees each KL
-/// estimate as it is made.
+/// estimate as it is made. The iterations are the one IRL loop's ([`irl_loop::iterate`]) with
+/// ReacherDraw's phases (`DrawPhases`).
 pub fn run_draw(
     algo: Algo,
     config: &DrawConfig,
     seed: u64,
-    mut on_row: impl FnMut(&DrawRow),
+    on_row: impl FnMut(&DrawRow),
 ) -> Result<DrawResult, DrawError> {
     if !matches!(algo, Algo::MaxEnt | Algo::Fkl | Algo::Rkl | Algo::Js) {
         return Err(DrawError::Algo { algo });
     }
     config.validate("ReacherDraw config")?;
     let started = Instant::now();
-    let target = config.target;
-    let horizon = config.horizon;
     let env_config = config.env_config().map_err(DrawError::ArmConfig)?;
-    let mut env = ReacherDelivery::new(env_config.clone()).map_err(DrawError::Arm)?;
+    let env = ReacherDelivery::new(env_config.clone()).map_err(DrawError::Arm)?;
     let obs_dim = env.obs_dim();
-    let mut trainer =
+    let trainer =
         SacTrainer::new(&config.sac, obs_dim, env.act_dim(), seed).map_err(DrawError::SacConfig)?;
-    let mut model: Box<dyn RewardModel + Send> = Box::new(
+    let model: Box<dyn RewardModel + Send> = Box::new(
         MlpReward::new(
             MlpRewardConfig::paper(OBS_TIP.to_vec(), config.reward_lr, seed),
             obs_dim,
         )
         .map_err(DrawError::RewardNet)?,
     );
-    let target_samples = target.sample(
+    let target_samples = config.target.sample(
         config.expert_samples,
         &mut ChaCha8Rng::seed_from_u64(episode_seed(seed, 0xd2a3)),
     );
@@ -457,73 +458,139 @@ pub fn run_draw(
             o
         })
         .collect();
-    let mut rollout_rng = ChaCha8Rng::seed_from_u64(episode_seed(seed, 0x0a11_0a11));
-    // Rollout environments stepped in lockstep, and the actor's buffers for them.
-    let act_dim = env.act_dim();
-    let mut lockstep = (0..config.agent_trajectories.min(ROLLOUT_LOCKSTEP))
+    let rollout_rng = ChaCha8Rng::seed_from_u64(episode_seed(seed, 0x0a11_0a11));
+    let lockstep = (0..config.agent_trajectories.min(ROLLOUT_LOCKSTEP))
         .map(|_| ReacherDelivery::new(env_config.clone()))
         .collect::<Result<Vec<_>, _>>()
         .map_err(DrawError::Arm)?;
-    let mut act_ws = ActWorkspace::with_batch(&trainer.agent.actor, lockstep.len());
-    let mut round_obs = vec![0.0f32; lockstep.len() * obs_dim];
-    let mut round_actions = vec![0.0f32; lockstep.len() * act_dim];
-    let mut rollout_index = 0u64;
-    let mut rows = Vec::new();
-    let mut tips = Vec::new();
-    let mut reward_error = None;
+    let act_ws = ActWorkspace::with_batch(&trainer.agent.actor, lockstep.len());
+    let mut draw = DrawPhases {
+        algo,
+        config,
+        seed,
+        started,
+        round_obs: vec![0.0; lockstep.len() * obs_dim],
+        round_actions: vec![0.0; lockstep.len() * env.act_dim()],
+        env,
+        trainer,
+        model,
+        target_samples,
+        expert_obs,
+        lockstep,
+        act_ws,
+        rollout_rng,
+        rollout_index: 0,
+        tips: Vec::new(),
+        rows: Vec::new(),
+        on_row,
+    };
+    irl_loop::iterate(&mut draw, config.iterations)?;
+    Ok(DrawResult {
+        rows: draw.rows,
+        final_tips: draw.tips,
+        target_samples: draw.target_samples,
+    })
+}
 
-    for iteration in 1..=config.iterations {
-        // 1. SAC on the current reward r(o_{t+1}) of each replayed transition.
-        {
-            // The plain environment's observations are the reward's input rows as stored.
-            let mut reward_fn = |batch: &ReplayBatch, out: &mut [f32]| {
-                if let Err(e) = model.reward_batch(batch.next_obs.as_slice(), &[], out) {
-                    out.fill(0.0);
-                    reward_error.get_or_insert(e);
-                }
-            };
-            trainer
-                .train(
-                    &mut env,
-                    &mut reward_fn,
-                    config.sac_steps_per_iteration,
-                    |_| {},
-                )
+/// A ReacherDraw job as [`run_draw`] sets it up: one IRL iteration is its four phases, top to
+/// bottom in the `IrlPhases` impl below.
+struct DrawPhases<'c, F> {
+    algo: Algo,
+    config: &'c DrawConfig,
+    seed: u64,
+    started: Instant,
+    /// SAC's environment.
+    env: ReacherDelivery,
+    trainer: SacTrainer,
+    model: Box<dyn RewardModel + Send>,
+    target_samples: Vec<f64>,
+    expert_obs: Vec<f32>,
+    /// Rollout environments stepped in lockstep, and the actor's buffers for them.
+    lockstep: Vec<ReacherDelivery>,
+    act_ws: ActWorkspace,
+    round_obs: Vec<f32>,
+    round_actions: Vec<f32>,
+    /// The rollouts' action noise, and how many rollout episodes have been reset (their reset
+    /// seeds' stream), both counted across iterations.
+    rollout_rng: ChaCha8Rng,
+    rollout_index: u64,
+    /// The last rollouts' fingertip states, row-major (x, y).
+    tips: Vec<f64>,
+    rows: Vec<DrawRow>,
+    on_row: F,
+}
+
+/// What a ReacherDraw reward update reports to its KL row.
+struct DrawFacts {
+    /// Mean learned reward over the iteration's agent states, before the update.
+    learned_reward: f64,
+    /// Σ c r before the update.
+    surrogate_loss: f64,
+}
+
+impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
+    /// The rollouts' observations, trajectory after trajectory, `horizon` each.
+    type Batch = Vec<f32>;
+    type Facts = DrawFacts;
+    type Error = DrawError;
+
+    /// Phase 1: SAC on the current reward r(o_{t+1}) of each replayed transition.
+    fn sac_phase(&mut self, _iteration: usize) -> Result<(), DrawError> {
+        let mut reward_error = None;
+        // The plain environment's observations are the reward's input rows as stored.
+        let mut reward_fn = |batch: &ReplayBatch, out: &mut [f32]| {
+            if let Err(e) = self.model.reward_batch(batch.next_obs.as_slice(), &[], out) {
+                out.fill(0.0);
+                reward_error.get_or_insert(e);
+            }
+        };
+        let steps = self.config.sac_steps_per_iteration;
+        (self.trainer)
+            .train(&mut self.env, &mut reward_fn, steps, |_| {})
+            .map_err(DrawError::Sac)?;
+        // Play the episode in progress to its end: the rollouts below reset the same
+        // environment, and SAC must not resume from the state they leave.
+        while !self.trainer.at_episode_boundary() {
+            (self.trainer)
+                .train(&mut self.env, &mut reward_fn, 1, |_| {})
                 .map_err(DrawError::Sac)?;
-            // Play the episode in progress to its end: the rollouts below reset the same
-            // environment, and SAC must not resume from the state they leave.
-            while !trainer.at_episode_boundary() {
-                trainer
-                    .train(&mut env, &mut reward_fn, 1, |_| {})
-                    .map_err(DrawError::Sac)?;
-            }
-            if let Some(e) = reward_error.take() {
-                return Err(DrawError::LearnedReward(e));
-            }
         }
-        // 2. Fresh episodes of the stochastic policy: fingertip states s_1..s_T, played
-        // `lockstep.len()` at a time so that the actor acts on all of them in one product.
-        let n_traj = config.agent_trajectories;
+        match reward_error {
+            Some(e) => Err(DrawError::LearnedReward(e)),
+            None => Ok(()),
+        }
+    }
+
+    /// Phase 2: fresh episodes of the stochastic policy, fingertip states s_1..s_T, played
+    /// `lockstep.len()` at a time so that the actor acts on all of them in one product.
+    fn rollouts(&mut self, _iteration: usize) -> Result<Vec<f32>, DrawError> {
+        let (n_traj, horizon) = (self.config.agent_trajectories, self.config.horizon);
+        let (obs_dim, act_dim) = (self.env.obs_dim(), self.env.act_dim());
+        let width = self.lockstep.len();
         let mut agent_obs = vec![0.0f32; n_traj * horizon * obs_dim];
-        for first in (0..n_traj).step_by(lockstep.len()) {
-            let round = lockstep.len().min(n_traj - first);
-            for (k, env) in lockstep.iter_mut().take(round).enumerate() {
-                let reset_seed = episode_seed(seed ^ 0x7261_6e64, rollout_index + k as u64);
-                env.reset(reset_seed, &mut round_obs[k * obs_dim..(k + 1) * obs_dim]);
-            }
-            rollout_index += round as u64;
-            for t in 0..horizon {
-                act_ws.act(
-                    &trainer.agent.actor,
-                    &round_obs,
-                    ActMode::Sample,
-                    &mut rollout_rng,
-                    &mut round_actions,
+        for first in (0..n_traj).step_by(width) {
+            let round = width.min(n_traj - first);
+            for (k, env) in self.lockstep.iter_mut().take(round).enumerate() {
+                let reset_seed =
+                    episode_seed(self.seed ^ 0x7261_6e64, self.rollout_index + k as u64);
+                env.reset(
+                    reset_seed,
+                    &mut self.round_obs[k * obs_dim..(k + 1) * obs_dim],
                 );
-                for (k, env) in lockstep.iter_mut().take(round).enumerate() {
-                    let o = &mut round_obs[k * obs_dim..(k + 1) * obs_dim];
+            }
+            self.rollout_index += round as u64;
+            for t in 0..horizon {
+                self.act_ws.act(
+                    &self.trainer.agent.actor,
+                    &self.round_obs,
+                    ActMode::Sample,
+                    &mut self.rollout_rng,
+                    &mut self.round_actions,
+                );
+                for (k, env) in self.lockstep.iter_mut().take(round).enumerate() {
+                    let o = &mut self.round_obs[k * obs_dim..(k + 1) * obs_dim];
                     let step = env
-                        .step(&round_actions[k * act_dim..(k + 1) * act_dim], o)
+                        .step(&self.round_actions[k * act_dim..(k + 1) * act_dim], o)
                         .map_err(DrawError::Rollout)?;
                     if step.terminated || (step.truncated && t + 1 < horizon) {
                         return Err(DrawError::EarlyEnd { step: t, horizon });
@@ -533,72 +600,90 @@ pub fn run_draw(
                 }
             }
         }
-        tips = agent_obs
+        self.tips = agent_obs
             .chunks_exact(obs_dim)
             .flat_map(|o| [f64::from(o[OBS_TIP[0]]), f64::from(o[OBS_TIP[1]])])
             .collect();
-        // 3. The algorithm's loss coefficients at the agent (and, MaxEnt, expert) states.
-        let (obs, coeffs) = match algo.divergence() {
+        Ok(agent_obs)
+    }
+
+    /// Phase 3: the algorithm's loss coefficients at the agent (and, MaxEnt, expert) states,
+    /// then the reward steps on them.
+    fn reward_update(
+        &mut self,
+        _iteration: usize,
+        agent_obs: Vec<f32>,
+    ) -> Result<DrawFacts, DrawError> {
+        let (config, tips) = (self.config, &self.tips);
+        let n_agent = tips.len() / 2;
+        let (obs, coeffs) = match self.algo.divergence() {
             Some(divergence) => {
                 let kde_agent =
-                    Kde::fit(&tips, 2, config.kde_bandwidth).map_err(DrawError::AgentKde)?;
-                let mut rho_agent = vec![0.0; tips.len() / 2];
-                kde_agent.density_batch(&tips, &mut rho_agent);
+                    Kde::fit(tips, 2, config.kde_bandwidth).map_err(DrawError::AgentKde)?;
+                let mut rho_agent = vec![0.0; n_agent];
+                kde_agent.density_batch(tips, &mut rho_agent);
                 let rho_target: Vec<f64> = tips
                     .chunks_exact(2)
-                    .map(|p| target.density(p[0], p[1]))
+                    .map(|p| config.target.density(p[0], p[1]))
                     .collect();
                 let ratios = density_ratio(&rho_target, &rho_agent, DEFAULT_DENSITY_EPS)
                     .map_err(DrawError::DensityRatio)?;
-                let s = FirlSurrogate::new(divergence, &ratios, config.agent_trajectories, horizon)
-                    .map_err(DrawError::Surrogate)?;
+                let s = FirlSurrogate::new(
+                    divergence,
+                    &ratios,
+                    config.agent_trajectories,
+                    config.horizon,
+                )
+                .map_err(DrawError::Surrogate)?;
                 (agent_obs, s.coefficients)
             }
             None => {
-                let n_agent = tips.len() / 2;
-                let c = MaxEntCoefficients::new(n_agent, config.expert_samples, horizon)
+                let c = MaxEntCoefficients::new(n_agent, config.expert_samples, config.horizon)
                     .map_err(DrawError::MaxEnt)?;
                 let mut coeffs = vec![c.agent; n_agent];
                 coeffs.extend(std::iter::repeat(c.expert).take(config.expert_samples));
-                ([agent_obs.as_slice(), &expert_obs].concat(), coeffs)
+                ([agent_obs.as_slice(), &self.expert_obs].concat(), coeffs)
             }
         };
         let mut r = vec![0.0f32; coeffs.len()];
-        model
+        (self.model)
             .reward_batch(&obs, &[], &mut r)
             .map_err(DrawError::LearnedReward)?;
-        let surrogate_loss: f64 = r.iter().zip(&coeffs).map(|(&r, c)| f64::from(r) * c).sum();
-        let n_agent = tips.len() / 2;
-        let learned_reward =
-            r[..n_agent].iter().map(|&x| f64::from(x)).sum::<f64>() / n_agent as f64;
-        // 4. Reward steps on the same coefficients.
+        let facts = DrawFacts {
+            surrogate_loss: r.iter().zip(&coeffs).map(|(&r, c)| f64::from(r) * c).sum(),
+            learned_reward: r[..n_agent].iter().map(|&x| f64::from(x)).sum::<f64>()
+                / n_agent as f64,
+        };
         for _ in 0..config.reward_steps_per_iteration {
-            model
+            (self.model)
                 .update(&obs, &[], &coeffs)
                 .map_err(DrawError::RewardUpdate)?;
         }
-        // 5. The KLs to the target, on this iteration's states.
+        Ok(facts)
+    }
+
+    /// Phase 4: every `eval_every` iterations (and the first and last), the KLs to the target
+    /// on this iteration's states.
+    fn record(&mut self, iteration: usize, facts: DrawFacts) -> Result<(), DrawError> {
+        let config = self.config;
         if iteration == 1 || iteration % config.eval_every == 0 || iteration == config.iterations {
-            let forward_kl = knn_kl(&target_samples, &tips, 2, 3).map_err(DrawError::ForwardKl)?;
-            let reverse_kl = knn_kl(&tips, &target_samples, 2, 3).map_err(DrawError::ReverseKl)?;
+            let (target, tips) = (&self.target_samples, &self.tips);
+            let forward_kl = knn_kl(target, tips, 2, 3).map_err(DrawError::ForwardKl)?;
+            let reverse_kl = knn_kl(tips, target, 2, 3).map_err(DrawError::ReverseKl)?;
             let row = DrawRow {
                 iteration,
-                env_steps: trainer.env_steps(),
+                env_steps: self.trainer.env_steps(),
                 forward_kl,
                 reverse_kl,
-                learned_reward,
-                surrogate_loss,
-                wall_secs: started.elapsed().as_secs_f64(),
+                learned_reward: facts.learned_reward,
+                surrogate_loss: facts.surrogate_loss,
+                wall_secs: self.started.elapsed().as_secs_f64(),
             };
-            on_row(&row);
-            rows.push(row);
+            (self.on_row)(&row);
+            self.rows.push(row);
         }
+        Ok(())
     }
-    Ok(DrawResult {
-        rows,
-        final_tips: tips,
-        target_samples,
-    })
 }
 
 /// Most rollout environments stepped together (their actor batch).

@@ -1,15 +1,18 @@
-//! The loop every IRL algorithm of the Reacher comparison runs ([`run`]), written once:
+//! The IRL loop, written once ([`iterate`]): per iteration,
 //!
-//! 0. the untrained policy is evaluated; then, per iteration,
-//! 1. SAC on the reward being learned ([`train_sac`]),
-//! 2. fresh rollouts of the stochastic policy ([`RolloutStream`]),
-//! 3. the algorithm's reward update from them ([`RewardLearner::update`]: its loss
+//! 1. SAC on the reward being learned ([`IrlPhases::sac_phase`]),
+//! 2. fresh rollouts of the stochastic policy ([`IrlPhases::rollouts`]),
+//! 3. the algorithm's reward update from them ([`IrlPhases::reward_update`]: its loss
 //!    coefficients and reward steps),
-//! 4. the ground-truth evaluation of the iteration's policy (the job's watch);
+//! 4. what the iteration is measured by ([`IrlPhases::record`]).
 //!
-//! then the final phase ([`final_policy`]) on the final reward, when the settings ask for one.
-//! What an algorithm brings is its reward ([`RewardLearner`]): SMIRL's
+//! Two kinds of job run it. The Reacher comparison's ([`run`], `JobPhases`): the untrained
+//! policy is evaluated first, every iteration ends with the ground-truth evaluation of the job's
+//! watch, and the final phase ([`final_policy`]) follows on the final reward when the settings
+//! ask for one; what an algorithm brings there is its reward ([`RewardLearner`]): SMIRL's
 //! (`super::smirl::train`) and f-IRL's and continuous MaxEnt's (`super::firl::train`).
+//! ReacherDraw's (`crate::pipeline::reacher_draw::run_draw`): its own lockstep rollouts, the
+//! fingertip density's coefficients, and KL estimates as the record.
 
 use super::agent_phases::{train_sac, RolloutStream};
 use super::config::IrlRunConfig;
@@ -19,7 +22,40 @@ use super::final_policy::{self, FinalPhase, FinalPolicy, ScoredReward};
 use super::iteration::StepError;
 use crate::rl::sac::SacTrainer;
 
-/// An IRL algorithm's learned reward, as the loop of [`run`] uses it.
+/// The four phases of one IRL iteration, as a kind of job runs them.
+pub trait IrlPhases {
+    /// What the rollouts hand to the reward update.
+    type Batch;
+    /// What the reward update hands to the record.
+    type Facts;
+    type Error;
+
+    /// Phase 1: SAC on the current reward.
+    fn sac_phase(&mut self, iteration: usize) -> Result<(), Self::Error>;
+    /// Phase 2: fresh episodes of the stochastic policy.
+    fn rollouts(&mut self, iteration: usize) -> Result<Self::Batch, Self::Error>;
+    /// Phase 3: the loss coefficients at `batch` (and the expert's), then the reward steps.
+    fn reward_update(
+        &mut self,
+        iteration: usize,
+        batch: Self::Batch,
+    ) -> Result<Self::Facts, Self::Error>;
+    /// Phase 4: the iteration's measurement.
+    fn record(&mut self, iteration: usize, facts: Self::Facts) -> Result<(), Self::Error>;
+}
+
+/// Runs IRL iterations 1..=`iterations` of `phases` (see the module docs).
+pub fn iterate<P: IrlPhases>(phases: &mut P, iterations: usize) -> Result<(), P::Error> {
+    for iteration in 1..=iterations {
+        phases.sac_phase(iteration)?;
+        let batch = phases.rollouts(iteration)?;
+        let facts = phases.reward_update(iteration, batch)?;
+        phases.record(iteration, facts)?;
+    }
+    Ok(())
+}
+
+/// An IRL algorithm's learned reward, as the Reacher jobs' loop ([`run`]) uses it.
 pub(super) trait RewardLearner {
     /// The current reward as SAC trains on it (and the final phase scores its candidates
     /// with), borrowing the learner.
@@ -47,35 +83,77 @@ pub(super) fn run<E: JobEnv, L: RewardLearner>(
     final_phase: Option<FinalPhase<'_>>,
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<Option<FinalPolicy>, StepError> {
-    let s = settings;
-    let mut rollouts = RolloutStream::new(seed);
+    // 0. The untrained policy's evaluation.
     watch.iteration_done(0, 0, &mut sac.agent, env, None)?;
-    for iteration in 1..=s.irl_iterations {
-        // 1. SAC on the current reward.
-        let steps = s.sac_steps_per_iteration;
-        train_sac(
-            sac,
-            env,
-            &mut learner.sac_reward()?,
-            steps,
-            iteration,
-            watch,
-        )?;
-
-        // 2. Rollouts of the stochastic policy.
-        let batch = rollouts.collect(&mut sac.agent, env, s.agent_trajectories, watch)?;
-
-        // 3. The reward update.
-        let facts = learner.update(iteration, batch)?;
-
-        // 4. The evaluation.
-        watch.iteration_done(iteration, sac.env_steps(), &mut sac.agent, env, Some(facts))?;
-    }
+    let mut job = JobPhases {
+        learner: &mut *learner,
+        sac: &mut *sac,
+        env: &mut *env,
+        settings,
+        rollouts: RolloutStream::new(seed),
+        watch: &mut *watch,
+    };
+    iterate(&mut job, settings.irl_iterations)?;
     // The final phase: SAC goes on with the final reward, now fixed.
     final_phase
         .map(|phase| {
             let mut reward = learner.sac_reward()?;
-            final_policy::train(sac, env, &mut reward, phase, s.irl_iterations, watch)
+            final_policy::train(sac, env, &mut reward, phase, settings.irl_iterations, watch)
         })
         .transpose()
+}
+
+/// A Reacher job's iterations: `learner`'s reward, `sac` acting in `env`, every phase shown
+/// to the job's `watch`.
+struct JobPhases<'j, 'w, 'l, E, L> {
+    learner: &'j mut L,
+    sac: &'j mut SacTrainer,
+    env: &'j mut E,
+    settings: &'j IrlRunConfig,
+    rollouts: RolloutStream,
+    watch: &'j mut JobWatch<'w, 'l>,
+}
+
+impl<E: JobEnv, L: RewardLearner> IrlPhases for JobPhases<'_, '_, '_, E, L> {
+    type Batch = AgentBatch;
+    type Facts = UpdateFacts;
+    type Error = StepError;
+
+    fn sac_phase(&mut self, iteration: usize) -> Result<(), StepError> {
+        let steps = self.settings.sac_steps_per_iteration;
+        let mut reward = self.learner.sac_reward()?;
+        train_sac(
+            self.sac,
+            self.env,
+            &mut reward,
+            steps,
+            iteration,
+            self.watch,
+        )
+    }
+
+    fn rollouts(&mut self, _iteration: usize) -> Result<AgentBatch, StepError> {
+        let n = self.settings.agent_trajectories;
+        (self.rollouts).collect(&mut self.sac.agent, self.env, n, self.watch)
+    }
+
+    fn reward_update(
+        &mut self,
+        iteration: usize,
+        batch: AgentBatch,
+    ) -> Result<UpdateFacts, StepError> {
+        self.learner.update(iteration, batch)
+    }
+
+    /// The ground-truth evaluation of the iteration's policy.
+    fn record(&mut self, iteration: usize, facts: UpdateFacts) -> Result<(), StepError> {
+        let env_steps = self.sac.env_steps();
+        (self.watch).iteration_done(
+            iteration,
+            env_steps,
+            &mut self.sac.agent,
+            self.env,
+            Some(facts),
+        )
+    }
 }
