@@ -19,6 +19,7 @@ Usage: python3 python/examples/sb3_sac_blue.py [--steps N] [--seed S] [--episode
 import argparse
 import copy
 import json
+import os
 import platform
 import time
 
@@ -66,13 +67,15 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=150_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--out", help="also write the JSON result here")
+    parser.add_argument("--out", help="also write the JSON result here (a new file: never replaced)")
     parser.add_argument(
         "--sb3-defaults",
         action="store_true",
         help="SB3's own SAC settings and shaping 1.0 instead of the project expert's",
     )
     args = parser.parse_args()
+    if args.out and os.path.exists(args.out):
+        parser.error(f"--out {args.out} exists: the result goes to a new file")
 
     torch.set_num_threads(1)
     if args.sb3_defaults:
@@ -110,7 +113,7 @@ def main() -> None:
     text = json.dumps(result, indent=2)
     print(text)
     if args.out:
-        with open(args.out, "w") as f:
+        with open(args.out, "x") as f:
             f.write(text + "\n")
 
 

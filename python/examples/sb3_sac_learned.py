@@ -15,6 +15,7 @@ Usage: python3 python/examples/sb3_sac_learned.py RUN [--seed-of-reward K] [--st
 
 import argparse
 import json
+import os
 import time
 
 import stable_baselines3
@@ -56,6 +57,8 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--out")
     args = parser.parse_args()
+    if args.out and os.path.exists(args.out):
+        parser.error(f"--out {args.out} exists: the result goes to a new file")
 
     torch.set_num_threads(1)
     env = smirl.make_learned(args.run, seed=args.seed_of_reward)
@@ -83,7 +86,7 @@ def main() -> None:
     text = json.dumps(result, indent=2)
     print(text)
     if args.out:
-        with open(args.out, "w") as f:
+        with open(args.out, "x") as f:
             f.write(text + "\n")
 
 
