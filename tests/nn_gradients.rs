@@ -6,7 +6,9 @@ use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::nn::gemm::gemm;
-use smirl::nn::{gaussian, Adam, AdamConfig, BackwardMode, Dense, Mlp, MlpArch};
+use smirl::nn::{
+    gaussian, Adam, AdamConfig, BackwardMode, ByteReader, ByteWriter, Dense, Mlp, MlpArch,
+};
 
 fn random_matrix(r: usize, c: usize, rng: &mut ChaCha8Rng) -> DMatrix<f32> {
     DMatrix::from_fn(r, c, |_, _| rng.gen_range(-1.0..1.0))
@@ -299,4 +301,28 @@ fn gemm_matches_naive_product_for_small_and_transposed_shapes() {
             }
         }
     }
+}
+
+#[test]
+fn adam_moments_of_a_parameter_without_gradient_reach_zero() {
+    // A parameter whose gradient stops (a dead ReLU unit) must not keep subnormal moments:
+    // they cost a microcode assist per vector instruction on x86 (the reason for the flush).
+    let mut adam = Adam::new(AdamConfig::with_lr(1e-3), &[2]);
+    let mut p = [0.5f32, -0.25];
+    adam.step_tensors(&mut [(&mut p[..], &[0.3f32, -0.2][..])]);
+    let mut ever_subnormal = false;
+    for _ in 0..200_000 {
+        adam.step_tensors(&mut [(&mut p[..], &[0.0f32, 0.0][..])]);
+        let mut w = ByteWriter::new();
+        adam.write(&mut w);
+        let mut r = ByteReader::new(&w.bytes);
+        r.u64("t").unwrap();
+        assert_eq!(r.usize("tensors").unwrap(), 1);
+        let floats = [r.f32s("m").unwrap(), r.f32s("v").unwrap()].concat();
+        ever_subnormal |= floats.iter().any(|x| x.is_subnormal());
+    }
+    assert!(!ever_subnormal, "a moment was stored subnormal");
+    let p_after = p;
+    adam.step_tensors(&mut [(&mut p[..], &[0.0f32, 0.0][..])]);
+    assert_eq!(p, p_after, "zero moments move nothing");
 }

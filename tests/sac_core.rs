@@ -343,3 +343,33 @@ fn reset_agent_keeps_the_replay_buffer_and_counters_and_starts_new_networks() {
         .is_none());
     assert_eq!(short.agent.updates(), 0);
 }
+
+#[test]
+fn finishing_the_episode_trains_to_the_next_boundary_exactly_as_single_steps_do() {
+    let config = small_config();
+    let mut env = PointReach::new(25);
+    let mut t = SacTrainer::new(&config, 2, 1, 9).unwrap();
+    t.train(&mut env, &mut EnvReward, 130, |_| {}).unwrap();
+    assert!(!t.at_episode_boundary(), "130 steps end inside an episode");
+    let episodes = t.episodes();
+    let mut seen = 0;
+    let steps = t
+        .finish_episode_observed(&mut env, &mut EnvReward, None, |_| seen += 1)
+        .unwrap();
+    assert!(t.at_episode_boundary());
+    assert_eq!((t.env_steps(), t.episodes()), (130 + steps, episodes + 1));
+    assert_eq!(seen, steps, "every step is reported");
+    let again = t
+        .finish_episode_observed(&mut env, &mut EnvReward, None, |_| {})
+        .unwrap();
+    assert_eq!(again, 0, "no step between episodes");
+
+    let mut env = PointReach::new(25);
+    let mut single = SacTrainer::new(&config, 2, 1, 9).unwrap();
+    single.train(&mut env, &mut EnvReward, 130, |_| {}).unwrap();
+    while !single.at_episode_boundary() {
+        single.train(&mut env, &mut EnvReward, 1, |_| {}).unwrap();
+    }
+    assert_eq!(single.env_steps(), t.env_steps());
+    assert_eq!(bits(&all_params(&single)), bits(&all_params(&t)));
+}

@@ -1,4 +1,5 @@
-//! Adam (Kingma & Ba 2015) with PyTorch's update formula.
+//! Adam (Kingma & Ba 2015) with PyTorch's update formula, except that a moment estimate below
+//! f32's normal range is stored as zero (`zero_if_subnormal` says why).
 
 use super::codec::{ByteReader, ByteWriter, CodecError};
 use super::mlp::Mlp;
@@ -80,8 +81,8 @@ impl Adam {
         let (m, v) = (&mut self.m[i], &mut self.v[i]);
         assert_eq!(m.len(), p.len(), "Adam: tensor {i} changed length");
         for (((p, &g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
-            *m = beta1 * *m + (1.0 - beta1) * g;
-            *v = beta2 * *v + (1.0 - beta2) * g * g;
+            *m = zero_if_subnormal(beta1 * *m + (1.0 - beta1) * g);
+            *v = zero_if_subnormal(beta2 * *v + (1.0 - beta2) * g * g);
             let denom = v.sqrt() / bc2_sqrt + eps;
             *p -= step_size * *m / denom;
         }
@@ -112,5 +113,23 @@ impl Adam {
             r.f32s_into(v, "Adam second moment")?;
         }
         Ok(())
+    }
+}
+
+/// `x`, or zero when it lies below f32's normal range.
+///
+/// A parameter whose gradient stays zero (a ReLU unit dead on every sample) has moments that
+/// decay geometrically into the subnormal range and stay there: β₁ = 0.9 times a few ulps
+/// rounds back to the same ulps, and β₂ = 0.999 times up to 500 ulps does too. On x86 every
+/// vector instruction with a subnormal operand takes a microcode assist of about a hundred
+/// cycles, and a few such parameters make Adam a fifth of a SAC job's time. A moment this small
+/// makes a step m / (√v + ε) below 10⁻³⁰ (ε = 10⁻⁸), which changes no parameter larger than
+/// 10⁻²³ in size.
+#[inline]
+fn zero_if_subnormal(x: f32) -> f32 {
+    if x.abs() < f32::MIN_POSITIVE {
+        0.0
+    } else {
+        x
     }
 }

@@ -550,11 +550,9 @@ impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
             .map_err(DrawError::Sac)?;
         // Play the episode in progress to its end: the rollouts below reset the same
         // environment, and SAC must not resume from the state they leave.
-        while !self.trainer.at_episode_boundary() {
-            (self.trainer)
-                .train(&mut self.env, &mut reward_fn, 1, |_| {})
-                .map_err(DrawError::Sac)?;
-        }
+        (self.trainer)
+            .finish_episode_observed(&mut self.env, &mut reward_fn, None, |_| {})
+            .map_err(DrawError::Sac)?;
         match reward_error {
             Some(e) => Err(DrawError::LearnedReward(e)),
             None => Ok(()),

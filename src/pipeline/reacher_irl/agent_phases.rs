@@ -36,12 +36,8 @@ pub fn train_sac<E: JobEnv, R: RewardFn>(
     let (logger, report_progress) = watch.sac_phase(iteration);
     // One observer for the whole phase: it holds the logged episode in progress across chunks.
     let mut train_log = logger.map(|l| TrainingLog::new(l, perfect, "train"));
-    while done < steps || !sac.at_episode_boundary() {
-        let n = if done < steps {
-            chunk.min(steps - done)
-        } else {
-            1
-        };
+    while done < steps {
+        let n = chunk.min(steps - done);
         let observer = train_log
             .as_mut()
             .map(|t| t as &mut dyn TrainingObserver<E>);
@@ -50,6 +46,14 @@ pub fn train_sac<E: JobEnv, R: RewardFn>(
         done += n;
         report_progress(before + done);
     }
+    // The rollouts and evaluations after this phase reset the environment.
+    let observer = train_log
+        .as_mut()
+        .map(|t| t as &mut dyn TrainingObserver<E>);
+    done += sac
+        .finish_episode_observed(env, reward, observer, |_| {})
+        .map_err(StepError::Sac)?;
+    report_progress(before + done);
     Ok(())
 }
 

@@ -4,8 +4,8 @@
 //! final learned reward, now held fixed, and the policy the job reports is the one of highest
 //! learned return among the co-trained policy and the checkpoints of that phase — and, with
 //! `final_reset_steps` > 0, the checkpoints of a reset agent trained on the same reward
-//! after it. One routine ([`train`]) for every algorithm: they differ only in the reward they
-//! hand it ([`ScoredReward`]: SMIRL's δ_r(u, o) on its product, a baseline's MLP of the
+//! after it. One routine (`train`) for every algorithm: they differ only in the reward they
+//! hand it (`ScoredReward`: SMIRL's δ_r(u, o) on its product, a baseline's MLP of the
 //! fingertip) and in SMIRL's selection cut below.
 //!
 //! Why: the IRL loop's policy learns along with a moving reward; the one evaluated after the

@@ -6,10 +6,10 @@
 //!    coefficients and reward steps),
 //! 4. what the iteration is measured by ([`IrlPhases::record`]).
 //!
-//! Two kinds of job run it. The Reacher comparison's ([`run`], `JobPhases`): the untrained
+//! Two kinds of job run it. The Reacher comparison's (`run`, `JobPhases`): the untrained
 //! policy is evaluated first, every iteration ends with the ground-truth evaluation of the job's
 //! watch, and the final phase ([`final_policy`]) follows on the final reward when the settings
-//! ask for one; what an algorithm brings there is its reward ([`RewardLearner`]): SMIRL's
+//! ask for one; what an algorithm brings there is its reward (`RewardLearner`): SMIRL's
 //! (`super::smirl::train`) and f-IRL's and continuous MaxEnt's (`super::firl::train`).
 //! ReacherDraw's (`crate::pipeline::reacher_draw::run_draw`): its own lockstep rollouts, the
 //! fingertip density's coefficients, and KL estimates as the record.

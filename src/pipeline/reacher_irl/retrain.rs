@@ -446,10 +446,8 @@ impl Training<'_> {
             sac.train_observed(env, reward, n, None, &mut keep)
                 .map_err(StepError::Sac)?;
             // Evaluation resets the environment: finish SAC's episode first.
-            while !sac.at_episode_boundary() {
-                sac.train_observed(env, reward, 1, None, &mut keep)
-                    .map_err(StepError::Sac)?;
-            }
+            sac.finish_episode_observed(env, reward, None, &mut keep)
+                .map_err(StepError::Sac)?;
             let point = RetrainPoint {
                 env_steps: sac.env_steps(),
                 evaluation: self.judge.evaluate(&mut sac.agent, env, None)?,

@@ -397,6 +397,26 @@ impl SacTrainer {
         Ok(())
     }
 
+    /// Trains on until the episode in progress ends (no step between episodes), reporting each
+    /// outcome to `on_step`; returns the steps taken. A caller that resets the environment next
+    /// (rollouts, evaluations) calls it first, so that SAC never resumes an episode from the
+    /// state they leave.
+    pub fn finish_episode_observed<E: ContinuousEnv + ?Sized, R: RewardFn + ?Sized>(
+        &mut self,
+        env: &mut E,
+        reward: &mut R,
+        mut observer: Option<&mut (dyn TrainingObserver<E> + '_)>,
+        mut on_step: impl FnMut(&StepOutcome),
+    ) -> Result<u64, SacError> {
+        let mut steps = 0;
+        while !self.at_episode_boundary() {
+            let outcome = self.step_observed(env, reward, observer.as_deref_mut())?;
+            on_step(&outcome);
+            steps += 1;
+        }
+        Ok(steps)
+    }
+
     /// Runs `episodes` evaluation episodes (at most `max_steps` steps each) with the given
     /// action mode, on resets seeded from `seed` (independent of the training episodes).
     /// Leaves the training state untouched apart from the environment, so call it between
