@@ -91,3 +91,35 @@ fn apprenticeship_mixture_is_a_distribution_over_its_policies() {
         "{margins:?}"
     );
 }
+
+#[test]
+fn apprenticeship_refuses_bad_settings_and_no_demonstrations_with_typed_errors() {
+    use smirl::env::office::OfficeWorld;
+    use smirl::irl::tabular::{Apprenticeship, ApprenticeshipConfig, ApprenticeshipError};
+    let world = OfficeWorld::paper();
+    let gamma_one = ApprenticeshipConfig {
+        gamma: 1.0,
+        ..ApprenticeshipConfig::default()
+    };
+    assert_eq!(gamma_one.validate(), Err(ApprenticeshipError::Gamma(1.0)));
+    let negative_epsilon = ApprenticeshipConfig {
+        epsilon: -1.0,
+        ..ApprenticeshipConfig::default()
+    };
+    assert_eq!(
+        Apprenticeship::new(&world, &[], negative_epsilon, 0).unwrap_err(),
+        ApprenticeshipError::Epsilon(-1.0)
+    );
+    assert_eq!(
+        Apprenticeship::new(&world, &[], ApprenticeshipConfig::default(), 0).unwrap_err(),
+        ApprenticeshipError::NoDemos
+    );
+    // The Office configuration names the key and its line from the error's message.
+    let err = OfficeConfig::from_toml("[apprenticeship]\nmax_steps = 5\ngamma = 1.5\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("line 3") && err.contains("apprenticeship: gamma = 1.5 must be in (0, 1)"),
+        "{err}"
+    );
+}

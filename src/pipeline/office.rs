@@ -16,8 +16,8 @@
 use crate::env::office::{OfficeTask, OfficeWorld};
 use crate::irl::tabular::maxent::MaxEntError;
 use crate::irl::tabular::{
-    evaluate_policy, greedy_policy, trivial_rm, Apprenticeship, ApprenticeshipConfig, DemoConfig,
-    Demonstration, MaxEntConfig, OfficeExpert, ProductIrl,
+    evaluate_policy, greedy_policy, trivial_rm, Apprenticeship, ApprenticeshipConfig,
+    ApprenticeshipError, DemoConfig, Demonstration, MaxEntConfig, OfficeExpert, ProductIrl,
 };
 use crate::report::CsvTable;
 use crate::rl::tabular::{finite_horizon_greedy, TabularError};
@@ -152,9 +152,8 @@ pub enum OfficeError {
     Tabular(TabularError),
     #[error(transparent)]
     MaxEnt(MaxEntError),
-    /// Apprenticeship learning's setup (its layer reports a message).
-    #[error("{0}")]
-    Apprenticeship(String),
+    #[error(transparent)]
+    Apprenticeship(ApprenticeshipError),
 }
 
 /// The key a nested config's error is about: `table`, then the setting its message names

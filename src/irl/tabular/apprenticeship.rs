@@ -54,16 +54,32 @@ impl Default for ApprenticeshipConfig {
     }
 }
 
+/// Why apprenticeship learning cannot start. A setting's message begins with `key = value`,
+/// which the Office configuration reads to name the key.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ApprenticeshipError {
+    #[error("gamma = {0} must be in (0, 1)")]
+    Gamma(f64),
+    #[error("epsilon = {0} must be ≥ 0")]
+    Epsilon(f64),
+    #[error("q-learning needs steps ≥ 1")]
+    QLearningSteps,
+    #[error("no non-empty demonstrations")]
+    NoDemos,
+    #[error(transparent)]
+    Tabular(#[from] TabularError),
+}
+
 impl ApprenticeshipConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ApprenticeshipError> {
         if !(self.gamma > 0.0 && self.gamma < 1.0) {
-            return Err(format!("gamma = {} must be in (0, 1)", self.gamma));
+            return Err(ApprenticeshipError::Gamma(self.gamma));
         }
         if self.epsilon.is_nan() || self.epsilon < 0.0 {
-            return Err(format!("epsilon = {} must be ≥ 0", self.epsilon));
+            return Err(ApprenticeshipError::Epsilon(self.epsilon));
         }
         if let PolicySolver::QLearning { steps: 0 } = self.solver {
-            return Err("q-learning needs steps ≥ 1".into());
+            return Err(ApprenticeshipError::QLearningSteps);
         }
         Ok(())
     }
@@ -114,12 +130,12 @@ impl Apprenticeship {
         demos: &[Demonstration],
         cfg: ApprenticeshipConfig,
         seed: u64,
-    ) -> Result<Apprenticeship, String> {
+    ) -> Result<Apprenticeship, ApprenticeshipError> {
         cfg.validate()?;
         let n_props = world.vocab().len();
         let used: Vec<&Demonstration> = demos.iter().filter(|d| !d.is_empty()).collect();
         if used.is_empty() {
-            return Err("no non-empty demonstrations".into());
+            return Err(ApprenticeshipError::NoDemos);
         }
         let mut mu_expert = vec![0.0; n_props + 1];
         for d in &used {
@@ -134,8 +150,7 @@ impl Apprenticeship {
             world.labels().len(),
             N_ACTIONS,
             world.transition_table().to_vec(),
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         Ok(Apprenticeship {
             world: world.clone(),
             mdp,

@@ -8,7 +8,9 @@ pub mod eval;
 pub mod maxent;
 pub mod product;
 
-pub use apprenticeship::{Apprenticeship, ApprenticeshipConfig, ApprenticeshipStep, PolicySolver};
+pub use apprenticeship::{
+    Apprenticeship, ApprenticeshipConfig, ApprenticeshipError, ApprenticeshipStep, PolicySolver,
+};
 pub use demos::{DemoConfig, Demonstration, OfficeExpert, Trip};
 pub use eval::{evaluate_policy, greedy_policy, Evaluation};
 pub use maxent::{
