@@ -19,7 +19,14 @@ REPS=${3:-3}
 ITERS=${4:-40}
 WORK=${WORK:-target/job_pair}
 ALGO=${ALGO:-fkl-product}
+# WORK is this script's own: it deletes run directories inside it, so it refuses a directory
+# it did not make (the marker file says it did).
+if [ -e "$WORK" ] && [ ! -e "$WORK/.made_by_job_pair.sh" ]; then
+    echo "job_pair.sh: $WORK exists and was not made by this script; set WORK to a new directory" >&2
+    exit 2
+fi
 mkdir -p "$WORK"
+touch "$WORK/.made_by_job_pair.sh"
 if [ "$ITERS" = full ]; then
     "$AFTER" --task composite --print-config > "$WORK/job.toml"
     schedule="the standard configuration"

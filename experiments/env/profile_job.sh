@@ -4,7 +4,7 @@
 # linux-perf), and its samples summed by what the symbol belongs to: MuJoCo (mj_*, mju_*, and
 # libc's memmove/memset, which MuJoCo's array copies call), the matrix products
 # (matrixmultiply's kernel and packing), the networks' own code (smirl::nn), the KDE, and the
-# rest. Prints the groups' shares and the 25 heaviest symbols. Work files go to $WORK (default
+# rest. Prints the groups' shares and the 20 heaviest symbols. Work files go to $WORK (default
 # target/profile_job).
 #
 #   experiments/env/profile_job.sh REACHER_BIN [ITERS]
@@ -14,7 +14,14 @@ BIN=$(realpath "$1")
 ITERS=${2:-30}
 WORK=${WORK:-target/profile_job}
 ALGO=${ALGO:-fkl}
+# WORK is this script's own: it deletes run directories inside it, so it refuses a directory
+# it did not make (the marker file says it did).
+if [ -e "$WORK" ] && [ ! -e "$WORK/.made_by_profile_job.sh" ]; then
+    echo "profile_job.sh: $WORK exists and was not made by this script; set WORK to a new directory" >&2
+    exit 2
+fi
 mkdir -p "$WORK"
+touch "$WORK/.made_by_profile_job.sh"
 "$BIN" --task composite --print-config \
     | sed -e "s/^irl_iterations = 800$/irl_iterations = $ITERS/" \
         -e 's/^sac_steps = 20000$/sac_steps = 0/' -e 's/^reset_steps = 20000$/reset_steps = 0/' \
