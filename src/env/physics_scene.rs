@@ -12,7 +12,14 @@
 //! a user's file with defaults and classes the cut must leave alone. Only a `<body>` element
 //! that is a direct child of `<worldbody>`, has `mocap="true"`, is named in the cut list and
 //! holds no `<body>`, `<joint>` or `<freejoint>` is removed; anything else is refused rather
-//! than guessed at.
+//! than guessed at. [`physics_model`] cuts only where the cut provably leaves the arm alone
+//! (the body is a mocap body with no geom that can touch another, the cut text compiles to
+//! the same joints and actuators) and otherwise steps the scene itself: a scene it cannot cut
+//! is slower, never different.
+
+use super::layout::{Anchor, Scene, TaskLayout};
+use super::placement::Placement;
+use crate::mujoco::{MjError, Model};
 
 /// Why a scene's text cannot be cut.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -216,4 +223,103 @@ pub fn without_mocap_bodies(xml: &str, bodies: &[&str]) -> Result<String, SceneC
     }
     out.push_str(&xml[from..]);
     Ok(out)
+}
+
+/// The model of a task's scene, as the scene file (or the built-in scene) gives it.
+pub fn scene_model(scene: &Scene) -> Result<Model, MjError> {
+    match scene {
+        Scene::Builtin => {
+            Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME)
+        }
+        Scene::File(path) => Model::from_xml_path(path),
+    }
+}
+
+/// The model an environment steps for a task, and which regions' bodies it leaves out.
+pub struct PhysicsModel {
+    pub model: Model,
+    /// Per region, in label-bit order: its body is not in `model`.
+    pub left_out: Vec<bool>,
+}
+
+/// The task's scene without the mocap bodies of its movable regions, or the scene itself when
+/// it has none or cutting them could change the arm's physics (see the module documentation).
+/// Errors are the scene's own (it does not load).
+pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, MjError> {
+    let scene = scene_model(&layout.scene)?;
+    let left_out: Vec<bool> = (layout.regions.iter())
+        .map(|region| match (&region.anchor, region.movable) {
+            (Anchor::Body(body), true) => {
+                matches!(Placement::find(&scene, body), Some(Placement::Mocap { .. }))
+                    && !touches_anything(&scene, body)
+            }
+            _ => false,
+        })
+        .collect();
+    let mut bodies: Vec<&str> = (layout.regions.iter().zip(&left_out))
+        .filter(|(_, cut)| **cut)
+        .map(|(region, _)| region.anchor.name())
+        .collect();
+    bodies.sort_unstable();
+    bodies.dedup();
+    let cut = (!bodies.is_empty())
+        .then(|| cut_model(&layout.scene, &bodies))
+        .flatten()
+        .filter(|model| same_arm(&scene, model));
+    Ok(match cut {
+        Some(model) => PhysicsModel { model, left_out },
+        None => PhysicsModel {
+            model: scene,
+            left_out: vec![false; layout.n_regions()],
+        },
+    })
+}
+
+/// The scene compiled without `bodies`, when its text can be read and cut and the cut text
+/// compiles.
+fn cut_model(scene: &Scene, bodies: &[&str]) -> Option<Model> {
+    match scene {
+        Scene::Builtin => {
+            let text = without_mocap_bodies(crate::assets::REACHER_XML, bodies).ok()?;
+            Model::from_xml_str(&text, crate::assets::REACHER_XML_NAME).ok()
+        }
+        Scene::File(path) => {
+            let text = std::fs::read_to_string(path).ok()?;
+            let text = without_mocap_bodies(&text, bodies).ok()?;
+            Model::from_xml_text_at(&text, path).ok()
+        }
+    }
+}
+
+/// Whether a geom of `body` can collide with any geom of another body (MuJoCo's test: one
+/// geom's contype shares a bit with the other's conaffinity).
+fn touches_anything(scene: &Model, body: &str) -> bool {
+    let Ok(id) = scene.id(crate::mujoco::ObjectKind::Body, body) else {
+        return true;
+    };
+    let geoms = 0..scene.ngeom();
+    geoms
+        .clone()
+        .filter(|&g| scene.geom_body(g) == id)
+        .any(|g| {
+            let (type_a, affinity_a) = scene.geom_collision_masks(g);
+            geoms
+                .clone()
+                .filter(|&h| scene.geom_body(h) != id)
+                .any(|h| {
+                    let (type_b, affinity_b) = scene.geom_collision_masks(h);
+                    type_a & affinity_b != 0 || type_b & affinity_a != 0
+                })
+        })
+}
+
+/// The cut model keeps every joint, degree of freedom and actuator of the scene.
+fn same_arm(scene: &Model, cut: &Model) -> bool {
+    (
+        scene.nq(),
+        scene.nv(),
+        scene.nu(),
+        scene.njnt(),
+        scene.timestep(),
+    ) == (cut.nq(), cut.nv(), cut.nu(), cut.njnt(), cut.timestep())
 }
