@@ -291,11 +291,14 @@ fn randomised_layouts_are_reachable_and_seeded() {
         ..Default::default()
     };
     let mut e = env(config.clone());
-    // The first scene, whose balls sit on slide joints, places the same layouts.
-    let v1_config = composite().env_config(&config).unwrap();
-    let mut v1 = ReacherDelivery::with_model(v1_model(), v1_config).unwrap();
+    // The whole shipped scene (the environment steps it without the balls) and the first
+    // scene, whose balls sit on slide joints, place the same layouts.
+    let scene_config = composite().env_config(&config).unwrap();
+    let scene = Arc::new(Model::from_xml_path(&shipped_xml()).unwrap());
+    let mut whole = ReacherDelivery::with_model(scene, scene_config.clone()).unwrap();
+    let mut v1 = ReacherDelivery::with_model(v1_model(), scene_config).unwrap();
     let ball_ids: Vec<usize> = (layout().regions.iter())
-        .map(|r| e.model().id(ObjectKind::Body, r.anchor.name()).unwrap())
+        .map(|r| whole.model().id(ObjectKind::Body, r.anchor.name()).unwrap())
         .collect();
     let mut obs = vec![0.0; obs_dim()];
     e.reset(11, &mut obs);
@@ -311,7 +314,9 @@ fn randomised_layouts_are_reachable_and_seeded() {
             let r = b[0].hypot(b[1]);
             assert!((0.06..0.19).contains(&r));
             // The model's ball bodies are where the layout says, in both scenes.
-            let p = e.body_position(ball_ids[i]);
+            whole.reset(seed, &mut obs);
+            assert_eq!(whole.positions(), balls);
+            let p = whole.body_position(ball_ids[i]);
             assert_eq!([p[0], p[1]], *b);
             v1.reset(seed, &mut obs);
             assert_eq!(v1.positions(), balls);

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# ReacherDelivery steps/s on the shipped model vs the raw mj_step loop on it and vs the
-# environment on the first model (assets/reacher_delivery_v1.xml); writes experiments/env/bench.txt.
+# ReacherDelivery steps/s on the model it steps (the shipped scene without its balls) vs the raw
+# mj_step loop on that model and vs the environment on the whole shipped scene and on the first
+# model (assets/reacher_delivery_v1.xml); writes experiments/env/bench.txt.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cargo build --release --bin env_bench

@@ -1,5 +1,6 @@
-//! Benchmark: ReacherDelivery steps per second on the shipped model against the raw FFI step
-//! loop on the same model (the limit) and against the environment on the first model
+//! Benchmark: ReacherDelivery steps per second on the model it steps (the shipped scene without
+//! its four mocap balls) against the raw FFI step loop on the same model (the limit), against
+//! the environment on the whole shipped scene and on the first model
 //! (`assets/reacher_delivery_v1.xml`: balls on slide joints, contact pass on), all measured in
 //! the same run (interleaved repetitions, medians of per-repetition ratios); and what one
 //! episode reset costs in environment steps (f-IRL resets 1 000 times per iteration for
@@ -10,7 +11,7 @@
 #![deny(unsafe_code)]
 
 use clap::Parser;
-use smirl::assets::{REACHER_V1_XML, REACHER_V1_XML_NAME};
+use smirl::assets::{REACHER_V1_XML, REACHER_V1_XML_NAME, REACHER_XML, REACHER_XML_NAME};
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery, FRAME_SKIP};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
@@ -19,7 +20,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(about = "ReacherDelivery steps/s vs the raw mj_step loop and vs the first model")]
+#[command(
+    about = "ReacherDelivery steps/s vs the raw mj_step loop and vs the whole and first models"
+)]
 struct Args {
     /// Repetitions of each measurement (the median is reported).
     #[arg(long, default_value_t = 7)]
@@ -65,39 +68,43 @@ fn main() -> anyhow::Result<()> {
         "--reps and --steps must be positive"
     );
     let config = ReacherTask::shipped("composite")?.env_config(&ReacherConfig::default())?;
+    // The three models: the one the environment steps (the scene without its balls), the
+    // whole shipped scene, and the first scene.
     let mut env = ReacherDelivery::new(config.clone())?;
-    let mut raw = Data::new(Arc::clone(env.model()))?;
+    let scene_model = Arc::new(Model::from_xml_str(REACHER_XML, REACHER_XML_NAME)?);
     let v1_model = Arc::new(Model::from_xml_str(REACHER_V1_XML, REACHER_V1_XML_NAME)?);
+    let mut env_scene = ReacherDelivery::with_model(Arc::clone(&scene_model), config.clone())?;
     let mut env_v1 = ReacherDelivery::with_model(Arc::clone(&v1_model), config)?;
+    let mut raw = Data::new(Arc::clone(env.model()))?;
+    let mut raw_scene = Data::new(scene_model)?;
     let mut raw_v1 = Data::new(v1_model)?;
     let mut obs = vec![0.0f32; env.obs_dim()];
 
-    let (mut raw_rates, mut env_rates, mut raw_v1_rates, mut env_v1_rates) =
-        (vec![], vec![], vec![], vec![]);
+    // Per repetition: raw, env, raw scene, env scene, raw v1, env v1.
+    let mut rates: [Vec<f64>; 6] = Default::default();
     let mut reset_costs = vec![];
     let resets = (args.steps / 10).max(1);
     for rep in 0..args.reps {
-        raw_rates.push(raw_rate(&mut raw, args.steps));
-        env_rates.push(env_rate(&mut env, args.steps, &mut obs)?);
-        raw_v1_rates.push(raw_rate(&mut raw_v1, args.steps));
-        env_v1_rates.push(env_rate(&mut env_v1, args.steps, &mut obs)?);
+        rates[0].push(raw_rate(&mut raw, args.steps));
+        rates[1].push(env_rate(&mut env, args.steps, &mut obs)?);
+        rates[2].push(raw_rate(&mut raw_scene, args.steps));
+        rates[3].push(env_rate(&mut env_scene, args.steps, &mut obs)?);
+        rates[4].push(raw_rate(&mut raw_v1, args.steps));
+        rates[5].push(env_rate(&mut env_v1, args.steps, &mut obs)?);
 
         let t = Instant::now();
         for episode in 0..resets {
             env.reset(episode as u64, &mut obs);
         }
         let reset_secs = t.elapsed().as_secs_f64() / resets as f64;
-        reset_costs.push(reset_secs * env_rates[rep]);
+        reset_costs.push(reset_secs * rates[1][rep]);
+        let now: Vec<String> = rates.iter().map(|r| format!("{:.0}", r[rep])).collect();
         eprintln!(
-            "rep {rep}: raw {:.0}, env {:.0}, raw v1 {:.0}, env v1 {:.0} steps/s",
-            raw_rates[rep], env_rates[rep], raw_v1_rates[rep], env_v1_rates[rep]
+            "rep {rep}: raw, env / raw, env scene / raw, env v1: {} steps/s",
+            now.join(", ")
         );
     }
     let ratio = |a: &[f64], b: &[f64]| median(a.iter().zip(b).map(|(x, y)| x / y).collect());
-    let env_vs_raw = ratio(&env_rates, &raw_rates);
-    let env_vs_v1 = ratio(&env_rates, &env_v1_rates);
-    let raw_vs_raw_v1 = ratio(&raw_rates, &raw_v1_rates);
-    let v1_env_vs_raw = ratio(&env_v1_rates, &raw_v1_rates);
     let reset_cost = median(reset_costs);
     println!(
         "MuJoCo {} ({} steps x {} reps, {FRAME_SKIP} mj_step per env step, one thread)",
@@ -105,22 +112,41 @@ fn main() -> anyhow::Result<()> {
         args.steps,
         args.reps
     );
-    for (name, rates) in [
-        ("raw FFI loop, shipped model ", &raw_rates),
-        ("ReacherDelivery, shipped    ", &env_rates),
-        ("raw FFI loop, first model   ", &raw_v1_rates),
-        ("ReacherDelivery, first model", &env_v1_rates),
-    ] {
-        let m = median(rates.clone());
+    let names = [
+        "raw FFI loop, physics model  ",
+        "ReacherDelivery (physics)    ",
+        "raw FFI loop, shipped scene  ",
+        "ReacherDelivery, whole scene ",
+        "raw FFI loop, first model    ",
+        "ReacherDelivery, first model ",
+    ];
+    for (name, r) in names.iter().zip(&rates) {
+        let m = median(r.clone());
         println!("{name}: {m:>9.0} steps/s ({:.1} us/step)", 1e6 / m);
     }
-    println!("ratio env shipped / env first model: {env_vs_v1:.3} (target >= 1.5)");
-    println!("ratio env shipped / raw shipped    : {env_vs_raw:.3} (target >= 0.9)");
-    println!("ratio raw shipped / raw first model: {raw_vs_raw_v1:.3}");
-    println!("ratio env first / raw first model  : {v1_env_vs_raw:.3}");
     println!(
-        "episode reset (shipped): {:.1} us = {reset_cost:.2} env steps (median per rep; target <= 1)",
-        reset_cost * 1e6 / median(env_rates)
+        "ratio env / env on the first model : {:.3} (target >= 1.5)",
+        ratio(&rates[1], &rates[5])
+    );
+    println!(
+        "ratio env / raw on the physics model: {:.3} (target >= 0.9)",
+        ratio(&rates[1], &rates[0])
+    );
+    println!(
+        "ratio env / env on the whole scene : {:.3}",
+        ratio(&rates[1], &rates[3])
+    );
+    println!(
+        "ratio env whole scene / raw scene  : {:.3}",
+        ratio(&rates[3], &rates[2])
+    );
+    println!(
+        "ratio env first model / raw first  : {:.3}",
+        ratio(&rates[5], &rates[4])
+    );
+    println!(
+        "episode reset: {:.1} us = {reset_cost:.2} env steps (median per rep; target <= 1)",
+        reset_cost * 1e6 / median(rates[1].clone())
     );
     Ok(())
 }

@@ -66,6 +66,7 @@ pub fn check_action(action: &[f32], expected: usize) -> Result<(), EnvError> {
 pub mod clock;
 pub mod episode;
 pub mod layout;
+pub mod physics_scene;
 pub mod placement;
 pub mod product;
 pub mod reacher;

@@ -32,7 +32,8 @@
 //! centres. A region whose anchor is a body with slide joints `<body>_x`, `<body>_y` is moved
 //! there; any other region stays where the scene puts it.
 
-use super::layout::{Anchor, Event, Scene, TaskLayout};
+use super::layout::{Anchor, Event, TaskLayout};
+use super::physics_scene::physics_model;
 use super::placement::Placement;
 use super::{check_action, ContinuousEnv, EnvError, EnvStep};
 use crate::mujoco::{Data, MjError, Model, ObjectKind};
@@ -297,13 +298,16 @@ struct Places {
 }
 
 impl Places {
-    fn find(model: &Model, layout: &TaskLayout) -> Result<Places, ReacherError> {
+    /// Where things are in `model`; a region whose body is `left_out` of the model has no
+    /// placement (its position lives in the environment only).
+    fn find(model: &Model, layout: &TaskLayout, left_out: &[bool]) -> Result<Places, ReacherError> {
         let joint = |name: &str| model.id(ObjectKind::Joint, name);
         let j0 = joint("joint0")?;
         let j1 = joint("joint1")?;
         let mut regions = Vec::with_capacity(layout.n_regions());
-        for region in &layout.regions {
+        for (k, region) in layout.regions.iter().enumerate() {
             let placement = match (&region.anchor, region.movable) {
+                _ if left_out.get(k) == Some(&true) => None,
                 (Anchor::Body(body), true) => Some(Placement::find(model, body).ok_or_else(
                     || ReacherError::WrongModel {
                         model: model.source_name().into(),
@@ -332,16 +336,6 @@ impl Places {
     }
 }
 
-/// The model of a task's scene.
-pub fn scene_model(scene: &Scene) -> Result<Model, MjError> {
-    match scene {
-        Scene::Builtin => {
-            Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME)
-        }
-        Scene::File(path) => Model::from_xml_path(path),
-    }
-}
-
 /// The ReacherDelivery environment.
 pub struct ReacherDelivery {
     config: ReacherConfig,
@@ -361,22 +355,40 @@ pub struct ReacherDelivery {
 }
 
 impl ReacherDelivery {
-    /// The environment on the task's scene (`config.layout`).
+    /// The environment on the task's scene (`config.layout`), stepping its physics model:
+    /// the scene without the bodies that only mark movable regions
+    /// ([`physics_model`]), so the arm moves exactly as in the scene at a lower cost.
     pub fn new(config: ReacherConfig) -> Result<ReacherDelivery, ReacherError> {
         let layout = config.task_layout()?;
-        let model = scene_model(&layout.scene)?;
-        ReacherDelivery::with_model(Arc::new(model), config)
+        let physics = physics_model(layout)?;
+        ReacherDelivery::build(Arc::new(physics.model), config, &physics.left_out)
     }
 
-    /// The environment on a given model (which must have the arm and the task's anchors).
+    /// The environment on a given model (which must have the arm and the task's anchors),
+    /// stepped as it is: replay steps the scene a log recorded.
     pub fn with_model(
         model: Arc<Model>,
         config: ReacherConfig,
     ) -> Result<ReacherDelivery, ReacherError> {
+        ReacherDelivery::build(model, config, &[])
+    }
+
+    /// A new environment on the same model, configuration and region placements, not yet
+    /// reset (for playing episodes side by side).
+    pub fn twin(&self) -> Result<ReacherDelivery, ReacherError> {
+        let left_out: Vec<bool> = self.places.regions.iter().map(Option::is_none).collect();
+        ReacherDelivery::build(Arc::clone(self.model()), self.config.clone(), &left_out)
+    }
+
+    fn build(
+        model: Arc<Model>,
+        config: ReacherConfig,
+        left_out: &[bool],
+    ) -> Result<ReacherDelivery, ReacherError> {
         config.validate()?;
         let layout = Arc::clone(config.task_layout()?);
         let (positions, schedules) = config.plan(&layout)?;
-        let places = Places::find(&model, &layout)?;
+        let places = Places::find(&model, &layout, left_out)?;
         let data = Data::new(model)?;
         Ok(ReacherDelivery {
             vocab: layout.vocabulary(),
@@ -408,6 +420,7 @@ impl ReacherDelivery {
         &self.vocab
     }
 
+    /// The model this environment steps (see [`ReacherDelivery::new`]).
     pub fn model(&self) -> &Arc<Model> {
         self.data.model()
     }

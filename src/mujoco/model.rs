@@ -74,34 +74,62 @@ impl Model {
     /// Compiles MJCF text. `source_name` names it in error messages (e.g. the file the text
     /// came from, or "embedded XML"). Relative `file=` references are not resolvable here.
     pub fn from_xml_str(xml: &str, source_name: &str) -> Result<Model, MjError> {
+        let file_name = CString::new("model.xml").expect("literal has no NUL");
+        Self::load_text(xml, &file_name, source_name.into())
+    }
+
+    /// Compiles MJCF text as though it were the file `path`: relative `<include>` and asset
+    /// references resolve against `path`'s directory, as they do for [`Model::from_xml_path`].
+    /// The text itself is never written to disk; MuJoCo reads it from memory under a name in
+    /// `path`'s directory that no file there is expected to have.
+    pub fn from_xml_text_at(xml: &str, path: &Path) -> Result<Model, MjError> {
+        let source_name = path.display().to_string();
+        let stem = path.file_name().unwrap_or_default().to_string_lossy();
+        // MuJoCo 2.2 looks a file up in memory by its last path component before the disk,
+        // and includes are looked up the same way: a name of the scene's own could shadow an
+        // included file of that name.
+        let in_memory = path.with_file_name(format!("{stem}.smirl-in-memory.xml"));
+        let c_path =
+            CString::new(in_memory.as_os_str().as_encoded_bytes()).map_err(|_| MjError::Load {
+                source_name: source_name.clone(),
+                message: "path contains a NUL byte".into(),
+            })?;
+        Self::load_text(xml, &c_path, source_name)
+    }
+
+    /// Compiles `xml` put in a virtual file system under `file` (whose directory, when it has
+    /// one, is where relative references resolve).
+    fn load_text(xml: &str, file: &CStr, source_name: String) -> Result<Model, MjError> {
         check_version()?;
         // mjVFS is about 2 MB in 2.2: allocate it on the heap, never on the stack.
         let vfs = VfsBox::new();
-        let file_name = CString::new("model.xml").expect("literal has no NUL");
         let bytes = xml.as_bytes();
         let size = i32::try_from(bytes.len()).map_err(|_| MjError::Load {
-            source_name: source_name.into(),
+            source_name: source_name.clone(),
             message: "XML text larger than 2 GiB".into(),
         })?;
         // SAFETY: vfs points to an initialised mjVFS; the file slot is created with exactly
         // `size` bytes and filled with as many.
         let status = guard(|| unsafe {
-            let code = sys::mj_makeEmptyFileVFS(vfs.ptr, file_name.as_ptr(), size);
+            let code = sys::mj_makeEmptyFileVFS(vfs.ptr, file.as_ptr(), size);
             if code != 0 {
                 return code;
             }
-            let index = sys::mj_findFileVFS(vfs.ptr, file_name.as_ptr());
+            let index = sys::mj_findFileVFS(vfs.ptr, file.as_ptr());
+            if index < 0 {
+                return -1;
+            }
             let slot = (*vfs.ptr).filedata[index as usize] as *mut u8;
             std::ptr::copy_nonoverlapping(bytes.as_ptr(), slot, bytes.len());
             0
         })?;
         if status != 0 {
             return Err(MjError::Load {
-                source_name: source_name.into(),
+                source_name,
                 message: format!("MuJoCo's virtual file system refused the text (code {status})"),
             });
         }
-        Self::load(&file_name, vfs.ptr, source_name.into())
+        Self::load(file, vfs.ptr, source_name)
     }
 
     fn load(file: &CStr, vfs: *const sys::mjVFS, source_name: String) -> Result<Model, MjError> {
@@ -262,6 +290,11 @@ impl Model {
             self.slice(self.raw().geom_contype, n)[geom],
             self.slice(self.raw().geom_conaffinity, n)[geom],
         )
+    }
+
+    /// Body a geom is attached to.
+    pub fn geom_body(&self, geom: usize) -> usize {
+        self.slice(self.raw().geom_bodyid, self.ngeom())[geom] as usize
     }
 
     /// First size parameter of a geom (the radius of a sphere or capsule).

@@ -17,7 +17,6 @@ use crate::pipeline::training_log::ReacherView;
 use crate::rl::sac::{ActMode, SacAgent};
 use crate::rm::{LabelSet, RewardMachine};
 use rand_chacha::ChaCha8Rng;
-use std::sync::Arc;
 
 /// An episode that cannot be played or logged: the environment's step or the log writer
 /// failed (the message is theirs).
@@ -61,7 +60,7 @@ impl JobEnv for ReacherDelivery {
     }
 
     fn fresh(&self) -> Option<Self> {
-        ReacherDelivery::with_model(Arc::clone(self.model()), self.config().clone()).ok()
+        self.twin().ok()
     }
 
     fn ends_only_at_time_limit(&self) -> bool {

@@ -1,0 +1,325 @@
+//! The physics of a scene: its MJCF text without the bodies that only mark regions.
+//!
+//! A movable region of the built-in scene is a mocap body: a body of the world with no degrees
+//! of freedom that the environment places at reset. The labels come from the environment's
+//! own region positions, never from MuJoCo, and nothing collides, so such a body changes no
+//! joint of the arm; yet MuJoCo's kinematics, composite inertia and velocity passes visit every
+//! body at every RK4 stage, and the four balls cost a third of a step
+//! (`experiments/env/mocap_cost.txt`). The physics model is the scene with those bodies cut
+//! out of the text; the scene itself stays what logs record and what rendering draws.
+//!
+//! The cut is textual on purpose: MuJoCo 2.2.2 has no model-editing API, and the scene may be
+//! a user's file with defaults and classes the cut must leave alone. Only a `<body>` element
+//! that is a direct child of `<worldbody>`, has `mocap="true"`, is named in the cut list and
+//! holds no `<body>`, `<joint>` or `<freejoint>` is removed; anything else is refused rather
+//! than guessed at. [`physics_model`] cuts only where the cut provably leaves the arm alone
+//! (the body is a mocap body with no geom that can touch another, the cut text compiles to
+//! the same joints and actuators) and otherwise steps the scene itself: a scene it cannot cut
+//! is slower, never different.
+
+use super::layout::{Anchor, Scene, TaskLayout};
+use super::placement::Placement;
+use crate::mujoco::{MjError, Model};
+
+/// Why a scene's text cannot be cut.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SceneCutError {
+    #[error("byte {at}: {what} is not closed")]
+    Unclosed { at: usize, what: &'static str },
+    #[error("byte {at}: closing tag </{got}> where </{expected}> was open")]
+    Mismatched {
+        at: usize,
+        got: String,
+        expected: String,
+    },
+    #[error("byte {at}: closing tag </{got}> with no element open")]
+    Unopened { at: usize, got: String },
+    #[error("body '{0}' is not a mocap body directly under <worldbody>")]
+    NotAWorldMocapBody(String),
+    #[error("body '{0}' holds a body or a joint, so it is part of the physics")]
+    HoldsPhysics(String),
+    #[error("body '{0}' is not in the scene")]
+    Missing(String),
+}
+
+/// One tag of the text: its kind, element name, attributes and byte range.
+#[derive(Debug)]
+struct Tag<'a> {
+    kind: TagKind,
+    name: &'a str,
+    attributes: &'a str,
+    start: usize,
+    end: usize,
+}
+
+#[derive(Debug, PartialEq, Eq)]
+enum TagKind {
+    Open,
+    Close,
+    SelfClosing,
+}
+
+/// The element tags of `xml` in order, skipping comments, processing instructions,
+/// declarations and CDATA sections.
+fn tags(xml: &str) -> Result<Vec<Tag<'_>>, SceneCutError> {
+    let bytes = xml.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while let Some(offset) = xml[i..].find('<') {
+        let start = i + offset;
+        let rest = &xml[start..];
+        let skip = [
+            ("<!--", "-->", "comment"),
+            ("<![CDATA[", "]]>", "CDATA section"),
+            ("<?", "?>", "processing instruction"),
+            ("<!", ">", "declaration"),
+        ]
+        .into_iter()
+        .find(|(open, _, _)| rest.starts_with(open));
+        if let Some((open, close, what)) = skip {
+            let end = rest[open.len()..]
+                .find(close)
+                .ok_or(SceneCutError::Unclosed { at: start, what })?;
+            i = start + open.len() + end + close.len();
+            continue;
+        }
+        // The tag ends at the first '>' outside a quoted attribute value.
+        let mut quote = None;
+        let mut end = None;
+        for (k, &b) in bytes[start + 1..].iter().enumerate() {
+            match (quote, b) {
+                (None, b'"' | b'\'') => quote = Some(b),
+                (Some(q), _) if b == q => quote = None,
+                (None, b'>') => {
+                    end = Some(start + 1 + k + 1);
+                    break;
+                }
+                _ => {}
+            }
+        }
+        let end = end.ok_or(SceneCutError::Unclosed {
+            at: start,
+            what: "tag",
+        })?;
+        let inner = &xml[start + 1..end - 1];
+        let (kind, inner) = if let Some(name) = inner.strip_prefix('/') {
+            (TagKind::Close, name)
+        } else if let Some(open) = inner.strip_suffix('/') {
+            (TagKind::SelfClosing, open)
+        } else {
+            (TagKind::Open, inner)
+        };
+        let inner = inner.trim();
+        let name_end = inner
+            .find(|c: char| c.is_ascii_whitespace())
+            .unwrap_or(inner.len());
+        out.push(Tag {
+            kind,
+            name: &inner[..name_end],
+            attributes: &inner[name_end..],
+            start,
+            end,
+        });
+        i = end;
+    }
+    Ok(out)
+}
+
+/// The value of attribute `key` in a tag's attribute text.
+fn attribute<'a>(attributes: &'a str, key: &str) -> Option<&'a str> {
+    let mut rest = attributes;
+    loop {
+        rest = rest.trim_start();
+        let eq = rest.find('=')?;
+        let name = rest[..eq].trim();
+        let after = rest[eq + 1..].trim_start();
+        let quote = after.chars().next().filter(|c| *c == '"' || *c == '\'')?;
+        let close = after[1..].find(quote)?;
+        let value = &after[1..1 + close];
+        if name == key {
+            return Some(value);
+        }
+        rest = &after[close + 2..];
+    }
+}
+
+/// `xml` without the mocap bodies named in `bodies` (each a direct child of `<worldbody>`
+/// holding no body and no joint); the rest of the text byte for byte.
+pub fn without_mocap_bodies(xml: &str, bodies: &[&str]) -> Result<String, SceneCutError> {
+    let tags = tags(xml)?;
+    // Open elements: (name, index of the tag that opened it).
+    let mut open: Vec<(&str, usize)> = Vec::new();
+    let mut cuts: Vec<(usize, usize, &str)> = Vec::new();
+    let mut found = vec![false; bodies.len()];
+    for (t, tag) in tags.iter().enumerate() {
+        match tag.kind {
+            TagKind::Open | TagKind::SelfClosing => {
+                let named = (tag.name == "body")
+                    .then(|| attribute(tag.attributes, "name"))
+                    .flatten()
+                    .and_then(|n| bodies.iter().position(|b| *b == n));
+                if let Some(k) = named {
+                    let parent = open.last().map(|(name, _)| *name);
+                    if parent != Some("worldbody")
+                        || attribute(tag.attributes, "mocap") != Some("true")
+                    {
+                        return Err(SceneCutError::NotAWorldMocapBody(bodies[k].into()));
+                    }
+                    found[k] = true;
+                    if tag.kind == TagKind::SelfClosing {
+                        cuts.push((tag.start, tag.end, bodies[k]));
+                    }
+                }
+                if tag.kind == TagKind::Open {
+                    open.push((tag.name, t));
+                }
+            }
+            TagKind::Close => {
+                let Some((name, opened)) = open.pop() else {
+                    return Err(SceneCutError::Unopened {
+                        at: tag.start,
+                        got: tag.name.into(),
+                    });
+                };
+                if name != tag.name {
+                    return Err(SceneCutError::Mismatched {
+                        at: tag.start,
+                        got: tag.name.into(),
+                        expected: name.into(),
+                    });
+                }
+                let first = &tags[opened];
+                let cut_name = (name == "body")
+                    .then(|| attribute(first.attributes, "name"))
+                    .flatten()
+                    .and_then(|n| bodies.iter().find(|b| **b == n));
+                if let Some(&body) = cut_name {
+                    let holds_physics = tags[opened + 1..t]
+                        .iter()
+                        .any(|inner| matches!(inner.name, "body" | "joint" | "freejoint"));
+                    if holds_physics {
+                        return Err(SceneCutError::HoldsPhysics(body.into()));
+                    }
+                    cuts.push((first.start, tag.end, body));
+                }
+            }
+        }
+    }
+    if let Some((name, opened)) = open.last() {
+        return Err(SceneCutError::Unclosed {
+            at: tags[*opened].start,
+            what: if *name == "body" { "body" } else { "element" },
+        });
+    }
+    if let Some(k) = found.iter().position(|f| !f) {
+        return Err(SceneCutError::Missing(bodies[k].into()));
+    }
+    cuts.sort_by_key(|c| c.0);
+    let mut out = String::with_capacity(xml.len());
+    let mut from = 0;
+    for (start, end, _) in cuts {
+        out.push_str(&xml[from..start]);
+        from = end;
+    }
+    out.push_str(&xml[from..]);
+    Ok(out)
+}
+
+/// The model of a task's scene, as the scene file (or the built-in scene) gives it.
+pub fn scene_model(scene: &Scene) -> Result<Model, MjError> {
+    match scene {
+        Scene::Builtin => {
+            Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME)
+        }
+        Scene::File(path) => Model::from_xml_path(path),
+    }
+}
+
+/// The model an environment steps for a task, and which regions' bodies it leaves out.
+pub struct PhysicsModel {
+    pub model: Model,
+    /// Per region, in label-bit order: its body is not in `model`.
+    pub left_out: Vec<bool>,
+}
+
+/// The task's scene without the mocap bodies of its movable regions, or the scene itself when
+/// it has none or cutting them could change the arm's physics (see the module documentation).
+/// Errors are the scene's own (it does not load).
+pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, MjError> {
+    let scene = scene_model(&layout.scene)?;
+    let left_out: Vec<bool> = (layout.regions.iter())
+        .map(|region| match (&region.anchor, region.movable) {
+            (Anchor::Body(body), true) => {
+                matches!(Placement::find(&scene, body), Some(Placement::Mocap { .. }))
+                    && !touches_anything(&scene, body)
+            }
+            _ => false,
+        })
+        .collect();
+    let mut bodies: Vec<&str> = (layout.regions.iter().zip(&left_out))
+        .filter(|(_, cut)| **cut)
+        .map(|(region, _)| region.anchor.name())
+        .collect();
+    bodies.sort_unstable();
+    bodies.dedup();
+    let cut = (!bodies.is_empty())
+        .then(|| cut_model(&layout.scene, &bodies))
+        .flatten()
+        .filter(|model| same_arm(&scene, model));
+    Ok(match cut {
+        Some(model) => PhysicsModel { model, left_out },
+        None => PhysicsModel {
+            model: scene,
+            left_out: vec![false; layout.n_regions()],
+        },
+    })
+}
+
+/// The scene compiled without `bodies`, when its text can be read and cut and the cut text
+/// compiles.
+fn cut_model(scene: &Scene, bodies: &[&str]) -> Option<Model> {
+    match scene {
+        Scene::Builtin => {
+            let text = without_mocap_bodies(crate::assets::REACHER_XML, bodies).ok()?;
+            Model::from_xml_str(&text, crate::assets::REACHER_XML_NAME).ok()
+        }
+        Scene::File(path) => {
+            let text = std::fs::read_to_string(path).ok()?;
+            let text = without_mocap_bodies(&text, bodies).ok()?;
+            Model::from_xml_text_at(&text, path).ok()
+        }
+    }
+}
+
+/// Whether a geom of `body` can collide with any geom of another body (MuJoCo's test: one
+/// geom's contype shares a bit with the other's conaffinity).
+fn touches_anything(scene: &Model, body: &str) -> bool {
+    let Ok(id) = scene.id(crate::mujoco::ObjectKind::Body, body) else {
+        return true;
+    };
+    let geoms = 0..scene.ngeom();
+    geoms
+        .clone()
+        .filter(|&g| scene.geom_body(g) == id)
+        .any(|g| {
+            let (type_a, affinity_a) = scene.geom_collision_masks(g);
+            geoms
+                .clone()
+                .filter(|&h| scene.geom_body(h) != id)
+                .any(|h| {
+                    let (type_b, affinity_b) = scene.geom_collision_masks(h);
+                    type_a & affinity_b != 0 || type_b & affinity_a != 0
+                })
+        })
+}
+
+/// The cut model keeps every joint, degree of freedom and actuator of the scene.
+fn same_arm(scene: &Model, cut: &Model) -> bool {
+    (
+        scene.nq(),
+        scene.nv(),
+        scene.nu(),
+        scene.njnt(),
+        scene.timestep(),
+    ) == (cut.nq(), cut.nv(), cut.nu(), cut.njnt(), cut.timestep())
+}
