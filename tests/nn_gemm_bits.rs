@@ -161,9 +161,25 @@ fn compare(shape: &GemmShape, beta: f32, rng: &mut ChaCha8Rng) -> Result<(), Str
     Ok(())
 }
 
+/// Whether the unpacked kernel must run here: built with AVX-512 intrinsics (the build
+/// script's `smirl_avx512`, Rust ≥ 1.89) on a CPU with the features it checks.
+fn kernel_expected() -> bool {
+    #[cfg(all(target_arch = "x86_64", smirl_avx512))]
+    {
+        is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("fma")
+            && is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(all(target_arch = "x86_64", smirl_avx512)))]
+    {
+        false
+    }
+}
+
 fn check_all(shapes: &BTreeSet<(usize, usize, usize, bool, bool)>, betas: &[f32]) {
+    assert_eq!(gemm_unpacked::supported(), kernel_expected());
     if !gemm_unpacked::supported() {
-        eprintln!("this CPU has no AVX-512: the unpacked kernel is not used here");
+        eprintln!("no AVX-512 kernel in this build or CPU: every product goes to sgemm");
         return;
     }
     let mut rng = ChaCha8Rng::seed_from_u64(56);

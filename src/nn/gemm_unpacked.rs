@@ -15,7 +15,9 @@
 //! tile rounds `α·acc` before adding), so only α == 1 is reproduced here. Vector width and tile
 //! shape do not change any element's arithmetic, which is why this module can use tiles of
 //! its own, read `A`'s columns and `B`'s elements in place, and still match bit for bit.
-//! Other CPUs (no FMA: `sgemm` multiplies and adds separately) and α ≠ 1 are left to `sgemm`.
+//! Other CPUs (no FMA: `sgemm` multiplies and adds separately; no AVX-512: this module's
+//! tiles), compilers without AVX-512 intrinsics (before Rust 1.89) and α ≠ 1 are left to
+//! `sgemm`.
 
 use std::cell::RefCell;
 
@@ -82,7 +84,10 @@ pub fn gemm(
     true
 }
 
-#[cfg(target_arch = "x86_64")]
+// The build script sets `smirl_avx512` when the compiler has stable AVX-512 intrinsics
+// (1.89), which is why they may be used here above the crate's minimum Rust version.
+#[cfg(all(target_arch = "x86_64", smirl_avx512))]
+#[allow(clippy::incompatible_msrv)]
 mod imp {
     use super::{StridedRef, KC};
     use std::arch::x86_64::*;
@@ -269,7 +274,7 @@ mod imp {
     }
 }
 
-#[cfg(not(target_arch = "x86_64"))]
+#[cfg(not(all(target_arch = "x86_64", smirl_avx512)))]
 mod imp {
     use super::StridedRef;
 
@@ -288,6 +293,6 @@ mod imp {
         _beta: f32,
         _c: &mut [f32],
     ) {
-        unreachable!("gemm_unpacked: no kernel on this architecture")
+        unreachable!("gemm_unpacked: no kernel in this build")
     }
 }
