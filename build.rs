@@ -4,6 +4,18 @@
 
 use std::process::Command;
 
+/// Minor version of the compiler building the crate (`rustc 1.95.0 (…)` → 95), 0 when unknown.
+fn rustc_minor() -> u32 {
+    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
+    Command::new(rustc)
+        .arg("--version")
+        .output()
+        .ok()
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .and_then(|v| v.split(['.', ' ']).nth(2).and_then(|m| m.parse().ok()))
+        .unwrap_or(0)
+}
+
 fn git(manifest: &str, args: &[&str]) -> Option<String> {
     Command::new("git")
         .args(args)
@@ -39,6 +51,12 @@ fn main() {
         commit.push_str("-dirty");
     }
     println!("cargo:rustc-env=SMIRL_GIT_COMMIT={commit}");
+    // AVX-512 intrinsics are stable from Rust 1.89, above the crate's minimum: older compilers
+    // build `nn::gemm_unpacked` without its kernel and every product goes to sgemm (same bits).
+    println!("cargo:rustc-check-cfg=cfg(smirl_avx512)");
+    if rustc_minor() >= 89 {
+        println!("cargo:rustc-cfg=smirl_avx512");
+    }
     println!("cargo:rerun-if-changed=build.rs");
     // Rerun when a source changes, so the dirty mark follows the checkout.
     for dir in ["src", "assets"] {

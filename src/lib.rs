@@ -41,8 +41,9 @@
 //! `short_float` (serde helpers for readable configs) import nothing of the crate but each
 //! other and serve every layer.
 //!
-//! `unsafe` is denied everywhere but in three places, each allowed by name: the MuJoCo wrapper
-//! (`mujoco`, the FFI), the `sgemm` call (`nn::gemm`) and restoring SIGPIPE's default action
+//! `unsafe` is denied everywhere but in four places, each allowed by name: the MuJoCo wrapper
+//! (`mujoco`, the FFI), the `sgemm` call (`nn::gemm`), the AVX-512 product kernel
+//! (`nn::gemm_unpacked`) and restoring SIGPIPE's default action
 //! (`pipeline::commands::exit_quietly_on_closed_pipe`).
 
 #![deny(unsafe_code)]

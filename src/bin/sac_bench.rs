@@ -10,6 +10,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
+use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
@@ -51,6 +52,11 @@ struct Args {
     /// Replace an existing --out file.
     #[arg(long)]
     force: bool,
+    /// Also time the traced products through matrixmultiply's `sgemm` against the unpacked
+    /// kernel and against `gemm`'s choice between them, interleaved, whole update and shape by
+    /// shape.
+    #[arg(long)]
+    compare_kernels: bool,
 }
 
 /// Cheap stand-in environment with the product environment's sizes: a damped linear system
@@ -235,6 +241,137 @@ fn measure<E: ContinuousEnv>(env: &mut E, config: &SacConfig, args: &Args) -> Re
     Ok(m)
 }
 
+/// How a product of the trace is computed in [`compare_kernels`].
+#[derive(Clone, Copy)]
+enum Kernel {
+    Sgemm,
+    Unpacked,
+    Chosen,
+}
+
+/// Runs every product of `shapes` once through `kernel`, with the β `Dense` uses (1 for the
+/// forward `W x` onto the bias, 0 for the backward products).
+fn replay(
+    kernel: Kernel,
+    shapes: &[GemmShape],
+    operands: &mut [(DMatrix<f32>, DMatrix<f32>, DMatrix<f32>)],
+) {
+    for (s, (a, b, c)) in shapes.iter().zip(operands.iter_mut()) {
+        let beta = if s.trans_a || s.trans_b { 0.0 } else { 1.0 };
+        match kernel {
+            Kernel::Sgemm => gemm::gemm_matrixmultiply(1.0, a, s.trans_a, b, s.trans_b, beta, c),
+            Kernel::Unpacked => {
+                if !gemm::gemm_unpacked(a, s.trans_a, b, s.trans_b, beta, c) {
+                    gemm::gemm_matrixmultiply(1.0, a, s.trans_a, b, s.trans_b, beta, c)
+                }
+            }
+            Kernel::Chosen => gemm::gemm(1.0, a, s.trans_a, b, s.trans_b, beta, c),
+        }
+    }
+}
+
+/// Seconds per replay of `shapes` through each kernel: repetitions of `iters` replays, the
+/// kernels taking turns in short chunks so that all see the same machine load.
+fn time_kernels(
+    shapes: &[GemmShape],
+    kernels: &[Kernel],
+    iters: u64,
+    reps: usize,
+) -> Vec<Vec<f64>> {
+    let mut operands: Vec<_> = shapes.iter().map(gemm::operands_for).collect();
+    let mut secs = vec![vec![]; kernels.len()];
+    const CHUNKS: u64 = 10;
+    let chunk = iters.div_ceil(CHUNKS);
+    for _ in 0..reps {
+        let mut total = vec![0.0; kernels.len()];
+        for _ in 0..CHUNKS {
+            for (t, &kernel) in total.iter_mut().zip(kernels) {
+                let start = Instant::now();
+                for _ in 0..chunk {
+                    replay(kernel, shapes, &mut operands);
+                }
+                *t += start.elapsed().as_secs_f64();
+            }
+        }
+        for (s, t) in secs.iter_mut().zip(total) {
+            s.push(t / (chunk * CHUNKS) as f64);
+        }
+    }
+    std::hint::black_box(&operands);
+    secs
+}
+
+/// The traced products timed through `sgemm`, the unpacked kernel and `gemm`'s choice, for
+/// the whole update and for each distinct shape.
+fn compare_kernels(shapes: &[GemmShape], args: &Args) -> String {
+    let mut s = String::new();
+    let kernels = [Kernel::Sgemm, Kernel::Unpacked, Kernel::Chosen];
+    let _ = writeln!(
+        s,
+        "kernels (unpacked kernel available, so used by gemm: {}):",
+        smirl::nn::gemm_unpacked::supported()
+    );
+    let secs = time_kernels(shapes, &kernels, args.iters, args.reps);
+    let us = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{:.1}", x * 1e6))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let _ = writeln!(
+        s,
+        "  one update's products, µs per rep: sgemm {} | unpacked {} | gemm {}",
+        us(&secs[0]),
+        us(&secs[1]),
+        us(&secs[2])
+    );
+    let ratio = |i: usize| {
+        let r: Vec<f64> = secs[i].iter().zip(&secs[0]).map(|(x, m)| x / m).collect();
+        (median(&r), r)
+    };
+    let (unpacked, per_rep) = ratio(1);
+    let _ = writeln!(
+        s,
+        "  time ratio unpacked/sgemm per rep: {} (median {unpacked:.3})",
+        fmt2(&per_rep)
+    );
+    let (chosen, per_rep) = ratio(2);
+    let _ = writeln!(
+        s,
+        "  time ratio gemm/sgemm per rep:     {} (median {chosen:.3})",
+        fmt2(&per_rep)
+    );
+    let mut distinct: Vec<GemmShape> = vec![];
+    for sh in shapes {
+        if !distinct.contains(sh) {
+            distinct.push(*sh);
+        }
+    }
+    let _ = writeln!(
+        s,
+        "  per shape (calls per update; median µs per call sgemm -> unpacked):"
+    );
+    for sh in distinct {
+        let calls = shapes.iter().filter(|x| **x == sh).count();
+        let one = [sh];
+        let secs = time_kernels(&one, &kernels[..2], 10 * args.iters, args.reps);
+        let (g, u) = (median(&secs[0]), median(&secs[1]));
+        let _ = writeln!(
+            s,
+            "    m {:>3} k {:>3} n {:>3} trans ({}, {}) x{calls}: {:.2} -> {:.2} ({:.2}x)",
+            sh.m,
+            sh.k,
+            sh.n,
+            u8::from(sh.trans_a),
+            u8::from(sh.trans_b),
+            g * 1e6,
+            u * 1e6,
+            u / g
+        );
+    }
+    s
+}
+
 fn report(
     name: &str,
     config: &SacConfig,
@@ -365,6 +502,9 @@ fn main() -> Result<()> {
         ),
         };
         out.push_str(&report(name, &config, obs_dim, act_dim, &m));
+        if args.compare_kernels {
+            out.push_str(&compare_kernels(&m.shapes, &args));
+        }
     }
     print!("{out}");
     if let Some(path) = &args.out {

@@ -1,12 +1,14 @@
-//! Matrix products through matrixmultiply's `sgemm` with explicit strides.
+//! Matrix products on column-major `DMatrix<f32>` with transposes expressed as stride swaps.
 //!
 //! nalgebra's own `gemm` on strided views reads out of bounds when a dimension is ≤ 5
-//! (dimforge/nalgebra#1616); calling the kernel directly on column-major storage avoids it and
-//! lets us express transposes as stride swaps instead of copies.
+//! (dimforge/nalgebra#1616), so products go to matrixmultiply's `sgemm` with explicit strides,
+//! or, when the CPU allows, to [`super::gemm_unpacked`], which rounds every element exactly as
+//! `sgemm` does but skips its per-call packing.
 //!
 //! A per-thread trace can record the shapes of every product (see [`trace`]); benchmarks use it
 //! to time exactly the products one SAC update performs.
 
+use super::gemm_unpacked::{self, StridedRef};
 use nalgebra::DMatrix;
 use std::cell::{Cell, RefCell};
 
@@ -48,7 +50,8 @@ fn op_layout(mat: &DMatrix<f32>, trans: bool) -> (usize, usize, isize, isize) {
 }
 
 /// `c = alpha * op(a) * op(b) + beta * c` where `op` transposes when the flag is set.
-/// When `beta == 0` the old contents of `c` are ignored (even NaN).
+/// When `beta == 0` the old contents of `c` are ignored (even NaN). The bits are those of
+/// [`gemm_matrixmultiply`] whichever kernel computes them.
 ///
 /// # Panics
 /// When the shapes do not agree — a programming error in the caller, not bad input.
@@ -61,28 +64,121 @@ pub fn gemm(
     beta: f32,
     c: &mut DMatrix<f32>,
 ) {
-    let (m, k, rsa, csa) = op_layout(a, trans_a);
-    let (kb, n, rsb, csb) = op_layout(b, trans_b);
+    let shape = checked_shape(a, trans_a, b, trans_b, c);
+    if TRACING.with(Cell::get) {
+        TRACE.with(|t| t.borrow_mut().push(shape));
+    }
+    // The unpacked kernel reproduces sgemm only for α = 1 (see its module); it was faster
+    // than sgemm on every product of a SAC update (`sac_bench --compare-kernels`).
+    if alpha == 1.0 && unpacked(a, trans_a, b, trans_b, beta, c) {
+        return;
+    }
+    sgemm(alpha, a, trans_a, b, trans_b, beta, c);
+}
+
+/// [`gemm`] with α = 1 through [`super::gemm_unpacked`] whatever the shape; false (and `c`
+/// untouched) when that kernel does not run on this CPU.
+///
+/// # Panics
+/// When the shapes do not agree.
+pub fn gemm_unpacked(
+    a: &DMatrix<f32>,
+    trans_a: bool,
+    b: &DMatrix<f32>,
+    trans_b: bool,
+    beta: f32,
+    c: &mut DMatrix<f32>,
+) -> bool {
+    checked_shape(a, trans_a, b, trans_b, c);
+    unpacked(a, trans_a, b, trans_b, beta, c)
+}
+
+/// [`gemm`] always through matrixmultiply's `sgemm` (the reference the unpacked kernel is
+/// held to, and the baseline benchmarks compare with).
+///
+/// # Panics
+/// When the shapes do not agree.
+pub fn gemm_matrixmultiply(
+    alpha: f32,
+    a: &DMatrix<f32>,
+    trans_a: bool,
+    b: &DMatrix<f32>,
+    trans_b: bool,
+    beta: f32,
+    c: &mut DMatrix<f32>,
+) {
+    checked_shape(a, trans_a, b, trans_b, c);
+    sgemm(alpha, a, trans_a, b, trans_b, beta, c);
+}
+
+fn checked_shape(
+    a: &DMatrix<f32>,
+    trans_a: bool,
+    b: &DMatrix<f32>,
+    trans_b: bool,
+    c: &DMatrix<f32>,
+) -> GemmShape {
+    let (m, k, _, _) = op_layout(a, trans_a);
+    let (kb, n, _, _) = op_layout(b, trans_b);
     assert_eq!(k, kb, "gemm: inner dimensions differ");
     assert_eq!(c.shape(), (m, n), "gemm: output shape");
-    if TRACING.with(Cell::get) {
-        TRACE.with(|t| {
-            t.borrow_mut().push(GemmShape {
-                m,
-                k,
-                n,
-                trans_a,
-                trans_b,
-            })
-        });
+    GemmShape {
+        m,
+        k,
+        n,
+        trans_a,
+        trans_b,
     }
+}
+
+/// The unpacked product on shapes already checked.
+fn unpacked(
+    a: &DMatrix<f32>,
+    trans_a: bool,
+    b: &DMatrix<f32>,
+    trans_b: bool,
+    beta: f32,
+    c: &mut DMatrix<f32>,
+) -> bool {
+    let (m, k, rsa, csa) = op_layout(a, trans_a);
+    let (_, n, rsb, csb) = op_layout(b, trans_b);
+    fn strided(mat: &DMatrix<f32>, rs: isize, cs: isize) -> StridedRef<'_> {
+        StridedRef {
+            data: mat.as_slice(),
+            rs: rs as usize,
+            cs: cs as usize,
+        }
+    }
+    gemm_unpacked::gemm(
+        m,
+        k,
+        n,
+        strided(a, rsa, csa),
+        strided(b, rsb, csb),
+        beta,
+        c.as_mut_slice(),
+    )
+}
+
+/// matrixmultiply's `sgemm` on shapes already checked.
+fn sgemm(
+    alpha: f32,
+    a: &DMatrix<f32>,
+    trans_a: bool,
+    b: &DMatrix<f32>,
+    trans_b: bool,
+    beta: f32,
+    c: &mut DMatrix<f32>,
+) {
+    let (m, k, rsa, csa) = op_layout(a, trans_a);
+    let (_, n, rsb, csb) = op_layout(b, trans_b);
     if m == 0 || n == 0 {
         return;
     }
     let rsc = 1;
     let csc = m as isize;
-    // SAFETY: the shapes were checked above; every pointer stays inside its matrix's storage
-    // because the strides describe exactly the column-major layout of that matrix.
+    // SAFETY: the shapes were checked by the caller; every pointer stays inside its matrix's
+    // storage because the strides describe exactly the column-major layout of that matrix.
     unsafe {
         matrixmultiply::sgemm(
             m,

@@ -5,7 +5,8 @@
 //! - A batch is a matrix with one **column per sample** (features × batch, column-major), so a
 //!   sample's features are contiguous and copying observations in and out is a slice copy.
 //! - Matrix products go through [`gemm::gemm`] (matrixmultiply's `sgemm` with explicit
-//!   strides), never nalgebra's own `gemm` on views (dimforge/nalgebra#1616).
+//!   strides, or [`gemm_unpacked`] with the same bits), never nalgebra's own `gemm` on views
+//!   (dimforge/nalgebra#1616).
 //! - Forward and backward passes write into caller-owned workspaces sized for the batch, so
 //!   the training hot path does not allocate.
 //! - Backward passes overwrite gradients (they do not accumulate).
@@ -16,6 +17,8 @@ pub mod dense;
 pub mod gaussian;
 #[allow(unsafe_code)]
 pub mod gemm;
+#[allow(unsafe_code)]
+pub mod gemm_unpacked;
 pub mod mlp;
 
 pub use adam::{Adam, AdamConfig};
