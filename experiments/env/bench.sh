@@ -6,8 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 cargo build --release --bin env_bench
 {
-    echo "# command: cargo run --release --bin env_bench -- --reps 7 --steps 20000"
+    echo "# command: cargo run --release --bin env_bench -- --reps 11 --steps 20000"
     echo "# machine: $(nproc) cores, $(date -u +%Y-%m-%d), load average $(cut -d" " -f1-3 /proc/loadavg)"
-    ./target/release/env_bench --reps 7 --steps 20000
+    ./target/release/env_bench --reps 11 --steps 20000
 } > experiments/env/bench.txt
 cat experiments/env/bench.txt
