@@ -124,26 +124,15 @@ fn main() -> anyhow::Result<()> {
         let m = median(r.clone());
         println!("{name}: {m:>9.0} steps/s ({:.1} us/step)", 1e6 / m);
     }
-    println!(
-        "ratio env / env on the first model : {:.3} (target >= 1.5)",
-        ratio(&rates[1], &rates[5])
-    );
-    println!(
-        "ratio env / raw on the physics model: {:.3} (target >= 0.9)",
-        ratio(&rates[1], &rates[0])
-    );
-    println!(
-        "ratio env / env on the whole scene : {:.3}",
-        ratio(&rates[1], &rates[3])
-    );
-    println!(
-        "ratio env whole scene / raw scene  : {:.3}",
-        ratio(&rates[3], &rates[2])
-    );
-    println!(
-        "ratio env first model / raw first  : {:.3}",
-        ratio(&rates[5], &rates[4])
-    );
+    for (name, a, b, target) in [
+        ("env / env on the first model ", 1, 5, " (target >= 1.5)"),
+        ("env / raw on the physics model", 1, 0, " (target >= 0.9)"),
+        ("env / env on the whole scene  ", 1, 3, ""),
+        ("env whole scene / raw scene   ", 3, 2, ""),
+        ("env first model / raw first   ", 5, 4, ""),
+    ] {
+        println!("ratio {name}: {:.3}{target}", ratio(&rates[a], &rates[b]));
+    }
     println!(
         "episode reset: {:.1} us = {reset_cost:.2} env steps (median per rep; target <= 1)",
         reset_cost * 1e6 / median(rates[1].clone())

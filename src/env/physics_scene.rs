@@ -225,6 +225,9 @@ pub fn without_mocap_bodies(xml: &str, bodies: &[&str]) -> Result<String, SceneC
     Ok(out)
 }
 
+/// Largest scene file read as text (a task file's scene, or the text cut here).
+pub const MAX_SCENE_BYTES: u64 = crate::config_text::MAX_TEXT_FILE_BYTES * 16;
+
 /// The model of a task's scene, as the scene file (or the built-in scene) gives it.
 pub fn scene_model(scene: &Scene) -> Result<Model, MjError> {
     match scene {
@@ -284,7 +287,7 @@ fn cut_model(scene: &Scene, bodies: &[&str]) -> Option<Model> {
             Model::from_xml_str(&text, crate::assets::REACHER_XML_NAME).ok()
         }
         Scene::File(path) => {
-            let text = std::fs::read_to_string(path).ok()?;
+            let text = crate::input_file::read_text(path, MAX_SCENE_BYTES).ok()?;
             let text = without_mocap_bodies(&text, bodies).ok()?;
             Model::from_xml_text_at(&text, path).ok()
         }

@@ -483,7 +483,7 @@ impl Task {
             // The model loaded from this file a moment ago; a failure to read it again is a
             // race with the user's editor, reported as such.
             Scene::File(p) => {
-                crate::input_file::read_bytes(p, crate::config_text::MAX_TEXT_FILE_BYTES * 16)
+                crate::input_file::read_bytes(p, super::physics_scene::MAX_SCENE_BYTES)
                     .map_err(|e| bad("scene".into(), TaskProblem::Scene(e.to_string())))?
             }
         };
