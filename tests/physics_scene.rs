@@ -3,7 +3,9 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::assets::REACHER_XML;
-use smirl::env::physics_scene::{scene_model, without_mocap_bodies, SceneCutError};
+use smirl::env::physics_scene::{
+    scene_model, without_mocap_bodies, without_world_geoms, SceneCutError,
+};
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
@@ -49,6 +51,38 @@ fn the_arm_moves_bit_for_bit_as_in_the_scene_without_the_balls() {
         scene == cut,
         "the arm's trajectory differs without the balls"
     );
+    let arm_only = without_world_geoms(&physics).unwrap();
+    let model = Model::from_xml_str(&arm_only, "arm_only.xml").unwrap();
+    assert_eq!(model.ngeom(), 3, "the two links and the fingertip");
+    assert!(
+        rollout(&arm_only, 20_000, 7).0 == scene,
+        "the arm's trajectory differs without the floor and the walls"
+    );
+}
+
+#[test]
+fn only_the_world_bodys_own_geoms_are_cut() {
+    let xml = "<mujoco><default><geom size=\"1\"/></default><!-- <geom/> --><worldbody>\n\
+               <geom name=\"floor\" type=\"plane\"/>\n\
+               <geom name=\"wall\" size=\".02\"></geom>\n\
+               <site name=\"s\"/>\n\
+               <body name=\"arm\"><geom name=\"link\"/><joint/></body>\n\
+               <body name=\"red\" mocap=\"true\"><geom name=\"ball\"/></body>\n\
+               </worldbody></mujoco>";
+    assert_eq!(
+        without_world_geoms(xml).unwrap(),
+        "<mujoco><default><geom size=\"1\"/></default><!-- <geom/> --><worldbody>\n\
+         \n\
+         \n\
+         <site name=\"s\"/>\n\
+         <body name=\"arm\"><geom name=\"link\"/><joint/></body>\n\
+         <body name=\"red\" mocap=\"true\"><geom name=\"ball\"/></body>\n\
+         </worldbody></mujoco>"
+    );
+    assert!(matches!(
+        without_world_geoms("<mujoco><worldbody><geom></worldbody></mujoco>"),
+        Err(SceneCutError::Mismatched { at: 25, .. })
+    ));
 }
 
 #[test]
@@ -167,6 +201,7 @@ fn the_environment_steps_the_built_in_scene_without_its_balls_and_nothing_change
     let task = ReacherTask::shipped("composite").unwrap();
     let (mut physics, mut whole) = envs(&task);
     assert_eq!((physics.model().nmocap(), whole.model().nmocap()), (0, 4));
+    assert_eq!(physics.model().ngeom(), 3, "the arm's geoms alone");
     let mut twin = physics.twin().unwrap();
     assert_eq!(twin.model().nmocap(), 0);
     // Balls at random places every episode, cancel events, 50 episodes of 100 steps.
@@ -267,5 +302,44 @@ fn a_ball_that_can_touch_or_is_referenced_stays_in_the_physics() {
         assert_eq!(model.id(ObjectKind::Body, "blue").is_err(), blue_cut, "{what}");
         assert_eq!(model.nmocap(), if blue_cut { 3 } else { 4 }, "{what}");
         assert!(episodes(&mut physics, 5) == episodes(&mut whole, 5), "{what}");
+    }
+}
+
+#[test]
+fn the_worlds_geoms_stay_when_one_can_touch_or_is_named() {
+    for (what, edit, extra) in [
+        (
+            "a wall that can collide",
+            (
+                r#"conaffinity="0" fromto="-.3 -.3"#,
+                r#"conaffinity="1" contype="1" fromto="-.3 -.3"#,
+            ),
+            "",
+        ),
+        (
+            "a floor a contact pair names",
+            ("", ""),
+            "<contact><pair geom1=\"ground\" geom2=\"link0\"/></contact>",
+        ),
+    ] {
+        let tmp = tempfile::tempdir().unwrap();
+        let task = scene_of_ones_own(tmp.path(), |xml| {
+            assert!(xml.contains(edit.0));
+            xml.replacen(edit.0, edit.1, 1)
+                .replace("</mujoco>", &format!("{extra}</mujoco>"))
+        });
+        let (mut physics, mut whole) = envs(&task);
+        // Every geom of the world stays (nine in the scene), the task's two balls still go.
+        let model = physics.model();
+        assert!(model.id(ObjectKind::Geom, "ground").is_ok(), "{what}");
+        assert_eq!(
+            (model.ngeom(), model.nmocap(), whole.model().ngeom()),
+            (11, 2, 13),
+            "{what}"
+        );
+        assert!(
+            episodes(&mut physics, 5) == episodes(&mut whole, 5),
+            "{what}"
+        );
     }
 }

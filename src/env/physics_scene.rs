@@ -1,21 +1,25 @@
-//! The physics of a scene: its MJCF text without the bodies that only mark regions.
+//! The physics of a scene: its MJCF text without the bodies that only mark regions and the
+//! geoms that only draw the arena.
 //!
 //! A movable region of the built-in scene is a mocap body: a body of the world with no degrees
 //! of freedom that the environment places at reset. The labels come from the environment's
 //! own region positions, never from MuJoCo, and nothing collides, so such a body changes no
 //! joint of the arm; yet MuJoCo's kinematics, composite inertia and velocity passes visit every
 //! body at every RK4 stage, and the four balls cost a third of a step
-//! (`experiments/env/mocap_cost.txt`). The physics model is the scene with those bodies cut
-//! out of the text; the scene itself stays what logs record and what rendering draws.
+//! (`experiments/env/mocap_cost.txt`). The world's own geoms (floor, walls, the arm's base) are
+//! placed again at every stage as well, and move and weigh nothing. The physics model is the
+//! scene with both cut out of the text; the scene itself stays what logs record and what
+//! rendering draws.
 //!
 //! The cut is textual on purpose: MuJoCo 2.2.2 has no model-editing API, and the scene may be
 //! a user's file with defaults and classes the cut must leave alone. Only a `<body>` element
 //! that is a direct child of `<worldbody>`, has `mocap="true"`, is named in the cut list and
-//! holds no `<body>`, `<joint>` or `<freejoint>` is removed; anything else is refused rather
-//! than guessed at. [`physics_model`] cuts only where the cut provably leaves the arm alone
-//! (the body is a mocap body with no geom that can touch another, the cut text compiles to
-//! the same joints and actuators) and otherwise steps the scene itself: a scene it cannot cut
-//! is slower, never different.
+//! holds no `<body>`, `<joint>` or `<freejoint>` is removed, and only `<geom>` elements that
+//! are direct children of `<worldbody>`; anything else is refused rather than guessed at.
+//! [`physics_model`] cuts only where the cut provably leaves the arm alone (no geom it removes
+//! can touch a geom of another body, the cut text compiles to the same joints and actuators)
+//! and otherwise cuts less or steps the scene itself: a scene it cannot cut is slower, never
+//! different.
 
 use super::layout::{Anchor, Scene, TaskLayout};
 use super::placement::Placement;
@@ -143,37 +147,29 @@ fn attribute<'a>(attributes: &'a str, key: &str) -> Option<&'a str> {
     }
 }
 
-/// `xml` without the mocap bodies named in `bodies` (each a direct child of `<worldbody>`
-/// holding no body and no joint); the rest of the text byte for byte.
-pub fn without_mocap_bodies(xml: &str, bodies: &[&str]) -> Result<String, SceneCutError> {
-    let tags = tags(xml)?;
+/// One element of the text: the tags that open and close it (the same tag when it closes
+/// itself) and the name of the element it sits in.
+struct Element<'a> {
+    open: usize,
+    close: usize,
+    parent: Option<&'a str>,
+}
+
+/// The elements of `tags`, each with its parent, after checking that every tag is closed by
+/// the tag that matches it.
+fn elements<'a>(tags: &[Tag<'a>]) -> Result<Vec<Element<'a>>, SceneCutError> {
     // Open elements: (name, index of the tag that opened it).
     let mut open: Vec<(&str, usize)> = Vec::new();
-    let mut cuts: Vec<(usize, usize, &str)> = Vec::new();
-    let mut found = vec![false; bodies.len()];
+    let mut out = Vec::new();
     for (t, tag) in tags.iter().enumerate() {
+        let parent = open.last().map(|(name, _)| *name);
         match tag.kind {
-            TagKind::Open | TagKind::SelfClosing => {
-                let named = (tag.name == "body")
-                    .then(|| attribute(tag.attributes, "name"))
-                    .flatten()
-                    .and_then(|n| bodies.iter().position(|b| *b == n));
-                if let Some(k) = named {
-                    let parent = open.last().map(|(name, _)| *name);
-                    if parent != Some("worldbody")
-                        || attribute(tag.attributes, "mocap") != Some("true")
-                    {
-                        return Err(SceneCutError::NotAWorldMocapBody(bodies[k].into()));
-                    }
-                    found[k] = true;
-                    if tag.kind == TagKind::SelfClosing {
-                        cuts.push((tag.start, tag.end, bodies[k]));
-                    }
-                }
-                if tag.kind == TagKind::Open {
-                    open.push((tag.name, t));
-                }
-            }
+            TagKind::SelfClosing => out.push(Element {
+                open: t,
+                close: t,
+                parent,
+            }),
+            TagKind::Open => open.push((tag.name, t)),
             TagKind::Close => {
                 let Some((name, opened)) = open.pop() else {
                     return Err(SceneCutError::Unopened {
@@ -188,20 +184,11 @@ pub fn without_mocap_bodies(xml: &str, bodies: &[&str]) -> Result<String, SceneC
                         expected: name.into(),
                     });
                 }
-                let first = &tags[opened];
-                let cut_name = (name == "body")
-                    .then(|| attribute(first.attributes, "name"))
-                    .flatten()
-                    .and_then(|n| bodies.iter().find(|b| **b == n));
-                if let Some(&body) = cut_name {
-                    let holds_physics = tags[opened + 1..t]
-                        .iter()
-                        .any(|inner| matches!(inner.name, "body" | "joint" | "freejoint"));
-                    if holds_physics {
-                        return Err(SceneCutError::HoldsPhysics(body.into()));
-                    }
-                    cuts.push((first.start, tag.end, body));
-                }
+                out.push(Element {
+                    open: opened,
+                    close: t,
+                    parent: open.last().map(|(name, _)| *name),
+                });
             }
         }
     }
@@ -211,18 +198,69 @@ pub fn without_mocap_bodies(xml: &str, bodies: &[&str]) -> Result<String, SceneC
             what: if *name == "body" { "body" } else { "element" },
         });
     }
-    if let Some(k) = found.iter().position(|f| !f) {
-        return Err(SceneCutError::Missing(bodies[k].into()));
-    }
-    cuts.sort_by_key(|c| c.0);
+    out.sort_by_key(|e| e.open);
+    Ok(out)
+}
+
+/// `xml` without the byte ranges `cuts` (disjoint).
+fn remove(xml: &str, mut cuts: Vec<(usize, usize)>) -> String {
+    cuts.sort_unstable();
     let mut out = String::with_capacity(xml.len());
     let mut from = 0;
-    for (start, end, _) in cuts {
+    for (start, end) in cuts {
         out.push_str(&xml[from..start]);
         from = end;
     }
     out.push_str(&xml[from..]);
-    Ok(out)
+    out
+}
+
+/// `xml` without the mocap bodies named in `bodies` (each a direct child of `<worldbody>`
+/// holding no body and no joint); the rest of the text byte for byte.
+pub fn without_mocap_bodies(xml: &str, bodies: &[&str]) -> Result<String, SceneCutError> {
+    let tags = tags(xml)?;
+    let mut cuts = Vec::new();
+    let mut found = vec![false; bodies.len()];
+    for element in elements(&tags)? {
+        let first = &tags[element.open];
+        let named = (first.name == "body")
+            .then(|| attribute(first.attributes, "name"))
+            .flatten()
+            .and_then(|n| bodies.iter().position(|b| *b == n));
+        let Some(k) = named else { continue };
+        if element.parent != Some("worldbody")
+            || attribute(first.attributes, "mocap") != Some("true")
+        {
+            return Err(SceneCutError::NotAWorldMocapBody(bodies[k].into()));
+        }
+        // A self-closing body (open == close) holds nothing.
+        let holds_physics = (tags.get(element.open + 1..element.close))
+            .unwrap_or_default()
+            .iter()
+            .any(|inner| matches!(inner.name, "body" | "joint" | "freejoint"));
+        if holds_physics {
+            return Err(SceneCutError::HoldsPhysics(bodies[k].into()));
+        }
+        found[k] = true;
+        cuts.push((first.start, tags[element.close].end));
+    }
+    if let Some(k) = found.iter().position(|f| !f) {
+        return Err(SceneCutError::Missing(bodies[k].into()));
+    }
+    Ok(remove(xml, cuts))
+}
+
+/// `xml` without the geoms that are direct children of `<worldbody>` (the arena's floor and
+/// walls in the built-in scene); the rest of the text byte for byte. A geom of the world body
+/// moves nothing and weighs nothing: it acts on the arm only through a collision, which
+/// [`physics_model`] rules out before it cuts.
+pub fn without_world_geoms(xml: &str) -> Result<String, SceneCutError> {
+    let tags = tags(xml)?;
+    let cuts = (elements(&tags)?.iter())
+        .filter(|e| tags[e.open].name == "geom" && e.parent == Some("worldbody"))
+        .map(|e| (tags[e.open].start, tags[e.close].end))
+        .collect();
+    Ok(remove(xml, cuts))
 }
 
 /// Largest scene file read as text (a task file's scene, or the text cut here).
@@ -245,17 +283,20 @@ pub struct PhysicsModel {
     pub left_out: Vec<bool>,
 }
 
-/// The task's scene without the mocap bodies of its movable regions, or the scene itself when
-/// it has none or cutting them could change the arm's physics (see the module documentation).
+/// The task's scene without the mocap bodies of its movable regions and without the world's
+/// own geoms, or with as much of that cut as leaves the arm's physics provably alone (see the
+/// module documentation): the scene itself when nothing can be cut.
 /// Errors are the scene's own (it does not load).
 pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, MjError> {
     let scene = scene_model(&layout.scene)?;
     let left_out: Vec<bool> = (layout.regions.iter())
         .map(|region| match (&region.anchor, region.movable) {
-            (Anchor::Body(body), true) => {
-                matches!(Placement::find(&scene, body), Some(Placement::Mocap { .. }))
-                    && !touches_anything(&scene, body)
-            }
+            (Anchor::Body(body), true) => scene
+                .id(crate::mujoco::ObjectKind::Body, body)
+                .is_ok_and(|id| {
+                    matches!(Placement::find(&scene, body), Some(Placement::Mocap { .. }))
+                        && !touches_anything(&scene, id)
+                }),
             _ => false,
         })
         .collect();
@@ -265,10 +306,16 @@ pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, MjError> {
         .collect();
     bodies.sort_unstable();
     bodies.dedup();
-    let cut = (!bodies.is_empty())
-        .then(|| cut_model(&layout.scene, &bodies))
-        .flatten()
-        .filter(|model| same_arm(&scene, model));
+    // The world's geoms go too when none of them can collide. A cut text that does not
+    // compile (a sensor, tendon or contact pair names a geom) is retried with the bodies alone.
+    let world_geoms =
+        (0..scene.ngeom()).any(|g| scene.geom_body(g) == 0) && !touches_anything(&scene, 0);
+    let attempts = [(bodies.as_slice(), world_geoms), (bodies.as_slice(), false)];
+    let cut = (attempts.iter())
+        .filter(|(bodies, geoms)| !bodies.is_empty() || *geoms)
+        .find_map(|(bodies, geoms)| {
+            cut_model(&layout.scene, bodies, *geoms).filter(|model| same_arm(&scene, model))
+        });
     Ok(match cut {
         Some(model) => PhysicsModel { model, left_out },
         None => PhysicsModel {
@@ -278,28 +325,32 @@ pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, MjError> {
     })
 }
 
-/// The scene compiled without `bodies`, when its text can be read and cut and the cut text
-/// compiles.
-fn cut_model(scene: &Scene, bodies: &[&str]) -> Option<Model> {
+/// The scene compiled without `bodies` (and without the world's geoms when `world_geoms`),
+/// when its text can be read and cut and the cut text compiles.
+fn cut_model(scene: &Scene, bodies: &[&str], world_geoms: bool) -> Option<Model> {
+    let cut = |text: &str| {
+        let text = without_mocap_bodies(text, bodies).ok()?;
+        if world_geoms {
+            without_world_geoms(&text).ok()
+        } else {
+            Some(text)
+        }
+    };
     match scene {
         Scene::Builtin => {
-            let text = without_mocap_bodies(crate::assets::REACHER_XML, bodies).ok()?;
+            let text = cut(crate::assets::REACHER_XML)?;
             Model::from_xml_str(&text, crate::assets::REACHER_XML_NAME).ok()
         }
         Scene::File(path) => {
             let text = crate::input_file::read_text(path, MAX_SCENE_BYTES).ok()?;
-            let text = without_mocap_bodies(&text, bodies).ok()?;
-            Model::from_xml_text_at(&text, path).ok()
+            Model::from_xml_text_at(&cut(&text)?, path).ok()
         }
     }
 }
 
-/// Whether a geom of `body` can collide with any geom of another body (MuJoCo's test: one
+/// Whether a geom of body `id` can collide with any geom of another body (MuJoCo's test: one
 /// geom's contype shares a bit with the other's conaffinity).
-fn touches_anything(scene: &Model, body: &str) -> bool {
-    let Ok(id) = scene.id(crate::mujoco::ObjectKind::Body, body) else {
-        return true;
-    };
+fn touches_anything(scene: &Model, id: usize) -> bool {
     let geoms = 0..scene.ngeom();
     geoms
         .clone()
