@@ -328,6 +328,9 @@ fn same(got: f32, want: f32) -> bool {
     got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan())
 }
 
+/// `gemm`'s signature: `gemm` itself or `gemm_matrixmultiply`.
+type Product = fn(f32, &DMatrix<f32>, bool, &DMatrix<f32>, bool, f32, &mut DMatrix<f32>);
+
 /// The dense forward as it was computed before `gemm_bias`: the bias copied into every
 /// column, the product added with β = 1, then the ReLU as a separate pass.
 fn copy_then_beta_one(
@@ -335,7 +338,7 @@ fn copy_then_beta_one(
     x: &DMatrix<f32>,
     bias: &[f32],
     relu: bool,
-    product: fn(f32, &DMatrix<f32>, bool, &DMatrix<f32>, bool, f32, &mut DMatrix<f32>),
+    product: Product,
 ) -> DMatrix<f32> {
     let mut y = DMatrix::from_fn(w.nrows(), x.ncols(), |i, _| bias[i]);
     product(1.0, w, false, x, false, 1.0, &mut y);
@@ -374,10 +377,7 @@ fn compare_bias(m: usize, k: usize, n: usize, rng: &mut ChaCha8Rng) -> Vec<Strin
                 ("gemm_bias", &fused, &expected),
                 ("gemm_bias_matrixmultiply", &fallback, &via_sgemm),
             ] {
-                let first = got
-                    .iter()
-                    .zip(want.iter())
-                    .position(|(g, e)| !same(*g, *e));
+                let first = got.iter().zip(want.iter()).position(|(g, e)| !same(*g, *e));
                 if let Some(idx) = first {
                     failures.push(format!(
                         "m {m} k {k} n {n} relu {relu} special {special}: {name} element ({}, {}) \

@@ -87,6 +87,7 @@ pub fn gemm(
     sgemm(alpha, a, trans_a, b, trans_b, beta, c);
 }
 
+/// Appends `shape` to this thread's trace while [`trace`] runs.
 fn record(shape: GemmShape) {
     if TRACING.with(Cell::get) {
         TRACE.with(|t| t.borrow_mut().push(shape));
@@ -97,7 +98,8 @@ fn record(shape: GemmShape) {
 /// dense layer's forward pass. The bits are those of copying `bias` into every column,
 /// [`gemm`] with α = β = 1, then [`relu`], which is what [`gemm_bias_matrixmultiply`] does and
 /// what runs when the unpacked kernel does not; the kernel takes the bias as its first k
-/// block's C and applies the ReLU as it stores, so C is written once and never read.
+/// block's C and applies the ReLU as it stores, so C is written once and never read. (Where
+/// two NaNs meet, which one comes out is the compiler's choice on either path.)
 ///
 /// # Panics
 /// When the shapes do not agree (`bias`: one value per row of `c`).
