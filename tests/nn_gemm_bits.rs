@@ -1,13 +1,15 @@
 //! The unpacked product kernel (`nn::gemm_unpacked`) gives exactly the bits of matrixmultiply's
 //! `sgemm` on every product shape smirl performs (traced from SAC updates and batched network
 //! forwards) and on edge sizes around its vector width and its k blocks, with operands whose
-//! mixed magnitudes make any change of rounding order visible.
+//! mixed magnitudes make any change of rounding order visible. A dense layer's `W x + b` (and
+//! the hidden layers' ReLU) through `gemm_bias` gives exactly the bits of the bias copied into
+//! every column, the product added with β = 1, then `v.max(0.0)`, special values included.
 
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::env::{check_action, ContinuousEnv, EnvError, EnvStep};
-use smirl::nn::gemm::{self, GemmShape};
+use smirl::nn::gemm::{self, Epilogue, GemmShape};
 use smirl::nn::{gemm_unpacked, Mlp, MlpArch};
 use smirl::rl::sac::{EnvReward, SacConfig, SacTrainer};
 use smirl::rm::LabelSet;
@@ -118,6 +120,7 @@ fn compare(shape: &GemmShape, beta: f32, rng: &mut ChaCha8Rng) -> Result<(), Str
         n,
         trans_a,
         trans_b,
+        ..
     } = *shape;
     let a = if trans_a {
         random(k, m, rng)
@@ -191,6 +194,7 @@ fn check_all(shapes: &BTreeSet<(usize, usize, usize, bool, bool)>, betas: &[f32]
             n,
             trans_a,
             trans_b,
+            epilogue: Epilogue::Beta,
         };
         for &beta in betas {
             if let Err(e) = compare(&shape, beta, &mut rng) {
@@ -272,4 +276,193 @@ fn unpacked_kernel_declines_empty_products() {
     assert!(!gemm::gemm_unpacked(&a, false, &b, false, 1.0, &mut c));
     gemm::gemm(1.0, &a, false, &b, false, 0.5, &mut c);
     assert!(c.iter().all(|&x| x == 1.0), "k = 0 scales C by beta");
+}
+
+/// Biases made of the values whose handling could differ between `b + acc` and `1·b + acc`
+/// or between a vector max and `f32::max`: zeros of either sign, quiet and signalling NaNs of
+/// either sign with payloads, infinities, subnormals, then ordinary mixed values.
+fn special_bias(m: usize, rng: &mut ChaCha8Rng) -> Vec<f32> {
+    const SPECIAL: [u32; 12] = [
+        0x0000_0000, // +0
+        0x8000_0000, // −0
+        0x7fc0_0000, // quiet NaN
+        0xffc1_2345, // negative quiet NaN with a payload
+        0x7fa0_0001, // signalling NaN
+        0x7f80_0000, // +inf
+        0xff80_0000, // −inf
+        0x0000_0001, // smallest subnormal
+        0x8000_0001, // its negative
+        0x007f_ffff, // largest subnormal
+        0x807f_ffff, // its negative
+        0x0080_0000, // smallest normal
+    ];
+    (0..m)
+        .map(|i| match SPECIAL.get(i % 24) {
+            Some(&bits) => f32::from_bits(bits),
+            None => mixed(rng),
+        })
+        .collect()
+}
+
+/// `x` with, in a few columns, an infinity or a NaN with a payload of its own, so that some
+/// sums are ±inf (meeting a bias of the other sign: NaN) or NaN (meeting a NaN bias).
+fn special_input(k: usize, n: usize, rng: &mut ChaCha8Rng) -> DMatrix<f32> {
+    let mut x = random(k, n, rng);
+    for j in 0..n {
+        let p = j % k;
+        match j % 9 {
+            3 => x[(p, j)] = f32::INFINITY,
+            5 => x[(p, j)] = f32::NEG_INFINITY,
+            7 => x[(p, j)] = f32::from_bits(0x7fc5_4321),
+            _ => {}
+        }
+    }
+    x
+}
+
+/// Equal bits, or both NaN. Which NaN an addition returns when both operands are NaN depends
+/// on their order, which LLVM may swap (addition commutes): the same source compiled twice can
+/// return either payload and sign, and the unpacked kernel and `sgemm` already differ there.
+/// NaNs stop training, so their payloads reach no output.
+fn same(got: f32, want: f32) -> bool {
+    got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan())
+}
+
+/// `gemm`'s signature: `gemm` itself or `gemm_matrixmultiply`.
+type Product = fn(f32, &DMatrix<f32>, bool, &DMatrix<f32>, bool, f32, &mut DMatrix<f32>);
+
+/// The dense forward as it was computed before `gemm_bias`: the bias copied into every
+/// column, the product added with β = 1, then the ReLU as a separate pass.
+fn copy_then_beta_one(
+    w: &DMatrix<f32>,
+    x: &DMatrix<f32>,
+    bias: &[f32],
+    relu: bool,
+    product: Product,
+) -> DMatrix<f32> {
+    let mut y = DMatrix::from_fn(w.nrows(), x.ncols(), |i, _| bias[i]);
+    product(1.0, w, false, x, false, 1.0, &mut y);
+    if relu {
+        for v in y.as_mut_slice() {
+            *v = v.max(0.0);
+        }
+    }
+    y
+}
+
+/// Compares `gemm_bias` (and its matrixmultiply path) with [`copy_then_beta_one`] through
+/// `gemm` and through `sgemm`, for (m, k, n), both with and without ReLU, with ordinary and
+/// special operands; returns the differences found.
+fn compare_bias(m: usize, k: usize, n: usize, rng: &mut ChaCha8Rng) -> Vec<String> {
+    let mut failures = vec![];
+    for special in [false, true] {
+        let w = random(m, k, rng);
+        let (x, bias) = if special {
+            (special_input(k, n, rng), special_bias(m, rng))
+        } else {
+            (random(k, n, rng), (0..m).map(|_| mixed(rng)).collect())
+        };
+        for relu in [false, true] {
+            let expected = copy_then_beta_one(&w, &x, &bias, relu, gemm::gemm);
+            let via_sgemm = copy_then_beta_one(&w, &x, &bias, relu, gemm::gemm_matrixmultiply);
+            // C is written, never read: NaN there must not show through.
+            let mut fused = DMatrix::from_element(m, n, f32::NAN);
+            gemm::gemm_bias(&w, &x, &bias, relu, &mut fused);
+            let mut fallback = DMatrix::from_element(m, n, f32::NAN);
+            gemm::gemm_bias_matrixmultiply(&w, &x, &bias, relu, &mut fallback);
+            // The fused entry against the old path as it ran where the kernel runs (gemm),
+            // and the fallback against the old path where it does not (sgemm): the two old
+            // paths themselves may return different NaNs (sgemm's α·acc step).
+            for (name, got, want) in [
+                ("gemm_bias", &fused, &expected),
+                ("gemm_bias_matrixmultiply", &fallback, &via_sgemm),
+            ] {
+                let first = got.iter().zip(want.iter()).position(|(g, e)| !same(*g, *e));
+                if let Some(idx) = first {
+                    failures.push(format!(
+                        "m {m} k {k} n {n} relu {relu} special {special}: {name} element ({}, {}) \
+                         is {:#010x}, the copy and beta 1 give {:#010x}",
+                        idx % m,
+                        idx / m,
+                        got.as_slice()[idx].to_bits(),
+                        want.as_slice()[idx].to_bits()
+                    ));
+                }
+            }
+        }
+    }
+    failures
+}
+
+fn check_bias(shapes: &BTreeSet<(usize, usize, usize)>) {
+    assert_eq!(gemm_unpacked::supported(), kernel_expected());
+    if !gemm_unpacked::supported() {
+        eprintln!("no AVX-512 kernel in this build or CPU: gemm_bias copies and calls sgemm");
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(57);
+    let failures: Vec<String> = shapes
+        .iter()
+        .flat_map(|&(m, k, n)| compare_bias(m, k, n, &mut rng))
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "{} dense forwards differ from copy + beta 1:\n{}",
+        failures.len(),
+        failures[..failures.len().min(20)].join("\n")
+    );
+}
+
+#[test]
+fn dense_forward_bits_match_copy_and_beta_one_on_the_products_smirl_performs() {
+    let mut traced = vec![];
+    for (obs, act) in [(17, 2), (24, 2), (2, 1)] {
+        traced.extend(sac_update_shapes(obs, act));
+    }
+    for inputs in [17, 24] {
+        for batch in [1, 7, 256, 300] {
+            traced.extend(forward_shapes(inputs, 4, batch));
+        }
+    }
+    // Hidden layers go through the fused ReLU, output layers through the bias alone, and
+    // nothing else takes a bias.
+    for epilogue in [Epilogue::Bias, Epilogue::BiasRelu] {
+        assert!(
+            traced.iter().any(|s| s.epilogue == epilogue),
+            "no traced product with {epilogue:?}"
+        );
+    }
+    for s in &traced {
+        if s.epilogue == Epilogue::BiasRelu {
+            assert_eq!(s.m, 64, "a ReLU on a layer of {} units: {s:?}", s.m);
+        }
+        if s.epilogue != Epilogue::Beta {
+            assert!(!s.trans_a && !s.trans_b, "{s:?}");
+        }
+    }
+    let shapes = traced
+        .iter()
+        .filter(|s| s.epilogue != Epilogue::Beta)
+        .map(|s| (s.m, s.k, s.n))
+        .collect();
+    check_bias(&shapes);
+}
+
+#[test]
+fn dense_forward_bits_match_copy_and_beta_one_on_edge_sizes() {
+    // m around the 16-lane vectors and 64-row strips (not multiples of 16 included), k across
+    // one, two and three 256-deep blocks (the bias goes with the first, the ReLU with the
+    // last), n = 1 and around the column tiles.
+    const EDGES: [usize; 11] = [1, 7, 16, 17, 63, 64, 65, 255, 256, 257, 513];
+    const OTHERS: [usize; 4] = [1, 9, 64, 130];
+    let mut shapes = BTreeSet::new();
+    for &e in &EDGES {
+        for &x in &OTHERS {
+            for &y in &OTHERS {
+                shapes.insert((e, x, y));
+                shapes.insert((x, e, y));
+                shapes.insert((x, y, e));
+            }
+        }
+    }
+    check_bias(&shapes);
 }

@@ -15,7 +15,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::{check_action, ContinuousEnv, EnvError, EnvStep};
-use smirl::nn::gemm::{self, GemmShape};
+use smirl::nn::gemm::{self, Epilogue, GemmShape};
 use smirl::rl::sac::{EnvReward, SacConfig, SacTrainer};
 use smirl::rm::LabelSet;
 use std::fmt::Write as _;
@@ -54,7 +54,8 @@ struct Args {
     force: bool,
     /// Also time the traced products through matrixmultiply's `sgemm` against the unpacked
     /// kernel and against `gemm`'s choice between them, interleaved, whole update and shape by
-    /// shape.
+    /// shape; and the dense layers' forwards with the bias (and ReLU) in the kernel against a
+    /// bias copy, the product with β = 1 and a ReLU pass.
     #[arg(long)]
     compare_kernels: bool,
 }
@@ -249,15 +250,19 @@ enum Kernel {
     Chosen,
 }
 
-/// Runs every product of `shapes` once through `kernel`, with the β `Dense` uses (1 for the
-/// forward `W x` onto the bias, 0 for the backward products).
+/// Runs every product of `shapes` once through `kernel`, with β = 1 for the dense forwards
+/// (`W x` onto a copy of the bias on `sgemm`'s path) and 0 for the backward products.
 fn replay(
     kernel: Kernel,
     shapes: &[GemmShape],
     operands: &mut [(DMatrix<f32>, DMatrix<f32>, DMatrix<f32>)],
 ) {
     for (s, (a, b, c)) in shapes.iter().zip(operands.iter_mut()) {
-        let beta = if s.trans_a || s.trans_b { 0.0 } else { 1.0 };
+        let beta = if s.epilogue == Epilogue::Beta {
+            0.0
+        } else {
+            1.0
+        };
         match kernel {
             Kernel::Sgemm => gemm::gemm_matrixmultiply(1.0, a, s.trans_a, b, s.trans_b, beta, c),
             Kernel::Unpacked => {
@@ -289,6 +294,53 @@ fn time_kernels(
                 let start = Instant::now();
                 for _ in 0..chunk {
                     replay(kernel, shapes, &mut operands);
+                }
+                *t += start.elapsed().as_secs_f64();
+            }
+        }
+        for (s, t) in secs.iter_mut().zip(total) {
+            s.push(t / (chunk * CHUNKS) as f64);
+        }
+    }
+    std::hint::black_box(&operands);
+    secs
+}
+
+/// Seconds per pass over the dense forwards of `shapes` (the products with a bias), first as
+/// a bias copy into every column, `gemm` with β = 1 and a ReLU pass for hidden layers, then
+/// through `gemm_bias` (bias and ReLU in the kernel's epilogue where it runs): repetitions of
+/// `iters` passes, the two taking turns in short chunks.
+fn time_dense_forwards(shapes: &[GemmShape], iters: u64, reps: usize) -> [Vec<f64>; 2] {
+    let dense: Vec<GemmShape> = shapes
+        .iter()
+        .filter(|s| s.epilogue != Epilogue::Beta)
+        .copied()
+        .collect();
+    let mut operands: Vec<_> = dense.iter().map(gemm::operands_for).collect();
+    let biases: Vec<Vec<f32>> = dense.iter().map(|s| vec![-0.125; s.m]).collect();
+    let mut secs = [vec![], vec![]];
+    const CHUNKS: u64 = 10;
+    let chunk = iters.div_ceil(CHUNKS);
+    for _ in 0..reps {
+        let mut total = [0.0; 2];
+        for _ in 0..CHUNKS {
+            for (fused, t) in total.iter_mut().enumerate() {
+                let start = Instant::now();
+                for _ in 0..chunk {
+                    for ((s, (a, b, c)), bias) in dense.iter().zip(&mut operands).zip(&biases) {
+                        let relu = s.epilogue == Epilogue::BiasRelu;
+                        if fused == 1 {
+                            gemm::gemm_bias(a, b, bias, relu, c);
+                        } else {
+                            for col in c.as_mut_slice().chunks_exact_mut(s.m) {
+                                col.copy_from_slice(bias);
+                            }
+                            gemm::gemm(1.0, a, false, b, false, 1.0, c);
+                            if relu {
+                                gemm::relu(c.as_mut_slice());
+                            }
+                        }
+                    }
                 }
                 *t += start.elapsed().as_secs_f64();
             }
@@ -341,6 +393,29 @@ fn compare_kernels(shapes: &[GemmShape], args: &Args) -> String {
         "  time ratio gemm/sgemm per rep:     {} (median {chosen:.3})",
         fmt2(&per_rep)
     );
+    let dense = shapes
+        .iter()
+        .filter(|s| s.epilogue != Epilogue::Beta)
+        .count();
+    let relu = shapes
+        .iter()
+        .filter(|s| s.epilogue == Epilogue::BiasRelu)
+        .count();
+    let [copy, fused] = time_dense_forwards(shapes, args.iters, args.reps);
+    let _ = writeln!(
+        s,
+        "  dense forwards ({dense} products, {relu} with ReLU), µs per rep: bias copy + gemm β = 1 \
+         + ReLU pass {} | gemm_bias {}",
+        us(&copy),
+        us(&fused)
+    );
+    let per_rep: Vec<f64> = fused.iter().zip(&copy).map(|(f, c)| f / c).collect();
+    let _ = writeln!(
+        s,
+        "  time ratio gemm_bias/copy per rep: {} (median {:.3})",
+        fmt2(&per_rep),
+        median(&per_rep)
+    );
     let mut distinct: Vec<GemmShape> = vec![];
     for sh in shapes {
         if !distinct.contains(sh) {
@@ -358,12 +433,17 @@ fn compare_kernels(shapes: &[GemmShape], args: &Args) -> String {
         let (g, u) = (median(&secs[0]), median(&secs[1]));
         let _ = writeln!(
             s,
-            "    m {:>3} k {:>3} n {:>3} trans ({}, {}) x{calls}: {:.2} -> {:.2} ({:.2}x)",
+            "    m {:>3} k {:>3} n {:>3} trans ({}, {}){} x{calls}: {:.2} -> {:.2} ({:.2}x)",
             sh.m,
             sh.k,
             sh.n,
             u8::from(sh.trans_a),
             u8::from(sh.trans_b),
+            match sh.epilogue {
+                Epilogue::Beta => "",
+                Epilogue::Bias => " bias",
+                Epilogue::BiasRelu => " bias+relu",
+            },
             g * 1e6,
             u * 1e6,
             u / g

@@ -1,6 +1,6 @@
 //! A fully connected layer `y = W x + b` on batches (one column per sample).
 
-use super::gemm::gemm;
+use super::gemm::{gemm, gemm_bias};
 use nalgebra::DMatrix;
 use rand::Rng;
 
@@ -41,12 +41,13 @@ impl Dense {
 
     /// `y = W x + b` for a batch `x` (`in × B`) into `y` (`out × B`).
     pub fn forward(&self, x: &DMatrix<f32>, y: &mut DMatrix<f32>) {
-        let out = self.outputs();
-        let bias = self.b.as_slice();
-        for col in y.as_mut_slice().chunks_exact_mut(out) {
-            col.copy_from_slice(bias);
-        }
-        gemm(1.0, &self.w, false, x, false, 1.0, y);
+        gemm_bias(&self.w, x, self.b.as_slice(), false, y);
+    }
+
+    /// `y = max(0, W x + b)` element by element (a hidden layer and its ReLU), with the bits
+    /// of [`Dense::forward`] followed by `v.max(0.0)` on every element.
+    pub fn forward_relu(&self, x: &DMatrix<f32>, y: &mut DMatrix<f32>) {
+        gemm_bias(&self.w, x, self.b.as_slice(), true, y);
     }
 
     /// Given `dy = ∂L/∂y`, writes ∂L/∂W and ∂L/∂b (when `param_grads`) and ∂L/∂x into `dx`

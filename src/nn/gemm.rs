@@ -12,7 +12,8 @@ use super::gemm_unpacked::{self, StridedRef};
 use nalgebra::DMatrix;
 use std::cell::{Cell, RefCell};
 
-/// One matrix product `C (m×n) = α op(A) (m×k) · op(B) (k×n) + β C`.
+/// One matrix product `C (m×n) = α op(A) (m×k) · op(B) (k×n) + β C`, or a dense layer's
+/// `A B + bias` ([`gemm_bias`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GemmShape {
     pub m: usize,
@@ -20,6 +21,18 @@ pub struct GemmShape {
     pub n: usize,
     pub trans_a: bool,
     pub trans_b: bool,
+    pub epilogue: Epilogue,
+}
+
+/// What a traced product does besides multiplying.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Epilogue {
+    /// `α op(A) op(B) + β C` ([`gemm`]).
+    Beta,
+    /// `A B + bias` in every column ([`gemm_bias`] without ReLU).
+    Bias,
+    /// `max(0, A B + bias)` ([`gemm_bias`] with ReLU).
+    BiasRelu,
 }
 
 thread_local! {
@@ -65,15 +78,94 @@ pub fn gemm(
     c: &mut DMatrix<f32>,
 ) {
     let shape = checked_shape(a, trans_a, b, trans_b, c);
-    if TRACING.with(Cell::get) {
-        TRACE.with(|t| t.borrow_mut().push(shape));
-    }
+    record(shape);
     // The unpacked kernel reproduces sgemm only for α = 1 (see its module); it was faster
     // than sgemm on every product of a SAC update (`sac_bench --compare-kernels`).
     if alpha == 1.0 && unpacked(a, trans_a, b, trans_b, beta, c) {
         return;
     }
     sgemm(alpha, a, trans_a, b, trans_b, beta, c);
+}
+
+/// Appends `shape` to this thread's trace while [`trace`] runs.
+fn record(shape: GemmShape) {
+    if TRACING.with(Cell::get) {
+        TRACE.with(|t| t.borrow_mut().push(shape));
+    }
+}
+
+/// `c = a · b + bias` in every column, then `max(0, ·)` element by element when `relu`: a
+/// dense layer's forward pass. The bits are those of copying `bias` into every column,
+/// [`gemm`] with α = β = 1, then [`relu`], which is what [`gemm_bias_matrixmultiply`] does and
+/// what runs when the unpacked kernel does not; the kernel takes the bias as its first k
+/// block's C and applies the ReLU as it stores, so C is written once and never read. (Where
+/// two NaNs meet, which one comes out is the compiler's choice on either path.)
+///
+/// # Panics
+/// When the shapes do not agree (`bias`: one value per row of `c`).
+pub fn gemm_bias(
+    a: &DMatrix<f32>,
+    b: &DMatrix<f32>,
+    bias: &[f32],
+    relu: bool,
+    c: &mut DMatrix<f32>,
+) {
+    let mut shape = checked_shape(a, false, b, false, c);
+    assert_eq!(bias.len(), shape.m, "gemm_bias: bias length");
+    shape.epilogue = if relu {
+        Epilogue::BiasRelu
+    } else {
+        Epilogue::Bias
+    };
+    record(shape);
+    let (m, k, n) = (shape.m, shape.k, shape.n);
+    fn strided(mat: &DMatrix<f32>) -> StridedRef<'_> {
+        StridedRef {
+            data: mat.as_slice(),
+            rs: 1,
+            cs: mat.nrows(),
+        }
+    }
+    let (sa, sb) = (strided(a), strided(b));
+    if !gemm_unpacked::gemm_bias(m, k, n, sa, sb, bias, relu, c.as_mut_slice()) {
+        bias_sgemm(a, b, bias, relu, c);
+    }
+}
+
+/// [`gemm_bias`] always as a copy of `bias` into every column, matrixmultiply's `sgemm` with
+/// β = 1, then [`relu`] when asked (the reference the unpacked kernel is held to).
+///
+/// # Panics
+/// When the shapes do not agree.
+pub fn gemm_bias_matrixmultiply(
+    a: &DMatrix<f32>,
+    b: &DMatrix<f32>,
+    bias: &[f32],
+    relu: bool,
+    c: &mut DMatrix<f32>,
+) {
+    checked_shape(a, false, b, false, c);
+    assert_eq!(bias.len(), c.nrows(), "gemm_bias: bias length");
+    bias_sgemm(a, b, bias, relu, c);
+}
+
+/// [`gemm_bias_matrixmultiply`] on shapes already checked.
+fn bias_sgemm(a: &DMatrix<f32>, b: &DMatrix<f32>, bias: &[f32], relu: bool, c: &mut DMatrix<f32>) {
+    for col in c.as_mut_slice().chunks_exact_mut(bias.len().max(1)) {
+        col.copy_from_slice(bias);
+    }
+    sgemm(1.0, a, false, b, false, 1.0, c);
+    if relu {
+        self::relu(c.as_mut_slice());
+    }
+}
+
+/// `v = max(v, 0)` on every element, as `f32::max(v, 0.0)`: NaN and −0.0 become +0.0.
+pub fn relu(values: &mut [f32]) {
+    // Branch-free: compiles to a vector max.
+    for v in values {
+        *v = v.max(0.0);
+    }
 }
 
 /// [`gemm`] with α = 1 through [`super::gemm_unpacked`] whatever the shape; false (and `c`
@@ -128,6 +220,7 @@ fn checked_shape(
         n,
         trans_a,
         trans_b,
+        epilogue: Epilogue::Beta,
     }
 }
 

@@ -18,6 +18,10 @@
 //! Other CPUs (no FMA: `sgemm` multiplies and adds separately; no AVX-512: this module's
 //! tiles), compilers without AVX-512 intrinsics (before Rust 1.89) and α ≠ 1 are left to
 //! `sgemm`.
+//!
+//! A dense layer's `W x + b` ([`gemm_bias`]) takes the bias as the first block's C instead of a
+//! copy of it in every column: `b + acc` has the bits of `1·b + acc` (`1·b` is exact), and the
+//! hidden layers' ReLU is applied as the last block's values are stored.
 
 use std::cell::RefCell;
 
@@ -61,6 +65,52 @@ pub fn gemm(
     beta: f32,
     c: &mut [f32],
 ) -> bool {
+    product(m, k, n, a, b, Start::Beta(beta), false, c)
+}
+
+/// `c[:, j] = op(a) · op(b)[:, j] + bias` for every column j, then `c = max(0, c)` element by
+/// element when `relu`: the bits of copying `bias` into every column of `c`, [`gemm`] with
+/// β = 1, then `v.max(0.0)` on every element (a NaN becomes +0.0, and so does −0.0). `c` is
+/// not read. Returns false, leaving `c` untouched, when [`supported`] is false or a dimension
+/// is 0.
+///
+/// # Panics
+/// When a slice is shorter than its dimensions and strides require (`bias`: m).
+#[allow(clippy::too_many_arguments)]
+pub fn gemm_bias(
+    m: usize,
+    k: usize,
+    n: usize,
+    a: StridedRef<'_>,
+    b: StridedRef<'_>,
+    bias: &[f32],
+    relu: bool,
+    c: &mut [f32],
+) -> bool {
+    assert!(bias.len() >= m, "gemm_unpacked: bias too short");
+    product(m, k, n, a, b, Start::Bias(bias), relu, c)
+}
+
+/// What the first k block adds its sums to.
+#[derive(Clone, Copy)]
+enum Start<'a> {
+    /// `β·c` (c not read when β == 0).
+    Beta(f32),
+    /// The same column of m values for every column of C.
+    Bias(&'a [f32]),
+}
+
+#[allow(clippy::too_many_arguments)]
+fn product(
+    m: usize,
+    k: usize,
+    n: usize,
+    a: StridedRef<'_>,
+    b: StridedRef<'_>,
+    start: Start<'_>,
+    relu: bool,
+    c: &mut [f32],
+) -> bool {
     if m == 0 || k == 0 || n == 0 || !supported() {
         return false;
     }
@@ -69,7 +119,7 @@ pub fn gemm(
     assert!(last(&b, k, n) < b.data.len(), "gemm_unpacked: B too short");
     assert!(m * n <= c.len(), "gemm_unpacked: C too short");
     if a.rs == 1 {
-        imp::run(m, k, n, a.data, a.cs, b, beta, c);
+        imp::run(m, k, n, a.data, a.cs, b, start, relu, c);
     } else {
         A_COPY.with(|buf| {
             let mut buf = buf.borrow_mut();
@@ -78,7 +128,7 @@ pub fn gemm(
             for p in 0..k {
                 buf.extend((0..m).map(|i| a.data[i * a.rs + p * a.cs]));
             }
-            imp::run(m, k, n, &buf, m, b, beta, c);
+            imp::run(m, k, n, &buf, m, b, start, relu, c);
         });
     }
     true
@@ -89,7 +139,7 @@ pub fn gemm(
 #[cfg(all(target_arch = "x86_64", smirl_avx512))]
 #[allow(clippy::incompatible_msrv)]
 mod imp {
-    use super::{StridedRef, KC};
+    use super::{Start, StridedRef, KC};
     use std::arch::x86_64::*;
 
     /// Rows of C one tile covers at most: four 16-lane vectors (the networks' hidden width).
@@ -113,14 +163,19 @@ mod imp {
         a: &[f32],
         lda: usize,
         b: StridedRef<'_>,
-        beta: f32,
+        start: Start<'_>,
+        relu: bool,
         c: &mut [f32],
     ) {
         debug_assert!(available());
+        let (beta, bias) = match start {
+            Start::Beta(beta) => (beta, std::ptr::null()),
+            Start::Bias(bias) => (1.0, bias.as_ptr()),
+        };
         // SAFETY: `available()` was checked by the caller; the bounds asserted by the caller
-        // (A: (m-1) + (k-1)·lda, B: (k-1)·rs + (n-1)·cs, C: m·n) keep every load and store in
-        // its slice: tiles read rows i0..i0+rows < m (lanes beyond are masked off), columns
-        // j < n and terms p < k.
+        // (A: (m-1) + (k-1)·lda, B: (k-1)·rs + (n-1)·cs, C: m·n, bias: m) keep every load and
+        // store in its slice: tiles read rows i0..i0+rows < m (lanes beyond are masked off),
+        // columns j < n and terms p < k.
         unsafe {
             run_avx512(
                 m,
@@ -132,6 +187,8 @@ mod imp {
                 b.rs,
                 b.cs,
                 beta,
+                bias,
+                relu,
                 c.as_mut_ptr(),
             )
         }
@@ -149,6 +206,8 @@ mod imp {
         rsb: usize,
         csb: usize,
         beta: f32,
+        bias: *const f32,
+        relu: bool,
         c: *mut f32,
     ) {
         let mut k0 = 0;
@@ -156,6 +215,9 @@ mod imp {
             let kc = KC.min(k - k0);
             // Blocks after the first add into what the earlier ones wrote (sgemm's β = 1).
             let beta = if k0 == 0 { beta } else { 1.0 };
+            let bias = if k0 == 0 { bias } else { std::ptr::null() };
+            // The ReLU applies to the final sums only.
+            let relu = relu && k0 + kc == k;
             let mut i0 = 0;
             while i0 < m {
                 let rows = TILE_ROWS.min(m - i0);
@@ -175,6 +237,8 @@ mod imp {
                     rsb,
                     csb,
                     beta,
+                    bias: if bias.is_null() { bias } else { bias.add(i0) },
+                    relu,
                     c: c.add(i0),
                     ldc: m,
                 };
@@ -202,6 +266,10 @@ mod imp {
         rsb: usize,
         csb: usize,
         beta: f32,
+        /// The strip's rows of the bias that replaces `β·c` (null: `β·c` as in sgemm).
+        bias: *const f32,
+        /// Whether stored values go through `max(·, 0)`.
+        relu: bool,
         c: *mut f32,
         ldc: usize,
     }
@@ -231,7 +299,8 @@ mod imp {
     columns!(columns_4, 4, 6, [1 2 3 4 5]);
 
     /// C[strip, j0..j0+NR] for one k block: `RV·NR` accumulators, each one FMA chain over p
-    /// from +0.0, then sgemm's epilogue `c = β·c + acc` (c not read when β == 0).
+    /// from +0.0, then sgemm's epilogue `c = β·c + acc` (c not read when β == 0), or
+    /// `c = bias + acc` when there is a bias, then `max(c, 0)` when `relu`.
     #[inline]
     #[target_feature(enable = "avx512f,fma,avx2")]
     unsafe fn tile<const RV: usize, const NR: usize>(t: Tile, j0: usize) {
@@ -257,16 +326,34 @@ mod imp {
             bp = bp.add(t.rsb);
         }
         let betav = _mm512_set1_ps(t.beta);
+        let mut biasv = [_mm512_setzero_ps(); RV];
+        if !t.bias.is_null() {
+            for (r, v) in biasv.iter_mut().enumerate() {
+                let mask = if r + 1 == RV { t.mask } else { 0xffff };
+                *v = _mm512_maskz_loadu_ps(mask, t.bias.add(16 * r));
+            }
+        }
         for (j, accj) in acc.iter().enumerate() {
             let col = t.c.add((j0 + j) * t.ldc);
             for (r, s) in accj.iter().enumerate() {
                 let mask = if r + 1 == RV { t.mask } else { 0xffff };
                 let p = col.add(16 * r);
-                let v = if t.beta != 0.0 {
+                // The first operand of each add is the one whose NaN sgemm's path returns when
+                // both are NaN (`β·c` there, the copied bias).
+                let v = if !t.bias.is_null() {
+                    _mm512_add_ps(biasv[r], *s)
+                } else if t.beta != 0.0 {
                     let old = _mm512_maskz_loadu_ps(mask, p);
                     _mm512_add_ps(_mm512_mul_ps(old, betav), *s)
                 } else {
                     *s
+                };
+                // `vmaxps` returns its second operand when either is NaN or both are zero,
+                // which is what `f32::max(v, 0.0)` returns: +0.0 for NaN and for −0.0.
+                let v = if t.relu {
+                    _mm512_max_ps(v, _mm512_setzero_ps())
+                } else {
+                    v
                 };
                 _mm512_mask_storeu_ps(p, mask, v);
             }
@@ -276,7 +363,7 @@ mod imp {
 
 #[cfg(not(all(target_arch = "x86_64", smirl_avx512)))]
 mod imp {
-    use super::StridedRef;
+    use super::{Start, StridedRef};
 
     pub fn available() -> bool {
         false
@@ -290,7 +377,8 @@ mod imp {
         _a: &[f32],
         _lda: usize,
         _b: StridedRef<'_>,
-        _beta: f32,
+        _start: Start<'_>,
+        _relu: bool,
         _c: &mut [f32],
     ) {
         unreachable!("gemm_unpacked: no kernel in this build")

@@ -154,12 +154,10 @@ impl Mlp {
             let (done, rest) = ws.acts.split_at_mut(l);
             let input = if l == 0 { x } else { &done[l - 1] };
             let y = &mut rest[0];
-            layer.forward(input, y);
             if l < last {
-                // Branch-free ReLU: compiles to a vector max.
-                for v in y.as_mut_slice() {
-                    *v = v.max(0.0);
-                }
+                layer.forward_relu(input, y);
+            } else {
+                layer.forward(input, y);
             }
         }
         ws.output()
