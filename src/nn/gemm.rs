@@ -119,14 +119,7 @@ pub fn gemm_bias(
     };
     record(shape);
     let (m, k, n) = (shape.m, shape.k, shape.n);
-    fn strided(mat: &DMatrix<f32>) -> StridedRef<'_> {
-        StridedRef {
-            data: mat.as_slice(),
-            rs: 1,
-            cs: mat.nrows(),
-        }
-    }
-    let (sa, sb) = (strided(a), strided(b));
+    let (sa, sb) = (strided(a, false), strided(b, false));
     if !gemm_unpacked::gemm_bias(m, k, n, sa, sb, bias, relu, c.as_mut_slice()) {
         bias_sgemm(a, b, bias, relu, c);
     }
@@ -233,24 +226,20 @@ fn unpacked(
     beta: f32,
     c: &mut DMatrix<f32>,
 ) -> bool {
-    let (m, k, rsa, csa) = op_layout(a, trans_a);
-    let (_, n, rsb, csb) = op_layout(b, trans_b);
-    fn strided(mat: &DMatrix<f32>, rs: isize, cs: isize) -> StridedRef<'_> {
-        StridedRef {
-            data: mat.as_slice(),
-            rs: rs as usize,
-            cs: cs as usize,
-        }
+    let (m, k, _, _) = op_layout(a, trans_a);
+    let (_, n, _, _) = op_layout(b, trans_b);
+    let (sa, sb) = (strided(a, trans_a), strided(b, trans_b));
+    gemm_unpacked::gemm(m, k, n, sa, sb, beta, c.as_mut_slice())
+}
+
+/// `op(mat)` as the unpacked kernel reads it: the matrix's data with op's strides.
+fn strided(mat: &DMatrix<f32>, trans: bool) -> StridedRef<'_> {
+    let (_, _, rs, cs) = op_layout(mat, trans);
+    StridedRef {
+        data: mat.as_slice(),
+        rs: rs as usize,
+        cs: cs as usize,
     }
-    gemm_unpacked::gemm(
-        m,
-        k,
-        n,
-        strided(a, rsa, csa),
-        strided(b, rsb, csb),
-        beta,
-        c.as_mut_slice(),
-    )
 }
 
 /// matrixmultiply's `sgemm` on shapes already checked.
