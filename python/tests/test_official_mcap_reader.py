@@ -1,0 +1,95 @@
+"""A rollout log and its Foxglove view read with the official `mcap` Python reader and
+`google.protobuf`, the way Foxglove and other standard tools read them: a summary section,
+every channel in an encoding those tools know, every message decoded with the descriptors
+stored in the file, and what the decoded messages say agrees with `smirl.read_log`."""
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+from mcap.reader import make_reader
+
+import smirl
+
+# (schema encoding, message encoding) pairs Foxglove decodes.
+FOXGLOVE_ENCODINGS = {
+    ("protobuf", "protobuf"),
+    ("jsonschema", "json"),
+    ("", "json"),
+    ("ros1msg", "ros1"),
+    ("ros2msg", "cdr"),
+    ("ros2idl", "cdr"),
+    ("flatbuffer", "flatbuffer"),
+}
+
+
+def read_with_the_official_reader(path):
+    """Every message of the file decoded: a list of (topic, schema name, decoded message)."""
+    decoders, messages = {}, []
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None, f"{path}: no summary section"
+        for channel in summary.channels.values():
+            schema = summary.schemas.get(channel.schema_id)
+            pair = (schema.encoding if schema else "", channel.message_encoding)
+            assert pair in FOXGLOVE_ENCODINGS, f"{channel.topic} is encoded as {pair}"
+        for schema, channel, message in reader.iter_messages():
+            if channel.message_encoding == "protobuf":
+                if schema.id not in decoders:
+                    pool = descriptor_pool.DescriptorPool()
+                    for fd in descriptor_pb2.FileDescriptorSet.FromString(schema.data).file:
+                        pool.Add(fd)
+                    desc = pool.FindMessageTypeByName(schema.name)
+                    decoders[schema.id] = message_factory.GetMessageClass(desc)
+                decoded = decoders[schema.id].FromString(message.data)
+            else:
+                decoded = json.loads(message.data)
+            messages.append((channel.topic, schema.name if schema else "", decoded))
+        assert summary.statistics.message_count == len(messages)
+    return messages
+
+
+@pytest.fixture(scope="module")
+def cancel_log(tmp_path_factory, reacher_bin):
+    """Scripted IF demonstrations with observations, written by the `reacher` binary."""
+    out = tmp_path_factory.mktemp("official") / "if.mcap"
+    subprocess.run(
+        [reacher_bin, "demo", "--task", "if", "--episodes", "4", "--observations", "--out", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    return out
+
+
+def test_the_official_reader_decodes_the_log_as_smirl_reads_it(cancel_log):
+    messages = read_with_the_official_reader(cancel_log)
+    log = smirl.read_log(cancel_log)
+    steps = [m for topic, _, m in messages if topic == "/step"]
+    assert len(steps) == sum(len(ep["actions"]) for ep in log["episodes"])
+    for msg in steps:
+        ep = log["episodes"][msg.episode]
+        # Steps count from 1 (the state after the first action).
+        np.testing.assert_array_equal(np.array(msg.qpos), ep["qpos"][msg.step - 1])
+        np.testing.assert_array_equal(np.array(msg.action, np.float32), ep["actions"][msg.step - 1])
+        assert msg.rm_state == ep["rm_states"][msg.step - 1]
+
+
+def test_the_official_reader_decodes_the_foxglove_view(cancel_log, reacher_bin, tmp_path):
+    view = tmp_path / "view.mcap"
+    out = subprocess.run([reacher_bin, "foxglove", str(cancel_log), "--out", str(view)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+    messages = read_with_the_official_reader(view)
+    by_schema = {}
+    for _, schema, _ in messages:
+        by_schema[schema] = by_schema.get(schema, 0) + 1
+    log = smirl.read_log(cancel_log)
+    states = sum(len(ep["actions"]) + 1 for ep in log["episodes"])
+    assert by_schema.get("foxglove.SceneUpdate") == states, by_schema
+    assert by_schema.get("foxglove.FrameTransforms") == states, by_schema
+    # The view keeps the log: its steps are the log's steps.
+    assert by_schema.get("smirl.v1.Step") == sum(len(ep["actions"]) for ep in log["episodes"])
+    scene = next(m for _, schema, m in messages if schema == "foxglove.SceneUpdate")
+    assert scene.entities and any(e.spheres for e in scene.entities)
