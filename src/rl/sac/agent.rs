@@ -9,6 +9,7 @@ use crate::rl::replay::ReplayBatch;
 use nalgebra::DMatrix;
 use rand::Rng;
 use rand_distr::StandardNormal;
+use std::time::{Duration, Instant};
 
 /// How [`SacAgent::act`] picks an action.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,6 +76,54 @@ struct CriticMut<'a> {
     target: &'a mut Mlp,
     opt: &'a mut Adam,
     ws: &'a mut CriticWorkspace,
+}
+
+/// Whether an agent allowed two threads runs its critics side by side: two threads pay only
+/// when the second one gets a core at once, three times per update (a loaded machine makes
+/// every hand-over wait for a time slice, and an update five times slower), which the caller's
+/// free-thread count does not tell. So every [`PairChoice::ROUND`] updates start with
+/// [`PairChoice::TRIAL`] updates each way, timed, and the rest of the round goes the faster
+/// way. The choice changes no result, only the time.
+#[derive(Clone, Debug, Default)]
+struct PairChoice {
+    /// Updates of the current round so far.
+    done: u32,
+    /// Seconds of the round's trial updates: one thread, two.
+    trial_secs: [f64; 2],
+    /// The rest of the round runs the critics side by side.
+    paired_rest: bool,
+    /// Updates whose critics ran side by side, in all.
+    paired: u64,
+}
+
+impl PairChoice {
+    const ROUND: u32 = 1_000;
+    const TRIAL: u32 = 5;
+
+    /// Whether the next update runs its critics side by side.
+    fn next_paired(&self) -> bool {
+        match self.done {
+            d if d < Self::TRIAL => false,
+            d if d < 2 * Self::TRIAL => true,
+            _ => self.paired_rest,
+        }
+    }
+
+    /// Counts an update that took `elapsed`, its critics side by side or not.
+    fn record(&mut self, paired: bool, elapsed: Duration) {
+        self.paired += u64::from(paired);
+        if self.done < 2 * Self::TRIAL {
+            self.trial_secs[usize::from(paired)] += elapsed.as_secs_f64();
+        }
+        self.done += 1;
+        if self.done == 2 * Self::TRIAL {
+            self.paired_rest = self.trial_secs[1] < self.trial_secs[0];
+        }
+        if self.done == Self::ROUND {
+            self.done = 0;
+            self.trial_secs = [0.0; 2];
+        }
+    }
 }
 
 /// Runs `work` for both critics: one after the other with one thread, side by side with two.
@@ -242,6 +291,7 @@ pub struct SacAgent {
     updates: u64,
     /// Threads [`SacAgent::update`] may use (see [`SacAgent::set_threads`]).
     threads: usize,
+    pair: PairChoice,
     ws: UpdateWorkspace,
     act_ws: ActWorkspace,
 }
@@ -302,6 +352,7 @@ impl SacAgent {
             target_entropy: config.target_entropy_for(act_dim),
             updates: 0,
             threads: 1,
+            pair: PairChoice::default(),
             ws,
             act_ws,
         }
@@ -326,9 +377,9 @@ impl SacAgent {
     }
 
     /// Lets [`SacAgent::update`] use up to `threads` threads (the caller's free threads; 1
-    /// when the agent is made): with two or more, the twin critics' work runs on two threads.
-    /// Each critic's arithmetic is the same either way, so the results are the same bits for
-    /// any count.
+    /// when the agent is made): with two or more, the twin critics' work runs on two threads
+    /// whenever that is found to be faster (see [`PairChoice`]). Each critic's arithmetic is
+    /// the same either way, so the results are the same bits for any count.
     pub fn set_threads(&mut self, threads: usize) {
         self.threads = threads.max(1);
     }
@@ -336,6 +387,11 @@ impl SacAgent {
     /// Threads [`SacAgent::update`] may use.
     pub fn threads(&self) -> usize {
         self.threads
+    }
+
+    /// Updates so far whose critics ran on two threads.
+    pub fn paired_updates(&self) -> u64 {
+        self.pair.paired
     }
 
     /// Chooses an action for one observation.
@@ -431,12 +487,29 @@ impl SacAgent {
     /// Order: critics (targets from the current actor and target critics), then the actor
     /// against the updated critics, then α (when tuned); each target critic's Polyak average
     /// follows its critic's last use in the update. The twin critics' work runs on two threads
-    /// when [`SacAgent::threads`] allows, with the same results. Stops with
+    /// when [`SacAgent::threads`] allows and that is the faster way, with the same results. Stops with
     /// [`SacError::NonFinite`] naming the network if a loss or parameter is NaN/inf (the first
     /// in the order critic q1, critic q2, actor, temperature); the agent is then not to be
     /// trained further.
     pub fn update(
         &mut self,
+        batch: &ReplayBatch,
+        rewards: &[f32],
+        rng: &mut impl Rng,
+    ) -> Result<UpdateStats, SacError> {
+        let paired = self.threads >= 2 && self.pair.next_paired();
+        let started = Instant::now();
+        let stats = self.update_on(if paired { 2 } else { 1 }, batch, rewards, rng)?;
+        if self.threads >= 2 {
+            self.pair.record(paired, started.elapsed());
+        }
+        Ok(stats)
+    }
+
+    /// [`SacAgent::update`] with the critics on `threads` threads.
+    fn update_on(
+        &mut self,
+        threads: usize,
         batch: &ReplayBatch,
         rewards: &[f32],
         rng: &mut impl Rng,
@@ -448,7 +521,7 @@ impl SacAgent {
         let inv_b = 1.0 / b as f32;
         let alpha = self.log_alpha.exp();
         let (gamma, tau) = (self.config.gamma, self.config.tau);
-        let (obs_dim, act_dim, threads) = (self.obs_dim, self.act_dim, self.threads);
+        let (obs_dim, act_dim) = (self.obs_dim, self.act_dim);
         let ws = &mut self.ws;
         let [ws1, ws2] = &mut ws.critics;
         let mut c1 = CriticMut {
