@@ -82,8 +82,8 @@ struct CriticMut<'a> {
 /// when the second one gets a core at once, three times per update (a loaded machine makes
 /// every hand-over wait for a time slice, and an update five times slower), which the caller's
 /// free-thread count does not tell. So every [`PairChoice::ROUND`] updates start with
-/// [`PairChoice::TRIAL`] updates each way, timed, and the rest of the round goes the faster
-/// way. The choice changes no result, only the time.
+/// [`PairChoice::TRIAL`] updates each way, timed, and the rest of the round goes the way that
+/// was clearly faster. The choice changes no result, only the time.
 #[derive(Clone, Debug, Default)]
 struct PairChoice {
     /// Updates of the current round so far.
@@ -99,6 +99,8 @@ struct PairChoice {
 impl PairChoice {
     const ROUND: u32 = 1_000;
     const TRIAL: u32 = 5;
+    /// Two threads are chosen when their trial took less than this share of one thread's.
+    const MARGIN: f64 = 0.8;
 
     /// Whether the next update runs its critics side by side.
     fn next_paired(&self) -> bool {
@@ -117,7 +119,9 @@ impl PairChoice {
         }
         self.done += 1;
         if self.done == 2 * Self::TRIAL {
-            self.paired_rest = self.trial_secs[1] < self.trial_secs[0];
+            // Clearly faster only: five updates are a short sample, and choosing two threads
+            // wrongly costs far more than choosing one wrongly.
+            self.paired_rest = self.trial_secs[1] < Self::MARGIN * self.trial_secs[0];
         }
         if self.done == Self::ROUND {
             self.done = 0;
