@@ -382,7 +382,7 @@ impl SacAgent {
 
     /// Lets [`SacAgent::update`] use up to `threads` threads (the caller's free threads; 1
     /// when the agent is made): with two or more, the twin critics' work runs on two threads
-    /// whenever that is found to be faster (see [`PairChoice`]). Each critic's arithmetic is
+    /// whenever a timed trial finds that faster (`PairChoice`). Each critic's arithmetic is
     /// the same either way, so the results are the same bits for any count.
     pub fn set_threads(&mut self, threads: usize) {
         self.threads = threads.max(1);
