@@ -15,7 +15,6 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::{check_action, ContinuousEnv, EnvError, EnvStep};
-use smirl::nn::codec::ByteWriter;
 use smirl::nn::gemm::{self, Epilogue, GemmShape};
 use smirl::rl::sac::{EnvReward, SacConfig, SacTrainer};
 use smirl::rm::LabelSet;
@@ -59,12 +58,6 @@ struct Args {
     /// bias copy, the product with β = 1 and a ReLU pass.
     #[arg(long)]
     compare_kernels: bool,
-    /// Also time gradient updates alone (`--iters` per repetition, no environment steps) with
-    /// one thread and with two (the twin critics side by side), taking turns in short chunks
-    /// from the same agent and replay buffer; reports both rates, their ratio per repetition,
-    /// and whether the two agents end with the same bytes.
-    #[arg(long)]
-    compare_threads: bool,
 }
 
 /// Cheap stand-in environment with the product environment's sizes: a damped linear system
@@ -177,56 +170,6 @@ struct Measurement {
     gemm_bound_per_s: Vec<f64>,
     env_only_per_s: Vec<f64>,
     shapes: Vec<GemmShape>,
-    threads: Option<ThreadComparison>,
-}
-
-/// Updates per second with one thread and with two, per repetition.
-struct ThreadComparison {
-    one_per_s: Vec<f64>,
-    two_per_s: Vec<f64>,
-    /// The two agents' checkpoints (networks, optimisers, α, counter) are the same bytes.
-    same_bytes: bool,
-    /// Share of the two-thread agent's updates whose critics ran side by side (its choice).
-    paired_share: f64,
-}
-
-/// Gradient updates alone from copies of `trainer` with 1 and 2 threads, taking turns in short
-/// chunks so that both see the same machine load.
-fn compare_threads(trainer: &SacTrainer, args: &Args) -> Result<ThreadComparison> {
-    let mut pair = [trainer.clone(), trainer.clone()];
-    pair[0].agent.set_threads(1);
-    pair[1].agent.set_threads(2);
-    let mut c = ThreadComparison {
-        one_per_s: vec![],
-        two_per_s: vec![],
-        same_bytes: false,
-        paired_share: 0.0,
-    };
-    let before = pair[1].agent.paired_updates();
-    const CHUNKS: u64 = 10;
-    let chunk = args.iters.div_ceil(CHUNKS);
-    for _ in 0..args.reps {
-        let mut secs = [0.0; 2];
-        for _ in 0..CHUNKS {
-            for (t, s) in pair.iter_mut().zip(&mut secs) {
-                let start = Instant::now();
-                t.update_from_replay(&mut EnvReward, chunk)?;
-                *s += start.elapsed().as_secs_f64();
-            }
-        }
-        let n = (chunk * CHUNKS) as f64;
-        c.one_per_s.push(n / secs[0]);
-        c.two_per_s.push(n / secs[1]);
-    }
-    let updates = (args.iters.div_ceil(CHUNKS) * CHUNKS) as f64 * args.reps as f64;
-    c.paired_share = (pair[1].agent.paired_updates() - before) as f64 / updates;
-    let bytes = pair.map(|t| {
-        let mut w = ByteWriter::new();
-        t.agent.write(&mut w);
-        w.bytes
-    });
-    c.same_bytes = bytes[0] == bytes[1];
-    Ok(c)
 }
 
 fn median(v: &[f64]) -> f64 {
@@ -258,7 +201,6 @@ fn measure<E: ContinuousEnv>(env: &mut E, config: &SacConfig, args: &Args) -> Re
         gemm_bound_per_s: vec![],
         env_only_per_s: vec![],
         shapes: shapes.clone(),
-        threads: None,
     };
     // Training and the matmul reference alternate in short chunks so both see the same
     // machine load (the cores are shared); the ratio is taken per repetition.
@@ -297,9 +239,6 @@ fn measure<E: ContinuousEnv>(env: &mut E, config: &SacConfig, args: &Args) -> Re
             .push(args.iters as f64 / t.elapsed().as_secs_f64());
     }
     std::hint::black_box(&operands);
-    if args.compare_threads {
-        m.threads = Some(compare_threads(&trainer, args)?);
-    }
     Ok(m)
 }
 
@@ -568,42 +507,6 @@ fn report(
         fmt2(&ratios)
     );
     let _ = writeln!(s, "median ratio: {:.2} (target <= 2.5)", median(&ratios));
-    if let Some(c) = &m.threads {
-        let ratios: Vec<f64> = c
-            .two_per_s
-            .iter()
-            .zip(&c.one_per_s)
-            .map(|(two, one)| two / one)
-            .collect();
-        let _ = writeln!(
-            s,
-            "updates alone/s, 1 thread, per rep:  {}",
-            fmt(&c.one_per_s)
-        );
-        let _ = writeln!(
-            s,
-            "updates alone/s, 2 threads, per rep: {}",
-            fmt(&c.two_per_s)
-        );
-        let _ = writeln!(
-            s,
-            "median updates/s: 1 thread {:.0}, 2 threads {:.0}",
-            median(&c.one_per_s),
-            median(&c.two_per_s)
-        );
-        let _ = writeln!(s, "ratio per rep (2 threads / 1): {}", fmt2(&ratios));
-        let _ = writeln!(s, "median ratio: {:.3}", median(&ratios));
-        let _ = writeln!(
-            s,
-            "share of the 2-thread agent's updates run side by side (its timed choice): {:.3}",
-            c.paired_share
-        );
-        let _ = writeln!(
-            s,
-            "same agent bytes after both: {}",
-            if c.same_bytes { "yes" } else { "NO" }
-        );
-    }
     s
 }
 

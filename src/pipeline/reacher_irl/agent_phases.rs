@@ -33,14 +33,11 @@ pub fn train_sac<E: JobEnv, R: RewardFn>(
     let chunk = 1_000u64;
     let mut done = 0;
     let perfect = watch.perfect();
-    let plan = watch.lockstep();
     let (logger, report_progress) = watch.sac_phase(iteration);
     // One observer for the whole phase: it holds the logged episode in progress across chunks.
     let mut train_log = logger.map(|l| TrainingLog::new(l, perfect, "train"));
     while done < steps {
         let n = chunk.min(steps - done);
-        // The threads free now; the agent's results do not depend on them.
-        sac.agent.set_threads(plan.threads_now());
         let observer = train_log
             .as_mut()
             .map(|t| t as &mut dyn TrainingObserver<E>);

@@ -221,7 +221,6 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         cut: phase.selection_cut,
     };
     let co_trained = FinalAgent::CoTrained;
-    let plan = watch.lockstep();
     let mut candidates = vec![candidate(
         sac, co_trained, env, reward, &task, selection, watch,
     )?];
@@ -245,7 +244,6 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
         // counterfactual states, as in every batch), so its first actions are not a new
         // network's noise, then steps of its own.
         let mut reset = sac.with_new_agent(episode_seed(phase.seed, RESET_AGENT_STREAM));
-        reset.agent.set_threads(plan.threads_now());
         reset
             .update_from_replay(reward, phase.reset_steps)
             .map_err(StepError::ResetAgent)?;

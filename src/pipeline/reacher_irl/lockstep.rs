@@ -52,13 +52,6 @@ pub struct Lockstep<'a> {
     pub threads: &'a (dyn Fn() -> usize + Sync),
 }
 
-impl Lockstep<'_> {
-    /// Threads the job may use now, at least 1 (for SAC's updates too: `SacAgent::set_threads`).
-    pub fn threads_now(&self) -> usize {
-        (self.threads)().max(1)
-    }
-}
-
 impl Lockstep<'static> {
     /// One thread, [`LOCKSTEP_BATCH`] environments.
     pub fn single_thread() -> Lockstep<'static> {

@@ -9,7 +9,6 @@ use crate::rl::replay::ReplayBatch;
 use nalgebra::DMatrix;
 use rand::Rng;
 use rand_distr::StandardNormal;
-use std::time::{Duration, Instant};
 
 /// How [`SacAgent::act`] picks an action.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -35,121 +34,17 @@ pub struct UpdateStats {
 #[derive(Clone, Debug)]
 struct UpdateWorkspace {
     actor: MlpWorkspace,
-    /// Each critic's own buffers, so that the two can work at the same time.
-    critics: [CriticWorkspace; 2],
-    /// Critic input: observation rows then action rows; (s', a') for the targets, then the
-    /// batch's (s, a) for the regressions.
+    q1: MlpWorkspace,
+    q2: MlpWorkspace,
+    /// Critic input: observation rows then action rows.
     q_in: DMatrix<f32>,
-    /// The actor phase's critic input: (s, a) with a drawn from the current actor.
-    q_pi_in: DMatrix<f32>,
     draw: PolicyDraw,
     targets: Vec<f32>,
+    dq: DMatrix<f32>,
+    dq_in: DMatrix<f32>,
     d_actions: DMatrix<f32>,
     d_log_prob: Vec<f32>,
     d_head: DMatrix<f32>,
-}
-
-/// One critic's buffers of an update.
-#[derive(Clone, Debug)]
-struct CriticWorkspace {
-    net: MlpWorkspace,
-    /// ∂L/∂Q per sample: the regression's, then the actor loss's through this critic.
-    dq: DMatrix<f32>,
-    /// ∂L/∂(critic input) of the actor loss.
-    dq_in: DMatrix<f32>,
-}
-
-impl CriticWorkspace {
-    fn new(q: &Mlp, batch: usize) -> Self {
-        Self {
-            net: q.workspace(batch),
-            dq: DMatrix::zeros(1, batch),
-            dq_in: DMatrix::zeros(q.inputs(), batch),
-        }
-    }
-}
-
-/// What one critic's part of an update touches: its network, target, optimiser and buffers.
-struct CriticMut<'a> {
-    name: &'static str,
-    q: &'a mut Mlp,
-    target: &'a mut Mlp,
-    opt: &'a mut Adam,
-    ws: &'a mut CriticWorkspace,
-}
-
-/// Whether an agent allowed two threads runs its critics side by side: two threads pay only
-/// when the second one gets a core at once, three times per update (a loaded machine makes
-/// every hand-over wait for a time slice, and an update five times slower), which the caller's
-/// free-thread count does not tell. So every [`PairChoice::ROUND`] updates start with
-/// [`PairChoice::TRIAL`] updates each way, timed, and the rest of the round goes the way that
-/// was clearly faster. The choice changes no result, only the time.
-#[derive(Clone, Debug, Default)]
-struct PairChoice {
-    /// Updates of the current round so far.
-    done: u32,
-    /// Seconds of the round's trial updates: one thread, two.
-    trial_secs: [f64; 2],
-    /// The rest of the round runs the critics side by side.
-    paired_rest: bool,
-    /// Updates whose critics ran side by side, in all.
-    paired: u64,
-}
-
-impl PairChoice {
-    const ROUND: u32 = 1_000;
-    const TRIAL: u32 = 5;
-    /// Two threads are chosen when their trial took less than this share of one thread's.
-    const MARGIN: f64 = 0.8;
-
-    /// Whether the next update runs its critics side by side.
-    fn next_paired(&self) -> bool {
-        match self.done {
-            d if d < Self::TRIAL => false,
-            d if d < 2 * Self::TRIAL => true,
-            _ => self.paired_rest,
-        }
-    }
-
-    /// Counts an update that took `elapsed`, its critics side by side or not.
-    fn record(&mut self, paired: bool, elapsed: Duration) {
-        self.paired += u64::from(paired);
-        if self.done < 2 * Self::TRIAL {
-            self.trial_secs[usize::from(paired)] += elapsed.as_secs_f64();
-        }
-        self.done += 1;
-        if self.done == 2 * Self::TRIAL {
-            // Clearly faster only: five updates are a short sample, and choosing two threads
-            // wrongly costs far more than choosing one wrongly.
-            self.paired_rest = self.trial_secs[1] < Self::MARGIN * self.trial_secs[0];
-        }
-        if self.done == Self::ROUND {
-            self.done = 0;
-            self.trial_secs = [0.0; 2];
-        }
-    }
-}
-
-/// Runs `work` for both critics: one after the other with one thread, side by side with two.
-/// Each call touches only its own critic, so the results do not depend on `threads`.
-fn for_both<T: Send>(
-    threads: usize,
-    critics: [&mut CriticMut<'_>; 2],
-    work: impl Fn(&mut CriticMut<'_>) -> T + Sync,
-) -> [T; 2] {
-    let [c1, c2] = critics;
-    if threads < 2 {
-        return [work(c1), work(c2)];
-    }
-    std::thread::scope(|scope| {
-        let second = scope.spawn(|| work(c2));
-        let first = work(c1);
-        // A panic in the second critic's work is a bug, as it would be on one thread.
-        let second = second
-            .join()
-            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        [first, second]
-    })
 }
 
 /// Actions drawn from the actor's squashed Gaussian for a batch: the noise ε, pre-squash
@@ -293,9 +188,6 @@ pub struct SacAgent {
     log_alpha: f32,
     target_entropy: f32,
     updates: u64,
-    /// Threads [`SacAgent::update`] may use (see [`SacAgent::set_threads`]).
-    threads: usize,
-    pair: PairChoice,
     ws: UpdateWorkspace,
     act_ws: ActWorkspace,
 }
@@ -329,11 +221,13 @@ impl SacAgent {
         let b = config.batch_size;
         let ws = UpdateWorkspace {
             actor: actor.workspace(b),
-            critics: [CriticWorkspace::new(&q1, b), CriticWorkspace::new(&q2, b)],
+            q1: q1.workspace(b),
+            q2: q2.workspace(b),
             q_in: DMatrix::zeros(obs_dim + act_dim, b),
-            q_pi_in: DMatrix::zeros(obs_dim + act_dim, b),
             draw: PolicyDraw::new(act_dim, b),
             targets: vec![0.0; b],
+            dq: DMatrix::zeros(1, b),
+            dq_in: DMatrix::zeros(obs_dim + act_dim, b),
             d_actions: DMatrix::zeros(act_dim, b),
             d_log_prob: vec![0.0; b],
             d_head: DMatrix::zeros(2 * act_dim, b),
@@ -355,8 +249,6 @@ impl SacAgent {
             log_alpha: config.alpha.ln(),
             target_entropy: config.target_entropy_for(act_dim),
             updates: 0,
-            threads: 1,
-            pair: PairChoice::default(),
             ws,
             act_ws,
         }
@@ -378,24 +270,6 @@ impl SacAgent {
     /// Gradient updates done so far.
     pub fn updates(&self) -> u64 {
         self.updates
-    }
-
-    /// Lets [`SacAgent::update`] use up to `threads` threads (the caller's free threads; 1
-    /// when the agent is made): with two or more, the twin critics' work runs on two threads
-    /// whenever a timed trial finds that faster (`PairChoice`). Each critic's arithmetic is
-    /// the same either way, so the results are the same bits for any count.
-    pub fn set_threads(&mut self, threads: usize) {
-        self.threads = threads.max(1);
-    }
-
-    /// Threads [`SacAgent::update`] may use.
-    pub fn threads(&self) -> usize {
-        self.threads
-    }
-
-    /// Updates so far whose critics ran on two threads.
-    pub fn paired_updates(&self) -> u64 {
-        self.pair.paired
     }
 
     /// Chooses an action for one observation.
@@ -489,31 +363,10 @@ impl SacAgent {
     /// the caller uses). Bootstraps unless the transition's `terminated` flag is set.
     ///
     /// Order: critics (targets from the current actor and target critics), then the actor
-    /// against the updated critics, then α (when tuned); each target critic's Polyak average
-    /// follows its critic's last use in the update. The twin critics' work runs on two threads
-    /// when [`SacAgent::threads`] allows and that is the faster way, with the same results. Stops with
-    /// [`SacError::NonFinite`] naming the network if a loss or parameter is NaN/inf (the first
-    /// in the order critic q1, critic q2, actor, temperature); the agent is then not to be
-    /// trained further.
+    /// against the updated critics, then α (when tuned), then Polyak averaging of the targets.
+    /// Stops with [`SacError::NonFinite`] naming the network if a loss or parameter is NaN/inf.
     pub fn update(
         &mut self,
-        batch: &ReplayBatch,
-        rewards: &[f32],
-        rng: &mut impl Rng,
-    ) -> Result<UpdateStats, SacError> {
-        let paired = self.threads >= 2 && self.pair.next_paired();
-        let started = Instant::now();
-        let stats = self.update_on(if paired { 2 } else { 1 }, batch, rewards, rng)?;
-        if self.threads >= 2 {
-            self.pair.record(paired, started.elapsed());
-        }
-        Ok(stats)
-    }
-
-    /// [`SacAgent::update`] with the critics on `threads` threads.
-    fn update_on(
-        &mut self,
-        threads: usize,
         batch: &ReplayBatch,
         rewards: &[f32],
         rng: &mut impl Rng,
@@ -524,116 +377,101 @@ impl SacAgent {
         let update = self.updates + 1;
         let inv_b = 1.0 / b as f32;
         let alpha = self.log_alpha.exp();
-        let (gamma, tau) = (self.config.gamma, self.config.tau);
-        let (obs_dim, act_dim) = (self.obs_dim, self.act_dim);
+        let gamma = self.config.gamma;
+        let obs_dim = self.obs_dim;
         let ws = &mut self.ws;
-        let [ws1, ws2] = &mut ws.critics;
-        let mut c1 = CriticMut {
-            name: "critic q1",
-            q: &mut self.q1,
-            target: &mut self.q1_target,
-            opt: &mut self.q1_opt,
-            ws: ws1,
-        };
-        let mut c2 = CriticMut {
-            name: "critic q2",
-            q: &mut self.q2,
-            target: &mut self.q2_target,
-            opt: &mut self.q2_opt,
-            ws: ws2,
-        };
 
         // Critic targets: y = r + γ (1 − terminated) (min Q_targ(s', a') − α log π(a'|s')).
         let head = self.actor.forward(&batch.next_obs, &mut ws.actor);
         ws.draw.sample(head, rng);
         Self::fill_q_obs(&mut ws.q_in, &batch.next_obs, obs_dim);
         Self::fill_q_actions(&mut ws.q_in, &ws.draw.actions, obs_dim);
-        let q_in = &ws.q_in;
-        for_both(threads, [&mut c1, &mut c2], |c| {
-            c.target.forward(q_in, &mut c.ws.net);
-        });
-        let (qt1, qt2) = (c1.ws.net.output(), c2.ws.net.output());
+        let qt1 = self.q1_target.forward(&ws.q_in, &mut ws.q1);
+        let qt2 = self.q2_target.forward(&ws.q_in, &mut ws.q2);
         for j in 0..b {
             let soft_v = qt1[j].min(qt2[j]) - alpha * ws.draw.log_prob[j];
             ws.targets[j] = rewards[j] + gamma * (1.0 - batch.terminated[j]) * soft_v;
         }
 
-        // The actor's fresh actions for its own phase, drawn before the critics' regressions
-        // so that each critic can value them as soon as it is updated. They are the same
-        // draws as after the regressions: the actor does not change before its own step, and
-        // nothing else draws from `rng` in between.
-        let head = self.actor.forward(&batch.obs, &mut ws.actor);
-        ws.draw.sample(head, rng);
+        // Critics: L = ½ mean (Q − y)².
         Self::fill_q_obs(&mut ws.q_in, &batch.obs, obs_dim);
         Self::fill_q_actions(&mut ws.q_in, &batch.actions, obs_dim);
-        Self::fill_q_obs(&mut ws.q_pi_in, &batch.obs, obs_dim);
-        Self::fill_q_actions(&mut ws.q_pi_in, &ws.draw.actions, obs_dim);
-
-        // Critics: L = ½ mean (Q − y)²; then each updated critic's values of the actor's
-        // actions.
-        let (q_in, q_pi_in, targets) = (&ws.q_in, &ws.q_pi_in, &ws.targets);
-        let [loss1, loss2] = for_both(threads, [&mut c1, &mut c2], |c| {
-            let values = c.q.forward(q_in, &mut c.ws.net);
+        let mut q_losses = [0.0f32; 2];
+        for (i, (q, opt, qws)) in [
+            (&mut self.q1, &mut self.q1_opt, &mut ws.q1),
+            (&mut self.q2, &mut self.q2_opt, &mut ws.q2),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let values = q.forward(&ws.q_in, qws);
             let mut loss = 0.0;
-            for ((d, &v), &y) in
-                c.ws.dq
-                    .as_mut_slice()
-                    .iter_mut()
-                    .zip(values.as_slice())
-                    .zip(targets)
+            for ((d, &v), &y) in ws
+                .dq
+                .as_mut_slice()
+                .iter_mut()
+                .zip(values.as_slice())
+                .zip(&ws.targets)
             {
                 let err = v - y;
                 loss += err * err;
                 *d = err * inv_b;
             }
-            let loss = 0.5 * loss * inv_b;
-            check_finite(loss.is_finite(), c.name, "loss", update)?;
-            c.q.backward(q_in, &mut c.ws.net, &c.ws.dq, None, BackwardMode::Params);
-            c.opt.step_mlp(c.q);
-            check_finite(c.q.params_finite(), c.name, "parameter", update)?;
-            c.q.forward(q_pi_in, &mut c.ws.net);
-            Ok(loss)
-        });
-        let q_losses = [loss1?, loss2?];
+            q_losses[i] = 0.5 * loss * inv_b;
+            let name = ["critic q1", "critic q2"][i];
+            check_finite(q_losses[i].is_finite(), name, "loss", update)?;
+            q.backward(&ws.q_in, qws, &ws.dq, None, BackwardMode::Params);
+            opt.step_mlp(q);
+            check_finite(q.params_finite(), name, "parameter", update)?;
+        }
 
         // Actor: L = mean(α log π(a|s) − min Q(s, a)), a reparameterised.
+        let head = self.actor.forward(&batch.obs, &mut ws.actor);
+        ws.draw.sample(head, rng);
+        Self::fill_q_actions(&mut ws.q_in, &ws.draw.actions, obs_dim);
+        self.q1.forward(&ws.q_in, &mut ws.q1);
+        self.q2.forward(&ws.q_in, &mut ws.q2);
         let mut actor_loss = 0.0;
         let mut sum_log_prob = 0.0;
-        let (v1, v2) = (c1.ws.net.output(), c2.ws.net.output());
-        for j in 0..b {
-            actor_loss += alpha * ws.draw.log_prob[j] - v1[j].min(v2[j]);
-            sum_log_prob += ws.draw.log_prob[j];
-            ws.d_log_prob[j] = alpha * inv_b;
+        {
+            let (v1, v2) = (ws.q1.output().as_slice(), ws.q2.output().as_slice());
+            for j in 0..b {
+                actor_loss += alpha * ws.draw.log_prob[j] - v1[j].min(v2[j]);
+                sum_log_prob += ws.draw.log_prob[j];
+                ws.d_log_prob[j] = alpha * inv_b;
+            }
         }
         actor_loss *= inv_b;
         check_finite(actor_loss.is_finite(), "actor", "loss", update)?;
         // ∂L/∂a through whichever critic is the minimum for each sample.
-        for j in 0..b {
-            let q1_is_min = c1.ws.net.output()[j] <= c2.ws.net.output()[j];
-            c1.ws.dq[j] = if q1_is_min { -inv_b } else { 0.0 };
-            c2.ws.dq[j] = if q1_is_min { 0.0 } else { -inv_b };
-        }
-        for_both(threads, [&mut c1, &mut c2], |c| {
-            c.q.backward(
-                q_pi_in,
-                &mut c.ws.net,
-                &c.ws.dq,
-                Some(&mut c.ws.dq_in),
+        for first in [true, false] {
+            let (v1, v2) = (ws.q1.output(), ws.q2.output());
+            for j in 0..b {
+                let q1_is_min = v1[j] <= v2[j];
+                ws.dq[j] = if q1_is_min == first { -inv_b } else { 0.0 };
+            }
+            let (q, qws) = if first {
+                (&mut self.q1, &mut ws.q1)
+            } else {
+                (&mut self.q2, &mut ws.q2)
+            };
+            q.backward(
+                &ws.q_in,
+                qws,
+                &ws.dq,
+                Some(&mut ws.dq_in),
                 BackwardMode::InputOnly,
             );
-            // The critic's last use in this update: its target can follow it now.
-            c.target.polyak_from(c.q, tau);
-        });
-        let rows = c1.ws.dq_in.nrows();
-        for ((da, g1), g2) in ws
-            .d_actions
-            .as_mut_slice()
-            .chunks_exact_mut(act_dim)
-            .zip(c1.ws.dq_in.as_slice().chunks_exact(rows))
-            .zip(c2.ws.dq_in.as_slice().chunks_exact(rows))
-        {
-            for ((d, a), b) in da.iter_mut().zip(&g1[obs_dim..]).zip(&g2[obs_dim..]) {
-                *d = a + b;
+            let rows = ws.dq_in.nrows();
+            for (da, dqi) in ws
+                .d_actions
+                .as_mut_slice()
+                .chunks_exact_mut(self.act_dim)
+                .zip(ws.dq_in.as_slice().chunks_exact(rows))
+            {
+                for (d, g) in da.iter_mut().zip(&dqi[obs_dim..]) {
+                    *d = if first { *g } else { *d + g };
+                }
             }
         }
         gaussian::backward(
@@ -670,6 +508,8 @@ impl SacAgent {
             )?;
         }
 
+        self.q1_target.polyak_from(&self.q1, self.config.tau);
+        self.q2_target.polyak_from(&self.q2, self.config.tau);
         self.updates = update;
         Ok(UpdateStats {
             q1_loss: q_losses[0],
