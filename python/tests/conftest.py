@@ -2,6 +2,7 @@
 
 import os
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -19,3 +20,14 @@ def reacher_bin():
     if binary is None:
         pytest.skip("no reacher binary (build it with cargo build --release)")
     return binary
+
+
+def scripted_demo_log(reacher_bin, out, task, episodes):
+    """Writes `out`: `episodes` scripted demonstrations of `task` with observations, logged by
+    the `reacher` binary."""
+    subprocess.run(
+        [reacher_bin, "demo", "--task", task, "--episodes", str(episodes), "--observations", "--out", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    return out

@@ -12,6 +12,7 @@ from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap.reader import make_reader
 
 import smirl
+from conftest import scripted_demo_log
 
 # (schema encoding, message encoding) pairs Foxglove decodes.
 FOXGLOVE_ENCODINGS = {
@@ -55,13 +56,7 @@ def read_with_the_official_reader(path):
 @pytest.fixture(scope="module")
 def cancel_log(tmp_path_factory, reacher_bin):
     """Scripted IF demonstrations with observations, written by the `reacher` binary."""
-    out = tmp_path_factory.mktemp("official") / "if.mcap"
-    subprocess.run(
-        [reacher_bin, "demo", "--task", "if", "--episodes", "4", "--observations", "--out", str(out)],
-        check=True,
-        capture_output=True,
-    )
-    return out
+    return scripted_demo_log(reacher_bin, tmp_path_factory.mktemp("official") / "if.mcap", "if", 4)
 
 
 def test_the_official_reader_decodes_the_log_as_smirl_reads_it(cancel_log):

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import smirl
+from conftest import scripted_demo_log
 
 SEQUENCE = """\
 vocabulary: ab
@@ -78,13 +79,7 @@ def test_learn_rm_refuses_bad_traces():
 @pytest.fixture(scope="module")
 def demo_log(tmp_path_factory, reacher_bin):
     """A log written by the `reacher` binary (scripted demonstrations of Composite)."""
-    out = tmp_path_factory.mktemp("log") / "demo.mcap"
-    subprocess.run(
-        [reacher_bin, "demo", "--task", "composite", "--episodes", "6", "--observations", "--out", str(out)],
-        check=True,
-        capture_output=True,
-    )
-    return out
+    return scripted_demo_log(reacher_bin, tmp_path_factory.mktemp("log") / "demo.mcap", "composite", 6)
 
 
 def test_read_log_written_by_reacher(demo_log):
