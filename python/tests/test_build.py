@@ -1,11 +1,13 @@
 """The package's core (python/Cargo.toml, its own workspace) builds in the root workspace's
 target directory (the README's test command and CI set CARGO_TARGET_DIR): that shares the
-compiled dependencies, the C sources of zstd and the MuJoCo bindings included, only while both
+compiled dependencies (zstd's C sources among them) only while both
 lock files resolve every crate they share to the same version."""
 
-import tomllib
+import pytest
 
 from conftest import ROOT
+
+tomllib = pytest.importorskip("tomllib")  # Python 3.11 and later
 
 
 def locked(path):
