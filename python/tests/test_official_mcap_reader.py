@@ -5,6 +5,7 @@ stored in the file, and what the decoded messages say agrees with `smirl.read_lo
 
 import json
 import subprocess
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -77,14 +78,12 @@ def test_the_official_reader_decodes_the_foxglove_view(cancel_log, reacher_bin, 
     out = subprocess.run([reacher_bin, "foxglove", str(cancel_log), "--out", str(view)], capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
     messages = read_with_the_official_reader(view)
-    by_schema = {}
-    for _, schema, _ in messages:
-        by_schema[schema] = by_schema.get(schema, 0) + 1
+    by_schema = Counter(schema for _, schema, _ in messages)
     log = smirl.read_log(cancel_log)
     states = sum(len(ep["actions"]) + 1 for ep in log["episodes"])
-    assert by_schema.get("foxglove.SceneUpdate") == states, by_schema
-    assert by_schema.get("foxglove.FrameTransforms") == states, by_schema
+    assert by_schema["foxglove.SceneUpdate"] == states, by_schema
+    assert by_schema["foxglove.FrameTransforms"] == states, by_schema
     # The view keeps the log: its steps are the log's steps.
-    assert by_schema.get("smirl.v1.Step") == sum(len(ep["actions"]) for ep in log["episodes"])
+    assert by_schema["smirl.v1.Step"] == sum(len(ep["actions"]) for ep in log["episodes"])
     scene = next(m for _, schema, m in messages if schema == "foxglove.SceneUpdate")
     assert scene.entities and any(e.spheres for e in scene.entities)
