@@ -3,8 +3,10 @@
 //!
 //! Each measured iteration is one environment step (policy action) followed by one gradient
 //! update (the paper's (64, 64) / batch-256 configuration by default). The reference replays,
-//! in a loop, exactly the `sgemm` calls recorded while running one iteration (shapes and
-//! transposes from `smirl::nn::gemm::trace`). Reported: median over repetitions.
+//! in a loop, the matrix products recorded while running one iteration (shapes and transposes
+//! from `smirl::nn::gemm::trace`) through `smirl::nn::gemm::gemm`, the kernel training uses,
+//! as bare products (a dense layer's bias and ReLU left out). Reported: median over
+//! repetitions.
 
 #![deny(unsafe_code)]
 
