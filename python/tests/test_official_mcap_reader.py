@@ -5,7 +5,9 @@ stored in the file, and what the decoded messages say agrees with `smirl.read_lo
 
 import json
 import subprocess
+import sys
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +15,10 @@ from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap.reader import make_reader
 
 import smirl
-from conftest import scripted_demo_log
+from conftest import ROOT, scripted_demo_log
+
+# The workplace's shared log checker, beside the checkout (absent on a machine without it).
+SHARED_CHECKER = ROOT.parent / "shared" / "tools" / "check_mcap.py"
 
 # (schema encoding, message encoding) pairs Foxglove decodes.
 FOXGLOVE_ENCODINGS = {
@@ -87,3 +92,36 @@ def test_the_official_reader_decodes_the_foxglove_view(cancel_log, reacher_bin, 
     assert by_schema["smirl.v1.Step"] == sum(len(ep["actions"]) for ep in log["episodes"])
     scene = next(m for _, schema, m in messages if schema == "foxglove.SceneUpdate")
     assert scene.entities and any(e.spheres for e in scene.entities)
+
+
+def test_the_shared_checker_accepts_the_log_and_the_view(cancel_log, reacher_bin, tmp_path):
+    if not SHARED_CHECKER.exists():
+        pytest.skip(f"{SHARED_CHECKER} is not on this machine")
+    view = tmp_path / "view.mcap"
+    out = subprocess.run([reacher_bin, "foxglove", str(cancel_log), "--out", str(view)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+    for path in (cancel_log, view):
+        out = subprocess.run([sys.executable, str(SHARED_CHECKER), str(path)], capture_output=True, text=True)
+        assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_the_decode_script_prints_what_smirl_reads(cancel_log):
+    """`experiments/mcap/decode_protobuf.py` prints step 42 of every episode that has one, as
+    protobuf decodes it."""
+    script = ROOT / "experiments" / "mcap" / "decode_protobuf.py"
+    out = subprocess.run([sys.executable, str(script), str(cancel_log)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+    log = smirl.read_log(cancel_log)
+    printed = {}
+    for line in out.stdout.splitlines():
+        if line.startswith("episode "):
+            head, rest = line.split(": ", 1)
+            printed[int(head.split()[1])] = dict(f.split("=", 1) for f in rest.split(" ") if "=" in f)
+    long_enough = [i for i, ep in enumerate(log["episodes"]) if len(ep["actions"]) >= 42]
+    assert long_enough and sorted(printed) == long_enough, out.stdout
+    for i, fields in printed.items():
+        ep = log["episodes"][i]
+        # Steps count from 1: step 42 is row 41.
+        assert float(fields["qpos0"]) == ep["qpos"][41][0], fields
+        assert int(fields["labels"]) == ep["labels"][41], fields
+        assert int(fields["rm_state"]) == ep["rm_states"][41], fields
