@@ -128,7 +128,7 @@ impl ContinuousEnv for SyntheticEnv {
 
 /// Appends a one-hot block to an environment's observation (slot chosen by the labels seen
 /// so far, advancing on each new label): the size and cost profile of the product with a
-/// reward machine, for benchmarking until the RM product lands.
+/// reward machine (its one-hot state) without the machine, for benchmarking the network sizes.
 struct OneHotAppended<E> {
     inner: E,
     width: usize,

@@ -5,7 +5,9 @@
 //! `[env]`, `[sac]`, `[smirl]`, `[lrm]`, `[firl]` and `[final]` the rest, and optional
 //! `[schedule.<algorithm>]` tables give one algorithm its own IRL schedule ([`AlgoSchedule`]).
 //! What differs between `smirl` and the paper's `smirl-paper` is not a key: it follows from
-//! the algorithm ([`IrlRunConfig::for_algo`]). Every key: docs/configuration.md.
+//! the algorithm ([`IrlRunConfig::for_algo`]). Every key: docs/configuration.md. The sections
+//! quoted as "research log" are in experiments/archive/README-research-log.md; docs/method.md
+//! indexes them by mechanism.
 
 use super::Algo;
 use crate::env::reacher::ReacherConfig;
@@ -114,7 +116,7 @@ pub struct IrlRunConfig {
     /// agent after the co-trained agent's final phase: new networks, optimisers, temperature
     /// and seed on a copy of the co-trained agent's replay buffer, which it first learns from
     /// alone; `final_checkpoints` candidates along its steps; 0 = none. Why: a co-trained
-    /// agent can stay stuck on the final reward while a fresh agent solves it (README,
+    /// agent can stay stuck on the final reward while a fresh agent solves it (research log,
     /// "Composite's five misses"); a reset keeps the loop's data and drops the networks' habit.
     pub final_reset_steps: u64,
     /// Reward optimiser steps per IRL iteration (on the same coefficients).
@@ -128,7 +130,7 @@ pub struct IrlRunConfig {
     /// in its covariance batch beside the agent's trajectories (f-IRL's `resample_episodes`:
     /// with replacement when more than there are demonstrations, else without); 0 = the
     /// agent's trajectories alone. Why: f-IRL's code for an expert given by samples does this,
-    /// and it is what raises the reward where the expert goes and the agent does not (README,
+    /// and it is what raises the reward where the expert goes and the agent does not (research log,
     /// "Positive controls").
     pub firl_expert_trajectories: usize,
     /// `[lrm] max_states`: most states of the learned machine (u_max).
@@ -373,7 +375,8 @@ pub fn layout_keys() -> Vec<String> {
 ///
 /// Why: f-IRL's own code runs many short IRL iterations (800 × 300 SAC steps, 2 reward steps,
 /// SAC with fixed α = 1) and fails even a one-ball control task under SMIRL's earlier 20 × 5 000
-/// (README, "Positive controls"); each algorithm gets the schedule its positive control needs.
+/// (research log, "Positive controls"); each algorithm gets the schedule its positive control
+/// needs.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AlgoSchedule {
@@ -449,7 +452,7 @@ pub struct SacSchedule {
 /// The replay size is not the schedule's: it is the run's `[sac]` one, shared by every
 /// algorithm ([`SHARED_SAC_KEYS`]). Chosen on the Markovian positive control "blue" (seeds
 /// 0–2), never on the paper's tasks: with it fkl, js and MaxEnt solve "blue" in 3 of 3 seeds, with SMIRL's earlier 20 × 5 000
-/// schedule the f-IRL variants in none (README, "Positive controls of the baselines").
+/// schedule the f-IRL variants in none (research log, "Positive controls of the baselines").
 /// rkl's also puts 300 drawn demonstrations in each covariance batch beside the 300 agent
 /// trajectories (`[firl] expert_trajectories`, f-IRL's code for demonstrations): without them
 /// rkl fails "blue" under every setting tried, with them (at T = 30) it passes in 3 of 3 seeds.
@@ -806,7 +809,7 @@ pub const MAX_FINAL_CHECKPOINTS: u64 = 1_000;
 
 impl IrlRunConfig {
     /// The default profile: sized so that `reacher --task <t>` with the default algorithm set
-    /// finishes in well under 20 minutes on 2 cores (README.md, "ReacherDelivery IRL").
+    /// finishes in well under 20 minutes on 2 cores (README.md, "Run it").
     pub fn standard() -> IrlRunConfig {
         IrlRunConfig {
             demo_source: DemoSource::Expert,
@@ -814,7 +817,7 @@ impl IrlRunConfig {
             // SMIRL's schedule: 30 IRL iterations (two of three Sequential tuning seeds first
             // solve the task in iterations 16-20), with potential-based shaping of its SAC
             // (Composite's normal branch: 3 of 3 tuning seeds against 1 of 3 without);
-            // README, "SMIRL's settings".
+            // research log, "SMIRL's settings".
             irl_iterations: 30,
             sac_steps_per_iteration: 5_000,
             agent_trajectories: 20,
@@ -826,11 +829,11 @@ impl IrlRunConfig {
             smirl_machine: SmirlMachine::Learned,
             smirl_shaping: 1.0,
             // The final policy: four candidates 5 000 SAC steps apart on the final reward
-            // (README, "SMIRL's final policy").
+            // (research log, "SMIRL's final policy").
             final_sac_steps: 20_000,
             final_checkpoints: 4,
             // Four more from a reset agent on the co-trained agent's replay buffer (24 of 24
-            // tuning jobs; README, "A reset agent").
+            // tuning jobs; research log, "A reset agent").
             final_reset_steps: 20_000,
             reward_steps_per_iteration: 5,
             smooth_sigma: 0.05,
@@ -972,7 +975,7 @@ impl IrlRunConfig {
     /// observation (`ProductEnv::with_clock`, `firl::baseline_env`), in the loop, the final
     /// phase and `reacher retrain`; no reward reads it. Every algorithm but `smirl-paper`.
     /// Why: the cancel comes only early in an episode, and an agent without a clock cannot
-    /// tell that it no longer will (README, "A clock for the agent").
+    /// tell that it no longer will (research log, "A clock for the agent").
     pub fn clock(&self) -> bool {
         !self.paper_mechanisms
     }
@@ -1006,7 +1009,7 @@ impl IrlRunConfig {
     /// demonstration makes after a cancel in the same learned state
     /// (`irl::seen_after_events`); SMIRL's alone (it reads the learned machine), and only
     /// with a final phase. Why: a learned machine without a failure state lets a policy that
-    /// touches blue after the cancel earn about what one that avoids it earns (README, "A
+    /// touches blue after the cancel earn about what one that avoids it earns (research log, "A
     /// choice that reads what the expert does after the cancel").
     pub fn selection_cut(&self) -> bool {
         !self.paper_mechanisms
