@@ -490,13 +490,13 @@ pub const SHARED_SAC_KEYS: [&str; 1] = ["replay_capacity"];
 /// current reward at sampling time, so old transitions never carry stale rewards — but a
 /// 10 000 buffer holds only the last two iterations (5 000 steps each), and a sub-goal the
 /// policy stops reaching for two iterations vanishes from SAC's data; the lower rate keeps
-/// the critics from chasing every reward update. Measured on SMIRL with held-out seeds in
-/// experiments/reacher/results.md (the paper's values are the `paper_sac` ablation). 200 000
+/// the critics from chasing every reward update. Measured on SMIRL with held-out seeds (the
+/// paper's values are the `paper_sac` ablation: experiments/archive/reacher/ablations.md). 200 000
 /// keeps every transition of a SMIRL job (150 000 loop steps and the final phase's 20 000) and
 /// the last 200 000 of a baseline's 240 000 loop steps: with 100 000, SAC on a fixed learned
 /// reward lost tasks it had solved once the buffer began dropping its oldest transitions
-/// (experiments/reacher/retrain_agents.sh; experiments/reacher/ablations/replay_all.toml). One
-/// value for every algorithm ([`SHARED_SAC_KEYS`]).
+/// (experiments/archive/reacher/retrain_agents.sh; experiments/reacher/ablations/replay_all.toml).
+/// One value for every algorithm ([`SHARED_SAC_KEYS`]).
 pub fn irl_run_sac() -> SacConfig {
     SacConfig {
         lr: 1e-3,
