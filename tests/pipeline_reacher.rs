@@ -507,7 +507,7 @@ fn assert_config_error_names(text: &str, value: &str) {
     assert!(err.contains("c.toml") && err.contains(value), "{err}");
 }
 
-/// `smirl_machine = "task"`: the machine SMIRL reads is the task's own with no goal, no failure
+/// `[smirl] machine = "task"`: the machine SMIRL reads is the task's own with no goal, no failure
 /// sink and no rewards — every task's perfect machine's states along any trace until it ends,
 /// then it stays — and a run prepared with it writes that machine, says so in its report, and
 /// its SMIRL job runs on it.

@@ -349,7 +349,7 @@ impl Machine {
 }
 
 /// Step 1 of SMIRL under `settings` (an algorithm's resolved settings): the machine (LRM's, or
-/// the task's with `smirl_machine = "task"`), its facts and the report of `rm/report.txt`.
+/// the task's with `[smirl] machine = "task"`), its facts and the report of `rm/report.txt`.
 fn learn_and_report(
     settings: &IrlRunConfig,
     algo: Algo,

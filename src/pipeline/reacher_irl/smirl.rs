@@ -2,8 +2,8 @@
 //! place:
 //!
 //! 1. **Learn the machine** ([`learn_machine`]): LRM's Tabu search on the demonstrations' label
-//!    traces, without rewards (rewards are what IRL learns). (`smirl_machine = "task"`: the
-//!    task's own machine instead, [`task_machine`], an oracle for diagnosis.)
+//!    traces, without rewards (rewards are what IRL learns). (`[smirl] machine = "task"`:
+//!    the task's own machine instead, [`task_machine`], an oracle for diagnosis.)
 //! 2. **Annotate** ([`annotate`]): every expert observation o_t gets the learned state
 //!    u_{t−1} its labels are read in (demonstrations held at their final state to the
 //!    horizon, so expert and agent are compared over one T).
@@ -83,7 +83,7 @@ pub fn learn_machine(
     Ok((learned.rm, learned.cost, learned.stats.elapsed_secs))
 }
 
-/// The task's own machine as SMIRL reads it under `smirl_machine = "task"`: the perfect
+/// The task's own machine as SMIRL reads it under `[smirl] machine = "task"`: the perfect
 /// machine's states and guards with no goal or failure state and no rewards — what a learned
 /// machine looks like — so that episodes run on past the goal as they do with LRM's machine
 /// and only the machine's shape differs.
@@ -107,7 +107,7 @@ pub fn task_machine(perfect: &RewardMachine) -> Result<RewardMachine, MachineErr
     .map_err(MachineError::Task)
 }
 
-/// The machine SMIRL reads under `smirl_machine = "one_state"`: one state, no transitions, so
+/// The machine SMIRL reads under `[smirl] machine = "one_state"`: one state, no transitions, so
 /// δ_r(u, o) = w_0ᵀ φ(o) and the agent's input carries no machine state; every other mechanism
 /// runs as with LRM's machine (the control that tells what the machine adds).
 pub fn one_state_machine(vocab: &Vocabulary) -> Result<RewardMachine, MachineError> {
