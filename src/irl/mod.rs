@@ -12,7 +12,7 @@
 //!   measure of how well an agent's state marginal matches a target density.
 //! - [`firl`]: f-IRL (fkl, rkl, js) and continuous MaxEnt IRL as per-state loss coefficients.
 //! - [`seen_after_events`]: what demonstrations do in each learned state once the cancel has
-//!   come (SMIRL's final-policy choice with `smirl_selection_cut`).
+//!   come (the selection cut of SMIRL's final-policy choice, `IrlRunConfig::selection_cut`).
 //! - [`smirl`]: SMIRL's linear reward δ_r(u, o) = w_uᵀ φ(o) on U × O and its MaxEnt gradient.
 //! - [`reward`]: the [`reward::RewardModel`] trait SAC reads rewards from, and the (64, 64)
 //!   MLP reward clamped to ±10 of the baselines.

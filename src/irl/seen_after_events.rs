@@ -6,17 +6,18 @@
 //! `0 -(c|b)-> 1`), and demonstrations, which never fail, give it no failure state; so a
 //! learned reward hardly charges a policy that touches blue after the cancel, which the task
 //! fails. The demonstrations still show, state by state, what the expert does once the cancel
-//! has come — IF's never touch blue then. SMIRL's final phase (`smirl_selection_cut`) scores a
-//! candidate's learned return only up to its first touch that no demonstration makes there.
+//! has come — IF's never touch blue then. SMIRL's final phase (the selection cut,
+//! `IrlRunConfig::selection_cut`) scores a candidate's learned return only up to its first touch
+//! that no demonstration makes there.
 //! Before any event nothing is judged: there the expert's behaviour is the task's, and an
 //! agent's other touches are the way it moves. The rule assumes "unless" events: after one,
 //! a touch the expert never makes is off the task.
 //!
-//! Touches can be read as entries (`smirl_selection_cut_entries`): a ball counts on the step
-//! its touch begins, not on the steps the fingertip stays on it. Why: the expert brushes a ball
-//! for one step where an agent lingers for two or three, so the steps after a touch that
-//! entered a state look, read as labels, like a touch no demonstration makes there (Sequential
-//! base 78: red held one step longer after a cancel).
+//! Touches can be read as entries (`entries` of [`SeenAfterEvents::new`]; SMIRL's cut reads
+//! them so): a ball counts on the step its touch begins, not on the steps the fingertip stays
+//! on it. Why: the expert brushes a ball for one step where an agent lingers for two or three,
+//! so the steps after a touch that entered a state look, read as labels, like a touch no
+//! demonstration makes there (Sequential base 78: red held one step longer after a cancel).
 
 use crate::rm::LabelSet;
 

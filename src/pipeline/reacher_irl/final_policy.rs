@@ -25,10 +25,10 @@
 //! networks, optimisers and temperature ([`SacTrainer::with_new_agent`]), learns from that
 //! buffer alone first and then trains on. Nothing in it reads a reward machine.
 //!
-//! The cut (`smirl_selection_cut`, SMIRL only: it reads the learned machine's states and
-//! assumes "unless" semantics of the events): a learned machine without a failure state lets a
-//! policy that touches a ball after the cancel earn about what one that avoids it earns, so
-//! the choice can fall on it. With the cut, each selection episode counts its learned reward
+//! The cut ([`IrlRunConfig::selection_cut`], SMIRL only: it reads the learned machine's states
+//! and assumes "unless" semantics of the events): a learned machine without a failure state
+//! lets a policy that touches a ball after the cancel earn about what one that avoids it earns,
+//! so the choice can fall on it. With the cut, each selection episode counts its learned reward
 //! only up to its first ball touch, after the cancel, that no demonstration makes after a
 //! cancel in the same learned state ([`SeenAfterEvents`]) — still no ground truth, and nothing
 //! in training changes.
@@ -84,7 +84,7 @@ pub struct FinalCandidate {
     /// Mean learned return (the final reward, unshaped) of the mean action over the selection
     /// episodes, each played to the time limit: what the choice reads without the cut.
     pub learned_return: f64,
-    /// With `smirl_selection_cut`, the same mean with each episode's learned reward counted
+    /// With the selection cut, the same mean with each episode's learned reward counted
     /// only up to its first touch after the cancel that no demonstration makes there: what
     /// the choice reads instead.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -148,7 +148,7 @@ pub struct FinalPhase<'a> {
     /// Gradient updates, then as many SAC environment steps, of the reset agent (0: none),
     /// with `checkpoints` candidates along the steps.
     pub reset_steps: u64,
-    /// With `smirl_selection_cut`: what the demonstrations touch after the cancel, per learned
+    /// With the selection cut: what the demonstrations touch after the cancel, per learned
     /// state, where selection episodes stop counting.
     pub selection_cut: Option<&'a SeenAfterEvents>,
     /// Selection episodes per candidate ([`selection_episodes`]).
