@@ -524,7 +524,7 @@ fn visit_normalised_coefficients_divide_by_trajectories_visiting_the_state() {
 /// `maxent_coefficients_by_shared_visits`: where the agent's batch visits a state the coefficients
 /// are the visit-normalised ones; an expert row in a state no agent trajectory reaches gets 0,
 /// so that state's weights are not raised for want of an agent estimate (the regression of
-/// held-out Composite base 24, README "Shared visits").
+/// held-out Composite base 24: experiments/archive/README-research-log.md, "Shared visits").
 #[test]
 fn shared_visit_coefficients_leave_states_the_agent_never_reaches_alone() {
     let obs = vec![0.0f32; 17 * 7];

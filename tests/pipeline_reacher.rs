@@ -473,7 +473,7 @@ fn shipped_config_is_the_default_profile() {
 }
 
 /// Regression: `quick.toml` lagged the quick profile (a setting of the standard missing from
-/// it), though the README calls it that profile.
+/// it), though docs/configuration.md calls it that profile.
 #[test]
 fn shipped_quick_config_is_the_quick_profile() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/reacher/quick.toml");
