@@ -319,6 +319,28 @@ fn syntax_errors_and_unknown_keys_name_their_line() {
     assert!(matches!(e.problem(), Some(TaskProblem::AnchorCount)), "{e}");
 }
 
+/// The README's own layout: regions as an array of inline tables, one per line. A rule error
+/// names the line of the key inside its element, and a repeated letter the line of the first.
+#[test]
+fn keys_inside_an_array_of_inline_tables_name_their_line() {
+    let inline = "scene = \"builtin\"\nmachine = \"m.txt\"\nepisode_steps = 50\n\
+                  randomize_layout = false\n\
+                  region = [{ letter = \"a\", body = \"red\", radius = 0.03, position = [0.1, 0.1] },\n\
+                  \x20         { letter = \"b\", body = \"green\", radius = 0.02, position = [-0.1, 0.05] }]\n\
+                  event = [{ letter = \"e\", probability = 0.25, earliest_step = 3, latest_step = 9 }]\n";
+    let dir = tempfile::tempdir().unwrap();
+    Task::load(&write(dir.path(), inline, MACHINE)).unwrap();
+    let e = refused(&inline.replace("\"green\"", "\"purple\""));
+    assert_at(&e, 6, "region[1].body");
+    let e = refused(&inline.replace("position = [-0.1, 0.05]", "position = [-0.9, 0.05]"));
+    assert_at(&e, 6, "region[1].position");
+    let e = refused(&inline.replace("latest_step = 9", "latest_step = 99"));
+    assert_at(&e, 7, "event[0].latest_step");
+    let e = refused(&inline.replace("letter = \"b\"", "letter = \"a\""));
+    assert_at(&e, 6, "region[1].letter");
+    assert!(e.to_string().contains("(first on line 5)"), "{e}");
+}
+
 #[test]
 fn names_and_paths_resolve() {
     assert!(matches!(

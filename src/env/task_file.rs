@@ -596,8 +596,10 @@ fn normalize(path: &Path) -> PathBuf {
     out
 }
 
-/// The line of a key such as `region[2].radius`: the key's own line inside the third
-/// `[[region]]` table, or the table's header when the key is not written there.
+/// The 1-based line of a key such as `region[2].radius`: the key's own line in the third
+/// element of the array, or the element's own start (its `[[region]]` header, or the `{` of
+/// `region = [{ … }, { … }]`) when the key is not written there. Read from the parsed
+/// document's spans, so every way TOML writes an array of tables finds its line.
 fn locate(text: &str, key: &str) -> Option<usize> {
     let Some((array, rest)) = key.split_once('[') else {
         return key_line(text, key);
@@ -605,28 +607,22 @@ fn locate(text: &str, key: &str) -> Option<usize> {
     let (index, field) = rest.split_once(']')?;
     let index: usize = index.parse().ok()?;
     let field = field.trim_start_matches('.');
-    let header = format!("[[{array}]]");
-    let mut seen = 0;
-    let mut start = None;
-    for (i, line) in text.lines().enumerate() {
-        let line = line.split('#').next().unwrap_or("").trim();
-        if line.starts_with('[') {
-            if start.is_some() {
-                break;
-            }
-            if line == header {
-                if seen == index {
-                    start = Some(i + 1);
-                }
-                seen += 1;
-            }
-            continue;
+    let doc = toml_edit::ImDocument::parse(text).ok()?;
+    let span = match doc.as_table().get(array)? {
+        toml_edit::Item::ArrayOfTables(tables) => {
+            let table = tables.get(index)?;
+            let key = table.get_key_value(field).and_then(|(k, _)| k.span());
+            key.or_else(|| table.span())
         }
-        if let (Some(_), Some((k, _))) = (start, line.split_once('=')) {
-            if !field.is_empty() && k.trim() == field {
-                return Some(i + 1);
-            }
+        toml_edit::Item::Value(toml_edit::Value::Array(values)) => {
+            let value = values.get(index)?;
+            let table = value.as_inline_table();
+            let key = table
+                .and_then(|t| t.get_key_value(field))
+                .and_then(|(k, _)| k.span());
+            key.or_else(|| value.span())
         }
-    }
-    start
+        _ => None,
+    }?;
+    Some(text[..span.start].matches('\n').count() + 1)
 }
