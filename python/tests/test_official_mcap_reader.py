@@ -65,6 +65,15 @@ def cancel_log(tmp_path_factory, reacher_bin):
     return scripted_demo_log(reacher_bin, tmp_path_factory.mktemp("official") / "if.mcap", "if", 4)
 
 
+@pytest.fixture(scope="module")
+def foxglove_view(cancel_log, reacher_bin):
+    """`reacher foxglove`'s view of `cancel_log`, beside it."""
+    view = cancel_log.with_name("view.mcap")
+    out = subprocess.run([reacher_bin, "foxglove", str(cancel_log), "--out", str(view)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+    return view
+
+
 def test_the_official_reader_decodes_the_log_as_smirl_reads_it(cancel_log):
     messages = read_with_the_official_reader(cancel_log)
     log = smirl.read_log(cancel_log)
@@ -78,11 +87,8 @@ def test_the_official_reader_decodes_the_log_as_smirl_reads_it(cancel_log):
         assert msg.rm_state == ep["rm_states"][msg.step - 1]
 
 
-def test_the_official_reader_decodes_the_foxglove_view(cancel_log, reacher_bin, tmp_path):
-    view = tmp_path / "view.mcap"
-    out = subprocess.run([reacher_bin, "foxglove", str(cancel_log), "--out", str(view)], capture_output=True, text=True)
-    assert out.returncode == 0, out.stdout + out.stderr
-    messages = read_with_the_official_reader(view)
+def test_the_official_reader_decodes_the_foxglove_view(cancel_log, foxglove_view):
+    messages = read_with_the_official_reader(foxglove_view)
     by_schema = Counter(schema for _, schema, _ in messages)
     log = smirl.read_log(cancel_log)
     states = sum(len(ep["actions"]) + 1 for ep in log["episodes"])
@@ -94,13 +100,10 @@ def test_the_official_reader_decodes_the_foxglove_view(cancel_log, reacher_bin, 
     assert scene.entities and any(e.spheres for e in scene.entities)
 
 
-def test_the_shared_checker_accepts_the_log_and_the_view(cancel_log, reacher_bin, tmp_path):
+def test_the_shared_checker_accepts_the_log_and_the_view(cancel_log, foxglove_view):
     if not SHARED_CHECKER.exists():
         pytest.skip(f"{SHARED_CHECKER} is not on this machine")
-    view = tmp_path / "view.mcap"
-    out = subprocess.run([reacher_bin, "foxglove", str(cancel_log), "--out", str(view)], capture_output=True, text=True)
-    assert out.returncode == 0, out.stdout + out.stderr
-    for path in (cancel_log, view):
+    for path in (cancel_log, foxglove_view):
         out = subprocess.run([sys.executable, str(SHARED_CHECKER), str(path)], capture_output=True, text=True)
         assert out.returncode == 0, out.stdout + out.stderr
 
