@@ -5,7 +5,8 @@
 //! come from the ledger without any run directory; a failed job scores 0 for every policy; a
 //! failed or changed prepare fails its run directory's jobs and the plan goes on; a job past its
 //! timeout is killed and failed; `--partial` counts complete bases only; `check` runs once, and
-//! `run` and table.py refuse once the protocol, its config or the scripts change after the lock.
+//! `run` and table.py refuse once the protocol, its config or the scripts change after the lock;
+//! diagnose.py gives each missed job its first cause and reproduces lost run directories.
 //! Seeds here are the fake's, far from every real range; nothing is written inside the
 //! repository's experiments/.
 
@@ -56,12 +57,17 @@ fn write(path: &Path, text: &str) {
 
 /// The fake binary: `--version` names `commit`; `prepare` appends `prepare:<task>:<base>` to
 /// `log`, exits 1 when `<task>:<base>` is listed in FAKE_PREPARE_FAIL, else writes config.toml
-/// (threads = 2), rm/learned.txt (its text FAKE_MACHINE), expert_data.bin and prepare.json;
+/// (threads = 2), rm/learned.txt (its text FAKE_MACHINE), rm/report.txt (refining the perfect
+/// machine unless the base is listed in FAKE_NOT_REFINES), expert_data.bin and prepare.json;
 /// `job` appends its (algo, seed) to `log`, kills itself with SIGTERM when listed in FAKE_TERM,
 /// with SIGSEGV when listed in FAKE_SEGV, sleeps a minute when listed in FAKE_HANG, exits 1
 /// when listed in FAKE_FAIL, else writes a job file (as `reacher job`, returning at once when
 /// it exists). Its per-iteration success (the last row's) is 0.01, its final-set scores
-/// seed-dependent: a table that reads the wrong one shows it.
+/// seed-dependent: a table that reads the wrong one shows it. SMIRL's choice is the candidate
+/// at 0.96 (the loop's own score with FAKE_CHOOSE_FIRST; 0.5 in its place with
+/// FAKE_NO_ORACLE). `retrain` appends `retrain:<algo>:<seed>:<sac seed>` and writes a
+/// retraining table ending at 1.0 on both branches when listed in FAKE_RETRAIN_SOLVES, else
+/// at 0.3 on the normal one.
 fn fake_reacher(path: &Path, commit: &str, log: &Path) {
     let script = format!(
         r#"#!/usr/bin/env python3
@@ -83,6 +89,10 @@ if a[0] == "prepare":
         fh.write("demo_episodes = 16\nthreads = 2\n\n[env]\nmax_steps = 100\n")
     with open(os.path.join(opt["--out"], "rm", "learned.txt"), "w") as fh:
         fh.write(os.environ.get("FAKE_MACHINE", "u0 -> u1 on r\n"))
+    refines = "false (3 of 9 steps ambiguous)" if listed("FAKE_NOT_REFINES", str(base)) else "true"
+    with open(os.path.join(opt["--out"], "rm", "report.txt"), "w") as fh:
+        fh.write("learned machine: 2 states (2 reachable); perfect machine: 3 states\n"
+                 f"refines the perfect machine along the 16 demonstrations: {{refines}}\n")
     with open(os.path.join(opt["--out"], "expert_data.bin"), "wb") as fh:
         fh.write(b"demonstrations")
     with open(os.path.join(opt["--out"], "prepare.json"), "w") as fh:
@@ -90,6 +100,15 @@ if a[0] == "prepare":
                    "demos_kept": 15, "demos_generated": 16}}, fh)
     sys.exit(0)
 algo, seed = opt["--algo"], int(opt["--seed"])
+if a[0] == "retrain":
+    with open("{log}", "a") as fh:
+        fh.write(f"retrain:{{algo}}:{{seed}}:{{opt['--sac-seed']}}\n")
+    rate = 1.0 if listed("FAKE_RETRAIN_SOLVES", f"{{algo}}:{{seed}}") else 0.3
+    out = os.path.join(opt["--run"], "retrain")
+    os.makedirs(out, exist_ok=True)
+    with open(os.path.join(out, f"{{algo}}_seed{{seed}}_sac{{opt['--sac-seed']}}.csv"), "w") as fh:
+        fh.write(f"env_steps,success_rate,success_normal,success_cancel\n10,0.95,0.95,0.95\n20,{{rate}},{{rate}},1.0\n")
+    sys.exit(0)
 with open("{log}", "a") as fh:
     fh.write(f"{{algo}}:{{seed}}\n")
 me = f"{{algo}}:{{seed}}"
@@ -111,9 +130,9 @@ record = {{"algo": algo, "seed": seed, "wall_secs": 12.0,
           "rows": [{{"iteration": 0, "success_rate": 0.0}}, {{"iteration": 1, "success_rate": 0.01}}],
           "loop_final_set": score((seed % 10) / 10)}}
 if algo == "smirl":
-    record["final_policy"] = {{"chosen": 1, "random": 0, "candidates": [
+    record["final_policy"] = {{"chosen": 0 if listed("FAKE_CHOOSE_FIRST", me) else 1, "random": 0, "candidates": [
         {{"success_rate": 0.01, "final_set": score((seed % 10) / 10)}},
-        {{"success_rate": 0.01, "final_set": score(0.96)}},
+        {{"success_rate": 0.01, "final_set": score(0.5 if listed("FAKE_NO_ORACLE", me) else 0.96)}},
         {{"success_rate": 0.01, "final_set": score(0.2)}}]}}
 os.makedirs(os.path.dirname(path), exist_ok=True)
 with open(path, "w") as fh:
@@ -150,7 +169,7 @@ fn protocol_repo(repo: &Path, plan: &str) -> String {
     git(repo, &["init", "-q", "-b", "main"]);
     git(repo, &["config", "user.email", "test@example.invalid"]);
     git(repo, &["config", "user.name", "test"]);
-    for f in ["run.py", "table.py"] {
+    for f in ["run.py", "table.py", "diagnose.py"] {
         let text = std::fs::read_to_string(manifest.join("experiments/protocol").join(f)).unwrap();
         write(&repo.join("experiments/protocol").join(f), &text);
     }
@@ -878,4 +897,128 @@ fn readings_need_five_bases_and_failed_controls_are_not_called() {
         "{}",
         row("c:paper")
     );
+}
+
+/// The row of diagnosis.md for SMIRL's job with `seed`, split at `|`.
+fn diagnosis_row(diagnosis: &str, seed: u64) -> Vec<String> {
+    let line = diagnosis
+        .lines()
+        .find(|l| l.starts_with("| a | or |") && l.contains(&format!(" | {seed} | ")))
+        .unwrap_or_else(|| panic!("no row for seed {seed} in\n{diagnosis}"));
+    line.split('|').map(|c| c.trim().to_string()).collect()
+}
+
+/// diagnose.py gives each missed job the first cause that applies — failed, the choice (a
+/// candidate solved), the agent (a fresh agent on the learned reward solves, even over a
+/// machine that does not refine the task's), the machine, the reward — retraining only where
+/// the final set leaves the question open; it prepares a lost run directory and reruns its
+/// job again, and a prepare that gives other bytes than the ledger's is "not reproduced"; it
+/// refuses before table.py has run, reads an existing retraining table instead of retraining,
+/// and never writes the ledger.
+#[test]
+fn diagnose_gives_each_missed_job_its_first_cause() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let (repo, bin, log) = locked(tmp.path(), &standard_plan(945_000));
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let jobs = [
+        (
+            "FAKE_CHOOSE_FIRST",
+            "smirl:945000,smirl:945001,smirl:945010",
+        ),
+        ("FAKE_NO_ORACLE", "smirl:945001,smirl:945010"),
+        ("FAKE_FAIL", "smirl:945011"),
+        ("FAKE_NOT_REFINES", "945000"),
+        ("FAKE_RETRAIN_SOLVES", "smirl:945001"),
+    ];
+    let o = s.run(&jobs);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let b = bin.to_str().unwrap();
+    let diagnose = |env: &[(&str, &str)]| {
+        s.script(
+            "diagnose.py",
+            &[NAME, "--bin", b, "--units", "a:smirl"],
+            env,
+        )
+    };
+    let o = diagnose(&jobs);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("jobs.csv does not exist"),
+        "{}",
+        stderr(&o)
+    );
+    let o = s.table(&[]);
+    assert!(o.status.success(), "table: {}", stderr(&o));
+    let ledger = s.state("ledger.jsonl");
+    let lost = std::fs::read_dir(repo.join("runs/protocol").join(NAME))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| {
+            p.file_name()
+                .unwrap()
+                .to_str()
+                .unwrap()
+                .starts_with("or-b945010-")
+        })
+        .expect("the run directory of base 945010");
+    std::fs::remove_dir_all(&lost).unwrap();
+    let mut other_machine = jobs.to_vec();
+    other_machine.push(("FAKE_MACHINE", "u0 -> u1 on g\n"));
+    let o = diagnose(&other_machine);
+    assert!(o.status.success(), "diagnose: {}", stderr(&o));
+    let d = s.state("diagnosis.md");
+    assert_eq!(diagnosis_row(&d, 945010)[8], "not reproduced", "{d}");
+    assert!(
+        diagnosis_row(&d, 945010)[12].contains("other bytes than the ledger"),
+        "{d}"
+    );
+    std::fs::remove_dir_all(&lost).unwrap();
+    std::fs::write(&log, "").unwrap();
+    let o = diagnose(&jobs);
+    assert!(o.status.success(), "diagnose: {}", stderr(&o));
+    let d = s.state("diagnosis.md");
+    // | arm | task | base | seed | loop | chosen | oracle | cause | fresh agent | states |
+    // refines | note |
+    let causes: Vec<(String, String)> = [945000, 945001, 945010, 945011]
+        .iter()
+        .map(|&seed| {
+            let row = diagnosis_row(&d, seed);
+            (row[8].clone(), row[9].clone())
+        })
+        .collect();
+    assert_eq!(
+        causes,
+        [
+            ("choice".to_string(), String::new()),
+            ("agent".to_string(), "1.00, 1.00".to_string()),
+            ("reward".to_string(), "0.30, 0.95".to_string()),
+            ("failed".to_string(), String::new()),
+        ],
+        "{d}"
+    );
+    assert!(
+        diagnosis_row(&d, 945001)[11].starts_with("no (3 of 9"),
+        "{d}"
+    );
+    assert_eq!(diagnosis_row(&d, 945010)[11], "yes", "{d}");
+    // The lost directory was prepared and its job run again; 945001's table from the first
+    // diagnosis was read, not retrained; nothing was retrained for the choice or the failure.
+    let ran = std::fs::read_to_string(&log).unwrap();
+    assert_eq!(
+        ran.lines().collect::<Vec<_>>(),
+        [
+            "prepare:or:945010",
+            "smirl:945010",
+            "retrain:smirl:945010:1000"
+        ],
+        "{d}"
+    );
+    assert_eq!(s.state("ledger.jsonl"), ledger);
 }
