@@ -37,43 +37,40 @@ pub fn toml_error_message(text: &str, e: &toml::de::Error) -> String {
 /// The 1-based line of the key `dotted` (`"lrm_steps"`, `"sac.batch_size"`,
 /// `"env.cancel.latest_step"`: table path, then key) in a TOML document: on its own line
 /// under its `[table]` header, as a dotted key (`sac.batch_size = 3`, or `cancel.latest_step`
-/// under `[env]`), or inside a one-line inline table (`sac = { batch_size = 3 }`: that line).
-/// When the key is absent (its value is a default), the line of the table it would be in;
-/// `None` when neither is there.
+/// under `[env]`), or inside an inline table (`sac = { batch_size = 3 }`). When the key is
+/// absent, the line of the deepest table on its path written with a header or braces; `None`
+/// when there is none, or when `text` is not TOML.
 pub fn key_line(text: &str, dotted: &str) -> Option<usize> {
-    let target = path_of(dotted);
-    let mut current: Vec<String> = Vec::new();
-    // The line where the deepest table enclosing `target` was opened, and its depth.
-    let mut enclosing: Option<(usize, usize)> = None;
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.split('#').next().unwrap_or("").trim();
-        let found = if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
-            current = path_of(name);
-            current.clone()
-        } else if let Some((key, value)) = line.split_once('=') {
-            let mut path = current.clone();
-            path.extend(path_of(key));
-            if value.trim_start().starts_with('{') && target.starts_with(&path) {
-                // Inside a one-line inline table: the whole table is on this line.
-                return Some(i + 1);
-            }
-            path
-        } else {
-            continue;
+    // Read from the parsed document's spans, so that text inside strings (a `[x]` or `k = v`
+    // in a multi-line string) is never taken for a header or a key.
+    let doc = toml_edit::ImDocument::parse(text).ok()?;
+    let line = |at: usize| text[..at.min(text.len())].matches('\n').count() + 1;
+    let path = path_of(dotted);
+    let mut table: &dyn toml_edit::TableLike = doc.as_table();
+    // The line of the deepest table on the way that has one of its own: a `[table]` header
+    // or an inline table's `{` (a dotted key's table has none).
+    let mut enclosing = None;
+    for (depth, part) in path.iter().enumerate() {
+        let Some((key, item)) = table.get_key_value(part) else {
+            return enclosing;
         };
-        if found == target {
-            return Some(i + 1);
+        if depth + 1 == path.len() {
+            return key.span().map(|s| line(s.start)).or(enclosing);
         }
-        // A table (or dotted key) on the way to `target`: remember the deepest.
-        if found.len() < target.len()
-            && target.starts_with(&found)
-            && enclosing.map_or(true, |(_, depth)| found.len() > depth)
-            && line.starts_with('[')
-        {
-            enclosing = Some((i + 1, found.len()));
+        let own = match item {
+            toml_edit::Item::Table(t) => t.span(),
+            toml_edit::Item::Value(toml_edit::Value::InlineTable(t)) => t.span(),
+            _ => None,
+        };
+        if let Some(span) = own {
+            enclosing = Some(line(span.start));
+        }
+        match item.as_table_like() {
+            Some(next) => table = next,
+            None => return enclosing,
         }
     }
-    enclosing.map(|(line, _)| line)
+    enclosing
 }
 
 /// The parts of a TOML key or table name (`env . "cancel"` → `["env", "cancel"]`; dots inside
@@ -115,5 +112,14 @@ mod tests {
         assert_eq!(key_line(text, "schedule.rkl.lr"), Some(3));
         assert_eq!(key_line(text, "schedule.js.tau"), Some(5));
         assert_eq!(key_line(text, "sac.lr"), None);
+    }
+
+    #[test]
+    fn text_inside_strings_is_neither_a_header_nor_a_key() {
+        let text = "note = \"\"\"\n[sac]\nlr = 9\n\"\"\"\nlr = 1 # [env]\n[env]\nname = \"a # b = 2\"\nb = 3\n";
+        assert_eq!(key_line(text, "lr"), Some(5));
+        assert_eq!(key_line(text, "sac.lr"), None);
+        assert_eq!(key_line(text, "env.b"), Some(8));
+        assert_eq!(key_line(text, "env.c"), Some(6));
     }
 }
