@@ -46,6 +46,15 @@ fn write_task(dir: &Path) -> std::path::PathBuf {
     path
 }
 
+/// `reacher --task <path> --quick --out <out>`.
+fn run_quick(path: &Path, out: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args(["--task", path.to_str().unwrap(), "--quick", "--out"])
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn a_new_task_file_runs_smirl_end_to_end() {
     let tmp = tempfile::tempdir().unwrap();
@@ -102,11 +111,7 @@ fn a_bad_task_file_exits_2_before_any_work() {
     let path = write_task(tmp.path());
     std::fs::write(&path, task_text().replace("\"yellow\"", "\"purple\"")).unwrap();
     let out = tmp.path().join("run");
-    let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
-        .args(["--task", path.to_str().unwrap(), "--quick", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
+    let o = run_quick(&path, &out);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(
@@ -212,11 +217,7 @@ fn every_bad_task_file_case_exits_2_naming_its_place() {
         std::fs::write(&path, &task).unwrap();
         std::fs::write(tmp.path().join("avoid_blue.txt"), machine).unwrap();
         let out = tmp.path().join("run");
-        let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
-            .args(["--task", path.to_str().unwrap(), "--quick", "--out"])
-            .arg(&out)
-            .output()
-            .unwrap();
+        let o = run_quick(&path, &out);
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{what}: {stderr}");
         assert!(stderr.contains(expected), "{what}: {stderr}");
@@ -230,11 +231,7 @@ fn every_bad_task_file_case_exits_2_naming_its_place() {
     std::fs::write(&path, task_text()).unwrap();
     let big = format!("{MACHINE}#{}\n", "x".repeat(1 << 20));
     std::fs::write(tmp.path().join("avoid_blue.txt"), big).unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
-        .args(["--task", path.to_str().unwrap(), "--quick", "--out"])
-        .arg(tmp.path().join("run"))
-        .output()
-        .unwrap();
+    let o = run_quick(&path, &tmp.path().join("run"));
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(
