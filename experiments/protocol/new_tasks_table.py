@@ -27,13 +27,10 @@ import sys
 
 sys.path.insert(0, os.path.dirname(__file__))
 import run as protocol  # noqa: E402
+from diagnose import number  # noqa: E402
 
 SOLVED = 0.9
 BRANCHES = ("normal", "event")
-
-
-def number(text):
-    return None if text in ("", "-", None) else float(text)
 
 
 def branch_rates(text):
