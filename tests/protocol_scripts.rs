@@ -6,7 +6,8 @@
 //! failed or changed prepare fails its run directory's jobs and the plan goes on; a job past its
 //! timeout is killed and failed; `--partial` counts complete bases only; `check` runs once, and
 //! `run` and table.py refuse once the protocol, its config or the scripts change after the lock;
-//! diagnose.py gives each missed job its first cause and reproduces lost run directories.
+//! diagnose.py gives each missed job its first cause and reproduces lost run directories;
+//! new_tasks_table.py puts a pool's tasks branch by branch beside their experts.
 //! Seeds here are the fake's, far from every real range; nothing is written inside the
 //! repository's experiments/.
 
@@ -169,7 +170,7 @@ fn protocol_repo(repo: &Path, plan: &str) -> String {
     git(repo, &["init", "-q", "-b", "main"]);
     git(repo, &["config", "user.email", "test@example.invalid"]);
     git(repo, &["config", "user.name", "test"]);
-    for f in ["run.py", "table.py", "diagnose.py"] {
+    for f in ["run.py", "table.py", "diagnose.py", "new_tasks_table.py"] {
         let text = std::fs::read_to_string(manifest.join("experiments/protocol").join(f)).unwrap();
         write(&repo.join("experiments/protocol").join(f), &text);
     }
@@ -1021,4 +1022,56 @@ fn diagnose_gives_each_missed_job_its_first_cause() {
         "{d}"
     );
     assert_eq!(s.state("ledger.jsonl"), ledger);
+}
+
+/// new_tasks_table.py puts a pool's tasks branch by branch: the expert's successes per branch
+/// from its summary, and per arm the solved counts and the reported policy's mean per branch,
+/// a failed job counting 0 on each branch (left out, the means would be 0.96 and 1.00).
+#[test]
+fn the_pool_table_gives_every_arm_per_branch_beside_the_expert() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let plan = format!(
+        "{}\n[analysis]\npools = {{ p = [\"or\"] }}\n",
+        standard_plan(946_000)
+    );
+    let (repo, bin, _log) = locked(tmp.path(), &plan);
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let o = s.run(&[("FAKE_FAIL", "smirl:946011")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = s.table(&[]);
+    assert!(o.status.success(), "table: {}", stderr(&o));
+    write(
+        &repo.join("experts/summary_or.json"),
+        r#"{"success_stochastic": 0.9, "success_mean": 0.95,
+            "branches_stochastic": {"episodes": [60, 40], "successes": [57, 36]},
+            "branches_mean": {"episodes": [60, 40], "successes": [60, 40]}}"#,
+    );
+    let o = s.script(
+        "new_tasks_table.py",
+        &[NAME, "--pool", "p", "--experts", "experts"],
+        &[],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let t = s.state("p_tasks.md");
+    assert!(
+        t.contains("| or | 57/60 (0.95), 36/40 (0.90) | 60/60 (1.00), 40/40 (1.00) |"),
+        "{t}"
+    );
+    // smirl: the choice (0.96, 1.00) in three jobs, one failed; paper: its loop's own
+    // (0.0, 0.1, 0.0, 0.1 on the normal branch, 1.00 on the event's).
+    assert!(
+        t.contains("| or | a | smirl | 4 | 1 | 3/4 | 0/4 | normal 0.72, event 0.75 |"),
+        "{t}"
+    );
+    assert!(
+        t.contains("| or | a | paper | 4 | 0 | 0/4 | 0/4 | normal 0.05, event 1.00 |"),
+        "{t}"
+    );
 }

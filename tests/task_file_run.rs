@@ -1,7 +1,7 @@
 //! A task nobody wrote code for: a task file written here (a new machine, a new layout) runs
-//! the IRL pipeline end to end; a bad task file stops `reacher` with exit 2 before any work;
-//! a task file's expert is keyed by its content and never the committed expert of a shipped
-//! task of the same name.
+//! the IRL pipeline end to end; every bad task file stops `reacher` with exit 2 before any
+//! work; a task file's expert is keyed by its content (task, machine and scene) and never the
+//! committed expert of a shipped task of the same name.
 
 mod irl_run_common;
 
@@ -44,6 +44,15 @@ fn write_task(dir: &Path) -> std::path::PathBuf {
     let path = dir.join("avoid_blue.toml");
     std::fs::write(&path, task_text()).unwrap();
     path
+}
+
+/// `reacher --task <path> --quick --out <out>`.
+fn run_quick(path: &Path, out: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args(["--task", path.to_str().unwrap(), "--quick", "--out"])
+        .arg(out)
+        .output()
+        .unwrap()
 }
 
 #[test]
@@ -102,11 +111,7 @@ fn a_bad_task_file_exits_2_before_any_work() {
     let path = write_task(tmp.path());
     std::fs::write(&path, task_text().replace("\"yellow\"", "\"purple\"")).unwrap();
     let out = tmp.path().join("run");
-    let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
-        .args(["--task", path.to_str().unwrap(), "--quick", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
+    let o = run_quick(&path, &out);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(
@@ -114,6 +119,125 @@ fn a_bad_task_file_exits_2_before_any_work() {
         "{stderr}"
     );
     assert!(!out.exists());
+}
+
+/// Every bad-input case of a task file stops `reacher` with exit 2, its message naming the
+/// file, the line and the key (or the limit), and nothing written: the checks run when the
+/// `--task` argument is read, before any work.
+#[test]
+fn every_bad_task_file_case_exits_2_naming_its_place() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = write_task(tmp.path());
+    let text = task_text();
+    let extra_events: String = ["d", "e", "f", "h"]
+        .iter()
+        .map(|l| format!("\n[[event]]\nletter = \"{l}\"\nprobability = 0.1\nearliest_step = 2\nlatest_step = 9\n"))
+        .collect();
+    let extra_regions: String = ["k", "m", "n"]
+        .iter()
+        .map(|l| format!("\n[[region]]\nletter = \"{l}\"\nbody = \"blue\"\nradius = 0.02\n"))
+        .collect();
+    let xml = smirl::assets::REACHER_XML.replace(
+        "name=\"fingertip\" pos=\"0.11 0 0\"",
+        "name=\"tip\" pos=\"0.11 0 0\"",
+    );
+    std::fs::write(tmp.path().join("tipless.xml"), xml).unwrap();
+    std::fs::write(tmp.path().join("not.xml"), "this is not MJCF").unwrap();
+    let padded = format!("{text}#{}\n", "x".repeat(1 << 20));
+    let cases: Vec<(&str, String, &str, &str)> = vec![
+        (
+            "a letter used twice",
+            text.replace("letter = \"c\"", "letter = \"r\""),
+            MACHINE,
+            "avoid_blue.toml:31: `event[0].letter`: letter 'r' is defined twice (first on line 7)",
+        ),
+        (
+            "a machine proposition no label or event defines",
+            text.clone(),
+            "vocabulary: rgbycz\nstates: 1\ninitial: 0\nterminal: \nfailure: \n",
+            "avoid_blue.toml:2: `machine`",
+        ),
+        (
+            "a radius of 0",
+            text.replacen("radius = 0.02", "radius = 0.0", 1),
+            MACHINE,
+            "avoid_blue.toml:9: `region[0].radius`",
+        ),
+        (
+            "a radius beyond the arena",
+            text.replacen("radius = 0.02", "radius = 0.5", 1),
+            MACHINE,
+            "avoid_blue.toml:9: `region[0].radius`",
+        ),
+        (
+            "an event window outside the episode",
+            text.replace("latest_step = 20", "latest_step = 101"),
+            MACHINE,
+            "avoid_blue.toml:34: `event[0].latest_step`",
+        ),
+        (
+            "an unreadable scene",
+            text.replace("\"builtin\"", "\"absent.xml\""),
+            MACHINE,
+            "avoid_blue.toml:1: `scene`",
+        ),
+        (
+            "a scene MuJoCo cannot load",
+            text.replace("\"builtin\"", "\"not.xml\""),
+            MACHINE,
+            "avoid_blue.toml:1: `scene`: cannot load the scene",
+        ),
+        (
+            "a scene without the fingertip body",
+            text.replace("\"builtin\"", "\"tipless.xml\""),
+            MACHINE,
+            "avoid_blue.toml:1: `scene`",
+        ),
+        (
+            "more events than the limit",
+            format!("{text}{extra_events}"),
+            MACHINE,
+            "5 events, more than the limit of 4",
+        ),
+        (
+            "more randomised regions than the limit",
+            format!("{text}{extra_regions}")
+                .replace("randomize_layout = false", "randomize_layout = true"),
+            MACHINE,
+            "7 regions in a randomised layout, more than the limit of 6",
+        ),
+        (
+            "a task file over 1 MiB",
+            padded,
+            MACHINE,
+            "larger than the limit of 1048576 bytes",
+        ),
+    ];
+    for (what, task, machine, expected) in cases {
+        std::fs::write(&path, &task).unwrap();
+        std::fs::write(tmp.path().join("avoid_blue.txt"), machine).unwrap();
+        let out = tmp.path().join("run");
+        let o = run_quick(&path, &out);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{what}: {stderr}");
+        assert!(stderr.contains(expected), "{what}: {stderr}");
+        assert!(
+            stderr.contains("avoid_blue.toml"),
+            "{what}: the file is not named: {stderr}"
+        );
+        assert!(!out.exists(), "{what}: {} was written", out.display());
+    }
+    // A machine file over 1 MiB: its own name and the limit.
+    std::fs::write(&path, task_text()).unwrap();
+    let big = format!("{MACHINE}#{}\n", "x".repeat(1 << 20));
+    std::fs::write(tmp.path().join("avoid_blue.txt"), big).unwrap();
+    let o = run_quick(&path, &tmp.path().join("run"));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("avoid_blue.txt") && stderr.contains("limit of 1048576 bytes"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -143,6 +267,21 @@ fn a_task_files_expert_is_keyed_by_its_content() {
     .unwrap();
     let changed = ReacherTask::resolve(path.to_str().unwrap()).unwrap();
     assert_ne!(expert_cache_path(cache, changed), first);
+    // A user's scene: the same task text over an edited scene file, another key.
+    std::fs::write(tmp.path().join("avoid_blue.txt"), MACHINE).unwrap();
+    let scene = tmp.path().join("scene.xml");
+    std::fs::write(&scene, smirl::assets::REACHER_XML).unwrap();
+    std::fs::write(&path, task_text().replace("\"builtin\"", "\"scene.xml\"")).unwrap();
+    let own_scene = ReacherTask::resolve(path.to_str().unwrap()).unwrap();
+    let before = expert_cache_path(cache, own_scene);
+    assert_ne!(before, first);
+    let edited =
+        smirl::assets::REACHER_XML.replacen("<worldbody>", "<worldbody>\n    <!-- edited -->", 1);
+    assert_ne!(edited, smirl::assets::REACHER_XML);
+    std::fs::write(&scene, edited).unwrap();
+    let edited_scene = ReacherTask::resolve(path.to_str().unwrap()).unwrap();
+    assert_ne!(expert_cache_path(cache, edited_scene), before);
+    std::fs::write(&path, task_text()).unwrap();
     // Shipped tasks keep their committed experts' names.
     let composite = ReacherTask::shipped("composite").unwrap();
     assert_eq!(
