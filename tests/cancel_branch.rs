@@ -140,9 +140,16 @@ fn default_schedule_cancels_half_the_episodes_early() {
     // Binomial(1000, 0.5): 500 ± 4σ (σ ≈ 16).
     assert!((436..=564).contains(&scheduled), "{scheduled}");
 
-    // The first schedule is still there for comparison: nothing fires before step 10.
+    // A schedule that differs from the default replaces the task's: with the window 10..=60
+    // (which comes after blue in almost every IF and Composite episode) nothing fires before
+    // step 10.
+    let late_window = CancelConfig {
+        probability: 0.5,
+        earliest_step: 10,
+        latest_step: 60,
+    };
     let mut late = ReacherDelivery::new(shipped_config(ReacherConfig {
-        cancel: CancelConfig::LATE,
+        cancel: late_window,
         ..ReacherConfig::default()
     }))
     .unwrap();

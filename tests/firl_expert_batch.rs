@@ -26,7 +26,6 @@ fn rows(n: usize, first: f32) -> Vec<f32> {
 fn expert() -> ExpertData {
     ExpertData {
         obs: rows(2, 100.0),
-        labels_before: Vec::new(),
         lengths: vec![T, T],
         learned_states: Vec::new(),
     }

@@ -198,6 +198,18 @@ fn a_prepared_run_with_damaged_files_is_refused_by_its_jobs() {
         "{}",
         stderr(&o)
     );
+    // A file of the previous format version (2: with the labels before each step).
+    let mut old = original.clone();
+    old[8..12].copy_from_slice(&2u32.to_le_bytes());
+    std::fs::write(&data_path, &old).unwrap();
+    let o = job(dir);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("expert_data.bin")
+            && stderr(&o).contains("format version 2 is not supported"),
+        "{}",
+        stderr(&o)
+    );
     std::fs::write(&data_path, &original).unwrap();
 
     // A machine file over the text limit.

@@ -60,109 +60,34 @@ fn label_features_are_the_label_bits() {
     assert!(labels.contains(1) && labels.contains(layout().event_bit(0)) && !labels.contains(0));
 }
 
-/// Label entries: a label counts on the step it becomes true, read against the labels before
-/// the step that the row carries after the observation.
+/// The lingering trap (issue 13): with the labels of the state reached, a policy that stays on
+/// a ball collects its weight on every step it stays, so a reward that pays a ball touched
+/// along the way can be worth more to sit on than the task.
 #[test]
-fn label_entry_features_count_a_label_on_the_step_it_becomes_true() {
-    use smirl::rm::LabelSet;
-    let f = FeatureMap::reacher_label_entries(&layout());
-    assert_eq!((f.len(), f.obs_dim()), (5, obs_dim() + 1));
-    assert!(
-        f.reads_labels_before() && !FeatureMap::reacher_labels(&layout()).reads_labels_before()
-    );
-    let red = LabelSet::EMPTY.with(0);
-    let red_cancel = red.with(layout().event_bit(0));
-    // (observation after the step, labels before it) -> features.
-    let cases = [
-        (
-            touching(0, false),
-            LabelSet::EMPTY,
-            [1.0, 0.0, 0.0, 0.0, 0.0],
-        ),
-        (touching(0, false), red, [0.0; 5]),
-        (touching(0, false), red_cancel, [0.0; 5]),
-        (touching(2, false), red, [0.0, 0.0, 1.0, 0.0, 0.0]),
-        (touching(0, true), red, [0.0, 0.0, 0.0, 0.0, 1.0]),
-        (nothing(), red, [0.0; 5]),
-    ];
-    let mut obs = Vec::new();
-    let mut before = Vec::new();
-    for (o, b, _) in &cases {
-        obs.extend_from_slice(o);
-        before.push(*b);
-    }
-    let mut rows = Vec::new();
-    f.step_rows(&obs, &before, &mut rows);
-    assert_eq!(rows.len(), cases.len() * (obs_dim() + 1));
-    let mut phi = vec![0.0; 5];
-    for (row, (_, b, want)) in rows.chunks_exact(obs_dim() + 1).zip(&cases) {
-        f.features(row, &mut phi);
-        assert_eq!(phi, want, "labels before {b:?}");
-        // The labels themselves are read off the observation part as before.
-        assert_eq!(
-            f.labels_of(row),
-            FeatureMap::reacher_labels(&layout()).labels_of(&row[..obs_dim()])
-        );
-    }
-    // A state feature map's rows are the observations themselves.
-    FeatureMap::reacher_labels(&layout()).step_rows(&obs, &[], &mut rows);
-    assert_eq!(rows, obs);
-    // The kind and the column go together.
-    let entries_without_column =
-        FeatureMap::new(FeatureKind::LabelEntries, ObsLayout::of(&layout()));
-    assert!(entries_without_column.is_err());
-    let labels_with_column = FeatureMap::new(
-        FeatureKind::Labels,
-        ObsLayout::with_labels_before(&layout()),
-    );
-    assert!(labels_with_column.is_err());
-}
-
-/// The lingering trap (issue 13): with the labels of the state, a policy that stays on a
-/// ball collects its weight on every step it stays, so a reward that pays a ball touched
-/// along the way can be worth more to sit on than the task; with label entries, staying
-/// earns nothing beyond the entry.
-#[test]
-fn staying_on_a_ball_pays_every_step_with_state_labels_and_once_with_entries() {
-    use smirl::rm::LabelSet;
-    let episode_return = |features: FeatureMap, steps_on_red: usize| {
-        let mut model =
-            LinearRmReward::new(features.clone(), 1, RewardOptimConfig::sgd(0.1)).unwrap();
-        model.set_params(&[2.0, 0.0, 1.0, 0.0, 0.0]).unwrap();
-        let mut obs = nothing();
-        let mut before = vec![LabelSet::EMPTY];
-        for _ in 0..steps_on_red {
-            obs.extend(touching(0, false));
-            before.push(features.labels_of(&obs[obs.len() - 2 * obs_dim()..]));
-        }
-        let mut rows = Vec::new();
-        features.step_rows(&obs, &before, &mut rows);
-        let mut r = vec![0.0f32; before.len()];
-        model
-            .reward_batch(&rows, &vec![0; before.len()], &mut r)
-            .unwrap();
-        r.iter().sum::<f32>()
-    };
+fn staying_on_a_ball_pays_every_step_with_state_labels() {
+    let features = FeatureMap::reacher_labels(&layout());
+    let mut model = LinearRmReward::new(features, 1, RewardOptimConfig::sgd(0.1)).unwrap();
+    model.set_params(&[2.0, 0.0, 1.0, 0.0, 0.0]).unwrap();
     for k in [1, 2, 10] {
-        assert_eq!(
-            episode_return(FeatureMap::reacher_labels(&layout()), k),
-            2.0 * k as f32
-        );
-        assert_eq!(
-            episode_return(FeatureMap::reacher_label_entries(&layout()), k),
-            2.0
-        );
+        let mut obs = nothing();
+        for _ in 0..k {
+            obs.extend(touching(0, false));
+        }
+        let mut r = vec![0.0f32; k + 1];
+        model.reward_batch(&obs, &vec![0; k + 1], &mut r).unwrap();
+        assert_eq!(r.iter().sum::<f32>(), 2.0 * k as f32);
     }
 }
 
-/// A label-entry reward saves and loads with its layout; reward files written before the
-/// labels-before column existed (no such key) still load as label features.
+/// A label reward saves and loads with its layout; a reward file whose feature kind this build
+/// does not have (`label_entries`, the features of a past experiment) is refused naming the
+/// kind and the file.
 #[test]
-fn label_entry_reward_saves_and_loads_and_old_files_still_load() {
+fn label_reward_saves_and_loads_and_an_unknown_feature_kind_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("entries.json");
+    let path = dir.path().join("labels.json");
     let mut model = LinearRmReward::new(
-        FeatureMap::reacher_label_entries(&layout()),
+        FeatureMap::reacher_labels(&layout()),
         2,
         RewardOptimConfig::sgd(0.1),
     )
@@ -171,35 +96,29 @@ fn label_entry_reward_saves_and_loads_and_old_files_still_load() {
     model.set_params(&w).unwrap();
     model.save(&path).unwrap();
     let back = LinearRmReward::load(&path, RewardOptimConfig::sgd(0.1)).unwrap();
-    assert_eq!(
-        back.features(),
-        &FeatureMap::reacher_label_entries(&layout())
-    );
+    assert_eq!(back.features(), &FeatureMap::reacher_labels(&layout()));
     assert_eq!(back.params(), w);
 
-    let old = dir.path().join("old.json");
-    let old_layout = r#"{"obs_dim": 17, "ball_deltas": [[8, 9], [10, 11], [12, 13], [14, 15]],
-        "cancel": 16, "touch_radius": 0.02}"#;
-    let text = format!(
-        r#"{{"format": "smirl-linear-rm-reward/1", "features": {{"kind": {{"kind": "labels"}},
-        "layout": {old_layout}}}, "n_states": 1, "weights": [[1.0, 0.0, 0.0, 0.0, 0.0]]}}"#
-    );
-    std::fs::write(&old, text).unwrap();
-    let back = LinearRmReward::load(&old, RewardOptimConfig::sgd(0.1)).unwrap();
+    let file = |kind: &str| {
+        format!(
+            r#"{{"format": "smirl-linear-rm-reward/1", "features": {{"kind": {{"kind": "{kind}"}},
+            "layout": {{"obs_dim": 17, "ball_deltas": [[8, 9], [10, 11], [12, 13], [14, 15]],
+            "cancel": 16, "touch_radius": 0.02}}}}, "n_states": 1,
+            "weights": [[1.0, 0.0, 0.0, 0.0, 0.0]]}}"#
+        )
+    };
+    let written = dir.path().join("written.json");
+    std::fs::write(&written, file("labels")).unwrap();
+    let back = LinearRmReward::load(&written, RewardOptimConfig::sgd(0.1)).unwrap();
     assert_eq!(back.features(), &FeatureMap::reacher_labels(&layout()));
-    // A file that claims entries without the column is refused, naming the file.
     let bad = dir.path().join("bad.json");
-    let text = format!(
-        r#"{{"format": "smirl-linear-rm-reward/1", "features": {{"kind": {{"kind": "label_entries"}},
-        "layout": {old_layout}}}, "n_states": 1, "weights": [[1.0, 0.0, 0.0, 0.0, 0.0]]}}"#
-    );
-    std::fs::write(&bad, text).unwrap();
+    std::fs::write(&bad, file("label_entries")).unwrap();
     let err = LinearRmReward::load(&bad, RewardOptimConfig::sgd(0.1))
         .err()
         .unwrap()
         .to_string();
     assert!(
-        err.contains("bad.json") && err.contains("labels-before"),
+        err.contains("bad.json") && err.contains("unknown variant `label_entries`"),
         "{err}"
     );
 }

@@ -9,7 +9,6 @@ use rand_chacha::ChaCha8Rng;
 use smirl::env::product::ProductEnv;
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use smirl::env::reacher_task::ReacherTask;
-use smirl::irl::smirl::FeatureMap;
 use smirl::log::{LogOptions, RolloutLogger, RunHeader};
 use smirl::nn::{Mlp, MlpArch};
 use smirl::pipeline::reacher_irl::episodes::{
@@ -98,7 +97,6 @@ fn one_at_a_time<E: JobEnv>(
     let mut agent = agent(3, env.obs_dim());
     let mut rng = ChaCha8Rng::seed_from_u64(99);
     let mut log = logger(log_path);
-    let labelling = FeatureMap::reacher_labels(&layout());
     let mut batch = AgentBatch::default();
     let mut outcomes = Vec::new();
     for &spec in specs {
@@ -110,8 +108,8 @@ fn one_at_a_time<E: JobEnv>(
             spec,
             &mut rng,
             Some(&mut log),
-            |before, after, u| {
-                batch.push_step(&labelling, before, after, u);
+            |after, u| {
+                batch.push_step(after, u);
                 len += 1;
             },
         )
@@ -185,7 +183,6 @@ fn same_steps(a: &AgentBatch, b: &AgentBatch, what: &str) {
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(a.lengths, b.lengths, "{what}: lengths");
     assert_eq!(bits(&a.obs), bits(&b.obs), "{what}: observations");
-    assert_eq!(a.labels_before, b.labels_before, "{what}: labels");
     assert_eq!(a.states, b.states, "{what}: learned states");
 }
 

@@ -339,15 +339,11 @@ fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cance
     let demos = [vec![e, b, e, r], vec![c, e, r]];
     let mut expert = ExpertData {
         obs: Vec::new(),
-        labels_before: Vec::new(),
         lengths: Vec::new(),
         learned_states: Vec::new(),
     };
     for d in &demos {
         expert.obs.extend(d.iter().flat_map(|&l| row_of(l)));
-        expert
-            .labels_before
-            .extend(std::iter::once(e).chain(d[..d.len() - 1].iter().copied()));
         expert.learned_states.extend(states_along(&m, d));
         expert.lengths.push(d.len());
     }
@@ -475,14 +471,12 @@ fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
         [&[(0, g), (0, g), (0, b), (1, e)], &[(0, b), (1, e), (1, e)]];
     let mut expert = ExpertData {
         obs: Vec::new(),
-        labels_before: Vec::new(),
         lengths: Vec::new(),
         learned_states: Vec::new(),
     };
     for t in expert_steps {
         for &(u, l) in t {
             expert.obs.extend(row_of(l));
-            expert.labels_before.push(e);
             expert.learned_states.push(u);
         }
         expert.lengths.push(t.len());
@@ -491,7 +485,6 @@ fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
     for t in agent_steps {
         for &(u, l) in t {
             agent.obs.extend(row_of(l));
-            agent.labels_before.push(e);
             agent.states.push(u);
         }
         agent.lengths.push(t.len());

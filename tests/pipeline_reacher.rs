@@ -37,7 +37,6 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     // and red in u1, one trajectory.
     let mut expert = ExpertData {
         obs: Vec::new(),
-        labels_before: vec![smirl::rm::LabelSet::EMPTY; 5],
         lengths: vec![3, 2],
         learned_states: vec![0, 0, 1, 0, 1],
     };
@@ -52,7 +51,6 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     for b in [Some(1), Some(0), None] {
         agent.obs.extend(row(b));
     }
-    agent.labels_before = vec![smirl::rm::LabelSet::EMPTY; 3];
     let c = smirl::pipeline::reacher_irl::smirl::coefficients(
         &FeatureMap::reacher_labels(&layout()),
         &expert,
@@ -719,13 +717,7 @@ fn annotate_holds_the_final_state_to_the_horizon() {
             task_reward: 0.0,
         }
     };
-    // Each step starts where the one before ended; the first from an untouched observation.
-    let mut steps = vec![step(None, false), step(Some(0), false), step(Some(2), true)];
-    let mut before: Vec<f32> = row(None);
-    for s in &mut steps {
-        s.obs = before;
-        before = s.next_obs.clone();
-    }
+    let steps = vec![step(None, false), step(Some(0), false), step(Some(2), true)];
     let demo = Demo {
         seed: 0,
         initial_rm_state: 0,
@@ -738,26 +730,9 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     let plain = annotate(&layout(), std::slice::from_ref(&demo), Some(&rm), None);
     assert_eq!(plain.lengths, vec![3]);
     assert_eq!(plain.learned_states, vec![0, 0, 1]);
-    // The labels before each step: the first step's observation (here nothing touched), then
-    // each step's predecessor.
-    let labels = |s: &str| vocab.parse_labels(s).unwrap();
-    assert_eq!(
-        plain.labels_before,
-        vec![labels(""), labels(""), labels("r")]
-    );
 
     let held = annotate(&layout(), std::slice::from_ref(&demo), Some(&rm), Some(6));
     assert_eq!(held.lengths, vec![6]);
-    // The last recorded step touched blue with the cancel; the held steps stay on blue.
-    let after_blue = vec![
-        labels(""),
-        labels(""),
-        labels("r"),
-        labels("bc"),
-        labels("b"),
-        labels("b"),
-    ];
-    assert_eq!(held.labels_before, after_blue);
     // After the final (blue) step the machine is in u2, where the held blue touch is read.
     assert_eq!(held.learned_states, vec![0, 0, 1, 2, 2, 2]);
     assert_eq!(&held.obs[..3 * obs_dim()], &plain.obs[..]);
@@ -777,29 +752,40 @@ fn annotate_holds_the_final_state_to_the_horizon() {
     assert_eq!(full.lengths, vec![3]);
 }
 
-/// `expert_data.bin`: what `reacher prepare` hands the jobs reads back exactly, and a file
-/// whose arrays disagree is refused.
+/// `expert_data.bin`: what `reacher prepare` hands the jobs reads back exactly; a file whose
+/// arrays disagree, a cut one and one of another format version are refused.
 #[test]
 fn expert_data_round_trips_and_checks_its_arrays() {
-    use smirl::rm::LabelSet;
     let mut data = ExpertData {
         obs: (0..3 * obs_dim()).map(|i| i as f32 * 0.01).collect(),
-        labels_before: vec![LabelSet::EMPTY, LabelSet(1), LabelSet(0b10001)],
         lengths: vec![2, 1],
         learned_states: vec![0, 1, 0],
     };
-    let back = ExpertData::from_bytes(&data.to_bytes(), obs_dim()).unwrap();
+    let bytes = data.to_bytes();
+    let back = ExpertData::from_bytes(&bytes, obs_dim()).unwrap();
     assert_eq!(back.obs, data.obs);
-    assert_eq!(back.labels_before, data.labels_before);
     assert_eq!(back.lengths, data.lengths);
     assert_eq!(back.learned_states, data.learned_states);
-    data.labels_before.pop();
+    assert!(ExpertData::from_bytes(&bytes[..bytes.len() - 3], obs_dim()).is_err());
+    // The version follows the 8 magic bytes; 2 is the layout with the labels before each step.
+    let mut old = bytes.clone();
+    old[8..12].copy_from_slice(&2u32.to_le_bytes());
+    let err = ExpertData::from_bytes(&old, obs_dim())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("version 2 is not supported"), "{err}");
+    data.obs.truncate(2 * obs_dim());
     let err = ExpertData::from_bytes(&data.to_bytes(), obs_dim())
         .unwrap_err()
         .to_string();
-    assert!(err.contains("labels before"), "{err}");
-    let bytes = data.to_bytes();
-    assert!(ExpertData::from_bytes(&bytes[..bytes.len() - 3], obs_dim()).is_err());
+    assert!(err.contains("do not fill"), "{err}");
+    data.lengths = vec![1, 1];
+    data.learned_states.pop();
+    data.learned_states.pop();
+    let err = ExpertData::from_bytes(&data.to_bytes(), obs_dim())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("1 states for 2 steps"), "{err}");
 }
 
 /// The final phase's keys are checked together (a message names `[final]`'s key), and a

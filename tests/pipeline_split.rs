@@ -363,8 +363,9 @@ fn configs_print_shortest_decimals_and_read_back_the_same() {
 /// `reacher retrain`: a fresh SAC agent on a finished job's final reward, judged on the ground
 /// truth; the table is written once (again only with --force), the same seed gives the same
 /// table, and bad input — a job that has not run, zero steps, more evaluations than steps, an
-/// Office algorithm, a learned state the machine lacks, a run's `.partial` working directory, a
-/// bad agent settings file — exits 2 before any training, writing nothing; zeroed states and
+/// Office algorithm, a learned state the machine lacks, a reward file of a feature kind this
+/// build does not have, a run's `.partial` working directory, a bad agent settings file — exits
+/// 2 before any training, writing nothing; zeroed states and
 /// other agent settings write tables of their own.
 #[test]
 fn retrain_judges_a_fresh_policy_on_the_final_reward() {
@@ -464,6 +465,17 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
         &retrain(&["--steps", "400", "--zero-state", "4294967297"]),
         "--zero-state 4294967297",
     );
+    // A reward file of a feature kind this build does not have (`label_entries`, a past
+    // experiment's) is refused naming the kind and the file, before any training.
+    let reward = dir.join("run/rewards/smirl_seed5.json");
+    let saved = std::fs::read_to_string(&reward).unwrap();
+    let entries = saved.replace(r#""kind": "labels""#, r#""kind": "label_entries""#);
+    assert_ne!(entries, saved);
+    std::fs::write(&reward, entries).unwrap();
+    let o = retrain(&["--steps", "400"]);
+    usage_error(&o, "unknown variant `label_entries`");
+    usage_error(&o, "smirl_seed5.json");
+    std::fs::write(&reward, saved).unwrap();
     ok(&retrain(&[
         "--steps",
         "400",

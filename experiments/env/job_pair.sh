@@ -14,7 +14,8 @@
 # (an older commit): each binary prints its own standard configuration (cut to ITERS the same
 # way), prepares its own run and runs it; the script then checks that the two binaries give the
 # same bytes of expert demonstrations on every paper task (`expert_data.bin` of an fkl run:
-# observations, labels, lengths) and that each binary's jobs match its own first job, and
+# format version, observations, lengths; binaries that write different versions of the file
+# differ there whatever their demonstrations) and that each binary's jobs match its own first job, and
 # prints the median wall seconds of each side with their ratio too.
 #
 #   [ALGO=smirl] [OWN_CONFIG=1] nice -n 10 experiments/env/job_pair.sh BEFORE_BIN AFTER_BIN [REPS] [ITERS]
@@ -57,8 +58,8 @@ if [ "$OWN_CONFIG" = 1 ]; then
     job_config "$BEFORE" "$WORK/job_before.toml"
     "$BEFORE" prepare --task composite --config "$WORK/job_before.toml" --algo "$ALGO" --quiet \
         --out "$WORK/prepared_before" > /dev/null
-    # The experts' demonstrations of every paper task, prepared for fkl (observations, labels
-    # and lengths; no learned machine), by each binary with its own standard configuration.
+    # The experts' demonstrations of every paper task, prepared for fkl (observations and
+    # lengths; no learned machine), by each binary with its own standard configuration.
     demos=""
     for task in or sequential if composite; do
         for side in before after; do

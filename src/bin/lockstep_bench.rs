@@ -16,7 +16,6 @@ use rand_chacha::ChaCha8Rng;
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use smirl::env::reacher_task::ReacherTask;
 use smirl::env::ContinuousEnv;
-use smirl::irl::smirl::FeatureMap;
 use smirl::pipeline::reacher_irl::episodes::{
     play_episode, AgentBatch, EpisodeSpec, GroundTruthTask,
 };
@@ -75,7 +74,6 @@ fn main() -> Result<()> {
             phase: "agent",
         })
         .collect();
-    let labelling = FeatureMap::reacher_labels(&composite.layout());
     let total_steps = args.episodes as f64 * steps as f64;
 
     // Variants: (label, batch, threads).
@@ -102,18 +100,10 @@ fn main() -> Result<()> {
         let mut reference = AgentBatch::default();
         for &spec in &specs {
             let mut len = 0;
-            play_episode(
-                &mut agent,
-                &mut env,
-                &task,
-                spec,
-                &mut rng,
-                None,
-                |b, a, u| {
-                    reference.push_step(&labelling, b, a, u);
-                    len += 1;
-                },
-            )
+            play_episode(&mut agent, &mut env, &task, spec, &mut rng, None, |a, u| {
+                reference.push_step(a, u);
+                len += 1;
+            })
             .map_err(anyhow::Error::msg)?;
             reference.lengths.push(len);
         }

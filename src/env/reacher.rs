@@ -64,15 +64,6 @@ pub struct CancelConfig {
 }
 
 impl CancelConfig {
-    /// Steps 10..=60, the schedule of `experiments/reacher/config_cancel_late.toml`: it
-    /// fires after blue in almost every IF and Composite episode, so those tasks never take
-    /// their cancel branch.
-    pub const LATE: CancelConfig = CancelConfig {
-        probability: 0.5,
-        earliest_step: 10,
-        latest_step: 60,
-    };
-
     /// The schedule of an event of a task.
     pub fn of(event: &Event) -> CancelConfig {
         CancelConfig {

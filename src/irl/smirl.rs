@@ -61,10 +61,6 @@ pub enum FeatureKind {
     Labels,
     /// φ_k = exp(−d_k²/(2σ²)) per region, plus the event flags (documented variant).
     Smooth { sigma: f64 },
-    /// φ = L(o_{t+1}) \ L(o_t): the label bits that became true on the step (a ball entered,
-    /// the cancel fired). The row carries the labels before the step in the layout's
-    /// `labels_before` column.
-    LabelEntries,
 }
 
 /// Where a feature map finds things in an observation row: the task's regions and events
@@ -79,11 +75,6 @@ pub struct ObsLayout {
     pub events: Vec<usize>,
     /// A region's label is true when the fingertip is strictly closer than its radius.
     pub radii: Vec<f64>,
-    /// Column holding the bit mask of the labels *before* the step (`LabelSet::0` as an
-    /// `f32`, exact for the few bits there are), for features of the step rather than of the
-    /// state ([`FeatureKind::LabelEntries`]); rows are then one column wider than the
-    /// observation.
-    pub labels_before: Option<usize>,
 }
 
 /// [`ObsLayout`] as reward files write it: a task with one event names its column `cancel`,
@@ -101,8 +92,6 @@ struct ObsLayoutFile {
     touch_radius: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     radii: Option<Vec<f64>>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    labels_before: Option<usize>,
 }
 
 impl From<ObsLayout> for ObsLayoutFile {
@@ -118,7 +107,6 @@ impl From<ObsLayout> for ObsLayoutFile {
             touch_radius: one_radius.copied(),
             radii: one_radius.is_none().then(|| l.radii.clone()),
             ball_deltas: l.ball_deltas,
-            labels_before: l.labels_before,
         }
     }
 }
@@ -145,7 +133,6 @@ impl TryFrom<ObsLayoutFile> for ObsLayout {
             ball_deltas: f.ball_deltas,
             events,
             radii,
-            labels_before: f.labels_before,
         })
     }
 }
@@ -160,16 +147,6 @@ impl ObsLayout {
                 .collect(),
             events: (0..task.n_events()).map(|e| task.event_column(e)).collect(),
             radii: task.regions.iter().map(|r| r.radius).collect(),
-            labels_before: None,
-        }
-    }
-
-    /// A task's observation followed by the labels before the step.
-    pub fn with_labels_before(task: &TaskLayout) -> ObsLayout {
-        ObsLayout {
-            obs_dim: task.obs_dim() + 1,
-            labels_before: Some(task.obs_dim()),
-            ..ObsLayout::of(task)
         }
     }
 }
@@ -190,11 +167,6 @@ impl FeatureMap {
                 )));
             }
         }
-        if (kind == FeatureKind::LabelEntries) != layout.labels_before.is_some() {
-            return Err(RewardError::Config(
-                "label-entry features need the labels-before column, and only they read it".into(),
-            ));
-        }
         if layout.radii.len() != layout.ball_deltas.len() {
             return Err(RewardError::Config(format!(
                 "{} region radii for {} regions",
@@ -204,7 +176,6 @@ impl FeatureMap {
         }
         let bad = (layout.ball_deltas.iter().flatten())
             .chain(&layout.events)
-            .chain(layout.labels_before.as_ref())
             .find(|&&c| c >= layout.obs_dim)
             .copied();
         if let Some(column) = bad {
@@ -221,15 +192,6 @@ impl FeatureMap {
         FeatureMap {
             kind: FeatureKind::Labels,
             layout: ObsLayout::of(task),
-        }
-    }
-
-    /// Label entries on a task's observations: rows are the observation after the step and
-    /// the labels before it ([`FeatureMap::step_rows`]).
-    pub fn reacher_label_entries(task: &TaskLayout) -> FeatureMap {
-        FeatureMap {
-            kind: FeatureKind::LabelEntries,
-            layout: ObsLayout::with_labels_before(task),
         }
     }
 
@@ -251,11 +213,6 @@ impl FeatureMap {
         self.layout.obs_dim
     }
 
-    /// Width of the observation the rows carry (without the labels-before column).
-    pub fn observation_dim(&self) -> usize {
-        self.layout.obs_dim - usize::from(self.layout.labels_before.is_some())
-    }
-
     /// The label bits of the regions (the agent's own touches).
     pub fn touch_labels(&self) -> LabelSet {
         (0..self.layout.ball_deltas.len()).fold(LabelSet::EMPTY, |s, k| s.with(k))
@@ -267,50 +224,20 @@ impl FeatureMap {
         (0..self.layout.events.len()).fold(LabelSet::EMPTY, |s, e| s.with(nb + e))
     }
 
-    /// Whether rows carry the labels before the step after the observation (see
-    /// [`FeatureMap::step_rows`]).
-    pub fn reads_labels_before(&self) -> bool {
-        self.layout.labels_before.is_some()
-    }
-
-    /// The rows this map reads for steps whose observations after the step are `obs`
-    /// (row-major, [`FeatureMap::obs_dim`] wide without the labels-before column) and whose
-    /// labels before the step are `labels_before` (one per step; ignored, and may be empty,
-    /// when the map does not read them): `obs` itself, or each observation followed by its
-    /// labels-before column.
-    pub fn step_rows(&self, obs: &[f32], labels_before: &[LabelSet], out: &mut Vec<f32>) {
-        out.clear();
-        if self.layout.labels_before.is_none() {
-            out.extend_from_slice(obs);
-            return;
-        }
-        let d = self.layout.obs_dim - 1;
-        for (o, before) in obs.chunks_exact(d).zip(labels_before) {
-            out.extend_from_slice(o);
-            out.push(before.0 as f32);
-        }
-    }
-
     /// Writes φ for one row into `out` (length [`FeatureMap::len`]).
     pub fn features(&self, row: &[f32], out: &mut [f64]) {
         let nb = self.layout.ball_deltas.len();
-        let before = match self.layout.labels_before {
-            Some(c) => LabelSet(row[c] as u32),
-            None => LabelSet::EMPTY,
-        };
         for (k, [cx, cy]) in self.layout.ball_deltas.iter().enumerate() {
             let (dx, dy) = (f64::from(row[*cx]), f64::from(row[*cy]));
             let d2 = dx * dx + dy * dy;
             let r = self.layout.radii[k];
             out[k] = match self.kind {
                 FeatureKind::Labels => f64::from(u8::from(d2 < r * r)),
-                FeatureKind::LabelEntries => f64::from(u8::from(d2 < r * r && !before.contains(k))),
                 FeatureKind::Smooth { sigma } => (-d2 / (2.0 * sigma * sigma)).exp(),
             };
         }
         for (e, &c) in self.layout.events.iter().enumerate() {
-            let fired = row[c] > 0.5 && !before.contains(nb + e);
-            out[nb + e] = f64::from(u8::from(fired));
+            out[nb + e] = f64::from(u8::from(row[c] > 0.5));
         }
     }
 

@@ -7,7 +7,6 @@ use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, Jo
 use super::evaluation::JobWatch;
 use super::iteration::StepError;
 use super::lockstep::{play_lockstep, Keep};
-use crate::irl::smirl::FeatureMap;
 use crate::pipeline::training_log::TrainingLog;
 use crate::rl::sac::{
     draw_noise, episode_seed, ActMode, RewardFn, SacAgent, SacTrainer, TrainingObserver,
@@ -90,7 +89,6 @@ impl RolloutStream {
     ) -> Result<AgentBatch, StepError> {
         let mut batch = AgentBatch::default();
         let task = GroundTruthTask::of(watch.perfect(), watch.layout());
-        let labelling = FeatureMap::reacher_labels(watch.layout());
         let specs: Vec<EpisodeSpec<'_>> = (0..n)
             .map(|_| {
                 let reset_seed = episode_seed(self.seed, self.next);
@@ -130,8 +128,8 @@ impl RolloutStream {
                     spec,
                     &mut self.rng,
                     watch.logger(),
-                    |before, after, u| {
-                        batch.push_step(&labelling, before, after, u);
+                    |after, u| {
+                        batch.push_step(after, u);
                         len += 1;
                     },
                 )?;

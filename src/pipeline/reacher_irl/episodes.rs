@@ -10,7 +10,6 @@ use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
 use crate::env::reacher_task::{Branch, CancelBranch, ProgressTracker, TaskProgress};
 use crate::env::{episode, ContinuousEnv, EnvError, EnvStep};
-use crate::irl::smirl::FeatureMap;
 use crate::log::writer::EpisodeStartRecord;
 use crate::log::{LogError, RolloutLogger, StepRecord};
 use crate::pipeline::training_log::ReacherView;
@@ -438,16 +437,15 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
         self.steps
     }
 
-    /// Plays `action` from observation `obs`; the next observation goes into `next`.
-    /// `on_step(inner o_t, inner o_{t+1}, learned u_t)` sees the step.
+    /// Plays `action`; the next observation goes into `next`. `on_step(inner o_{t+1},
+    /// learned u_t)` sees the step.
     pub fn step<E: JobEnv>(
         &mut self,
         env: &mut E,
         action: &[f32],
-        obs: &[f32],
         next: &mut [f32],
         log: &mut dyn EpisodeLog,
-        mut on_step: impl FnMut(&[f32], &[f32], Option<usize>),
+        mut on_step: impl FnMut(&[f32], Option<usize>),
     ) -> Result<(), EpisodeError> {
         let perfect = self.task.perfect;
         let u_before = env.learned_state();
@@ -462,7 +460,7 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
         let inner = env.inner_step(&step);
         let d = env.reacher().obs_dim();
         log.step(env.reacher(), action, &inner, Some((u_next, r)), &next[..d])?;
-        on_step(&obs[..d], &next[..d], u_before);
+        on_step(&next[..d], u_before);
         self.steps += 1;
         let decided = perfect.is_terminal(u_next) || perfect.is_failure(u_next);
         self.ended = step.terminated
@@ -490,7 +488,7 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
 }
 
 /// Plays one episode. The perfect machine is tracked on the labels for the ground truth;
-/// `on_step(inner o_t, inner o_{t+1}, learned u_t)` sees every step.
+/// `on_step(inner o_{t+1}, learned u_t)` sees every step.
 pub fn play_episode<E: JobEnv>(
     agent: &mut SacAgent,
     env: &mut E,
@@ -498,7 +496,7 @@ pub fn play_episode<E: JobEnv>(
     spec: EpisodeSpec<'_>,
     rng: &mut ChaCha8Rng,
     logger: Option<&mut RolloutLogger>,
-    mut on_step: impl FnMut(&[f32], &[f32], Option<usize>),
+    mut on_step: impl FnMut(&[f32], Option<usize>),
 ) -> Result<EpisodeOutcome, EpisodeError> {
     let max_steps = env.reacher().config().max_steps as u64;
     let (play, mut log) = episode::play(
@@ -511,7 +509,7 @@ pub fn play_episode<E: JobEnv>(
         },
         |_, obs, action| agent.act(obs, spec.mode, rng, action),
         |(play, log), env, s| {
-            play.step(env, s.action, s.obs, s.next_obs, log, &mut on_step)?;
+            play.step(env, s.action, s.next_obs, log, &mut on_step)?;
             Ok(play.ended())
         },
     )?;
@@ -523,10 +521,6 @@ pub fn play_episode<E: JobEnv>(
 pub struct AgentBatch {
     /// o_1..o_T of every trajectory, row-major, one task observation wide.
     pub obs: Vec<f32>,
-    /// The labels of o_0..o_{T−1}, the observation before each step, by the labelling rule
-    /// on the observation (`FeatureMap::labels_of`), for rewards of the step rather than of
-    /// the state (SMIRL's label entries).
-    pub labels_before: Vec<LabelSet>,
     /// The learned machine's state paired with each observation (SMIRL; else empty).
     pub states: Vec<u32>,
     pub lengths: Vec<usize>,
@@ -541,22 +535,13 @@ impl AgentBatch {
     /// Appends `other`'s trajectories after this batch's.
     pub fn append(&mut self, other: AgentBatch) {
         self.obs.extend_from_slice(&other.obs);
-        self.labels_before.extend_from_slice(&other.labels_before);
         self.states.extend_from_slice(&other.states);
         self.lengths.extend_from_slice(&other.lengths);
     }
 
-    /// Appends one step: the observations before and after it, and the learned state;
-    /// `labelling` reads the labels before the step.
-    pub fn push_step(
-        &mut self,
-        labelling: &FeatureMap,
-        before: &[f32],
-        after: &[f32],
-        learned_state: Option<usize>,
-    ) {
+    /// Appends one step: the observation after it, and the learned state.
+    pub fn push_step(&mut self, after: &[f32], learned_state: Option<usize>) {
         self.obs.extend_from_slice(after);
-        self.labels_before.push(labelling.labels_of(before));
         if let Some(u) = learned_state {
             self.states.push(u as u32);
         }

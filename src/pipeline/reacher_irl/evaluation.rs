@@ -240,7 +240,7 @@ impl<'r> GroundTruth<'r> {
                         spec,
                         &mut rng,
                         logger.as_deref_mut(),
-                        |_, _, _| {},
+                        |_, _| {},
                     )?);
                 }
             }

@@ -2,18 +2,14 @@
 //! in a run directory.
 
 use crate::nn::codec::{ByteReader, ByteWriter, CodecError};
-use crate::rm::{LabelSet, RewardMachine};
+use crate::rm::RewardMachine;
 
 /// What every job of a task shares: the demonstrations as the IRL algorithms see them.
 #[derive(Clone, Debug)]
 pub struct ExpertData {
     /// Observations o_1..o_T of every demonstration step (row-major, one task observation
-    /// wide): the
-    /// states visited, as the agent's rollouts record them.
+    /// wide): the states visited, as the agent's rollouts record them.
     pub obs: Vec<f32>,
-    /// The labels of the observation before each step (the reset observation's for a
-    /// demonstration's first step), by the labelling rule on the observation.
-    pub labels_before: Vec<LabelSet>,
     /// Demonstration lengths, in order.
     pub lengths: Vec<usize>,
     /// The learned machine's state each observation's labels are read in (u_{t−1}); empty
@@ -38,7 +34,6 @@ impl ExpertData {
         w.raw(EXPERT_DATA_MAGIC);
         w.u32(EXPERT_DATA_VERSION);
         w.f32s(&self.obs);
-        w.u32s(&self.labels_before.iter().map(|l| l.0).collect::<Vec<_>>());
         w.usize(self.lengths.len());
         for &len in &self.lengths {
             w.usize(len);
@@ -53,10 +48,6 @@ impl ExpertData {
         let mut r = ByteReader::new(bytes);
         r.header(EXPERT_DATA_MAGIC, "smirl expert data", EXPERT_DATA_VERSION)?;
         let obs = r.f32s("observations")?;
-        let labels_before: Vec<LabelSet> = (r.u32s("labels before each step")?)
-            .into_iter()
-            .map(LabelSet)
-            .collect();
         let n = r.usize("demonstration count")?;
         if n > bytes.len() / 8 {
             return Err(CodecError::Invalid {
@@ -80,12 +71,6 @@ impl ExpertData {
                     obs.len()
                 ),
             })?;
-        if labels_before.len() != steps {
-            return Err(CodecError::Invalid {
-                what: "labels before each step",
-                problem: format!("{} label sets for {steps} steps", labels_before.len()),
-            });
-        }
         if !learned_states.is_empty() && learned_states.len() != steps {
             return Err(CodecError::Invalid {
                 what: "learned machine states",
@@ -94,7 +79,6 @@ impl ExpertData {
         }
         Ok(ExpertData {
             obs,
-            labels_before,
             lengths,
             learned_states,
         })
@@ -129,5 +113,7 @@ impl ExpertData {
 }
 
 const EXPERT_DATA_MAGIC: &[u8] = b"SMIRLXD\0";
-/// 2: the labels before each step.
-const EXPERT_DATA_VERSION: u32 = 2;
+/// The layout [`ExpertData::to_bytes`] writes after the magic bytes and this version: the
+/// observations, the demonstration lengths, the learned-machine states. A file of another
+/// version is refused ([`CodecError::Version`]).
+const EXPERT_DATA_VERSION: u32 = 3;

@@ -356,8 +356,8 @@ fn selection_returns<E: JobEnv, R: ScoredReward>(
             spec,
             &mut rng,
             logger.as_deref_mut(),
-            |o, next, u| {
-                steps.push_step(&labelling, o, next, u);
+            |next, u| {
+                steps.push_step(next, u);
                 labels.push(labelling.labels_of(next));
             },
         )?;

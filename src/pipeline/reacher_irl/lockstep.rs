@@ -13,7 +13,6 @@ use super::episodes::{
     AgentBatch, EpisodeError, EpisodeLog, EpisodeOutcome, EpisodePlay, EpisodeSpec,
     GroundTruthTask, JobEnv, NoLog, RecordedEpisode,
 };
-use crate::irl::smirl::FeatureMap;
 use crate::nn::Mlp;
 use crate::rl::sac::{ActMode, ActWorkspace};
 
@@ -207,7 +206,6 @@ fn play_on_thread<'t, E: JobEnv>(
     };
     let (obs_dim, act_dim) = (proto.obs_dim(), proto.act_dim());
     let per_episode = proto.reacher().config().max_steps * act_dim;
-    let labelling = FeatureMap::reacher_labels(proto.reacher().layout());
     let mut slots: Vec<Slot<'t, '_, E>> = envs
         .into_iter()
         .map(|env| Slot {
@@ -252,13 +250,13 @@ fn play_on_thread<'t, E: JobEnv>(
             let o = &mut obs[k * obs_dim..(k + 1) * obs_dim];
             let a = &actions[k * act_dim..(k + 1) * act_dim];
             let steps = &mut slot.steps;
-            let on_step = |before: &[f32], after: &[f32], u: Option<usize>| {
+            let on_step = |after: &[f32], u: Option<usize>| {
                 if keep.steps {
-                    steps.push_step(&labelling, before, after, u);
+                    steps.push_step(after, u);
                 }
             };
             let log: &mut dyn EpisodeLog = if keep.log { &mut slot.log } else { &mut NoLog };
-            play.step(&mut slot.env, a, o, &mut next, log, on_step)?;
+            play.step(&mut slot.env, a, &mut next, log, on_step)?;
             o.copy_from_slice(&next);
             if play.ended() {
                 let j = *j;

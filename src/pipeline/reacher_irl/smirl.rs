@@ -195,31 +195,27 @@ pub fn annotate(
     let labelling = FeatureMap::reacher_labels(layout);
     let mut data = ExpertData {
         obs: Vec::new(),
-        labels_before: Vec::new(),
         lengths: Vec::new(),
         learned_states: Vec::new(),
     };
     for d in demos {
         let mut u = rm.map(|m| m.initial());
-        let mut push = |data: &mut ExpertData, before: &[f32], obs: &[f32], labels: LabelSet| {
+        let mut push = |data: &mut ExpertData, obs: &[f32], labels: LabelSet| {
             data.obs.extend_from_slice(obs);
-            data.labels_before.push(labelling.labels_of(before));
             if let (Some(m), Some(state)) = (rm, u) {
                 data.learned_states.push(state as u32);
                 u = Some(m.next_state(state, labels));
             }
         };
         for s in &d.steps {
-            push(&mut data, &s.obs, &s.next_obs, s.labels);
+            push(&mut data, &s.next_obs, s.labels);
         }
         let mut len = d.steps.len();
         if let (Some(horizon), Some(last)) = (hold_to, d.steps.last()) {
             let held = held_observation(layout, &last.next_obs);
             let labels = labelling.labels_of(&held);
-            let mut before = last.next_obs.clone();
             while len < horizon {
-                push(&mut data, &before, &held, labels);
-                before.clone_from(&held);
+                push(&mut data, &held, labels);
                 len += 1;
             }
         }
@@ -262,8 +258,8 @@ impl Features {
 /// Step 3.3: the rows, learned states and loss coefficients of one reward update — MaxEnt on
 /// U × O, whose parameter gradient is μ_π − μ_D (the negated expert-minus-agent feature
 /// expectation), normalised per trajectory or per trajectory visiting each state
-/// ([`IrlRunConfig::normalisation`]). Agent rows first, then expert rows, each as `features` reads a
-/// step ([`FeatureMap::step_rows`]).
+/// ([`IrlRunConfig::normalisation`]). Agent rows first, then expert rows: the observations
+/// after each step.
 pub fn coefficients(
     features: &FeatureMap,
     expert: &ExpertData,
@@ -289,12 +285,8 @@ pub fn coefficients(
         }
     };
     coeffs.extend(expert_c);
-    let (mut obs, mut expert_rows) = (Vec::new(), Vec::new());
-    features.step_rows(&agent.obs, &agent.labels_before, &mut obs);
-    features.step_rows(&expert.obs, &expert.labels_before, &mut expert_rows);
-    obs.extend_from_slice(&expert_rows);
     Coefficients {
-        obs,
+        obs: [agent.obs.as_slice(), &expert.obs].concat(),
         states: [agent.states.as_slice(), &expert.learned_states].concat(),
         coeffs,
     }
@@ -310,8 +302,6 @@ pub struct ProductReward<'a> {
     counterfactual: Option<&'a CounterfactualRm>,
     shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
     next_obs: Vec<f32>,
-    labels_before: Vec<LabelSet>,
-    rows: Vec<f32>,
     states: Vec<u32>,
 }
 
@@ -329,8 +319,6 @@ impl<'a> ProductReward<'a> {
             counterfactual,
             shaping,
             next_obs: Vec::new(),
-            labels_before: Vec::new(),
-            rows: Vec::new(),
             states: Vec::new(),
         }
     }
@@ -345,24 +333,17 @@ impl RewardFn for ProductReward<'_> {
 
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
-        let width = self.model.features().observation_dim();
+        let width = self.model.features().obs_dim();
         // The one-hot block; a clock ([`IrlRunConfig::clock`]) comes after it.
         let block = width..width + self.model.n_states();
         self.next_obs.clear();
-        self.labels_before.clear();
         self.states.clear();
-        let features = self.model.features();
-        let reads_before = features.reads_labels_before();
         let rows = batch.next_obs.as_slice().chunks_exact(d);
         for (next, prev) in rows.zip(batch.obs.as_slice().chunks_exact(d)) {
             self.next_obs.extend_from_slice(&next[..width]);
-            if reads_before {
-                self.labels_before.push(features.labels_of(&prev[..width]));
-            }
             self.states.push(hot_index(&prev[block.clone()]) as u32);
         }
-        features.step_rows(&self.next_obs, &self.labels_before, &mut self.rows);
-        self.model.reward_batch(&self.rows, &self.states, out)?;
+        self.model.reward_batch(&self.next_obs, &self.states, out)?;
         if let Some((potential, gamma)) = self.shaping {
             let rows = batch.next_obs.as_slice().chunks_exact(d);
             let prev_rows = batch.obs.as_slice().chunks_exact(d);
@@ -387,10 +368,8 @@ impl RewardFn for ProductReward<'_> {
 
 impl super::final_policy::ScoredReward for ProductReward<'_> {
     fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, StepError> {
-        let features = self.model.features();
-        features.step_rows(&steps.obs, &steps.labels_before, &mut self.rows);
         let mut r = vec![0.0f32; steps.n_states()];
-        (self.model).reward_batch(&self.rows, &steps.states, &mut r)?;
+        (self.model).reward_batch(&steps.obs, &steps.states, &mut r)?;
         Ok(r)
     }
 }
