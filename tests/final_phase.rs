@@ -13,7 +13,7 @@ use smirl::pipeline::reacher_irl::firl::baseline_env;
 use smirl::pipeline::reacher_irl::lockstep::Lockstep;
 use smirl::pipeline::reacher_irl::records::JobRecord;
 use smirl::pipeline::reacher_irl::run::{open_run, prepare, Silent};
-use smirl::pipeline::reacher_irl::{run_pipeline, Algo, IrlRunConfig, RunRequest};
+use smirl::pipeline::reacher_irl::{run_pipeline, Algo, IrlRunConfig, Mechanisms, RunRequest};
 use std::path::{Path, PathBuf};
 
 const SEED: u64 = 5;
@@ -161,7 +161,7 @@ fn the_clock_reaches_the_baselines_policy_observation() {
         assert_eq!(&obs[..d], &plain_obs[..]);
     }
     let none = IrlRunConfig {
-        paper_mechanisms: true,
+        mechanisms: Mechanisms::PAPER,
         ..settings.clone()
     };
     let inner = ReacherDelivery::new(settings.env.clone()).unwrap();
@@ -174,9 +174,8 @@ fn the_clock_reaches_the_baselines_policy_observation() {
 }
 
 /// The baselines train with the clock: a maxent job and an fkl job learn another reward and
-/// another policy when their settings drop it (`paper_mechanisms`, whose other mechanisms are
-/// SMIRL's and change nothing else of a baseline's job), as when their policy sees another
-/// input.
+/// another policy when their settings turn `Mechanisms::clock` off, as when their policy sees
+/// another input.
 ///
 /// Mutation tried: `firl::train` acting in `Clocked::new(inner, Clock::None)` instead of
 /// `baseline_env`: fails at "maxent: the clock changes the reward".
@@ -202,7 +201,10 @@ fn the_baselines_train_with_the_clock() {
         let with = run.config.for_algo(algo).unwrap();
         assert!(with.clock());
         let without = IrlRunConfig {
-            paper_mechanisms: true,
+            mechanisms: Mechanisms {
+                clock: false,
+                ..with.mechanisms
+            },
             ..with.clone()
         };
         assert!(!without.clock());

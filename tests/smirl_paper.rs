@@ -8,7 +8,7 @@ use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::smirl::SmirlNormalisation;
 use smirl::pipeline::reacher_irl::run::{open_run, JobRecord};
 use smirl::pipeline::reacher_irl::smirl::lrm_config;
-use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
+use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig, Mechanisms};
 use smirl::rm::format::parse_rm;
 use smirl::rm::lrm::{Guards, LrmConfig};
 use std::process::Command;
@@ -68,7 +68,7 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     assert!(smirl.final_sac_steps > 0 && smirl.selection_cut());
     // What is not a mechanism is smirl's.
     let same = IrlRunConfig {
-        paper_mechanisms: false,
+        mechanisms: Mechanisms::SMIRL,
         smirl_shaping: smirl.smirl_shaping,
         final_sac_steps: smirl.final_sac_steps,
         final_checkpoints: smirl.final_checkpoints,

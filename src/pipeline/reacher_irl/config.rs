@@ -154,10 +154,44 @@ pub struct IrlRunConfig {
     /// with a table runs with those fields in place of the ones above; the others (and
     /// every field the table leaves out) use the run's. Empty: one schedule for all.
     pub schedule: BTreeMap<String, AlgoSchedule>,
-    /// `smirl-paper`'s mechanisms instead of `smirl`'s (set by [`IrlRunConfig::for_algo`],
-    /// never a key): MaxEnt's μ_D − μ_π averaged over trajectories, SAC on U × O without
-    /// clock or counterfactual states. See [`IrlRunConfig::clock`] and its neighbours.
-    pub paper_mechanisms: bool,
+    /// The mechanisms outside LRM that are not keys (docs/method.md): `smirl`'s
+    /// ([`Mechanisms::SMIRL`]) unless [`IrlRunConfig::for_algo`] sets `smirl-paper`'s
+    /// ([`Mechanisms::PAPER`]). See [`IrlRunConfig::clock`] and its neighbours.
+    pub mechanisms: Mechanisms,
+}
+
+/// The mechanisms of `smirl` outside LRM that no key sets: the paper's algorithm has none of
+/// them. An algorithm fixes them ([`IrlRunConfig::for_algo`]); the development-range ablation
+/// (`src/bin/smirl_ablation.rs`) turns one off at a time to measure what it adds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mechanisms {
+    /// The agent's clock ([`IrlRunConfig::clock`]).
+    pub clock: bool,
+    /// Counterfactual learned-machine states in SMIRL's SAC batches
+    /// ([`IrlRunConfig::counterfactual`]).
+    pub counterfactual_states: bool,
+    /// MaxEnt's normalisation by event-gated visits ([`IrlRunConfig::normalisation`]).
+    pub event_gated_visits: bool,
+    /// The final choice's cut after an unseen touch ([`IrlRunConfig::selection_cut`]).
+    pub selection_cut: bool,
+}
+
+impl Mechanisms {
+    /// `smirl`'s (and every other algorithm's but `smirl-paper`: of these, a baseline reads
+    /// only the clock).
+    pub const SMIRL: Mechanisms = Mechanisms {
+        clock: true,
+        counterfactual_states: true,
+        event_gated_visits: true,
+        selection_cut: true,
+    };
+    /// `smirl-paper`'s: none.
+    pub const PAPER: Mechanisms = Mechanisms {
+        clock: false,
+        counterfactual_states: false,
+        event_gated_visits: false,
+        selection_cut: false,
+    };
 }
 
 /// The file layout of [`IrlRunConfig`]: every key required, unknown keys refused.
@@ -330,7 +364,7 @@ impl From<RunFile> for IrlRunConfig {
             },
             sac: run_sac(&f.sac),
             schedule: f.schedule,
-            paper_mechanisms: false,
+            mechanisms: Mechanisms::SMIRL,
         }
     }
 }
@@ -850,7 +884,7 @@ impl IrlRunConfig {
                 .into_iter()
                 .map(|a| (a.name().to_string(), firl_schedule(a)))
                 .collect(),
-            paper_mechanisms: false,
+            mechanisms: Mechanisms::SMIRL,
         }
     }
 
@@ -964,7 +998,7 @@ impl IrlRunConfig {
     /// reward optimiser, the demonstrations, the machine's source and LRM's size and search
     /// budget stay the run's, so that the two algorithms differ by the mechanisms alone.
     fn set_paper_mechanisms(&mut self) {
-        self.paper_mechanisms = true;
+        self.mechanisms = Mechanisms::PAPER;
         self.smirl_shaping = 0.0;
         self.final_sac_steps = 0;
         self.final_checkpoints = 0;
@@ -977,17 +1011,17 @@ impl IrlRunConfig {
     /// Why: the cancel comes only early in an episode, and an agent without a clock cannot
     /// tell that it no longer will (research log, "A clock for the agent").
     pub fn clock(&self) -> bool {
-        !self.paper_mechanisms
+        self.mechanisms.clock
     }
 
     /// Share of each SAC batch of SMIRL relabelled to a counterfactual learned-machine state
     /// (CRM, `rl::crm`): 1 (every sampled transition, from a uniformly drawn state) for smirl
     /// and smirl-smooth, 0 for smirl-paper.
     pub fn counterfactual(&self) -> f64 {
-        if self.paper_mechanisms {
-            0.0
-        } else {
+        if self.mechanisms.counterfactual_states {
             1.0
+        } else {
+            0.0
         }
     }
 
@@ -997,10 +1031,10 @@ impl IrlRunConfig {
     /// `irl::smirl`) for smirl and smirl-smooth, the plain average over trajectories for
     /// smirl-paper.
     pub fn normalisation(&self) -> SmirlNormalisation {
-        if self.paper_mechanisms {
-            SmirlNormalisation::Trajectories
-        } else {
+        if self.mechanisms.event_gated_visits {
             SmirlNormalisation::EventGatedVisits
+        } else {
+            SmirlNormalisation::Trajectories
         }
     }
 
@@ -1012,7 +1046,7 @@ impl IrlRunConfig {
     /// touches blue after the cancel earn about what one that avoids it earns (research log, "A
     /// choice that reads what the expert does after the cancel").
     pub fn selection_cut(&self) -> bool {
-        !self.paper_mechanisms
+        self.mechanisms.selection_cut
     }
 
     /// Checks value ranges (named by field).
