@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # The size of what experiments/ tracks, against its budget (experiments/README.md, "Budget"):
-# prints the number of tracked files and their bytes, and exits 1 above 464 files or 6.9 MB
+# prints the number of tracked files and their bytes, and exits 1 above 468 files or 6.9 MB
 # (6 900 000 bytes). Also reports, without failing, tracked files that experiments/.gitignore
 # ignores (force-added) and consolidated files older than their run directories on disk.
 # Usage: experiments/lean_check.sh      (from anywhere in the repository)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-MAX_FILES=464
+MAX_FILES=468
 MAX_BYTES=6900000
 files=$(git ls-files experiments | wc -l)
 # Summed per file (xargs may split a long list over several `du -c` calls, each with its own total).
