@@ -76,21 +76,21 @@ def parse_job(name):
 
 # Running ---------------------------------------------------------------------------------------
 
-def config_for(runs, parallel):
-    """The standard config with `threads = 1` when jobs run side by side (results do not depend
-    on it), written once into the runs directory."""
+def config_for(runs):
+    """The standard config with `threads = 1`, whatever --parallel is (a job's results do not
+    depend on it, and every session then prepares with the same file), written once into the
+    runs directory."""
     with open(os.path.join(ROOT, CONFIG)) as fh:
         text = fh.read()
-    if parallel > 1:
-        text, n = re.subn(r"(?m)^threads = \d+$", "threads = 1", text, count=1)
-        if n != 1:
-            sys.exit(f"ablation: {CONFIG} has no `threads = N` line")
+    text, n = re.subn(r"(?m)^threads = \d+$", "threads = 1", text, count=1)
+    if n != 1:
+        sys.exit(f"ablation: {CONFIG} has no `threads = N` line")
     path = os.path.join(runs, "config.toml")
     if os.path.exists(path):
         with open(path) as fh:
             if fh.read() != text:
-                sys.exit(f"ablation: {path} differs from the config this session would use; "
-                         "run with the same --parallel as before or move the runs directory")
+                sys.exit(f"ablation: {path} differs from {CONFIG} with `threads = 1`: "
+                         "the config changed since the first session")
     else:
         with open(path, "w") as fh:
             fh.write(text)
@@ -183,7 +183,7 @@ def run(args):
             sys.exit(f"ablation: no binary {b} (cargo build --release --bin reacher --bin smirl_ablation)")
     os.makedirs(runs, exist_ok=True)
     print("binary:", check_binaries(runs, bins), flush=True)
-    config = config_for(runs, args.parallel)
+    config = config_for(runs)
     until = None
     if args.until:
         h, m = (int(x) for x in args.until.split(":"))
