@@ -162,7 +162,8 @@ pub struct IrlRunConfig {
 
 /// The mechanisms of `smirl` outside LRM that no key sets: the paper's algorithm has none of
 /// them. An algorithm fixes them ([`IrlRunConfig::for_algo`]); the development-range ablation
-/// (`src/bin/smirl_ablation.rs`) turns one off at a time to measure what it adds.
+/// (`src/bin/smirl_ablation.rs`) turns them off, one at a time and together, to measure what
+/// they add.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Mechanisms {
     /// The agent's clock ([`IrlRunConfig::clock`]).
