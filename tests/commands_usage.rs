@@ -26,6 +26,7 @@ fn irl_request(out: PathBuf) -> irl::IrlRequest {
         seed: 0,
         quick: true,
         config: None,
+        expert_config: None,
         out: Some(out),
         force: false,
         print_config: false,

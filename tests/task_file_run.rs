@@ -1,7 +1,8 @@
 //! A task nobody wrote code for: a task file written here (a new machine, a new layout) runs
 //! the IRL pipeline end to end; every bad task file stops `reacher` with exit 2 before any
 //! work; a task file's expert is keyed by its content (task, machine and scene) and never the
-//! committed expert of a shipped task of the same name.
+//! committed expert of a shipped task of the same name; `reacher --task FILE` trains a missing
+//! expert first (with `--expert-config`, a smoke-sized one here) and reuses it once cached.
 
 mod irl_run_common;
 
@@ -296,4 +297,99 @@ fn a_task_files_expert_is_keyed_by_its_content() {
     let impostor = ReacherTask::resolve(copy.to_str().unwrap()).unwrap();
     assert_eq!(impostor.name(), "composite");
     assert!(committed_expert(impostor, &[64, 64]).is_err());
+}
+
+/// A one-region task that any policy solves: the region covers the fingertip's start, so a
+/// smoke-sized expert completes every demonstration.
+const START_MACHINE: &str = "vocabulary: g\nstates: 2\ninitial: 0\nterminal: 1\n(0, 1, 'g', 1)\n";
+const START_TASK: &str = "scene = \"builtin\"\nmachine = \"start.txt\"\nepisode_steps = 20\n\
+                          randomize_layout = false\nregion = [{ letter = \"g\", body = \"green\", \
+                          radius = 0.05, position = [0.2, 0.0] }]\n";
+
+/// `reacher --task FILE --config RUN --expert-config EXPERT --algo smirl --quiet --out OUT`.
+fn run_with_expert(dir: &Path, expert: &str, out: &str) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .current_dir(dir)
+        .args([
+            "--task",
+            "start.toml",
+            "--config",
+            "run.toml",
+            "--expert-config",
+            expert,
+            "--algo",
+            "smirl",
+            "--quiet",
+            "--out",
+            out,
+        ])
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_task_file_without_an_expert_trains_one_first_then_reuses_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("start.txt"), START_MACHINE).unwrap();
+    std::fs::write(d.join("start.toml"), START_TASK).unwrap();
+    // The smoke run config with the expert as the demonstrations' source.
+    let quick = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .current_dir(d)
+        .args(["--task", "start.toml", "--quick", "--print-config"])
+        .output()
+        .unwrap();
+    assert!(quick.status.success());
+    let config = String::from_utf8(quick.stdout).unwrap();
+    assert!(config.contains("demo_source = \"scripted\""), "{config}");
+    std::fs::write(
+        d.join("run.toml"),
+        config.replace("demo_source = \"scripted\"", "demo_source = \"expert\""),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("expert.toml"),
+        "total_steps = 300\ncheckpoint_every = 300\neval_episodes = 4\nprogress_window = 4\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("bad_expert.toml"), "total_steps = 0\n").unwrap();
+
+    // A bad expert config is refused before any work: no cache, no run directory.
+    let bad = run_with_expert(d, "bad_expert.toml", "r0");
+    assert_eq!(bad.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        stderr.contains("bad_expert.toml: line 1: field `total_steps`"),
+        "{stderr}"
+    );
+    assert!(!d.join("experts").exists() && !d.join("r0").exists());
+
+    // No expert cached: it is trained with the given config, cached by content, and used.
+    let first = run_with_expert(d, "expert.toml", "r1");
+    let stderr = String::from_utf8_lossy(&first.stderr);
+    assert!(first.status.success(), "{stderr}");
+    assert!(stderr.contains("no expert for task"), "{stderr}");
+    assert!(stderr.contains("training one first"), "{stderr}");
+    let task = ReacherTask::resolve(d.join("start.toml").to_str().unwrap()).unwrap();
+    let cached = expert_cache_path(&d.join("experts"), task);
+    let policy = std::fs::read(&cached).unwrap();
+    let run_config = std::fs::read_to_string(d.join("r1/config.toml")).unwrap();
+    assert!(
+        run_config.contains("demo_source = \"expert\""),
+        "{run_config}"
+    );
+    assert!(d.join("r1/metrics.csv").is_file());
+
+    // Cached now: the second run trains nothing, says the expert config is unused, and leaves
+    // the cached policy as it was.
+    let second = run_with_expert(d, "expert.toml", "r2");
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert!(second.status.success(), "{stderr}");
+    assert!(!stderr.contains("training one first"), "{stderr}");
+    assert!(stderr.contains("already cached"), "{stderr}");
+    assert_eq!(std::fs::read(&cached).unwrap(), policy);
+    assert_eq!(
+        std::fs::read(d.join("r1/metrics.csv")).unwrap(),
+        std::fs::read(d.join("r2/metrics.csv")).unwrap()
+    );
 }

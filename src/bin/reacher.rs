@@ -394,6 +394,10 @@ struct PipelineArgs {
     /// experiments/reacher/config.toml). Overrides the built-in profile.
     #[arg(long, conflicts_with = "quick")]
     config: Option<PathBuf>,
+    /// Expert config (TOML, the fields of `reacher expert --config`) for the expert trained
+    /// first when a task file has none cached [default: the standard expert, 150 000 steps].
+    #[arg(long, value_name = "FILE")]
+    expert_config: Option<PathBuf>,
     /// Run directory [default: runs/reacher-<task>]; must not exist, or be empty.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -564,6 +568,7 @@ impl From<PipelineArgs> for IrlRequest {
             seed: a.seed,
             quick: a.quick,
             config: a.config,
+            expert_config: a.expert_config,
             out: a.out,
             force: a.force,
             print_config: a.print_config,

@@ -7,7 +7,7 @@
 use super::{usage, UsageError};
 use crate::env::reacher_task::ReacherTask;
 use crate::output::{check_not_protected, OutputDir};
-use crate::pipeline::reacher_expert::default_expert_cache;
+use crate::pipeline::reacher_expert::{default_expert_cache, ExpertConfig};
 use crate::pipeline::reacher_irl::config::DemoSource;
 use crate::pipeline::reacher_irl::demos::{load_expert, DemoError};
 use crate::pipeline::reacher_irl::iteration::JobProgress;
@@ -36,6 +36,9 @@ pub struct IrlRequest {
     pub quick: bool,
     /// Run configuration (TOML); overrides the built-in profiles.
     pub config: Option<PathBuf>,
+    /// Expert config (TOML) for the expert trained first when the task has none cached;
+    /// `None`: [`ExpertConfig::default`].
+    pub expert_config: Option<PathBuf>,
     /// Run directory; `None`: `runs/reacher-<task>`.
     pub out: Option<PathBuf>,
     /// Replace an existing run directory (only one this program wrote).
@@ -158,8 +161,21 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("runs/reacher-{}", task.name())));
+    if let Some(path) = &args.expert_config {
+        // Read before any work, whether or not an expert is trained.
+        let expert = ExpertConfig::load(path).map_err(usage)?;
+        expert
+            .validate()
+            .map_err(|e| usage(format!("expert config {}: {e}", path.display())))?;
+        if config.demo_source != DemoSource::Expert {
+            return Err(usage(format!(
+                "--expert-config {}: this run's demonstrations are scripted (demo_source), so no expert is trained",
+                path.display()
+            )));
+        }
+    }
     if config.demo_source == DemoSource::Expert {
-        train_missing_expert(&task, args.quiet)?;
+        train_missing_expert(&task, args.expert_config.as_deref(), args.quiet)?;
     }
     Ok(Some(RunRequest {
         task,
@@ -173,10 +189,15 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
 }
 
 /// Trains the expert of a task file that has none in its cache yet, as `reacher expert
-/// --task FILE` would (default expert config, seed 0, run directory `<cache>/runs/<name>-<hash>`),
-/// so that `reacher --task FILE` runs from a task file alone. A shipped task's committed
-/// expert, or any expert already cached, is used as it is.
-fn train_missing_expert(task: &ReacherTask, quiet: bool) -> Result<()> {
+/// --task FILE [--config EXPERT]` would (the default expert config unless `expert_config`
+/// names one, seed 0, run directory `<cache>/runs/<name>-<hash>`), so that `reacher --task
+/// FILE` runs from a task file alone. A shipped task's committed expert, or any expert already
+/// cached, is used as it is.
+fn train_missing_expert(
+    task: &ReacherTask,
+    expert_config: Option<&Path>,
+    quiet: bool,
+) -> Result<()> {
     match load_expert(task.clone(), None) {
         Err(DemoError::Missing { path, .. }) => {
             let cache =
@@ -190,7 +211,7 @@ fn train_missing_expert(task: &ReacherTask, quiet: bool) -> Result<()> {
             );
             super::expert::run(super::expert::ExpertRequest {
                 task: task.clone(),
-                config: None,
+                config: expert_config.map(Path::to_path_buf),
                 quick: false,
                 seed: 0,
                 resume: out.join("expert.ckpt").is_file(),
@@ -201,8 +222,18 @@ fn train_missing_expert(task: &ReacherTask, quiet: bool) -> Result<()> {
                 quiet,
             })
         }
+        Ok(_) => {
+            if let Some(path) = expert_config {
+                eprintln!(
+                    "the expert of task {} is already cached: --expert-config {} is not used",
+                    task.task().source,
+                    path.display()
+                );
+            }
+            Ok(())
+        }
         // Other problems (a foreign or stale file) are reported by the run's own checks.
-        _ => Ok(()),
+        Err(_) => Ok(()),
     }
 }
 
