@@ -818,3 +818,64 @@ fn smirl_paper_learns_lrm_without_event_rules() {
         assert_ne!(write_rm(&improved.rm), write_rm(&lrm.rm), "base {seed}");
     }
 }
+
+/// The demonstrations of Sequential base 9 (development range) as `reacher replay` lists
+/// them: red, green, blue, yellow in order, a cancel now and then that the task ignores; in one
+/// the cancel fires while the fingertip is on red (`rc`).
+const SEQUENTIAL_BASE9: [(usize, &str); 16] = [
+    (34, "c@2 r@5 g@13-14 b@22-23 y@34"),
+    (34, "r@5 g@14 b@23-24 y@34"),
+    (34, "r@5 g@14-15 b@23 y@34"),
+    (33, "r@5 c@7 g@13-14 b@22-23 y@33"),
+    (36, "rc@6 g@15-16 b@24 y@36"),
+    (34, "r@5 g@14 b@23-24 y@34"),
+    (35, "c@4 r@5 g@13-14 b@23-24 y@35"),
+    (35, "r@5 g@13 b@23-24 y@35"),
+    (34, "r@5 g@14-15 b@23-24 y@34"),
+    (35, "r@5 g@14-15 b@23 y@35"),
+    (33, "r@5 g@14-15 b@22-23 y@33"),
+    (35, "r@5 c@6 g@14-15 b@23-24 y@35"),
+    (34, "r@5 g@14-15 b@23-24 y@34"),
+    (34, "r@5 c@8 g@14 b@23-24 y@34"),
+    (34, "r@5 c@6 g@14-15 b@22-23 y@34"),
+    (35, "r@5 g@13-14 b@23 y@35"),
+];
+
+/// Sequential ignores the cancel, yet LRM splits "red touched" by whether a cancel came during
+/// the touch (`{r}` and `{r, c}` lead to two states that the demonstrations leave the same way,
+/// on green). Commuting that cancel into "red touched" made the cancel matter there, and green
+/// with a cancel on the same step stayed on red while the task had moved on. With commuted
+/// events counted only where the traces show the event to change what follows, the cancel
+/// is not carried over, and green with a cancel goes where green does — what the learner with
+/// commuted events off does on these demonstrations.
+#[test]
+fn a_cancel_that_changes_nothing_that_follows_is_not_commuted() {
+    use smirl::env::reacher_task::ReacherTask;
+    use smirl::irl::Algo;
+    use smirl::pipeline::reacher_irl::smirl::lrm_config;
+    use smirl::pipeline::reacher_irl::IrlRunConfig;
+
+    let task = ReacherTask::shipped("sequential").unwrap();
+    let mut config = IrlRunConfig::standard();
+    config.env = task.env_config(&config.env).unwrap();
+    let vocab = task.layout().vocabulary();
+    let traces = episode_traces(&vocab, &SEQUENTIAL_BASE9);
+    let standard = lrm_config(&config, 9, Algo::Smirl).unwrap();
+    assert!(standard.commute_events);
+    let learned = learn_rm(&vocab, &traces, &standard).unwrap();
+    let plain = learn_rm(
+        &vocab,
+        &traces,
+        &LrmConfig {
+            commute_events: false,
+            ..standard.clone()
+        },
+    )
+    .unwrap();
+    let green = |rm| state_after(rm, &vocab, 20, "r@5 g@12");
+    let green_with_cancel = |rm| state_after(rm, &vocab, 20, "r@5 gc@12");
+    let red = |rm| state_after(rm, &vocab, 20, "r@5");
+    assert_ne!(green(&learned.rm), red(&learned.rm));
+    assert_eq!(green_with_cancel(&learned.rm), green(&learned.rm));
+    assert_eq!(learned.rm, plain.rm);
+}

@@ -7,7 +7,7 @@
 # whole declared development range, fixed before any result. ablation_before_fold.md is this
 # script's table at commit 66f0e44 (with fallback starts), on which the fold was decided
 # (its rows: ablation_before_fold.csv.gz).
-# Usage: nice -n 10 experiments/lrm/ablation.sh   (about 3 CPU-minutes, one thread)
+# Usage: nice -n 10 experiments/lrm/ablation.sh   (about 10 CPU-seconds, one thread)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cargo build --release --bin lrm_ablation >&2

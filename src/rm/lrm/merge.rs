@@ -95,17 +95,38 @@ pub(crate) fn merge_states(
 /// *before* the touch that entered the state (see [`LrmConfig::commute_events`]): for a state
 /// `u` entered from `p` on an observed label `k` without an event, and an event label `l`
 /// undefined in `u`, the candidate is `delta(delta(p, l), k)`, where `(p, l)` is observed
-/// and `(delta(p, l), k)` defined (observed, or a stay the stutter invariance implies). The
-/// cell is filled only when every entry into `u` that gives a candidate gives the same one.
-/// Decided on the cells as given, so the order of states does not matter; observed cells and
-/// every trace's path are unchanged.
+/// and `(delta(p, l), k)` defined (observed, or a stay the stutter invariance implies). An
+/// entry counts only where the traces show the event to change what follows: `delta(p, l)`
+/// and the state `p` reaches on `l` without its events (`without_events[l]`; `p` itself when
+/// `p` never reads that set) must not be [`observed_equivalence`]-equivalent. An event whose
+/// state the demonstrations leave exactly as they leave the state without it (the cancel of a
+/// task that ignores it, read as a split of "after red") shows no effect to carry over. The
+/// cell is filled only when every counted entry into `u` that gives a candidate gives the
+/// same one. Decided on the cells as given, so the order of states does not matter; observed
+/// cells and every trace's path are unchanged.
 ///
 /// [`LrmConfig::commute_events`]: super::LrmConfig::commute_events
-pub(crate) fn commute_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], events: &[usize]) {
+pub(crate) fn commute_events(
+    n: usize,
+    l_n: usize,
+    cells: &mut [Option<Cell>],
+    events: &[usize],
+    without_events: &[Option<usize>],
+) {
     // Read from the cells as given, so a filled cell never feeds another fill.
     let given = cells.to_vec();
     let given = &given;
     let observed = move |w: usize, k: usize| given[w * l_n + k].filter(|c| c.weight > 0.0);
+    let class = observed_equivalence(n, l_n, given);
+    let class = &class;
+    // Whether the event label `l` read in `p` leads to a state that the traces leave
+    // otherwise than the state `p` reaches on `l` without its events.
+    let shows_effect = move |p: usize, l: usize, q: usize| {
+        let plain = without_events[l]
+            .and_then(|k0| observed(p, k0))
+            .map_or(p, |c| c.target);
+        class[q] != class[plain]
+    };
     for u in 0..n {
         for &l in events {
             if given[u * l_n + l].is_some() {
@@ -117,6 +138,9 @@ pub(crate) fn commute_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], e
                     .filter(move |&k| observed(p, k).is_some_and(|c| c.target == u))
                     .filter_map(move |k| {
                         let q = observed(p, l)?.target;
+                        if !shows_effect(p, l, q) {
+                            return None;
+                        }
                         given[q * l_n + k].map(|c| c.target)
                     })
             });
@@ -132,6 +156,49 @@ pub(crate) fn commute_events(n: usize, l_n: usize, cells: &mut [Option<Cell>], e
                     weight: 0.0,
                 });
             }
+        }
+    }
+}
+
+/// The coarsest equivalence of states under which equivalent states leave on the same
+/// observed labels to equivalent states (a bisimulation of the observed cells that move: a
+/// stay and an unobserved cell do not count): `class[u]` is `u`'s class. Two states that the
+/// traces leave in the same way, such as two copies of "after red" told apart only by whether
+/// a cancel came during the touch, are equivalent; states that the traces leave on different
+/// labels, or on the same label to inequivalent states, are not.
+pub(crate) fn observed_equivalence(n: usize, l_n: usize, cells: &[Option<Cell>]) -> Vec<usize> {
+    let moves = |u: usize, l: usize| {
+        cells[u * l_n + l]
+            .filter(|c| c.weight > 0.0 && c.target != u)
+            .map(|c| c.target)
+    };
+    let mut class = vec![0usize; n];
+    loop {
+        // Each state's signature under the current classes; equal signatures, one class.
+        let signatures: Vec<(usize, Vec<Option<usize>>)> = (0..n)
+            .map(|u| {
+                (
+                    class[u],
+                    (0..l_n).map(|l| moves(u, l).map(|v| class[v])).collect(),
+                )
+            })
+            .collect();
+        let mut distinct: Vec<&(usize, Vec<Option<usize>>)> = Vec::new();
+        let next: Vec<usize> = signatures
+            .iter()
+            .map(|s| match distinct.iter().position(|d| *d == s) {
+                Some(k) => k,
+                None => {
+                    distinct.push(s);
+                    distinct.len() - 1
+                }
+            })
+            .collect();
+        // Refinement only splits classes, so an unchanged count is the fixed point.
+        let stable = distinct.len() == class.iter().max().map_or(0, |m| m + 1);
+        class = next;
+        if stable {
+            return class;
         }
     }
 }
@@ -268,7 +335,7 @@ mod tests {
     #[test]
     fn an_unseen_event_goes_where_the_event_before_the_touch_goes() {
         let mut c = cells(5, &[(0, 0, 1), (0, 1, 2), (2, 0, 3)]);
-        commute_events(5, L_N, &mut c, &EVENTS);
+        commute_events(5, L_N, &mut c, &EVENTS, &[None; L_N]);
         assert_eq!(c[L_N + 1].map(|c| (c.target, c.weight)), Some((3, 0.0)));
         // Observed cells and cells of other labels are untouched; state 3 has no entry whose
         // commuted path is defined.
@@ -283,12 +350,12 @@ mod tests {
     fn entries_that_disagree_leave_the_cell_undefined() {
         let observed = [(0, 0, 1), (0, 2, 1), (0, 1, 2), (2, 0, 3), (2, 2, 4)];
         let mut c = cells(5, &observed);
-        commute_events(5, L_N, &mut c, &EVENTS);
+        commute_events(5, L_N, &mut c, &EVENTS, &[None; L_N]);
         assert_eq!(c[L_N + 1], None);
         // When they agree, it is filled.
         let observed = [(0, 0, 1), (0, 2, 1), (0, 1, 2), (2, 0, 3), (2, 2, 3)];
         let mut c = cells(5, &observed);
-        commute_events(5, L_N, &mut c, &EVENTS);
+        commute_events(5, L_N, &mut c, &EVENTS, &[None; L_N]);
         assert_eq!(c[L_N + 1].map(|c| c.target), Some(3));
     }
 
@@ -323,12 +390,63 @@ mod tests {
         assert_eq!(c[1], None);
     }
 
+    /// 0 -r-> 1 and 0 -rc-> 2, both left on g for 3: the cancel during red changes nothing
+    /// the traces show next, so it is not carried into 1; when 2 is left for another state
+    /// that the traces leave otherwise (4 -r-> 1, where 3 stays), it is.
+    #[test]
+    fn an_event_that_changes_nothing_that_follows_is_not_commuted() {
+        // Labels: 0 = r, 1 = rc, 2 = g; rc without its event is r.
+        let without = [None, Some(0), None];
+        let mut c = cells(5, &[(0, 0, 1), (0, 1, 2), (1, 2, 3), (2, 2, 3)]);
+        c[2 * L_N] = Some(Cell {
+            target: 2,
+            reward: 0.0,
+            weight: 0.0,
+        });
+        commute_events(5, L_N, &mut c, &EVENTS, &without);
+        assert_eq!(c[L_N + 1], None);
+        let mut c = cells(5, &[(0, 0, 1), (0, 1, 2), (1, 2, 3), (2, 2, 4), (4, 0, 1)]);
+        c[2 * L_N] = Some(Cell {
+            target: 2,
+            reward: 0.0,
+            weight: 0.0,
+        });
+        commute_events(5, L_N, &mut c, &EVENTS, &without);
+        assert_eq!(c[L_N + 1].map(|c| c.target), Some(2));
+    }
+
+    /// Copies of a state that the traces leave alike are one class; a state left on another
+    /// label, or on the same label to a state of another class, is not.
+    #[test]
+    fn observed_equivalence_joins_states_the_traces_leave_alike() {
+        let c = cells(
+            6,
+            &[
+                (0, 0, 1),
+                (0, 1, 2),
+                (1, 2, 3),
+                (2, 2, 3),
+                (3, 0, 5),
+                (4, 2, 5),
+            ],
+        );
+        let class = observed_equivalence(6, L_N, &c);
+        assert_eq!(class[1], class[2]);
+        // 4 is left on g like 1 and 2, but for 5, which is not 3's class (3 moves on r).
+        assert_ne!(class[4], class[1]);
+        assert_ne!(class[0], class[1]);
+        // A stay does not count as leaving: 3 with an observed stay on g is still 3's class.
+        let mut stay = c.clone();
+        stay[3 * L_N + 2] = seen(3);
+        assert_eq!(observed_equivalence(6, L_N, &stay), class);
+    }
+
     /// An event that stays where it was seen (0 -c-> 0) commutes to a stay in 1: what an
     /// undefined cell already does, so it is not defined (the guards stay free there).
     #[test]
     fn a_commuted_stay_is_not_written() {
         let mut c = cells(2, &[(0, 0, 1), (0, 1, 0)]);
-        commute_events(2, L_N, &mut c, &EVENTS);
+        commute_events(2, L_N, &mut c, &EVENTS, &[None; L_N]);
         assert_eq!(c[L_N + 1], None);
     }
 }

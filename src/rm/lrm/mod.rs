@@ -173,8 +173,11 @@ pub struct LrmConfig {
     /// some stages of the task, and where the demonstrations never show it the machine would
     /// otherwise ignore it. Assumes order independence: an event's effect does not depend on
     /// whether it comes just before or just after a touch (true of "unless" events, false of
-    /// one whose meaning changes once a touch has happened). Traces' paths and the cost are
-    /// unchanged. Off by default.
+    /// one whose meaning changes once a touch has happened), and only where the traces show
+    /// the event to have an effect: a way in counts when the state the event leads to is left
+    /// otherwise than the state without it (`merge::observed_equivalence`), so a cancel that
+    /// a task ignores is not carried over. Traces' paths and the cost are unchanged. Off by
+    /// default.
     pub commute_events: bool,
     /// After the search, read an event that the traces never show in the initial state, when
     /// no other state enters it, as coming on the first step with the label that leaves it
@@ -419,20 +422,21 @@ pub fn learn_rm(
     let event_ids: Vec<usize> = (0..l_n)
         .filter(|&l| event_bits.get(l).is_some_and(|&b| b != 0))
         .collect();
+    // Label id -> id of the same set without its events, when the traces read that set.
+    let without_events: Vec<Option<usize>> = data
+        .labels
+        .iter()
+        .map(
+            |l| match data.id_of[LabelSet(l.0 & !cfg.events.0).index()] {
+                u16::MAX => None,
+                id => Some(usize::from(id)),
+            },
+        )
+        .collect();
     if cfg.commute_events {
-        merge::commute_events(n, l_n, &mut defined, &event_ids);
+        merge::commute_events(n, l_n, &mut defined, &event_ids, &without_events);
     }
     if cfg.initial_events {
-        let without_events: Vec<Option<usize>> = data
-            .labels
-            .iter()
-            .map(
-                |l| match data.id_of[LabelSet(l.0 & !cfg.events.0).index()] {
-                    u16::MAX => None,
-                    id => Some(usize::from(id)),
-                },
-            )
-            .collect();
         merge::initial_events(n, l_n, &mut defined, &event_ids, &without_events);
     }
 
