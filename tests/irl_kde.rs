@@ -183,10 +183,73 @@ fn bad_input_is_refused_with_the_reason() {
             obs_dim: 4
         }
     );
-    assert!(matches!(
-        Kde::fit(&[0.0, 1e300], 1, 1e-300).unwrap_err(),
-        KdeError::TooManyCells(_)
-    ));
     let msg = KdeError::BadBandwidth(-1.0).to_string();
     assert!(msg.contains("bandwidth") && msg.contains("-1"), "{msg}");
+}
+
+#[test]
+fn a_span_too_wide_for_cell_coordinates_is_left_out_of_the_grid() {
+    // 1e600 bandwidths: no cell coordinate for it, so every query scans every point.
+    let points = [0.0, 1e300];
+    let kde = Kde::fit(&points, 1, 1e-300).unwrap();
+    assert!(kde.gridded_dimensions().is_empty());
+    let queries = [0.0, 1e300, 5e-301, 0.5];
+    let nonzero = assert_matches_brute_force(&points, 1, 1e-300, &queries);
+    assert_eq!(nonzero, 3);
+}
+
+/// Rows (one-hot of `states` machine states, fingertip x, y), the product controls' density
+/// state: `n` points spread over the states and a 0.4 × 0.4 square.
+fn product_rows(rng: &mut ChaCha8Rng, n: usize, states: usize) -> Vec<f64> {
+    let mut rows = Vec::with_capacity(n * (states + 2));
+    for _ in 0..n {
+        let u = rng.gen_range(0..states);
+        rows.extend((0..states).map(|s| if s == u { 1.0 } else { 0.0 }));
+        rows.push(rng.gen_range(-0.2..0.2));
+        rows.push(rng.gen_range(-0.2..0.2));
+    }
+    rows
+}
+
+#[test]
+fn a_machine_one_hot_beside_the_fingertip_fits_and_matches_brute_force() {
+    // Regression: 12 states at bandwidth 0.02 are 51^12 · 21^2 cells, which a key over every
+    // dimension cannot hold (from 10 states on); the product controls failed with it.
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (states, h) = (12, 0.02);
+    let dim = states + 2;
+    let points = product_rows(&mut rng, 3000, states);
+    let kde = Kde::fit(&points, dim, h).unwrap();
+    // The grid keys on the fingertip (about 20 occupied cells each) and one state's column.
+    assert_eq!(kde.gridded_dimensions().len(), 3);
+    assert!(kde.gridded_dimensions().ends_with(&[states, states + 1]));
+    let mut queries: Vec<f64> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            if i % dim >= states {
+                p + rng.gen_range(-0.01..0.01)
+            } else {
+                *p
+            }
+        })
+        .collect();
+    queries.extend(product_rows(&mut rng, 500, states));
+    let nonzero = assert_matches_brute_force(&points, dim, h, &queries);
+    assert!(nonzero >= 3000, "{nonzero}");
+}
+
+#[test]
+fn up_to_three_dimensions_are_all_gridded_in_order() {
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    for dim in 1..=3 {
+        let kde = Kde::fit(&random_points(&mut rng, 200, dim, 0.2), dim, 0.02).unwrap();
+        assert_eq!(kde.gridded_dimensions(), (0..dim).collect::<Vec<_>>());
+    }
+    // A dimension every point shares one cell of narrows nothing and is left out.
+    let flat: Vec<f64> = random_points(&mut rng, 200, 2, 0.2)
+        .chunks_exact(2)
+        .flat_map(|p| [p[0], 0.5])
+        .collect();
+    assert_eq!(Kde::fit(&flat, 2, 0.02).unwrap().gridded_dimensions(), [0]);
 }

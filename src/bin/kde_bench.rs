@@ -1,9 +1,10 @@
 //! Benchmark of the grid KDE against the naive double loop at f-IRL's per-iteration size:
 //! fit 30 000 fingertip positions, evaluate at 30 000 queries (bandwidth 0.02).
 //!
-//! Two data sets: fingertip positions of ReacherDelivery rollouts under a uniformly random
-//! policy (1000 episodes × 30 steps — clustered, the hard case for a grid) and points
-//! uniform in the reachable disc. The naive loop is timed on a subset of the queries and
+//! Three data sets: fingertip positions of ReacherDelivery rollouts under a uniformly random
+//! policy (1000 episodes × 30 steps — clustered, the hard case for a grid), points uniform in
+//! the reachable disc, and the same fingertips beside a one-hot of a random state of a
+//! 12-state machine (14-D: the density state of the product controls). The naive loop is timed on a subset of the queries and
 //! scaled to 30 000 (it is linear in the number of queries); every time is the median of
 //! several repetitions in this run. Results go to stdout and to `--out`
 //! (default `experiments/irl/kde_bench.txt`).
@@ -93,14 +94,26 @@ struct Row {
     max_rel_err: f64,
 }
 
-fn bench(name: &'static str, fit: &[f64], queries: &[f64], args: &Args) -> Result<Row> {
+/// `tips` (x, y rows) each after a one-hot of a machine state drawn uniformly of `states`.
+fn with_machine_states(tips: &[f64], states: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut rows = Vec::with_capacity(tips.len() / 2 * (states + 2));
+    for tip in tips.chunks_exact(2) {
+        let u = rng.gen_range(0..states);
+        rows.extend((0..states).map(|s| if s == u { 1.0 } else { 0.0 }));
+        rows.extend_from_slice(tip);
+    }
+    rows
+}
+
+fn bench(name: &'static str, fit: &[f64], queries: &[f64], dim: usize, args: &Args) -> Result<Row> {
     let h = args.bandwidth;
-    let nq = queries.len() / 2;
+    let nq = queries.len() / dim;
     let mut out = vec![0.0; nq];
     let mut grid_times = Vec::new();
     for _ in 0..args.reps {
         let t = Instant::now();
-        let kde = Kde::fit(fit, 2, h)?;
+        let kde = Kde::fit(fit, dim, h)?;
         kde.density_batch(queries, &mut out);
         grid_times.push(t.elapsed().as_secs_f64());
         std::hint::black_box(&out);
@@ -110,8 +123,8 @@ fn bench(name: &'static str, fit: &[f64], queries: &[f64], args: &Args) -> Resul
     let mut naive_times = Vec::new();
     for _ in 0..args.reps {
         let t = Instant::now();
-        for (q, o) in queries.chunks_exact(2).take(sub).zip(naive.iter_mut()) {
-            *o = brute_force_density(fit, 2, h, q);
+        for (q, o) in queries.chunks_exact(dim).take(sub).zip(naive.iter_mut()) {
+            *o = brute_force_density(fit, dim, h, q);
         }
         naive_times.push(t.elapsed().as_secs_f64() * nq as f64 / sub as f64);
         std::hint::black_box(&naive);
@@ -144,14 +157,24 @@ fn main() -> Result<()> {
     let (tip_fit, tip_query) = tips.split_at(2 * n);
     let disc = disc_points(2 * n, args.seed ^ 0x5eed);
     let (disc_fit, disc_query) = disc.split_at(2 * n);
+    const STATES: usize = 12;
+    let product_fit = with_machine_states(tip_fit, STATES, args.seed ^ 0xf17);
+    let product_query = with_machine_states(tip_query, STATES, args.seed ^ 0x9e7);
     let rows = [
-        bench("reacher random-policy tips", tip_fit, tip_query, &args)?,
-        bench("uniform in reachable disc", disc_fit, disc_query, &args)?,
+        bench("reacher random-policy tips", tip_fit, tip_query, 2, &args)?,
+        bench("uniform in reachable disc", disc_fit, disc_query, 2, &args)?,
+        bench(
+            "tips + 12-state one-hot",
+            &product_fit,
+            &product_query,
+            STATES + 2,
+            &args,
+        )?,
     ];
     let mut text = String::new();
     writeln!(
         text,
-        "kde_bench: Epanechnikov KDE, 2-D, bandwidth {}, fit {n} points + evaluate {n} queries; \
+        "kde_bench: Epanechnikov KDE, 2-D and 14-D, bandwidth {}, fit {n} points + evaluate {n} queries; \
          median of {} reps; naive loop timed on {} queries and scaled to {n}",
         args.bandwidth, args.reps, args.naive_queries
     )?;

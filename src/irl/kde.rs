@@ -19,12 +19,31 @@
 //! dimension are one contiguous slice: a query scans 3^{d−1} slices. The result is exact (the
 //! same sum as the brute-force double loop, up to floating-point summation order).
 //!
-//! The cell directory is a dense offset table when the bounding box of the data has at most
-//! [`DENSE_CELL_LIMIT`] cells, otherwise a sorted list of occupied cell keys searched by
-//! bisection (memory stays O(n) for sparse data in any dimension).
+//! The grid keys on at most [`GRID_MAX_DIMS`] of the dimensions, those in which the points
+//! occupy the most cells, so a query scans at most 3^{GRID_MAX_DIMS−1} slices whatever `d`
+//! is; the kernel of each candidate is still evaluated in all `d` dimensions, so the sum
+//! stays exact. (Data of many dimensions, such as a machine state's one-hot beside the
+//! fingertip, would otherwise need 3^{d−1} slices per query and a cell key wider than 64 bits.)
+//! A dimension is left out of the grid when all points share one cell in it or when its span
+//! is too many bandwidths for a cell coordinate; with no dimension left, every query scans
+//! every point. Up to three dimensions that all qualify are all gridded, in index order.
+//!
+//! The cell directory is a dense offset table when the bounding box of the gridded
+//! dimensions has at most [`DENSE_CELL_LIMIT`] cells, otherwise a sorted list of occupied cell
+//! keys searched by bisection (memory stays O(n) for sparse data).
 
 /// Largest number of grid cells for which the dense offset table is used.
 pub const DENSE_CELL_LIMIT: u64 = 1 << 22;
+
+/// Most dimensions the grid keys on (a query scans 3^{k−1} slices for k gridded dimensions).
+pub const GRID_MAX_DIMS: usize = 3;
+
+/// Largest number of cells along one gridded dimension (cell coordinates stay exact in f64).
+const MAX_CELLS_PER_DIM: f64 = (1u64 << 52) as f64;
+
+/// Largest product of cells over the gridded dimensions (keys of queries one cell beyond
+/// the grid stay within u64).
+const MAX_TOTAL_CELLS: u64 = u64::MAX / 4;
 
 /// Bad input to the density estimator.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -41,8 +60,8 @@ pub enum KdeError {
     NonFinitePoint { index: usize },
     #[error("column {column} is out of range for observations of dimension {obs_dim}")]
     ColumnOutOfRange { column: usize, obs_dim: usize },
-    #[error("the data spans too many bandwidth-sized cells ({0}) for a 64-bit cell key")]
-    TooManyCells(String),
+    #[error("KDE takes at most 2^32 points, got {0}")]
+    TooManyPoints(usize),
 }
 
 /// Normalising constant c_d of the radial Epanechnikov kernel in dimension `d`.
@@ -78,11 +97,13 @@ pub struct Kde {
     n: usize,
     /// Points sorted by cell, row-major `n × dim`.
     points: Vec<f64>,
-    /// Lower corner of the grid.
+    /// The dimensions the grid keys on, in increasing order (see the module docs).
+    grid: Vec<usize>,
+    /// Lower corner of the grid, per gridded dimension.
     origin: Vec<f64>,
-    /// Cells per dimension.
+    /// Cells per gridded dimension.
     cells: Vec<u64>,
-    /// Row-major strides of the cell key.
+    /// Row-major strides of the cell key, per gridded dimension.
     strides: Vec<u64>,
     directory: CellDirectory,
     /// c_d / (n h^d): the density contributed by one point at its own location.
@@ -94,42 +115,32 @@ impl Kde {
     pub fn fit(points: &[f64], dim: usize, bandwidth: f64) -> Result<Kde, KdeError> {
         check_shape(points, dim, bandwidth)?;
         let n = points.len() / dim;
-        let mut origin = vec![f64::INFINITY; dim];
+        let mut lower = vec![f64::INFINITY; dim];
         let mut upper = vec![f64::NEG_INFINITY; dim];
         for p in points.chunks_exact(dim) {
             for j in 0..dim {
-                origin[j] = origin[j].min(p[j]);
+                lower[j] = lower[j].min(p[j]);
                 upper[j] = upper[j].max(p[j]);
             }
         }
-        let mut cells = Vec::with_capacity(dim);
-        let mut total: u64 = 1;
-        for j in 0..dim {
-            let span = ((upper[j] - origin[j]) / bandwidth).floor() + 1.0;
-            // Cell coordinates of queries go one cell beyond each side: keep head-room.
-            if span.is_nan() || span >= (1u64 << 52) as f64 {
-                return Err(KdeError::TooManyCells(format!(
-                    "{span} along dimension {j}"
-                )));
-            }
-            let c = span as u64;
-            total = total
-                .checked_mul(c)
-                .filter(|t| *t < u64::MAX / 4)
-                .ok_or_else(|| KdeError::TooManyCells("more than 2^62".into()))?;
-            cells.push(c);
-        }
-        let mut strides = vec![1u64; dim];
-        for j in (0..dim.saturating_sub(1)).rev() {
-            strides[j] = strides[j + 1] * cells[j + 1];
+        let (grid, cells): (Vec<usize>, Vec<u64>) =
+            grid_dimensions(points, dim, bandwidth, &lower, &upper)
+                .into_iter()
+                .unzip();
+        let origin: Vec<f64> = grid.iter().map(|&j| lower[j]).collect();
+        let total: u64 = cells.iter().product();
+        let k = grid.len();
+        let mut strides = vec![1u64; k];
+        for g in (0..k.saturating_sub(1)).rev() {
+            strides[g] = strides[g + 1] * cells[g + 1];
         }
         // Same arithmetic as the queries' cell coordinates in `density`.
         let inv_h = 1.0 / bandwidth;
         let key_of = |p: &[f64]| -> u64 {
             let mut key = 0;
-            for j in 0..dim {
-                let c = (((p[j] - origin[j]) * inv_h).floor() as u64).min(cells[j] - 1);
-                key += c * strides[j];
+            for (g, &j) in grid.iter().enumerate() {
+                let c = (((p[j] - origin[g]) * inv_h).floor() as u64).min(cells[g] - 1);
+                key += c * strides[g];
             }
             key
         };
@@ -163,6 +174,7 @@ impl Kde {
             bandwidth,
             n,
             points: sorted,
+            grid,
             origin,
             cells,
             strides,
@@ -200,6 +212,11 @@ impl Kde {
         self.n == 0
     }
 
+    /// The dimensions the grid keys on, in increasing order (see the module docs).
+    pub fn gridded_dimensions(&self) -> &[usize] {
+        &self.grid
+    }
+
     /// True when the cell directory is the dense offset table (see the module docs).
     pub fn uses_dense_grid(&self) -> bool {
         matches!(self.directory, CellDirectory::Dense(_))
@@ -212,25 +229,22 @@ impl Kde {
             return f64::NAN;
         }
         let d = self.dim;
+        let k = self.grid.len();
+        if k == 0 {
+            return kernel_sum(&self.points, x, 1.0 / self.bandwidth) * self.scale;
+        }
         let inv_h = 1.0 / self.bandwidth;
-        // Cell coordinate of the query in each dimension (may be −1 or `cells`, or far out).
-        let mut centre = [0i64; 8];
-        let mut centre_vec;
-        let centre: &mut [i64] = if d <= 8 {
-            &mut centre[..d]
-        } else {
-            centre_vec = vec![0i64; d];
-            &mut centre_vec
-        };
-        for j in 0..d {
-            let c = ((x[j] - self.origin[j]) * inv_h).floor();
+        // Cell coordinate of the query in each gridded dimension (may be −1 or `cells`).
+        let mut centre = [0i64; GRID_MAX_DIMS];
+        for (g, &j) in self.grid.iter().enumerate() {
+            let c = ((x[j] - self.origin[g]) * inv_h).floor();
             // Anything more than one cell outside the grid sees no point.
-            if c < -1.0 || c > self.cells[j] as f64 {
+            if c < -1.0 || c > self.cells[g] as f64 {
                 return 0.0;
             }
-            centre[j] = c as i64;
+            centre[g] = c as i64;
         }
-        let last = d - 1;
+        let last = k - 1;
         let lo_last = (centre[last] - 1).max(0) as u64;
         let hi_last = (centre[last] + 1).min(self.cells[last] as i64 - 1);
         if hi_last < lo_last as i64 {
@@ -238,7 +252,7 @@ impl Kde {
         }
         let hi_last = hi_last as u64;
         let mut sum = 0.0;
-        // Odometer over the 3^{d−1} offsets of the leading dimensions.
+        // Odometer over the 3^{k−1} offsets of the leading gridded dimensions.
         let rows = 3usize.pow(last as u32);
         'rows: for r in 0..rows {
             let mut rest = r;
@@ -288,6 +302,56 @@ impl Kde {
             ),
         }
     }
+}
+
+/// The dimensions the grid keys on (see the module docs), in increasing order: of those whose
+/// span is at most [`MAX_CELLS_PER_DIM`] cells and in which the points occupy at least two
+/// cells, the [`GRID_MAX_DIMS`] with the most occupied cells (ties to the lower index), each
+/// taken only while the product of cells stays within [`MAX_TOTAL_CELLS`]; with the number of
+/// cells of each.
+fn grid_dimensions(
+    points: &[f64],
+    dim: usize,
+    bandwidth: f64,
+    lower: &[f64],
+    upper: &[f64],
+) -> Vec<(usize, u64)> {
+    let inv_h = 1.0 / bandwidth;
+    // (occupied cells, dimension, cells) of every eligible dimension.
+    let mut eligible: Vec<(usize, usize, u64)> = Vec::new();
+    let mut column: Vec<u64> = Vec::with_capacity(points.len() / dim);
+    for j in 0..dim {
+        // The span in cells is computed as the grid's cell counts are.
+        let span = ((upper[j] - lower[j]) / bandwidth).floor() + 1.0;
+        if span.is_nan() || span >= MAX_CELLS_PER_DIM {
+            continue;
+        }
+        column.clear();
+        column.extend(
+            points
+                .chunks_exact(dim)
+                .map(|p| ((p[j] - lower[j]) * inv_h).floor() as u64),
+        );
+        column.sort_unstable();
+        column.dedup();
+        if column.len() >= 2 {
+            eligible.push((column.len(), j, span as u64));
+        }
+    }
+    eligible.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut grid = Vec::with_capacity(GRID_MAX_DIMS);
+    let mut total: u64 = 1;
+    for (_, j, cells) in eligible {
+        if grid.len() == GRID_MAX_DIMS {
+            break;
+        }
+        if let Some(t) = total.checked_mul(cells).filter(|t| *t <= MAX_TOTAL_CELLS) {
+            total = t;
+            grid.push((j, cells));
+        }
+    }
+    grid.sort_unstable();
+    grid
 }
 
 /// Σ over the row-major points of (1 − ‖(p − x)/h‖²)₊. Branch-free with independent
@@ -344,7 +408,7 @@ pub(crate) fn check_shape(points: &[f64], dim: usize, bandwidth: f64) -> Result<
         });
     }
     if points.len() / dim > u32::MAX as usize {
-        return Err(KdeError::TooManyCells("more than 2^32 points".into()));
+        return Err(KdeError::TooManyPoints(points.len() / dim));
     }
     if let Some(i) = points.iter().position(|v| !v.is_finite()) {
         return Err(KdeError::NonFinitePoint { index: i / dim });
