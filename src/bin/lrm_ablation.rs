@@ -15,6 +15,7 @@
 //! `perfect_cost` the perfect machine's under the same reading of the traces.
 
 use anyhow::{bail, Context, Result};
+use clap::Parser;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::Algo;
 use smirl::pipeline::reacher_irl::demos::{load_expert, make_demos};
@@ -43,21 +44,22 @@ fn parse_bases(text: &str) -> Result<Vec<u64>> {
     Ok(out)
 }
 
+#[derive(Parser)]
+#[command(about = "LRM's mechanisms ablated without SAC: one CSV row per (task, base, variant)")]
+struct Args {
+    /// Shipped task names, comma-separated.
+    #[arg(long, default_value = "or,sequential,if,composite")]
+    tasks: String,
+    /// Base seeds: numbers and ranges `a-b`, comma-separated.
+    #[arg(long, default_value = "0")]
+    bases: String,
+    /// CSV the rows are appended to (a row already in it is not computed again).
+    #[arg(long)]
+    out: String,
+}
+
 fn main() -> Result<()> {
-    let mut tasks = "or,sequential,if,composite".to_string();
-    let mut bases = "0".to_string();
-    let mut out = None;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        let mut value = || args.next().with_context(|| format!("{a} needs a value"));
-        match a.as_str() {
-            "--tasks" => tasks = value()?,
-            "--bases" => bases = value()?,
-            "--out" => out = Some(value()?),
-            other => bail!("unknown argument {other}"),
-        }
-    }
-    let out = out.context("--out <file.csv> is required")?;
+    let Args { tasks, bases, out } = Args::parse();
     let bases = parse_bases(&bases)?;
     let header = "task,base,variant,demos,states,cost,perfect_cost,determined,counterexample,determined_seen,counterexample_seen,determined_failures,counterexample_failures,secs";
     let done: HashSet<(String, u64, String)> = match std::fs::read_to_string(&out) {

@@ -29,7 +29,8 @@
 
 #![deny(unsafe_code)]
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
+use clap::Parser;
 use smirl::env::office::OfficeTask;
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines, state_counts};
@@ -39,62 +40,53 @@ use smirl::rm::transform::restart_on_goal;
 use smirl::rm::{perfect, LabelSet, RewardMachine};
 use std::time::Instant;
 
+#[derive(Parser)]
+#[command(about = "LRM learner benchmark: time, cost and equivalence per task")]
 struct Args {
+    /// Transitions per task.
+    #[arg(long, default_value_t = 100_000)]
     steps: usize,
+    /// Runs per task; the median time is reported.
+    #[arg(long, default_value_t = 3, value_parser = at_least_one)]
     reps: usize,
+    /// Threads of the learner's search.
+    #[arg(long, default_value_t = 2, value_parser = at_least_one)]
     threads: usize,
+    /// Seed of the traces and the search.
+    #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Tabu search steps per start.
+    #[arg(long, default_value_t = LrmConfig::default().max_steps)]
     search_steps: usize,
+    /// Most states of a learned machine.
+    #[arg(long, default_value_t = LrmConfig::default().max_states, value_parser = at_least_one)]
     max_states: usize,
+    /// Starts of the tabu search.
+    #[arg(long, default_value_t = LrmConfig::default().starts, value_parser = at_least_one)]
     starts: usize,
+    /// A start ends after this many steps without improving (0 = run all search steps).
+    #[arg(long, default_value_t = LrmConfig::default().patience)]
     patience: usize,
+    /// No split move and no initial-state split (with `--starts 1 --patience 0`: the
+    /// reference search).
+    #[arg(long = "no-split", action = clap::ArgAction::SetFalse)]
     split_moves: bool,
+    /// When merging, let an unobserved cell take the behaviour of the state it merges with.
+    #[arg(long)]
     fill_unobserved: bool,
+    /// Only the tasks whose name starts with this (`office_`, `reacher_or`, …).
+    #[arg(long)]
     only: Option<String>,
 }
 
-fn parse_args() -> Result<Args> {
-    let d = LrmConfig::default();
-    let mut a = Args {
-        steps: 100_000,
-        reps: 3,
-        threads: 2,
-        seed: 1,
-        search_steps: d.max_steps,
-        max_states: d.max_states,
-        starts: d.starts,
-        patience: d.patience,
-        split_moves: true,
-        fill_unobserved: false,
-        only: None,
-    };
-    let mut it = std::env::args().skip(1);
-    while let Some(flag) = it.next() {
-        let mut value = |name: &str| -> Result<usize> {
-            let v = it.next().with_context(|| format!("{name} needs a value"))?;
-            v.parse()
-                .with_context(|| format!("{name}: expected a number, got {v:?}"))
-        };
-        match flag.as_str() {
-            "--steps" => a.steps = value("--steps")?,
-            "--reps" => a.reps = value("--reps")?.max(1),
-            "--threads" => a.threads = value("--threads")?.max(1),
-            "--seed" => a.seed = value("--seed")? as u64,
-            "--search-steps" => a.search_steps = value("--search-steps")?,
-            "--max-states" => a.max_states = value("--max-states")?.max(1),
-            "--starts" => a.starts = value("--starts")?.max(1),
-            "--patience" => a.patience = value("--patience")?,
-            // `--starts 1 --patience 0 --no-split` is the reference search (no split move,
-            // no initial-state split).
-            "--no-split" => a.split_moves = false,
-            "--fill-unobserved" => a.fill_unobserved = true,
-            "--only" => a.only = Some(it.next().context("--only needs a task name prefix")?),
-            other => {
-                bail!("unknown argument {other:?} (expected --steps, --reps, --threads, --seed, --search-steps, --max-states, --starts, --patience, --no-split, --fill-unobserved, --only)")
-            }
-        }
+/// A count of at least one.
+fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!(
+            "expected a whole number of at least 1, got {text:?}"
+        )),
     }
-    Ok(a)
 }
 
 fn median(mut xs: Vec<f64>) -> f64 {
@@ -122,7 +114,7 @@ fn yn(b: bool) -> &'static str {
 }
 
 fn main() -> Result<()> {
-    let args = parse_args()?;
+    let args = Args::parse();
     println!(
         "lrm_bench: {} transitions per task, median of {} runs, {} threads, seed {}, {} starts, patience {}, split moves {}, git {}",
         args.steps,

@@ -16,7 +16,8 @@
 //! ablations from the job with every mechanism on (`tests/mechanism_ablation.rs` checks that
 //! this gives what a run without them reports). A job whose record exists is not run again.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
+use clap::Parser;
 use smirl::pipeline::reacher_irl::records::PreparedRun;
 use smirl::pipeline::reacher_irl::run::open_run;
 use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
@@ -32,14 +33,6 @@ const MECHANISMS: [&str; 7] = [
     "reset_agent",
     "selection_cut",
 ];
-
-const VERSION: &str = concat!(
-    "smirl ",
-    env!("CARGO_PKG_VERSION"),
-    " (commit ",
-    env!("SMIRL_GIT_COMMIT"),
-    ")"
-);
 
 /// `config` with `mechanism` off.
 fn turn_off(c: &mut IrlRunConfig, mechanism: &str) {
@@ -60,15 +53,16 @@ fn turn_off(c: &mut IrlRunConfig, mechanism: &str) {
 }
 
 /// The mechanisms of `--without`, each known and once, in [`MECHANISMS`] order.
-fn parse_mechanisms(text: &str) -> Result<Vec<&'static str>> {
+#[derive(Clone, Debug)]
+struct Without(Vec<&'static str>);
+
+fn parse_mechanisms(text: &str) -> Result<Without, String> {
     let given: Vec<&str> = text.split(',').map(str::trim).collect();
-    for g in &given {
-        if !MECHANISMS.contains(g) {
-            bail!(
-                "--without {g}: not a mechanism this ablation turns off (one of {})",
-                MECHANISMS.join(", ")
-            );
-        }
+    if let Some(g) = given.iter().find(|g| !MECHANISMS.contains(g)) {
+        return Err(format!(
+            "{g}: not a mechanism this ablation turns off (one of {})",
+            MECHANISMS.join(", ")
+        ));
     }
     let out: Vec<&'static str> = MECHANISMS
         .iter()
@@ -76,30 +70,34 @@ fn parse_mechanisms(text: &str) -> Result<Vec<&'static str>> {
         .filter(|m| given.contains(m))
         .collect();
     if out.len() != given.len() {
-        bail!("--without {text}: a mechanism named twice");
+        return Err(format!("{text}: a mechanism named twice"));
     }
-    Ok(out)
+    Ok(Without(out))
+}
+
+#[derive(Parser)]
+#[command(
+    about = "SMIRL's job of a prepared run directory with mechanisms turned off",
+    version = concat!(env!("CARGO_PKG_VERSION"), " (commit ", env!("SMIRL_GIT_COMMIT"), ")")
+)]
+struct Args {
+    /// A run directory prepared by `reacher prepare --algo smirl`.
+    #[arg(long = "run")]
+    run_dir: PathBuf,
+    /// The job's seed, one of the run's own.
+    #[arg(long)]
+    seed: u64,
+    /// The mechanisms turned off, comma-separated (see the module docs).
+    #[arg(long, value_parser = parse_mechanisms)]
+    without: Without,
 }
 
 fn main() -> Result<()> {
-    let (mut run_dir, mut seed, mut without) = (None, None, None);
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        let mut value = || args.next().with_context(|| format!("{a} needs a value"));
-        match a.as_str() {
-            "--run" => run_dir = Some(PathBuf::from(value()?)),
-            "--seed" => seed = Some(value()?.parse::<u64>().context("--seed: an integer")?),
-            "--without" => without = Some(parse_mechanisms(&value()?)?),
-            "--version" => {
-                println!("{VERSION}");
-                return Ok(());
-            }
-            other => bail!("unknown argument {other} (--run DIR --seed S --without MECHANISM[,…])"),
-        }
-    }
-    let run_dir = run_dir.context("--run <prepared run directory> is required")?;
-    let seed = seed.context("--seed <S> is required")?;
-    let without = without.context("--without <mechanism>[,…] is required")?;
+    let Args {
+        run_dir,
+        seed,
+        without: Without(without),
+    } = Args::parse();
     let run = open_run(&run_dir).with_context(|| format!("{}", run_dir.display()))?;
     // The run's own plan decides which seeds exist (the ablation adds no job of its own).
     run.job(Algo::Smirl, seed)?;
