@@ -13,20 +13,21 @@
 //! 2 V_d / (d + 2). (d = 1: c = 3/4; d = 2: c = 2/π.) So p integrates to one over ℝ^d.
 //!
 //! **Speed.** K has compact support (radius h), so a query only sees fitted points within
-//! distance h. Points are bucketed in a grid of cubic cells of side h; the points that can
-//! touch a query lie in the 3^d cells around the query's cell. Points are stored sorted by
-//! cell (row-major, last dimension fastest), so the three neighbouring cells along the last
-//! dimension are one contiguous slice: a query scans 3^{d−1} slices. The result is exact (the
-//! same sum as the brute-force double loop, up to floating-point summation order).
+//! distance h. Points are bucketed in a grid of cells of side h over k of the d dimensions;
+//! the points that can touch a query lie in the 3^k cells around the query's cell. Points are
+//! stored sorted by cell (row-major, last gridded dimension fastest), so the three
+//! neighbouring cells along the last gridded dimension are one contiguous slice: a query
+//! scans 3^{k−1} slices, and the kernel of each point in them is evaluated in all d
+//! dimensions. The result is exact (the same sum as the brute-force double loop, up to
+//! floating-point summation order).
 //!
-//! The grid keys on at most [`GRID_MAX_DIMS`] of the dimensions, those in which the points
-//! occupy the most cells, so a query scans at most 3^{GRID_MAX_DIMS−1} slices whatever `d`
-//! is; the kernel of each candidate is still evaluated in all `d` dimensions, so the sum
-//! stays exact. (Data of many dimensions, such as a machine state's one-hot beside the
+//! The grid keys on at most [`GRID_MAX_DIMS`] dimensions, those in which the points occupy
+//! the most cells. (Data of many dimensions, such as a machine state's one-hot beside the
 //! fingertip, would otherwise need 3^{d−1} slices per query and a cell key wider than 64 bits.)
 //! A dimension is left out of the grid when all points share one cell in it or when its span
 //! is too many bandwidths for a cell coordinate; with no dimension left, every query scans
-//! every point. Up to three dimensions that all qualify are all gridded, in index order.
+//! every point. Data of at most three dimensions that all qualify is gridded on all of them,
+//! in index order.
 //!
 //! The cell directory is a dense offset table when the bounding box of the gridded
 //! dimensions has at most [`DENSE_CELL_LIMIT`] cells, otherwise a sorted list of occupied cell
