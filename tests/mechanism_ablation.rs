@@ -189,6 +189,24 @@ fn final_set(lower: f64) -> serde_json::Value {
     })
 }
 
+/// Writes `events` as the ablation's ledger: gzip-compressed JSON lines (compressed by
+/// Python's gzip, as `ablation.py` reads and writes it).
+fn write_ledger(path: &Path, events: &[serde_json::Value]) {
+    let plain = path.with_extension("plain");
+    let text: String = events.iter().map(|e| format!("{e}\n")).collect();
+    std::fs::write(&plain, text).unwrap();
+    let out = Command::new("python3")
+        .args([
+            "-c",
+            "import gzip, shutil, sys; shutil.copyfileobj(open(sys.argv[1], 'rb'), gzip.open(sys.argv[2], 'wb'))",
+        ])
+        .arg(&plain)
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+}
+
 /// A job record with three candidates, whose choice the table reads again: (agent, learned
 /// return, cut return, score) each; the job chose the highest cut return.
 fn fake_record(seed: u64, loop_score: f64, chosen_score: Option<f64>) -> serde_json::Value {
@@ -227,10 +245,12 @@ fn fake_record(seed: u64, loop_score: f64, chosen_score: Option<f64>) -> serde_j
 #[test]
 fn the_ablation_table_reads_each_mechanism_from_its_policy_and_applies_the_rule() {
     let tmp = tempfile::tempdir().unwrap();
-    let runs = tmp.path().join("runs");
-    let write = |path: std::path::PathBuf, value: &serde_json::Value| {
-        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        std::fs::write(path, value.to_string()).unwrap();
+    let ledger = tmp.path().join("ledger.jsonl.gz");
+    let events = std::cell::RefCell::new(Vec::new());
+    let done = |task: &str, base: u64, job: &str, record: serde_json::Value| {
+        events.borrow_mut().push(serde_json::json!({
+            "event": "done", "task": task, "base": base, "job": job, "record": record
+        }));
     };
     let tasks = ["or", "sequential", "if", "composite"];
     let stage_1 = [10u64, 20, 30, 40, 50, 60];
@@ -238,19 +258,14 @@ fn the_ablation_table_reads_each_mechanism_from_its_policy_and_applies_the_rule(
     let write_stage = |bases: &[u64]| {
         for task in tasks {
             for &base in bases {
-                let dir = runs.join(format!("{task}-b{base}"));
-                write(
-                    dir.join(format!("jobs/smirl_seed{base}.json")),
-                    &fake_record(base, 0.0, None),
-                );
-                write(
-                    dir.join(format!("jobs/smirl_seed{}.json", base + 1)),
-                    &fake_record(base + 1, 0.0, None),
-                );
+                done(task, base, "standard", fake_record(base, 0.0, None));
+                done(task, base, "second_draw", fake_record(base + 1, 0.0, None));
                 let off = |mechanism: &str, score: f64| {
-                    write(
-                        dir.join(format!("ablation/{mechanism}/jobs/smirl_seed{base}.json")),
-                        &fake_record(base, 0.0, Some(score)),
+                    done(
+                        task,
+                        base,
+                        &format!("without_{mechanism}"),
+                        fake_record(base, 0.0, Some(score)),
                     );
                 };
                 off("clock", 0.0);
@@ -266,13 +281,14 @@ fn the_ablation_table_reads_each_mechanism_from_its_policy_and_applies_the_rule(
         }
     };
     let table = || {
+        write_ledger(&ledger, &events.borrow());
         let out = Command::new("python3")
             .arg(concat!(
                 env!("CARGO_MANIFEST_DIR"),
                 "/experiments/reacher/mechanisms/ablation.py"
             ))
-            .args(["table", "--runs"])
-            .arg(&runs)
+            .args(["table", "--ledger"])
+            .arg(&ledger)
             .arg("--out")
             .arg(tmp.path())
             .output()
@@ -288,11 +304,10 @@ fn the_ablation_table_reads_each_mechanism_from_its_policy_and_applies_the_rule(
     };
 
     write_stage(&stage_1);
-    std::fs::write(
-        runs.join("failed.txt"),
-        "composite 60 without_event_gated_visits exit 1\n",
-    )
-    .unwrap();
+    events.borrow_mut().push(serde_json::json!({
+        "event": "failed", "task": "composite", "base": 60,
+        "job": "without_event_gated_visits", "why": "exit 1"
+    }));
     let md = table();
     assert!(md.contains("Completed stages: 1 "), "{md}");
     for pays in ["clock", "final_phase", "selection_cut"] {
@@ -354,11 +369,11 @@ fn the_ablation_table_reads_each_mechanism_from_its_policy_and_applies_the_rule(
     );
     for task in tasks {
         for base in stage_1.iter().chain(&stage_2) {
-            write(
-                runs.join(format!(
-                    "{task}-b{base}/ablation/counterfactual_states+event_gated_visits+shaping+reset_agent/jobs/smirl_seed{base}.json"
-                )),
-                &fake_record(*base, 0.0, Some(0.0)),
+            done(
+                task,
+                *base,
+                "without_counterfactual_states+event_gated_visits+shaping+reset_agent",
+                fake_record(*base, 0.0, Some(0.0)),
             );
         }
     }
@@ -368,4 +383,59 @@ fn the_ablation_table_reads_each_mechanism_from_its_policy_and_applies_the_rule(
         r.contains("| 2 | 48 | 48 | 48 | 0 | 0 |") && r.ends_with("| they go |"),
         "{r}"
     );
+}
+
+/// What `ablation.py run` keeps of a finished job (its run directory is gone on the next
+/// checkout): a `done` entry in the ledger holding the record without its per-iteration rows,
+/// every field the table reads unchanged, under the job's key; a second entry appends, and an
+/// existing ledger is not rewritten otherwise.
+#[test]
+fn a_finished_job_is_kept_in_the_ledger_without_its_rows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (runs, ledger) = (tmp.path().join("runs"), tmp.path().join("ledger.jsonl.gz"));
+    let mut raw = fake_record(10, 0.5, Some(1.0));
+    raw["rows"] = serde_json::json!([{"iteration": 0, "success_rate": 0.25}]);
+    for rel in [
+        "or-b10/jobs/smirl_seed10.json",
+        "or-b10/ablation/clock+shaping/jobs/smirl_seed10.json",
+    ] {
+        let path = runs.join(rel);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, raw.to_string()).unwrap();
+    }
+    let version = serde_json::json!({"event": "version", "version": "smirl 0.1.0 (commit x)"});
+    write_ledger(&ledger, std::slice::from_ref(&version));
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/reacher/mechanisms"
+    );
+    let code = "import gzip, json, sys\n\
+        sys.path.insert(0, sys.argv[1]); import ablation\n\
+        ablation.LEDGER = sys.argv[2]\n\
+        ablation.keep_record(sys.argv[3], 'or', 10, 'standard')\n\
+        ablation.keep_record(sys.argv[3], 'or', 10, ('shaping', 'clock'))\n\
+        print(json.dumps(ablation.read_ledger()))\n";
+    let out = Command::new("python3")
+        .args(["-c", code, script])
+        .arg(&ledger)
+        .arg(&runs)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let events: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(events.len(), 3, "{events:?}");
+    assert_eq!(events[0], version);
+    for (event, job) in events[1..]
+        .iter()
+        .zip(["standard", "without_clock+shaping"])
+    {
+        assert_eq!(event["event"], "done");
+        assert_eq!((&event["task"], &event["base"]), (&"or".into(), &10.into()));
+        assert_eq!(event["job"], job);
+        let kept = &event["record"];
+        assert!(kept.get("rows").is_none(), "{job}: {kept}");
+        for field in ["final_policy", "loop_final_set", "wall_secs", "seed"] {
+            assert_eq!(kept[field], raw[field], "{job}: {field}");
+        }
+    }
 }

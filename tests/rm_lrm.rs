@@ -879,3 +879,36 @@ fn a_cancel_that_changes_nothing_that_follows_is_not_commuted() {
     assert_eq!(green_with_cancel(&learned.rm), green(&learned.rm));
     assert_eq!(learned.rm, plain.rm);
 }
+
+/// Regression for Sequential base 16 (development range), where the standard learner's machine
+/// did not refine the perfect one: "red, then green with a cancel" went elsewhere than "red,
+/// then green". The state after red's cancel had no observed green cell, and the commute took
+/// its candidate from the stay that stutter invariance implies there. A candidate now comes
+/// only from an observed cell, and the cancel the task ignores changes nothing.
+#[test]
+fn a_commuted_event_takes_its_target_only_from_an_observed_cell() {
+    use smirl::env::reacher_task::ReacherTask;
+    use smirl::irl::Algo;
+    use smirl::pipeline::reacher_irl::demos::{load_expert, make_demos};
+    use smirl::pipeline::reacher_irl::smirl::{label_traces, lrm_config};
+    use smirl::pipeline::reacher_irl::IrlRunConfig;
+
+    let base = 16;
+    let task = ReacherTask::shipped("sequential").unwrap();
+    let mut config = IrlRunConfig::standard();
+    config.env = task.env_config(&config.env).unwrap();
+    config.threads = 1;
+    let mut expert = load_expert(task.clone(), None).unwrap();
+    let demos = make_demos(task.clone(), &config, Some(&mut expert), base, None).unwrap();
+    let demos: Vec<_> = demos.into_iter().filter(|d| d.success).collect();
+    let traces = label_traces(&demos);
+    let vocab = task.layout().vocabulary();
+    let standard = lrm_config(&config, base, Algo::Smirl).unwrap();
+    assert!(standard.commute_events);
+    let learned = learn_rm(&vocab, &traces, &standard).unwrap();
+    let green = state_after(&learned.rm, &vocab, 20, "r@5 g@12");
+    let green_with_cancel = state_after(&learned.rm, &vocab, 20, "r@5 gc@12");
+    assert_eq!(green_with_cancel, green);
+    let perfect = task.perfect_rm().unwrap();
+    assert!(refines(&learned.rm, &perfect, read_prefixes(&traces)).refines);
+}

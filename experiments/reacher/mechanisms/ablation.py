@@ -3,23 +3,28 @@
 
     python3 experiments/reacher/mechanisms/ablation.py run --stage 1|2|together [--until HH:MM]
         [--parallel 2] [--bin-dir DIR]
-    python3 experiments/reacher/mechanisms/ablation.py table [--runs DIR] [--out DIR]
+    python3 experiments/reacher/mechanisms/ablation.py table [--out DIR]
 
 `run` prepares one run directory per (task, base) of the stage under runs/mechanisms/ and runs
-its jobs (plan.md), two at a time by default, bases outer. A job whose record exists is not run
-again, so the command resumes; a job that exits with an error, runs past 60 minutes or is killed
-three times is listed in runs/mechanisms/failed.txt and not run again (a job killed by a signal,
-as at the end of a session, runs again). `--until` (UTC) starts no job after that time.
+its jobs (plan.md), two at a time by default, bases outer. The ablation outlives its run
+directories, which a fresh checkout does not have: its ledger, `ledger.jsonl.gz` beside this
+script (commit it at the end of each session), records the binary's version, every start, every
+failure and each finished job's record less its per-iteration rows. A job the ledger records
+done is not run again, so the command resumes on any checkout; a job that exits with an error,
+runs past 60 minutes or is killed three times is recorded failed and not run again (a job killed
+by a signal, as at the end of a session, runs again; every start counts). `--until` (UTC) starts
+no job after that time. `--ledger PATH` reads and writes another ledger.
 `--stage together` runs, on every pair of the completed stages, one job with every mechanism
 that goes turned off together (the table's reading). The binaries of --bin-dir (`reacher`,
 `smirl_ablation`) must be built at the commit that last changed plan.md, not dirty.
 
-`table` reads every job record into jobs.csv (one row per policy read) and writes ablation.md by
+`table` reads every record of the ledger into jobs.csv (one row per policy read) and writes ablation.md by
 the rule of plan.md (`--out DIR`: both files there instead of beside this script).
 """
 import argparse
 import csv
 import datetime
+import gzip
 import json
 import os
 import random
@@ -30,6 +35,7 @@ import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 HERE = os.path.dirname(os.path.abspath(__file__))
+LEDGER = os.path.join(HERE, "ledger.jsonl.gz")
 TASKS = ["or", "sequential", "if", "composite"]
 STAGES = {1: [10, 20, 30, 40, 50, 60], 2: [70, 80, 90, 100, 153, 219]}
 CONFIG = "experiments/reacher/config.toml"
@@ -54,14 +60,63 @@ def ablation_name(mechanisms):
     return "+".join(m for m in MECHANISMS if m in mechanisms)
 
 
-def record_path(runs, task, base, job):
-    """`job`: standard, second_draw, or a tuple of mechanisms off."""
+def raw_record_path(runs, task, base, job):
+    """The record a job writes in its run directory; `job`: standard, second_draw, or a tuple
+    of mechanisms off."""
     d = run_dir(runs, task, base)
     if job == "standard":
         return os.path.join(d, "jobs", f"smirl_seed{base}.json")
     if job == "second_draw":
         return os.path.join(d, "jobs", f"smirl_seed{base + 1}.json")
     return os.path.join(d, "ablation", ablation_name(job), "jobs", f"smirl_seed{base}.json")
+
+
+# The ledger --------------------------------------------------------------------------------------
+
+def read_ledger():
+    """Every event of the ledger, in order (none before the first session)."""
+    if not os.path.exists(LEDGER):
+        return []
+    with gzip.open(LEDGER, "rt") as fh:
+        return [json.loads(line) for line in fh if line.strip()]
+
+
+def append(event):
+    """Adds one event; the file is written whole to a temporary name and renamed, so an
+    interrupted write leaves the previous ledger."""
+    lines = [json.dumps(e, sort_keys=True) for e in read_ledger() + [event]]
+    partial = LEDGER + ".partial"
+    with open(partial, "wb") as raw:
+        with gzip.GzipFile(fileobj=raw, mode="wb", mtime=0) as fh:
+            fh.write(("\n".join(lines) + "\n").encode())
+    os.replace(partial, LEDGER)
+
+
+def key_of(e):
+    return (e["task"], int(e["base"]), e["job"])
+
+
+def read_failed():
+    """The failed jobs: {(task, base, job key)} (a failed prepare as job key `prepare`)."""
+    return {key_of(e) for e in read_ledger() if e["event"] == "failed"}
+
+
+def read_records():
+    """{(task, base, job key): record} of the finished jobs."""
+    return {key_of(e): e["record"] for e in read_ledger() if e["event"] == "done"}
+
+
+def fail(task, base, job, why):
+    append({"event": "failed", "task": task, "base": base, "job": job, "why": why})
+
+
+def keep_record(runs, task, base, job):
+    """Records a finished job: its record less the per-iteration rows (all the table reads: the
+    final phase's candidates, the loop's own final set, the wall time)."""
+    with open(raw_record_path(runs, task, base, job)) as fh:
+        record = json.load(fh)
+    kept = {k: record.get(k) for k in ("algo", "seed", "final_policy", "loop_final_set", "wall_secs")}
+    append({"event": "done", "task": task, "base": base, "job": job_key(job), "record": kept})
 
 
 def job_key(job):
@@ -97,7 +152,7 @@ def config_for(runs):
     return path
 
 
-def check_binaries(runs, bins):
+def check_binaries(bins):
     """Both binaries of the plan's commit, clean; the version recorded once."""
     plan_commit = subprocess.run(["git", "log", "-1", "--format=%H", "--", "experiments/reacher/mechanisms/plan.md"],
                                  cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
@@ -109,34 +164,16 @@ def check_binaries(runs, bins):
     if not plan_commit or f"(commit {plan_commit})" not in got:
         sys.exit(f"ablation: the binaries are `{got}`; the plan needs a clean build of the commit that "
                  f"last changed plan.md ({plan_commit or 'none: commit plan.md first'})")
-    path = os.path.join(runs, "version.txt")
-    if os.path.exists(path):
-        with open(path) as fh:
-            want = fh.read().strip()
-        if want != got:
-            sys.exit(f"ablation: the binaries are `{got}`, but the jobs in {runs} were run by `{want}`")
-    else:
-        with open(path, "w") as fh:
-            fh.write(got + "\n")
+    want = recorded_version()
+    if want is None:
+        append({"event": "version", "version": got})
+    elif want != got:
+        sys.exit(f"ablation: the binaries are `{got}`, but the jobs of {LEDGER} were run by `{want}`")
     return got
 
 
-def read_lines(runs, name):
-    path = os.path.join(runs, name)
-    if not os.path.exists(path):
-        return []
-    with open(path) as fh:
-        return [line.split() for line in fh if line.strip()]
-
-
-def read_failed(runs):
-    """The failed jobs: {(task, base, job key)} (a failed prepare as job key `prepare`)."""
-    return {(t, int(b), j) for t, b, j, *_ in read_lines(runs, "failed.txt")}
-
-
-def note(runs, name, text):
-    with open(os.path.join(runs, name), "a") as fh:
-        fh.write(text + "\n")
+def recorded_version():
+    return next((e["version"] for e in read_ledger() if e["event"] == "version"), None)
 
 
 def pair_failed(failed, task, base, job):
@@ -155,22 +192,22 @@ def prepare(bins, runs, config, task, base):
     if code < 0:
         sys.exit(f"ablation: prepare of {d} was killed by signal {-code}; run again")
     if code != 0:
-        note(runs, "failed.txt", f"{task} {base} prepare exit {code}")
+        fail(task, base, "prepare", f"exit {code}")
         return False
     return True
 
 
-def planned_jobs(runs, stage):
+def planned_jobs(stage):
     if stage in STAGES:
         return [(t, b, j) for b in STAGES[stage] for t in TASKS for j in map(parse_job, RUN_JOBS)]
-    together = read_together(runs)
+    together = read_together()
     if together is None:
         sys.exit("ablation: --stage together needs the table's reading of a complete stage; run `table` first")
     if not together:
         sys.exit("ablation: no mechanism goes: nothing to run together")
     if not any(m in RUN_MECHANISMS for m in together):
         sys.exit("ablation: the mechanisms that go are read from the standard job: nothing to run together")
-    bases = [b for s in completed_stages(runs) for b in STAGES[s]]
+    bases = [b for s in completed_stages() for b in STAGES[s]]
     return [(t, b, tuple(together)) for b in bases for t in TASKS]
 
 
@@ -182,7 +219,7 @@ def run(args):
         if not os.access(b, os.X_OK):
             sys.exit(f"ablation: no binary {b} (cargo build --release --bin reacher --bin smirl_ablation)")
     os.makedirs(runs, exist_ok=True)
-    print("binary:", check_binaries(runs, bins), flush=True)
+    print("binary:", check_binaries(bins), flush=True)
     config = config_for(runs)
     until = None
     if args.until:
@@ -192,18 +229,25 @@ def run(args):
         if until <= now:
             until += datetime.timedelta(days=1)
     stage = args.stage if args.stage == "together" else int(args.stage)
-    plan = planned_jobs(runs, stage)
+    plan = planned_jobs(stage)
+
+    # A job that finished while its session was ending, before the ledger recorded it.
+    done = read_records()
+    for t, b, j in plan:
+        if (t, b, job_key(j)) not in done and os.path.isfile(raw_record_path(runs, t, b, j)):
+            keep_record(runs, t, b, j)
 
     def open_jobs():
-        failed = read_failed(runs)
+        failed, done = read_failed(), read_records()
         return [(t, b, j) for t, b, j in plan
-                if not os.path.isfile(record_path(runs, t, b, j)) and not pair_failed(failed, t, b, j)]
+                if (t, b, job_key(j)) not in done and not pair_failed(failed, t, b, j)]
 
     todo = open_jobs()
     print(f"stage {stage}: {len(todo)} of {len(plan)} jobs to run", flush=True)
     starts = {}
-    for t, b, j in read_lines(runs, "starts.txt"):
-        starts[(t, int(b), j)] = starts.get((t, int(b), j), 0) + 1
+    for e in read_ledger():
+        if e["event"] == "start":
+            starts[key_of(e)] = starts.get(key_of(e), 0) + 1
     running = []
     while todo or running:
         for p, key, log, began in list(running):
@@ -218,15 +262,18 @@ def run(args):
             t, b, j = key
             if timed_out:
                 state = "FAILED (timeout)"
-                note(runs, "failed.txt", f"{t} {b} {job_key(j)} timeout")
+                fail(t, b, job_key(j), "timeout")
             elif p.returncode > 0:
                 state = f"FAILED (exit {p.returncode})"
-                note(runs, "failed.txt", f"{t} {b} {job_key(j)} exit {p.returncode}")
+                fail(t, b, job_key(j), f"exit {p.returncode}")
             elif p.returncode < 0 and starts.get((t, b, job_key(j)), 0) >= MAX_STARTS:
                 state = f"FAILED (killed, start {MAX_STARTS})"
-                note(runs, "failed.txt", f"{t} {b} {job_key(j)} killed {-p.returncode}")
+                fail(t, b, job_key(j), f"killed {-p.returncode}")
+            elif p.returncode == 0:
+                keep_record(runs, t, b, j)
+                state = "done"
             else:
-                state = "done" if p.returncode == 0 else f"killed ({p.returncode}), runs again"
+                state = f"killed ({p.returncode}), runs again"
             print(f"{state}: {t} {b} {job_key(j)}", flush=True)
         late = until is not None and datetime.datetime.now(datetime.timezone.utc) >= until
         while todo and len(running) < args.parallel and not late:
@@ -242,7 +289,7 @@ def run(args):
                 cmd = [bins["smirl_ablation"], "--run", d, "--seed", str(base), "--without", ",".join(job)]
             key = (task, base, job_key(job))
             starts[key] = starts.get(key, 0) + 1
-            note(runs, "starts.txt", " ".join(map(str, key)))
+            append({"event": "start", "task": task, "base": base, "job": key[2]})
             log = open(os.path.join(d, f"{job_key(job)}.log"), "a")
             print("+", " ".join(cmd), flush=True)
             running.append((subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT),
@@ -307,22 +354,21 @@ def policies_of(job, record, where, together=None):
     return [(job_key(job), read_policy(record, read_off))]
 
 
-def collect(runs, together):
+def collect(together):
     """Rows (task, base, policy, score, wall_secs) of every job record of every stage; a failed
     job gives rows with an empty score."""
     rows = []
-    failed = read_failed(runs)
+    failed, records = read_failed(), read_records()
     run_together = together and any(m in RUN_MECHANISMS for m in together)
     jobs = list(map(parse_job, RUN_JOBS)) + ([tuple(together)] if run_together else [])
     for stage, bases in STAGES.items():
         for base in bases:
             for task in TASKS:
                 for job in jobs:
-                    path = record_path(runs, task, base, job)
-                    if os.path.isfile(path):
-                        with open(path) as fh:
-                            record = json.load(fh)
-                        for policy, score in policies_of(job, record, path, together):
+                    record = records.get((task, base, job_key(job)))
+                    if record is not None:
+                        where = f"{LEDGER}: {task} {base} {job_key(job)}"
+                        for policy, score in policies_of(job, record, where, together):
                             rows.append({"stage": stage, "task": task, "base": base, "policy": policy,
                                          "score": f"{score:.4f}", "wall_secs": f"{record['wall_secs']:.0f}"})
                     elif pair_failed(failed, task, base, job):
@@ -333,12 +379,12 @@ def collect(runs, together):
     return rows
 
 
-def completed_stages(runs):
+def completed_stages():
     """The stages whose every planned job has a record or failed, in order, without a gap."""
-    failed = read_failed(runs)
+    failed, records = read_failed(), read_records()
     done = []
     for stage, bases in STAGES.items():
-        if all(os.path.isfile(record_path(runs, t, b, j)) or pair_failed(failed, t, b, j)
+        if all((t, b, job_key(j)) in records or pair_failed(failed, t, b, j)
                for b in bases for t in TASKS for j in map(parse_job, RUN_JOBS)):
             done.append(stage)
         else:
@@ -407,13 +453,13 @@ def goes(reading):
     return reading in ("costs", "does not show it pays")
 
 
-def read_together(runs):
+def read_together():
     """The mechanisms that go by the readings of the completed stages, or None before stage 1
     is complete or while a mechanism is not resolved and stage 2 is not."""
-    stages = completed_stages(runs)
+    stages = completed_stages()
     if not stages:
         return None
-    rows = collect(runs, None)
+    rows = collect(None)
     r = readings(scores_of(rows), stages)
     if any(v[0] == "not resolved" for v in r.values()):
         return None
@@ -433,23 +479,21 @@ def names(keys):
 
 
 def table(args):
-    runs = os.path.join(ROOT, args.runs)
-    together = read_together(runs)
-    rows = collect(runs, together)
+    together = read_together()
+    rows = collect(together)
     out = os.path.abspath(args.out) if args.out else HERE
     with open(os.path.join(out, "jobs.csv"), "w", newline="") as fh:
         w = csv.DictWriter(fh, ["stage", "task", "base", "policy", "score", "wall_secs"], lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
     scores = scores_of(rows)
-    stages = completed_stages(runs)
-    vpath = os.path.join(runs, "version.txt")
-    version = open(vpath).read().strip() if os.path.exists(vpath) else "unknown"
+    stages = completed_stages()
+    version = recorded_version() or "unknown"
     lines = [
         "# SMIRL's mechanisms outside LRM on the development range",
         "",
-        f"Made by `python3 experiments/reacher/mechanisms/ablation.py table` from the job records of "
-        f"`ablation.py run` (plan and rule: [plan.md](plan.md)); every row is in `jobs.csv`. Binary: "
+        f"Made by `python3 experiments/reacher/mechanisms/ablation.py table` from the job records in "
+        f"its ledger `ledger.jsonl.gz` (plan and rule: [plan.md](plan.md)); every row is in `jobs.csv`. Binary: "
         f"{version}. Tasks {', '.join(TASKS)}. Score: success on the lower branch of the job's final "
         f"set; solved at ≥ {SOLVED}. Difference: on − off, mean over pairs; 95 % bootstrap interval "
         f"over bases ({RESAMPLES} resamples; the interval over (task, base) pairs beside it, not read).",
@@ -508,7 +552,7 @@ def table(args):
                              f"{','.join(str(b) for _, b in c['lost']) or '-'}; gained "
                              f"{','.join(str(b) for _, b in c['gained']) or '-'}")
             lines.append(f"| {label} | " + " | ".join(cells) + " |")
-    failed = sorted(read_failed(runs))
+    failed = sorted(read_failed())
     lines += ["", f"Failed (left out of the comparisons that need them): "
               f"{', '.join(f'{t} {b} {j}' for t, b, j in failed) or 'none'}."]
     with open(os.path.join(out, "ablation.md"), "w") as fh:
@@ -517,15 +561,19 @@ def table(args):
 
 
 def main():
+    global LEDGER
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("command", choices=["run", "table"])
     p.add_argument("--stage", choices=["1", "2", "together"], help="run: which jobs")
     p.add_argument("--until", help="run: UTC HH:MM after which no job starts")
     p.add_argument("--parallel", type=int, default=2)
     p.add_argument("--bin-dir", default=os.path.join(ROOT, "target", "release"))
-    p.add_argument("--runs", default="runs/mechanisms")
+    p.add_argument("--runs", default="runs/mechanisms", help="run: where the run directories go")
+    p.add_argument("--ledger", help=f"the ledger to read and write (default: {os.path.relpath(LEDGER, ROOT)})")
     p.add_argument("--out", help="table: directory for jobs.csv and ablation.md (default: beside this script)")
     args = p.parse_args()
+    if args.ledger:
+        LEDGER = os.path.abspath(args.ledger)
     if args.parallel < 1:
         sys.exit("ablation: --parallel must be at least 1")
     if args.command == "run":

@@ -95,7 +95,8 @@ pub(crate) fn merge_states(
 /// *before* the touch that entered the state (see [`LrmConfig::commute_events`]): for a state
 /// `u` entered from `p` on an observed label `k` without an event, and an event label `l`
 /// undefined in `u`, the candidate is `delta(delta(p, l), k)`, where `(p, l)` is observed
-/// and `(delta(p, l), k)` defined (observed, or a stay the stutter invariance implies). An
+/// and `(delta(p, l), k)` observed: a stay that stutter invariance implies for an unobserved
+/// cell says nothing about where the touch leads after the event, so it gives no candidate. An
 /// entry counts only where the traces show the event to change what follows: `delta(p, l)`
 /// and the state `p` reaches on `l` without its events (`without_events[l]`; `p` itself when
 /// `p` never reads that set) must not be [`observed_equivalence`]-equivalent. An event whose
@@ -141,7 +142,10 @@ pub(crate) fn commute_events(
                         if !shows_effect(p, l, q) {
                             return None;
                         }
-                        given[q * l_n + k].map(|c| c.target)
+                        // Only what the traces show after `q`: the stay that stutter
+                        // invariance implies for an unobserved cell is no evidence of where
+                        // the touch leads once the event has come.
+                        observed(q, k).map(|c| c.target)
                     })
             });
             let Some(first) = candidates.next() else {
@@ -390,21 +394,36 @@ mod tests {
         assert_eq!(c[1], None);
     }
 
-    /// 0 -r-> 1 and 0 -rc-> 2, both left on g for 3: the cancel during red changes nothing
-    /// the traces show next, so it is not carried into 1; when 2 is left for another state
-    /// that the traces leave otherwise (4 -r-> 1, where 3 stays), it is.
+    /// 0 -r-> 1 and 0 -rc-> 2, both left on g for 3, and 2 seen staying on r: the cancel
+    /// during red changes nothing the traces show next, so it is not carried into 1; when 2 is
+    /// left for another state that the traces leave otherwise (4 -r-> 1, where 3 stays), it is.
     #[test]
     fn an_event_that_changes_nothing_that_follows_is_not_commuted() {
         // Labels: 0 = r, 1 = rc, 2 = g; rc without its event is r.
         let without = [None, Some(0), None];
-        let mut c = cells(5, &[(0, 0, 1), (0, 1, 2), (1, 2, 3), (2, 2, 3)]);
-        c[2 * L_N] = Some(Cell {
-            target: 2,
-            reward: 0.0,
-            weight: 0.0,
-        });
+        let mut c = cells(5, &[(0, 0, 1), (0, 1, 2), (1, 2, 3), (2, 2, 3), (2, 0, 2)]);
         commute_events(5, L_N, &mut c, &EVENTS, &without);
         assert_eq!(c[L_N + 1], None);
+        let mut c = cells(
+            5,
+            &[
+                (0, 0, 1),
+                (0, 1, 2),
+                (1, 2, 3),
+                (2, 2, 4),
+                (4, 0, 1),
+                (2, 0, 2),
+            ],
+        );
+        commute_events(5, L_N, &mut c, &EVENTS, &without);
+        assert_eq!(c[L_N + 1].map(|c| c.target), Some(2));
+    }
+
+    /// The same entry with 2's cell on r unobserved, a stay that stutter invariance implies
+    /// (weight 0): it shows nothing of where r leads after the cancel, so nothing is filled.
+    #[test]
+    fn an_implied_stay_gives_no_candidate() {
+        let without = [None, Some(0), None];
         let mut c = cells(5, &[(0, 0, 1), (0, 1, 2), (1, 2, 3), (2, 2, 4), (4, 0, 1)]);
         c[2 * L_N] = Some(Cell {
             target: 2,
@@ -412,7 +431,7 @@ mod tests {
             weight: 0.0,
         });
         commute_events(5, L_N, &mut c, &EVENTS, &without);
-        assert_eq!(c[L_N + 1].map(|c| c.target), Some(2));
+        assert_eq!(c[L_N + 1], None);
     }
 
     /// Copies of a state that the traces leave alike are one class; a state left on another

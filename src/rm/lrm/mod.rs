@@ -176,8 +176,9 @@ pub struct LrmConfig {
     /// one whose meaning changes once a touch has happened), and only where the traces show
     /// the event to have an effect: a way in counts when the state the event leads to is left
     /// otherwise than the state without it (`merge::observed_equivalence`), so a cancel that
-    /// a task ignores is not carried over. Traces' paths and the cost are unchanged. Off by
-    /// default.
+    /// a task ignores is not carried over; and a candidate comes only from a cell the traces
+    /// show, never from a stay that stutter invariance implies. Traces' paths and the cost
+    /// are unchanged. Off by default.
     pub commute_events: bool,
     /// After the search, read an event that the traces never show in the initial state, when
     /// no other state enters it, as coming on the first step with the label that leaves it
