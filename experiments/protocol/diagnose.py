@@ -27,6 +27,10 @@ and writes `experiments/protocol/NAME/diagnosis.md`. The jobs diagnosed are the 
 
 One fresh agent per job: "agent" means that one seed solved, not that every seed would.
 
+Beside the causes, per task, the file counts how often the refinement test says yes over the run
+directories on disk, also where every job was solved: a test that is no everywhere does not
+tell "machine" from "reward".
+
 Run directories are not committed. A missing one is prepared again with the frozen binary and
 the command `run.py` used, and must give the bytes the ledger's `prepared` entry records; a
 missing job file is made again by `reacher job` and must give the ledger's job fields (wall time
@@ -275,10 +279,28 @@ def main():
                 futures[pool.submit(diagnose, args.bin, r, row, done, threads)] = i
         for f in concurrent.futures.as_completed(futures):
             results[futures[f]] = f.result()
-    write(name, refs, missed, results, dirs)
+    write(name, refs, missed, results, dirs, refinement_check(rows, units, dirs))
 
 
-def write(name, refs, missed, results, dirs):
+def refinement_check(rows, units, dirs):
+    """How often the refinement test says yes at all: over the units' run directories on disk
+    (rebuilt above or left from the run), the learned machines that refine the perfect one, and
+    the same among run directories where every job of the units was solved."""
+    by_dir = {}
+    for row in rows:
+        if (row["arm"], row["algo"]) in units:
+            r = run_of(dirs, row)
+            facts = machine_facts(r, row["algo"])
+            if "refines" in facts:
+                entry = by_dir.setdefault(r["dir"], {"refines": facts["refines"], "all_solved": True})
+                entry["all_solved"] &= row["status"] == "done" and (reported(row) or 0.0) >= SOLVED
+    solved = [e for e in by_dir.values() if e["all_solved"]]
+    return (f"Refinement test on the run directories on disk: {sum(e['refines'] for e in by_dir.values())} of "
+            f"{len(by_dir)} learned machines refine the perfect one; {sum(e['refines'] for e in solved)} of the "
+            f"{len(solved)} where every job was solved.")
+
+
+def write(name, refs, missed, results, dirs, refinement):
     counts = {}
     for res in results:
         counts[res["cause"]] = counts.get(res["cause"], 0) + 1
@@ -294,7 +316,12 @@ def write(name, refs, missed, results, dirs):
     for cause in ("failed", "choice", "agent", "machine", "reward", "not reproduced"):
         if counts.get(cause):
             lines.append(f"| {cause} | {counts[cause]} |")
-    lines += ["", f"{len(missed)} missed jobs.", "",
+    causes = [c for c in ("failed", "choice", "agent", "machine", "reward", "not reproduced") if counts.get(c)]
+    lines += ["", "| task | missed | " + " | ".join(causes) + " |", "|---|---|" + "---|" * len(causes)]
+    for task in dict.fromkeys(row["task"] for row in missed):
+        here = [res["cause"] for row, res in zip(missed, results) if row["task"] == task]
+        lines.append(f"| {task} | {len(here)} | " + " | ".join(str(here.count(c)) for c in causes) + " |")
+    lines += ["", f"{len(missed)} missed jobs. {refinement}", "",
               "| arm | task | base | seed | loop | chosen | oracle | cause | fresh agent (last, best) "
               "| machine states (learned / perfect) | refines along the demonstrations | note |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|"]
