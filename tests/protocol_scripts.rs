@@ -911,7 +911,8 @@ fn diagnosis_row(diagnosis: &str, seed: u64) -> Vec<String> {
 
 /// diagnose.py gives each missed job the first cause that applies — failed, the choice (a
 /// candidate solved), the agent (a fresh agent on the learned reward solves, even over a
-/// machine that does not refine the task's), the machine, the reward — retraining only where
+/// machine that does not refine the task's), a fresh agent failing too over a coarse or a
+/// refining machine — retraining only where
 /// the final set leaves the question open; it prepares a lost run directory and reruns its
 /// job again, and a prepare that gives other bytes than the ledger's is "not reproduced"; it
 /// refuses before table.py has run, reads an existing retraining table instead of retraining,
@@ -999,7 +1000,10 @@ fn diagnose_gives_each_missed_job_its_first_cause() {
         [
             ("choice".to_string(), String::new()),
             ("agent".to_string(), "1.00, 1.00".to_string()),
-            ("reward".to_string(), "0.30, 0.95".to_string()),
+            (
+                "fresh fails, refining machine".to_string(),
+                "0.30, 0.95".to_string()
+            ),
             ("failed".to_string(), String::new()),
         ],
         "{d}"
@@ -1012,7 +1016,10 @@ fn diagnose_gives_each_missed_job_its_first_cause() {
     // Per task, one count per cause that occurs; the refinement test's rate over the run
     // directories on disk (base 945000's machine does not refine, 945010's does).
     assert!(d.contains("| or | 4 | 1 | 1 | 1 | 1 |"), "{d}");
-    assert!(d.contains("1 of 2 learned machines refine the perfect one"), "{d}");
+    assert!(
+        d.contains("1 of 2 learned machines refine the perfect one"),
+        "{d}"
+    );
     // The lost directory was prepared and its job run again; 945001's table from the first
     // diagnosis was read, not retrained; nothing was retrained for the choice or the failure.
     let ran = std::fs::read_to_string(&log).unwrap();

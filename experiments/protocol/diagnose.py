@@ -18,18 +18,21 @@ and writes `experiments/protocol/NAME/diagnosis.md`. The jobs diagnosed are the 
    its SAC seed RETRAIN_SAC_SEED, the job's own number of steps, judged at the end on the
    ground truth's own evaluation episodes, 20 per branch at the standard config) solves the
    task: the reward leads there; the job's agent and its candidates did not get there.
-4. **machine**: the learned machine the algorithm uses does not refine the task's perfect
+4. **fresh fails, coarse machine**: a fresh agent on the learned reward does not solve the task
+   either, and the learned machine the algorithm uses does not refine the task's perfect
    machine along the job's own demonstrations (`rm/report.txt`, smirl-paper's
-   `rm/report_paper.txt`): one learned state stands for task states the reward has to tell
-   apart.
-5. **reward**: the machine refines the task's (or the algorithm has none), and a fresh agent on
-   the learned reward does not solve the task either.
+   `rm/report_paper.txt`): one learned state stands for task states a reward may have to tell
+   apart. The machine is a suspect, not a finding: a machine that does not refine may still
+   carry what the task needs.
+5. **fresh fails, refining machine**: the same, where the machine refines the task's (or the
+   algorithm has none): the learned weights are the suspect.
 
-One fresh agent per job: "agent" means that one seed solved, not that every seed would.
+One fresh agent per job: "agent" means that one seed solved, not that every seed would, and a
+"fresh fails" job may be one seed's failure.
 
 Beside the causes, per task, the file counts how often the refinement test says yes over the run
 directories on disk, also where every job was solved: a test that is no everywhere does not
-tell "machine" from "reward".
+tell the machine from the weights.
 
 Run directories are not committed. A missing one is prepared again with the frozen binary and
 the command `run.py` used, and must give the bytes the ledger's `prepared` entry records; a
@@ -53,6 +56,8 @@ import run as protocol  # noqa: E402
 
 SOLVED = 0.9
 RETRAIN_SAC_SEED = 1000
+CAUSES = ("failed", "choice", "agent", "fresh fails, coarse machine", "fresh fails, refining machine",
+          "not reproduced")
 REFINES = re.compile(r"refines the perfect machine along the (\d+) demonstrations: (true|false)"
                      r"(?: \((\d+) of (\d+) steps ambiguous\))?")
 # The report of the learned machine each algorithm uses: smirl-paper learns its own (LRM as the
@@ -223,9 +228,9 @@ def diagnose(binary, r, row, done, threads):
     if last >= SOLVED:
         out["cause"] = "agent"
     elif facts.get("refines") is False:
-        out["cause"] = "machine"
+        out["cause"] = "fresh fails, coarse machine"
     elif facts.get("refines") is True or row["algo"] not in MACHINE_REPORT:
-        out["cause"] = "reward"
+        out["cause"] = "fresh fails, refining machine"
     else:
         out["cause"], out["note"] = "not reproduced", f"no refinement line in rm/{MACHINE_REPORT[row['algo']]}"
     return out
@@ -313,10 +318,10 @@ def write(name, refs, missed, results, dirs, refinement):
         "| cause | jobs |",
         "|---|---|",
     ]
-    for cause in ("failed", "choice", "agent", "machine", "reward", "not reproduced"):
+    for cause in CAUSES:
         if counts.get(cause):
             lines.append(f"| {cause} | {counts[cause]} |")
-    causes = [c for c in ("failed", "choice", "agent", "machine", "reward", "not reproduced") if counts.get(c)]
+    causes = [c for c in CAUSES if counts.get(c)]
     lines += ["", "| task | missed | " + " | ".join(causes) + " |", "|---|---|" + "---|" * len(causes)]
     for task in dict.fromkeys(row["task"] for row in missed):
         here = [res["cause"] for row, res in zip(missed, results) if row["task"] == task]
