@@ -38,7 +38,8 @@ Run directories are not committed. A missing one is prepared again with the froz
 the command `run.py` used, and must give the bytes the ledger's `prepared` entry records; a
 missing job file is made again by `reacher job`, kept as `jobs/<algo>_seed<k>.diagnose.json`
 (so table.py still finds only the ledger's bytes under the job's own name), and must give the
-ledger's job fields (wall time aside). Either mismatch is reported as "not reproduced" and that job is not diagnosed further.
+ledger's job fields (wall time aside). Either mismatch is reported as "not reproduced" and that
+job is not diagnosed further.
 A retraining table already in the run directory is read, not retrained. Nothing here writes the
 ledger or the tables.
 """
@@ -323,10 +324,8 @@ def write(name, refs, missed, results, dirs, refinement):
         "| cause | jobs |",
         "|---|---|",
     ]
-    for cause in CAUSES:
-        if counts.get(cause):
-            lines.append(f"| {cause} | {counts[cause]} |")
     causes = [c for c in CAUSES if counts.get(c)]
+    lines += [f"| {cause} | {counts[cause]} |" for cause in causes]
     lines += ["", "| task | missed | " + " | ".join(causes) + " |", "|---|---|" + "---|" * len(causes)]
     for task in dict.fromkeys(row["task"] for row in missed):
         here = [res["cause"] for row, res in zip(missed, results) if row["task"] == task]
