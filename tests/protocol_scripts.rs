@@ -7,6 +7,7 @@
 //! timeout is killed and failed; `--partial` counts complete bases only; `check` runs once, and
 //! `run` and table.py refuse once the protocol, its config or the scripts change after the lock;
 //! diagnose.py gives each missed job its first cause and reproduces lost run directories;
+//! machine_or_reward.py asks its missed jobs again with more fresh agents and the task's machine;
 //! new_tasks_table.py puts a pool's tasks branch by branch beside their experts.
 //! Seeds here are the fake's, far from every real range; nothing is written inside the
 //! repository's experiments/.
@@ -66,9 +67,12 @@ fn write(path: &Path, text: &str) {
 /// it exists). Its per-iteration success (the last row's) is 0.01, its final-set scores
 /// seed-dependent: a table that reads the wrong one shows it. SMIRL's choice is the candidate
 /// at 0.96 (the loop's own score with FAKE_CHOOSE_FIRST; 0.5 in its place with
-/// FAKE_NO_ORACLE). `retrain` appends `retrain:<algo>:<seed>:<sac seed>` and writes a
-/// retraining table ending at 1.0 on both branches when listed in FAKE_RETRAIN_SOLVES, else
-/// at 0.3 on the normal one.
+/// FAKE_NO_ORACLE). In a run directory whose config says `machine = "task"` (prepared from
+/// such a config), a job appends `task:<algo>:<seed>` and chooses a candidate at 0.96 when
+/// listed in FAKE_TASK_SOLVES, else at 0.4. `retrain` appends
+/// `retrain:<algo>:<seed>:<sac seed>` and writes a retraining table ending at 1.0 on both
+/// branches when `<algo>:<seed>` or `<algo>:<seed>:<sac seed>` is listed in
+/// FAKE_RETRAIN_SOLVES, else at 0.3 on the normal one.
 fn fake_reacher(path: &Path, commit: &str, log: &Path) {
     let script = format!(
         r#"#!/usr/bin/env python3
@@ -86,8 +90,10 @@ if a[0] == "prepare":
     if listed("FAKE_PREPARE_FAIL", f"{{opt['--task']}}:{{base}}"):
         sys.exit(1)
     os.makedirs(os.path.join(opt["--out"], "rm"), exist_ok=True)
+    with open(opt["--config"]) as fh:
+        machine = "task" if 'machine = "task"' in fh.read() else "learned"
     with open(os.path.join(opt["--out"], "config.toml"), "w") as fh:
-        fh.write("demo_episodes = 16\nthreads = 2\n\n[env]\nmax_steps = 100\n")
+        fh.write(f"demo_episodes = 16\nthreads = 2\n\n[env]\nmax_steps = 100\n\n[smirl]\nmachine = \"{{machine}}\"\n")
     with open(os.path.join(opt["--out"], "rm", "learned.txt"), "w") as fh:
         fh.write(os.environ.get("FAKE_MACHINE", "u0 -> u1 on r\n"))
     refines = "false (3 of 9 steps ambiguous)" if listed("FAKE_NOT_REFINES", str(base)) else "true"
@@ -104,14 +110,17 @@ algo, seed = opt["--algo"], int(opt["--seed"])
 if a[0] == "retrain":
     with open("{log}", "a") as fh:
         fh.write(f"retrain:{{algo}}:{{seed}}:{{opt['--sac-seed']}}\n")
-    rate = 1.0 if listed("FAKE_RETRAIN_SOLVES", f"{{algo}}:{{seed}}") else 0.3
+    solves = listed("FAKE_RETRAIN_SOLVES", f"{{algo}}:{{seed}}") or listed("FAKE_RETRAIN_SOLVES", f"{{algo}}:{{seed}}:{{opt['--sac-seed']}}")
+    rate = 1.0 if solves else 0.3
     out = os.path.join(opt["--run"], "retrain")
     os.makedirs(out, exist_ok=True)
     with open(os.path.join(out, f"{{algo}}_seed{{seed}}_sac{{opt['--sac-seed']}}.csv"), "w") as fh:
         fh.write(f"env_steps,success_rate,success_normal,success_cancel\n10,0.95,0.95,0.95\n20,{{rate}},{{rate}},1.0\n")
     sys.exit(0)
+with open(os.path.join(opt["--run"], "config.toml")) as fh:
+    task_machine = 'machine = "task"' in fh.read()
 with open("{log}", "a") as fh:
-    fh.write(f"{{algo}}:{{seed}}\n")
+    fh.write(("task:" if task_machine else "") + f"{{algo}}:{{seed}}\n")
 me = f"{{algo}}:{{seed}}"
 if listed("FAKE_TERM", me):
     os.kill(os.getpid(), signal.SIGTERM)
@@ -130,7 +139,12 @@ def score(rate):
 record = {{"algo": algo, "seed": seed, "wall_secs": float(os.environ.get("FAKE_WALL", "12.0")),
           "rows": [{{"iteration": 0, "success_rate": 0.0}}, {{"iteration": 1, "success_rate": 0.01}}],
           "loop_final_set": score((seed % 10) / 10)}}
-if algo == "smirl":
+if task_machine:
+    record["loop_final_set"] = score(0.3)
+    record["final_policy"] = {{"chosen": 1, "random": 0, "candidates": [
+        {{"success_rate": 0.01, "final_set": score(0.3)}},
+        {{"success_rate": 0.01, "final_set": score(0.96 if listed("FAKE_TASK_SOLVES", me) else 0.4)}}]}}
+elif algo == "smirl":
     record["final_policy"] = {{"chosen": 0 if listed("FAKE_CHOOSE_FIRST", me) else 1, "random": 0, "candidates": [
         {{"success_rate": 0.01, "final_set": score((seed % 10) / 10)}},
         {{"success_rate": 0.01, "final_set": score(0.5 if listed("FAKE_NO_ORACLE", me) else 0.96)}},
@@ -170,7 +184,13 @@ fn protocol_repo(repo: &Path, plan: &str) -> String {
     git(repo, &["init", "-q", "-b", "main"]);
     git(repo, &["config", "user.email", "test@example.invalid"]);
     git(repo, &["config", "user.name", "test"]);
-    for f in ["run.py", "table.py", "diagnose.py", "new_tasks_table.py"] {
+    for f in [
+        "run.py",
+        "table.py",
+        "diagnose.py",
+        "new_tasks_table.py",
+        "machine_or_reward.py",
+    ] {
         let text = std::fs::read_to_string(manifest.join("experiments/protocol").join(f)).unwrap();
         write(&repo.join("experiments/protocol").join(f), &text);
     }
@@ -1039,6 +1059,158 @@ fn diagnose_gives_each_missed_job_its_first_cause() {
     // The job run again keeps its file aside, so the tables still build on this machine.
     let o = s.table(&[]);
     assert!(o.status.success(), "table after diagnose: {}", stderr(&o));
+}
+
+/// The row of machine_or_reward.md for SMIRL's job with `seed`, split at `|`.
+fn asked_row(text: &str, seed: u64) -> Vec<String> {
+    text.lines()
+        .filter(|l| l.starts_with("| a | or |"))
+        .map(|l| {
+            l.split('|')
+                .map(|c| c.trim().to_string())
+                .collect::<Vec<_>>()
+        })
+        .find(|row| row[4] == seed.to_string())
+        .unwrap_or_else(|| panic!("no row for seed {seed} in\n{text}"))
+}
+
+/// machine_or_reward.py asks each missed job diagnose.py calls "agent" or "fresh fails" again:
+/// fresh agents at three SAC seeds (seed 1000's table read when it exists) and SMIRL on the
+/// task's machine, in a run directory of its own prepared from the job's config with
+/// `machine = "task"`; the first reading that applies (a fresh agent solves: the training
+/// draw; else the task's machine solves: the learned machine; else neither); a solved job per
+/// task as a control. Run again, it runs nothing; it never writes the ledger, and table.py
+/// still runs.
+#[test]
+fn machine_or_reward_asks_each_unexplained_miss_again() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let (repo, bin, log) = locked(tmp.path(), &standard_plan(947_000));
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    // 947000 solved (the control); 947001, 947010 and 947011 missed, no candidate solved.
+    let env = [
+        (
+            "FAKE_CHOOSE_FIRST",
+            "smirl:947001,smirl:947010,smirl:947011",
+        ),
+        ("FAKE_NO_ORACLE", "smirl:947001,smirl:947010,smirl:947011"),
+        ("FAKE_RETRAIN_SOLVES", "smirl:947001:1002"),
+        ("FAKE_TASK_SOLVES", "smirl:947000,smirl:947001,smirl:947010"),
+    ];
+    let o = s.run(&env);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = s.table(&[]);
+    assert!(o.status.success(), "table: {}", stderr(&o));
+    let ledger = s.state("ledger.jsonl");
+    std::fs::write(&log, "").unwrap();
+    let b = bin.to_str().unwrap();
+    let ask = || {
+        s.script(
+            "machine_or_reward.py",
+            &[NAME, "--bin", b, "--units", "a:smirl"],
+            &env,
+        )
+    };
+    let o = ask();
+    assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
+    let m = s.state("machine_or_reward.md");
+    // | arm | task | base | seed | chosen | cause | fresh agents | solved | task's machine |
+    // reading | note |
+    let rows: Vec<(String, String, String, String)> = [947001, 947010, 947011, 947000]
+        .iter()
+        .map(|&seed| {
+            let row = asked_row(&m, seed);
+            (
+                row[7].clone(),
+                row[8].clone(),
+                row[9].clone(),
+                row[10].clone(),
+            )
+        })
+        .collect();
+    let row = |fresh: &str, solved: &str, task: &str, reading: &str| {
+        (
+            fresh.to_string(),
+            solved.to_string(),
+            task.to_string(),
+            reading.to_string(),
+        )
+    };
+    assert_eq!(
+        rows,
+        [
+            row("0.30, 0.30, 1.00", "1 of 3", "0.30, 0.96", "training draw"),
+            row(
+                "0.30, 0.30, 0.30",
+                "0 of 3",
+                "0.30, 0.96",
+                "learned machine"
+            ),
+            row("0.30, 0.30, 0.30", "0 of 3", "0.30, 0.40", "neither"),
+            row("0.30, 0.30, 0.30", "0 of 3", "0.30, 0.96", ""),
+        ],
+        "{m}"
+    );
+    assert_eq!(asked_row(&m, 947000)[6], "solved (control)", "{m}");
+    assert!(
+        m.contains("| fresh fails, refining machine | 3 | 1 | 0 | 2 | 0 |"),
+        "{m}"
+    );
+    assert!(
+        m.contains("| solved (control) | 1 | 0 | 0 | 1 | 0 |"),
+        "{m}"
+    );
+    assert!(m.contains("| or | 3 | 1 | 1 | 1 | 0 |"), "{m}");
+    // Seed 1000 once per job (diagnose.py's question), then the other two; the task machine's
+    // run directories prepared from a config that says so, once per base.
+    let ran = std::fs::read_to_string(&log).unwrap();
+    let expected = [
+        "retrain:smirl:947001:1000",
+        "retrain:smirl:947010:1000",
+        "retrain:smirl:947011:1000",
+        "prepare:or:947000",
+        "prepare:or:947010",
+        "retrain:smirl:947001:1001",
+        "retrain:smirl:947001:1002",
+        "task:smirl:947001",
+        "retrain:smirl:947010:1001",
+        "retrain:smirl:947010:1002",
+        "task:smirl:947010",
+        "retrain:smirl:947011:1001",
+        "retrain:smirl:947011:1002",
+        "task:smirl:947011",
+        "retrain:smirl:947000:1000",
+        "retrain:smirl:947000:1001",
+        "retrain:smirl:947000:1002",
+        "task:smirl:947000",
+    ];
+    assert_eq!(ran.lines().collect::<Vec<_>>(), expected, "{m}");
+    let config = std::fs::read_dir(repo.join(format!("runs/protocol/{NAME}-task-machine")))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.is_dir())
+        .map(|d| std::fs::read_to_string(d.join("config.toml")).unwrap())
+        .unwrap();
+    assert!(config.contains("machine = \"task\""), "{config}");
+    // Again: everything is read, nothing runs; the ledger is untouched and the tables build.
+    std::fs::write(&log, "").unwrap();
+    let o = ask();
+    assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&log).unwrap(), "");
+    assert_eq!(s.state("machine_or_reward.md"), m);
+    assert_eq!(s.state("ledger.jsonl"), ledger);
+    let o = s.table(&[]);
+    assert!(
+        o.status.success(),
+        "table after machine_or_reward: {}",
+        stderr(&o)
+    );
 }
 
 /// new_tasks_table.py puts a pool's tasks branch by branch: the expert's successes per branch

@@ -1,0 +1,341 @@
+#!/usr/bin/env python3
+"""SMIRL's missed jobs of a finished evaluation asked again: the learned machine, or the reward
+learned on it? Exploratory, after diagnose.py; it writes no ledger, table or diagnosis.md.
+
+Usage:
+    python3 experiments/protocol/machine_or_reward.py NAME --bin REACHER [--units ARM:ALGO,...]
+        [--fresh-seeds 1000,1001,1002] [--parallel N]
+
+diagnose.py calls a job's cause from one fresh SAC agent, and its machine test (does the learned
+machine refine the task's along the demonstrations) says no on nearly every machine, solved ones
+too. This script asks two other questions of every missed job diagnose.py calls "agent" or
+"fresh fails" (a SMIRL unit's, `--units`, by default the protocol's `[analysis] primary`), and
+of control jobs that were solved:
+
+1. **Fresh agents**: how many of the SAC seeds `--fresh-seeds` solve when trained from scratch
+   on the job's final learned reward (`reacher retrain`; solved: the last evaluation's lower
+   branch at least 0.9). Seed 1000 is diagnose.py's and its table is read, not retrained.
+2. **The task's machine**: the same job — task, base, SAC seed, demonstrations, config — with
+   `[smirl] machine = "task"`: SMIRL learns its reward on the task's own machine instead of
+   LRM's (an oracle, for diagnosis only). Its run directory is
+   `runs/protocol/NAME-task-machine/<the job's run directory's name>`; the demonstrations must
+   be the job's (its demonstration log's episodes and steps, message by message; the run
+   record differs, since it holds the config); otherwise the row says so and the job is not
+   read. The new machine changes the observation, so the SAC seed draws other networks: this
+   is one draw on the task's machine, not the job replayed.
+
+Controls: per task, the first solved job of a unit in a run directory that also holds a job
+asked about here (the same demonstrations and learned machine, another SAC seed), else the
+task's first solved job. They say how often these questions come out "solved" where the job
+was.
+
+Each asked job gets the first reading that applies:
+- **training draw**: at least one fresh agent solves: the learned reward leads there.
+- **learned machine**: no fresh agent solves, and SMIRL on the task's machine does (its chosen
+  policy's lower branch at least 0.9).
+- **neither**: no fresh agent solves and SMIRL on the task's machine does not either: the
+  machine alone does not explain the miss.
+
+Writes `experiments/protocol/NAME/machine_or_reward.md`. Run directories are rebuilt as
+diagnose.py does (a lost one prepared again and checked against the ledger); a run it needs
+again is kept aside and checked the same way. It creates nothing outside
+`runs/protocol/NAME*` and writes nothing there it did not create, but the fresh agents' tables
+(`retrain/`) and the threads line of a run directory's config.toml, as diagnose.py does.
+"""
+
+import argparse
+import concurrent.futures
+import hashlib
+import json
+import os
+import re
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(__file__))
+import diagnose  # noqa: E402
+import run as protocol  # noqa: E402
+import table  # noqa: E402
+
+SOLVED = diagnose.SOLVED
+ASKED = ("agent", "fresh fails, coarse machine", "fresh fails, refining machine")
+READINGS = ("training draw", "learned machine", "neither", "not read")
+DEMO_TOPICS_SKIPPED = ("/run",)
+
+
+def fail(msg):
+    print(f"machine_or_reward: {msg}", file=sys.stderr)
+    sys.exit(2)
+
+
+def seeds_of(text):
+    try:
+        seeds = [int(s) for s in text.split(",")]
+    except ValueError:
+        fail(f"--fresh-seeds: expected comma-separated integers, got {text!r}")
+    if not seeds or len(set(seeds)) != len(seeds) or any(s < 0 for s in seeds):
+        fail(f"--fresh-seeds: expected distinct non-negative seeds, got {text!r}")
+    return seeds
+
+
+def fresh_agent(binary, r, row, sac_seed):
+    """The last evaluation's lower branch of a fresh agent at `sac_seed` on the job's final
+    learned reward (None and why when the retraining fails)."""
+    algo, seed = row["algo"], int(row["seed"])
+    out = os.path.join(r["dir"], "retrain", f"{algo}_seed{seed}_sac{sac_seed}.csv")
+    if not os.path.isfile(out):
+        cmd = [binary, "retrain", "--run", r["dir"], "--algo", algo, "--seed", str(seed),
+               "--sac-seed", str(sac_seed)]
+        print("+", " ".join(cmd), flush=True)
+        code = subprocess.run(cmd, cwd=protocol.ROOT, stdout=subprocess.DEVNULL).returncode
+        if code != 0 or not os.path.isfile(out):
+            return None, f"retrain at SAC seed {sac_seed} exited with {code}"
+    last, _ = diagnose.lower_of_retrain(out)
+    return last, None
+
+
+def task_machine_dir(name, r):
+    return os.path.join(protocol.run_root(name) + "-task-machine", os.path.basename(r["dir"]))
+
+
+def task_machine_config(r, path):
+    """The job's config with `machine = "learned"` made `"task"`, written to `path`."""
+    with open(os.path.join(r["dir"], "config.toml")) as fh:
+        text = fh.read()
+    new, n = re.subn(r'(?m)^machine = "learned"$', 'machine = "task"', text)
+    if n != 1:
+        return f"{protocol.rel(r['dir'])}/config.toml has {n} lines `machine = \"learned\"`, not one"
+    with open(path + ".tmp", "w") as fh:
+        fh.write(new)
+    os.replace(path + ".tmp", path)
+    return None
+
+
+def demo_digest(run_dir):
+    """sha256 per topic of the demonstration log's messages, the run record left out; None when
+    the directory has no log."""
+    path = os.path.join(run_dir, "logs", "demos.mcap")
+    if not os.path.isfile(path):
+        return None
+    try:
+        from mcap.reader import make_reader
+    except ImportError:
+        fail("comparing demonstration logs needs the mcap package: pip install mcap")
+    digests = {}
+    with open(path, "rb") as fh:
+        for _, channel, message in make_reader(fh).iter_messages():
+            if channel.topic not in DEMO_TOPICS_SKIPPED:
+                digests.setdefault(channel.topic, hashlib.sha256()).update(message.data)
+    return {topic: h.hexdigest() for topic, h in sorted(digests.items())}
+
+
+def prepare_task_machine(binary, name, r):
+    """None when the task-machine run directory of `r` is prepared on the job's demonstrations,
+    else why not."""
+    d = task_machine_dir(name, r)
+    if not os.path.isfile(os.path.join(d, "prepare.json")):
+        if os.path.exists(d):
+            return f"{protocol.rel(d)} exists without prepare.json: not overwritten"
+        os.makedirs(os.path.dirname(d), exist_ok=True)
+        config = d + ".config.toml"
+        why = task_machine_config(r, config)
+        if why:
+            return why
+        cmd = [binary, "prepare", "--task", r["task"], "--algo", "smirl", "--seeds", str(r["seeds"]),
+               "--seed", str(r["base"]), "--config", config, "--out", d, "--quiet"]
+        print("+", " ".join(cmd), flush=True)
+        if subprocess.run(cmd, cwd=protocol.ROOT).returncode != 0:
+            return "prepare with the task's machine failed"
+    mine, theirs = demo_digest(d), demo_digest(r["dir"])
+    if mine != theirs:
+        return "the task machine's run has other demonstrations than the job's"
+    return None
+
+
+def task_machine_job(binary, name, r, row, threads):
+    """(loop, chosen) lower branches of SMIRL on the task's machine (None and why on failure)."""
+    d = task_machine_dir(name, r)
+    seed = int(row["seed"])
+    path = protocol.job_file(d, "smirl", seed)
+    if not os.path.isfile(path):
+        diagnose.set_threads(d, threads)
+        cmd = [binary, "job", "--run", d, "--algo", "smirl", "--seed", str(seed), "--quiet"]
+        print("+", " ".join(cmd), flush=True)
+        if subprocess.run(cmd, cwd=protocol.ROOT).returncode != 0 or not os.path.isfile(path):
+            return None, "the job on the task's machine failed"
+    with open(path) as fh:
+        fields = protocol.job_fields(json.load(fh))
+    where = protocol.rel(path)
+    loop = table.lower_branch(fields["loop"], where)[0]
+    if "chosen" in fields:
+        chosen = table.lower_branch(fields["candidates"][fields["chosen"]], where)[0]
+    else:
+        chosen = loop
+    return (loop, chosen), None
+
+
+def ask(binary, name, r, row, first, seeds, done, threads, task_why):
+    """One job's row: its fresh agents, SMIRL on the task's machine and the reading."""
+    out = {"first": first, "fresh": [], "task": None, "reading": None, "note": ""}
+    why = diagnose.ensure_job(binary, r, row, done)
+    if why:
+        out["reading"], out["note"] = "not read", why
+        return out
+    diagnose.set_threads(r["dir"], threads)
+    for s in seeds:
+        last, why = fresh_agent(binary, r, row, s)
+        if why:
+            out["reading"], out["note"] = "not read", why
+            return out
+        out["fresh"].append(last)
+    if task_why:
+        out["reading"], out["note"] = "not read", task_why
+        return out
+    out["task"], why = task_machine_job(binary, name, r, row, threads)
+    if why:
+        out["reading"], out["note"] = "not read", why
+        return out
+    if any(v >= SOLVED for v in out["fresh"]):
+        out["reading"] = "training draw"
+    elif out["task"][1] >= SOLVED:
+        out["reading"] = "learned machine"
+    else:
+        out["reading"] = "neither"
+    return out
+
+
+def controls_of(rows, asked_rows, dirs, units):
+    """Per task, the first solved job of a unit in a run directory holding an asked job, else
+    the task's first solved job."""
+    asked_dirs = {diagnose.run_of(dirs, row)["dir"] for row in asked_rows}
+    out = []
+    for task in dict.fromkeys(row["task"] for row in asked_rows):
+        solved = [row for row in rows if row["task"] == task and (row["arm"], row["algo"]) in units
+                  and row["status"] == "done" and (diagnose.reported(row) or 0.0) >= SOLVED]
+        near = [row for row in solved if diagnose.run_of(dirs, row)["dir"] in asked_dirs]
+        if near or solved:
+            out.append((near or solved)[0])
+    return out
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("name")
+    p.add_argument("--bin", required=True)
+    p.add_argument("--units", help="ARM:ALGO,... (default: the protocol's [analysis] primary)")
+    p.add_argument("--fresh-seeds", default="1000,1001,1002")
+    p.add_argument("--parallel", type=int, default=1)
+    args = p.parse_args()
+    name = args.name
+    seeds = seeds_of(args.fresh_seeds)
+    if args.parallel < 1:
+        fail("--parallel must be at least 1")
+    _, _, plan = protocol.load(name)
+    version = protocol.binary_version(args.bin)
+    if plan["commit"] not in version or "dirty" in version:
+        fail(f"{args.bin} is not the frozen commit's binary: {version}")
+    refs = args.units.split(",") if args.units else protocol.units_of(plan.get("analysis", {}).get("primary"))
+    units = {protocol.unit_of(ref, "--units", "units") for ref in refs}
+    if not units:
+        fail("no units: give --units ARM:ALGO,...")
+    if any(algo != "smirl" for _, algo in units):
+        fail("the task's machine is SMIRL's: give SMIRL units only")
+    rows = diagnose.read_jobs(name)
+    dirs = diagnose.run_dirs(name, plan)
+    if len(rows) != len(dirs):
+        fail(f"jobs.csv has {len(rows)} rows, the plan {len(dirs)} jobs: ask of a finished plan only")
+    ledger = protocol.read_ledger(name)
+    done = protocol.finished_jobs(name, ledger)
+    prepared = {}
+    for e in ledger:
+        if e.get("event") == "prepared":
+            prepared.setdefault(e["dir"], e)
+    threads = 1 if args.parallel > 1 else 2
+
+    # diagnose.py's first cause of each missed job (its retraining tables are read).
+    missed = [row for row in rows if (row["arm"], row["algo"]) in units and row["status"] == "done"
+              and (diagnose.reported(row) or 0.0) < SOLVED and (diagnose.number(row["oracle"]) or 0.0) < SOLVED]
+    refused = {}
+    for row in missed:
+        r = diagnose.run_of(dirs, row)
+        if r["dir"] not in refused:
+            refused[r["dir"]] = diagnose.ensure_prepared(args.bin, r, prepared)
+    firsts = []
+    for row in missed:
+        r = diagnose.run_of(dirs, row)
+        first = {"cause": "not reproduced", "note": refused[r["dir"]]} if refused[r["dir"]] else \
+            diagnose.diagnose(args.bin, r, row, done, threads)
+        firsts.append(first)
+    asked = [(row, f["cause"]) for row, f in zip(missed, firsts) if f["cause"] in ASKED]
+    controls = controls_of(rows, [row for row, _ in asked], dirs, units)
+    for row in controls:
+        r = diagnose.run_of(dirs, row)
+        if r["dir"] not in refused:
+            refused[r["dir"]] = diagnose.ensure_prepared(args.bin, r, prepared)
+    targets = asked + [(row, "solved (control)") for row in controls]
+    task_why = {}
+    for row, _ in targets:
+        r = diagnose.run_of(dirs, row)
+        if r["dir"] not in task_why:
+            task_why[r["dir"]] = refused[r["dir"]] or prepare_task_machine(args.bin, name, r)
+    results = [None] * len(targets)
+    with concurrent.futures.ThreadPoolExecutor(max_workers=args.parallel) as pool:
+        futures = {}
+        for i, (row, first) in enumerate(targets):
+            r = diagnose.run_of(dirs, row)
+            if refused[r["dir"]]:
+                results[i] = {"first": first, "fresh": [], "task": None, "reading": "not read",
+                              "note": refused[r["dir"]]}
+            else:
+                futures[pool.submit(ask, args.bin, name, r, row, first, seeds, done, threads,
+                                    task_why[r["dir"]])] = i
+        for f in concurrent.futures.as_completed(futures):
+            results[futures[f]] = f.result()
+    write(name, refs, seeds, targets, results)
+
+
+def write(name, refs, seeds, targets, results):
+    lines = [
+        f"# {name}: the learned machine, or the reward learned on it? (exploratory)",
+        "",
+        f"Written by `python3 experiments/protocol/machine_or_reward.py {name} --bin REACHER` after "
+        "diagnose.py (the questions and readings: the script's docstring). Units: "
+        + ", ".join(f"`{r}`" for r in refs) + f". Fresh agents at SAC seeds {', '.join(map(str, seeds))}.",
+        "",
+        "| diagnose.py's cause | jobs | a fresh agent solves | every fresh agent solves "
+        "| SMIRL on the task's machine solves | not read |",
+        "|---|---|---|---|---|---|",
+    ]
+    for first in dict.fromkeys(f for _, f in targets):
+        here = [res for (_, f), res in zip(targets, results) if f == first]
+        read = [res for res in here if res["reading"] != "not read"]
+        lines.append(f"| {first} | {len(here)} | {sum(any(v >= SOLVED for v in res['fresh']) for res in read)} | "
+                     f"{sum(all(v >= SOLVED for v in res['fresh']) for res in read)} | "
+                     f"{sum(res['task'][1] >= SOLVED for res in read)} | {len(here) - len(read)} |")
+    lines += ["", "| task | asked | " + " | ".join(READINGS) + " |", "|---|---|" + "---|" * len(READINGS)]
+    asked = [(row, res) for (row, f), res in zip(targets, results) if f in ASKED]
+    for task in dict.fromkeys(row["task"] for row, _ in asked):
+        here = [res["reading"] for row, res in asked if row["task"] == task]
+        lines.append(f"| {task} | {len(here)} | " + " | ".join(str(here.count(x)) for x in READINGS) + " |")
+    every = [res["reading"] for _, res in asked]
+    lines.append(f"| all | {len(every)} | " + " | ".join(str(every.count(x)) for x in READINGS) + " |")
+    lines += ["", "| arm | task | base | seed | chosen | diagnose.py's cause | fresh agents (last, per seed) "
+              "| solved | task's machine (loop, chosen) | reading | note |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for (row, first), res in zip(targets, results):
+        fresh = ", ".join(f"{v:.2f}" for v in res["fresh"])
+        solved = f"{sum(v >= SOLVED for v in res['fresh'])} of {len(res['fresh'])}" if res["fresh"] else ""
+        task = f"{res['task'][0]:.2f}, {res['task'][1]:.2f}" if res["task"] else ""
+        # A control was solved: the readings are of misses.
+        reading = res["reading"] if first in ASKED or res["reading"] == "not read" else ""
+        lines.append(f"| {row['arm']} | {row['task']} | {row['base']} | {row['seed']} | {row['chosen']} | {first} | "
+                     f"{fresh} | {solved} | {task} | {reading} | {res['note']} |")
+    path = os.path.join(protocol.state_dir(name), "machine_or_reward.md")
+    with open(path + ".tmp", "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+    os.replace(path + ".tmp", path)
+    print(f"wrote {protocol.rel(path)}: {len(asked)} jobs asked, {len(targets) - len(asked)} controls", flush=True)
+
+
+if __name__ == "__main__":
+    main()
