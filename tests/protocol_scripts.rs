@@ -59,8 +59,10 @@ fn write(path: &Path, text: &str) {
 
 /// The fake binary: `--version` names `commit`; `prepare` appends `prepare:<task>:<base>` to
 /// `log`, exits 1 when `<task>:<base>` is listed in FAKE_PREPARE_FAIL, else writes config.toml
-/// (threads = 2), rm/learned.txt (its text FAKE_MACHINE), rm/report.txt (refining the perfect
-/// machine unless the base is listed in FAKE_NOT_REFINES), expert_data.bin and prepare.json;
+/// (threads = 2; `machine = "task"` when the given config says so, else "learned"),
+/// rm/learned.txt (its text FAKE_MACHINE), rm/report.txt and prepare.json's `rm` (refining
+/// the perfect machine unless the base is listed in FAKE_NOT_REFINES and the machine is
+/// learned: 3 of 9 steps ambiguous), expert_data.bin and prepare.json;
 /// `job` appends its (algo, seed) to `log`, kills itself with SIGTERM when listed in FAKE_TERM,
 /// with SIGSEGV when listed in FAKE_SEGV, sleeps a minute when listed in FAKE_HANG, exits 1
 /// when listed in FAKE_FAIL, else writes a job file (as `reacher job`, returning at once when
@@ -96,7 +98,7 @@ if a[0] == "prepare":
         fh.write(f"demo_episodes = 16\nthreads = 2\n\n[env]\nmax_steps = 100\n\n[smirl]\nmachine = \"{{machine}}\"\n")
     with open(os.path.join(opt["--out"], "rm", "learned.txt"), "w") as fh:
         fh.write(os.environ.get("FAKE_MACHINE", "u0 -> u1 on r\n"))
-    refines = "false (3 of 9 steps ambiguous)" if listed("FAKE_NOT_REFINES", str(base)) else "true"
+    refines = "false (3 of 9 steps ambiguous)" if listed("FAKE_NOT_REFINES", str(base)) and machine == "learned" else "true"
     with open(os.path.join(opt["--out"], "rm", "report.txt"), "w") as fh:
         fh.write("learned machine: 2 states (2 reachable); perfect machine: 3 states\n"
                  f"refines the perfect machine along the 16 demonstrations: {{refines}}\n")
@@ -104,7 +106,9 @@ if a[0] == "prepare":
         fh.write(b"demonstrations")
     with open(os.path.join(opt["--out"], "prepare.json"), "w") as fh:
         json.dump({{"seeds": list(range(base, base + int(opt["--seeds"]))), "git_commit": "{commit}",
-                   "demos_kept": 15, "demos_generated": 16}}, fh)
+                   "demos_kept": 15, "demos_generated": 16,
+                   "rm": {{"refines_perfect": refines == "true", "ambiguous_steps": 0 if refines == "true" else 3,
+                          "total_steps": 9}}}}, fh)
     sys.exit(0)
 algo, seed = opt["--algo"], int(opt["--seed"])
 if a[0] == "retrain":
@@ -1079,7 +1083,8 @@ fn asked_row(text: &str, seed: u64) -> Vec<String> {
 /// task's machine, in a run directory of its own prepared from the job's config with
 /// `machine = "task"`; the first reading that applies (a fresh agent solves: the training
 /// draw; else the task's machine solves: the learned machine; else neither); a solved job per
-/// task as a control. Run again, it runs nothing; it never writes the ledger, and table.py
+/// task as a control; the refinement test over every run directory and over the task's own
+/// machine. Run again, it runs nothing; it never writes the ledger, and table.py
 /// still runs.
 #[test]
 fn machine_or_reward_asks_each_unexplained_miss_again() {
@@ -1102,6 +1107,7 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
         ("FAKE_NO_ORACLE", "smirl:947001,smirl:947010,smirl:947011"),
         ("FAKE_RETRAIN_SOLVES", "smirl:947001:1002"),
         ("FAKE_TASK_SOLVES", "smirl:947000,smirl:947001,smirl:947010"),
+        ("FAKE_NOT_REFINES", "947010"),
     ];
     let o = s.run(&env);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -1159,9 +1165,21 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
     );
     assert_eq!(asked_row(&m, 947000)[6], "solved (control)", "{m}");
     assert!(
-        m.contains("| fresh fails, refining machine | 3 | 1 | 0 | 2 | 0 |"),
+        m.contains("| fresh fails, refining machine | 1 | 1 | 0 | 1 | 0 |"),
         "{m}"
     );
+    assert!(
+        m.contains("| fresh fails, coarse machine | 2 | 0 | 0 | 1 | 0 |"),
+        "{m}"
+    );
+    // The machine test over both run directories (each has a miss; base 947010's machine
+    // does not refine, 3 of 9 steps ambiguous) and over the task's own machine.
+    assert!(m.contains("| every job solved | 0 |"), "{m}");
+    assert!(
+        m.contains("| a job missed | 2 | 1 | 0.00 | 0.17 | 0.33 |"),
+        "{m}"
+    );
+    assert!(m.contains("refines the task's in 2 of 2"), "{m}");
     assert!(
         m.contains("| solved (control) | 1 | 0 | 0 | 1 | 0 |"),
         "{m}"

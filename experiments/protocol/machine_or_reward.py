@@ -29,6 +29,12 @@ asked about here (the same demonstrations and learned machine, another SAC seed)
 task's first solved job. They say how often these questions come out "solved" where the job
 was.
 
+Beside them, the machine test itself: over every run directory of the units (a lost one
+prepared again and checked against the ledger; prepares are cheap), how many learned machines
+refine the task's and the share of demonstration steps that are ambiguous, where every job was
+solved and where one missed; and whether the task's own machine refines in the task-machine
+run directories (a test that works must say yes there).
+
 Each asked job gets the first reading that applies:
 - **training draw**: at least one fresh agent solves: the learned reward leads there.
 - **learned machine**: no fresh agent solves, and SMIRL on the task's machine does (its chosen
@@ -49,6 +55,7 @@ import hashlib
 import json
 import os
 import re
+import statistics
 import subprocess
 import sys
 
@@ -291,10 +298,40 @@ def main():
                                     task_why[r["dir"]])] = i
         for f in concurrent.futures.as_completed(futures):
             results[futures[f]] = f.result()
-    write(name, refs, seeds, targets, results)
+    test = machine_test(args.bin, name, rows, units, dirs, prepared, {diagnose.run_of(dirs, row)["dir"]
+                                                                     for row, _ in targets})
+    write(name, refs, seeds, targets, results, test)
 
 
-def write(name, refs, seeds, targets, results):
+def rm_facts(run_dir):
+    """prepare.json's facts of the learned machine SMIRL uses."""
+    with open(os.path.join(run_dir, "prepare.json")) as fh:
+        return json.load(fh)["rm"]
+
+
+def machine_test(binary, name, rows, units, dirs, prepared, asked_dirs):
+    """Lines on the refinement test over every run directory of the units and over the task's
+    own machine."""
+    groups = {}
+    for row in rows:
+        if (row["arm"], row["algo"]) in units:
+            r = diagnose.run_of(dirs, row)
+            g = groups.setdefault(r["dir"], {"r": r, "solved": True})
+            g["solved"] &= row["status"] == "done" and (diagnose.reported(row) or 0.0) >= SOLVED
+    out = {"every job solved": [], "a job missed": [], "not reproduced": 0}
+    for d, g in groups.items():
+        if diagnose.ensure_prepared(binary, g["r"], prepared):
+            out["not reproduced"] += 1
+            continue
+        facts = rm_facts(d)
+        out["every job solved" if g["solved"] else "a job missed"].append(
+            (facts["refines_perfect"], facts["ambiguous_steps"] / max(1, facts["total_steps"])))
+    task = [rm_facts(task_machine_dir(name, {"dir": d}))["refines_perfect"] for d in sorted(asked_dirs)
+            if os.path.isfile(os.path.join(task_machine_dir(name, {"dir": d}), "prepare.json"))]
+    return out, task
+
+
+def write(name, refs, seeds, targets, results, test):
     lines = [
         f"# {name}: the learned machine, or the reward learned on it? (exploratory)",
         "",
@@ -330,6 +367,24 @@ def write(name, refs, seeds, targets, results):
         reading = res["reading"] if first in ASKED or res["reading"] == "not read" else ""
         lines.append(f"| {row['arm']} | {row['task']} | {row['base']} | {row['seed']} | {row['chosen']} | {first} | "
                      f"{fresh} | {solved} | {task} | {reading} | {res['note']} |")
+    groups, task = test
+    lines += ["", "The refinement test (does the learned machine refine the task's along the demonstrations; "
+              "ambiguous: the share of demonstration steps whose learned state is also seen with another task "
+              "state), over every run directory of the units:", "",
+              "| run directories | count | learned machine refines | ambiguous share: min | median | max |",
+              "|---|---|---|---|---|---|"]
+    for group in ("every job solved", "a job missed"):
+        facts = groups[group]
+        shares = sorted(share for _, share in facts)
+        if shares:
+            lines.append(f"| {group} | {len(facts)} | {sum(r for r, _ in facts)} | {shares[0]:.2f} | "
+                         f"{statistics.median(shares):.2f} | {shares[-1]:.2f} |")
+        else:
+            lines.append(f"| {group} | 0 | | | | |")
+    if groups["not reproduced"]:
+        lines.append(f"| not reproduced | {groups['not reproduced']} | | | | |")
+    lines += ["", f"SMIRL's machine under `machine = \"task\"` (the task's own) refines the task's in {sum(task)} of "
+              f"{len(task)} task-machine run directories."]
     path = os.path.join(protocol.state_dir(name), "machine_or_reward.md")
     with open(path + ".tmp", "w") as fh:
         fh.write("\n".join(lines) + "\n")
