@@ -3,7 +3,8 @@
 //! for them (keyed by the task's content: a task edited without retraining its expert has
 //! none), and each solves every branch of its task on evaluation episodes other than the ones
 //! `reacher expert` reported (`experiments/experts/new_tasks.md`). Only the experts run here:
-//! no IRL algorithm, the new tasks being evaluation data of a protocol yet to be registered.
+//! the IRL algorithms run on these tasks in the preregistered protocols
+//! (`experiments/protocol/`).
 
 use smirl::env::reacher_task::{Branch, ReacherTask};
 use smirl::pipeline::reacher_expert::{evaluate_expert, ExpertConfig};

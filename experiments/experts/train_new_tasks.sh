@@ -10,8 +10,8 @@
 # experiments/experts/new_tasks/table.md (success per branch, stochastic and mean action, over
 # 200 evaluation episodes) from the runs' summary.json, which are copied beside it.
 #
-# No IRL algorithm runs here: these tasks are evaluation data of a protocol yet to be
-# registered (experiments/experts/new_tasks.md).
+# No IRL algorithm runs here: the IRL algorithms run on these tasks in the preregistered
+# protocols (experiments/protocol/; experiments/experts/new_tasks.md).
 #
 # usage: experiments/experts/train_new_tasks.sh [SEED]
 #   SEED  training seed of every task (default 0) but those of TASK_SEEDS
