@@ -282,6 +282,46 @@ fn a_task_files_expert_is_keyed_by_its_content() {
     std::fs::write(&scene, edited).unwrap();
     let edited_scene = ReacherTask::resolve(path.to_str().unwrap()).unwrap();
     assert_ne!(expert_cache_path(cache, edited_scene), before);
+    // A scene that includes a file which includes another: editing either makes another key.
+    let xml = smirl::assets::REACHER_XML;
+    let (start, end) = (
+        xml.find("<actuator>").unwrap(),
+        xml.find("</actuator>").unwrap() + "</actuator>".len(),
+    );
+    std::fs::create_dir_all(tmp.path().join("parts")).unwrap();
+    let parts = |outer: &str, inner: &str| {
+        std::fs::write(
+            tmp.path().join("parts/outer.xml"),
+            format!("<mujoco>{outer}<include file=\"parts/motors.xml\"/></mujoco>"),
+        )
+        .unwrap();
+        std::fs::write(
+            tmp.path().join("parts/motors.xml"),
+            format!("<mujoco>{inner}{}</mujoco>", &xml[start..end]),
+        )
+        .unwrap();
+        let task = ReacherTask::resolve(path.to_str().unwrap()).unwrap();
+        expert_cache_path(cache, task)
+    };
+    let including = format!(
+        "{}<include file=\"parts/outer.xml\"/>{}",
+        &xml[..start],
+        &xml[end..]
+    );
+    std::fs::write(&scene, including).unwrap();
+    let keys = [
+        parts("", ""),
+        parts("", ""),
+        parts("<!-- edited -->", ""),
+        parts("", "<!-- edited -->"),
+    ];
+    assert_eq!(keys[0], keys[1], "the same files, the same key");
+    assert_ne!(keys[2], keys[0], "an edited included file");
+    assert_ne!(
+        keys[3], keys[0],
+        "an edited file the included file includes"
+    );
+    assert_ne!(keys[3], keys[2]);
     std::fs::write(&path, task_text()).unwrap();
     // Shipped tasks keep their committed experts' names.
     let composite = ReacherTask::shipped("composite").unwrap();

@@ -147,6 +147,15 @@ fn attribute<'a>(attributes: &'a str, key: &str) -> Option<&'a str> {
     }
 }
 
+/// The `file` of every `<include>` element of `xml`, in the order of the text.
+pub fn included_files(xml: &str) -> Result<Vec<String>, SceneCutError> {
+    Ok(tags(xml)?
+        .iter()
+        .filter(|t| t.name == "include" && t.kind != TagKind::Close)
+        .filter_map(|t| attribute(t.attributes, "file").map(str::to_string))
+        .collect())
+}
+
 /// One element of the text: the tags that open and close it (the same tag when it closes
 /// itself) and the name of the element it sits in.
 struct Element<'a> {

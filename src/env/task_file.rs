@@ -54,6 +54,8 @@ pub const SLIDE_RANGE: f64 = 0.27;
 pub const RANDOM_LAYOUT_MAX_RADIUS: f64 = 0.19;
 /// The body whose position is the fingertip.
 pub const FINGERTIP_BODY: &str = "fingertip";
+/// Most files a scene may include, directly or through other included files.
+pub const MAX_INCLUDED_FILES: usize = 64;
 
 /// The shipped tasks (`assets/tasks/<name>.toml`): the paper's four and the baselines'
 /// Markovian positive control `blue`.
@@ -478,19 +480,25 @@ impl Task {
             ));
         }
 
-        let scene_text = match &scene {
-            Scene::Builtin => crate::assets::REACHER_XML.as_bytes().to_vec(),
-            // The model loaded from this file a moment ago; a failure to read it again is a
-            // race with the user's editor, reported as such.
-            Scene::File(p) => {
-                crate::input_file::read_bytes(p, super::physics_scene::MAX_SCENE_BYTES)
-                    .map_err(|e| bad("scene".into(), TaskProblem::Scene(e.to_string())))?
-            }
+        let (scene_text, included) = match &scene {
+            Scene::Builtin => (crate::assets::REACHER_XML.as_bytes().to_vec(), Vec::new()),
+            // The model loaded from these files a moment ago; a failure to read them again is
+            // a race with the user's editor, reported as such.
+            Scene::File(p) => scene_files(p)
+                .map_err(|problem| bad("scene".into(), TaskProblem::Scene(problem)))?,
         };
         let mut hash = Sha256::new();
         for part in [text.as_bytes(), &scene_text, machine_text.as_bytes()] {
             hash.update((part.len() as u64).to_le_bytes());
             hash.update(part);
+        }
+        // A scene without includes keeps the hash (and so the committed experts) it had
+        // before included files counted.
+        for (name, bytes) in &included {
+            for part in [name.as_bytes(), bytes] {
+                hash.update((part.len() as u64).to_le_bytes());
+                hash.update(part);
+            }
         }
         let content_hash = hash.finalize().iter().map(|b| format!("{b:02x}")).collect();
 
@@ -547,6 +555,44 @@ fn check_arm(model: &Model, scene: &str) -> Result<(), TaskProblem> {
         });
     }
     Ok(())
+}
+
+/// A file a scene includes: its name as the `<include>` gives it, and its bytes.
+type IncludedFile = (String, Vec<u8>);
+
+/// The scene file's bytes and, in the order MuJoCo reads them, every file it includes,
+/// directly or through another included file: each named as in its `<include file=…>` (MuJoCo
+/// resolves the name in the main scene file's directory) with its bytes. For the task's
+/// content hash, so that an edited included file makes another task. Mesh, texture and
+/// height-field files are not read.
+fn scene_files(path: &Path) -> Result<(Vec<u8>, Vec<IncludedFile>), String> {
+    use super::physics_scene::{included_files, MAX_SCENE_BYTES};
+    let read =
+        |p: &Path| crate::input_file::read_bytes(p, MAX_SCENE_BYTES).map_err(|e| e.to_string());
+    let main = read(path)?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let includes_of = |bytes: &[u8], file: &Path| {
+        included_files(&String::from_utf8_lossy(bytes))
+            .map_err(|e| format!("{}: {e}", file.display()))
+    };
+    let mut pending: std::collections::VecDeque<String> = includes_of(&main, path)?.into();
+    let mut files = Vec::new();
+    while let Some(name) = pending.pop_front() {
+        if files.len() == MAX_INCLUDED_FILES {
+            return Err(format!(
+                "{} includes more than {MAX_INCLUDED_FILES} files",
+                path.display()
+            ));
+        }
+        let file = dir.join(&name);
+        let bytes = read(&file)?;
+        // An included file's own includes come where it stands, before the files after it.
+        for (k, inner) in includes_of(&bytes, &file)?.into_iter().enumerate() {
+            pending.insert(k, inner);
+        }
+        files.push((name, bytes));
+    }
+    Ok((main, files))
 }
 
 /// The machine's text and how messages name it. A shipped task's machine path resolves
