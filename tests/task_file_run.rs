@@ -208,6 +208,42 @@ fn every_bad_task_file_case_exits_2_naming_its_place() {
             "7 regions in a randomised layout, more than the limit of 6",
         ),
         (
+            "an unknown site",
+            text.replacen("body = \"red\"", "site = \"nosuch\"", 1),
+            MACHINE,
+            "avoid_blue.toml:8: `region[0].site`: no site 'nosuch'",
+        ),
+        (
+            "a position beyond the layout range",
+            text.replace("[0.141, -0.0513]", "[0.29, -0.0513]"),
+            MACHINE,
+            "avoid_blue.toml:10: `region[0].position`",
+        ),
+        (
+            "an event window starting before the first step",
+            text.replace("earliest_step = 2", "earliest_step = 0"),
+            MACHINE,
+            "avoid_blue.toml:33: `event[0].earliest_step`",
+        ),
+        (
+            "more regions than the limit",
+            format!(
+                "{text}{extra_regions}{}",
+                extra_regions
+                    .replace("\"k\"", "\"p\"")
+                    .replace("\"m\"", "\"q\"")
+                    .replace("\"n\"", "\"s\"")
+            ),
+            MACHINE,
+            "avoid_blue.toml:6: `region`: 10 regions, more than the limit of 8",
+        ),
+        (
+            "more steps than the limit",
+            text.replace("episode_steps = 100", "episode_steps = 10001"),
+            MACHINE,
+            "avoid_blue.toml:3: `episode_steps`: episode_steps 10001 must be between 1 and 10000",
+        ),
+        (
             "a task file over 1 MiB",
             padded,
             MACHINE,
