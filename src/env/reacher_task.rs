@@ -511,12 +511,13 @@ impl BranchTally {
 }
 
 impl fmt::Display for BranchTally {
-    /// `normal 48/50, cancel 47/50 (50 % of episodes)`.
+    /// `normal 48/50, event 47/50 successful (event branch in 50 % of episodes)`: the event
+    /// branch is the one a declared event opens (the paper's tasks: the cancel).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let [n, c] = [Branch::Normal, Branch::Cancelled].map(|b| b.index());
         write!(
             f,
-            "normal {}/{}, cancel {}/{} successful (cancel branch in {:.0} % of episodes)",
+            "normal {}/{}, event {}/{} successful (event branch in {:.0} % of episodes)",
             self.successes[n],
             self.episodes[n],
             self.successes[c],

@@ -477,7 +477,7 @@ pub(super) fn reward_trace_csv(trace: &[RewardTraceRow], letters: &str) -> CsvTa
     table
 }
 
-/// The per-branch cells of a summary row: mean ± std of the normal and the cancel branch; empty
+/// The per-branch cells of a summary row: mean ± std of the normal and the event branch; empty
 /// cells in a conditional task's table for a row without them, none for other tasks.
 fn branch_cells(branches: Option<[(f64, f64); 2]>, conditional: bool) -> String {
     match branches {
@@ -499,7 +499,7 @@ pub fn summary_markdown(
     if conditional {
         let _ = writeln!(
             s,
-            "| task | algorithm | seeds | final success (lower branch) | normal branch | cancel branch | final task return | job wall time (s) |"
+            "| task | algorithm | seeds | final success (lower branch) | normal branch | event branch | final task return | job wall time (s) |"
         );
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
     } else {
@@ -559,7 +559,7 @@ pub fn summary_markdown(
         if conditional {
             let _ = writeln!(
                 s,
-                "\nThe chosen policy per branch:\n\n| task | algorithm | seeds | success (lower branch) | normal branch | cancel branch |\n|---|---|---|---|---|---|"
+                "\nThe chosen policy per branch:\n\n| task | algorithm | seeds | success (lower branch) | normal branch | event branch |\n|---|---|---|---|---|---|"
             );
             for a in summaries
                 .iter()

@@ -224,7 +224,7 @@ pub fn prepare(
         config.demo_source.name(),
         demos.iter().map(|d| d.steps.len()).sum::<usize>(),
         demo_branches.map_or(String::new(), |t| format!(
-            "; {} take the normal branch, {} the cancel branch",
+            "; {} take the normal branch, {} the event branch",
             t.episodes[Branch::Normal.index()],
             t.episodes[Branch::Cancelled.index()]
         ))
