@@ -284,7 +284,7 @@ fn quick_if_run_reports_each_branch() {
         .contains("final_success_cancel_mean"));
     assert!(out.join("success_branches.svg").is_file());
     let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
-    assert!(md.contains("cancel branch"), "{md}");
+    assert!(md.contains("| normal branch | event branch |"), "{md}");
 
     let o = reacher()
         .arg("replay")
