@@ -62,7 +62,8 @@ fn write(path: &Path, text: &str) {
 /// (threads = 2; `machine = "task"` when the given config says so, else "learned"),
 /// rm/learned.txt (its text FAKE_MACHINE), rm/report.txt and prepare.json's `rm` (refining
 /// the perfect machine unless the base is listed in FAKE_NOT_REFINES and the machine is
-/// learned: 3 of 9 steps ambiguous), expert_data.bin and prepare.json;
+/// learned: 3 of 9 steps ambiguous), expert_data.bin, logs/demos.mcap (a text the fake
+/// `replay` prints: one episode line per demonstration, seeded by the base) and prepare.json;
 /// `job` appends its (algo, seed) to `log`, kills itself with SIGTERM when listed in FAKE_TERM,
 /// with SIGSEGV when listed in FAKE_SEGV, sleeps a minute when listed in FAKE_HANG, exits 1
 /// when listed in FAKE_FAIL, else writes a job file (as `reacher job`, returning at once when
@@ -104,11 +105,19 @@ if a[0] == "prepare":
                  f"refines the perfect machine along the 16 demonstrations: {{refines}}\n")
     with open(os.path.join(opt["--out"], "expert_data.bin"), "wb") as fh:
         fh.write(b"demonstrations")
+    os.makedirs(os.path.join(opt["--out"], "logs"), exist_ok=True)
+    with open(os.path.join(opt["--out"], "logs", "demos.mcap"), "w") as fh:
+        fh.write(f"episode 0 seed {{base}}\nepisode 1 seed {{base + 1}}\n")
     with open(os.path.join(opt["--out"], "prepare.json"), "w") as fh:
         json.dump({{"seeds": list(range(base, base + int(opt["--seeds"]))), "git_commit": "{commit}",
                    "demos_kept": 15, "demos_generated": 16,
                    "rm": {{"refines_perfect": refines == "true", "ambiguous_steps": 0 if refines == "true" else 3,
                           "total_steps": 9}}}}, fh)
+    sys.exit(0)
+if a[0] == "replay":
+    with open(a[1]) as fh:
+        print("reward machine: stored in the run record")
+        print(fh.read(), end="")
     sys.exit(0)
 algo, seed = opt["--algo"], int(opt["--seed"])
 if a[0] == "retrain":
@@ -1106,7 +1115,7 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
         ),
         ("FAKE_NO_ORACLE", "smirl:947001,smirl:947010,smirl:947011"),
         ("FAKE_RETRAIN_SOLVES", "smirl:947001:1002"),
-        ("FAKE_TASK_SOLVES", "smirl:947000,smirl:947001,smirl:947010"),
+        ("FAKE_TASK_SOLVES", "smirl:947000,smirl:947010"),
         ("FAKE_NOT_REFINES", "947010"),
     ];
     let o = s.run(&env);
@@ -1151,7 +1160,7 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
     assert_eq!(
         rows,
         [
-            row("0.30, 0.30, 1.00", "1 of 3", "0.30, 0.96", "training draw"),
+            row("0.30, 0.30, 1.00", "1 of 3", "0.30, 0.40", "training draw"),
             row(
                 "0.30, 0.30, 0.30",
                 "0 of 3",
@@ -1165,11 +1174,11 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
     );
     assert_eq!(asked_row(&m, 947000)[6], "solved (control)", "{m}");
     assert!(
-        m.contains("| fresh fails, refining machine | 1 | 1 | 0 | 1 | 0 |"),
+        m.contains("| fresh fails, refining machine | 1 | 1 of 1 | 0 of 1 | 0 of 1 | 0 |"),
         "{m}"
     );
     assert!(
-        m.contains("| fresh fails, coarse machine | 2 | 0 | 0 | 1 | 0 |"),
+        m.contains("| fresh fails, coarse machine | 2 | 0 of 2 | 0 of 2 | 1 of 2 | 0 |"),
         "{m}"
     );
     // The machine test over both run directories (each has a miss; base 947010's machine
@@ -1181,10 +1190,12 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
     );
     assert!(m.contains("refines the task's in 2 of 2"), "{m}");
     assert!(
-        m.contains("| solved (control) | 1 | 0 | 0 | 1 | 0 |"),
+        m.contains("| solved (control) | 1 | 0 of 1 | 0 of 1 | 1 of 1 | 0 |"),
         "{m}"
     );
-    assert!(m.contains("| or | 3 | 1 | 1 | 1 | 0 |"), "{m}");
+    // | task | asked | training draw | learned machine | both | neither | not read |
+    assert!(m.contains("| or | 3 | 1 | 1 | 0 | 1 | 0 |"), "{m}");
+    assert!(m.contains("--fresh-seeds 1000,1001,1002"), "{m}");
     // Seed 1000 once per job (diagnose.py's question), then the other two; the task machine's
     // run directories prepared from a config that says so, once per base.
     let ran = std::fs::read_to_string(&log).unwrap();
@@ -1229,6 +1240,42 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
         "table after machine_or_reward: {}",
         stderr(&o)
     );
+    // The task machine's run must replay the job's own demonstrations: other episodes (base
+    // 947010's) or no log (base 947000's) leave those jobs unread.
+    let task_dir = |base: u64| {
+        std::fs::read_dir(repo.join(format!("runs/protocol/{NAME}-task-machine")))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.is_dir() && p.to_str().unwrap().contains(&format!("-b{base}-")))
+            .unwrap()
+    };
+    std::fs::write(
+        task_dir(947_010).join("logs/demos.mcap"),
+        "episode 0 seed 5\nepisode 1 seed 6\n",
+    )
+    .unwrap();
+    std::fs::remove_file(task_dir(947_000).join("logs/demos.mcap")).unwrap();
+    let o = ask();
+    assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
+    let m = s.state("machine_or_reward.md");
+    for (seed, why) in [
+        (947010, "other demonstrations"),
+        (947011, "other demonstrations"),
+        (947001, "demos.mcap does not exist"),
+        (947000, "demos.mcap does not exist"),
+    ] {
+        let row = asked_row(&m, seed);
+        assert_eq!(row[10], "not read", "{seed}: {m}");
+        assert!(row[11].contains(why), "{seed}: {m}");
+    }
+    // Seed 1000 is diagnose.py's: its causes rest on it.
+    let o = s.script(
+        "machine_or_reward.py",
+        &[NAME, "--bin", b, "--fresh-seeds", "1001,1002"],
+        &env,
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("must hold diagnose.py's seed 1000"));
 }
 
 /// new_tasks_table.py puts a pool's tasks branch by branch: the expert's successes per branch

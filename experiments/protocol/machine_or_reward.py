@@ -19,10 +19,11 @@ of control jobs that were solved:
    `[smirl] machine = "task"`: SMIRL learns its reward on the task's own machine instead of
    LRM's (an oracle, for diagnosis only). Its run directory is
    `runs/protocol/NAME-task-machine/<the job's run directory's name>`; the demonstrations must
-   be the job's (its demonstration log's episodes and steps, message by message; the run
-   record differs, since it holds the config); otherwise the row says so and the job is not
-   read. The new machine changes the observation, so the SAC seed draws other networks: this
-   is one draw on the task's machine, not the job replayed.
+   be the job's: `reacher replay` of both demonstration logs gives the same episode lines
+   (seed, steps, return, labels; the run record differs, since it holds the config). A
+   missing log or other lines: the row says so and the job is not read. The new machine
+   changes the observation, so the SAC seed draws other networks: this is one draw on the
+   task's machine, not the job replayed.
 
 Controls: per task, the first solved job of a unit in a run directory that also holds a job
 asked about here (the same demonstrations and learned machine, another SAC seed), else the
@@ -35,18 +36,26 @@ refine the task's and the share of demonstration steps that are ambiguous, where
 solved and where one missed; and whether the task's own machine refines in the task-machine
 run directories (a test that works must say yes there).
 
-Each asked job gets the first reading that applies:
-- **training draw**: at least one fresh agent solves: the learned reward leads there.
-- **learned machine**: no fresh agent solves, and SMIRL on the task's machine does (its chosen
-  policy's lower branch at least 0.9).
-- **neither**: no fresh agent solves and SMIRL on the task's machine does not either: the
-  machine alone does not explain the miss.
+Each asked job gets one reading from the two answers, neither ranked above the other:
+- **training draw**: a fresh agent solves, SMIRL on the task's machine does not (its chosen
+  policy's lower branch below 0.9): the learned reward leads there;
+- **learned machine**: SMIRL on the task's machine solves, no fresh agent does;
+- **both**: both solve: this job does not tell the machine from the draw;
+- **neither**: neither solves: the machine alone does not explain the miss.
+The two answers are not measured alike: a fresh agent is judged at the end of its training on
+the ground truth's evaluation episodes (20 per branch at the standard config), up to three
+draws of which one solving counts; SMIRL on the task's machine on its final set (50 per branch)
+after its final phase's choice, one draw. So "training draw" has more chances than "learned
+machine". A job diagnose.py calls "agent" has seed 1000 solving, so it reads "training draw" or
+"both" by construction: the per-task readings count the "fresh fails" jobs only.
 
-Writes `experiments/protocol/NAME/machine_or_reward.md`. Run directories are rebuilt as
-diagnose.py does (a lost one prepared again and checked against the ledger); a run it needs
-again is kept aside and checked the same way. It creates nothing outside
-`runs/protocol/NAME*` and writes nothing there it did not create, but the fresh agents' tables
-(`retrain/`) and the threads line of a run directory's config.toml, as diagnose.py does.
+Writes `experiments/protocol/NAME/machine_or_reward.md` (its header names the arguments and
+the script's blob). Under `runs/protocol/NAME/` it prepares again every lost run directory of
+the units and checks it against the ledger, runs again a lost job it asks about (kept as
+`jobs/<algo>_seed<k>.diagnose.json`, checked the same way, as diagnose.py does), and adds the
+fresh agents' tables (`retrain/`) and sets the threads line of config.toml; under
+`runs/protocol/NAME-task-machine/` it creates the task-machine run directories. It replaces
+nothing it did not create and never writes the ledger or the tables.
 """
 
 import argparse
@@ -66,7 +75,8 @@ import table  # noqa: E402
 
 SOLVED = diagnose.SOLVED
 ASKED = ("agent", "fresh fails, coarse machine", "fresh fails, refining machine")
-READINGS = ("training draw", "learned machine", "neither", "not read")
+READINGS = ("training draw", "learned machine", "both", "neither", "not read")
+FRESH_FAILS = ("fresh fails, coarse machine", "fresh fails, refining machine")
 DEMO_TOPICS_SKIPPED = ("/run",)
 
 
@@ -82,6 +92,8 @@ def seeds_of(text):
         fail(f"--fresh-seeds: expected comma-separated integers, got {text!r}")
     if not seeds or len(set(seeds)) != len(seeds) or any(s < 0 for s in seeds):
         fail(f"--fresh-seeds: expected distinct non-negative seeds, got {text!r}")
+    if diagnose.RETRAIN_SAC_SEED not in seeds:
+        fail(f"--fresh-seeds must hold diagnose.py's seed {diagnose.RETRAIN_SAC_SEED}: its causes rest on it")
     return seeds
 
 
@@ -118,22 +130,16 @@ def task_machine_config(r, path):
     return None
 
 
-def demo_digest(run_dir):
-    """sha256 per topic of the demonstration log's messages, the run record left out; None when
-    the directory has no log."""
+def demo_episodes(binary, run_dir):
+    """The episode lines `reacher replay` prints for the run's demonstration log (seed, steps,
+    return, labels of each), or None and why not."""
     path = os.path.join(run_dir, "logs", "demos.mcap")
     if not os.path.isfile(path):
-        return None
-    try:
-        from mcap.reader import make_reader
-    except ImportError:
-        fail("comparing demonstration logs needs the mcap package: pip install mcap")
-    digests = {}
-    with open(path, "rb") as fh:
-        for _, channel, message in make_reader(fh).iter_messages():
-            if channel.topic not in DEMO_TOPICS_SKIPPED:
-                digests.setdefault(channel.topic, hashlib.sha256()).update(message.data)
-    return {topic: h.hexdigest() for topic, h in sorted(digests.items())}
+        return None, f"{protocol.rel(path)} does not exist"
+    out = subprocess.run([binary, "replay", path], cwd=protocol.ROOT, capture_output=True, text=True)
+    if out.returncode != 0:
+        return None, f"`reacher replay {protocol.rel(path)}` exited with {out.returncode}"
+    return [line for line in out.stdout.splitlines() if line.startswith("episode")], None
 
 
 def prepare_task_machine(binary, name, r):
@@ -153,19 +159,20 @@ def prepare_task_machine(binary, name, r):
         print("+", " ".join(cmd), flush=True)
         if subprocess.run(cmd, cwd=protocol.ROOT).returncode != 0:
             return "prepare with the task's machine failed"
-    mine, theirs = demo_digest(d), demo_digest(r["dir"])
-    if mine != theirs:
+    (mine, why), (theirs, their_why) = demo_episodes(binary, d), demo_episodes(binary, r["dir"])
+    if why or their_why:
+        return why or their_why
+    if not mine or mine != theirs:
         return "the task machine's run has other demonstrations than the job's"
     return None
 
 
-def task_machine_job(binary, name, r, row, threads):
+def task_machine_job(binary, name, r, row):
     """(loop, chosen) lower branches of SMIRL on the task's machine (None and why on failure)."""
     d = task_machine_dir(name, r)
     seed = int(row["seed"])
     path = protocol.job_file(d, "smirl", seed)
     if not os.path.isfile(path):
-        diagnose.set_threads(d, threads)
         cmd = [binary, "job", "--run", d, "--algo", "smirl", "--seed", str(seed), "--quiet"]
         print("+", " ".join(cmd), flush=True)
         if subprocess.run(cmd, cwd=protocol.ROOT).returncode != 0 or not os.path.isfile(path):
@@ -181,14 +188,13 @@ def task_machine_job(binary, name, r, row, threads):
     return (loop, chosen), None
 
 
-def ask(binary, name, r, row, first, seeds, done, threads, task_why):
+def ask(binary, name, r, row, first, seeds, done, task_why):
     """One job's row: its fresh agents, SMIRL on the task's machine and the reading."""
     out = {"first": first, "fresh": [], "task": None, "reading": None, "note": ""}
     why = diagnose.ensure_job(binary, r, row, done)
     if why:
         out["reading"], out["note"] = "not read", why
         return out
-    diagnose.set_threads(r["dir"], threads)
     for s in seeds:
         last, why = fresh_agent(binary, r, row, s)
         if why:
@@ -198,16 +204,13 @@ def ask(binary, name, r, row, first, seeds, done, threads, task_why):
     if task_why:
         out["reading"], out["note"] = "not read", task_why
         return out
-    out["task"], why = task_machine_job(binary, name, r, row, threads)
+    out["task"], why = task_machine_job(binary, name, r, row)
     if why:
         out["reading"], out["note"] = "not read", why
         return out
-    if any(v >= SOLVED for v in out["fresh"]):
-        out["reading"] = "training draw"
-    elif out["task"][1] >= SOLVED:
-        out["reading"] = "learned machine"
-    else:
-        out["reading"] = "neither"
+    fresh, task = any(v >= SOLVED for v in out["fresh"]), out["task"][1] >= SOLVED
+    out["reading"] = {(True, False): "training draw", (False, True): "learned machine",
+                      (True, True): "both", (False, False): "neither"}[(fresh, task)]
     return out
 
 
@@ -285,6 +288,13 @@ def main():
         r = diagnose.run_of(dirs, row)
         if r["dir"] not in task_why:
             task_why[r["dir"]] = refused[r["dir"]] or prepare_task_machine(args.bin, name, r)
+    # Threads set here, before the jobs run side by side (two workers never rewrite one file).
+    for row, _ in targets:
+        r = diagnose.run_of(dirs, row)
+        if not refused[r["dir"]]:
+            diagnose.set_threads(r["dir"], threads)
+            if not task_why[r["dir"]]:
+                diagnose.set_threads(task_machine_dir(name, r), threads)
     results = [None] * len(targets)
     with concurrent.futures.ThreadPoolExecutor(max_workers=args.parallel) as pool:
         futures = {}
@@ -294,13 +304,13 @@ def main():
                 results[i] = {"first": first, "fresh": [], "task": None, "reading": "not read",
                               "note": refused[r["dir"]]}
             else:
-                futures[pool.submit(ask, args.bin, name, r, row, first, seeds, done, threads,
+                futures[pool.submit(ask, args.bin, name, r, row, first, seeds, done,
                                     task_why[r["dir"]])] = i
         for f in concurrent.futures.as_completed(futures):
             results[futures[f]] = f.result()
     test = machine_test(args.bin, name, rows, units, dirs, prepared, {diagnose.run_of(dirs, row)["dir"]
                                                                      for row, _ in targets})
-    write(name, refs, seeds, targets, results, test)
+    write(name, refs, seeds, targets, results, test, args)
 
 
 def rm_facts(run_dir):
@@ -331,13 +341,22 @@ def machine_test(binary, name, rows, units, dirs, prepared, asked_dirs):
     return out, task
 
 
-def write(name, refs, seeds, targets, results, test):
+def script_blob():
+    """The git blob id of this script as it runs (what the file's header names)."""
+    with open(__file__, "rb") as fh:
+        data = fh.read()
+    return hashlib.sha1(b"blob %d\0" % len(data) + data).hexdigest()
+
+
+def write(name, refs, seeds, targets, results, test, args):
+    given = (f" --units {args.units}" if args.units else "") + f" --fresh-seeds {','.join(map(str, seeds))}"
     lines = [
         f"# {name}: the learned machine, or the reward learned on it? (exploratory)",
         "",
-        f"Written by `python3 experiments/protocol/machine_or_reward.py {name} --bin REACHER` after "
-        "diagnose.py (the questions and readings: the script's docstring). Units: "
-        + ", ".join(f"`{r}`" for r in refs) + f". Fresh agents at SAC seeds {', '.join(map(str, seeds))}.",
+        f"Written by `python3 experiments/protocol/machine_or_reward.py {name} --bin REACHER{given}` "
+        f"(script blob {script_blob()[:12]}) after diagnose.py; the questions, the readings and why "
+        "the two answers are not measured alike: the script's docstring. Units: "
+        + ", ".join(f"`{r}`" for r in refs) + ".",
         "",
         "| diagnose.py's cause | jobs | a fresh agent solves | every fresh agent solves "
         "| SMIRL on the task's machine solves | not read |",
@@ -345,12 +364,15 @@ def write(name, refs, seeds, targets, results, test):
     ]
     for first in dict.fromkeys(f for _, f in targets):
         here = [res for (_, f), res in zip(targets, results) if f == first]
-        read = [res for res in here if res["reading"] != "not read"]
-        lines.append(f"| {first} | {len(here)} | {sum(any(v >= SOLVED for v in res['fresh']) for res in read)} | "
-                     f"{sum(all(v >= SOLVED for v in res['fresh']) for res in read)} | "
-                     f"{sum(res['task'][1] >= SOLVED for res in read)} | {len(here) - len(read)} |")
-    lines += ["", "| task | asked | " + " | ".join(READINGS) + " |", "|---|---|" + "---|" * len(READINGS)]
-    asked = [(row, res) for (row, f), res in zip(targets, results) if f in ASKED]
+        fresh = [res["fresh"] for res in here if len(res["fresh"]) == len(seeds)]
+        task = [res["task"] for res in here if res["task"]]
+        lines.append(f"| {first} | {len(here)} | {sum(any(v >= SOLVED for v in f) for f in fresh)} of {len(fresh)} | "
+                     f"{sum(all(v >= SOLVED for v in f) for f in fresh)} of {len(fresh)} | "
+                     f"{sum(t[1] >= SOLVED for t in task)} of {len(task)} | "
+                     f"{sum(res['reading'] == 'not read' for res in here)} |")
+    lines += ["", "Readings of the jobs diagnose.py calls \"fresh fails\":", "",
+              "| task | asked | " + " | ".join(READINGS) + " |", "|---|---|" + "---|" * len(READINGS)]
+    asked = [(row, res) for (row, f), res in zip(targets, results) if f in FRESH_FAILS]
     for task in dict.fromkeys(row["task"] for row, _ in asked):
         here = [res["reading"] for row, res in asked if row["task"] == task]
         lines.append(f"| {task} | {len(here)} | " + " | ".join(str(here.count(x)) for x in READINGS) + " |")
@@ -389,7 +411,8 @@ def write(name, refs, seeds, targets, results, test):
     with open(path + ".tmp", "w") as fh:
         fh.write("\n".join(lines) + "\n")
     os.replace(path + ".tmp", path)
-    print(f"wrote {protocol.rel(path)}: {len(asked)} jobs asked, {len(targets) - len(asked)} controls", flush=True)
+    controls = sum(f not in ASKED for _, f in targets)
+    print(f"wrote {protocol.rel(path)}: {len(targets) - controls} jobs asked, {controls} controls", flush=True)
 
 
 if __name__ == "__main__":
