@@ -492,8 +492,8 @@ impl Task {
             hash.update((part.len() as u64).to_le_bytes());
             hash.update(part);
         }
-        // A scene without includes keeps the hash (and so the committed experts) it had
-        // before included files counted.
+        // Included files come after the three parts, so a scene without includes hashes to
+        // its three parts alone, the key the committed experts are named by.
         for (name, bytes) in &included {
             for part in [name.as_bytes(), bytes] {
                 hash.update((part.len() as u64).to_le_bytes());
