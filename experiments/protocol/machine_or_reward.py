@@ -77,7 +77,6 @@ SOLVED = diagnose.SOLVED
 ASKED = ("agent", "fresh fails, coarse machine", "fresh fails, refining machine")
 READINGS = ("training draw", "learned machine", "both", "neither", "not read")
 FRESH_FAILS = ("fresh fails, coarse machine", "fresh fails, refining machine")
-DEMO_TOPICS_SKIPPED = ("/run",)
 
 
 def fail(msg):
