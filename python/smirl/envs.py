@@ -22,13 +22,6 @@ from . import _core
 MAX_SEED = 2**64 - 1
 
 _ARENA_HALF = 0.33  # metres shown on each side of the base in ``render()``
-_LINKS = (0.1, 0.11)  # the arm's link lengths (assets/reacher_delivery.xml)
-_COLOURS = {
-    "red": (220, 40, 40),
-    "green": (40, 170, 60),
-    "blue": (40, 80, 220),
-    "yellow": (230, 200, 30),
-}
 
 
 def _observation_space(dim: int) -> spaces.Box:
@@ -107,22 +100,27 @@ class ReacherDeliveryEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
-        angles, tip, regions = self._core.scene()
-        return top_down(angles, tip, regions, self.render_size)
+        arm, regions = self._core.scene()
+        return top_down(arm, regions, self.render_size)
 
 
-def top_down(angles, tip, regions, size: int) -> np.ndarray:
-    """A top-down RGB picture (``size × size × 3``, uint8) of the arm among its regions."""
+def top_down(arm, regions, size: int) -> np.ndarray:
+    """A top-down RGB picture (``size × size × 3``, uint8) of the arm among its regions.
+
+    ``arm`` is the (shoulder, elbow, fingertip) positions; ``regions`` are ``(name, x, y,
+    radius, rgb)``, each a disc of its label radius in the colour of the scene's geom of that
+    name (as ``reacher render`` draws it).
+    """
     img = np.full((size, size, 3), 245, dtype=np.uint8)
     ys, xs = np.mgrid[0:size, 0:size]
     scale = size / (2 * _ARENA_HALF)
     wx = xs / scale - _ARENA_HALF
     wy = _ARENA_HALF - ys / scale
-    for name, x, y, radius in regions:
+    for _, x, y, radius, rgb in regions:
         mask = (wx - x) ** 2 + (wy - y) ** 2 < max(radius, 1.5 / scale) ** 2
-        img[mask] = _COLOURS.get(name, (120, 120, 120))
-    elbow = (_LINKS[0] * np.cos(angles[0]), _LINKS[0] * np.sin(angles[0]))
-    for (x0, y0), (x1, y1) in (((0.0, 0.0), elbow), (elbow, tuple(tip))):
+        img[mask] = rgb
+    shoulder, elbow, tip = (tuple(p) for p in arm)
+    for (x0, y0), (x1, y1) in ((shoulder, elbow), (elbow, tip)):
         dx, dy = x1 - x0, y1 - y0
         t = np.clip(((wx - x0) * dx + (wy - y0) * dy) / (dx * dx + dy * dy + 1e-12), 0, 1)
         d2 = (wx - x0 - t * dx) ** 2 + (wy - y0 - t * dy) ** 2

@@ -12,10 +12,14 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArray
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use smirl::env::physics_scene::scene_model;
 use smirl::env::product::ProductEnv;
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::{task_env, Branch, CancelBranch, ReacherTask, SubgoalPotential};
 use smirl::env::ContinuousEnv;
+use smirl::mujoco::ObjectKind;
+use smirl::pipeline::render::region_looks;
+use smirl::report::raster::Rgb;
 use smirl::rm::{LabelSet, RewardMachine};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
@@ -50,8 +54,8 @@ type StepTuple<'py> = (
     Bound<'py, PyDict>,
 );
 
-/// A labelled region for a picture: `(name, x, y, radius)`.
-type Region = (String, f64, f64, f64);
+/// A labelled region for a picture: `(name, x, y, radius, (red, green, blue))`.
+type Region = (String, f64, f64, f64, (u8, u8, u8));
 
 /// What every environment of a task shares.
 pub(crate) struct TaskSpec {
@@ -61,6 +65,8 @@ pub(crate) struct TaskSpec {
     branches: Option<CancelBranch>,
     shaping: f64,
     gamma: f64,
+    /// Each region's colour in a picture, in label-bit order.
+    region_colours: Vec<(u8, u8, u8)>,
 }
 
 impl TaskSpec {
@@ -79,6 +85,14 @@ impl TaskSpec {
         let rm = task.perfect_rm().map_err(error)?;
         let config = task.env_config(&ReacherConfig::default()).map_err(error)?;
         let branches = CancelBranch::of(&rm, task.layout().events());
+        // The scene as its file gives it: the environment's model may leave the regions' bodies
+        // out (they do not touch the arm's physics).
+        let layout = task.layout();
+        let scene = scene_model(&layout.scene).map_err(error)?;
+        let byte = |c: f32| (c.clamp(0.0, 1.0) * 255.0).round() as u8;
+        let region_colours = (region_looks(&scene, &layout).into_iter())
+            .map(|(Rgb(red, green, blue), _)| (byte(red), byte(green), byte(blue)))
+            .collect();
         Ok(TaskSpec {
             task,
             config,
@@ -86,6 +100,7 @@ impl TaskSpec {
             rm,
             shaping,
             gamma,
+            region_colours,
         })
     }
 
@@ -286,16 +301,24 @@ impl ReacherCore {
         self.slot.env.rm_state()
     }
 
-    /// What a top-down picture needs: `(joint angles, fingertip, regions)`, regions as
-    /// `(name, x, y, radius)`.
-    fn scene(&self) -> ([f64; 2], [f64; 2], Vec<Region>) {
+    /// What a top-down picture needs: the arm's points `(shoulder, elbow, fingertip)` (the
+    /// bodies the scene's `joint0` and `joint1` move, and its fingertip) and the regions as
+    /// `(name, x, y, radius, rgb)`, each drawn in the colour `reacher render` gives it.
+    fn scene(&self) -> PyResult<([[f64; 2]; 3], Vec<Region>)> {
         let inner = self.slot.env.inner();
-        let q = inner.qpos();
+        let model = inner.model();
+        let body_of = |joint: &str| {
+            let j = model.id(ObjectKind::Joint, joint).map_err(error)?;
+            let [x, y, _] = inner.body_position(model.joint_body(j));
+            Ok::<_, PyErr>([x, y])
+        };
+        let arm = [body_of("joint0")?, body_of("joint1")?, inner.fingertip()];
         let regions = (inner.layout().regions.iter())
             .zip(inner.positions())
-            .map(|(r, &[x, y])| (r.anchor.name().to_string(), x, y, r.radius))
+            .zip(&self.spec.region_colours)
+            .map(|((r, &[x, y]), &rgb)| (r.anchor.name().to_string(), x, y, r.radius, rgb))
             .collect();
-        ([q[0], q[1]], inner.fingertip(), regions)
+        Ok((arm, regions))
     }
 }
 

@@ -1,6 +1,7 @@
 """The Gymnasium environments: API conformance, seeding, the machine in the loop, errors."""
 
 import math
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import gymnasium as gym
@@ -93,13 +94,33 @@ def test_cancel_event_appears_in_labels_on_its_step():
     pytest.fail("no episode of 50 had a cancel")
 
 
-def test_render_draws_the_regions():
-    env = smirl.make("composite", render_mode="rgb_array", render_size=128)
+def scene_colours(scene):
+    """Each geom's RGB (0–255) as the scene XML gives it, by geom name."""
+    out = {}
+    for geom in ET.parse(scene).iter("geom"):
+        if "name" in geom.attrib and "rgba" in geom.attrib:
+            out[geom.attrib["name"]] = [255 * float(c) for c in geom.attrib["rgba"].split()[:3]]
+    return out
+
+
+@pytest.mark.parametrize(
+    "task, scene",
+    [("composite", "reacher_delivery.xml"), ("scenes/six_targets_ring.toml", "scenes/six_targets.xml")],
+)
+def test_render_draws_each_region_in_its_geoms_colour(task, scene):
+    root = Path(__file__).resolve().parents[2] / "assets"
+    task = task if "/" not in task else str(root / task)
+    env = smirl.make(task, render_mode="rgb_array", render_size=128)
     env.reset(seed=0)
     img = env.render()
     assert img.shape == (128, 128, 3) and img.dtype == np.uint8
-    for colour in [(220, 40, 40), (40, 170, 60), (40, 80, 220), (230, 200, 30)]:
-        assert (img == colour).all(axis=2).any(), colour
+    colours = scene_colours(root / scene)
+    _, regions = env.unwrapped._core.scene()
+    assert len(regions) in (4, 6)
+    for name, _, _, _, rgb in regions:
+        assert np.abs(np.array(rgb) - colours[name]).max() <= 1, (name, rgb)
+        assert (img == rgb).all(axis=2).any(), name
+    assert (img == (60, 60, 60)).all(axis=2).any()  # the arm
 
 
 @pytest.mark.parametrize(

@@ -251,6 +251,11 @@ impl Model {
         self.slice(self.raw().jnt_dofadr, self.njnt())[joint] as usize
     }
 
+    /// Body a joint moves (the body it is declared in).
+    pub fn joint_body(&self, joint: usize) -> usize {
+        self.slice(self.raw().jnt_bodyid, self.njnt())[joint] as usize
+    }
+
     /// `Some((lo, hi))` when the joint is limited.
     pub fn joint_range(&self, joint: usize) -> Option<(f64, f64)> {
         let limited = self.slice(self.raw().jnt_limited, self.njnt())[joint] != 0;

@@ -1,13 +1,14 @@
-//! A top-down picture of one logged ReacherDelivery episode, as PNG: the arena, the four
-//! balls in their model colours (at the episode's logged layout), the fingertip's path, the
-//! arm at a few time points (lighter = earlier), every touch (a ring in the ball's colour
-//! where the fingertip first touched it) and the cancel step (a black cross at the
+//! A top-down picture of one logged ReacherDelivery episode, as PNG: the arena, the task's
+//! regions in their scene colours (at the episode's logged layout), the fingertip's path, the
+//! arm at a few time points (lighter = earlier), every touch (a ring in the region's colour
+//! where the fingertip first touched it) and the first event's step (a black cross at the
 //! fingertip), plus a timeline strip under the arena with the same events.
 //!
 //! Positions come from MuJoCo's forward kinematics on the model XML stored in the log and the
 //! logged `qpos` of every step, so the picture shows the episode as it was simulated.
 
 use crate::atomic_file::write_atomic;
+use crate::env::layout::TaskLayout;
 use crate::env::reacher_task::{Branch, CancelBranch};
 use crate::log::{LoggedEpisode, RolloutLog};
 use crate::mujoco::{Data, Model, ObjectKind};
@@ -107,6 +108,28 @@ fn colour(rgba: [f32; 4]) -> Rgb {
     Rgb(rgba[0], rgba[1], rgba[2])
 }
 
+/// Colours of regions whose anchor names no geom, in label-bit order (cycled).
+const REGION_PALETTE: [Rgb; 4] = [
+    Rgb(0.55, 0.35, 0.75),
+    Rgb(0.95, 0.55, 0.1),
+    Rgb(0.2, 0.65, 0.65),
+    Rgb(0.6, 0.6, 0.2),
+];
+
+/// How each region of `layout` is drawn, in label-bit order: the colour and radius of the geom
+/// named as its anchor (the built-in scene's balls), or a colour of the palette and radius 0
+/// (no solid centre) when no geom has that name.
+pub fn region_looks(model: &Model, layout: &TaskLayout) -> Vec<(Rgb, f64)> {
+    (layout.regions.iter().enumerate())
+        .map(
+            |(k, region)| match model.id(ObjectKind::Geom, region.anchor.name()) {
+                Ok(g) => (colour(model.geom_rgba(g)), model.geom_radius(g)),
+                Err(_) => (REGION_PALETTE[k % REGION_PALETTE.len()], 0.0),
+            },
+        )
+        .collect()
+}
+
 /// Renders episode `episode` (its id in the log, as `reacher replay` prints it; `None` = the
 /// first logged episode).
 pub fn render_episode(
@@ -144,29 +167,9 @@ pub fn render_episode(
         })?;
         walls.push(([a[0], a[1]], [b[0], b[1]], model.geom_radius(g)));
     }
-    // Each region in the colour and size of the geom named as its anchor (the built-in
-    // scene's balls), or in a colour of its own with no solid centre.
     let layout = log.run.task_layout().map_err(&bad)?;
-    let palette = [
-        Rgb(0.55, 0.35, 0.75),
-        Rgb(0.95, 0.55, 0.1),
-        Rgb(0.2, 0.65, 0.65),
-        Rgb(0.6, 0.6, 0.2),
-    ];
-    let mut ball_colours = Vec::with_capacity(layout.n_regions());
-    let mut ball_radii = Vec::with_capacity(layout.n_regions());
-    for (k, region) in layout.regions.iter().enumerate() {
-        match model.id(ObjectKind::Geom, region.anchor.name()) {
-            Ok(g) => {
-                ball_colours.push(colour(model.geom_rgba(g)));
-                ball_radii.push(model.geom_radius(g));
-            }
-            Err(_) => {
-                ball_colours.push(palette[k % palette.len()]);
-                ball_radii.push(0.0);
-            }
-        }
-    }
+    let (ball_colours, ball_radii): (Vec<Rgb>, Vec<f64>) =
+        region_looks(&model, &layout).into_iter().unzip();
     if ep.start.balls.len() != 2 * layout.n_regions() {
         return Err(bad(format!(
             "episode {}: {} region coordinates, expected {}",
