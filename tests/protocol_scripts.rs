@@ -59,7 +59,8 @@ fn write(path: &Path, text: &str) {
 
 /// The fake binary: `--version` names `commit`; `prepare` appends `prepare:<task>:<base>` to
 /// `log`, exits 1 when `<task>:<base>` is listed in FAKE_PREPARE_FAIL, else writes config.toml
-/// (threads = 2; `machine = "task"` when the given config says so, else "learned"),
+/// (threads = 2, 4 IRL iterations of 50 SAC steps; `machine = "task"` when the given config
+/// says so, else "learned"),
 /// rm/learned.txt (its text FAKE_MACHINE), rm/report.txt and prepare.json's `rm` (refining
 /// the perfect machine unless the base is listed in FAKE_NOT_REFINES and the machine is
 /// learned: 3 of 9 steps ambiguous), expert_data.bin, logs/demos.mcap (a text the fake
@@ -73,9 +74,11 @@ fn write(path: &Path, text: &str) {
 /// FAKE_NO_ORACLE). In a run directory whose config says `machine = "task"` (prepared from
 /// such a config), a job appends `task:<algo>:<seed>` and chooses a candidate at 0.96 when
 /// listed in FAKE_TASK_SOLVES, else at 0.4. `retrain` appends
-/// `retrain:<algo>:<seed>:<sac seed>` and writes a retraining table ending at 1.0 on both
-/// branches when `<algo>:<seed>` or `<algo>:<seed>:<sac seed>` is listed in
-/// FAKE_RETRAIN_SOLVES, else at 0.3 on the normal one.
+/// `retrain:<algo>:<seed>:<sac seed>`, appends a line to the file FAKE_EDIT names (if set),
+/// and writes a retraining table of `--evaluations` rows (default 5) up to `--steps` (default
+/// the run config's iterations × steps per iteration), 0.95 on both branches and at the last
+/// row 1.0 when `<algo>:<seed>` or `<algo>:<seed>:<sac seed>` is listed in
+/// FAKE_RETRAIN_SOLVES, else 0.3 on the normal one.
 fn fake_reacher(path: &Path, commit: &str, log: &Path) {
     let script = format!(
         r#"#!/usr/bin/env python3
@@ -96,7 +99,8 @@ if a[0] == "prepare":
     with open(opt["--config"]) as fh:
         machine = "task" if 'machine = "task"' in fh.read() else "learned"
     with open(os.path.join(opt["--out"], "config.toml"), "w") as fh:
-        fh.write(f"demo_episodes = 16\nthreads = 2\n\n[env]\nmax_steps = 100\n\n[smirl]\nmachine = \"{{machine}}\"\n")
+        fh.write(f"demo_episodes = 16\nthreads = 2\nirl_iterations = 4\nsac_steps_per_iteration = 50\n\n"
+                 f"[env]\nmax_steps = 100\n\n[smirl]\nmachine = \"{{machine}}\"\n")
     with open(os.path.join(opt["--out"], "rm", "learned.txt"), "w") as fh:
         fh.write(os.environ.get("FAKE_MACHINE", "u0 -> u1 on r\n"))
     refines = "false (3 of 9 steps ambiguous)" if listed("FAKE_NOT_REFINES", str(base)) and machine == "learned" else "true"
@@ -124,11 +128,20 @@ if a[0] == "retrain":
     with open("{log}", "a") as fh:
         fh.write(f"retrain:{{algo}}:{{seed}}:{{opt['--sac-seed']}}\n")
     solves = listed("FAKE_RETRAIN_SOLVES", f"{{algo}}:{{seed}}") or listed("FAKE_RETRAIN_SOLVES", f"{{algo}}:{{seed}}:{{opt['--sac-seed']}}")
+    if os.environ.get("FAKE_EDIT"):
+        with open(os.environ["FAKE_EDIT"], "a") as fh:
+            fh.write("\n# edited while a run reads it\n")
     rate = 1.0 if solves else 0.3
+    import tomllib
+    with open(os.path.join(opt["--run"], "config.toml"), "rb") as fh:
+        config = tomllib.load(fh)
+    steps = int(opt.get("--steps", config["irl_iterations"] * config["sac_steps_per_iteration"]))
+    n = int(opt.get("--evaluations", 5))
+    rows = [f"{{steps * k // n}},0.95,0.95,0.95" for k in range(1, n)] + [f"{{steps}},{{rate}},{{rate}},1.0"]
     out = os.path.join(opt["--run"], "retrain")
     os.makedirs(out, exist_ok=True)
     with open(os.path.join(out, f"{{algo}}_seed{{seed}}_sac{{opt['--sac-seed']}}.csv"), "w") as fh:
-        fh.write(f"env_steps,success_rate,success_normal,success_cancel\n10,0.95,0.95,0.95\n20,{{rate}},{{rate}},1.0\n")
+        fh.write("env_steps,success_rate,success_normal,success_cancel\n" + "\n".join(rows) + "\n")
     sys.exit(0)
 with open(os.path.join(opt["--run"], "config.toml")) as fh:
     task_machine = 'machine = "task"' in fh.read()
@@ -1074,6 +1087,15 @@ fn diagnose_gives_each_missed_job_its_first_cause() {
     assert!(o.status.success(), "table after diagnose: {}", stderr(&o));
 }
 
+/// The run directory of `base` under `root`.
+fn run_dir(root: &Path, base: u64) -> PathBuf {
+    std::fs::read_dir(root)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.is_dir() && p.to_str().unwrap().contains(&format!("-b{base}-")))
+        .unwrap_or_else(|| panic!("no run directory of base {base} in {}", root.display()))
+}
+
 /// The row of machine_or_reward.md for SMIRL's job with `seed`, split at `|`.
 fn asked_row(text: &str, seed: u64) -> Vec<String> {
     text.lines()
@@ -1276,6 +1298,218 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("must hold diagnose.py's seed 1000"));
+}
+
+/// machine_or_reward.py reads only what is the job's own, and its readings count the "fresh
+/// fails" jobs only: a job diagnose.py calls "agent" is asked and shown, not counted; a
+/// retraining table of other steps or other evaluations (seed 1000's, diagnose.py's, too)
+/// leaves its job unread and stays; so does a run config without one `machine = "learned"`
+/// line; a task-machine directory without prepare.json leaves its jobs unread and keeps its
+/// contents. The header names the script's blob at start, though the file changes during the
+/// run.
+#[test]
+fn machine_or_reward_reads_only_the_jobs_own_tables_and_directories() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let plan = "bases = [948000, 948010]\ntimeout_secs = { smirl = 600 }\n\n[[arm]]\n\
+                name = \"a\"\ntasks = [\"or\"]\nalgos = [\"smirl\"]\nn_bases = 2\nseeds = 3\n";
+    let (repo, bin, log) = locked(tmp.path(), plan);
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    // Every job missed, no candidate solved; a fresh agent solves 948000's reward at every
+    // SAC seed (diagnose.py: "agent"), SMIRL on the task's machine 948001's.
+    let missed = "smirl:948000,smirl:948001,smirl:948002,smirl:948010,smirl:948011,smirl:948012";
+    let env = [
+        ("FAKE_CHOOSE_FIRST", missed),
+        ("FAKE_NO_ORACLE", missed),
+        ("FAKE_RETRAIN_SOLVES", "smirl:948000"),
+        ("FAKE_TASK_SOLVES", "smirl:948001"),
+    ];
+    let o = s.run(&env);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = s.table(&[]);
+    assert!(o.status.success(), "table: {}", stderr(&o));
+    let b = bin.to_str().unwrap();
+    let d10 = run_dir(&repo.join("runs/protocol").join(NAME), 948_010);
+    let rel = format!(
+        "runs/protocol/{NAME}/{}",
+        d10.file_name().unwrap().to_str().unwrap()
+    );
+    // Retrainings by hand under the names the script reads: 948010's at SAC seed 1001 with
+    // other steps, 948011's at diagnose.py's seed 1000 with other evaluations.
+    for (seed, sac, flag, value) in [
+        ("948010", "1001", "--steps", "100"),
+        ("948011", "1000", "--evaluations", "3"),
+    ] {
+        let args = [
+            "retrain",
+            "--run",
+            d10.to_str().unwrap(),
+            "--algo",
+            "smirl",
+            "--seed",
+            seed,
+            "--sac-seed",
+            sac,
+            flag,
+            value,
+        ];
+        let o = run_in(&repo, b, &args, &[]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let foreign = |seed: u64, sac: u64| {
+        std::fs::read_to_string(d10.join(format!("retrain/smirl_seed{seed}_sac{sac}.csv"))).unwrap()
+    };
+    let tables = [foreign(948_010, 1001), foreign(948_011, 1000)];
+    // 948010's run config has no `machine = "learned"` line.
+    let config = d10.join("config.toml");
+    let text = std::fs::read_to_string(&config).unwrap();
+    write(&config, &text.replace("machine = \"learned\"\n", ""));
+    std::fs::write(&log, "").unwrap();
+    let script = repo.join("experiments/protocol/machine_or_reward.py");
+    let mut edit = env.to_vec();
+    edit.push(("FAKE_EDIT", script.to_str().unwrap()));
+    let ask = |env: &[(&str, &str)]| {
+        s.script(
+            "machine_or_reward.py",
+            &[NAME, "--bin", b, "--units", "a:smirl"],
+            env,
+        )
+    };
+    let o = ask(&edit);
+    assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
+    let m = s.state("machine_or_reward.md");
+    // The script changed while it ran; the header names the blob that ran.
+    let ran_blob = git(
+        &repo,
+        &[
+            "rev-parse",
+            "HEAD:experiments/protocol/machine_or_reward.py",
+        ],
+    );
+    assert_ne!(
+        git(
+            &repo,
+            &["hash-object", "experiments/protocol/machine_or_reward.py"]
+        ),
+        ran_blob
+    );
+    assert!(
+        m.contains(&format!("(script blob {})", &ran_blob[..12])),
+        "{m}"
+    );
+    git(
+        &repo,
+        &[
+            "checkout",
+            "--",
+            "experiments/protocol/machine_or_reward.py",
+        ],
+    );
+    // | arm | task | base | seed | chosen | cause | fresh agents | solved | task's machine |
+    // reading | note |
+    let rows: Vec<Vec<String>> = [948000, 948001, 948002]
+        .iter()
+        .map(|&seed| asked_row(&m, seed)[6..11].to_vec())
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            [
+                "agent",
+                "1.00, 1.00, 1.00",
+                "3 of 3",
+                "0.30, 0.40",
+                "training draw"
+            ],
+            [
+                "fresh fails, refining machine",
+                "0.30, 0.30, 0.30",
+                "0 of 3",
+                "0.30, 0.96",
+                "learned machine"
+            ],
+            [
+                "fresh fails, refining machine",
+                "0.30, 0.30, 0.30",
+                "0 of 3",
+                "0.30, 0.40",
+                "neither"
+            ],
+        ],
+        "{m}"
+    );
+    for (seed, why) in [
+        (
+            948010,
+            format!(
+                "foreign retraining table {rel}/retrain/smirl_seed948010_sac1001.csv: \
+                 last env_steps 100, not 200"
+            ),
+        ),
+        (
+            948011,
+            format!(
+                "foreign retraining table {rel}/retrain/smirl_seed948011_sac1000.csv: \
+                 3 evaluations, not 5"
+            ),
+        ),
+        (
+            948012,
+            format!("{rel}/config.toml has 0 lines `machine = \"learned\"`, not one"),
+        ),
+    ] {
+        let row = asked_row(&m, seed);
+        assert_eq!(row[10], "not read", "{seed}: {m}");
+        assert!(row[11].starts_with(&why), "{seed}: {m}");
+    }
+    assert_eq!([foreign(948_010, 1001), foreign(948_011, 1000)], tables);
+    // The "agent" job is in the first table, not among the readings.
+    assert!(
+        m.contains("| agent | 1 | 1 of 1 | 1 of 1 | 0 of 1 | 0 |"),
+        "{m}"
+    );
+    // | task | asked | training draw | learned machine | both | neither | not read |
+    assert!(m.contains("| or | 5 | 0 | 1 | 0 | 1 | 3 |"), "{m}");
+    assert!(m.contains("| all | 5 | 0 | 1 | 0 | 1 | 3 |"), "{m}");
+    // A task-machine directory without prepare.json is not overwritten (948010's config is
+    // whole again).
+    write(&config, &text);
+    let task = repo
+        .join(format!("runs/protocol/{NAME}-task-machine"))
+        .join(d10.file_name().unwrap());
+    assert!(!task.exists());
+    write(&task.join("notes.txt"), "mine\n");
+    std::fs::write(&log, "").unwrap();
+    let o = ask(&env);
+    assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
+    let m = s.state("machine_or_reward.md");
+    let row = asked_row(&m, 948012);
+    assert_eq!(row[10], "not read", "{m}");
+    assert_eq!(
+        row[11],
+        format!(
+            "runs/protocol/{NAME}-task-machine/{}",
+            &rel[rel.rfind('/').unwrap() + 1..]
+        ) + " exists without prepare.json: not overwritten",
+        "{m}"
+    );
+    let kept: Vec<_> = std::fs::read_dir(&task)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert_eq!(kept, ["notes.txt"]);
+    assert_eq!(
+        std::fs::read_to_string(task.join("notes.txt")).unwrap(),
+        "mine\n"
+    );
+    assert!(!PathBuf::from(format!("{}.config.toml", task.display())).exists());
+    assert_eq!(prepare_lines(&log), Vec::<String>::new());
 }
 
 /// new_tasks_table.py puts a pool's tasks branch by branch: the expert's successes per branch

@@ -15,6 +15,10 @@ of control jobs that were solved:
 1. **Fresh agents**: how many of the SAC seeds `--fresh-seeds` solve when trained from scratch
    on the job's final learned reward (`reacher retrain`; solved: the last evaluation's lower
    branch at least 0.9). Seed 1000 is diagnose.py's and its table is read, not retrained.
+   Every table, seed 1000's too, is read only when it is of the job's own retraining: its
+   last env_steps is the run's sac_steps_per_iteration × irl_iterations (config.toml) and it
+   has 5 rows (RETRAIN_EVALUATIONS, `reacher retrain`'s default); another one (a retraining
+   with other `--steps` or `--evaluations`) is foreign and the job is not read.
 2. **The task's machine**: the same job — task, base, SAC seed, demonstrations, config — with
    `[smirl] machine = "task"`: SMIRL learns its reward on the task's own machine instead of
    LRM's (an oracle, for diagnosis only). Its run directory is
@@ -50,7 +54,8 @@ machine". A job diagnose.py calls "agent" has seed 1000 solving, so it reads "tr
 "both" by construction: the per-task readings count the "fresh fails" jobs only.
 
 Writes `experiments/protocol/NAME/machine_or_reward.md` (its header names the arguments and
-the script's blob). Under `runs/protocol/NAME/` it prepares again every lost run directory of
+the blob of the script as it started).
+Under `runs/protocol/NAME/` it prepares again every lost run directory of
 the units and checks it against the ledger, runs again a lost job it asks about (kept as
 `jobs/<algo>_seed<k>.diagnose.json`, checked the same way, as diagnose.py does), and adds the
 fresh agents' tables (`retrain/`) and sets the threads line of config.toml; under
@@ -60,6 +65,7 @@ nothing it did not create and never writes the ledger or the tables.
 
 import argparse
 import concurrent.futures
+import csv
 import hashlib
 import json
 import os
@@ -67,6 +73,7 @@ import re
 import statistics
 import subprocess
 import sys
+import tomllib
 
 sys.path.insert(0, os.path.dirname(__file__))
 import diagnose  # noqa: E402
@@ -77,6 +84,8 @@ SOLVED = diagnose.SOLVED
 ASKED = ("agent", "fresh fails, coarse machine", "fresh fails, refining machine")
 READINGS = ("training draw", "learned machine", "both", "neither", "not read")
 FRESH_FAILS = ("fresh fails, coarse machine", "fresh fails, refining machine")
+# `reacher retrain --evaluations`' default: the rows of a job's own retraining table.
+RETRAIN_EVALUATIONS = 5
 
 
 def fail(msg):
@@ -96,10 +105,39 @@ def seeds_of(text):
     return seeds
 
 
+def own_steps(r, algo):
+    """The SAC steps of the job's own retraining: sac_steps_per_iteration × irl_iterations of
+    the run's config.toml (`[schedule.<algo>]`'s where it sets them), or None and why not."""
+    path = os.path.join(r["dir"], "config.toml")
+    with open(path, "rb") as fh:
+        config = tomllib.load(fh)
+    own = {**config, **config.get("schedule", {}).get(algo, {})}
+    if not all(isinstance(own.get(k), int) for k in ("sac_steps_per_iteration", "irl_iterations")):
+        return None, f"{protocol.rel(path)} has no integer sac_steps_per_iteration and irl_iterations"
+    return own["sac_steps_per_iteration"] * own["irl_iterations"], None
+
+
+def foreign(path, steps):
+    """None when the retraining table at `path` is of the job's own retraining (its last
+    env_steps `steps`, RETRAIN_EVALUATIONS rows), else what differs."""
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    differs = []
+    last = rows[-1].get("env_steps") if rows else None
+    if last != str(steps):
+        differs.append(f"last env_steps {last}, not {steps} (sac_steps_per_iteration × irl_iterations)")
+    if len(rows) != RETRAIN_EVALUATIONS:
+        differs.append(f"{len(rows)} evaluations, not {RETRAIN_EVALUATIONS}")
+    return (f"foreign retraining table {protocol.rel(path)}: " + "; ".join(differs)) if differs else None
+
+
 def fresh_agent(binary, r, row, sac_seed):
     """The last evaluation's lower branch of a fresh agent at `sac_seed` on the job's final
-    learned reward (None and why when the retraining fails)."""
+    learned reward (None and why when the retraining fails or its table is foreign)."""
     algo, seed = row["algo"], int(row["seed"])
+    steps, why = own_steps(r, algo)
+    if why:
+        return None, why
     out = os.path.join(r["dir"], "retrain", f"{algo}_seed{seed}_sac{sac_seed}.csv")
     if not os.path.isfile(out):
         cmd = [binary, "retrain", "--run", r["dir"], "--algo", algo, "--seed", str(seed),
@@ -108,6 +146,9 @@ def fresh_agent(binary, r, row, sac_seed):
         code = subprocess.run(cmd, cwd=protocol.ROOT, stdout=subprocess.DEVNULL).returncode
         if code != 0 or not os.path.isfile(out):
             return None, f"retrain at SAC seed {sac_seed} exited with {code}"
+    why = foreign(out, steps)
+    if why:
+        return None, why
     last, _ = diagnose.lower_of_retrain(out)
     return last, None
 
@@ -228,6 +269,7 @@ def controls_of(rows, asked_rows, dirs, units):
 
 
 def main():
+    blob = script_blob()
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("name")
     p.add_argument("--bin", required=True)
@@ -249,6 +291,7 @@ def main():
         fail("no units: give --units ARM:ALGO,...")
     if any(algo != "smirl" for _, algo in units):
         fail("the task's machine is SMIRL's: give SMIRL units only")
+    header = written_by(name, refs, seeds, args, blob)
     rows = diagnose.read_jobs(name)
     dirs = diagnose.run_dirs(name, plan)
     if len(rows) != len(dirs):
@@ -309,7 +352,7 @@ def main():
             results[futures[f]] = f.result()
     test = machine_test(args.bin, name, rows, units, dirs, prepared, {diagnose.run_of(dirs, row)["dir"]
                                                                      for row, _ in targets})
-    write(name, refs, seeds, targets, results, test, args)
+    write(name, header, seeds, targets, results, test)
 
 
 def rm_facts(run_dir):
@@ -341,21 +384,30 @@ def machine_test(binary, name, rows, units, dirs, prepared, asked_dirs):
 
 
 def script_blob():
-    """The git blob id of this script as it runs (what the file's header names)."""
+    """The git blob id of this script as it is read (at start: what the file's header names)."""
     with open(__file__, "rb") as fh:
         data = fh.read()
     return hashlib.sha1(b"blob %d\0" % len(data) + data).hexdigest()
 
 
-def write(name, refs, seeds, targets, results, test, args):
+def md_path(name):
+    return os.path.join(protocol.state_dir(name), "machine_or_reward.md")
+
+
+def written_by(name, refs, seeds, args, blob):
+    """The file's header line: the arguments, the script's blob and the units."""
     given = (f" --units {args.units}" if args.units else "") + f" --fresh-seeds {','.join(map(str, seeds))}"
+    return (f"Written by `python3 experiments/protocol/machine_or_reward.py {name} --bin REACHER{given}` "
+            f"(script blob {blob[:12]}) after diagnose.py; the questions, the readings and why "
+            "the two answers are not measured alike: the script's docstring. Units: "
+            + ", ".join(f"`{r}`" for r in refs) + ".")
+
+
+def write(name, header, seeds, targets, results, test):
     lines = [
         f"# {name}: the learned machine, or the reward learned on it? (exploratory)",
         "",
-        f"Written by `python3 experiments/protocol/machine_or_reward.py {name} --bin REACHER{given}` "
-        f"(script blob {script_blob()[:12]}) after diagnose.py; the questions, the readings and why "
-        "the two answers are not measured alike: the script's docstring. Units: "
-        + ", ".join(f"`{r}`" for r in refs) + ".",
+        header,
         "",
         "| diagnose.py's cause | jobs | a fresh agent solves | every fresh agent solves "
         "| SMIRL on the task's machine solves | not read |",
@@ -406,7 +458,7 @@ def write(name, refs, seeds, targets, results, test, args):
         lines.append(f"| not reproduced | {groups['not reproduced']} | | | | |")
     lines += ["", f"SMIRL's machine under `machine = \"task\"` (the task's own) refines the task's in {sum(task)} of "
               f"{len(task)} task-machine run directories."]
-    path = os.path.join(protocol.state_dir(name), "machine_or_reward.md")
+    path = md_path(name)
     with open(path + ".tmp", "w") as fh:
         fh.write("\n".join(lines) + "\n")
     os.replace(path + ".tmp", path)
