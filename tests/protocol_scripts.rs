@@ -1115,8 +1115,10 @@ fn asked_row(text: &str, seed: u64) -> Vec<String> {
 /// `machine = "task"`; the first reading that applies (a fresh agent solves: the training
 /// draw; else the task's machine solves: the learned machine; else neither); a solved job per
 /// task as a control; the refinement test over every run directory and over the task's own
-/// machine. Run again, it runs nothing; it never writes the ledger, and table.py
-/// still runs.
+/// machine. Run again, it runs nothing; a lost run directory is prepared again and its jobs
+/// run again beside the ledger's names, with the same readings; it never writes the ledger,
+/// and table.py still runs. It refuses to replace a file written with other arguments or by
+/// another script blob, unless `--replace`.
 #[test]
 fn machine_or_reward_asks_each_unexplained_miss_again() {
     if !python_has_tomllib() {
@@ -1147,13 +1149,12 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
     let ledger = s.state("ledger.jsonl");
     std::fs::write(&log, "").unwrap();
     let b = bin.to_str().unwrap();
-    let ask = || {
-        s.script(
-            "machine_or_reward.py",
-            &[NAME, "--bin", b, "--units", "a:smirl"],
-            &env,
-        )
+    let ask_with = |extra: &[&str], env: &[(&str, &str)]| {
+        let mut args = vec![NAME, "--bin", b, "--units", "a:smirl"];
+        args.extend_from_slice(extra);
+        s.script("machine_or_reward.py", &args, env)
     };
+    let ask = || ask_with(&[], &env);
     let o = ask();
     assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
     let m = s.state("machine_or_reward.md");
@@ -1249,12 +1250,45 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
         .map(|d| std::fs::read_to_string(d.join("config.toml")).unwrap())
         .unwrap();
     assert!(config.contains("machine = \"task\""), "{config}");
-    // Again: everything is read, nothing runs; the ledger is untouched and the tables build.
+    // Again: everything is read, nothing runs.
     std::fs::write(&log, "").unwrap();
     let o = ask();
     assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
     assert_eq!(std::fs::read_to_string(&log).unwrap(), "");
     assert_eq!(s.state("machine_or_reward.md"), m);
+    // A lost run directory is prepared again, its jobs run again (another wall time, as a
+    // real run takes) and kept as .diagnose.json, its fresh agents retrained: the same file.
+    let lost = run_dir(&repo.join("runs/protocol").join(NAME), 947_010);
+    std::fs::remove_dir_all(&lost).unwrap();
+    let mut again = env.to_vec();
+    again.push(("FAKE_WALL", "13.0"));
+    let o = ask_with(&[], &again);
+    assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
+    assert_eq!(s.state("machine_or_reward.md"), m);
+    let ran = std::fs::read_to_string(&log).unwrap();
+    assert_eq!(
+        ran.lines().collect::<Vec<_>>(),
+        [
+            "prepare:or:947010",
+            "smirl:947010",
+            "retrain:smirl:947010:1000",
+            "smirl:947011",
+            "retrain:smirl:947011:1000",
+            "retrain:smirl:947010:1001",
+            "retrain:smirl:947010:1002",
+            "retrain:smirl:947011:1001",
+            "retrain:smirl:947011:1002",
+        ],
+        "{m}"
+    );
+    for seed in [947_010, 947_011] {
+        let jobs = lost.join("jobs");
+        assert!(jobs
+            .join(format!("smirl_seed{seed}.diagnose.json"))
+            .is_file());
+        assert!(!jobs.join(format!("smirl_seed{seed}.json")).exists());
+    }
+    // The ledger is untouched and the tables build.
     assert_eq!(s.state("ledger.jsonl"), ledger);
     let o = s.table(&[]);
     assert!(
@@ -1290,6 +1324,42 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
         assert_eq!(row[10], "not read", "{seed}: {m}");
         assert!(row[11].contains(why), "{seed}: {m}");
     }
+    // A file written with other arguments, or by another script blob, is not replaced: the
+    // run refuses before any work, unless --replace.
+    std::fs::write(&log, "").unwrap();
+    let o = ask_with(&["--fresh-seeds", "1000,1001"], &env);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(&format!(
+            "experiments/protocol/{NAME}/machine_or_reward.md was written with other arguments"
+        )),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(s.state("machine_or_reward.md"), m);
+    let header = m
+        .lines()
+        .find(|l| l.starts_with("Written by "))
+        .unwrap()
+        .to_string();
+    let blob = header.split("(script blob ").nth(1).unwrap()[..12].to_string();
+    let other_blob = m.replace(&blob, "000000000000");
+    write(
+        &repo.join(format!("experiments/protocol/{NAME}/machine_or_reward.md")),
+        &other_blob,
+    );
+    let o = ask();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(s.state("machine_or_reward.md"), other_blob);
+    assert_eq!(std::fs::read_to_string(&log).unwrap(), "");
+    let o = ask_with(&["--fresh-seeds", "1000,1001", "--replace"], &env);
+    assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
+    let m = s.state("machine_or_reward.md");
+    assert!(
+        m.contains(&header.replace("1000,1001,1002", "1000,1001")),
+        "{m}"
+    );
+    assert_eq!(std::fs::read_to_string(&log).unwrap(), "");
     // Seed 1000 is diagnose.py's: its causes rest on it.
     let o = s.script(
         "machine_or_reward.py",

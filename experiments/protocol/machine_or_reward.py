@@ -4,7 +4,7 @@ learned on it? Exploratory, after diagnose.py; it writes no ledger, table or dia
 
 Usage:
     python3 experiments/protocol/machine_or_reward.py NAME --bin REACHER [--units ARM:ALGO,...]
-        [--fresh-seeds 1000,1001,1002] [--parallel N]
+        [--fresh-seeds 1000,1001,1002] [--parallel N] [--replace]
 
 diagnose.py calls a job's cause from one fresh SAC agent, and its machine test (does the learned
 machine refine the task's along the demonstrations) says no on nearly every machine, solved ones
@@ -54,7 +54,8 @@ machine". A job diagnose.py calls "agent" has seed 1000 solving, so it reads "tr
 "both" by construction: the per-task readings count the "fresh fails" jobs only.
 
 Writes `experiments/protocol/NAME/machine_or_reward.md` (its header names the arguments and
-the blob of the script as it started).
+the blob of the script as it started); it refuses at start, before any work, to replace one
+whose header line is another (other arguments or another blob) unless `--replace` is given.
 Under `runs/protocol/NAME/` it prepares again every lost run directory of
 the units and checks it against the ledger, runs again a lost job it asks about (kept as
 `jobs/<algo>_seed<k>.diagnose.json`, checked the same way, as diagnose.py does), and adds the
@@ -276,6 +277,8 @@ def main():
     p.add_argument("--units", help="ARM:ALGO,... (default: the protocol's [analysis] primary)")
     p.add_argument("--fresh-seeds", default="1000,1001,1002")
     p.add_argument("--parallel", type=int, default=1)
+    p.add_argument("--replace", action="store_true",
+                   help="replace a machine_or_reward.md written with other arguments or by another blob")
     args = p.parse_args()
     name = args.name
     seeds = seeds_of(args.fresh_seeds)
@@ -292,6 +295,13 @@ def main():
     if any(algo != "smirl" for _, algo in units):
         fail("the task's machine is SMIRL's: give SMIRL units only")
     header = written_by(name, refs, seeds, args, blob)
+    path = md_path(name)
+    if os.path.isfile(path) and not args.replace:
+        with open(path) as fh:
+            theirs = next((line for line in fh.read().splitlines() if line.startswith("Written by ")), None)
+        if theirs != header:
+            fail(f"{protocol.rel(path)} was written with other arguments or by another script blob: "
+                 "--replace replaces it")
     rows = diagnose.read_jobs(name)
     dirs = diagnose.run_dirs(name, plan)
     if len(rows) != len(dirs):
