@@ -246,6 +246,7 @@ fn commands_check_every_argument_before_writing() {
             seed: 1,
             stop_when_done: true,
             env: ReacherConfig::default(),
+            event_probability: None,
             reward_machine: None,
         },
         LogOptions::default(),
@@ -274,7 +275,8 @@ fn commands_check_every_argument_before_writing() {
 
     for (args, needle) in [
         (vec!["--sequence", "zz"], "--sequence"),
-        (vec!["--cancel-probability", "2"], "--cancel-probability"),
+        (vec!["--event-probability", "2"], "--event-probability"),
+        (vec!["--cancel-probability", "nan"], "--event-probability"),
         (vec!["--episodes", "0"], "--episodes"),
         (vec!["--episodes", "10000000"], "--episodes"),
     ] {

@@ -65,6 +65,7 @@ fn log(path: &Path, task: &str, sequence: &str, machine: Option<&Path>) {
             seed: 3,
             stop_when_done: true,
             env: ReacherConfig::default(),
+            event_probability: None,
             reward_machine: machine.map(|p| read_rm(p).unwrap()),
         },
         LogOptions::default(),

@@ -20,6 +20,7 @@ fn demo_bytes(dir: &Path, episodes: u64) -> Vec<u8> {
             seed: 7,
             stop_when_done: true,
             env: ReacherConfig::default(),
+            event_probability: None,
             reward_machine: None,
         },
         LogOptions {

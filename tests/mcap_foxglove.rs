@@ -31,6 +31,7 @@ fn the_scene_decodes_with_the_official_schemas_and_matches_the_log() {
             seed: 11,
             stop_when_done: true,
             env,
+            event_probability: None,
             reward_machine: Some(smirl::rm::perfect::load("reacher_if").unwrap()),
         },
         LogOptions::default(),

@@ -212,6 +212,7 @@ fn demo(path: &Path, episodes: u64, options: LogOptions) {
             seed: 100,
             stop_when_done: false,
             env: ReacherConfig::default(),
+            event_probability: None,
             reward_machine: None,
         },
         options,

@@ -22,6 +22,7 @@ fn demos(path: &Path) {
             seed: 11,
             stop_when_done: true,
             env,
+            event_probability: None,
             reward_machine: Some(perfect::reacher("sequential").unwrap()),
         },
         LogOptions::default(),

@@ -22,6 +22,7 @@ fn sequential_demos(path: &Path, episodes: u64, cancel_probability: f64, observa
             seed: 7,
             stop_when_done: true,
             env,
+            event_probability: None,
             reward_machine: Some(perfect::reacher("sequential").unwrap()),
         },
         LogOptions {

@@ -44,6 +44,7 @@ fn demo_log(dir: &Path, episodes: u64) -> PathBuf {
             seed: 3,
             stop_when_done: true,
             env: ReacherConfig::default(),
+            event_probability: None,
             reward_machine: Some(smirl::rm::perfect::load("reacher_sequential").unwrap()),
         },
         LogOptions {

@@ -159,6 +159,7 @@ fn a_fresh_log_records_the_shipped_model_and_replays_bit_for_bit() {
             seed: 5,
             stop_when_done: true,
             env: ReacherConfig::default(),
+            event_probability: None,
             reward_machine: Some(smirl::rm::perfect::reacher("sequential").unwrap()),
         },
         smirl::log::LogOptions {

@@ -469,3 +469,55 @@ fn a_task_file_without_an_expert_trains_one_first_then_reuses_it() {
         std::fs::read(d.join("r2/metrics.csv")).unwrap()
     );
 }
+
+/// Episodes of `reacher demo --task <path>` (200, seeds 0..200) whose event fires, with
+/// `extra` arguments; the log must replay bit for bit.
+fn demo_events(dir: &Path, path: &Path, name: &str, extra: &[&str]) -> (usize, f64) {
+    let out = dir.join(name);
+    let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args([
+            "demo",
+            "--task",
+            path.to_str().unwrap(),
+            "--episodes",
+            "200",
+        ])
+        .args(extra)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args(["replay", "--verify"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let log = smirl::log::read_log(&out).unwrap();
+    let layout = log.run.task_layout().unwrap();
+    let fired = (log.episodes.iter())
+        .filter(|ep| ep.start.event_steps(1)[0].is_some())
+        .count();
+    // The default sequence visits every region in the task file's order.
+    assert_eq!(log.run.config["demo"]["sequence"], "rgby");
+    (fired, layout.events[0].probability)
+}
+
+/// Regression: `--event-probability 0.5` on a task whose own chance is 0.3 was read as "not
+/// set" (0.5 is the environment's default) and gave 0.3.
+#[test]
+fn demo_applies_the_asked_event_probability_even_when_it_is_the_default() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = write_task(tmp.path());
+    let (own, p_own) = demo_events(tmp.path(), &path, "own.mcap", &[]);
+    let (asked, p_asked) = demo_events(
+        tmp.path(),
+        &path,
+        "half.mcap",
+        &["--event-probability", "0.5"],
+    );
+    assert_eq!((p_own, p_asked), (0.3, 0.5));
+    assert!((40..=80).contains(&own), "{own} of 200 at 0.3");
+    assert!((80..=120).contains(&asked), "{asked} of 200 at 0.5");
+}

@@ -78,7 +78,7 @@ enum Command {
     /// Write a copy of a log with a Foxglove 3D scene (/scene: foxglove.SceneUpdate, /tf:
     /// foxglove.FrameTransforms) of the arm, balls, touches and cancel events.
     Foxglove(FoxgloveArgs),
-    /// Log scripted demonstrations (ball sequence) to an MCAP file.
+    /// Log scripted demonstrations (a sequence of regions) to an MCAP file.
     Demo(DemoArgs),
     /// Train a task's SAC expert, evaluate it, save it and log 16 demonstrations.
     Expert(ExpertArgs),
@@ -352,9 +352,10 @@ struct DemoArgs {
     /// Replace an existing --out file.
     #[arg(long)]
     force: bool,
-    /// Balls to visit, in order (r, g, b, y).
-    #[arg(long, default_value = "rgby")]
-    sequence: String,
+    /// Regions to visit, in order, as the task's letters (default: every region in the task
+    /// file's order; Sequential's r, g, b, y).
+    #[arg(long)]
+    sequence: Option<String>,
     /// Task name; its perfect machine (assets/rm/reacher_<task>.txt) is tracked if it exists.
     #[arg(long, default_value = "sequential")]
     task: String,
@@ -362,9 +363,10 @@ struct DemoArgs {
     episodes: u64,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Chance of a cancel event per episode (the environment default is 0.5).
-    #[arg(long)]
-    cancel_probability: Option<f64>,
+    /// Chance of each of the task's events per episode, within its own window (default: the
+    /// task file's).
+    #[arg(long, alias = "cancel-probability")]
+    event_probability: Option<f64>,
     /// Also store observations (larger file).
     #[arg(long)]
     observations: bool,
@@ -491,7 +493,7 @@ fn try_main(cli: Cli) -> anyhow::Result<()> {
             task: a.task,
             episodes: a.episodes,
             seed: a.seed,
-            cancel_probability: a.cancel_probability,
+            event_probability: a.event_probability,
             observations: a.observations,
         }),
         Some(Command::Expert(a)) => expert::run(ExpertRequest {

@@ -9,6 +9,7 @@ use crate::env::reacher_task::ReacherTask;
 use crate::env::ContinuousEnv;
 use crate::rm::format::write_rm;
 use crate::rm::RewardMachine;
+use std::sync::Arc;
 
 /// What to demonstrate.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,6 +27,9 @@ pub struct DemoSpec {
     pub stop_when_done: bool,
     /// Settings over the task's own (`ReacherTask::env_config`).
     pub env: ReacherConfig,
+    /// The chance that each of the task's events fires in an episode, within its own window;
+    /// `None`: the task's own. The log records the layout with this chance, so it replays.
+    pub event_probability: Option<f64>,
     /// The task's reward machine, tracked along the episode and logged (state, reward);
     /// with it, an episode also ends when the machine reaches a terminal state.
     pub reward_machine: Option<RewardMachine>,
@@ -42,16 +46,33 @@ pub fn log_scripted_demos(
         problem,
     };
     let task = ReacherTask::resolve(&spec.task).map_err(|e| usage(e.to_string()))?;
-    let env_config = task
+    let mut env_config = task
         .env_config(&spec.env)
         .map_err(|e| usage(e.to_string()))?;
+    let mut layout = task.task().layout();
+    if let Some(p) = spec.event_probability {
+        if !(0.0..=1.0).contains(&p) {
+            return Err(usage(format!("event probability {p} is not in [0, 1]")));
+        }
+        for event in &mut layout.events {
+            event.probability = p;
+        }
+        // A one-event task's resolved schedule is also the config's, which the environment
+        // reads before the layout's.
+        if layout.events.len() == 1 {
+            env_config.cancel.probability = p;
+        }
+        env_config.layout = Some(Arc::new(layout.clone()));
+    }
     let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| usage(e.to_string()))?;
     let config = serde_json::json!({
         "env": env_config,
         "demo": {"sequence": spec.sequence, "episodes": spec.episodes,
                  "stop_when_done": spec.stop_when_done},
     });
-    let mut header = RunHeader::of_task(task.id(), task.task(), spec.seed, config);
+    let t = task.task();
+    let mut header =
+        RunHeader::reacher(task.id(), &layout, &t.text, &t.scene_xml, spec.seed, config);
     let rm = spec.reward_machine.as_ref();
     header.reward_machine = rm.map(write_rm);
     // A bad sequence is refused before the log file exists.

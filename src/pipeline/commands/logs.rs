@@ -288,14 +288,14 @@ pub struct DemoRequest {
     pub out: PathBuf,
     /// Replace an existing `out`.
     pub force: bool,
-    /// Balls to visit, in order (r, g, b, y).
-    pub sequence: String,
+    /// Regions to visit, in order, as letters; `None`: every region of the task in file order.
+    pub sequence: Option<String>,
     /// Task name; its perfect machine (`reacher_<task>`) is tracked if it exists.
     pub task: String,
     pub episodes: u64,
     pub seed: u64,
-    /// Chance of a cancel event per episode; `None`: the environment's default.
-    pub cancel_probability: Option<f64>,
+    /// Chance of each of the task's events per episode; `None`: the task's own.
+    pub event_probability: Option<f64>,
     /// Also store observations.
     pub observations: bool,
 }
@@ -304,7 +304,7 @@ pub struct DemoRequest {
 /// ~80 MB, stay below what a log may hold (`log::reader::MAX_LOG_FILE_BYTES`).
 pub const MAX_DEMO_EPISODES: u64 = 10_000;
 
-/// `reacher demo`: logs scripted demonstrations (a ball sequence) to an MCAP file.
+/// `reacher demo`: logs scripted demonstrations (a sequence of regions) to an MCAP file.
 pub fn demo(args: DemoRequest) -> Result<()> {
     // Every argument is checked before the log file is created.
     let task = args
@@ -316,23 +316,28 @@ pub fn demo(args: DemoRequest) -> Result<()> {
             "--episodes must be in 1..={MAX_DEMO_EPISODES}"
         )));
     }
-    ScriptedController::from_letters(&args.sequence, &task.layout(), ControllerGains::default())
+    let layout = task.layout();
+    let sequence = (args.sequence.clone())
+        .unwrap_or_else(|| layout.regions.iter().map(|r| r.letter).collect());
+    ScriptedController::from_letters(&sequence, &layout, ControllerGains::default())
         .map_err(|e| usage(format!("--sequence: {e}")))?;
-    let mut env = ReacherConfig::default();
-    if let Some(p) = args.cancel_probability {
-        env.cancel.probability = p;
+    if let Some(p) = args.event_probability {
+        if !(0.0..=1.0).contains(&p) {
+            return Err(usage(format!(
+                "--event-probability must be in [0, 1], got {p}"
+            )));
+        }
     }
-    task.env_config(&env)
-        .map_err(|e| usage(format!("--cancel-probability: {e}")))?;
     check_file(&args.out, args.force).map_err(usage)?;
     let reward_machine = Some((*task.task().machine).clone());
     let spec = DemoSpec {
         task: args.task,
-        sequence: args.sequence,
+        sequence,
         episodes: args.episodes,
         seed: args.seed,
         stop_when_done: true,
-        env,
+        env: ReacherConfig::default(),
+        event_probability: args.event_probability,
         reward_machine,
     };
     let options = LogOptions {
