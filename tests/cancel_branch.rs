@@ -297,7 +297,7 @@ fn quick_if_run_reports_each_branch() {
     assert!(episodes > 0);
     let named = text
         .lines()
-        .filter(|l| l.contains(" normal branch:") || l.contains(" cancel branch:"))
+        .filter(|l| l.contains(" normal branch:") || l.contains(" event branch:"))
         .count();
     assert_eq!(named, episodes, "{text}");
     // And a logged cancel before blue is reported as the cancel branch.

@@ -59,7 +59,7 @@ class ReacherDeliveryEnv(gym.Env):
     ``info`` of a step holds ``labels`` (the propositions true after it, e.g. ``"rc"``),
     ``rm_state``, ``task_reward`` (the machine's reward without shaping), ``env_reward``,
     ``success``, ``failure``, ``step``, ``cancel_step`` and, for a conditional task,
-    ``branch`` (``"normal"`` or ``"cancel"``).
+    ``branch`` (``"normal"`` or ``"event"``).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}

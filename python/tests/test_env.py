@@ -73,7 +73,7 @@ def test_machine_state_one_hot_and_labels_follow_the_perfect_machine():
         assert info["task_reward"] == reward == r  # no shaping asked for
         one_hot = obs[17:]
         assert one_hot.sum() == 1.0 and one_hot[u_next] == 1.0
-        assert info["branch"] in ("normal", "cancel")
+        assert info["branch"] in ("normal", "event")
         u = u_next
         if term or trunc:
             break
@@ -87,7 +87,7 @@ def test_cancel_event_appears_in_labels_on_its_step():
             _, _, term, trunc, info = env.step(np.zeros(2))
             if info["cancel_step"] is not None and info["step"] == info["cancel_step"]:
                 assert "c" in info["labels"]
-                assert info["branch"] == "cancel"  # before blue: blue is off the task
+                assert info["branch"] == "event"  # before blue: blue is off the task
                 return
             if term or trunc:
                 break

@@ -405,7 +405,7 @@ impl Branch {
     pub fn name(self) -> &'static str {
         match self {
             Branch::Normal => "normal",
-            Branch::Cancelled => "cancel",
+            Branch::Cancelled => "event",
         }
     }
 

@@ -226,7 +226,7 @@ pub fn run(args: ExpertRequest) -> Result<()> {
         demos.len()
     );
     println!(
-        "episodes with a cancel event: stochastic {}/{} successful, mean action {}/{}",
+        "episodes with an event: stochastic {}/{} successful, mean action {}/{}",
         stochastic.cancel_successes,
         stochastic.cancel_episodes,
         mean.cancel_successes,
