@@ -2,7 +2,9 @@
 //! the IRL pipeline end to end; every bad task file stops `reacher` with exit 2 before any
 //! work; a task file's expert is keyed by its content (task, machine and scene) and never the
 //! committed expert of a shipped task of the same name; `reacher --task FILE` trains a missing
-//! expert first (with `--expert-config`, a smoke-sized one here) and reuses it once cached.
+//! expert first (with `--expert-config`, a smoke-sized one here) and reuses it once cached; a
+//! copied task of four regions runs its cached expert through demonstrations, SMIRL and
+//! evaluation; `reacher demo` applies the event chance it is asked for.
 
 mod irl_run_common;
 
@@ -520,4 +522,85 @@ fn demo_applies_the_asked_event_probability_even_when_it_is_the_default() {
     assert_eq!((p_own, p_asked), (0.3, 0.5));
     assert!((40..=80).contains(&own), "{own} of 200 at 0.3");
     assert!((80..=120).contains(&asked), "{asked} of 200 at 0.5");
+}
+
+/// The chain a user runs on a task of several regions, none at the arm's start: a task file
+/// copied with its machine and its cached expert (found by content, beside the file) gives
+/// expert demonstrations that complete the task, a learned machine, SMIRL's quick run and its
+/// evaluation; both logs replay bit for bit. (`pair`: red and green in either order, then
+/// blue; a smoke-sized expert trained in a test could not complete it.)
+#[test]
+fn a_copied_task_runs_its_cached_expert_through_demonstrations_smirl_and_evaluation() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/tasks/new");
+    for name in ["pair.toml", "pair.txt"] {
+        std::fs::copy(shipped.join(name), d.join(name)).unwrap();
+    }
+    let task = ReacherTask::resolve(d.join("pair.toml").to_str().unwrap()).unwrap();
+    assert_eq!(task.layout().n_regions(), 4);
+    let expert = expert_cache_path(&shipped.join("experts"), task.clone());
+    std::fs::create_dir(d.join("experts")).unwrap();
+    std::fs::copy(&expert, expert_cache_path(&d.join("experts"), task)).unwrap();
+    let reacher = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_reacher"))
+            .current_dir(d)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let quick = reacher(&["--task", "pair.toml", "--quick", "--print-config"]);
+    assert!(quick.status.success());
+    let config = String::from_utf8(quick.stdout).unwrap();
+    std::fs::write(
+        d.join("run.toml"),
+        config.replace("demo_source = \"scripted\"", "demo_source = \"expert\""),
+    )
+    .unwrap();
+    // Were the cached expert missed, a smoke-sized one would be trained (and the test fail).
+    std::fs::write(
+        d.join("expert.toml"),
+        "total_steps = 300\ncheckpoint_every = 300\neval_episodes = 4\nprogress_window = 4\n",
+    )
+    .unwrap();
+    let o = reacher(&[
+        "--task",
+        "pair.toml",
+        "--config",
+        "run.toml",
+        "--expert-config",
+        "expert.toml",
+        "--algo",
+        "smirl",
+        "--quiet",
+        "--out",
+        "r",
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout) + String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{text}");
+    assert!(!text.contains("training one first"), "{text}");
+    assert!(
+        text.contains("8 of 8 complete the task (expert source)"),
+        "{text}"
+    );
+    let prepared: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("r/prepare.json")).unwrap()).unwrap();
+    assert!(prepared["rm"]["learned_states"].as_u64().unwrap() >= 2);
+    let metrics = std::fs::read_to_string(d.join("r/metrics.csv")).unwrap();
+    assert_eq!(
+        metrics
+            .lines()
+            .filter(|l| l.starts_with("smirl,0,"))
+            .count(),
+        5
+    );
+    assert!(d.join("r/final_policy.csv").is_file());
+    for log in ["r/logs/demos.mcap", "r/logs/smirl_seed0.mcap"] {
+        let o = reacher(&["replay", "--verify", log]);
+        assert!(
+            o.status.success(),
+            "{log}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
 }
