@@ -384,6 +384,29 @@ const START_TASK: &str = "scene = \"builtin\"\nmachine = \"start.txt\"\nepisode_
                           randomize_layout = false\nregion = [{ letter = \"g\", body = \"green\", \
                           radius = 0.05, position = [0.2, 0.0] }]\n";
 
+/// Writes into `d` the quick run config of `task` with the expert as the demonstrations'
+/// source (`run.toml`) and a smoke-sized expert config (`expert.toml`).
+fn write_expert_configs(d: &Path, task: &str) {
+    let quick = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .current_dir(d)
+        .args(["--task", task, "--quick", "--print-config"])
+        .output()
+        .unwrap();
+    assert!(quick.status.success());
+    let config = String::from_utf8(quick.stdout).unwrap();
+    assert!(config.contains("demo_source = \"scripted\""), "{config}");
+    std::fs::write(
+        d.join("run.toml"),
+        config.replace("demo_source = \"scripted\"", "demo_source = \"expert\""),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("expert.toml"),
+        "total_steps = 300\ncheckpoint_every = 300\neval_episodes = 4\nprogress_window = 4\n",
+    )
+    .unwrap();
+}
+
 /// `reacher --task FILE --config RUN --expert-config EXPERT --algo smirl --quiet --out OUT`.
 fn run_with_expert(dir: &Path, expert: &str, out: &str) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_reacher"))
@@ -411,25 +434,7 @@ fn a_task_file_without_an_expert_trains_one_first_then_reuses_it() {
     let d = tmp.path();
     std::fs::write(d.join("start.txt"), START_MACHINE).unwrap();
     std::fs::write(d.join("start.toml"), START_TASK).unwrap();
-    // The smoke run config with the expert as the demonstrations' source.
-    let quick = Command::new(env!("CARGO_BIN_EXE_reacher"))
-        .current_dir(d)
-        .args(["--task", "start.toml", "--quick", "--print-config"])
-        .output()
-        .unwrap();
-    assert!(quick.status.success());
-    let config = String::from_utf8(quick.stdout).unwrap();
-    assert!(config.contains("demo_source = \"scripted\""), "{config}");
-    std::fs::write(
-        d.join("run.toml"),
-        config.replace("demo_source = \"scripted\"", "demo_source = \"expert\""),
-    )
-    .unwrap();
-    std::fs::write(
-        d.join("expert.toml"),
-        "total_steps = 300\ncheckpoint_every = 300\neval_episodes = 4\nprogress_window = 4\n",
-    )
-    .unwrap();
+    write_expert_configs(d, "start.toml");
     std::fs::write(d.join("bad_expert.toml"), "total_steps = 0\n").unwrap();
 
     // A bad expert config is refused before any work: no cache, no run directory.
@@ -549,20 +554,8 @@ fn a_copied_task_runs_its_cached_expert_through_demonstrations_smirl_and_evaluat
             .output()
             .unwrap()
     };
-    let quick = reacher(&["--task", "pair.toml", "--quick", "--print-config"]);
-    assert!(quick.status.success());
-    let config = String::from_utf8(quick.stdout).unwrap();
-    std::fs::write(
-        d.join("run.toml"),
-        config.replace("demo_source = \"scripted\"", "demo_source = \"expert\""),
-    )
-    .unwrap();
     // Were the cached expert missed, a smoke-sized one would be trained (and the test fail).
-    std::fs::write(
-        d.join("expert.toml"),
-        "total_steps = 300\ncheckpoint_every = 300\neval_episodes = 4\nprogress_window = 4\n",
-    )
-    .unwrap();
+    write_expert_configs(d, "pair.toml");
     let o = reacher(&[
         "--task",
         "pair.toml",
