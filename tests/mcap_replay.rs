@@ -100,6 +100,9 @@ fn learn_rm_on_sequential_demo_logs_recovers_the_task() {
     // Two files, as `learn-rm FILES…` takes them; no cancel events (see below).
     sequential_demos(&a, 15, 0.0, false);
     sequential_demos(&b, 15, 0.0, false);
+    // The log records the schedule that ran (the config's), not the task file's chance.
+    let events = read_log(&a).unwrap().run.task_layout().unwrap().events;
+    assert_eq!(events[0].probability, 0.0);
     let cfg = LrmConfig {
         merge: false,
         threads: 1,

@@ -11,6 +11,7 @@ mod irl_run_common;
 use irl_run_common::tiny_config;
 use smirl::env::reacher::ReacherConfig;
 use smirl::env::reacher_task::ReacherTask;
+use smirl::log::RolloutLog;
 use smirl::pipeline::reacher_expert::{committed_expert, expert_cache_path};
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{run_pipeline, Algo, RunRequest};
@@ -477,18 +478,14 @@ fn a_task_file_without_an_expert_trains_one_first_then_reuses_it() {
     );
 }
 
-/// Episodes of `reacher demo --task <path>` (200, seeds 0..200) whose event fires, with
-/// `extra` arguments; the log must replay bit for bit.
-fn demo_events(dir: &Path, path: &Path, name: &str, extra: &[&str]) -> (usize, f64) {
+/// `reacher demo --task <path> --episodes N` with `extra` arguments into `dir/name`; the log
+/// must replay bit for bit, each episode from the start its seed gives (the schedule the log
+/// records is the one that ran).
+fn demo_log(dir: &Path, path: &Path, name: &str, episodes: u32, extra: &[&str]) -> RolloutLog {
     let out = dir.join(name);
     let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
-        .args([
-            "demo",
-            "--task",
-            path.to_str().unwrap(),
-            "--episodes",
-            "200",
-        ])
+        .args(["demo", "--task", path.to_str().unwrap(), "--episodes"])
+        .arg(episodes.to_string())
         .args(extra)
         .arg("--out")
         .arg(&out)
@@ -500,33 +497,91 @@ fn demo_events(dir: &Path, path: &Path, name: &str, extra: &[&str]) -> (usize, f
         .arg(&out)
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let log = smirl::log::read_log(&out).unwrap();
-    let layout = log.run.task_layout().unwrap();
-    let fired = (log.episodes.iter())
-        .filter(|ep| ep.start.event_steps(1)[0].is_some())
-        .count();
-    // The default sequence visits every region in the task file's order.
-    assert_eq!(log.run.config["demo"]["sequence"], "rgby");
-    (fired, layout.events[0].probability)
+    let text = String::from_utf8_lossy(&o.stdout) + String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{text}");
+    assert!(!text.contains("no longer gives the logged start"), "{text}");
+    smirl::log::read_log(&out).unwrap()
 }
 
-/// Regression: `--event-probability 0.5` on a task whose own chance is 0.3 was read as "not
-/// set" (0.5 is the environment's default) and gave 0.3.
+/// How many of `log`'s episodes schedule each of `n` events.
+fn scheduled(log: &RolloutLog, n: usize) -> Vec<usize> {
+    (0..n)
+        .map(|e| {
+            (log.episodes.iter())
+                .filter(|ep| ep.start.event_steps(n)[e].is_some())
+                .count()
+        })
+        .collect()
+}
+
+/// 0.5, the environment's default chance, is applied as asked (not taken for "not set") on a
+/// task whose own chance is 0.3, and the log records it.
 #[test]
 fn demo_applies_the_asked_event_probability_even_when_it_is_the_default() {
     let tmp = tempfile::tempdir().unwrap();
     let path = write_task(tmp.path());
-    let (own, p_own) = demo_events(tmp.path(), &path, "own.mcap", &[]);
-    let (asked, p_asked) = demo_events(
+    let own = demo_log(tmp.path(), &path, "own.mcap", 200, &[]);
+    let asked = demo_log(
         tmp.path(),
         &path,
         "half.mcap",
+        200,
         &["--event-probability", "0.5"],
     );
-    assert_eq!((p_own, p_asked), (0.3, 0.5));
+    let chance = |log: &RolloutLog| log.run.task_layout().unwrap().events[0].probability;
+    assert_eq!((chance(&own), chance(&asked)), (0.3, 0.5));
+    let (own, asked) = (scheduled(&own, 1)[0], scheduled(&asked, 1)[0]);
     assert!((40..=80).contains(&own), "{own} of 200 at 0.3");
     assert!((80..=120).contains(&asked), "{asked} of 200 at 0.5");
+}
+
+/// Every declared event takes the asked chance (two events here, in their own windows); a
+/// task without events refuses one; the default sequence is the task's regions in file order.
+#[test]
+fn demo_sets_every_events_chance_and_visits_the_regions_in_file_order() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::write(d.join("avoid_blue.txt"), MACHINE.replace("rgbyc", "rgbycd")).unwrap();
+    let two = task_text()
+        + "\n[[event]]\nletter = \"d\"\nprobability = 0.2\nearliest_step = 30\nlatest_step = 40\n";
+    std::fs::write(d.join("two.toml"), two).unwrap();
+    let log = demo_log(
+        d,
+        &d.join("two.toml"),
+        "two.mcap",
+        20,
+        &["--event-probability", "1"],
+    );
+    let layout = log.run.task_layout().unwrap();
+    assert_eq!(
+        layout
+            .events
+            .iter()
+            .map(|e| e.probability)
+            .collect::<Vec<_>>(),
+        [1.0, 1.0]
+    );
+    assert_eq!(scheduled(&log, 2), [20, 20]);
+    assert_eq!(log.run.config["demo"]["sequence"], "rgby");
+
+    let ring = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/six_targets_ring.toml");
+    let log = demo_log(d, &ring, "ring.mcap", 2, &[]);
+    assert_eq!(log.run.config["demo"]["sequence"], "abcdef");
+    let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args([
+            "demo",
+            "--task",
+            ring.to_str().unwrap(),
+            "--event-probability",
+            "0.3",
+        ])
+        .arg("--out")
+        .arg(d.join("none.mcap"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("declares no event"));
+    assert!(!d.join("none.mcap").exists());
 }
 
 /// The chain a user runs on a task of several regions, none at the arm's start: a task file

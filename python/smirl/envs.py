@@ -58,8 +58,8 @@ class ReacherDeliveryEnv(gym.Env):
 
     ``info`` of a step holds ``labels`` (the propositions true after it, e.g. ``"rc"``),
     ``rm_state``, ``task_reward`` (the machine's reward without shaping), ``env_reward``,
-    ``success``, ``failure``, ``step``, ``cancel_step`` and, for a conditional task,
-    ``branch`` (``"normal"`` or ``"event"``).
+    ``success``, ``failure``, ``step``, ``cancel_step`` and, for a task whose machine has an
+    event branch (IF, Composite, ...), ``branch`` (``"normal"`` or ``"event"``).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}

@@ -119,7 +119,7 @@ impl TaskSpec {
 struct Slot {
     env: TaskEnv,
     obs: Vec<f32>,
-    /// The episode has entered the machine's cancel branch (conditional tasks).
+    /// The episode has entered the machine's event branch (tasks that have one).
     cancelled: bool,
     done: bool,
 }

@@ -40,7 +40,7 @@ pub struct LearnedProductCore {
     reward: LinearRmReward,
     perfect: RewardMachine,
     branches: Option<CancelBranch>,
-    /// The task's machine entered its cancel branch this episode (conditional tasks).
+    /// The task's machine entered its event branch this episode (tasks that have one).
     cancelled: bool,
     task_state: usize,
     task_done: bool,

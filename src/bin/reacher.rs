@@ -356,7 +356,7 @@ struct DemoArgs {
     /// file's order; Sequential's r, g, b, y).
     #[arg(long)]
     sequence: Option<String>,
-    /// Task name; its perfect machine (assets/rm/reacher_<task>.txt) is tracked if it exists.
+    /// A shipped task's name or a task file's path; its machine is tracked and logged.
     #[arg(long, default_value = "sequential")]
     task: String,
     #[arg(long, default_value_t = 20)]

@@ -3,7 +3,7 @@
 //! tests, the logging benchmark and `reacher demo`; not the paper's experts (SAC policies).
 
 use super::{LogError, LogOptions, LogSummary, RolloutLogger, RunHeader};
-use crate::env::reacher::{ReacherConfig, ReacherDelivery};
+use crate::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::ReacherTask;
 use crate::env::ContinuousEnv;
@@ -51,6 +51,12 @@ pub fn log_scripted_demos(
         .map_err(|e| usage(e.to_string()))?;
     let mut layout = task.task().layout();
     if let Some(p) = spec.event_probability {
+        if layout.events.is_empty() {
+            return Err(usage(format!(
+                "an event probability is given, but task {} declares no event",
+                task.id()
+            )));
+        }
         if !(0.0..=1.0).contains(&p) {
             return Err(usage(format!("event probability {p} is not in [0, 1]")));
         }
@@ -62,8 +68,17 @@ pub fn log_scripted_demos(
         if layout.events.len() == 1 {
             env_config.cancel.probability = p;
         }
-        env_config.layout = Some(Arc::new(layout.clone()));
     }
+    // The log records the schedule that runs: a one-event schedule the config sets (a
+    // caller's `env.cancel`) replaces the task's.
+    if let [only] = layout.events.as_mut_slice() {
+        if env_config.cancel != CancelConfig::default() {
+            only.probability = env_config.cancel.probability;
+            only.earliest_step = env_config.cancel.earliest_step;
+            only.latest_step = env_config.cancel.latest_step;
+        }
+    }
+    env_config.layout = Some(Arc::new(layout.clone()));
     let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| usage(e.to_string()))?;
     let config = serde_json::json!({
         "env": env_config,

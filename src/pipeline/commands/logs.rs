@@ -290,7 +290,7 @@ pub struct DemoRequest {
     pub force: bool,
     /// Regions to visit, in order, as letters; `None`: every region of the task in file order.
     pub sequence: Option<String>,
-    /// Task name; its perfect machine (`reacher_<task>`) is tracked if it exists.
+    /// A shipped task's name or a task file's path; its machine is tracked and logged.
     pub task: String,
     pub episodes: u64,
     pub seed: u64,
@@ -322,6 +322,12 @@ pub fn demo(args: DemoRequest) -> Result<()> {
     ScriptedController::from_letters(&sequence, &layout, ControllerGains::default())
         .map_err(|e| usage(format!("--sequence: {e}")))?;
     if let Some(p) = args.event_probability {
+        if layout.events.is_empty() {
+            return Err(usage(format!(
+                "--event-probability: task {} declares no event",
+                args.task
+            )));
+        }
         if !(0.0..=1.0).contains(&p) {
             return Err(usage(format!(
                 "--event-probability must be in [0, 1], got {p}"
