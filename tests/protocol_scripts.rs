@@ -59,8 +59,8 @@ fn write(path: &Path, text: &str) {
 
 /// The fake binary: `--version` names `commit`; `prepare` appends `prepare:<task>:<base>` to
 /// `log`, exits 1 when `<task>:<base>` is listed in FAKE_PREPARE_FAIL, else writes config.toml
-/// (threads = 2, 4 IRL iterations of 50 SAC steps; `machine = "task"` when the given config
-/// says so, else "learned"),
+/// (threads = 2, 4 IRL iterations of 50 SAC steps, or of FAKE_SAC_STEPS when set; `[env]
+/// max_steps = 100`; `machine = "task"` when the given config says so, else "learned"),
 /// rm/learned.txt (its text FAKE_MACHINE), rm/report.txt and prepare.json's `rm` (refining
 /// the perfect machine unless the base is listed in FAKE_NOT_REFINES and the machine is
 /// learned: 3 of 9 steps ambiguous), expert_data.bin, logs/demos.mcap (a text the fake
@@ -75,10 +75,12 @@ fn write(path: &Path, text: &str) {
 /// such a config), a job appends `task:<algo>:<seed>` and chooses a candidate at 0.96 when
 /// listed in FAKE_TASK_SOLVES, else at 0.4. `retrain` appends
 /// `retrain:<algo>:<seed>:<sac seed>`, appends a line to the file FAKE_EDIT names (if set),
-/// and writes a retraining table of `--evaluations` rows (default 5) up to `--steps` (default
-/// the run config's iterations × steps per iteration), 0.95 on both branches and at the last
-/// row 1.0 when `<algo>:<seed>` or `<algo>:<seed>:<sac seed>` is listed in
-/// FAKE_RETRAIN_SOLVES, else 0.3 on the normal one.
+/// and writes a retraining table of `--evaluations` rows (default 5) over `--steps` (default
+/// the run config's iterations × steps per iteration), its last row past them to the end of
+/// the episode in progress as the real one's (episodes of `[env] max_steps` steps never end
+/// early here: the next multiple of max_steps), 0.95 on both branches and at the last row 1.0
+/// when `<algo>:<seed>` or `<algo>:<seed>:<sac seed>` is listed in FAKE_RETRAIN_SOLVES, else
+/// 0.3 on the normal one.
 fn fake_reacher(path: &Path, commit: &str, log: &Path) {
     let script = format!(
         r#"#!/usr/bin/env python3
@@ -99,7 +101,8 @@ if a[0] == "prepare":
     with open(opt["--config"]) as fh:
         machine = "task" if 'machine = "task"' in fh.read() else "learned"
     with open(os.path.join(opt["--out"], "config.toml"), "w") as fh:
-        fh.write(f"demo_episodes = 16\nthreads = 2\nirl_iterations = 4\nsac_steps_per_iteration = 50\n\n"
+        fh.write(f"demo_episodes = 16\nthreads = 2\nirl_iterations = 4\n"
+                 f"sac_steps_per_iteration = {{os.environ.get('FAKE_SAC_STEPS', '50')}}\n\n"
                  f"[env]\nmax_steps = 100\n\n[smirl]\nmachine = \"{{machine}}\"\n")
     with open(os.path.join(opt["--out"], "rm", "learned.txt"), "w") as fh:
         fh.write(os.environ.get("FAKE_MACHINE", "u0 -> u1 on r\n"))
@@ -137,7 +140,9 @@ if a[0] == "retrain":
         config = tomllib.load(fh)
     steps = int(opt.get("--steps", config["irl_iterations"] * config["sac_steps_per_iteration"]))
     n = int(opt.get("--evaluations", 5))
-    rows = [f"{{steps * k // n}},0.95,0.95,0.95" for k in range(1, n)] + [f"{{steps}},{{rate}},{{rate}},1.0"]
+    # `reacher retrain` plays the episode in progress to its end before the last evaluation.
+    last = -(-steps // config["env"]["max_steps"]) * config["env"]["max_steps"]
+    rows = [f"{{steps * k // n}},0.95,0.95,0.95" for k in range(1, n)] + [f"{{last}},{{rate}},{{rate}},1.0"]
     out = os.path.join(opt["--run"], "retrain")
     os.makedirs(out, exist_ok=True)
     with open(os.path.join(out, f"{{algo}}_seed{{seed}}_sac{{opt['--sac-seed']}}.csv"), "w") as fh:
@@ -1372,11 +1377,14 @@ fn machine_or_reward_asks_each_unexplained_miss_again() {
 
 /// machine_or_reward.py reads only what is the job's own, and its readings count the "fresh
 /// fails" jobs only: a job diagnose.py calls "agent" is asked and shown, not counted; a
-/// retraining table of other steps or other evaluations (seed 1000's, diagnose.py's, too)
-/// leaves its job unread and stays; so does a run config without one `machine = "learned"`
-/// line; a task-machine directory without prepare.json leaves its jobs unread and keeps its
-/// contents. The header names the script's blob at start, though the file changes during the
-/// run.
+/// retraining table whose last row ends past the run's SAC steps, in the episode in progress,
+/// is the job's own (the budget here, 4 × 55, is no multiple of the 100-step episodes); a
+/// retraining table of other steps (its last row before the budget, or a whole episode past
+/// it) or other evaluations leaves its job unread and stays; at seed 1000 (diagnose.py's, read
+/// there unchecked) such a table makes the job "not reproduced": shown, not asked. A run
+/// config without one `machine = "learned"` line leaves its job unread; a task-machine
+/// directory without prepare.json leaves its jobs unread and keeps its contents. The header
+/// names the script's blob at start, though the file changes during the run.
 #[test]
 fn machine_or_reward_reads_only_the_jobs_own_tables_and_directories() {
     if !python_has_tomllib() {
@@ -1392,13 +1400,15 @@ fn machine_or_reward_reads_only_the_jobs_own_tables_and_directories() {
         bin: &bin,
     };
     // Every job missed, no candidate solved; a fresh agent solves 948000's reward at every
-    // SAC seed (diagnose.py: "agent"), SMIRL on the task's machine 948001's.
+    // SAC seed (diagnose.py: "agent"), SMIRL on the task's machine 948001's. 220 SAC steps:
+    // every retraining ends its last episode at 300.
     let missed = "smirl:948000,smirl:948001,smirl:948002,smirl:948010,smirl:948011,smirl:948012";
     let env = [
         ("FAKE_CHOOSE_FIRST", missed),
         ("FAKE_NO_ORACLE", missed),
         ("FAKE_RETRAIN_SOLVES", "smirl:948000"),
         ("FAKE_TASK_SOLVES", "smirl:948001"),
+        ("FAKE_SAC_STEPS", "55"),
     ];
     let o = s.run(&env);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -1432,10 +1442,13 @@ fn machine_or_reward_reads_only_the_jobs_own_tables_and_directories() {
         let o = run_in(&repo, b, &args, &[]);
         assert!(o.status.success(), "{}", stderr(&o));
     }
-    let foreign = |seed: u64, sac: u64| {
-        std::fs::read_to_string(d10.join(format!("retrain/smirl_seed{seed}_sac{sac}.csv"))).unwrap()
+    let retrain_table = |dir: &Path, seed: u64, sac: u64| {
+        std::fs::read_to_string(dir.join(format!("retrain/smirl_seed{seed}_sac{sac}.csv"))).unwrap()
     };
-    let tables = [foreign(948_010, 1001), foreign(948_011, 1000)];
+    let tables = [
+        retrain_table(&d10, 948_010, 1001),
+        retrain_table(&d10, 948_011, 1000),
+    ];
     // 948010's run config has no `machine = "learned"` line.
     let config = d10.join("config.toml");
     let text = std::fs::read_to_string(&config).unwrap();
@@ -1514,16 +1527,27 @@ fn machine_or_reward_reads_only_the_jobs_own_tables_and_directories() {
         ],
         "{m}"
     );
-    for (seed, why) in [
+    // 948000's tables were read, their last row 80 steps past the 220 (seed 1000's gave
+    // diagnose.py's cause).
+    let d00 = run_dir(&repo.join("runs/protocol").join(NAME), 948_000);
+    for sac in [1000, 1001, 1002] {
+        let table = retrain_table(&d00, 948_000, sac);
+        assert!(table.ends_with("\n300,1.0,1.0,1.0\n"), "{table}");
+    }
+    // 948011's cause is not diagnose.py's reading of its foreign seed-1000 table: it is not
+    // reproduced, and not asked.
+    for (seed, cause, why) in [
         (
             948010,
+            "fresh fails, refining machine",
             format!(
                 "foreign retraining table {rel}/retrain/smirl_seed948010_sac1001.csv: \
-                 last env_steps 100, not 200"
+                 last env_steps 100, not in [220, 320)"
             ),
         ),
         (
             948011,
+            "not reproduced",
             format!(
                 "foreign retraining table {rel}/retrain/smirl_seed948011_sac1000.csv: \
                  3 evaluations, not 5"
@@ -1531,22 +1555,37 @@ fn machine_or_reward_reads_only_the_jobs_own_tables_and_directories() {
         ),
         (
             948012,
+            "fresh fails, refining machine",
             format!("{rel}/config.toml has 0 lines `machine = \"learned\"`, not one"),
         ),
     ] {
         let row = asked_row(&m, seed);
+        assert_eq!(row[6], cause, "{seed}: {m}");
         assert_eq!(row[10], "not read", "{seed}: {m}");
         assert!(row[11].starts_with(&why), "{seed}: {m}");
     }
-    assert_eq!([foreign(948_010, 1001), foreign(948_011, 1000)], tables);
-    // The "agent" job is in the first table, not among the readings.
+    assert_eq!(
+        [
+            retrain_table(&d10, 948_010, 1001),
+            retrain_table(&d10, 948_011, 1000)
+        ],
+        tables
+    );
+    let ran = std::fs::read_to_string(&log).unwrap();
+    assert!(!ran.contains("retrain:smirl:948011:"), "{ran}");
+    // The "agent" job is in the first table, not among the readings; nor is the job not
+    // reproduced.
     assert!(
         m.contains("| agent | 1 | 1 of 1 | 1 of 1 | 0 of 1 | 0 |"),
         "{m}"
     );
+    assert!(
+        m.contains("| not reproduced | 1 | 0 of 0 | 0 of 0 | 0 of 0 | 1 |"),
+        "{m}"
+    );
     // | task | asked | training draw | learned machine | both | neither | not read |
-    assert!(m.contains("| or | 5 | 0 | 1 | 0 | 1 | 3 |"), "{m}");
-    assert!(m.contains("| all | 5 | 0 | 1 | 0 | 1 | 3 |"), "{m}");
+    assert!(m.contains("| or | 4 | 0 | 1 | 0 | 1 | 2 |"), "{m}");
+    assert!(m.contains("| all | 4 | 0 | 1 | 0 | 1 | 2 |"), "{m}");
     // A task-machine directory without prepare.json is not overwritten (948010's config is
     // whole again).
     write(&config, &text);
@@ -1580,6 +1619,25 @@ fn machine_or_reward_reads_only_the_jobs_own_tables_and_directories() {
     );
     assert!(!PathBuf::from(format!("{}.config.toml", task.display())).exists());
     assert_eq!(prepare_lines(&log), Vec::<String>::new());
+    // A last row a whole episode past the 220 steps (at 320) is of a longer retraining.
+    let path = d00.join("retrain/smirl_seed948002_sac1002.csv");
+    let table = retrain_table(&d00, 948_002, 1002);
+    write(&path, &table.replace("\n300,", "\n320,"));
+    let o = ask(&env);
+    assert!(o.status.success(), "machine_or_reward: {}", stderr(&o));
+    let m = s.state("machine_or_reward.md");
+    let row = asked_row(&m, 948002);
+    assert_eq!(row[10], "not read", "{m}");
+    assert_eq!(
+        row[11],
+        format!(
+            "foreign retraining table runs/protocol/{NAME}/{}/retrain/smirl_seed948002_sac1002.csv: \
+             last env_steps 320, not in [220, 320) (sac_steps_per_iteration × irl_iterations, \
+             plus less than [env] max_steps)",
+            d00.file_name().unwrap().to_str().unwrap()
+        ),
+        "{m}"
+    );
 }
 
 /// new_tasks_table.py puts a pool's tasks branch by branch: the expert's successes per branch

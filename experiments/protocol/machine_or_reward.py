@@ -15,10 +15,14 @@ of control jobs that were solved:
 1. **Fresh agents**: how many of the SAC seeds `--fresh-seeds` solve when trained from scratch
    on the job's final learned reward (`reacher retrain`; solved: the last evaluation's lower
    branch at least 0.9). Seed 1000 is diagnose.py's and its table is read, not retrained.
-   Every table, seed 1000's too, is read only when it is of the job's own retraining: its
-   last env_steps is the run's sac_steps_per_iteration × irl_iterations (config.toml) and it
-   has 5 rows (RETRAIN_EVALUATIONS, `reacher retrain`'s default); another one (a retraining
-   with other `--steps` or `--evaluations`) is foreign and the job is not read.
+   Every table, seed 1000's too, is read only when it is of the job's own retraining: it has
+   5 rows (RETRAIN_EVALUATIONS, `reacher retrain`'s default) and its last env_steps is at
+   least the run's sac_steps_per_iteration × irl_iterations (config.toml) and less than that
+   plus its `[env] max_steps` (the retraining plays the episode in progress to its end before
+   the last evaluation); another one (a retraining with other `--steps` or `--evaluations`)
+   is foreign and the job is not read. diagnose.py reads seed 1000's table without this
+   check, so it is made first: a job whose table is foreign gets the cause "not reproduced"
+   instead of diagnose.py's and is not asked.
 2. **The task's machine**: the same job — task, base, SAC seed, demonstrations, config — with
    `[smirl] machine = "task"`: SMIRL learns its reward on the task's own machine instead of
    LRM's (an oracle, for diagnosis only). Its run directory is
@@ -40,7 +44,9 @@ refine the task's and the share of demonstration steps that are ambiguous, where
 solved and where one missed; and whether the task's own machine refines in the task-machine
 run directories (a test that works must say yes there).
 
-Each asked job gets one reading from the two answers, neither ranked above the other:
+Each missed job has a row: one whose cause is "not reproduced" (its run directory or job does
+not give the ledger's, or seed 1000's table is foreign) is not asked and reads "not read", with
+why. Each asked job gets one reading from the two answers, neither ranked above the other:
 - **training draw**: a fresh agent solves, SMIRL on the task's machine does not (its chosen
   policy's lower branch below 0.9): the learned reward leads there;
 - **learned machine**: SMIRL on the task's machine solves, no fresh agent does;
@@ -107,39 +113,77 @@ def seeds_of(text):
 
 
 def own_steps(r, algo):
-    """The SAC steps of the job's own retraining: sac_steps_per_iteration × irl_iterations of
-    the run's config.toml (`[schedule.<algo>]`'s where it sets them), or None and why not."""
+    """The SAC steps of the job's own retraining, sac_steps_per_iteration × irl_iterations of
+    the run's config.toml (`[schedule.<algo>]`'s where it sets them), and its `[env]
+    max_steps`; or None, None and why not."""
     path = os.path.join(r["dir"], "config.toml")
     with open(path, "rb") as fh:
         config = tomllib.load(fh)
     own = {**config, **config.get("schedule", {}).get(algo, {})}
     if not all(isinstance(own.get(k), int) for k in ("sac_steps_per_iteration", "irl_iterations")):
-        return None, f"{protocol.rel(path)} has no integer sac_steps_per_iteration and irl_iterations"
-    return own["sac_steps_per_iteration"] * own["irl_iterations"], None
+        return None, None, f"{protocol.rel(path)} has no integer sac_steps_per_iteration and irl_iterations"
+    max_steps = config.get("env", {}).get("max_steps")
+    if not isinstance(max_steps, int) or max_steps < 1:
+        return None, None, f"{protocol.rel(path)} has no positive integer [env] max_steps"
+    return own["sac_steps_per_iteration"] * own["irl_iterations"], max_steps, None
 
 
-def foreign(path, steps):
-    """None when the retraining table at `path` is of the job's own retraining (its last
-    env_steps `steps`, RETRAIN_EVALUATIONS rows), else what differs."""
+def foreign_table_why(path, steps, max_steps):
+    """None when the retraining table at `path` is of the job's own retraining, else why it is
+    foreign: what differs. Its own has RETRAIN_EVALUATIONS rows, and its last env_steps is in
+    [steps, steps + max_steps): `reacher retrain` trains `steps` SAC steps, then plays the
+    episode in progress to its end (at most max_steps steps long, so fewer than max_steps more)
+    before its last evaluation. The last row is `steps` itself only when an episode ends there,
+    as when every episode runs max_steps steps and max_steps divides `steps`."""
     with open(path, newline="") as fh:
         rows = list(csv.DictReader(fh))
     differs = []
     last = rows[-1].get("env_steps") if rows else None
-    if last != str(steps):
-        differs.append(f"last env_steps {last}, not {steps} (sac_steps_per_iteration × irl_iterations)")
+    try:
+        own = steps <= int(last) < steps + max_steps
+    except (TypeError, ValueError):
+        own = False
+    if not own:
+        differs.append(f"last env_steps {last}, not in [{steps}, {steps + max_steps}) "
+                       "(sac_steps_per_iteration × irl_iterations, plus less than [env] max_steps)")
     if len(rows) != RETRAIN_EVALUATIONS:
         differs.append(f"{len(rows)} evaluations, not {RETRAIN_EVALUATIONS}")
     return (f"foreign retraining table {protocol.rel(path)}: " + "; ".join(differs)) if differs else None
+
+
+def retrain_table(r, row, sac_seed):
+    """The path of the job's retraining table at `sac_seed` (as `reacher retrain` names it)."""
+    return os.path.join(r["dir"], "retrain", f"{row['algo']}_seed{int(row['seed'])}_sac{sac_seed}.csv")
+
+
+def diagnose_table_why(r, row):
+    """None when diagnose.py's retraining table of the job (at its SAC seed) does not exist or
+    is the job's own, else why it cannot be read (diagnose.py does not check it)."""
+    path = retrain_table(r, row, diagnose.RETRAIN_SAC_SEED)
+    if not os.path.isfile(path):
+        return None
+    steps, max_steps, why = own_steps(r, row["algo"])
+    return why or foreign_table_why(path, steps, max_steps)
+
+
+def first_cause(binary, r, row, done, threads):
+    """diagnose.py's first cause of a missed job, or "not reproduced" and why when the seed-1000
+    table it would read is foreign. (A table diagnose.py writes here is its own retraining's,
+    and fresh_agent checks it again when the job is asked.)"""
+    why = diagnose_table_why(r, row)
+    if why:
+        return {"cause": "not reproduced", "note": why}
+    return diagnose.diagnose(binary, r, row, done, threads)
 
 
 def fresh_agent(binary, r, row, sac_seed):
     """The last evaluation's lower branch of a fresh agent at `sac_seed` on the job's final
     learned reward (None and why when the retraining fails or its table is foreign)."""
     algo, seed = row["algo"], int(row["seed"])
-    steps, why = own_steps(r, algo)
+    steps, max_steps, why = own_steps(r, algo)
     if why:
         return None, why
-    out = os.path.join(r["dir"], "retrain", f"{algo}_seed{seed}_sac{sac_seed}.csv")
+    out = retrain_table(r, row, sac_seed)
     if not os.path.isfile(out):
         cmd = [binary, "retrain", "--run", r["dir"], "--algo", algo, "--seed", str(seed),
                "--sac-seed", str(sac_seed)]
@@ -147,7 +191,7 @@ def fresh_agent(binary, r, row, sac_seed):
         code = subprocess.run(cmd, cwd=protocol.ROOT, stdout=subprocess.DEVNULL).returncode
         if code != 0 or not os.path.isfile(out):
             return None, f"retrain at SAC seed {sac_seed} exited with {code}"
-    why = foreign(out, steps)
+    why = foreign_table_why(out, steps, max_steps)
     if why:
         return None, why
     last, _ = diagnose.lower_of_retrain(out)
@@ -314,7 +358,8 @@ def main():
             prepared.setdefault(e["dir"], e)
     threads = 1 if args.parallel > 1 else 2
 
-    # diagnose.py's first cause of each missed job (its retraining tables are read).
+    # diagnose.py's first cause of each missed job (its retraining tables are read, once
+    # checked as this script's own reading checks them).
     missed = [row for row in rows if (row["arm"], row["algo"]) in units and row["status"] == "done"
               and (diagnose.reported(row) or 0.0) < SOLVED and (diagnose.number(row["oracle"]) or 0.0) < SOLVED]
     refused = {}
@@ -326,9 +371,11 @@ def main():
     for row in missed:
         r = diagnose.run_of(dirs, row)
         first = {"cause": "not reproduced", "note": refused[r["dir"]]} if refused[r["dir"]] else \
-            diagnose.diagnose(args.bin, r, row, done, threads)
+            first_cause(args.bin, r, row, done, threads)
         firsts.append(first)
     asked = [(row, f["cause"]) for row, f in zip(missed, firsts) if f["cause"] in ASKED]
+    # The others ("not reproduced") are shown, not asked.
+    unasked = [(row, f) for row, f in zip(missed, firsts) if f["cause"] not in ASKED]
     controls = controls_of(rows, [row for row, _ in asked], dirs, units)
     for row in controls:
         r = diagnose.run_of(dirs, row)
@@ -362,6 +409,9 @@ def main():
             results[futures[f]] = f.result()
     test = machine_test(args.bin, name, rows, units, dirs, prepared, {diagnose.run_of(dirs, row)["dir"]
                                                                      for row, _ in targets})
+    targets += [(row, f["cause"]) for row, f in unasked]
+    results += [{"first": f["cause"], "fresh": [], "task": None, "reading": "not read", "note": f["note"]}
+                for _, f in unasked]
     write(name, header, seeds, targets, results, test)
 
 
@@ -472,8 +522,9 @@ def write(name, header, seeds, targets, results, test):
     with open(path + ".tmp", "w") as fh:
         fh.write("\n".join(lines) + "\n")
     os.replace(path + ".tmp", path)
-    controls = sum(f not in ASKED for _, f in targets)
-    print(f"wrote {protocol.rel(path)}: {len(targets) - controls} jobs asked, {controls} controls", flush=True)
+    n = {kind: sum(f == kind for _, f in targets) for kind in ("solved (control)", "not reproduced")}
+    print(f"wrote {protocol.rel(path)}: {sum(f in ASKED for _, f in targets)} jobs asked, "
+          f"{n['not reproduced']} not reproduced, {n['solved (control)']} controls", flush=True)
 
 
 if __name__ == "__main__":
