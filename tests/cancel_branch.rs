@@ -5,7 +5,7 @@
 //! refused with exit status 2.
 
 use smirl::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery};
-use smirl::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
+use smirl::env::reacher_task::{Branch, BranchTally, EventBranch, ReacherTask};
 use smirl::env::ContinuousEnv;
 use smirl::pipeline::reacher_expert::{
     committed_expert, evaluate_expert, ExpertConfig, ExpertPolicy,
@@ -39,14 +39,14 @@ fn outcome(task: ReacherTask, steps: &[&str]) -> (Option<Branch>, bool) {
     let end = rm.run(&labels).last().map_or(rm.initial(), |&(u, _)| u);
     let success = rm.is_terminal(end) && !rm.is_failure(end);
     (
-        CancelBranch::of(&rm, layout().events()).map(|b| b.of_labels(&rm, labels)),
+        EventBranch::of(&rm, layout().events()).map(|b| b.of_labels(&rm, labels)),
         success,
     )
 }
 
 #[test]
 fn branch_is_read_off_the_perfect_machines_trace() {
-    use Branch::{Cancelled, Normal};
+    use Branch::{Event, Normal};
     // OR and Sequential have no branch.
     assert_eq!(
         outcome(ReacherTask::shipped("or").unwrap(), &["r", "c", "b"]),
@@ -64,10 +64,10 @@ fn branch_is_read_off_the_perfect_machines_trace() {
         (&["", "b", "", "r"], Normal, true),
         (&["b", "c", "r"], Normal, true),
         (&["", "", "r"], Normal, false),
-        (&["c", "", "r"], Cancelled, true),
-        (&["c", "b", "r"], Cancelled, false),
-        (&["bc", "", "r"], Cancelled, true),
-        (&["c", ""], Cancelled, false),
+        (&["c", "", "r"], Event, true),
+        (&["c", "b", "r"], Event, false),
+        (&["bc", "", "r"], Event, true),
+        (&["c", ""], Event, false),
     ];
     for (steps, branch, success) in cases {
         assert_eq!(
@@ -82,10 +82,10 @@ fn branch_is_read_off_the_perfect_machines_trace() {
         (&["g", "b", "y"], Normal, true),
         (&["r", "b", "c", "y"], Normal, true),
         (&["r", "y"], Normal, false),
-        (&["c", "r", "y"], Cancelled, true),
-        (&["r", "c", "y"], Cancelled, true),
-        (&["g", "c", "b", "y"], Cancelled, false),
-        (&["c", "y"], Cancelled, false),
+        (&["c", "r", "y"], Event, true),
+        (&["r", "c", "y"], Event, true),
+        (&["g", "c", "b", "y"], Event, false),
+        (&["c", "y"], Event, false),
     ];
     for (steps, branch, success) in cases {
         assert_eq!(
@@ -102,16 +102,16 @@ fn headline_of_a_conditional_task_is_the_lower_branch_rate() {
     let mut ignores = BranchTally::default();
     for k in 0..20 {
         ignores.add(Branch::Normal, true);
-        ignores.add(Branch::Cancelled, k % 10 == 0);
+        ignores.add(Branch::Event, k % 10 == 0);
     }
     assert_eq!(ignores.rate(Branch::Normal), Some(1.0));
-    assert_eq!(ignores.rate(Branch::Cancelled), Some(0.1));
+    assert_eq!(ignores.rate(Branch::Event), Some(0.1));
     assert_eq!(ignores.worst_rate(), Some(0.1));
-    assert_eq!(ignores.share(Branch::Cancelled), 0.5);
+    assert_eq!(ignores.share(Branch::Event), 0.5);
     // A branch that never happened does not count as solved or failed.
     let mut one = BranchTally::default();
     one.add(Branch::Normal, true);
-    assert_eq!(one.rate(Branch::Cancelled), None);
+    assert_eq!(one.rate(Branch::Event), None);
     assert_eq!(one.worst_rate(), Some(1.0));
     assert_eq!(BranchTally::default().worst_rate(), None);
 }
@@ -180,7 +180,7 @@ fn committed_conditional_experts_take_and_solve_both_branches() {
         for mode in [ActMode::Sample, ActMode::Mean] {
             let eval = evaluate_expert(&mut policy, &env, 100, mode, 7).unwrap();
             let b = eval.branches.expect("a conditional task");
-            let share = b.share(Branch::Cancelled);
+            let share = b.share(Branch::Event);
             assert!((0.3..=0.6).contains(&share), "{task} {mode:?}: {b}");
             for branch in Branch::ALL {
                 assert!(
@@ -304,7 +304,7 @@ fn quick_if_run_reports_each_branch() {
     let log = smirl::log::read_log(&out.join("logs/demos.mcap")).unwrap();
     let report = smirl::pipeline::replay::replay(&log).unwrap();
     let rm = ReacherTask::shipped("if").unwrap().perfect_rm().unwrap();
-    let branches = CancelBranch::of(&rm, layout().events()).unwrap();
+    let branches = EventBranch::of(&rm, layout().events()).unwrap();
     for (ep, r) in log.episodes.iter().zip(&report.episodes) {
         let labels = ep.steps.iter().map(|s| LabelSet(s.labels));
         assert_eq!(r.branch, Some(branches.of_labels(&rm, labels)));
@@ -314,7 +314,7 @@ fn quick_if_run_reports_each_branch() {
             (Some(_), None) => true,
             _ => false,
         };
-        assert_eq!(r.branch == Some(Branch::Cancelled), cancel_first);
+        assert_eq!(r.branch == Some(Branch::Event), cancel_first);
     }
 }
 

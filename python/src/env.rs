@@ -15,7 +15,7 @@ use pyo3::types::PyDict;
 use smirl::env::physics_scene::scene_model;
 use smirl::env::product::ProductEnv;
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
-use smirl::env::reacher_task::{task_env, Branch, CancelBranch, ReacherTask, SubgoalPotential};
+use smirl::env::reacher_task::{task_env, Branch, EventBranch, ReacherTask, SubgoalPotential};
 use smirl::env::ContinuousEnv;
 use smirl::mujoco::ObjectKind;
 use smirl::pipeline::render::region_looks;
@@ -62,7 +62,7 @@ pub(crate) struct TaskSpec {
     pub(crate) task: ReacherTask,
     pub(crate) config: ReacherConfig,
     pub(crate) rm: RewardMachine,
-    branches: Option<CancelBranch>,
+    branches: Option<EventBranch>,
     shaping: f64,
     gamma: f64,
     /// Each region's colour in a picture, in label-bit order.
@@ -84,7 +84,7 @@ impl TaskSpec {
         }
         let rm = task.perfect_rm().map_err(error)?;
         let config = task.env_config(&ReacherConfig::default()).map_err(error)?;
-        let branches = CancelBranch::of(&rm, task.layout().events());
+        let branches = EventBranch::of(&rm, task.layout().events());
         // The scene as its file gives it: the environment's model may leave the regions' bodies
         // out (they do not touch the arm's physics).
         let layout = task.layout();
@@ -120,7 +120,7 @@ struct Slot {
     env: TaskEnv,
     obs: Vec<f32>,
     /// The episode has entered the machine's event branch (tasks that have one).
-    cancelled: bool,
+    event_branch: bool,
     done: bool,
 }
 
@@ -131,17 +131,17 @@ impl Slot {
         Ok(Slot {
             env,
             obs,
-            cancelled: false,
+            event_branch: false,
             done: true,
         })
     }
 
     fn reset(&mut self, spec: &TaskSpec, seed: u64) {
         self.env.reset(seed, &mut self.obs);
-        self.cancelled = spec
+        self.event_branch = spec
             .branches
             .as_ref()
-            .is_some_and(|b| b.is_cancelled(self.env.rm_state()));
+            .is_some_and(|b| b.in_event_branch(self.env.rm_state()));
         self.done = false;
     }
 
@@ -154,7 +154,7 @@ impl Slot {
             .step_product(action, &mut self.obs)
             .map_err(|e| e.to_string())?;
         if let Some(b) = &spec.branches {
-            self.cancelled |= b.is_cancelled(p.rm_state);
+            self.event_branch |= b.in_event_branch(p.rm_state);
         }
         self.done = p.step.terminated || p.step.truncated;
         Ok(StepOut {
@@ -172,8 +172,8 @@ impl Slot {
 
     fn branch(&self, spec: &TaskSpec) -> Option<Branch> {
         spec.branches.as_ref().map(|_| {
-            if self.cancelled {
-                Branch::Cancelled
+            if self.event_branch {
+                Branch::Event
             } else {
                 Branch::Normal
             }

@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use smirl::env::product::{NoShaping, ProductEnv};
 use smirl::env::reacher::{ReacherDelivery, ReacherError};
-use smirl::env::reacher_task::{Branch, CancelBranch};
+use smirl::env::reacher_task::{Branch, EventBranch};
 use smirl::env::ContinuousEnv;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::LinearRmReward;
@@ -39,9 +39,9 @@ pub struct LearnedProductCore {
     env: ProductEnv<ReacherDelivery, NoShaping>,
     reward: LinearRmReward,
     perfect: RewardMachine,
-    branches: Option<CancelBranch>,
+    branches: Option<EventBranch>,
     /// The task's machine entered its event branch this episode (tasks that have one).
-    cancelled: bool,
+    event_branch: bool,
     task_state: usize,
     task_done: bool,
     obs: Vec<f32>,
@@ -52,9 +52,9 @@ pub struct LearnedProductCore {
 }
 
 impl LearnedProductCore {
-    fn is_cancelled(&self) -> bool {
+    fn in_event_branch(&self) -> bool {
         let branches = self.branches.as_ref();
-        branches.is_some_and(|b| b.is_cancelled(self.task_state))
+        branches.is_some_and(|b| b.in_event_branch(self.task_state))
     }
 }
 
@@ -104,8 +104,8 @@ impl LearnedProductCore {
         let obs = vec![0.0; env.obs_dim()];
         Ok(LearnedProductCore {
             task: prepared.prepared.task.name().to_string(),
-            branches: CancelBranch::of(&prepared.perfect, prepared.prepared.task.layout().events()),
-            cancelled: false,
+            branches: EventBranch::of(&prepared.perfect, prepared.prepared.task.layout().events()),
+            event_branch: false,
             perfect: prepared.perfect,
             task_state: 0,
             task_done: false,
@@ -150,7 +150,7 @@ impl LearnedProductCore {
             .map_err(|_| PyValueError::new_err(format!("seed must be in 0..2**64, got {seed}")))?;
         self.env.reset(seed, &mut self.obs);
         self.task_state = self.perfect.initial();
-        self.cancelled = self.is_cancelled();
+        self.event_branch = self.in_event_branch();
         self.task_done = false;
         self.ready = true;
         Ok(PyArray1::from_slice(py, &self.obs))
@@ -179,7 +179,7 @@ impl LearnedProductCore {
             success = self.perfect.is_terminal(self.task_state);
             failure = self.perfect.is_failure(self.task_state);
             self.task_done = success || failure;
-            self.cancelled |= self.is_cancelled();
+            self.event_branch |= self.in_event_branch();
         }
         let truncated = p.step.truncated || p.step.terminated;
         self.ready = !truncated;
@@ -192,8 +192,8 @@ impl LearnedProductCore {
         info.set_item("task_done", self.task_done)?;
         info.set_item("env_reward", p.env_reward)?;
         if self.branches.is_some() {
-            let branch = if self.cancelled {
-                Branch::Cancelled
+            let branch = if self.event_branch {
+                Branch::Event
             } else {
                 Branch::Normal
             };

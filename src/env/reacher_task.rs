@@ -396,16 +396,16 @@ pub enum Branch {
     Normal,
     /// An event opened a branch of the machine (IF, Composite: the cancel came before blue,
     /// which is off the task).
-    Cancelled,
+    Event,
 }
 
 impl Branch {
-    pub const ALL: [Branch; 2] = [Branch::Normal, Branch::Cancelled];
+    pub const ALL: [Branch; 2] = [Branch::Normal, Branch::Event];
 
     pub fn name(self) -> &'static str {
         match self {
             Branch::Normal => "normal",
-            Branch::Cancelled => "event",
+            Branch::Event => "event",
         }
     }
 
@@ -427,32 +427,29 @@ impl fmt::Display for Branch {
 /// along it; a machine whose every state is reachable without events (OR, Sequential) has no
 /// branches. Assumes an event that opens states redirects the task (the "unless" reading).
 #[derive(Clone, Debug)]
-pub struct CancelBranch {
-    cancelled: Vec<bool>,
+pub struct EventBranch {
+    opened: Vec<bool>,
 }
 
-impl CancelBranch {
+impl EventBranch {
     /// `None` when the machine has no branch opened by one of `events`.
-    pub fn of(rm: &RewardMachine, events: LabelSet) -> Option<CancelBranch> {
+    pub fn of(rm: &RewardMachine, events: LabelSet) -> Option<EventBranch> {
         let free = rm.reachable_without(events);
-        let cancelled: Vec<bool> = (0..rm.n_states())
+        let opened: Vec<bool> = (0..rm.n_states())
             .map(|u| !rm.is_absorbing(u) && !free[u])
             .collect();
-        cancelled
-            .iter()
-            .any(|&c| c)
-            .then_some(CancelBranch { cancelled })
+        opened.iter().any(|&c| c).then_some(EventBranch { opened })
     }
 
-    /// The state belongs to the cancel branch.
-    pub fn is_cancelled(&self, u: usize) -> bool {
-        self.cancelled.get(u).copied().unwrap_or(false)
+    /// The state belongs to the event branch.
+    pub fn in_event_branch(&self, u: usize) -> bool {
+        self.opened.get(u).copied().unwrap_or(false)
     }
 
     /// The branch of an episode from the perfect machine's states along it.
     pub fn of_states(&self, states: impl IntoIterator<Item = usize>) -> Branch {
-        if states.into_iter().any(|u| self.is_cancelled(u)) {
-            Branch::Cancelled
+        if states.into_iter().any(|u| self.in_event_branch(u)) {
+            Branch::Event
         } else {
             Branch::Normal
         }
@@ -514,7 +511,7 @@ impl fmt::Display for BranchTally {
     /// `normal 48/50, event 47/50 successful (event branch in 50 % of episodes)`: the event
     /// branch is the one a declared event opens (the paper's tasks: the cancel).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let [n, c] = [Branch::Normal, Branch::Cancelled].map(|b| b.index());
+        let [n, c] = [Branch::Normal, Branch::Event].map(|b| b.index());
         write!(
             f,
             "normal {}/{}, event {}/{} successful (event branch in {:.0} % of episodes)",
@@ -522,7 +519,7 @@ impl fmt::Display for BranchTally {
             self.episodes[n],
             self.successes[c],
             self.episodes[c],
-            100.0 * self.share(Branch::Cancelled)
+            100.0 * self.share(Branch::Event)
         )
     }
 }

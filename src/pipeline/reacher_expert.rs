@@ -27,7 +27,7 @@ use crate::atomic_file::write_atomic;
 use crate::env::product::{Potential, ProductEnv};
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use crate::env::reacher_task::{
-    task_env, Branch, BranchTally, CancelBranch, ReacherTask, SubgoalPotential,
+    task_env, Branch, BranchTally, EventBranch, ReacherTask, SubgoalPotential,
 };
 use crate::env::{episode, ContinuousEnv, EnvError, EnvStep};
 use crate::log::{LogError, RolloutLogger, RunHeader};
@@ -417,7 +417,7 @@ pub fn branch_tally(task: ReacherTask, demos: &[Demo]) -> Result<Option<BranchTa
         problem: e.to_string(),
     })?;
     Ok(
-        CancelBranch::of(&rm, task.layout().events()).map(|branches| {
+        EventBranch::of(&rm, task.layout().events()).map(|branches| {
             let mut tally = BranchTally::default();
             for d in demos {
                 tally.add(d.branch(&branches), d.success);
@@ -506,7 +506,7 @@ impl Demo {
     }
 
     /// The branch the episode took, from the perfect machine's states along it.
-    pub fn branch(&self, branches: &CancelBranch) -> Branch {
+    pub fn branch(&self, branches: &EventBranch) -> Branch {
         branches.of_states(
             std::iter::once(self.initial_rm_state).chain(self.steps.iter().map(|s| s.rm_state)),
         )

@@ -9,7 +9,7 @@
 
 use crate::atomic_file::write_atomic;
 use crate::env::layout::TaskLayout;
-use crate::env::reacher_task::{Branch, CancelBranch};
+use crate::env::reacher_task::{Branch, EventBranch};
 use crate::log::{LoggedEpisode, RolloutLog};
 use crate::mujoco::{Data, Model, ObjectKind};
 use crate::report::raster::{Canvas, Rgb};
@@ -315,7 +315,7 @@ pub fn render_episode(
         .ok()
         .flatten()
         .and_then(|(rm, _)| {
-            let branches = CancelBranch::of(&rm, layout.events())?;
+            let branches = EventBranch::of(&rm, layout.events())?;
             Some(branches.of_labels(&rm, ep.steps.iter().map(|s| LabelSet(s.labels))))
         });
     Ok(EpisodePicture {

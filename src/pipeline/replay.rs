@@ -14,7 +14,7 @@
 //! `assets/reacher_delivery_v1.xml`, is named as such).
 
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
-use crate::env::reacher_task::{Branch, CancelBranch};
+use crate::env::reacher_task::{Branch, EventBranch};
 use crate::env::{ContinuousEnv, EnvError};
 use crate::log::schema::{sha256_hex, NO_RM};
 use crate::log::{LoggedEpisode, RolloutLog};
@@ -370,7 +370,7 @@ fn replay_episode(
         rm_checked: false,
         branch: None,
     };
-    let branches = rm.and_then(|rm| CancelBranch::of(rm, layout.events()).map(|b| (rm, b)));
+    let branches = rm.and_then(|rm| EventBranch::of(rm, layout.events()).map(|b| (rm, b)));
     let mut replayed_labels = Vec::with_capacity(ep.steps.len());
     let mismatch = |step: usize, (what, logged, replayed): (String, String, String)| Mismatch {
         step,

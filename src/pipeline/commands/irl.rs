@@ -548,7 +548,7 @@ pub fn retrain(args: RetrainRequest) -> Result<()> {
             p.env_steps,
             e.success_rate,
             branch(Branch::Normal),
-            branch(Branch::Cancelled),
+            branch(Branch::Event),
             e.progress,
             e.final_ball,
             e.task_return,

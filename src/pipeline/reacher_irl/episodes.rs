@@ -8,7 +8,7 @@ use crate::env::clock::Clocked;
 use crate::env::layout::TaskLayout;
 use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
-use crate::env::reacher_task::{Branch, CancelBranch, ProgressTracker, TaskProgress};
+use crate::env::reacher_task::{Branch, EventBranch, ProgressTracker, TaskProgress};
 use crate::env::{episode, ContinuousEnv, EnvError, EnvStep};
 use crate::log::writer::EpisodeStartRecord;
 use crate::log::{LogError, RolloutLogger, StepRecord};
@@ -145,7 +145,7 @@ pub struct EpisodeOutcome {
 pub struct GroundTruthTask<'a> {
     pub perfect: &'a RewardMachine,
     pub progress: TaskProgress,
-    pub branches: Option<CancelBranch>,
+    pub branches: Option<EventBranch>,
 }
 
 impl<'a> GroundTruthTask<'a> {
@@ -153,7 +153,7 @@ impl<'a> GroundTruthTask<'a> {
         GroundTruthTask {
             perfect,
             progress: TaskProgress::of(perfect, layout),
-            branches: CancelBranch::of(perfect, layout.events()),
+            branches: EventBranch::of(perfect, layout.events()),
         }
     }
 }
@@ -382,7 +382,7 @@ impl EpisodeLog for RecordedEpisode {
 pub struct EpisodePlay<'t, 'p> {
     task: &'t GroundTruthTask<'t>,
     spec: EpisodeSpec<'p>,
-    branches: Option<&'t CancelBranch>,
+    branches: Option<&'t EventBranch>,
     up: usize,
     tracker: ProgressTracker,
     cancelled: bool,
@@ -419,7 +419,7 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
             branches,
             up,
             tracker: task.progress.start(up),
-            cancelled: branches.is_some_and(|b| b.is_cancelled(up)),
+            cancelled: branches.is_some_and(|b| b.in_event_branch(up)),
             out: EpisodeOutcome::default(),
             steps: 0,
             max_steps,
@@ -453,7 +453,7 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
         let (u_next, r) = perfect.step(self.up, step.labels);
         (self.task.progress).track(&mut self.tracker, self.up, u_next, step.labels);
         self.up = u_next;
-        self.cancelled |= self.branches.is_some_and(|b| b.is_cancelled(u_next));
+        self.cancelled |= self.branches.is_some_and(|b| b.in_event_branch(u_next));
         self.out.task_return += r;
         self.out.env_return += env_reward;
         self.out.success |= perfect.is_terminal(u_next) && !perfect.is_failure(u_next);
@@ -478,7 +478,7 @@ impl<'t, 'p> EpisodePlay<'t, 'p> {
         out.final_ball = self.tracker.touched_final_ball();
         out.branch = self.branches.map(|_| {
             if self.cancelled {
-                Branch::Cancelled
+                Branch::Event
             } else {
                 Branch::Normal
             }

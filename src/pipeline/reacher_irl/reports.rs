@@ -9,7 +9,7 @@ use super::records::{
     write_file, AlgoSummary, JobRecord, PipelineError, PreparedRun, RmFacts, RunSummary,
 };
 use super::Algo;
-use crate::env::reacher_task::{Branch, BranchTally, CancelBranch, ReacherTask};
+use crate::env::reacher_task::{Branch, BranchTally, EventBranch, ReacherTask};
 use crate::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
 use std::fmt::Write as _;
 
@@ -67,7 +67,7 @@ pub(super) fn write_reports(
                 [
                     format!("{}", c.success_rate),
                     rate(Branch::Normal),
-                    rate(Branch::Cancelled),
+                    rate(Branch::Event),
                 ]
             }
             None => Default::default(),
@@ -142,7 +142,7 @@ pub(super) fn write_reports(
         "environment steps",
         "task return",
     );
-    let conditional = CancelBranch::of(&run.perfect, task.layout().events()).is_some();
+    let conditional = EventBranch::of(&run.perfect, task.layout().events()).is_some();
     let mut branch_plot = LinePlot::new(
         &format!("ReacherDelivery {task}: success per branch"),
         "environment steps",
@@ -185,7 +185,7 @@ pub(super) fn write_reports(
                         aggregate_over_seeds(&curve(&|r| branch_rate(r, b))),
                     )
                     .with_colour(algo.colour())
-                    .with_dashes(b == Branch::Cancelled),
+                    .with_dashes(b == Branch::Event),
                 );
             }
         }
@@ -238,7 +238,7 @@ pub(super) fn write_reports(
         let (rm_, rs) = mean_std(&last(&|r| r.task_return)?);
         let final_branch_success = if conditional {
             let normal = mean_std(&last(&|r| branch_rate(r, Branch::Normal))?);
-            let cancel = mean_std(&last(&|r| branch_rate(r, Branch::Cancelled))?);
+            let cancel = mean_std(&last(&|r| branch_rate(r, Branch::Event))?);
             Some([normal, cancel])
         } else {
             None
@@ -436,7 +436,7 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 u8::from(i == f.chosen).to_string(),
                 format!("{}", c.success_rate),
                 rate(Branch::Normal),
-                rate(Branch::Cancelled),
+                rate(Branch::Event),
                 format!("{}", c.progress),
                 format!("{}", c.final_ball),
                 c.agent.name().to_string(),
@@ -445,7 +445,7 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 final_set(&|s| s.episodes.to_string()),
                 final_set(&|s| format!("{}", s.success_rate)),
                 final_set(&|s| rate_of(s.branches, Branch::Normal)),
-                final_set(&|s| rate_of(s.branches, Branch::Cancelled)),
+                final_set(&|s| rate_of(s.branches, Branch::Event)),
             ]);
         }
     }

@@ -226,7 +226,7 @@ pub fn prepare(
         demo_branches.map_or(String::new(), |t| format!(
             "; {} take the normal branch, {} the event branch",
             t.episodes[Branch::Normal.index()],
-            t.episodes[Branch::Cancelled.index()]
+            t.episodes[Branch::Event.index()]
         ))
     ));
 
