@@ -3,6 +3,7 @@
 //! tests, the logging benchmark and `reacher demo`; not the paper's experts (SAC policies).
 
 use super::{LogError, LogOptions, LogSummary, RolloutLogger, RunHeader};
+use crate::env::layout::TaskLayout;
 use crate::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::ReacherTask;
@@ -35,6 +36,18 @@ pub struct DemoSpec {
     pub reward_machine: Option<RewardMachine>,
 }
 
+/// Why `p` cannot be the chance of every event of `layout` (a chance, and a task that declares
+/// an event), if it cannot.
+pub fn check_event_probability(p: f64, layout: &TaskLayout) -> Result<(), String> {
+    if layout.events.is_empty() {
+        return Err("an event probability is given, but the task declares no event".into());
+    }
+    if !(0.0..=1.0).contains(&p) {
+        return Err(format!("an event probability must be in [0, 1], got {p}"));
+    }
+    Ok(())
+}
+
 /// Runs the demonstrations and logs them to `path`.
 pub fn log_scripted_demos(
     path: &std::path::Path,
@@ -51,15 +64,7 @@ pub fn log_scripted_demos(
         .map_err(|e| usage(e.to_string()))?;
     let mut layout = task.task().layout();
     if let Some(p) = spec.event_probability {
-        if layout.events.is_empty() {
-            return Err(usage(format!(
-                "an event probability is given, but task {} declares no event",
-                task.id()
-            )));
-        }
-        if !(0.0..=1.0).contains(&p) {
-            return Err(usage(format!("event probability {p} is not in [0, 1]")));
-        }
+        check_event_probability(p, &layout).map_err(|e| usage(format!("{}: {e}", task.id())))?;
         for event in &mut layout.events {
             event.probability = p;
         }

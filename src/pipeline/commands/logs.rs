@@ -5,7 +5,7 @@
 use super::{usage, UsageError};
 use crate::env::reacher::ReacherConfig;
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
-use crate::log::demo::{log_scripted_demos, DemoSpec};
+use crate::log::demo::{check_event_probability, log_scripted_demos, DemoSpec};
 use crate::log::{read_log, LogOptions, RolloutLog};
 use crate::output::{check_file, check_not_input, create_parent};
 use crate::pipeline::offline_rm::{compare, traces_from_files, OfflineRm, OfflineRmError};
@@ -322,17 +322,8 @@ pub fn demo(args: DemoRequest) -> Result<()> {
     ScriptedController::from_letters(&sequence, &layout, ControllerGains::default())
         .map_err(|e| usage(format!("--sequence: {e}")))?;
     if let Some(p) = args.event_probability {
-        if layout.events.is_empty() {
-            return Err(usage(format!(
-                "--event-probability: task {} declares no event",
-                args.task
-            )));
-        }
-        if !(0.0..=1.0).contains(&p) {
-            return Err(usage(format!(
-                "--event-probability must be in [0, 1], got {p}"
-            )));
-        }
+        check_event_probability(p, &layout)
+            .map_err(|e| usage(format!("--event-probability: {e}")))?;
     }
     check_file(&args.out, args.force).map_err(usage)?;
     let reward_machine = Some((*task.task().machine).clone());
