@@ -13,11 +13,10 @@
 //! agent's other touches are the way it moves. The rule assumes "unless" events: after one,
 //! a touch the expert never makes is off the task.
 //!
-//! Touches can be read as entries (`entries` of [`SeenAfterEvents::new`]; SMIRL's cut reads
-//! them so): a ball counts on the step its touch begins, not on the steps the fingertip stays
-//! on it. Why: the expert brushes a ball for one step where an agent lingers for two or three,
-//! so the steps after a touch that entered a state look, read as labels, like a touch no
-//! demonstration makes there (Sequential base 78: red held one step longer after a cancel).
+//! Touches are read as entries: a region counts on the step its touch begins, not on the steps
+//! the fingertip stays on it. Why: the expert brushes a region for one step where an agent
+//! lingers for two or three, so the steps after a touch that entered a state would look, read
+//! as labels, like a touch no demonstration makes there.
 
 use crate::rm::LabelSet;
 
@@ -27,16 +26,15 @@ use crate::rm::LabelSet;
 pub struct SeenAfterEvents {
     events: LabelSet,
     props: LabelSet,
-    entries: bool,
     seen: Vec<LabelSet>,
 }
 
 impl SeenAfterEvents {
     /// From annotated trajectories (concatenated, `lengths` each): step t read `labels[t]` in
     /// learned state `states[t]`. A step's labels count once an event came on an earlier step;
-    /// the event's own step is read before it. With `entries`, a proposition counts only on a
-    /// step it is true on and was not on the step before (the first step of a trajectory
-    /// follows no labels). States outside `0..n_states` are ignored.
+    /// the event's own step is read before it. A proposition counts only on a step it is true
+    /// on and was not on the step before (the first step of a trajectory follows no labels).
+    /// States outside `0..n_states` are ignored.
     pub fn new(
         n_states: usize,
         states: &[u32],
@@ -44,12 +42,10 @@ impl SeenAfterEvents {
         lengths: &[usize],
         events: LabelSet,
         props: LabelSet,
-        entries: bool,
     ) -> SeenAfterEvents {
         let mut table = SeenAfterEvents {
             events,
             props,
-            entries,
             seen: vec![LabelSet::EMPTY; n_states],
         };
         let mut steps = states.iter().zip(labels);
@@ -96,10 +92,7 @@ impl Walk {
     /// Reads one step's labels: the propositions of `table.props` that count as touched on it
     /// after an event (`None` before any), then whether an event came.
     fn step(&mut self, table: &SeenAfterEvents, labels: LabelSet) -> Option<u32> {
-        let mut touched = labels.0 & table.props.0;
-        if table.entries {
-            touched &= !self.before.0;
-        }
+        let touched = labels.0 & table.props.0 & !self.before.0;
         let counted = self.after_event.then_some(touched);
         self.after_event |= labels.0 & table.events.0 != 0;
         self.before = labels;
@@ -122,7 +115,7 @@ mod tests {
         let states = [0, 0, 1, 1, /* cancel branch */ 0, 1, 1];
         let empty = LabelSet::EMPTY;
         let labels = [empty, BLUE, BLUE, RED, CANCEL, empty, RED];
-        SeenAfterEvents::new(2, &states, &labels, &[4, 3], CANCEL, BALLS, false)
+        SeenAfterEvents::new(2, &states, &labels, &[4, 3], CANCEL, BALLS)
     }
 
     #[test]
@@ -157,23 +150,19 @@ mod tests {
         );
     }
 
-    /// Held-out Sequential 78's pattern: the expert touches red for one step, an agent stays
-    /// on it for two after the cancel. Read as labels the second step is unseen in the state
-    /// red entered; read as entries it is no touch at all, while a new touch of blue still is.
+    /// The expert touches red for one step, an agent stays on it for two after the cancel: the
+    /// second step, in the state red entered, is no new touch, while a touch of blue there is.
     #[test]
-    fn entries_ignore_a_ball_held_from_the_step_before() {
+    fn a_ball_held_from_the_step_before_is_no_new_touch() {
         let empty = LabelSet::EMPTY;
         let states = [0, 0, 1, 1];
         let expert = [CANCEL, RED, empty, empty];
-        let labels =
-            |entries| SeenAfterEvents::new(2, &states, &expert, &[4], CANCEL, BALLS, entries);
-        let lingering = [CANCEL, RED, RED, empty];
-        assert_eq!(labels(false).first_unseen(&states, &lingering), Some(2));
-        assert_eq!(labels(true).first_unseen(&states, &lingering), None);
+        let seen = SeenAfterEvents::new(2, &states, &expert, &[4], CANCEL, BALLS);
+        assert_eq!(seen.first_unseen(&states, &[CANCEL, RED, RED, empty]), None);
         assert_eq!(
-            labels(true).first_unseen(&states, &[CANCEL, RED, empty, BLUE]),
+            seen.first_unseen(&states, &[CANCEL, RED, empty, BLUE]),
             Some(3)
         );
-        assert_eq!(labels(true).in_state(0), RED);
+        assert_eq!(seen.in_state(0), RED);
     }
 }

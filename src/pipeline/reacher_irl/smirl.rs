@@ -438,7 +438,6 @@ pub fn seen_after_events(
         &expert.lengths,
         layout.events(),
         layout.touches(),
-        true,
     ))
 }
 
