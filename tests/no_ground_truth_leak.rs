@@ -4,9 +4,12 @@
 //! another, with other rewards, learns bit for bit the same reward (weights and data gradient
 //! of every iteration), the same learned returns of every final-policy candidate and the same
 //! choice, while its evaluation changes. The learned machine and the annotated demonstrations
-//! are `reacher prepare`'s (`rm/learned.txt`, `expert_data.bin`): LRM reads the
-//! demonstrations' label traces only (`smirl::learn_machine` takes no perfect machine), and
-//! the job reads them from the directory.
+//! are `reacher prepare`'s (`rm/learned.txt`, `expert_data.bin`), and the job reads them from
+//! the directory. Prepare's learner reads the demonstrations' label traces only: a perfect
+//! machine that makes the same demonstrations (other rewards, a state no episode reaches)
+//! gives the same learned machine and annotated demonstrations, bit for bit. The perfect
+//! machine does make the demonstrations, as a demonstrator's task would: an expert episode
+//! ends at its goal or failure and a failed one is dropped.
 //!
 //! Every algorithm the evaluation runs is covered: smirl, smirl-paper, the baselines maxent,
 //! fkl, rkl and js, the product controls maxent-product and fkl-product, and the one-state
@@ -483,4 +486,91 @@ fn perturbing_the_perfect_machine_leaves_the_one_state_controls_learning_unchang
     let learned = std::fs::read_to_string(pair.truth.join("rm/learned.txt")).unwrap();
     assert_eq!(parse_rm(&learned, "learned").unwrap().n_states(), 1);
     assert_no_leak(pair, Algo::Smirl);
+}
+
+/// IF's machine as it makes demonstrations (the same transitions, so the same scripted
+/// episodes, ending at the same steps) but not as a learner could read it: other rewards (the
+/// normal branch pays 7, the cancel branch 3.25), its states numbered otherwise (IF's 0, 1, 2,
+/// 3, 4 are 2, 0, 5, 1, 3 here) and a state, 4, that no transition enters.
+const PERTURBED_SAME_DEMONSTRATIONS: &str = "\
+# Not a task of the paper: IF's machine with other rewards, states and a state no episode reaches.
+vocabulary: rgbyc
+states: 6
+initial: 2
+terminal: 1
+failure: 3
+(2, 5, 'c', 0.25)
+(2, 0, 'b&!c', 2)
+(0, 1, 'r', 5)
+(5, 3, 'b&!c', -1)
+(5, 1, 'r&!b', 3)
+(4, 1, 'g', 9)
+";
+
+/// `reacher prepare` of IF and of a copy of IF's task file whose machine is
+/// [`PERTURBED_SAME_DEMONSTRATIONS`], 8 scripted demonstrations over both branches: the
+/// learned machines (smirl's and smirl-paper's) and the demonstrations as every learner reads
+/// them (annotated with either machine) are the same, bit for bit. The demonstration logs
+/// differ, as they should: a log records its task.
+///
+/// Mutation tried (a leak into the training data): keeping only the demonstrations of the
+/// highest true return (`d.success && d.task_return >= best` in `run::prepare`): the perturbed
+/// run keeps no event-branch demonstration and fails at "both branches: [4, 0]".
+#[test]
+fn prepares_learner_reads_the_demonstrations_and_not_the_machine_that_made_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    let task_text = std::fs::read_to_string(assets.join("tasks/if.toml")).unwrap();
+    let machine = tmp.path().join("perturbed_if.txt");
+    std::fs::write(&machine, PERTURBED_SAME_DEMONSTRATIONS).unwrap();
+    let copy_dir = tmp.path().join("task");
+    std::fs::create_dir(&copy_dir).unwrap();
+    let copy = copy_dir.join("if.toml");
+    let pointed = task_text.replace(
+        "machine = \"../rm/reacher_if.txt\"",
+        &format!("machine = {:?}", machine.to_str().unwrap()),
+    );
+    assert_ne!(pointed, task_text, "the copy names the perturbed machine");
+    std::fs::write(&copy, pointed).unwrap();
+    let perturbed = ReacherTask::resolve(copy.to_str().unwrap()).unwrap();
+    assert_eq!(perturbed.perfect_rm().unwrap().n_states(), 6);
+
+    let prepared = |task: ReacherTask, dir: &Path| {
+        let request = RunRequest {
+            task,
+            algos: vec![Algo::Smirl, Algo::SmirlPaper],
+            seeds: 1,
+            seed: SEED,
+            config: IrlRunConfig {
+                demo_episodes: 8,
+                ..config()
+            },
+            out: dir.with_extension("unused"),
+            force: false,
+        };
+        let prepared = prepare(&request, dir, &Silent).unwrap();
+        let branches = prepared
+            .demo_branches
+            .expect("IF has an event branch")
+            .episodes;
+        assert!(
+            branches.iter().all(|&n| n > 0),
+            "both branches: {branches:?}"
+        );
+        [
+            "rm/learned.txt",
+            "rm/learned_paper.txt",
+            "expert_data.bin",
+            "expert_data_paper.bin",
+        ]
+        .map(|f| (f, std::fs::read(dir.join(f)).unwrap()))
+    };
+    let truth = prepared(
+        ReacherTask::shipped("if").unwrap(),
+        &tmp.path().join("truth"),
+    );
+    let other = prepared(perturbed, &tmp.path().join("other"));
+    for ((name, a), (_, b)) in truth.iter().zip(&other) {
+        assert!(a == b, "{name} differs");
+    }
 }
