@@ -380,7 +380,7 @@ struct PipelineArgs {
     task: Option<ReacherTask>,
     /// Algorithms, comma-separated: smirl, smirl-paper, smirl-smooth, maxent, fkl, rkl, js, or
     /// all (those seven); the controls maxent-product and fkl-product run only when named
-    /// [default: smirl,smirl-smooth,maxent,fkl].
+    /// [default: smirl,smirl-paper,smirl-smooth,maxent,fkl].
     #[arg(long)]
     algo: Option<String>,
     /// Number of seeds per algorithm (seeds S, S+1, …).

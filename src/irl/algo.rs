@@ -62,8 +62,15 @@ impl Algo {
     ];
 
     /// The default set of `reacher --task` (README.md, "Run it").
-    pub const REACHER_DEFAULT: [Algo; 4] =
-        [Algo::Smirl, Algo::SmirlSmooth, Algo::MaxEnt, Algo::Fkl];
+    /// `smirl-paper` is in it so that every run shows the paper's algorithm beside the
+    /// improved one.
+    pub const REACHER_DEFAULT: [Algo; 5] = [
+        Algo::Smirl,
+        Algo::SmirlPaper,
+        Algo::SmirlSmooth,
+        Algo::MaxEnt,
+        Algo::Fkl,
+    ];
 
     /// The Office Gridworld comparison (paper figures 4 and 5).
     pub const OFFICE: [Algo; 3] = [Algo::Smirl, Algo::MaxEnt, Algo::Apprenticeship];
