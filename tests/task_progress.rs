@@ -5,16 +5,11 @@
 use smirl::env::reacher_task::{ReacherTask, TaskProgress};
 use smirl::rm::LabelSet;
 
-/// Runs `trace` (label sets as strings over "rgbyc", one per step) through the task's perfect
-/// machine; returns (fraction of sub-goals, end ball touched).
+/// Runs `trace` (label sets as strings over the task's letters, one per step) through the
+/// task's perfect machine; returns (fraction of sub-goals, end ball touched).
 fn progress(task: ReacherTask, trace: &[&str]) -> (f64, bool) {
     let rm = task.perfect_rm().unwrap();
-    let p = TaskProgress::of(
-        &rm,
-        &smirl::env::reacher_task::ReacherTask::shipped("composite")
-            .unwrap()
-            .layout(),
-    );
+    let p = TaskProgress::of(&rm, &task.layout());
     let mut u = rm.initial();
     let mut t = p.start(u);
     for step in trace {
@@ -28,7 +23,8 @@ fn progress(task: ReacherTask, trace: &[&str]) -> (f64, bool) {
 
 #[test]
 fn sub_goals_completed_on_known_traces() {
-    let cases: [(&str, &[&str], f64, bool); 15] = [
+    let ring = "assets/scenes/six_targets_ring.toml"; // t6, t1, t2, t3: f, a, b, c
+    let cases: [(&str, &[&str], f64, bool); 18] = [
         ("or", &["", "r"], 0.5, false), // OR: red or green, then blue
         ("or", &["", "b"], 0.0, true),  // the end location without the sub-goal before it
         ("or", &["g", "", "b"], 1.0, true),
@@ -44,9 +40,13 @@ fn sub_goals_completed_on_known_traces() {
         ("blue", &["r", "g", "y"], 0.0, false),     // the positive control: blue alone counts
         ("blue", &["c", "", "b"], 1.0, true),       // the cancel plays no part
         ("blue", &["yb"], 1.0, true),
+        // Another scene: its own letters, `c` a target (t3, the end) and no event.
+        (ring, &["f", "", "a"], 0.5, false),
+        (ring, &["c"], 0.0, true),
+        (ring, &["f", "a", "b", "c"], 1.0, true),
     ];
     for (task, trace, fraction, end) in cases {
-        let (f, e) = progress(ReacherTask::shipped(task).unwrap(), trace);
+        let (f, e) = progress(ReacherTask::resolve(task).unwrap(), trace);
         assert!(
             (f - fraction).abs() < 1e-12,
             "{task:?} {trace:?}: {f} != {fraction}"
