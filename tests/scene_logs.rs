@@ -201,6 +201,18 @@ fn a_log_of_a_scene_with_nested_includes_replays_without_its_files() {
     assert!(listing(&elsewhere).is_empty());
 
     official_reader_sees(&log_path, &files);
+
+    // A changed byte of a carried file is damage the reader finds (the attachment's CRC).
+    let mut bytes = std::fs::read(&log_path).unwrap();
+    let motors = &files[1].1;
+    let at = (bytes.windows(motors.len()))
+        .position(|w| w == motors.as_slice())
+        .unwrap();
+    bytes[at + motors.len() / 2] ^= 1;
+    let damaged = logs.join("damaged.mcap");
+    std::fs::write(&damaged, bytes).unwrap();
+    let e = read_log(&damaged).unwrap_err();
+    assert!(matches!(e, LogError::Corrupt { .. }), "{e}");
 }
 
 /// The official `mcap` Python reader lists the log's attachments: `model.xml`, the scene's
