@@ -72,4 +72,5 @@ pub mod product;
 pub mod reacher;
 pub mod reacher_controller;
 pub mod reacher_task;
+pub mod scene_files;
 pub mod task_file;

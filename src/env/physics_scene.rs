@@ -48,16 +48,16 @@ pub enum SceneCutError {
 
 /// One tag of the text: its kind, element name, attributes and byte range.
 #[derive(Debug)]
-struct Tag<'a> {
-    kind: TagKind,
-    name: &'a str,
-    attributes: &'a str,
-    start: usize,
+pub(crate) struct Tag<'a> {
+    pub(crate) kind: TagKind,
+    pub(crate) name: &'a str,
+    pub(crate) attributes: &'a str,
+    pub(crate) start: usize,
     end: usize,
 }
 
 #[derive(Debug, PartialEq, Eq)]
-enum TagKind {
+pub(crate) enum TagKind {
     Open,
     Close,
     SelfClosing,
@@ -65,7 +65,7 @@ enum TagKind {
 
 /// The element tags of `xml` in order, skipping comments, processing instructions,
 /// declarations and CDATA sections.
-fn tags(xml: &str) -> Result<Vec<Tag<'_>>, SceneCutError> {
+pub(crate) fn tags(xml: &str) -> Result<Vec<Tag<'_>>, SceneCutError> {
     let bytes = xml.as_bytes();
     let mut out = Vec::new();
     let mut i = 0;
@@ -130,7 +130,7 @@ fn tags(xml: &str) -> Result<Vec<Tag<'_>>, SceneCutError> {
 }
 
 /// The value of attribute `key` in a tag's attribute text.
-fn attribute<'a>(attributes: &'a str, key: &str) -> Option<&'a str> {
+pub(crate) fn attribute<'a>(attributes: &'a str, key: &str) -> Option<&'a str> {
     let mut rest = attributes;
     loop {
         rest = rest.trim_start();
@@ -145,15 +145,6 @@ fn attribute<'a>(attributes: &'a str, key: &str) -> Option<&'a str> {
         }
         rest = &after[close + 2..];
     }
-}
-
-/// The `file` of every `<include>` element of `xml`, in the order of the text.
-pub fn included_files(xml: &str) -> Result<Vec<String>, SceneCutError> {
-    Ok(tags(xml)?
-        .iter()
-        .filter(|t| t.name == "include" && t.kind != TagKind::Close)
-        .filter_map(|t| attribute(t.attributes, "file").map(str::to_string))
-        .collect())
 }
 
 /// One element of the text: the tags that open and close it (the same tag when it closes

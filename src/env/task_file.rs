@@ -27,6 +27,7 @@
 
 pub use super::layout::{Anchor, Event, Region, Scene, TaskLayout, BUILTIN_SCENE};
 use super::placement::Placement;
+use super::scene_files::{read_scene_files, SceneFile, SceneFileKind};
 use crate::config_text::{key_line, read_text_file, toml_error_message};
 use crate::mujoco::{Data, Model, ObjectKind};
 use crate::rm::format::{parse_rm, RmFileError};
@@ -54,8 +55,7 @@ pub const SLIDE_RANGE: f64 = 0.27;
 pub const RANDOM_LAYOUT_MAX_RADIUS: f64 = 0.19;
 /// The body whose position is the fingertip.
 pub const FINGERTIP_BODY: &str = "fingertip";
-/// Most files a scene may include, directly or through other included files.
-pub const MAX_INCLUDED_FILES: usize = 64;
+pub use super::scene_files::{MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_FILES};
 
 /// The shipped tasks (`assets/tasks/<name>.toml`): the paper's four and the baselines'
 /// Markovian positive control `blue`.
@@ -111,12 +111,16 @@ pub struct Task {
     /// The perfect machine: trains the expert and judges success; no learner reads it.
     pub machine: Arc<RewardMachine>,
     pub machine_source: String,
-    /// SHA-256 of the task file, its scene and its machine (hex): the key of its expert.
+    /// SHA-256 of the task file, its scene (with the files the scene reads) and its machine
+    /// (hex): the key of its expert.
     pub content_hash: String,
     /// The task file's text (logs record it).
     pub text: String,
     /// The scene's MJCF text (logs attach it).
     pub scene_xml: String,
+    /// The files the scene reads: included files, then mesh, skin, height-field and texture
+    /// files (logs attach them). Shared, as every log of the task carries them.
+    pub scene_files: Arc<[SceneFile]>,
 }
 
 /// Why a task could not be loaded.
@@ -321,21 +325,36 @@ impl Task {
             letters.push((c, line));
         }
 
-        // The scene: loadable, with the arm and its fingertip.
-        let (scene, model) = match raw.scene.as_str() {
+        // The scene: its files readable within the limits, loadable, with the arm and its
+        // fingertip. The files are read first, so that a missing or oversized one is named
+        // before MuJoCo compiles anything; a text that is no XML is left to MuJoCo's message.
+        let scene_problem =
+            |e: &dyn std::fmt::Display| bad("scene".into(), TaskProblem::Scene(e.to_string()));
+        let (scene, model, files) = match raw.scene.as_str() {
             BUILTIN_SCENE => (
                 Scene::Builtin,
                 Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME),
+                None,
             ),
             path => {
                 let path = match origin {
                     Origin::Dir(dir) => dir.join(path),
                     Origin::Shipped => PathBuf::from(path),
                 };
-                (Scene::File(path.clone()), Model::from_xml_path(&path))
+                let files = read_scene_files(&path);
+                match &files {
+                    Err(e) if !e.is_syntax() => return Err(scene_problem(e)),
+                    _ => {}
+                }
+                let model = Model::from_xml_path(&path);
+                (Scene::File(path), model, Some(files))
             }
         };
-        let model = model.map_err(|e| bad("scene".into(), TaskProblem::Scene(e.to_string())))?;
+        let model = model.map_err(|e| scene_problem(&e))?;
+        let files = files
+            .transpose()
+            .map_err(|e| scene_problem(&e))?
+            .map(|f| (f.main, f.files));
         let scene_name = scene.to_string();
         check_arm(&model, &scene_name).map_err(|p| bad("scene".into(), p))?;
         let mut data = Data::new(Arc::new(model))
@@ -480,27 +499,9 @@ impl Task {
             ));
         }
 
-        let (scene_text, included) = match &scene {
-            Scene::Builtin => (crate::assets::REACHER_XML.as_bytes().to_vec(), Vec::new()),
-            // The model loaded from these files a moment ago; a failure to read them again is
-            // a race with the user's editor, reported as such.
-            Scene::File(p) => scene_files(p)
-                .map_err(|problem| bad("scene".into(), TaskProblem::Scene(problem)))?,
-        };
-        let mut hash = Sha256::new();
-        for part in [text.as_bytes(), &scene_text, machine_text.as_bytes()] {
-            hash.update((part.len() as u64).to_le_bytes());
-            hash.update(part);
-        }
-        // Included files come after the three parts, so a scene without includes hashes to
-        // its three parts alone, the key the committed experts are named by.
-        for (name, bytes) in &included {
-            for part in [name.as_bytes(), bytes] {
-                hash.update((part.len() as u64).to_le_bytes());
-                hash.update(part);
-            }
-        }
-        let content_hash = hash.finalize().iter().map(|b| format!("{b:02x}")).collect();
+        let (scene_text, scene_files) =
+            files.unwrap_or_else(|| (crate::assets::REACHER_XML.as_bytes().to_vec(), Vec::new()));
+        let content_hash = content_hash(text, &scene_text, &machine_text, &scene_files);
 
         Ok(Task {
             name: name.into(),
@@ -515,6 +516,7 @@ impl Task {
             content_hash,
             text: text.into(),
             scene_xml: String::from_utf8_lossy(&scene_text).into_owned(),
+            scene_files: scene_files.into(),
         })
     }
 
@@ -557,42 +559,32 @@ fn check_arm(model: &Model, scene: &str) -> Result<(), TaskProblem> {
     Ok(())
 }
 
-/// A file a scene includes: its name as the `<include>` gives it, and its bytes.
-type IncludedFile = (String, Vec<u8>);
-
-/// The scene file's bytes and, in the order MuJoCo reads them, every file it includes,
-/// directly or through another included file: each named as in its `<include file=…>` (MuJoCo
-/// resolves the name in the main scene file's directory) with its bytes. For the task's
-/// content hash, so that an edited included file makes another task. Mesh, texture and
-/// height-field files are not read.
-fn scene_files(path: &Path) -> Result<(Vec<u8>, Vec<IncludedFile>), String> {
-    use super::physics_scene::{included_files, MAX_SCENE_BYTES};
-    let read =
-        |p: &Path| crate::input_file::read_bytes(p, MAX_SCENE_BYTES).map_err(|e| e.to_string());
-    let main = read(path)?;
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let includes_of = |bytes: &[u8], file: &Path| {
-        included_files(&String::from_utf8_lossy(bytes))
-            .map_err(|e| format!("{}: {e}", file.display()))
+/// SHA-256 (hex) of a task's parts, each after its length: the task file, the scene file
+/// and the machine; then each included file's name and bytes; then, when the scene names any,
+/// a marker and each asset file's name and bytes. A scene that reads no other file hashes to
+/// the three parts alone, the key the committed experts are named by.
+fn content_hash(text: &str, scene: &[u8], machine: &str, files: &[SceneFile]) -> String {
+    let mut hash = Sha256::new();
+    let mut part = |bytes: &[u8]| {
+        hash.update((bytes.len() as u64).to_le_bytes());
+        hash.update(bytes);
     };
-    let mut pending: std::collections::VecDeque<String> = includes_of(&main, path)?.into();
-    let mut files = Vec::new();
-    while let Some(name) = pending.pop_front() {
-        if files.len() == MAX_INCLUDED_FILES {
-            return Err(format!(
-                "{} includes more than {MAX_INCLUDED_FILES} files",
-                path.display()
-            ));
-        }
-        let file = dir.join(&name);
-        let bytes = read(&file)?;
-        // An included file's own includes come where it stands, before the files after it.
-        for (k, inner) in includes_of(&bytes, &file)?.into_iter().enumerate() {
-            pending.insert(k, inner);
-        }
-        files.push((name, bytes));
+    for bytes in [text.as_bytes(), scene, machine.as_bytes()] {
+        part(bytes);
     }
-    Ok((main, files))
+    let of_kind = |kind| files.iter().filter(move |f| f.kind == kind);
+    for file in of_kind(SceneFileKind::Include) {
+        part(file.name.as_bytes());
+        part(&file.bytes);
+    }
+    if of_kind(SceneFileKind::Asset).next().is_some() {
+        part(b"asset files");
+    }
+    for file in of_kind(SceneFileKind::Asset) {
+        part(file.name.as_bytes());
+        part(&file.bytes);
+    }
+    hash.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// The machine's text and how messages name it. A shipped task's machine path resolves

@@ -91,8 +91,15 @@ pub fn log_scripted_demos(
                  "stop_when_done": spec.stop_when_done},
     });
     let t = task.task();
-    let mut header =
-        RunHeader::reacher(task.id(), &layout, &t.text, &t.scene_xml, spec.seed, config);
+    let mut header = RunHeader::reacher(
+        task.id(),
+        &layout,
+        &t.text,
+        &t.scene_xml,
+        t.scene_files.clone(),
+        spec.seed,
+        config,
+    );
     let rm = spec.reward_machine.as_ref();
     header.reward_machine = rm.map(write_rm);
     // A bad sequence is refused before the log file exists.

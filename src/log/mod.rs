@@ -23,8 +23,8 @@ pub mod schema;
 pub mod writer;
 
 pub use reader::{
-    read_log, read_log_bytes, read_log_file, read_log_records, LoggedEpisode, RecordSink, Recovery,
-    RolloutLog,
+    read_log, read_log_bytes, read_log_file, read_log_records, LogModelError, LoggedEpisode,
+    RecordSink, Recovery, RolloutLog,
 };
 pub use schema::{EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHEMA_VERSION};
 pub use writer::{LogOptions, LogSummary, RolloutLogger, RunHeader, StepRecord};

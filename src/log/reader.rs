@@ -2,6 +2,11 @@
 
 use super::schema::{self, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHEMA_VERSION};
 use super::LogError;
+use crate::env::physics_scene::MAX_SCENE_BYTES;
+use crate::env::scene_files::{
+    SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_FILES,
+};
+use crate::mujoco::{MjError, Model};
 use mcap::records::{op, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader as SansReader, LinearReaderOptions};
 use mcap::McapError;
@@ -68,6 +73,9 @@ pub struct RolloutLog {
     pub run: RunInfo,
     /// The attached model XML (`None` if the attachment is missing).
     pub model_xml: Option<String>,
+    /// The attached files the scene reads besides its own text, in file order (none in a log
+    /// of a scene that reads no other file, and in logs written before logs carried them).
+    pub scene_files: Vec<SceneFile>,
     /// The attached run config text.
     pub config_json: Option<String>,
     /// The `smirl.run` metadata record.
@@ -107,7 +115,38 @@ impl RolloutLog {
                     .to_string()
             })
     }
+
+    /// The compiled model of a ReacherDelivery log's scene, from the log alone: its
+    /// [`Self::reacher_model_xml`] with the scene files it carries, each found by the name the
+    /// scene gives it, whether or not the original files still exist. Without scene files the
+    /// text is compiled alone, as it always was.
+    pub fn reacher_model(&self) -> Result<Model, LogModelError> {
+        let xml = self.reacher_model_xml().map_err(LogModelError::Missing)?;
+        let source = format!("{}:{}", self.path.display(), schema::ATTACHMENT_MODEL_XML);
+        Ok(if self.scene_files.is_empty() {
+            Model::from_xml_str(xml, &source)?
+        } else {
+            let files: Vec<(&str, &[u8])> = (self.scene_files.iter())
+                .map(|f| (f.name.as_str(), f.bytes.as_slice()))
+                .collect();
+            Model::from_xml_with_files(xml, &files, &source)?
+        })
+    }
 }
+
+/// Why a log's scene cannot be compiled.
+#[derive(Debug, thiserror::Error)]
+pub enum LogModelError {
+    /// The log has no scene to compile (see [`RolloutLog::reacher_model_xml`]).
+    #[error("{0}")]
+    Missing(String),
+    #[error(transparent)]
+    Compile(#[from] MjError),
+}
+
+/// Most bytes of included files a log may carry: [`MAX_INCLUDED_FILES`] files of at most
+/// [`MAX_SCENE_BYTES`] each, what a task accepts.
+const MAX_LOGGED_INCLUDE_BYTES: u64 = MAX_INCLUDED_FILES as u64 * MAX_SCENE_BYTES;
 
 /// Largest log file read: 256 MiB (a job's log, ~40 000 steps, is ~3 MB).
 pub const MAX_LOG_FILE_BYTES: u64 = 256 << 20;
@@ -160,6 +199,7 @@ struct Reading<'p> {
     channels: HashMap<u16, Kind>,
     run: Option<RunInfo>,
     model_xml: Option<String>,
+    scene_files: Vec<SceneFile>,
     config_json: Option<String>,
     metadata: HashMap<String, String>,
     episodes: Vec<LoggedEpisode>,
@@ -231,7 +271,11 @@ impl Reading<'_> {
                 match header.name.as_str() {
                     schema::ATTACHMENT_MODEL_XML => self.model_xml = Some(text()),
                     schema::ATTACHMENT_CONFIG => self.config_json = Some(text()),
-                    _ => {}
+                    name => {
+                        if let Some((kind, file)) = schema::scene_file_of_attachment(name) {
+                            self.scene_file(name, kind, file, &data)?;
+                        }
+                    }
                 }
             }
             Record::Statistics(st) => {
@@ -309,6 +353,59 @@ impl Reading<'_> {
         Ok(())
     }
 
+    /// Takes a scene file the log carries (in `attachment`), within what a task accepts: at
+    /// most [`MAX_INCLUDED_FILES`] included files of [`MAX_SCENE_BYTES`] each, and
+    /// [`MAX_ASSET_FILES`] asset files of [`MAX_ASSET_BYTES`] together.
+    fn scene_file(
+        &mut self,
+        attachment: &str,
+        kind: SceneFileKind,
+        name: &str,
+        data: &[u8],
+    ) -> Result<(), LogError> {
+        let of_kind = || self.scene_files.iter().filter(|f| f.kind == kind);
+        let count = of_kind().count();
+        let bytes: u64 = of_kind().map(|f| f.bytes.len() as u64).sum();
+        let (what, count_limit, byte_limit) = match kind {
+            SceneFileKind::Include => (
+                "included files",
+                MAX_INCLUDED_FILES,
+                MAX_LOGGED_INCLUDE_BYTES,
+            ),
+            SceneFileKind::Asset => (
+                "mesh, skin, height-field and texture files",
+                MAX_ASSET_FILES,
+                MAX_ASSET_BYTES,
+            ),
+        };
+        let too_large = |problem: String| LogError::TooLarge {
+            path: self.path.into(),
+            problem: format!("attachment {attachment}: {problem}"),
+        };
+        if count == count_limit {
+            return Err(too_large(format!(
+                "the scene's {what} number more than the limit of {count_limit}"
+            )));
+        }
+        if kind == SceneFileKind::Include && data.len() as u64 > MAX_SCENE_BYTES {
+            return Err(too_large(format!(
+                "{} bytes, more than the limit of {MAX_SCENE_BYTES} for a scene file",
+                data.len()
+            )));
+        }
+        if bytes + data.len() as u64 > byte_limit {
+            return Err(too_large(format!(
+                "the scene's {what} hold more than the limit of {byte_limit} bytes together"
+            )));
+        }
+        self.scene_files.push(SceneFile {
+            kind,
+            name: name.into(),
+            bytes: data.to_vec(),
+        });
+        Ok(())
+    }
+
     /// Counts `bytes` more of decoded episodes against [`MAX_DECODED_BYTES`].
     fn charge(&mut self, bytes: usize) -> Result<(), LogError> {
         self.decoded_bytes += bytes as u64;
@@ -364,6 +461,7 @@ pub fn read_log_records(
         channels: HashMap::new(),
         run: None,
         model_xml: None,
+        scene_files: Vec::new(),
         config_json: None,
         metadata: HashMap::new(),
         episodes: Vec::new(),
@@ -502,6 +600,7 @@ pub fn read_log_records(
         path: path.into(),
         run,
         model_xml: r.model_xml,
+        scene_files: r.scene_files,
         config_json: r.config_json,
         metadata: r.metadata,
         episodes: r.episodes,

@@ -8,7 +8,9 @@
 //! | `/episode/end`   | `protobuf`              | `smirl.v1.EpisodeEnd`        | episode end     |
 //!
 //! The file also carries the model XML and the run config as MCAP attachments (`model.xml`,
-//! `config.json`) and a metadata record `smirl.run` (the run's identity as strings).
+//! `config.json`), every file the scene reads besides its own text (`include/<name>`,
+//! `asset/<name>`; see [`ATTACHMENT_INCLUDE_PREFIX`]) and a metadata record `smirl.run` (the
+//! run's identity as strings).
 //!
 //! **Why protobuf for steps.** A step is mostly floats; their low mantissa bits do not
 //! compress, so on-disk size is about the raw binary size: protobuf stores a `double` in 8
@@ -29,6 +31,7 @@
 use super::proto::{
     file_descriptor_set, DecodeError, Decoder, Encoder, FieldSpec, FieldType, MessageSpec,
 };
+use crate::env::scene_files::{SceneFile, SceneFileKind};
 
 /// Largest uncompressed chunk a log may have: the reader refuses a larger one, and the
 /// writer's chunk size stays below half of it (its chunks are ~1 MiB; see
@@ -60,9 +63,36 @@ pub const EPISODE_END_SCHEMA_NAME: &str = "smirl.v1.EpisodeEnd";
 
 pub const ATTACHMENT_MODEL_XML: &str = "model.xml";
 pub const ATTACHMENT_CONFIG: &str = "config.json";
+/// Prefix of the attachments that carry the files the scene includes, each named by the
+/// prefix and the name the scene gives it (`include/parts/motors.xml`), in the order MuJoCo
+/// reads them. A log of a scene that includes nothing has none.
+pub const ATTACHMENT_INCLUDE_PREFIX: &str = "include/";
+/// Prefix of the attachments that carry the mesh, skin, height-field and texture files the
+/// scene names, each named by the prefix and the file's name relative to the scene file's
+/// directory, or its absolute path (`asset/meshes/link.stl`). A log of a scene that names none
+/// has none.
+pub const ATTACHMENT_ASSET_PREFIX: &str = "asset/";
+
 pub const METADATA_RUN: &str = "smirl.run";
 /// Channel metadata key holding the schema version.
 pub const CHANNEL_VERSION_KEY: &str = "smirl.schema_version";
+
+/// The attachment name of a file the scene reads.
+pub fn scene_file_attachment(file: &SceneFile) -> String {
+    let prefix = match file.kind {
+        SceneFileKind::Include => ATTACHMENT_INCLUDE_PREFIX,
+        SceneFileKind::Asset => ATTACHMENT_ASSET_PREFIX,
+    };
+    format!("{prefix}{}", file.name)
+}
+
+/// The kind and name of the scene file an attachment carries, when it carries one.
+pub fn scene_file_of_attachment(name: &str) -> Option<(SceneFileKind, &str)> {
+    (name
+        .strip_prefix(ATTACHMENT_INCLUDE_PREFIX)
+        .map(|n| (SceneFileKind::Include, n)))
+    .or_else(|| (name.strip_prefix(ATTACHMENT_ASSET_PREFIX)).map(|n| (SceneFileKind::Asset, n)))
+}
 
 /// `rm_state` value meaning "no reward machine".
 pub const NO_RM: i64 = -1;

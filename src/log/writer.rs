@@ -7,6 +7,7 @@ use super::schema::{
 use super::LogError;
 use crate::env::layout::TaskLayout;
 use crate::env::reacher::ReacherDelivery;
+use crate::env::scene_files::{SceneFile, SceneFileKind};
 use crate::env::EnvStep;
 use crate::rm::LabelSet;
 use mcap::records::{MessageHeader, Metadata};
@@ -16,6 +17,7 @@ use std::collections::BTreeMap;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, Sender, SyncSender};
+use std::sync::Arc;
 use std::thread::JoinHandle;
 
 /// How much and how to log.
@@ -63,19 +65,23 @@ pub struct RunHeader {
     pub model_xml_name: String,
     /// The model XML text (attached to the file; replay loads it).
     pub model_xml: String,
+    /// The files the scene reads besides its own text (each attached to the file; replay
+    /// compiles the scene with them).
+    pub scene_files: Arc<[SceneFile]>,
     pub config: serde_json::Value,
     pub reward_machine: Option<String>,
 }
 
 impl RunHeader {
     /// The header of a ReacherDelivery run of a task: its layout, its task file's text
-    /// (recorded in the config under [`CONFIG_TASK_LAYOUT`] and [`CONFIG_TASK_FILE`]) and its
-    /// scene's XML (attached).
+    /// (recorded in the config under [`CONFIG_TASK_LAYOUT`] and [`CONFIG_TASK_FILE`]), its
+    /// scene's XML and the files the scene reads (attached).
     pub fn reacher(
         task: &str,
         layout: &TaskLayout,
         task_file: &str,
         scene_xml: &str,
+        scene_files: Arc<[SceneFile]>,
         seed: u64,
         mut config: serde_json::Value,
     ) -> RunHeader {
@@ -96,6 +102,7 @@ impl RunHeader {
             step_duration_ns: 20_000_000,
             model_xml_name: layout.scene.to_string(),
             model_xml: scene_xml.into(),
+            scene_files,
             config,
             reward_machine: None,
         }
@@ -113,6 +120,7 @@ impl RunHeader {
             &task.layout(),
             &task.text,
             &task.scene_xml,
+            task.scene_files.clone(),
             seed,
             config,
         )
@@ -280,6 +288,20 @@ impl RolloutLogger {
             data: Cow::Borrowed(header.model_xml.as_bytes()),
         })
         .map_err(mcap_err)?;
+        for file in header.scene_files.iter() {
+            w.attach(&Attachment {
+                log_time: 0,
+                create_time: 0,
+                name: schema::scene_file_attachment(file),
+                media_type: match file.kind {
+                    SceneFileKind::Include => "application/xml",
+                    SceneFileKind::Asset => "application/octet-stream",
+                }
+                .into(),
+                data: Cow::Borrowed(&file.bytes),
+            })
+            .map_err(mcap_err)?;
+        }
         w.attach(&Attachment {
             log_time: 0,
             create_time: 0,

@@ -97,38 +97,80 @@ impl Model {
         Self::load_text(xml, &c_path, source_name)
     }
 
+    /// Compiles MJCF text with every file it reads given in memory, each as `(name, bytes)`
+    /// under the name the text gives it: included MJCF files, and mesh, skin, height-field and
+    /// texture files. Nothing is read from disk for a file given here, and nothing is written.
+    ///
+    /// MuJoCo 2.2 looks a file up in its virtual file system by the last component of the
+    /// name, lower-cased, before it looks on disk, for includes and assets alike: each file
+    /// goes in under that key, and two different files with one key cannot both go in (an
+    /// error naming them; the same bytes twice are one file). The text goes in under a key no
+    /// file has. A file the text names and `files` lacks is read from disk relative to the
+    /// working directory, as [`Model::from_xml_str`] reads it.
+    pub fn from_xml_with_files(
+        xml: &str,
+        files: &[(&str, &[u8])],
+        source_name: &str,
+    ) -> Result<Model, MjError> {
+        let refused = |message: String| MjError::Load {
+            source_name: source_name.into(),
+            message,
+        };
+        let mut entries: Vec<(String, &str, &[u8])> = Vec::with_capacity(files.len());
+        for &(name, bytes) in files {
+            let key = vfs_key(name);
+            if key.is_empty() || key.len() >= sys::mjMAXVFSNAME as usize {
+                return Err(refused(format!(
+                    "file name '{name}' does not end in a name of 1 to {} bytes",
+                    sys::mjMAXVFSNAME - 1
+                )));
+            }
+            if bytes.is_empty() {
+                return Err(refused(format!("file {name} is empty")));
+            }
+            match entries.iter().find(|(k, _, _)| *k == key) {
+                Some((_, _, same)) if *same == bytes => {}
+                Some((_, first, _)) => {
+                    return Err(refused(format!(
+                        "files {first} and {name} differ but share the name '{key}', and MuJoCo \
+                         2.2 finds a file in memory by that name alone"
+                    )))
+                }
+                None => entries.push((key, name, bytes)),
+            }
+        }
+        if entries.len() + 1 >= sys::mjMAXVFS as usize {
+            return Err(refused(format!(
+                "{} files, more than MuJoCo's virtual file system holds",
+                entries.len()
+            )));
+        }
+        let main = (0..)
+            .map(|n| match n {
+                0 => "model.xml".to_string(),
+                n => format!("model-{n}.xml"),
+            })
+            .find(|name| entries.iter().all(|(key, _, _)| key != name))
+            .unwrap_or_default();
+        let c_name = |name: &str| {
+            CString::new(name).map_err(|_| refused(format!("file name '{name}' holds a NUL byte")))
+        };
+        check_version()?;
+        let vfs = VfsBox::new();
+        for (key, name, bytes) in &entries {
+            vfs.add(&c_name(key)?, bytes, name, source_name)?;
+        }
+        let main = c_name(&main)?;
+        vfs.add(&main, xml.as_bytes(), "the XML text", source_name)?;
+        Self::load(&main, vfs.ptr, source_name.into())
+    }
+
     /// Compiles `xml` put in a virtual file system under `file` (whose directory, when it has
     /// one, is where relative references resolve).
     fn load_text(xml: &str, file: &CStr, source_name: String) -> Result<Model, MjError> {
         check_version()?;
-        // mjVFS is about 2 MB in 2.2: allocate it on the heap, never on the stack.
         let vfs = VfsBox::new();
-        let bytes = xml.as_bytes();
-        let size = i32::try_from(bytes.len()).map_err(|_| MjError::Load {
-            source_name: source_name.clone(),
-            message: "XML text larger than 2 GiB".into(),
-        })?;
-        // SAFETY: vfs points to an initialised mjVFS; the file slot is created with exactly
-        // `size` bytes and filled with as many.
-        let status = guard(|| unsafe {
-            let code = sys::mj_makeEmptyFileVFS(vfs.ptr, file.as_ptr(), size);
-            if code != 0 {
-                return code;
-            }
-            let index = sys::mj_findFileVFS(vfs.ptr, file.as_ptr());
-            if index < 0 {
-                return -1;
-            }
-            let slot = (*vfs.ptr).filedata[index as usize] as *mut u8;
-            std::ptr::copy_nonoverlapping(bytes.as_ptr(), slot, bytes.len());
-            0
-        })?;
-        if status != 0 {
-            return Err(MjError::Load {
-                source_name,
-                message: format!("MuJoCo's virtual file system refused the text (code {status})"),
-            });
-        }
+        vfs.add(file, xml.as_bytes(), "the XML text", &source_name)?;
         Self::load(file, vfs.ptr, source_name)
     }
 
@@ -368,6 +410,8 @@ struct VfsBox {
 }
 
 impl VfsBox {
+    /// An empty virtual file system. mjVFS is about 2 MB in 2.2: it lives on the heap, never
+    /// on the stack.
     fn new() -> VfsBox {
         let layout = std::alloc::Layout::new::<sys::mjVFS>();
         // SAFETY: layout is non-zero-sized; mj_defaultVFS initialises every field.
@@ -380,6 +424,46 @@ impl VfsBox {
             VfsBox { ptr }
         }
     }
+
+    /// Puts `bytes` (not empty) in under `file`; `what` names them in an error about a model
+    /// from `source_name`.
+    fn add(&self, file: &CStr, bytes: &[u8], what: &str, source_name: &str) -> Result<(), MjError> {
+        let refused = |message: String| MjError::Load {
+            source_name: source_name.into(),
+            message,
+        };
+        let size = i32::try_from(bytes.len())
+            .map_err(|_| refused(format!("{what} is larger than 2 GiB")))?;
+        let vfs = self.ptr;
+        // SAFETY: vfs points to an initialised mjVFS; the file slot is created with exactly
+        // `size` bytes and filled with as many.
+        let status = guard(|| unsafe {
+            let code = sys::mj_makeEmptyFileVFS(vfs, file.as_ptr(), size);
+            if code != 0 {
+                return code;
+            }
+            let index = sys::mj_findFileVFS(vfs, file.as_ptr());
+            if index < 0 {
+                return -1;
+            }
+            let slot = (*vfs).filedata[index as usize] as *mut u8;
+            std::ptr::copy_nonoverlapping(bytes.as_ptr(), slot, bytes.len());
+            0
+        })?;
+        if status != 0 {
+            return Err(refused(format!(
+                "MuJoCo's virtual file system refused {what} (code {status})"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The key MuJoCo 2.2 files a name under in its virtual file system (`vfs_strippath`): the
+/// name's last component, after its last `/` or `\`, lower-cased.
+fn vfs_key(name: &str) -> String {
+    let last = name.rfind(['/', '\\']).map_or(name, |i| &name[i + 1..]);
+    last.to_ascii_lowercase()
 }
 
 impl Drop for VfsBox {

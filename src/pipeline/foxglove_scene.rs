@@ -20,7 +20,7 @@
 use crate::env::layout::{Anchor, TaskLayout};
 use crate::env::placement::Placement;
 use crate::log::schema::{EpisodeStartMsg, StepMsg, TOPIC_EPISODE_START, TOPIC_STEP};
-use crate::log::{read_log_bytes, read_log_file, read_log_records, LogError};
+use crate::log::{read_log_bytes, read_log_file, read_log_records, LogError, LogModelError};
 use crate::mujoco::{Data, MjError, Model, ObjectKind};
 use foxglove::schemas::{
     Color, CubePrimitive, CylinderPrimitive, FrameTransform, FrameTransforms, Pose, Quaternion,
@@ -128,8 +128,8 @@ fn colour(rgba: [f32; 4], alpha: Option<f64>) -> Color {
 }
 
 impl Geometry {
-    fn new(xml: &str, source: &str, layout: &TaskLayout) -> Result<Geometry, GeometryError> {
-        let model = Arc::new(Model::from_xml_str(xml, source)?);
+    fn new(model: Model, layout: &TaskLayout) -> Result<Geometry, GeometryError> {
+        let model = Arc::new(model);
         let id = |kind, name: &str| model.id(kind, name);
         let geom = |name: &str| id(ObjectKind::Geom, name);
         let arm_bodies = [
@@ -480,10 +480,13 @@ pub fn export_scene(
             )));
         }
     }
-    let xml = log.reacher_model_xml().map_err(&bad_input)?;
+    let model = log.reacher_model().map_err(|e| match e {
+        LogModelError::Missing(problem) => bad_input(problem),
+        LogModelError::Compile(e) => bad_input(format!("model.xml: {e}")),
+    })?;
     let layout = log.run.task_layout().map_err(&bad_input)?;
-    let geometry = Geometry::new(xml, &format!("{}:model.xml", input.display()), &layout)
-        .map_err(|e| bad_input(format!("model.xml: {e}")))?;
+    let geometry =
+        Geometry::new(model, &layout).map_err(|e| bad_input(format!("model.xml: {e}")))?;
     let mut data = Data::new(geometry.model.clone()).map_err(|e| bad_input(e.to_string()))?;
 
     let mut part = out.as_os_str().to_os_string();

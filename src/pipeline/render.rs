@@ -143,11 +143,10 @@ pub fn render_episode(
         problem,
     };
     options.validate()?;
-    let xml = log.reacher_model_xml().map_err(&bad)?;
+    // A log without a scene is refused before its episodes are looked at.
+    log.reacher_model_xml().map_err(&bad)?;
     let ep = pick_episode(log, episode, &path)?;
-    let model = Arc::new(
-        Model::from_xml_str(xml, &format!("{path}:model.xml")).map_err(|e| bad(e.to_string()))?,
-    );
+    let model = Arc::new(log.reacher_model().map_err(|e| bad(e.to_string()))?);
     let id = |kind, name: &str| model.id(kind, name).map_err(|e| bad(e.to_string()));
     let elbow = id(ObjectKind::Body, "body1")?;
     let tip = id(ObjectKind::Body, "fingertip")?;

@@ -18,7 +18,6 @@ use crate::env::reacher_task::{Branch, EventBranch};
 use crate::env::{ContinuousEnv, EnvError};
 use crate::log::schema::{sha256_hex, NO_RM};
 use crate::log::{LoggedEpisode, RolloutLog};
-use crate::mujoco::Model;
 use crate::rm::format::{parse_rm, write_rm, RmFileError};
 use crate::rm::{perfect, LabelSet, RewardMachine};
 use std::fmt;
@@ -205,8 +204,14 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
             &shipped[..12]
         ));
     }
-    let model = Model::from_xml_str(xml, &format!("{path}:model.xml"))
-        .map_err(|e| cannot(e.to_string()))?;
+    if !log.scene_files.is_empty() {
+        notes.push(format!(
+            "the scene reads {} more files ({}); replaying with the copies stored in the log",
+            log.scene_files.len(),
+            scene_file_names(log)
+        ));
+    }
+    let model = log.reacher_model().map_err(|e| cannot(e.to_string()))?;
     // The config matters for the time limit (`truncated`) and for reset(seed) (ball
     // randomisation, cancel schedule); the replayed episodes restore their logged start state.
     let layout = log.run.task_layout().map_err(cannot)?;
@@ -249,6 +254,18 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
         steps,
         elapsed_secs: started.elapsed().as_secs_f64(),
     })
+}
+
+/// The names of the scene files a log carries, the first few of them.
+fn scene_file_names(log: &RolloutLog) -> String {
+    const SHOWN: usize = 4;
+    let mut names: Vec<&str> = (log.scene_files.iter().take(SHOWN))
+        .map(|f| f.name.as_str())
+        .collect();
+    if log.scene_files.len() > SHOWN {
+        names.push("…");
+    }
+    names.join(", ")
 }
 
 /// The machine to re-track: the one stored in the run record, else (when steps carry

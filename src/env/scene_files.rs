@@ -1,0 +1,407 @@
+//! The files a scene reads besides its own text, found as MuJoCo 2.2.2 finds them: every file
+//! it `<include>`s, however deep, and every mesh, skin, height-field and texture file that its
+//! `<asset>` elements name. A task's expert is keyed by them (the content hash of
+//! [`super::task_file::Task`]) and logs carry them, so that an edited mesh trains another
+//! expert and a log compiles its scene with no file but itself.
+//!
+//! MuJoCo 2.2.2 resolves the names as strings, and so does this module:
+//! - an included file, at any depth, is the main scene file's directory followed by the
+//!   include's `file`;
+//! - an asset file is its `file` (with `strippath="true"`, the file's last path component)
+//!   when that is absolute; otherwise `meshdir` (meshes, skins, height fields) or `texturedir`
+//!   (textures) followed by the file when that directory is absolute; otherwise the main scene
+//!   file's directory, then that directory, then the file. The compiler applies `meshdir`,
+//!   `texturedir` and `strippath` after the whole model is read, so the last `<compiler>` that
+//!   sets one holds for every asset. (`assetdir` is MuJoCo 2.3's; 2.2.2 does not know it.)
+//! - a texture reads its `file` unless it is `builtin`, and without a `file` its cube faces
+//!   (`fileright`, `fileleft`, `fileup`, `filedown`, `filefront`, `fileback`).
+
+use super::physics_scene::{attribute, tags, SceneCutError, Tag, TagKind, MAX_SCENE_BYTES};
+use std::borrow::Cow;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Most files a scene may include, directly or through other included files.
+pub const MAX_INCLUDED_FILES: usize = 64;
+/// Most mesh, skin, height-field and texture files a scene may name.
+pub const MAX_ASSET_FILES: usize = 256;
+/// Most bytes the mesh, skin, height-field and texture files of a scene may hold together:
+/// 64 MiB (MuJoCo 2.2.2 reads a binary STL of at most 200 000 faces, about 10 MB).
+pub const MAX_ASSET_BYTES: u64 = 64 << 20;
+
+/// What a file is to the scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneFileKind {
+    /// An MJCF file the scene `<include>`s.
+    Include,
+    /// A mesh, skin, height-field or texture file.
+    Asset,
+}
+
+/// A file a scene reads, named as the scene names it: relative to the main scene file's
+/// directory (`parts/motors.xml`, `meshes/link.stl` for `meshdir="meshes"`), or the absolute
+/// path the scene gives.
+#[derive(Clone, PartialEq, Eq)]
+pub struct SceneFile {
+    pub kind: SceneFileKind,
+    pub name: String,
+    pub bytes: Vec<u8>,
+}
+
+// A mesh file's bytes are no reading matter in a message: its name, kind and size are.
+impl fmt::Debug for SceneFile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("SceneFile")
+            .field("kind", &self.kind)
+            .field("name", &self.name)
+            .field("bytes", &self.bytes.len())
+            .finish()
+    }
+}
+
+/// A scene file's text and the files it reads: the included files in the order MuJoCo reads
+/// them, then the asset files in the order the assembled document names them (each once).
+#[derive(Clone, Debug)]
+pub struct SceneFiles {
+    pub main: Vec<u8>,
+    pub files: Vec<SceneFile>,
+}
+
+/// Why a scene's files cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneFileError {
+    #[error("{what} {file}: cannot read: {error}")]
+    Io {
+        what: &'static str,
+        file: String,
+        error: std::io::Error,
+    },
+    #[error("{file}: {error}")]
+    Syntax { file: String, error: SceneCutError },
+    #[error("{scene} includes more than {MAX_INCLUDED_FILES} files")]
+    TooManyIncludes { scene: String },
+    #[error(
+        "{scene} names more than {MAX_ASSET_FILES} mesh, skin, height-field and texture files"
+    )]
+    TooManyAssets { scene: String },
+    #[error("{what} {file}: the scene's mesh, skin, height-field and texture files hold more than {MAX_ASSET_BYTES} bytes together")]
+    AssetBytes { what: &'static str, file: String },
+}
+
+impl SceneFileError {
+    /// The scene's text could not be read as XML (MuJoCo's own message on it is the better
+    /// one).
+    pub fn is_syntax(&self) -> bool {
+        matches!(self, SceneFileError::Syntax { .. })
+    }
+}
+
+/// Which `<compiler>` directory an asset file resolves in.
+#[derive(Clone, Copy)]
+enum AssetDir {
+    Mesh,
+    Texture,
+}
+
+/// An asset file as an element names it.
+struct AssetRef {
+    dir: AssetDir,
+    what: &'static str,
+    file: String,
+}
+
+/// The assembled document as it is walked: the elements open around the current tag, across
+/// included files, and what was found so far.
+struct Walk {
+    /// The main scene file's directory as MuJoCo takes it: up to its last separator.
+    dir: String,
+    scene: String,
+    /// Open elements: name, and whether it is an included file's root (which MuJoCo drops,
+    /// its children taking the include's place).
+    open: Vec<(String, bool)>,
+    includes: Vec<SceneFile>,
+    meshdir: Option<String>,
+    texturedir: Option<String>,
+    strippath: bool,
+    assets: Vec<AssetRef>,
+}
+
+/// Reads the scene file at `path` and every file it reads, within [`MAX_INCLUDED_FILES`]
+/// included files of at most [`MAX_SCENE_BYTES`] each, and [`MAX_ASSET_FILES`] asset files
+/// of at most [`MAX_ASSET_BYTES`] together. Errors name the file.
+pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
+    let scene = path.display().to_string();
+    let main = read(path, "scene file", MAX_SCENE_BYTES)?;
+    let path_text = path.as_os_str().to_string_lossy();
+    let mut walk = Walk {
+        dir: file_dir(&path_text).to_string(),
+        scene: scene.clone(),
+        open: Vec::new(),
+        includes: Vec::new(),
+        meshdir: None,
+        texturedir: None,
+        strippath: false,
+        assets: Vec::new(),
+    };
+    walk.text(&String::from_utf8_lossy(&main), &scene, false)?;
+    let mut files = std::mem::take(&mut walk.includes);
+    let separated = |dir: &Option<String>| {
+        let mut dir = dir.clone().unwrap_or_default();
+        if !dir.is_empty() && !dir.ends_with(['/', '\\']) {
+            dir.push('/');
+        }
+        dir
+    };
+    let (meshdir, texturedir) = (separated(&walk.meshdir), separated(&walk.texturedir));
+    let mut asset_bytes = 0u64;
+    let mut assets = 0;
+    for asset in &walk.assets {
+        let file = if walk.strippath {
+            last_component(&asset.file)
+        } else {
+            &asset.file
+        };
+        let sub = match asset.dir {
+            AssetDir::Mesh => &meshdir,
+            AssetDir::Texture => &texturedir,
+        };
+        let (name, full) = if is_absolute(file) {
+            (file.to_string(), file.to_string())
+        } else if is_absolute(sub) {
+            (format!("{sub}{file}"), format!("{sub}{file}"))
+        } else {
+            (format!("{sub}{file}"), format!("{}{sub}{file}", walk.dir))
+        };
+        if files
+            .iter()
+            .any(|f| f.kind == SceneFileKind::Asset && f.name == name)
+        {
+            continue;
+        }
+        if assets == MAX_ASSET_FILES {
+            return Err(SceneFileError::TooManyAssets { scene });
+        }
+        let left = MAX_ASSET_BYTES - asset_bytes;
+        let over = || SceneFileError::AssetBytes {
+            what: asset.what,
+            file: full.clone(),
+        };
+        let full_path = PathBuf::from(&full);
+        // The size the file system reports is checked first, so that a file over the budget
+        // is refused by name before it is read.
+        if std::fs::metadata(&full_path).is_ok_and(|m| m.len() > left) {
+            return Err(over());
+        }
+        let bytes = read(&full_path, asset.what, left)?;
+        asset_bytes += bytes.len() as u64;
+        assets += 1;
+        files.push(SceneFile {
+            kind: SceneFileKind::Asset,
+            name,
+            bytes,
+        });
+    }
+    Ok(SceneFiles { main, files })
+}
+
+/// The bytes of the file at `path`, at most `limit`; errors name it as `what`.
+fn read(path: &Path, what: &'static str, limit: u64) -> Result<Vec<u8>, SceneFileError> {
+    crate::input_file::read_bytes(path, limit).map_err(|error| SceneFileError::Io {
+        what,
+        file: path.display().to_string(),
+        error,
+    })
+}
+
+impl Walk {
+    /// Walks the tags of one file's text (`label` names it in messages); an included file's
+    /// root element is dropped, as MuJoCo drops it.
+    fn text(&mut self, text: &str, label: &str, included: bool) -> Result<(), SceneFileError> {
+        let syntax = |error| SceneFileError::Syntax {
+            file: label.to_string(),
+            error,
+        };
+        let base = self.open.len();
+        for tag in tags(text).map_err(syntax)? {
+            let dropped = included && self.open.len() == base;
+            match tag.kind {
+                TagKind::Open => {
+                    if !dropped {
+                        self.element(&tag)?;
+                    }
+                    self.open.push((tag.name.to_string(), dropped));
+                }
+                TagKind::SelfClosing => {
+                    if !dropped {
+                        self.element(&tag)?;
+                    }
+                }
+                TagKind::Close => {
+                    if self.open.len() == base {
+                        return Err(syntax(SceneCutError::Unopened {
+                            at: tag.start,
+                            got: tag.name.into(),
+                        }));
+                    }
+                    let (name, _) = self.open.pop().unwrap_or_default();
+                    if name != tag.name {
+                        return Err(syntax(SceneCutError::Mismatched {
+                            at: tag.start,
+                            got: tag.name.into(),
+                            expected: name,
+                        }));
+                    }
+                }
+            }
+        }
+        if self.open.len() != base {
+            return Err(syntax(SceneCutError::Unclosed {
+                at: text.len(),
+                what: "element",
+            }));
+        }
+        Ok(())
+    }
+
+    /// The element a kept tag opens: an include is read and walked in its place; a compiler
+    /// directly under the document's root sets the asset directories; an asset names files.
+    fn element(&mut self, tag: &Tag) -> Result<(), SceneFileError> {
+        let value = |key: &str| attribute(tag.attributes, key).map(unescape);
+        // MuJoCo matches `include` whatever its case, the elements it parses exactly.
+        if tag.name.eq_ignore_ascii_case("include") {
+            let Some(name) = value("file") else {
+                return Ok(());
+            };
+            if self.includes.len() == MAX_INCLUDED_FILES {
+                return Err(SceneFileError::TooManyIncludes {
+                    scene: self.scene.clone(),
+                });
+            }
+            let full = format!("{}{name}", self.dir);
+            let bytes = read(Path::new(&full), "included file", MAX_SCENE_BYTES)?;
+            let text = String::from_utf8_lossy(&bytes).into_owned();
+            self.includes.push(SceneFile {
+                kind: SceneFileKind::Include,
+                name: name.into_owned(),
+                bytes,
+            });
+            return self.text(&text, &full, true);
+        }
+        let kept: Vec<&str> = (self.open.iter())
+            .filter(|(_, dropped)| !dropped)
+            .map(|(name, _)| name.as_str())
+            .collect();
+        match (tag.name, kept.as_slice()) {
+            ("compiler", ["mujoco"]) => {
+                if let Some(dir) = value("meshdir") {
+                    self.meshdir = Some(dir.into_owned());
+                }
+                if let Some(dir) = value("texturedir") {
+                    self.texturedir = Some(dir.into_owned());
+                }
+                if let Some(strip) = value("strippath") {
+                    self.strippath = strip == "true";
+                }
+            }
+            (element, [.., "asset"]) => {
+                let mut name = |dir, what, key: &str| {
+                    if let Some(file) = value(key).filter(|f| !f.is_empty()) {
+                        self.assets.push(AssetRef {
+                            dir,
+                            what,
+                            file: file.into_owned(),
+                        });
+                    }
+                };
+                match element {
+                    "mesh" => name(AssetDir::Mesh, "mesh file", "file"),
+                    "skin" => name(AssetDir::Mesh, "skin file", "file"),
+                    "hfield" => name(AssetDir::Mesh, "height-field file", "file"),
+                    "texture" => {
+                        let builtin = value("builtin").is_some_and(|b| b != "none");
+                        let file = value("file").is_some_and(|f| !f.is_empty());
+                        if builtin {
+                            // Made by the compiler: no file is read.
+                        } else if file {
+                            name(AssetDir::Texture, "texture file", "file");
+                        } else {
+                            for face in [
+                                "fileright",
+                                "fileleft",
+                                "fileup",
+                                "filedown",
+                                "filefront",
+                                "fileback",
+                            ] {
+                                name(AssetDir::Texture, "texture file", face);
+                            }
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+/// A path's directory as MuJoCo 2.2.2 takes it (`mjuu_getfiledir`): everything up to and
+/// including its last `/` or `\`, or nothing.
+fn file_dir(path: &str) -> &str {
+    path.rfind(['/', '\\']).map_or("", |i| &path[..=i])
+}
+
+/// A path's last component (`mjuu_strippath`).
+pub fn last_component(path: &str) -> &str {
+    path.rfind(['/', '\\']).map_or(path, |i| &path[i + 1..])
+}
+
+/// MuJoCo 2.2.2's test of an absolute path (`mjuu_isabspath`): a leading separator, or a
+/// drive's `:/` or `:\` anywhere.
+fn is_absolute(path: &str) -> bool {
+    path.starts_with(['/', '\\']) || path.contains(":/") || path.contains(":\\")
+}
+
+/// An attribute value with XML's character references replaced, as the XML parser MuJoCo
+/// uses replaces them; a reference it cannot read stays as written.
+fn unescape(value: &str) -> Cow<'_, str> {
+    if !value.contains('&') {
+        return Cow::Borrowed(value);
+    }
+    let mut out = String::with_capacity(value.len());
+    let mut rest = value;
+    while let Some(amp) = rest.find('&') {
+        out.push_str(&rest[..amp]);
+        rest = &rest[amp..];
+        let decoded = rest.find(';').and_then(|semi| {
+            let entity = &rest[1..semi];
+            let c = match entity {
+                "amp" => Some('&'),
+                "lt" => Some('<'),
+                "gt" => Some('>'),
+                "quot" => Some('"'),
+                "apos" => Some('\''),
+                _ => entity
+                    .strip_prefix("#x")
+                    .map(|hex| u32::from_str_radix(hex, 16))
+                    .or_else(|| entity.strip_prefix('#').map(str::parse))
+                    .and_then(Result::ok)
+                    .and_then(char::from_u32),
+            };
+            c.map(|c| (c, semi + 1))
+        });
+        match decoded {
+            Some((c, len)) => {
+                out.push(c);
+                rest = &rest[len..];
+            }
+            None => {
+                out.push('&');
+                rest = &rest[1..];
+            }
+        }
+    }
+    out.push_str(rest);
+    Cow::Owned(out)
+}

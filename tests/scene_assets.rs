@@ -1,0 +1,317 @@
+//! A scene's mesh, texture, height-field and skin files are part of its task's expert key, as
+//! its included files are: editing one makes another key, the same files the same key; a
+//! missing one, or more of them than the limits allow, stops the task before any work with a
+//! message naming the file; and a scene that reads no other file keeps the key its committed
+//! expert is named by.
+
+use smirl::env::reacher_task::ReacherTask;
+use smirl::env::scene_files::{read_scene_files, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES};
+use smirl::env::task_file::{Task, TaskProblem};
+use smirl::pipeline::reacher_expert::{default_expert_cache, expert_cache_path};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// A tetrahedron as Wavefront OBJ, a mesh MuJoCo 2.2.2 compiles.
+const TETRAHEDRON: &str =
+    "v 0 0 0\nv 0.01 0 0\nv 0 0.01 0\nv 0 0 0.01\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+/// A `side`×`side` grey PNG of brightness `value`.
+fn png(side: u32, value: u8) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, side, side);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().unwrap();
+    writer
+        .write_image_data(&vec![value; (3 * side * side) as usize])
+        .unwrap();
+    writer.finish().unwrap();
+    out
+}
+
+/// A height field in MuJoCo's own binary format: rows, columns, then the heights.
+fn hfield(heights: [f32; 4]) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend_from_slice(&2i32.to_le_bytes());
+    out.extend_from_slice(&2i32.to_le_bytes());
+    for h in heights {
+        out.extend_from_slice(&h.to_le_bytes());
+    }
+    out
+}
+
+const MACHINE: &str = "vocabulary: ab\nstates: 3\ninitial: 0\nterminal: 2\n\
+                       (0, 1, 'a', 0)\n(1, 2, 'b', 1)\n";
+const TASK: &str = "scene = \"scene.xml\"\nmachine = \"m.txt\"\nepisode_steps = 50\n\
+                    randomize_layout = false\n\
+                    [[region]]\nletter = \"a\"\nbody = \"red\"\nradius = 0.02\n\
+                    [[region]]\nletter = \"b\"\nbody = \"blue\"\nradius = 0.02\n";
+
+/// The built-in scene with `compiler` as its compiler's further attributes and `assets` in an
+/// `<asset>` element; the task file over it in `dir`, and the task's path.
+fn scene_with(dir: &Path, compiler: &str, assets: &str) -> PathBuf {
+    let xml = smirl::assets::REACHER_XML;
+    let compiler_tag = "<compiler angle=\"radian\" inertiafromgeom=\"true\"/>";
+    assert!(xml.contains(compiler_tag));
+    let scene = xml.replacen(
+        compiler_tag,
+        &format!(
+            "<compiler angle=\"radian\" inertiafromgeom=\"true\" {compiler}/>\n\
+             <asset>{assets}</asset>"
+        ),
+        1,
+    );
+    std::fs::write(dir.join("scene.xml"), scene).unwrap();
+    std::fs::write(dir.join("m.txt"), MACHINE).unwrap();
+    std::fs::write(dir.join("task.toml"), TASK).unwrap();
+    dir.join("task.toml")
+}
+
+/// A mesh, a 2D texture, the six faces of a cube texture, a height field and a built-in
+/// texture whose `file` is never read, in `meshes/` and `textures/`.
+const ASSETS: &str = "<mesh name=\"tet\" file=\"tet.obj\"/>\
+                      <texture name=\"grey\" type=\"2d\" file=\"grey.png\"/>\
+                      <texture name=\"box\" type=\"cube\" fileright=\"f.png\" fileleft=\"f.png\" \
+                      fileup=\"f.png\" filedown=\"f.png\" filefront=\"f.png\" fileback=\"back.png\"/>\
+                      <texture name=\"made\" type=\"2d\" builtin=\"checker\" width=\"8\" height=\"8\" \
+                      file=\"absent.png\"/>\
+                      <hfield name=\"ground\" file=\"ground.bin\" size=\"1 1 0.1 0.1\"/>";
+
+fn write_assets(dir: &Path) {
+    std::fs::create_dir_all(dir.join("meshes")).unwrap();
+    std::fs::create_dir_all(dir.join("textures")).unwrap();
+    std::fs::write(dir.join("meshes/tet.obj"), TETRAHEDRON).unwrap();
+    std::fs::write(dir.join("meshes/ground.bin"), hfield([0.0, 0.1, 0.2, 0.3])).unwrap();
+    std::fs::write(dir.join("textures/grey.png"), png(4, 128)).unwrap();
+    std::fs::write(dir.join("textures/f.png"), png(2, 10)).unwrap();
+    std::fs::write(dir.join("textures/back.png"), png(2, 20)).unwrap();
+}
+
+fn key(task: &Path) -> String {
+    Task::load(task).unwrap().content_hash
+}
+
+#[test]
+fn every_file_the_scene_reads_is_part_of_the_expert_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    let task = scene_with(dir, "meshdir=\"meshes\" texturedir=\"textures\"", ASSETS);
+    let loaded = Task::load(&task).unwrap();
+    let names: Vec<(&str, SceneFileKind)> = (loaded.scene_files.iter())
+        .map(|f| (f.name.as_str(), f.kind))
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "meshes/tet.obj",
+            "textures/grey.png",
+            "textures/f.png",
+            "textures/back.png",
+            "meshes/ground.bin",
+        ]
+        .map(|n| (n, SceneFileKind::Asset)),
+        "each file once, in the document's order; the built-in texture reads none"
+    );
+    let first = loaded.content_hash;
+    assert_eq!(key(&task), first, "the same files, the same key");
+
+    let edits: [(&str, Vec<u8>); 4] = [
+        (
+            "meshes/tet.obj",
+            TETRAHEDRON.replace("0.01 0 0", "0.02 0 0").into(),
+        ),
+        ("textures/grey.png", png(4, 129)),
+        ("textures/back.png", png(2, 21)),
+        ("meshes/ground.bin", hfield([0.0, 0.1, 0.2, 0.4])),
+    ];
+    let mut keys = vec![first.clone()];
+    for (file, edited) in edits {
+        let original = std::fs::read(dir.join(file)).unwrap();
+        std::fs::write(dir.join(file), &edited).unwrap();
+        let changed = key(&task);
+        assert!(!keys.contains(&changed), "an edited {file} makes a new key");
+        keys.push(changed);
+        std::fs::write(dir.join(file), original).unwrap();
+        assert_eq!(key(&task), first, "{file} restored, the first key again");
+    }
+
+    // The last compiler to set a directory holds, an absolute directory is taken as it
+    // stands, and `strippath` drops the names' own directories.
+    let moved = tempfile::tempdir().unwrap();
+    std::fs::create_dir(moved.path().join("m")).unwrap();
+    std::fs::write(moved.path().join("m/tet.obj"), TETRAHEDRON).unwrap();
+    let absolute = format!("{}/m", moved.path().display());
+    let task = scene_with(
+        dir,
+        &format!("meshdir=\"elsewhere\"/><compiler meshdir=\"{absolute}\" strippath=\"true\""),
+        "<mesh name=\"tet\" file=\"some/where/tet.obj\"/>",
+    );
+    let loaded = Task::load(&task).unwrap();
+    assert_eq!(
+        (loaded.scene_files.iter())
+            .map(|f| f.name.as_str())
+            .collect::<Vec<_>>(),
+        [format!("{absolute}/tet.obj")]
+    );
+    let before = loaded.content_hash;
+    std::fs::write(
+        moved.path().join("m/tet.obj"),
+        TETRAHEDRON.replace("0.01", "0.03"),
+    )
+    .unwrap();
+    assert_ne!(key(&task), before);
+}
+
+#[test]
+fn a_scene_that_reads_no_other_file_keeps_its_key() {
+    // The committed experts of task files are found by the key of their task, scene and
+    // machine alone.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for file in [
+        "assets/tasks/new/pair.toml",
+        "assets/tasks/new/avoid.toml",
+        "assets/tasks/new/loop.toml",
+        "assets/tasks/new/switch.toml",
+        "assets/scenes/six_targets_ring.toml",
+        "assets/scenes/six_targets_detour.toml",
+    ] {
+        let task = ReacherTask::resolve(root.join(file).to_str().unwrap()).unwrap();
+        assert!(task.task().scene_files.is_empty(), "{file}");
+        let cache = default_expert_cache(&task).unwrap();
+        let policy = expert_cache_path(&cache, task);
+        assert!(policy.is_file(), "{file}: no {}", policy.display());
+    }
+}
+
+/// `reacher --task TASK --quick` in a fresh run directory: its exit status and message.
+fn run(task: &Path) -> (Option<i32>, String) {
+    let out = tempfile::tempdir().unwrap();
+    let output = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .args(["--task", task.to_str().unwrap(), "--quick", "--out"])
+        .arg(out.path().join("run"))
+        .output()
+        .unwrap();
+    assert!(
+        !out.path().join("run").exists(),
+        "nothing is written for a refused task"
+    );
+    (
+        output.status.code(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_missing_asset_file_is_named_before_any_work() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    let task = scene_with(dir, "meshdir=\"meshes\" texturedir=\"textures\"", ASSETS);
+    Task::load(&task).unwrap();
+    for (file, what) in [
+        ("textures/back.png", "texture file"),
+        ("meshes/ground.bin", "height-field file"),
+        ("meshes/tet.obj", "mesh file"),
+    ] {
+        let original = std::fs::read(dir.join(file)).unwrap();
+        std::fs::remove_file(dir.join(file)).unwrap();
+        let e = Task::load(&task).unwrap_err();
+        assert!(matches!(e.problem(), Some(TaskProblem::Scene(_))), "{e}");
+        let full = dir.join(file).display().to_string();
+        let message = e.to_string();
+        assert!(
+            message.contains(&format!("{what} {full}: cannot read")),
+            "{message}"
+        );
+        let (status, stderr) = run(&task);
+        assert_eq!(status, Some(2), "{stderr}");
+        assert!(stderr.contains(&full), "{stderr}");
+        std::fs::write(dir.join(file), original).unwrap();
+    }
+}
+
+#[test]
+fn more_asset_files_or_bytes_than_the_limits_are_refused_naming_the_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    // One file more than the limit: the files are counted before MuJoCo compiles anything,
+    // so they need not be meshes.
+    std::fs::create_dir(dir.join("many")).unwrap();
+    let mut assets = String::new();
+    for k in 0..=MAX_ASSET_FILES {
+        std::fs::write(dir.join(format!("many/{k}.stl")), "x").unwrap();
+        assets.push_str(&format!("<mesh name=\"m{k}\" file=\"many/{k}.stl\"/>"));
+    }
+    let task = scene_with(dir, "", &assets);
+    let e = Task::load(&task).unwrap_err();
+    assert!(
+        e.to_string().contains(&format!(
+            "names more than {MAX_ASSET_FILES} mesh, skin, height-field and texture files"
+        )),
+        "{e}"
+    );
+    let (status, stderr) = run(&task);
+    assert_eq!(status, Some(2), "{stderr}");
+
+    // A file that alone holds more than the bytes allowed (sparse: nothing is written).
+    let big = std::fs::File::create(dir.join("big.stl")).unwrap();
+    big.set_len(MAX_ASSET_BYTES + 1).unwrap();
+    let task = scene_with(dir, "", "<mesh name=\"big\" file=\"big.stl\"/>");
+    let e = Task::load(&task).unwrap_err();
+    let full = dir.join("big.stl").display().to_string();
+    assert!(
+        e.to_string().contains(&format!(
+            "mesh file {full}: the scene's mesh, skin, height-field and texture files hold \
+             more than {MAX_ASSET_BYTES} bytes together"
+        )),
+        "{e}"
+    );
+    let (status, stderr) = run(&task);
+    assert_eq!(status, Some(2), "{stderr}");
+    assert!(stderr.contains(&full), "{stderr}");
+}
+
+#[test]
+fn included_files_and_their_assets_are_read_in_the_assembled_document() {
+    // An asset element in an included file, and a compiler directory set in another.
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    std::fs::create_dir(dir.join("parts")).unwrap();
+    std::fs::write(
+        dir.join("parts/assets.xml"),
+        "<mujoco><mesh name=\"tet\" file=\"tet.obj\"/></mujoco>",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("parts/compiler.xml"),
+        "<mujoco><compiler meshdir=\"meshes\"/></mujoco>",
+    )
+    .unwrap();
+    scene_with(dir, "", "<include file=\"parts/assets.xml\"/>");
+    let text = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+    std::fs::write(
+        dir.join("scene.xml"),
+        text.replacen(
+            "<asset>",
+            "<include file=\"parts/compiler.xml\"/><asset>",
+            1,
+        ),
+    )
+    .unwrap();
+    let files = read_scene_files(&dir.join("scene.xml")).unwrap();
+    let names: Vec<(&str, SceneFileKind)> = (files.files.iter())
+        .map(|f| (f.name.as_str(), f.kind))
+        .collect();
+    assert_eq!(
+        names,
+        [
+            ("parts/compiler.xml", SceneFileKind::Include),
+            ("parts/assets.xml", SceneFileKind::Include),
+            ("meshes/tet.obj", SceneFileKind::Asset),
+        ]
+    );
+    // And MuJoCo reads the same files: the task loads.
+    Task::load(&dir.join("task.toml")).unwrap();
+}

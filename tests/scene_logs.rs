@@ -1,0 +1,465 @@
+//! A log carries every file its scene reads — the files it includes, however deep, and its
+//! mesh and texture files — as attachments, and `replay`, `render` and `foxglove` compile the
+//! scene from the log alone: with the scene's directory gone, the episodes replay bit for bit.
+//! What a log carries is bounded as a task's scene is; a log of a scene without such files
+//! carries none; the official MCAP reader sees the attachments.
+
+use smirl::assets::REACHER_XML;
+use smirl::env::scene_files::{
+    SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_FILES,
+};
+use smirl::log::{read_log, LogError, LogOptions, RolloutLogger, RunHeader};
+use smirl::pipeline::replay::replay;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::Arc;
+
+/// A tetrahedron as Wavefront OBJ.
+const TETRAHEDRON: &str =
+    "v 0 0 0\nv 0.01 0 0\nv 0 0.01 0\nv 0 0 0.01\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+/// A 4×4 grey PNG.
+fn png() -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, 4, 4);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().unwrap();
+    writer.write_image_data(&[128; 48]).unwrap();
+    writer.finish().unwrap();
+    out
+}
+
+const MACHINE: &str = "vocabulary: ab\nstates: 3\ninitial: 0\nterminal: 2\n\
+                       (0, 1, 'a', 0)\n(1, 2, 'b', 1)\n";
+const TASK: &str = "scene = \"scene.xml\"\nmachine = \"m.txt\"\nepisode_steps = 60\n\
+                    randomize_layout = true\n\
+                    [[region]]\nletter = \"a\"\nbody = \"red\"\nradius = 0.02\n\
+                    [[region]]\nletter = \"b\"\nbody = \"blue\"\nradius = 0.02\n";
+
+/// The built-in scene in `dir` with its motors two includes deep (`scene.xml` includes
+/// `parts/outer.xml`, which includes `parts/motors.xml`), a mesh drawn in the world and a
+/// texture; the task over it, and the scene's files as a log must carry them.
+fn scene_of_ones_own(dir: &Path) -> (PathBuf, Vec<(String, Vec<u8>)>) {
+    let (start, end) = (
+        REACHER_XML.find("<actuator>").unwrap(),
+        REACHER_XML.find("</actuator>").unwrap() + "</actuator>".len(),
+    );
+    let compiler = "<compiler angle=\"radian\" inertiafromgeom=\"true\"/>";
+    let worldbody = "<worldbody>";
+    assert!(REACHER_XML.contains(compiler) && REACHER_XML.contains(worldbody));
+    let scene = format!(
+        "{}<include file=\"parts/outer.xml\"/>{}",
+        &REACHER_XML[..start],
+        &REACHER_XML[end..]
+    )
+    .replacen(
+        compiler,
+        "<compiler angle=\"radian\" inertiafromgeom=\"true\" meshdir=\"meshes\" \
+         texturedir=\"textures\"/>\n<asset><mesh name=\"tet\" file=\"tet.obj\"/>\
+         <texture name=\"grey\" type=\"2d\" file=\"grey.png\"/></asset>",
+        1,
+    )
+    .replacen(
+        worldbody,
+        "<worldbody><geom type=\"mesh\" mesh=\"tet\" contype=\"0\" conaffinity=\"0\" \
+         pos=\"0.25 0.25 0\"/>",
+        1,
+    );
+    let files = [
+        (
+            "include/parts/outer.xml",
+            b"<mujoco><include file=\"parts/motors.xml\"/></mujoco>".to_vec(),
+        ),
+        (
+            "include/parts/motors.xml",
+            format!("<mujoco>{}</mujoco>", &REACHER_XML[start..end]).into_bytes(),
+        ),
+        ("asset/meshes/tet.obj", TETRAHEDRON.as_bytes().to_vec()),
+        ("asset/textures/grey.png", png()),
+    ]
+    .map(|(name, bytes)| (name.to_string(), bytes));
+    for (name, bytes) in &files {
+        let path = dir.join(name.split_once('/').unwrap().1);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, bytes).unwrap();
+    }
+    std::fs::write(dir.join("scene.xml"), scene).unwrap();
+    std::fs::write(dir.join("m.txt"), MACHINE).unwrap();
+    std::fs::write(dir.join("task.toml"), TASK).unwrap();
+    (dir.join("task.toml"), files.to_vec())
+}
+
+/// `reacher ARGS` run in `dir`.
+fn reacher(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr)
+}
+
+/// Every file under `dir`, relative to it.
+fn listing(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        let name = PathBuf::from(path.file_name().unwrap());
+        if path.is_dir() {
+            out.extend(listing(&path).into_iter().map(|p| name.join(p)));
+        } else {
+            out.push(name);
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn a_log_of_a_scene_with_nested_includes_replays_without_its_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene_dir = tmp.path().join("scene");
+    let logs = tmp.path().join("logs");
+    let elsewhere = tmp.path().join("elsewhere");
+    for d in [&scene_dir, &logs, &elsewhere] {
+        std::fs::create_dir(d).unwrap();
+    }
+    let (task, files) = scene_of_ones_own(&scene_dir);
+    let o = reacher(
+        &logs,
+        &[
+            "demo",
+            "--task",
+            task.to_str().unwrap(),
+            "--episodes",
+            "3",
+            "--out",
+            "demo.mcap",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let log_path = logs.join("demo.mcap");
+    let log = read_log(&log_path).unwrap();
+    let carried: Vec<(String, Vec<u8>)> = (log.scene_files.iter())
+        .map(|f| {
+            let prefix = match f.kind {
+                SceneFileKind::Include => "include/",
+                SceneFileKind::Asset => "asset/",
+            };
+            (format!("{prefix}{}", f.name), f.bytes.clone())
+        })
+        .collect();
+    assert_eq!(
+        carried, files,
+        "the includes in reading order, then the assets"
+    );
+    let before = replay(&log).unwrap();
+    assert!(before.all_match(), "{before}");
+
+    // The scene's directory gone, and the commands run where no file of it could be found.
+    std::fs::remove_dir_all(&scene_dir).unwrap();
+    let log = read_log(&log_path).unwrap();
+    let report = replay(&log).unwrap();
+    assert!(report.all_match(), "{report}");
+    assert_eq!(report.steps, log.steps());
+    assert!(report.episodes.iter().all(|e| e.seed_reproduces_start));
+    assert!(
+        (report.setting_notes.iter()).any(|n| n.contains(
+            "the scene reads 4 more files (parts/outer.xml, parts/motors.xml, meshes/tet.obj, \
+             textures/grey.png); replaying with the copies stored in the log"
+        )),
+        "{:?}",
+        report.setting_notes
+    );
+    let log_arg = log_path.to_str().unwrap();
+    let o = reacher(&elsewhere, &["replay", "--verify", log_arg]);
+    assert!(o.status.success(), "{}", text(&o));
+    let picture = logs.join("ep.png");
+    let o = reacher(
+        &elsewhere,
+        &["render", log_arg, "--out", picture.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let view = logs.join("view.mcap");
+    let o = reacher(
+        &elsewhere,
+        &["foxglove", log_arg, "--out", view.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    // The view copies the attachments: it replays too.
+    let o = reacher(&elsewhere, &["replay", "--verify", view.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(
+        listing(&logs),
+        ["demo.mcap", "ep.png", "view.mcap"].map(PathBuf::from),
+        "nothing but what was asked for is written"
+    );
+    assert!(listing(&elsewhere).is_empty());
+
+    official_reader_sees(&log_path, &files);
+
+    // A changed byte of a carried file is damage the reader finds (the attachment's CRC).
+    let mut bytes = std::fs::read(&log_path).unwrap();
+    let motors = &files[1].1;
+    let at = (bytes.windows(motors.len()))
+        .position(|w| w == motors.as_slice())
+        .unwrap();
+    bytes[at + motors.len() / 2] ^= 1;
+    let damaged = logs.join("damaged.mcap");
+    std::fs::write(&damaged, bytes).unwrap();
+    let e = read_log(&damaged).unwrap_err();
+    assert!(matches!(e, LogError::Corrupt { .. }), "{e}");
+}
+
+/// The official `mcap` Python reader lists the log's attachments: `model.xml`, the scene's
+/// files with their bytes, `config.json`. Skipped where Python or its `mcap` package is
+/// missing; the workplace's shared checker runs too where it exists.
+fn official_reader_sees(log: &Path, files: &[(String, Vec<u8>)]) {
+    let script = "import hashlib, sys\n\
+                  from mcap.reader import make_reader\n\
+                  with open(sys.argv[1], 'rb') as f:\n\
+                  \x20   for a in make_reader(f).iter_attachments():\n\
+                  \x20       print(a.name, a.media_type, hashlib.sha256(a.data).hexdigest())\n";
+    let Ok(o) = Command::new("python3")
+        .args(["-c", script])
+        .arg(log)
+        .output()
+    else {
+        eprintln!("SKIPPED: python3 is not available");
+        return;
+    };
+    if String::from_utf8_lossy(&o.stderr).contains("No module named 'mcap'") {
+        eprintln!("SKIPPED: python3 has no mcap package");
+        return;
+    }
+    assert!(o.status.success(), "{}", text(&o));
+    let sha = |bytes: &[u8]| {
+        use sha2::Digest;
+        (sha2::Sha256::digest(bytes).iter())
+            .map(|b| format!("{b:02x}"))
+            .collect::<String>()
+    };
+    let lines: Vec<String> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(str::to_string)
+        .collect();
+    assert_eq!(lines.len(), files.len() + 2, "{lines:?}");
+    assert!(
+        lines[0].starts_with("model.xml application/xml "),
+        "{lines:?}"
+    );
+    for ((name, bytes), line) in files.iter().zip(&lines[1..]) {
+        let media = if name.starts_with("include/") {
+            "application/xml"
+        } else {
+            "application/octet-stream"
+        };
+        assert_eq!(line, &format!("{name} {media} {}", sha(bytes)));
+    }
+    assert!(
+        lines[files.len() + 1].starts_with("config.json "),
+        "{lines:?}"
+    );
+    let checker = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/tools/check_mcap.py");
+    if checker.exists() {
+        let o = Command::new("python3")
+            .arg(&checker)
+            .arg(log)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", text(&o));
+    }
+}
+
+#[test]
+fn a_log_of_a_scene_that_reads_no_other_file_carries_none() {
+    let tmp = tempfile::tempdir().unwrap();
+    let ring = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/six_targets_ring.toml");
+    for task in ["composite", ring.to_str().unwrap()] {
+        let out = tmp.path().join("demo.mcap");
+        let o = reacher(
+            tmp.path(),
+            &[
+                "demo",
+                "--task",
+                task,
+                "--episodes",
+                "1",
+                "--out",
+                "demo.mcap",
+            ],
+        );
+        assert!(o.status.success(), "{}", text(&o));
+        let log = read_log(&out).unwrap();
+        assert!(log.scene_files.is_empty(), "{task}");
+        let report = replay(&log).unwrap();
+        assert!(report.all_match(), "{report}");
+        assert!(
+            !(report.setting_notes.iter()).any(|n| n.contains("copies stored in the log")),
+            "{:?}",
+            report.setting_notes
+        );
+        std::fs::remove_file(out).unwrap();
+    }
+}
+
+/// A log of the built-in composite task whose header carries `files` (as no task gives them:
+/// the writer records what it is given).
+fn log_with(path: &Path, files: Vec<SceneFile>) {
+    let task = smirl::env::reacher_task::ReacherTask::shipped("composite").unwrap();
+    let mut header = RunHeader::of_task("composite", task.task(), 0, serde_json::json!({}));
+    header.scene_files = Arc::from(files);
+    RolloutLogger::create(path, header, LogOptions::default())
+        .unwrap()
+        .finish()
+        .unwrap();
+}
+
+fn file(kind: SceneFileKind, name: String, bytes: Vec<u8>) -> SceneFile {
+    SceneFile { kind, name, bytes }
+}
+
+#[test]
+fn what_a_log_carries_is_bounded_as_a_scene_is() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("big.mcap");
+    let include = |k: usize| file(SceneFileKind::Include, format!("p/{k}.xml"), b"<m/>".into());
+    let asset = |k: usize, n: usize| file(SceneFileKind::Asset, format!("m/{k}.stl"), vec![1; n]);
+    let cases: [(Vec<SceneFile>, String); 4] = [
+        (
+            (0..=MAX_INCLUDED_FILES).map(include).collect(),
+            format!(
+                "attachment include/p/{MAX_INCLUDED_FILES}.xml: the scene's included files \
+                 number more than the limit of {MAX_INCLUDED_FILES}"
+            ),
+        ),
+        (
+            vec![file(
+                SceneFileKind::Include,
+                "huge.xml".into(),
+                vec![b' '; 16 << 20 | 1],
+            )],
+            "attachment include/huge.xml: 16777217 bytes, more than the limit of 16777216".into(),
+        ),
+        (
+            (0..=MAX_ASSET_FILES).map(|k| asset(k, 1)).collect(),
+            format!(
+                "attachment asset/m/{MAX_ASSET_FILES}.stl: the scene's mesh, skin, height-field \
+                 and texture files number more than the limit of {MAX_ASSET_FILES}"
+            ),
+        ),
+        (
+            vec![
+                asset(0, MAX_ASSET_BYTES as usize / 2),
+                asset(1, MAX_ASSET_BYTES as usize / 2 + 1),
+            ],
+            format!(
+                "attachment asset/m/1.stl: the scene's mesh, skin, height-field and texture \
+                 files hold more than the limit of {MAX_ASSET_BYTES} bytes together"
+            ),
+        ),
+    ];
+    for (files, expected) in cases {
+        log_with(&path, files);
+        let e = read_log(&path).unwrap_err();
+        assert!(matches!(e, LogError::TooLarge { .. }), "{e}");
+        assert!(
+            e.to_string().contains(&expected),
+            "{e}\nexpected: {expected}"
+        );
+        let o = reacher(tmp.path(), &["replay", "big.mcap"]);
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+        assert!(text(&o).contains(&expected), "{}", text(&o));
+    }
+    // Within the limits, the same files are read back.
+    let within: Vec<SceneFile> = (0..MAX_INCLUDED_FILES)
+        .map(include)
+        .chain((0..MAX_ASSET_FILES).map(|k| asset(k, 3)))
+        .collect();
+    log_with(&path, within.clone());
+    assert_eq!(read_log(&path).unwrap().scene_files, within);
+}
+
+#[test]
+fn files_that_memory_cannot_tell_apart_are_named_when_the_log_is_replayed() {
+    // Two included files of one name in two directories: MuJoCo reads them from disk, but
+    // finds a file in memory by its name alone.
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let (start, end) = (
+        REACHER_XML.find("<actuator>").unwrap(),
+        REACHER_XML.find("</actuator>").unwrap() + "</actuator>".len(),
+    );
+    std::fs::create_dir_all(d.join("a")).unwrap();
+    std::fs::create_dir_all(d.join("b")).unwrap();
+    std::fs::write(
+        d.join("a/part.xml"),
+        format!("<mujoco>{}</mujoco>", &REACHER_XML[start..end]),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("b/Part.xml"),
+        "<mujoco><size nuserdata=\"1\"/></mujoco>",
+    )
+    .unwrap();
+    let scene = format!(
+        "{}<include file=\"a/part.xml\"/><include file=\"b/Part.xml\"/>{}",
+        &REACHER_XML[..start],
+        &REACHER_XML[end..]
+    );
+    std::fs::write(d.join("scene.xml"), scene).unwrap();
+    std::fs::write(d.join("m.txt"), MACHINE).unwrap();
+    std::fs::write(d.join("task.toml"), TASK).unwrap();
+    let o = reacher(
+        d,
+        &[
+            "demo",
+            "--task",
+            "task.toml",
+            "--episodes",
+            "1",
+            "--out",
+            "demo.mcap",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let o = reacher(d, &["replay", "--verify", "demo.mcap"]);
+    assert_ne!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(
+        text(&o).contains(
+            "files a/part.xml and b/Part.xml differ but share the name 'part.xml', and MuJoCo \
+             2.2 finds a file in memory by that name alone"
+        ),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn a_log_without_the_files_compiles_its_text_alone_as_before() {
+    // Logs written before logs carried a scene's files attach the scene's text only; it is
+    // compiled alone, so its includes resolve where the command runs.
+    let tmp = tempfile::tempdir().unwrap();
+    let scene_dir = tmp.path().join("scene");
+    std::fs::create_dir(&scene_dir).unwrap();
+    let (task, _) = scene_of_ones_own(&scene_dir);
+    let task = smirl::env::reacher_task::ReacherTask::resolve(task.to_str().unwrap()).unwrap();
+    let mut header = RunHeader::of_task("task", task.task(), 0, serde_json::json!({}));
+    header.scene_files = Arc::from(Vec::new());
+    let old = tmp.path().join("old.mcap");
+    RolloutLogger::create(&old, header, LogOptions::default())
+        .unwrap()
+        .finish()
+        .unwrap();
+    assert!(read_log(&old).unwrap().scene_files.is_empty());
+    let old = old.to_str().unwrap();
+    let o = reacher(&scene_dir, &["replay", old]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = reacher(tmp.path(), &["replay", old]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("parts/outer.xml"), "{}", text(&o));
+}
