@@ -1454,3 +1454,54 @@ fn the_cli_refuses_a_missing_key_and_a_removed_switch() {
         assert!(!out.exists());
     }
 }
+
+/// Records the order in which a run's jobs end.
+#[derive(Default)]
+struct EndOrder {
+    labels: std::sync::Mutex<Vec<String>>,
+    ended: std::sync::Mutex<Vec<String>>,
+}
+
+impl smirl::pipeline::reacher_irl::run::RunObserver for EndOrder {
+    fn jobs(&self, labels: &[String], _total_env_steps: u64) {
+        *self.labels.lock().unwrap() = labels.to_vec();
+    }
+    fn job_done(&self, job: usize, _record: &smirl::pipeline::reacher_irl::records::JobRecord) {
+        let label = self.labels.lock().unwrap()[job].clone();
+        self.ended.lock().unwrap().push(label);
+    }
+}
+
+/// The pool starts the job of most planned environment steps first: on one worker, smirl
+/// (2 iterations and a final phase) ends before smirl-paper (the same iterations, no final
+/// phase), though the run lists smirl-paper first; the run's tables keep the listed order.
+/// Fails when the pool takes the jobs as listed.
+#[test]
+fn the_pool_starts_the_longest_planned_job_first() {
+    let tmp = tempfile::tempdir().unwrap();
+    let request = RunRequest {
+        task: ReacherTask::shipped("or").unwrap(),
+        algos: vec![Algo::SmirlPaper, Algo::Smirl],
+        seeds: 1,
+        seed: 3,
+        config: IrlRunConfig {
+            threads: 1,
+            ..tiny_config()
+        },
+        out: tmp.path().join("run"),
+        force: false,
+    };
+    let observer = EndOrder::default();
+    run_pipeline(&request, &observer).unwrap();
+    assert_eq!(
+        *observer.ended.lock().unwrap(),
+        ["smirl seed 3", "smirl-paper seed 3"]
+    );
+    let summary = std::fs::read_to_string(tmp.path().join("run/summary.csv")).unwrap();
+    let rows: Vec<&str> = summary
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap())
+        .collect();
+    assert_eq!(rows, ["smirl-paper", "smirl"]);
+}

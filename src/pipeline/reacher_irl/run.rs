@@ -734,6 +734,7 @@ pub fn run_pipeline(
         &labels,
         run.config.sac_steps_per_iteration * run.config.irl_iterations as u64,
     );
+    let order = dispatch_order(&jobs, &run.config);
     let next = AtomicUsize::new(0);
     let failures: Mutex<Vec<Option<JobRunError>>> = Mutex::new(jobs.iter().map(|_| None).collect());
     // The run's threads are shared by the jobs running: a worker with no job left lends its
@@ -745,7 +746,10 @@ pub fn run_pipeline(
     std::thread::scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|| loop {
-                let i = next.fetch_add(1, Ordering::SeqCst);
+                let Some(&i) = order.get(next.fetch_add(1, Ordering::SeqCst)) else {
+                    idle.fetch_add(1, Ordering::SeqCst);
+                    break;
+                };
                 let Some(&(algo, job_seed)) = jobs.get(i) else {
                     idle.fetch_add(1, Ordering::SeqCst);
                     break;
@@ -782,6 +786,27 @@ pub fn run_pipeline(
     summary.out = out.clone();
     summary.wall_secs = started.elapsed().as_secs_f64();
     Ok(summary)
+}
+
+/// The order in which the pool starts `jobs` (indices into them): the most planned
+/// environment steps first — SAC's, the reward updates' rollouts and the final phase's — ties
+/// in plan order. Why: the workers take jobs as they free up, and a long job started last runs
+/// alone while the other workers idle (the README's main command, f-IRL's jobs after SMIRL's).
+/// A job's results do not depend on when it runs.
+fn dispatch_order(jobs: &[(Algo, u64)], config: &IrlRunConfig) -> Vec<usize> {
+    let planned = |algo: Algo| {
+        config.for_algo(algo).map_or(0, |c| {
+            let rollouts = c.agent_trajectories as u64 * c.env.max_steps as u64;
+            let per_iteration = c.sac_steps_per_iteration.saturating_add(rollouts);
+            (c.irl_iterations as u64)
+                .saturating_mul(per_iteration)
+                .saturating_add(c.final_sac_steps)
+                .saturating_add(c.final_reset_steps)
+        })
+    };
+    let mut order: Vec<usize> = (0..jobs.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(planned(jobs[i].0)));
+    order
 }
 
 /// One job with its MCAP logger, reward file and (SMIRL) reward trace, in run directory
