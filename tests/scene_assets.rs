@@ -315,3 +315,93 @@ fn included_files_and_their_assets_are_read_in_the_assembled_document() {
     // And MuJoCo reads the same files: the task loads.
     Task::load(&dir.join("task.toml")).unwrap();
 }
+
+/// The built-in scene with `<include file="NAME"/>` in place of its compiler tag (so the
+/// included file's elements join the document there), and its task file, in `dir`.
+fn scene_including(dir: &Path, name: &str) -> PathBuf {
+    let xml = smirl::assets::REACHER_XML;
+    let compiler_tag = "<compiler angle=\"radian\" inertiafromgeom=\"true\"/>";
+    let scene = xml.replacen(
+        compiler_tag,
+        &format!("{compiler_tag}\n<include file=\"{name}\"/>"),
+        1,
+    );
+    std::fs::write(dir.join("scene.xml"), scene).unwrap();
+    std::fs::write(dir.join("m.txt"), MACHINE).unwrap();
+    std::fs::write(dir.join("task.toml"), TASK).unwrap();
+    dir.join("task.toml")
+}
+
+/// A scene that includes itself, or two files that include each other, is refused at the
+/// second reading of a file, as MuJoCo refuses it, naming the file — not read 64 levels
+/// deep. Fails without the check of the files already read (the error is then the count of
+/// included files).
+#[test]
+fn a_file_included_twice_is_refused_naming_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let task = scene_including(dir, "SCENE.xml");
+    let e = Task::load(&task).unwrap_err().to_string();
+    assert!(
+        e.contains("already included") && e.contains("SCENE.xml"),
+        "{e}"
+    );
+
+    let task = scene_including(dir, "a.xml");
+    std::fs::write(
+        dir.join("a.xml"),
+        "<mujoco><include file=\"b.xml\"/></mujoco>",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("b.xml"),
+        "<mujoco><include file=\"a.xml\"/></mujoco>",
+    )
+    .unwrap();
+    let e = Task::load(&task).unwrap_err().to_string();
+    assert!(e.contains("already included") && e.contains("a.xml"), "{e}");
+    let (code, out) = run(&task);
+    assert_eq!(code, Some(2), "{out}");
+    assert!(out.contains("already included"), "{out}");
+}
+
+/// Included files beyond MAX_INCLUDED_BYTES together are refused naming the file that passes
+/// the limit: five valid files of 15 MiB each (each within the limit of one file), the fifth
+/// passing 64 MiB. Fails when included files have no limit together.
+#[test]
+fn included_files_beyond_their_byte_limit_are_refused_naming_the_file() {
+    use smirl::env::scene_files::MAX_INCLUDED_BYTES;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let task = scene_including(dir, "parts.xml");
+    let each = 15 << 20;
+    assert!(4 * each < MAX_INCLUDED_BYTES && 5 * each > MAX_INCLUDED_BYTES);
+    let part = format!("<mujoco>{}</mujoco>", " ".repeat(each as usize - 17));
+    let mut parts = String::from("<mujoco>");
+    for k in 1..=5 {
+        std::fs::write(dir.join(format!("f{k}.xml")), &part).unwrap();
+        parts += &format!("<include file=\"f{k}.xml\"/>");
+    }
+    std::fs::write(dir.join("parts.xml"), parts + "</mujoco>").unwrap();
+    let e = Task::load(&task).unwrap_err().to_string();
+    assert!(e.contains("bytes together") && e.contains("f5.xml"), "{e}");
+}
+
+/// A scene of a million nested elements is read in time linear in its tags (the elements
+/// around each tag are kept as a stack, not gathered again for every tag); MuJoCo then refuses
+/// it. Gathering them again for every tag takes about 10¹² steps here and never ends in a
+/// test run.
+#[test]
+fn a_deeply_nested_scene_is_read_in_linear_time() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let task = scene_including(dir, "deep.xml");
+    let depth = 1_000_000;
+    let deep = format!(
+        "<mujoco>{}{}</mujoco>",
+        "<a>".repeat(depth),
+        "</a>".repeat(depth)
+    );
+    std::fs::write(dir.join("deep.xml"), deep).unwrap();
+    assert!(Task::load(&task).is_err());
+}

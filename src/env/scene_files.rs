@@ -23,6 +23,10 @@ use std::path::{Path, PathBuf};
 
 /// Most files a scene may include, directly or through other included files.
 pub const MAX_INCLUDED_FILES: usize = 64;
+/// Most bytes the files a scene includes may hold together: 64 MiB, so that a log, which
+/// carries them with the scene's text and its asset files, stays within what a log reader
+/// accepts.
+pub const MAX_INCLUDED_BYTES: u64 = 64 << 20;
 /// Most mesh, skin, height-field and texture files a scene may name.
 pub const MAX_ASSET_FILES: usize = 256;
 /// Most bytes the mesh, skin, height-field and texture files of a scene may hold together:
@@ -80,6 +84,10 @@ pub enum SceneFileError {
     Syntax { file: String, error: SceneCutError },
     #[error("{scene} includes more than {MAX_INCLUDED_FILES} files")]
     TooManyIncludes { scene: String },
+    #[error("included file {file}: the files the scene includes hold more than {MAX_INCLUDED_BYTES} bytes together")]
+    IncludedBytes { file: String },
+    #[error("included file {file}: already included (MuJoCo reads each file once, the scene file among them)")]
+    IncludedTwice { file: String },
     #[error(
         "{scene} names more than {MAX_ASSET_FILES} mesh, skin, height-field and texture files"
     )]
@@ -119,6 +127,13 @@ struct Walk {
     /// Open elements: name, and whether it is an included file's root (which MuJoCo drops,
     /// its children taking the include's place).
     open: Vec<(String, bool)>,
+    /// The names of the open elements that are kept (not an included file's root), outermost
+    /// first: what MuJoCo's assembled document has around the current tag.
+    kept: Vec<String>,
+    /// Every file read so far as MuJoCo names it (directory and file), the scene file first:
+    /// MuJoCo refuses to include one twice, comparing the names whatever their case.
+    read: Vec<String>,
+    included_bytes: u64,
     includes: Vec<SceneFile>,
     meshdir: Option<String>,
     texturedir: Option<String>,
@@ -137,6 +152,9 @@ pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
         dir: file_dir(&path_text).to_string(),
         scene: scene.clone(),
         open: Vec::new(),
+        kept: Vec::new(),
+        read: vec![path_text.to_string()],
+        included_bytes: 0,
         includes: Vec::new(),
         meshdir: None,
         texturedir: None,
@@ -228,6 +246,7 @@ impl Walk {
                 TagKind::Open => {
                     if !dropped {
                         self.element(&tag)?;
+                        self.kept.push(tag.name.to_string());
                     }
                     self.open.push((tag.name.to_string(), dropped));
                 }
@@ -243,7 +262,10 @@ impl Walk {
                             got: tag.name.into(),
                         }));
                     }
-                    let (name, _) = self.open.pop().unwrap_or_default();
+                    let (name, dropped) = self.open.pop().unwrap_or_default();
+                    if !dropped {
+                        self.kept.pop();
+                    }
                     if name != tag.name {
                         return Err(syntax(SceneCutError::Mismatched {
                             at: tag.start,
@@ -278,7 +300,17 @@ impl Walk {
                 });
             }
             let full = format!("{}{name}", self.dir);
-            let bytes = read(Path::new(&full), "included file", MAX_SCENE_BYTES)?;
+            if self.read.iter().any(|f| f.eq_ignore_ascii_case(&full)) {
+                return Err(SceneFileError::IncludedTwice { file: full });
+            }
+            let left = MAX_INCLUDED_BYTES - self.included_bytes;
+            let over = || SceneFileError::IncludedBytes { file: full.clone() };
+            if std::fs::metadata(&full).is_ok_and(|m| m.len() > left) {
+                return Err(over());
+            }
+            let bytes = read(Path::new(&full), "included file", left.min(MAX_SCENE_BYTES))?;
+            self.included_bytes += bytes.len() as u64;
+            self.read.push(full.clone());
             let text = String::from_utf8_lossy(&bytes).into_owned();
             self.includes.push(SceneFile {
                 kind: SceneFileKind::Include,
@@ -287,12 +319,9 @@ impl Walk {
             });
             return self.text(&text, &full, true);
         }
-        let kept: Vec<&str> = (self.open.iter())
-            .filter(|(_, dropped)| !dropped)
-            .map(|(name, _)| name.as_str())
-            .collect();
-        match (tag.name, kept.as_slice()) {
-            ("compiler", ["mujoco"]) => {
+        let kept = (self.kept.len(), self.kept.last().map(String::as_str));
+        match (tag.name, kept) {
+            ("compiler", (1, Some("mujoco"))) => {
                 if let Some(dir) = value("meshdir") {
                     self.meshdir = Some(dir.into_owned());
                 }
@@ -303,7 +332,7 @@ impl Walk {
                     self.strippath = strip == "true";
                 }
             }
-            (element, [.., "asset"]) => {
+            (element, (_, Some("asset"))) => {
                 let mut name = |dir, what, key: &str| {
                     if let Some(file) = value(key).filter(|f| !f.is_empty()) {
                         self.assets.push(AssetRef {
@@ -353,7 +382,7 @@ fn file_dir(path: &str) -> &str {
 }
 
 /// A path's last component (`mjuu_strippath`).
-pub fn last_component(path: &str) -> &str {
+fn last_component(path: &str) -> &str {
     path.rfind(['/', '\\']).map_or(path, |i| &path[i + 1..])
 }
 
