@@ -750,10 +750,7 @@ pub fn run_pipeline(
                     idle.fetch_add(1, Ordering::SeqCst);
                     break;
                 };
-                let Some(&(algo, job_seed)) = jobs.get(i) else {
-                    idle.fetch_add(1, Ordering::SeqCst);
-                    break;
-                };
+                let (algo, job_seed) = jobs[i];
                 match run.run_job(algo, job_seed, &job_threads, &|p| {
                     observer.job_progress(i, p)
                 }) {
@@ -796,7 +793,7 @@ pub fn run_pipeline(
 fn dispatch_order(jobs: &[(Algo, u64)], config: &IrlRunConfig) -> Vec<usize> {
     let planned = |algo: Algo| {
         config.for_algo(algo).map_or(0, |c| {
-            let rollouts = c.agent_trajectories as u64 * c.env.max_steps as u64;
+            let rollouts = (c.agent_trajectories as u64).saturating_mul(c.env.max_steps as u64);
             let per_iteration = c.sac_steps_per_iteration.saturating_add(rollouts);
             (c.irl_iterations as u64)
                 .saturating_mul(per_iteration)
