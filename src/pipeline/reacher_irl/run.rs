@@ -802,7 +802,7 @@ fn dispatch_order(jobs: &[(Algo, u64)], config: &IrlRunConfig) -> Vec<usize> {
         })
     };
     let mut order: Vec<usize> = (0..jobs.len()).collect();
-    order.sort_by_key(|&i| std::cmp::Reverse(planned(jobs[i].0)));
+    order.sort_by_cached_key(|&i| std::cmp::Reverse(planned(jobs[i].0)));
     order
 }
 
