@@ -912,3 +912,44 @@ fn a_commuted_event_takes_its_target_only_from_an_observed_cell() {
     let perfect = task.perfect_rm().unwrap();
     assert!(refines(&learned.rm, &perfect, read_prefixes(&traces)).refines);
 }
+
+/// FNV-1a over the traces' lengths, label bits and reward bits.
+fn trace_digest(traces: &[LabelTrace]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |x: u64| {
+        for byte in x.to_le_bytes() {
+            h = (h ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for t in traces {
+        eat(t.labels.len() as u64);
+        for l in &t.labels {
+            eat(u64::from(l.0));
+        }
+        for r in t.rewards.iter().flatten() {
+            eat(r.to_bits());
+        }
+    }
+    h
+}
+
+/// The synthetic expert's traces of the shipped ReacherDelivery tasks, pinned (they feed
+/// `lrm_bench` and the tests above): a change of how the expert learns its letters must not
+/// change them.
+#[test]
+fn synthetic_reacher_traces_are_pinned() {
+    let mut got = Vec::new();
+    for name in ["or", "sequential", "if", "composite", "blue"] {
+        let rm = perfect::reacher(name).unwrap();
+        let traces = expert_like_traces(&rm, &ExpertStyle::reacher(), 5_000, 1);
+        got.push(format!("{name} {:016x}", trace_digest(&traces)));
+    }
+    let expected = [
+        "or 3a83b755dc5b9899",
+        "sequential d3346b22ba177747",
+        "if bafaa899b4bc8a31",
+        "composite 25c8eff4dc1ca421",
+        "blue c5abc978dc816377",
+    ];
+    assert_eq!(got, expected);
+}
