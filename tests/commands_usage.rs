@@ -44,7 +44,7 @@ fn bad_input_to_every_command_is_a_usage_error_and_writes_nothing() {
             task: None,
             ..irl_request(dir.path().join("run"))
         }),
-        "nothing to do",
+        "nothing to do: give --task <or|sequential|if|composite|blue|FILE.toml> or a subcommand",
     );
     assert_usage(
         irl::run(irl::IrlRequest {

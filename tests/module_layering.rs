@@ -5,8 +5,11 @@
 //! in `use` trees (with their braces) and in code, resolved to the longest prefix that names a
 //! source file's module. Comments and string literals are skipped.
 
+mod rust_source;
+
+use rust_source::Kind;
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Layer of each top-level module (`src/lib.rs`): a module imports only modules of a lower
 /// layer, and the shared utilities (layer 0) import only each other.
@@ -25,19 +28,6 @@ fn layer(module: &str) -> Option<u32> {
 
 type Module = Vec<String>;
 
-fn source_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            if path.file_name().unwrap() != "bin" {
-                source_files(&path, out);
-            }
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
-}
-
 /// `src/a/b.rs` and `src/a/b/mod.rs` → `[a, b]`; `src/lib.rs` → `[]`.
 fn module_of(src: &Path, file: &Path) -> Module {
     let rel = file.strip_prefix(src).unwrap().with_extension("");
@@ -53,95 +43,10 @@ fn module_of(src: &Path, file: &Path) -> Module {
 
 /// The source with comments, string and character literals replaced by spaces.
 fn code_only(text: &str) -> String {
-    let b: Vec<char> = text.chars().collect();
-    let mut out = String::with_capacity(b.len());
-    let mut i = 0;
-    while i < b.len() {
-        let c = b[i];
-        let next = b.get(i + 1).copied();
-        if c == '/' && next == Some('/') {
-            while i < b.len() && b[i] != '\n' {
-                i += 1;
-            }
-        } else if c == '/' && next == Some('*') {
-            let mut depth = 0;
-            while i < b.len() {
-                if b[i] == '/' && b.get(i + 1) == Some(&'*') {
-                    depth += 1;
-                    i += 2;
-                } else if b[i] == '*' && b.get(i + 1) == Some(&'/') {
-                    depth -= 1;
-                    i += 2;
-                    if depth == 0 {
-                        break;
-                    }
-                } else {
-                    i += 1;
-                }
-            }
-            out.push(' ');
-        } else if c == 'r' && (next == Some('"') || next == Some('#')) && !prev_ident(&b, i) {
-            // A raw string: r"…", r#"…"#.
-            let mut j = i + 1;
-            let mut hashes = 0;
-            while b.get(j) == Some(&'#') {
-                hashes += 1;
-                j += 1;
-            }
-            if b.get(j) != Some(&'"') {
-                out.push(c);
-                i += 1;
-                continue;
-            }
-            j += 1;
-            loop {
-                if j >= b.len() {
-                    break;
-                }
-                if b[j] == '"' && (0..hashes).all(|k| b.get(j + 1 + k) == Some(&'#')) {
-                    j += 1 + hashes;
-                    break;
-                }
-                j += 1;
-            }
-            i = j;
-            out.push(' ');
-        } else if c == '"' {
-            i += 1;
-            while i < b.len() && b[i] != '"' {
-                if b[i] == '\\' {
-                    i += 1;
-                }
-                i += 1;
-            }
-            i += 1;
-            out.push(' ');
-        } else if c == '\'' {
-            // A character literal ('x', '\n', '\u{..}') or a lifetime ('a).
-            if next == Some('\\') {
-                let mut j = i + 2;
-                while j < b.len() && b[j] != '\'' {
-                    j += 1;
-                }
-                i = j + 1;
-                out.push(' ');
-            } else if b.get(i + 2) == Some(&'\'') {
-                i += 3;
-                out.push(' ');
-            } else {
-                out.push(c);
-                i += 1;
-            }
-        } else {
-            out.push(c);
-            i += 1;
-        }
-    }
-    out
-}
-
-fn prev_ident(b: &[char], i: usize) -> bool {
-    i > 0 && (b[i - 1].is_alphanumeric() || b[i - 1] == '_')
+    rust_source::segments(text)
+        .iter()
+        .map(|s| if s.kind == Kind::Code { s.text } else { " " })
+        .collect()
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -265,8 +170,11 @@ struct Graph {
 
 fn graph() -> Graph {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut paths = Vec::new();
-    source_files(&src, &mut paths);
+    // The binaries are crates of their own.
+    let paths: Vec<_> = rust_source::rust_files(&src)
+        .into_iter()
+        .filter(|p| !p.starts_with(src.join("bin")))
+        .collect();
     let files: BTreeSet<Module> = paths.iter().map(|p| module_of(&src, p)).collect();
     let mut edges: BTreeMap<Module, BTreeSet<Module>> = BTreeMap::new();
     for p in &paths {

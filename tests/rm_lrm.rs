@@ -2,6 +2,7 @@
 //! succeeds, determinism, the reward assignment and bad input.
 
 use smirl::env::office::OfficeTask;
+use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines};
 use smirl::rm::lrm::synthetic::{expert_like_traces, ExpertStyle};
@@ -10,6 +11,14 @@ use smirl::rm::lrm::{
 };
 use smirl::rm::transform::restart_on_goal;
 use smirl::rm::{perfect, LabelSet, Vocabulary};
+
+/// The synthetic expert of the shipped ReacherDelivery task of machine `reacher_<task>`: it
+/// walks to the task's regions and fires its events.
+fn reacher_style(machine: &str) -> ExpertStyle {
+    let task = ReacherTask::shipped(machine.strip_prefix("reacher_").unwrap()).unwrap();
+    let layout = task.layout();
+    ExpertStyle::reacher(&layout.region_letters(), &layout.event_letters())
+}
 
 fn cfg(threads: usize) -> LrmConfig {
     LrmConfig {
@@ -28,7 +37,7 @@ fn recovers(name: &str) {
     let style = if name.starts_with("office") {
         ExpertStyle::office()
     } else {
-        ExpertStyle::reacher()
+        reacher_style(name)
     };
     let target = if style.one_trip {
         p.clone()
@@ -172,7 +181,7 @@ fn office_task_2_with_rewards_refines_after_merging() {
 /// rewards after merging.
 fn refines_reacher(name: &str, with_rewards: bool) {
     let p = perfect::load(name).unwrap();
-    let traces: Vec<LabelTrace> = expert_like_traces(&p, &ExpertStyle::reacher(), 20_000, 1)
+    let traces: Vec<LabelTrace> = expert_like_traces(&p, &reacher_style(name), 20_000, 1)
         .into_iter()
         .map(|t| LabelTrace {
             rewards: if with_rewards { t.rewards } else { None },
@@ -256,7 +265,7 @@ fn learned_rewards_are_observed_means_on_a_hand_made_trace() {
 #[test]
 fn trace_cost_of_the_perfect_machine_is_positive_and_learning_does_not_do_worse_on_labels() {
     let p = perfect::load("reacher_sequential").unwrap();
-    let traces = expert_like_traces(&p, &ExpertStyle::reacher(), 10_000, 3);
+    let traces = expert_like_traces(&p, &reacher_style("reacher_sequential"), 10_000, 3);
     let perfect_cost = trace_cost(&p, &traces, TraceReading::default()).unwrap();
     assert!(perfect_cost > 0.0);
     let learned = learn_rm(
@@ -911,4 +920,47 @@ fn a_commuted_event_takes_its_target_only_from_an_observed_cell() {
     assert_eq!(green_with_cancel, green);
     let perfect = task.perfect_rm().unwrap();
     assert!(refines(&learned.rm, &perfect, read_prefixes(&traces)).refines);
+}
+
+/// FNV-1a over the traces' lengths, label bits and reward bits.
+fn trace_digest(traces: &[LabelTrace]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |x: u64| {
+        for byte in x.to_le_bytes() {
+            h = (h ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for t in traces {
+        eat(t.labels.len() as u64);
+        for l in &t.labels {
+            eat(u64::from(l.0));
+        }
+        for r in t.rewards.iter().flatten() {
+            eat(r.to_bits());
+        }
+    }
+    h
+}
+
+/// The synthetic expert's traces of the shipped ReacherDelivery tasks, pinned (they feed
+/// `lrm_bench` and the tests above): the digests are those of the expert with the letters
+/// `rgby` and `c` written in its code, before it took them from the task's layout.
+#[test]
+fn synthetic_reacher_traces_are_pinned() {
+    let mut got = Vec::new();
+    for name in ["or", "sequential", "if", "composite", "blue"] {
+        let task = ReacherTask::shipped(name).unwrap();
+        let layout = task.layout();
+        let style = ExpertStyle::reacher(&layout.region_letters(), &layout.event_letters());
+        let traces = expert_like_traces(&task.perfect_rm().unwrap(), &style, 5_000, 1);
+        got.push(format!("{name} {:016x}", trace_digest(&traces)));
+    }
+    let expected = [
+        "or 3a83b755dc5b9899",
+        "sequential d3346b22ba177747",
+        "if bafaa899b4bc8a31",
+        "composite 25c8eff4dc1ca421",
+        "blue c5abc978dc816377",
+    ];
+    assert_eq!(got, expected);
 }

@@ -8,7 +8,8 @@
 //! ([`OfficeExpert::demonstrations`]: optimal trips on the grid, 5 random steps after each
 //! completed trip, episodes of 100 steps, a plant ends the episode); ReacherDelivery OR,
 //! Sequential, IF and Composite from the synthetic expert-like generator (no Reacher expert
-//! exists without SAC training).
+//! exists without SAC training), which walks to the task's regions and fires its events
+//! (the letters of the shipped task's layout).
 //!
 //! The target is the perfect machine restarted after its goal for Office (the demonstrations
 //! repeat the task), the perfect machine itself for Reacher (one trip per episode).
@@ -32,12 +33,13 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use smirl::env::office::OfficeTask;
+use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::tabular::{DemoConfig, OfficeExpert};
 use smirl::rm::equiv::{counterexample, refines, state_counts};
-use smirl::rm::lrm::synthetic::reacher_traces;
+use smirl::rm::lrm::synthetic::{expert_like_traces, ExpertStyle};
 use smirl::rm::lrm::{learn_rm, trace_cost, LabelTrace, LrmConfig, TraceReading};
 use smirl::rm::transform::restart_on_goal;
-use smirl::rm::{perfect, LabelSet, RewardMachine};
+use smirl::rm::{LabelSet, RewardMachine};
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -165,8 +167,12 @@ fn main() -> Result<()> {
         tasks.push((format!("office_t{k}"), restart_on_goal(expert.rm()), traces));
     }
     for name in ["or", "sequential", "if", "composite"] {
-        let rm = perfect::reacher(name).with_context(|| format!("loading reacher_{name}"))?;
-        let traces = reacher_traces(name, args.steps, args.seed)?;
+        let task = ReacherTask::shipped(name)
+            .with_context(|| format!("the shipped ReacherDelivery task {name}"))?;
+        let rm = task.perfect_rm()?;
+        let layout = task.layout();
+        let style = ExpertStyle::reacher(&layout.region_letters(), &layout.event_letters());
+        let traces = expert_like_traces(&rm, &style, args.steps, args.seed);
         tasks.push((format!("reacher_{name}"), rm, traces));
     }
     for (name, target, traces) in &tasks {

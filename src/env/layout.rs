@@ -163,11 +163,17 @@ impl TaskLayout {
 
     /// The propositions in label-bit order: regions, then events.
     pub fn letters(&self) -> String {
-        self.regions
-            .iter()
-            .map(|r| r.letter)
-            .chain(self.events.iter().map(|e| e.letter))
-            .collect()
+        self.region_letters() + &self.event_letters()
+    }
+
+    /// The regions' letters in label-bit order.
+    pub fn region_letters(&self) -> String {
+        self.regions.iter().map(|r| r.letter).collect()
+    }
+
+    /// The events' letters in label-bit order.
+    pub fn event_letters(&self) -> String {
+        self.events.iter().map(|e| e.letter).collect()
     }
 
     pub fn vocabulary(&self) -> Vocabulary {

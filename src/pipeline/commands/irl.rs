@@ -6,6 +6,7 @@
 
 use super::{usage, UsageError};
 use crate::env::reacher_task::ReacherTask;
+use crate::env::task_file;
 use crate::output::{check_not_protected, OutputDir};
 use crate::pipeline::reacher_expert::{default_expert_cache, ExpertConfig};
 use crate::pipeline::reacher_irl::config::DemoSource;
@@ -139,9 +140,10 @@ fn pipeline_error(e: PipelineError) -> anyhow::Error {
 /// printed the config, nothing to run).
 fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
     let Some(task) = args.task.clone() else {
-        return Err(usage(
-            "nothing to do: give --task <or|sequential|if|composite|blue|FILE.toml> or a subcommand (see --help)",
-        ));
+        return Err(usage(format!(
+            "nothing to do: give --task <{}|FILE.toml> or a subcommand (see --help)",
+            task_file::SHIPPED.join("|")
+        )));
     };
     let algos = match &args.algo {
         Some(s) => Algo::parse_reacher_list(s).map_err(usage)?,

@@ -9,8 +9,8 @@
 //! letter its shortest path crosses, or none, chosen by a fixed hash among the letters that no
 //! transition of the task uses. After a completed trip the expert takes up to `detour` random
 //! steps (landing on random letters now and then) and starts the next trip, until the
-//! episode's horizon; or, with `one_trip`, the episode ends after the trip. An uncontrolled
-//! proposition (ReacherDelivery's cancel event) can fire on empty steps.
+//! episode's horizon; or, with `one_trip`, the episode ends after the trip. Uncontrolled
+//! propositions (a ReacherDelivery task's events) can fire on empty steps.
 //!
 //! Rewards are those of the task's machine restarted after each completed trip
 //! ([`RmTracker::restarting`]). Traces from random label sequences carry no structure for the
@@ -45,8 +45,8 @@ pub struct ExpertStyle {
     pub detour: usize,
     /// Probability that a random step lands on a (random) letter.
     pub detour_letter: f64,
-    /// An uncontrolled proposition and its probability on each empty step.
-    pub noise: Option<(char, f64)>,
+    /// Uncontrolled propositions, each with its probability on each empty step.
+    pub noise: Vec<(char, f64)>,
 }
 
 impl ExpertStyle {
@@ -62,15 +62,17 @@ impl ExpertStyle {
             incidental: 0.8,
             detour: 10,
             detour_letter: 0.15,
-            noise: None,
+            noise: Vec::new(),
         }
     }
 
-    /// ReacherDelivery: one trip per episode, the fingertip stays on a ball for a few steps,
-    /// and the cancel event fires now and then.
-    pub fn reacher() -> ExpertStyle {
+    /// ReacherDelivery: one trip per episode, the fingertip stays on a region for a few steps,
+    /// and each event fires now and then. `regions` and `events` are the task's letters (its
+    /// layout's regions' and events', in label-bit order: `"rgby"` and `"c"` for the paper's
+    /// tasks).
+    pub fn reacher(regions: &str, events: &str) -> ExpertStyle {
         ExpertStyle {
-            goal_props: "rgby".into(),
+            goal_props: regions.into(),
             horizon: 300,
             one_trip: true,
             gap: (5, 30),
@@ -78,7 +80,7 @@ impl ExpertStyle {
             incidental: 0.3,
             detour: 0,
             detour_letter: 0.0,
-            noise: Some(('c', 0.01)),
+            noise: events.chars().map(|e| (e, 0.01)).collect(),
         }
     }
 }
@@ -93,21 +95,6 @@ pub fn office_traces(
     Ok(expert_like_traces(
         &rm,
         &ExpertStyle::office(),
-        total_steps,
-        seed,
-    ))
-}
-
-/// Expert-like traces of a ReacherDelivery task (`or`, `sequential`, …).
-pub fn reacher_traces(
-    task: &str,
-    total_steps: usize,
-    seed: u64,
-) -> Result<Vec<LabelTrace>, RmFileError> {
-    let rm = perfect::reacher(task)?;
-    Ok(expert_like_traces(
-        &rm,
-        &ExpertStyle::reacher(),
         total_steps,
         seed,
     ))
@@ -139,9 +126,9 @@ pub fn expert_like_traces(
                 .all(|u| rm.next_state(u, LabelSet::EMPTY.with(p)) == u)
         })
         .collect();
-    let noise = style
-        .noise
-        .and_then(|(c, p)| v.index_of(c).ok().map(|i| (i, p)));
+    let noise: Vec<(usize, f64)> = (style.noise.iter())
+        .filter_map(|&(c, p)| v.index_of(c).ok().map(|i| (i, p)))
+        .collect();
     let mut traces = Vec::new();
     let mut produced = 0;
     while produced < total_steps {
@@ -151,7 +138,7 @@ pub fn expert_like_traces(
             labels: Vec::new(),
             rewards: Vec::new(),
             budget,
-            noise,
+            noise: noise.clone(),
         };
         let mut completed = 0;
         let mut last: Option<usize> = None;
@@ -232,7 +219,7 @@ struct Episode {
     labels: Vec<LabelSet>,
     rewards: Vec<f64>,
     budget: usize,
-    noise: Option<(usize, f64)>,
+    noise: Vec<(usize, f64)>,
 }
 
 impl Episode {
@@ -253,10 +240,12 @@ impl Episode {
 
     fn empties(&mut self, n: usize, rng: &mut ChaCha8Rng) {
         for _ in 0..n {
-            let l = match self.noise {
-                Some((p, prob)) if rng.gen_bool(prob) => LabelSet::EMPTY.with(p),
-                _ => LabelSet::EMPTY,
-            };
+            let mut l = LabelSet::EMPTY;
+            for &(p, prob) in &self.noise {
+                if rng.gen_bool(prob) {
+                    l = l.with(p);
+                }
+            }
             self.push(l);
         }
     }
