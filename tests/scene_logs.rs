@@ -463,3 +463,33 @@ fn a_log_without_the_files_compiles_its_text_alone_as_before() {
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("parts/outer.xml"), "{}", text(&o));
 }
+
+/// The text compiled from memory has a directory of its own (`smirl-log/`), and files are
+/// still found in memory by their last component: a height field and a texture named in three
+/// bytes compile. With no directory, MuJoCo 2.2.2 reads the last four bytes of each name
+/// unchecked and aborts this test process.
+#[test]
+fn names_of_three_bytes_compile_from_memory() {
+    let mut height_field = Vec::new();
+    for v in [2i32, 2] {
+        height_field.extend_from_slice(&v.to_le_bytes());
+    }
+    for h in [0.0f32, 0.1, 0.2, 0.3] {
+        height_field.extend_from_slice(&h.to_le_bytes());
+    }
+    let mut texture = Vec::new();
+    for v in [2i32, 2] {
+        texture.extend_from_slice(&v.to_le_bytes());
+    }
+    texture.extend_from_slice(&[99; 12]);
+    let xml = "<mujoco><asset><hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/>\
+               <texture name=\"t\" type=\"2d\" file=\"x.p\"/></asset>\
+               <worldbody><geom type=\"hfield\" hfield=\"h\"/></worldbody></mujoco>";
+    let model = smirl::mujoco::Model::from_xml_with_files(
+        xml,
+        &[("a.b", &height_field), ("x.p", &texture)],
+        "three bytes",
+    )
+    .unwrap();
+    assert_eq!(model.ngeom(), 1);
+}
