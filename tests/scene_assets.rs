@@ -405,3 +405,101 @@ fn a_deeply_nested_scene_is_read_in_linear_time() {
     std::fs::write(dir.join("deep.xml"), deep).unwrap();
     assert!(Task::load(&task).is_err());
 }
+
+/// The message of a task that does not load.
+fn refusal(task: &Path) -> String {
+    Task::load(task).unwrap_err().to_string()
+}
+
+/// Names on which MuJoCo 2.2.2 aborts the process (an uncaught `std::out_of_range`: the
+/// compiler takes a mesh's or skin's last 3 bytes as its type, and reads a height field's or
+/// texture's last 4 to tell a PNG file) are refused by name before MuJoCo compiles anything.
+/// Without the refusal, the mesh named `ab` aborts this test process: the task's scene is
+/// compiled in `Task::load`.
+#[test]
+fn names_mujoco_aborts_on_are_refused_before_it_compiles() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    std::fs::write(dir.join("ab"), TETRAHEDRON).unwrap();
+    std::fs::write(dir.join("a.b"), hfield([0.0; 4])).unwrap();
+    std::fs::write(dir.join("a.p"), png(2, 10)).unwrap();
+    let full = |name: &str| dir.join(name).display().to_string();
+    let cases = [
+        (
+            "",
+            "<mesh name=\"m\" file=\"ab\"/>",
+            format!(
+                "mesh file {}: MuJoCo 2.2.2 aborts the process on this name: the file name \
+                 'ab' has fewer than 3 bytes, and MuJoCo takes its last 3 as the file's type",
+                full("ab")
+            ),
+        ),
+        (
+            // A name long enough until `strippath` drops its directory.
+            "strippath=\"true\"",
+            "<mesh name=\"m\" file=\"some/where/ab\"/>",
+            format!("mesh file {}: MuJoCo 2.2.2 aborts", full("ab")),
+        ),
+        (
+            "",
+            "<skin file=\"s\"/>",
+            format!("skin file {}: MuJoCo 2.2.2 aborts", full("s")),
+        ),
+        (
+            "",
+            "<hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/>",
+            format!(
+                "height-field file {}: MuJoCo 2.2.2 aborts the process on this name: the name \
+                 'a.b' has fewer than 4 bytes, and MuJoCo reads its last 4 to tell a PNG file",
+                full("a.b")
+            ),
+        ),
+        (
+            "",
+            "<texture name=\"t\" type=\"2d\" file=\"a.p\"/>",
+            format!("texture file {}: MuJoCo 2.2.2 aborts", full("a.p")),
+        ),
+        (
+            "",
+            "<texture name=\"t\" type=\"cube\" fileright=\"a.p\"/>",
+            format!("texture file {}: MuJoCo 2.2.2 aborts", full("a.p")),
+        ),
+    ];
+    for (compiler, assets, expected) in cases {
+        let task = scene_with(dir, compiler, assets);
+        let e = refusal(&task);
+        assert!(e.contains(&expected), "{e}\nexpected: {expected}");
+    }
+    // The rule is on the name with its directory, as the scene gives it: the same file four
+    // bytes long with `meshdir` is taken, whichever directory the task is loaded from.
+    let task = scene_with(
+        dir,
+        "meshdir=\"./\"",
+        "<hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/>",
+    );
+    let loaded = Task::load(&task).unwrap();
+    assert_eq!(loaded.scene_files[0].name, "./a.b");
+
+    // The command refuses it before any work, run from the scene's own directory too.
+    let task = scene_with(
+        dir,
+        "",
+        "<hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/>",
+    );
+    assert!(task.is_file());
+    let out = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .current_dir(dir)
+        .args(["--task", "task.toml", "--quick", "--out"])
+        .arg(out.path().join("run"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("a.b: MuJoCo 2.2.2 aborts the process on this name"),
+        "{stderr}"
+    );
+    assert!(!out.path().join("run").exists());
+}
