@@ -503,3 +503,57 @@ fn names_mujoco_aborts_on_are_refused_before_it_compiles() {
     );
     assert!(!out.path().join("run").exists());
 }
+
+/// A URDF scene (`<robot>`, in any case) is refused, naming its root: MuJoCo finds the meshes
+/// it names by other rules, so its key and logs would miss them. MuJoCo reads a root named
+/// `mujoco` in any case as MJCF (and its schema then refuses all but the lower case): the
+/// files are found as MuJoCo finds them, its `<compiler>` directories holding, and MuJoCo's
+/// message is the one shown, not a missing file's.
+#[test]
+fn a_urdf_scene_is_refused_and_the_mjcf_root_is_read_in_any_case() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    let task = scene_with(dir, "", "");
+    std::fs::write(
+        dir.join("scene.xml"),
+        "<robot name=\"arm\"><link name=\"base\"><visual><geometry>\
+         <mesh filename=\"meshes/tet.obj\"/></geometry></visual></link></robot>",
+    )
+    .unwrap();
+    let e = refusal(&task);
+    let scene = dir.join("scene.xml").display().to_string();
+    assert!(
+        e.contains(&format!(
+            "{scene}: the root element is <robot>; a task's scene is an MJCF file, whose root \
+             is <mujoco>"
+        )),
+        "{e}"
+    );
+    let (status, stderr) = run(&task);
+    assert_eq!(status, Some(2), "{stderr}");
+    assert!(stderr.contains("the root element is <robot>"), "{stderr}");
+    std::fs::write(
+        dir.join("scene.xml"),
+        "<?xml version=\"1.0\"?><Robot name=\"arm\"/>",
+    )
+    .unwrap();
+    assert!(refusal(&task).contains("the root element is <Robot>"));
+
+    let task = scene_with(
+        dir,
+        "meshdir=\"meshes\"",
+        "<mesh name=\"tet\" file=\"tet.obj\"/>",
+    );
+    let text = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+    std::fs::write(
+        dir.join("scene.xml"),
+        text.replace("<mujoco ", "<MuJoCo ")
+            .replace("</mujoco>", "</MuJoCo>"),
+    )
+    .unwrap();
+    let files = read_scene_files(&dir.join("scene.xml")).unwrap();
+    assert_eq!(files.files[0].name, "meshes/tet.obj");
+    let e = refusal(&task);
+    assert!(e.contains("Schema violation"), "{e}");
+}

@@ -16,6 +16,9 @@
 //! - a texture reads its `file` unless it is `builtin`, and without a `file` its cube faces
 //!   (`fileright`, `fileleft`, `fileup`, `filedown`, `filefront`, `fileback`).
 //!
+//! A scene is an MJCF file: MuJoCo reads a document whose root is named `mujoco`, in any case,
+//! as MJCF (its schema then takes the lower case only), and so does this module. A URDF file
+//! (root `<robot>`) is refused, since MuJoCo finds the meshes it names by other rules.
 //! Names on which MuJoCo 2.2.2 aborts the process (an uncaught C++ exception) are refused:
 //! a mesh or skin file whose name, after `strippath`, has fewer than 3 bytes (the compiler
 //! takes the last 3 as its type), and a height-field or texture file whose name with its
@@ -105,6 +108,8 @@ pub enum SceneFileError {
         file: String,
         rule: String,
     },
+    #[error("{scene}: the root element is <{root}>; a task's scene is an MJCF file, whose root is <mujoco> (a URDF file, <robot>, is not taken: MuJoCo finds the meshes it names by rules this reader does not follow, so the expert's key and the logs would miss them)")]
+    NotMjcf { scene: String, root: String },
 }
 
 impl SceneFileError {
@@ -296,6 +301,15 @@ impl Walk {
         let base = self.open.len();
         for tag in tags(text).map_err(syntax)? {
             let dropped = included && self.open.len() == base;
+            // MuJoCo compares the root's name whatever its case, and reads the files of an
+            // MJCF document only.
+            let root = !included && self.kept.is_empty() && tag.kind != TagKind::Close;
+            if root && !tag.name.eq_ignore_ascii_case("mujoco") {
+                return Err(SceneFileError::NotMjcf {
+                    scene: self.scene.clone(),
+                    root: tag.name.to_string(),
+                });
+            }
             match tag.kind {
                 TagKind::Open => {
                     if !dropped {
@@ -375,7 +389,7 @@ impl Walk {
         }
         let kept = (self.kept.len(), self.kept.last().map(String::as_str));
         match (tag.name, kept) {
-            ("compiler", (1, Some("mujoco"))) => {
+            ("compiler", (1, Some(root))) if root.eq_ignore_ascii_case("mujoco") => {
                 if let Some(dir) = value("meshdir") {
                     self.meshdir = Some(dir.into_owned());
                 }
