@@ -384,59 +384,65 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
     assert_eq!(read_log(&path).unwrap().scene_files, within);
 }
 
+/// Two included files of one name in two directories: MuJoCo reads them from disk, but finds
+/// a file in memory by its name alone, so a log of the scene could not be compiled. The task
+/// is refused when it loads, naming both, before any work (it compiles its scene as a log
+/// does); the same bytes under two such names are one file, and the task runs. A log that
+/// carries such files anyway is refused when it is replayed.
 #[test]
-fn files_that_memory_cannot_tell_apart_are_named_when_the_log_is_replayed() {
-    // Two included files of one name in two directories: MuJoCo reads them from disk, but
-    // finds a file in memory by its name alone.
+fn files_that_memory_cannot_tell_apart_are_refused_when_the_task_loads() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let (start, end) = (
-        REACHER_XML.find("<actuator>").unwrap(),
-        REACHER_XML.find("</actuator>").unwrap() + "</actuator>".len(),
-    );
+    let size = |n: usize| format!("<mujoco><size nuserdata=\"{n}\"/></mujoco>");
     std::fs::create_dir_all(d.join("a")).unwrap();
     std::fs::create_dir_all(d.join("b")).unwrap();
-    std::fs::write(
-        d.join("a/part.xml"),
-        format!("<mujoco>{}</mujoco>", &REACHER_XML[start..end]),
-    )
-    .unwrap();
-    std::fs::write(
-        d.join("b/Part.xml"),
-        "<mujoco><size nuserdata=\"1\"/></mujoco>",
-    )
-    .unwrap();
-    let scene = format!(
-        "{}<include file=\"a/part.xml\"/><include file=\"b/Part.xml\"/>{}",
-        &REACHER_XML[..start],
-        &REACHER_XML[end..]
+    std::fs::write(d.join("a/part.xml"), size(1)).unwrap();
+    std::fs::write(d.join("b/Part.xml"), size(2)).unwrap();
+    let compiler = "<compiler angle=\"radian\" inertiafromgeom=\"true\"/>";
+    let scene = REACHER_XML.replacen(
+        compiler,
+        &format!("{compiler}<include file=\"a/part.xml\"/><include file=\"b/Part.xml\"/>"),
+        1,
     );
     std::fs::write(d.join("scene.xml"), scene).unwrap();
     std::fs::write(d.join("m.txt"), MACHINE).unwrap();
     std::fs::write(d.join("task.toml"), TASK).unwrap();
-    let o = reacher(
-        d,
-        &[
-            "demo",
-            "--task",
-            "task.toml",
-            "--episodes",
-            "1",
-            "--out",
-            "demo.mcap",
-        ],
-    );
+    let both = "files a/part.xml and b/Part.xml differ but share the name 'part.xml', and MuJoCo \
+                2.2 finds a file in memory by that name alone";
+    let e = smirl::env::task_file::Task::load(&d.join("task.toml")).unwrap_err();
+    assert!(e.to_string().contains(both), "{e}");
+    let demo = [
+        "demo",
+        "--task",
+        "task.toml",
+        "--episodes",
+        "1",
+        "--out",
+        "demo.mcap",
+    ];
+    let o = reacher(d, &demo);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains(both), "{}", text(&o));
+    assert!(!d.join("demo.mcap").exists());
+
+    // The same bytes under both names: one file in memory, and the log replays.
+    std::fs::write(d.join("b/Part.xml"), size(1)).unwrap();
+    let o = reacher(d, &demo);
     assert!(o.status.success(), "{}", text(&o));
     let o = reacher(d, &["replay", "--verify", "demo.mcap"]);
-    assert_ne!(o.status.code(), Some(0), "{}", text(&o));
-    assert!(
-        text(&o).contains(
-            "files a/part.xml and b/Part.xml differ but share the name 'part.xml', and MuJoCo \
-             2.2 finds a file in memory by that name alone"
-        ),
-        "{}",
-        text(&o)
+    assert!(o.status.success(), "{}", text(&o));
+
+    let path = d.join("carried.mcap");
+    log_with(
+        &path,
+        vec![
+            file(SceneFileKind::Include, "a/part.xml".into(), size(1).into()),
+            file(SceneFileKind::Include, "b/Part.xml".into(), size(2).into()),
+        ],
     );
+    let o = reacher(d, &["replay", "--verify", "carried.mcap"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains(both), "{}", text(&o));
 }
 
 #[test]

@@ -25,6 +25,7 @@
 //! directory has fewer than 4 (the compiler reads the last 4 to tell a PNG file).
 
 use super::physics_scene::{attribute, tags, SceneCutError, Tag, TagKind, MAX_SCENE_BYTES};
+use crate::mujoco::{MjError, Model};
 use std::borrow::Cow;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -279,6 +280,21 @@ fn aborting_name(kind: AssetKind, file: &str, name: &str) -> Option<String> {
         )),
         _ => None,
     }
+}
+
+/// A scene's text compiled with the files it reads held in memory, each under the name the
+/// scene gives it ([`Model::from_xml_with_files`]): how a log's scene is compiled, and how a
+/// task's scene is checked, so that the model a task is checked on is the one its logs
+/// rebuild.
+pub fn compile_in_memory(
+    text: &str,
+    files: &[SceneFile],
+    source_name: &str,
+) -> Result<Model, MjError> {
+    let files: Vec<(&str, &[u8])> = (files.iter())
+        .map(|f| (f.name.as_str(), f.bytes.as_slice()))
+        .collect();
+    Model::from_xml_with_files(text, &files, source_name)
 }
 
 /// The bytes of the file at `path`, at most `limit`; errors name it as `what`.
