@@ -332,10 +332,10 @@ fn scene_including(dir: &Path, name: &str) -> PathBuf {
     dir.join("task.toml")
 }
 
-/// A scene that includes itself, or two files that include each other, is refused at the
-/// second reading of a file, as MuJoCo refuses it, naming the file — not read 64 levels
-/// deep. Fails without the check of the files already read (the error is then the count of
-/// included files).
+/// A scene that includes itself, two files that include each other, or one file included
+/// twice (no cycle, the second time in another case), is refused at the second reading of a
+/// file, as MuJoCo refuses it, naming the file — not read 64 levels deep. Fails without the
+/// check of the files already read (the error is then the count of included files).
 #[test]
 fn a_file_included_twice_is_refused_naming_it() {
     let tmp = tempfile::tempdir().unwrap();
@@ -363,6 +363,20 @@ fn a_file_included_twice_is_refused_naming_it() {
     let (code, out) = run(&task);
     assert_eq!(code, Some(2), "{out}");
     assert!(out.contains("already included"), "{out}");
+
+    // No cycle: one file included twice, the second time in another case.
+    let task = scene_including(dir, "c.xml\"/><include file=\"C.xml");
+    std::fs::write(
+        dir.join("c.xml"),
+        "<mujoco><size nuserdata=\"1\"/></mujoco>",
+    )
+    .unwrap();
+    let e = Task::load(&task).unwrap_err().to_string();
+    let second = dir.join("C.xml").display().to_string();
+    assert!(
+        e.contains(&format!("included file {second}: already included")),
+        "{e}"
+    );
 }
 
 /// Included files beyond MAX_INCLUDED_BYTES together are refused naming the file that passes
@@ -556,4 +570,61 @@ fn a_urdf_scene_is_refused_and_the_mjcf_root_is_read_in_any_case() {
     assert_eq!(files.files[0].name, "meshes/tet.obj");
     let e = refusal(&task);
     assert!(e.contains("Schema violation"), "{e}");
+}
+
+/// An absolute `texturedir` is taken as it stands: the texture is named by its absolute
+/// path, is part of the key, and the scene compiles from memory with it.
+#[test]
+fn an_absolute_texturedir_is_taken_as_it_stands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let elsewhere = tempfile::tempdir().unwrap();
+    std::fs::create_dir(elsewhere.path().join("t")).unwrap();
+    std::fs::write(elsewhere.path().join("t/grey.png"), png(4, 128)).unwrap();
+    // A file of that name beside the scene is not the one read.
+    std::fs::create_dir(dir.join("t")).unwrap();
+    std::fs::write(dir.join("t/grey.png"), png(4, 7)).unwrap();
+    let absolute = format!("{}/t", elsewhere.path().display());
+    let task = scene_with(
+        dir,
+        &format!("texturedir=\"{absolute}\""),
+        "<texture name=\"grey\" type=\"2d\" file=\"grey.png\"/>",
+    );
+    let loaded = Task::load(&task).unwrap();
+    let files: Vec<(&str, &[u8])> = (loaded.scene_files.iter())
+        .map(|f| (f.name.as_str(), f.bytes.as_slice()))
+        .collect();
+    assert_eq!(
+        files,
+        [(
+            format!("{absolute}/grey.png").as_str(),
+            png(4, 128).as_slice()
+        )]
+    );
+    std::fs::write(elsewhere.path().join("t/grey.png"), png(4, 129)).unwrap();
+    assert_ne!(key(&task), loaded.content_hash);
+}
+
+/// `strippath="true"` drops the directories of a cube texture's faces as it drops a file's:
+/// each face is read in `texturedir`, once however many faces name it.
+#[test]
+fn strippath_drops_the_directories_of_cube_faces() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    let task = scene_with(
+        dir,
+        "texturedir=\"textures\" strippath=\"true\"",
+        "<texture name=\"box\" type=\"cube\" fileright=\"a/f.png\" fileleft=\"b/f.png\" \
+         fileup=\"f.png\" filedown=\"c\\d\\f.png\" filefront=\"/abs/f.png\" \
+         fileback=\"x/y/back.png\"/>",
+    );
+    let loaded = Task::load(&task).unwrap();
+    let names: Vec<&str> = (loaded.scene_files.iter())
+        .map(|f| f.name.as_str())
+        .collect();
+    assert_eq!(names, ["textures/f.png", "textures/back.png"]);
+    let first = loaded.content_hash;
+    std::fs::write(dir.join("textures/back.png"), png(2, 21)).unwrap();
+    assert_ne!(key(&task), first);
 }

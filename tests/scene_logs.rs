@@ -499,3 +499,99 @@ fn names_of_three_bytes_compile_from_memory() {
     .unwrap();
     assert_eq!(model.ngeom(), 1);
 }
+
+/// Attachments a log could carry but no task writes: a name with no last component
+/// (`include/`, `asset/dir/`), a NUL byte, a last component of 1000 bytes, no bytes. Each is
+/// read, and compiling the log's scene fails with a message naming it; `replay` says so and
+/// exits 1 (no panic, no abort). A name of 1000 bytes whose last component is short is found
+/// by that component, as MuJoCo finds it.
+#[test]
+fn attachments_no_task_writes_are_clear_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("odd.mcap");
+    let long = "x".repeat(1000);
+    let cases: [(SceneFile, String); 5] = [
+        (
+            file(SceneFileKind::Include, String::new(), b"<mujoco/>".into()),
+            "file name '' does not end in a name of 1 to 999 bytes".into(),
+        ),
+        (
+            file(SceneFileKind::Asset, "dir/".into(), vec![1]),
+            "file name 'dir/' does not end in a name of 1 to 999 bytes".into(),
+        ),
+        (
+            file(SceneFileKind::Asset, "m/a\0b.stl".into(), vec![1]),
+            "holds a NUL byte".into(),
+        ),
+        (
+            file(SceneFileKind::Asset, format!("m/{long}"), vec![1]),
+            format!("file name 'm/{long}' does not end in a name of 1 to 999 bytes"),
+        ),
+        (
+            file(SceneFileKind::Asset, "m/empty.stl".into(), Vec::new()),
+            "file m/empty.stl is empty".into(),
+        ),
+    ];
+    for (carried, expected) in cases {
+        log_with(&path, vec![carried.clone()]);
+        let log = read_log(&path).unwrap();
+        assert_eq!(log.scene_files, [carried]);
+        let e = log.reacher_model().unwrap_err().to_string();
+        assert!(e.contains(&expected), "{e}\nexpected: {expected}");
+        let o = reacher(tmp.path(), &["replay", "odd.mcap"]);
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+        assert!(text(&o).contains(&expected), "{}", text(&o));
+    }
+    let deep = format!("{}/m.stl", "d/".repeat(500));
+    assert!(deep.len() > 1000);
+    log_with(
+        &path,
+        vec![file(SceneFileKind::Asset, deep, TETRAHEDRON.into())],
+    );
+    read_log(&path).unwrap().reacher_model().unwrap();
+}
+
+/// A file the scene reads that its log lacks (a log no task writes: each carries every file)
+/// is not read from where the command runs: the compile fails naming it as MuJoCo looks for it,
+/// under `smirl-log/` in the working directory, the only place MuJoCo still looks.
+#[test]
+fn a_file_absent_from_the_log_is_not_read_from_the_working_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene_dir = tmp.path().join("scene");
+    let elsewhere = tmp.path().join("elsewhere");
+    std::fs::create_dir(&scene_dir).unwrap();
+    std::fs::create_dir(&elsewhere).unwrap();
+    let (task, _) = scene_of_ones_own(&scene_dir);
+    let task = smirl::env::reacher_task::ReacherTask::resolve(task.to_str().unwrap()).unwrap();
+    let log = tmp.path().join("partial.mcap");
+    for (absent, looked_for) in [
+        ("meshes/tet.obj", "smirl-log/meshes/tet.obj"),
+        ("parts/motors.xml", "smirl-log/parts/motors.xml"),
+    ] {
+        let mut header = RunHeader::of_task("task", task.task(), 0, serde_json::json!({}));
+        let files: Vec<SceneFile> = (header.scene_files.iter())
+            .filter(|f| f.name != absent)
+            .cloned()
+            .collect();
+        assert_eq!(files.len(), 3);
+        header.scene_files = Arc::from(files);
+        RolloutLogger::create(&log, header, LogOptions::default())
+            .unwrap()
+            .finish()
+            .unwrap();
+        // The scene's own copy, where the command runs.
+        let copy = elsewhere.join(absent);
+        std::fs::create_dir_all(copy.parent().unwrap()).unwrap();
+        std::fs::copy(scene_dir.join(absent), &copy).unwrap();
+        let o = reacher(&elsewhere, &["replay", log.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+        assert!(text(&o).contains(looked_for), "{}", text(&o));
+
+        let copy = elsewhere.join(looked_for);
+        std::fs::create_dir_all(copy.parent().unwrap()).unwrap();
+        std::fs::copy(scene_dir.join(absent), &copy).unwrap();
+        let o = reacher(&elsewhere, &["replay", log.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", text(&o));
+        std::fs::remove_dir_all(elsewhere.join("smirl-log")).unwrap();
+    }
+}
