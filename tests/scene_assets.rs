@@ -332,10 +332,10 @@ fn scene_including(dir: &Path, name: &str) -> PathBuf {
     dir.join("task.toml")
 }
 
-/// A scene that includes itself, or two files that include each other, is refused at the
-/// second reading of a file, as MuJoCo refuses it, naming the file — not read 64 levels
-/// deep. Fails without the check of the files already read (the error is then the count of
-/// included files).
+/// A scene that includes itself, two files that include each other, or one file included
+/// twice (no cycle, the second time in another case), is refused at the second reading of a
+/// file, as MuJoCo refuses it, naming the file — not read 64 levels deep. Fails without the
+/// check of the files already read (the error is then the count of included files).
 #[test]
 fn a_file_included_twice_is_refused_naming_it() {
     let tmp = tempfile::tempdir().unwrap();
@@ -363,6 +363,20 @@ fn a_file_included_twice_is_refused_naming_it() {
     let (code, out) = run(&task);
     assert_eq!(code, Some(2), "{out}");
     assert!(out.contains("already included"), "{out}");
+
+    // No cycle: one file included twice, the second time in another case.
+    let task = scene_including(dir, "c.xml\"/><include file=\"C.xml");
+    std::fs::write(
+        dir.join("c.xml"),
+        "<mujoco><size nuserdata=\"1\"/></mujoco>",
+    )
+    .unwrap();
+    let e = Task::load(&task).unwrap_err().to_string();
+    let second = dir.join("C.xml").display().to_string();
+    assert!(
+        e.contains(&format!("included file {second}: already included")),
+        "{e}"
+    );
 }
 
 /// Included files beyond MAX_INCLUDED_BYTES together are refused naming the file that passes
@@ -404,4 +418,213 @@ fn a_deeply_nested_scene_is_read_in_linear_time() {
     );
     std::fs::write(dir.join("deep.xml"), deep).unwrap();
     assert!(Task::load(&task).is_err());
+}
+
+/// The message of a task that does not load.
+fn refusal(task: &Path) -> String {
+    Task::load(task).unwrap_err().to_string()
+}
+
+/// Names on which MuJoCo 2.2.2 aborts the process (an uncaught `std::out_of_range`: the
+/// compiler takes a mesh's or skin's last 3 bytes as its type, and reads a height field's or
+/// texture's last 4 to tell a PNG file) are refused by name before MuJoCo compiles anything.
+/// Without the refusal, the mesh named `ab` aborts this test process: the task's scene is
+/// compiled in `Task::load`.
+#[test]
+fn names_mujoco_aborts_on_are_refused_before_it_compiles() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    std::fs::write(dir.join("ab"), TETRAHEDRON).unwrap();
+    std::fs::write(dir.join("a.b"), hfield([0.0; 4])).unwrap();
+    std::fs::write(dir.join("a.p"), png(2, 10)).unwrap();
+    let full = |name: &str| dir.join(name).display().to_string();
+    let cases = [
+        (
+            "",
+            "<mesh name=\"m\" file=\"ab\"/>",
+            format!(
+                "mesh file {}: MuJoCo 2.2.2 aborts the process on this name: the file name \
+                 'ab' has fewer than 3 bytes, and MuJoCo takes its last 3 as the file's type",
+                full("ab")
+            ),
+        ),
+        (
+            // A name long enough until `strippath` drops its directory.
+            "strippath=\"true\"",
+            "<mesh name=\"m\" file=\"some/where/ab\"/>",
+            format!("mesh file {}: MuJoCo 2.2.2 aborts", full("ab")),
+        ),
+        (
+            "",
+            "<skin file=\"s\"/>",
+            format!("skin file {}: MuJoCo 2.2.2 aborts", full("s")),
+        ),
+        (
+            "",
+            "<hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/>",
+            format!(
+                "height-field file {}: MuJoCo 2.2.2 aborts the process on this name: the name \
+                 'a.b' has fewer than 4 bytes, and MuJoCo reads its last 4 to tell a PNG file",
+                full("a.b")
+            ),
+        ),
+        (
+            "",
+            "<texture name=\"t\" type=\"2d\" file=\"a.p\"/>",
+            format!("texture file {}: MuJoCo 2.2.2 aborts", full("a.p")),
+        ),
+        (
+            "",
+            "<texture name=\"t\" type=\"cube\" fileright=\"a.p\"/>",
+            format!("texture file {}: MuJoCo 2.2.2 aborts", full("a.p")),
+        ),
+    ];
+    for (compiler, assets, expected) in cases {
+        let task = scene_with(dir, compiler, assets);
+        let e = refusal(&task);
+        assert!(e.contains(&expected), "{e}\nexpected: {expected}");
+    }
+    // The rule is on the name with its directory, as the scene gives it: the same file four
+    // bytes long with `meshdir` is taken, whichever directory the task is loaded from.
+    let task = scene_with(
+        dir,
+        "meshdir=\"./\"",
+        "<hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/>",
+    );
+    let loaded = Task::load(&task).unwrap();
+    assert_eq!(loaded.scene_files[0].name, "./a.b");
+
+    // The command refuses it before any work, run from the scene's own directory too.
+    let task = scene_with(
+        dir,
+        "",
+        "<hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/>",
+    );
+    assert!(task.is_file());
+    let out = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_reacher"))
+        .current_dir(dir)
+        .args(["--task", "task.toml", "--quick", "--out"])
+        .arg(out.path().join("run"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("a.b: MuJoCo 2.2.2 aborts the process on this name"),
+        "{stderr}"
+    );
+    assert!(!out.path().join("run").exists());
+}
+
+/// A URDF scene (`<robot>`, in any case) is refused, naming its root: MuJoCo finds the meshes
+/// it names by other rules, so its key and logs would miss them. MuJoCo reads a root named
+/// `mujoco` in any case as MJCF (and its schema then refuses all but the lower case): the
+/// files are found as MuJoCo finds them, its `<compiler>` directories holding, and MuJoCo's
+/// message is the one shown, not a missing file's.
+#[test]
+fn a_urdf_scene_is_refused_and_the_mjcf_root_is_read_in_any_case() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    let task = scene_with(dir, "", "");
+    std::fs::write(
+        dir.join("scene.xml"),
+        "<robot name=\"arm\"><link name=\"base\"><visual><geometry>\
+         <mesh filename=\"meshes/tet.obj\"/></geometry></visual></link></robot>",
+    )
+    .unwrap();
+    let e = refusal(&task);
+    let scene = dir.join("scene.xml").display().to_string();
+    assert!(
+        e.contains(&format!(
+            "{scene}: the root element is <robot>; a task's scene is an MJCF file, whose root \
+             is <mujoco>"
+        )),
+        "{e}"
+    );
+    let (status, stderr) = run(&task);
+    assert_eq!(status, Some(2), "{stderr}");
+    assert!(stderr.contains("the root element is <robot>"), "{stderr}");
+    std::fs::write(
+        dir.join("scene.xml"),
+        "<?xml version=\"1.0\"?><Robot name=\"arm\"/>",
+    )
+    .unwrap();
+    assert!(refusal(&task).contains("the root element is <Robot>"));
+
+    let task = scene_with(
+        dir,
+        "meshdir=\"meshes\"",
+        "<mesh name=\"tet\" file=\"tet.obj\"/>",
+    );
+    let text = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+    std::fs::write(
+        dir.join("scene.xml"),
+        text.replace("<mujoco ", "<MuJoCo ")
+            .replace("</mujoco>", "</MuJoCo>"),
+    )
+    .unwrap();
+    let files = read_scene_files(&dir.join("scene.xml")).unwrap();
+    assert_eq!(files.files[0].name, "meshes/tet.obj");
+    let e = refusal(&task);
+    assert!(e.contains("Schema violation"), "{e}");
+}
+
+/// An absolute `texturedir` is taken as it stands: the texture is named by its absolute
+/// path, is part of the key, and the scene compiles from memory with it.
+#[test]
+fn an_absolute_texturedir_is_taken_as_it_stands() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let elsewhere = tempfile::tempdir().unwrap();
+    std::fs::create_dir(elsewhere.path().join("t")).unwrap();
+    std::fs::write(elsewhere.path().join("t/grey.png"), png(4, 128)).unwrap();
+    // A file of that name beside the scene is not the one read.
+    std::fs::create_dir(dir.join("t")).unwrap();
+    std::fs::write(dir.join("t/grey.png"), png(4, 7)).unwrap();
+    let absolute = format!("{}/t", elsewhere.path().display());
+    let task = scene_with(
+        dir,
+        &format!("texturedir=\"{absolute}\""),
+        "<texture name=\"grey\" type=\"2d\" file=\"grey.png\"/>",
+    );
+    let loaded = Task::load(&task).unwrap();
+    let files: Vec<(&str, &[u8])> = (loaded.scene_files.iter())
+        .map(|f| (f.name.as_str(), f.bytes.as_slice()))
+        .collect();
+    assert_eq!(
+        files,
+        [(
+            format!("{absolute}/grey.png").as_str(),
+            png(4, 128).as_slice()
+        )]
+    );
+    std::fs::write(elsewhere.path().join("t/grey.png"), png(4, 129)).unwrap();
+    assert_ne!(key(&task), loaded.content_hash);
+}
+
+/// `strippath="true"` drops the directories of a cube texture's faces as it drops a file's:
+/// each face is read in `texturedir`, once however many faces name it.
+#[test]
+fn strippath_drops_the_directories_of_cube_faces() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_assets(dir);
+    let task = scene_with(
+        dir,
+        "texturedir=\"textures\" strippath=\"true\"",
+        "<texture name=\"box\" type=\"cube\" fileright=\"a/f.png\" fileleft=\"b/f.png\" \
+         fileup=\"f.png\" filedown=\"c\\d\\f.png\" filefront=\"/abs/f.png\" \
+         fileback=\"x/y/back.png\"/>",
+    );
+    let loaded = Task::load(&task).unwrap();
+    let names: Vec<&str> = (loaded.scene_files.iter())
+        .map(|f| f.name.as_str())
+        .collect();
+    assert_eq!(names, ["textures/f.png", "textures/back.png"]);
+    let first = loaded.content_hash;
+    std::fs::write(dir.join("textures/back.png"), png(2, 21)).unwrap();
+    assert_ne!(key(&task), first);
 }

@@ -384,59 +384,65 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
     assert_eq!(read_log(&path).unwrap().scene_files, within);
 }
 
+/// Two included files of one name in two directories: MuJoCo reads them from disk, but finds
+/// a file in memory by its name alone, so a log of the scene could not be compiled. The task
+/// is refused when it loads, naming both, before any work (it compiles its scene as a log
+/// does); the same bytes under two such names are one file, and the task runs. A log that
+/// carries such files anyway is refused when it is replayed.
 #[test]
-fn files_that_memory_cannot_tell_apart_are_named_when_the_log_is_replayed() {
-    // Two included files of one name in two directories: MuJoCo reads them from disk, but
-    // finds a file in memory by its name alone.
+fn files_that_memory_cannot_tell_apart_are_refused_when_the_task_loads() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let (start, end) = (
-        REACHER_XML.find("<actuator>").unwrap(),
-        REACHER_XML.find("</actuator>").unwrap() + "</actuator>".len(),
-    );
+    let size = |n: usize| format!("<mujoco><size nuserdata=\"{n}\"/></mujoco>");
     std::fs::create_dir_all(d.join("a")).unwrap();
     std::fs::create_dir_all(d.join("b")).unwrap();
-    std::fs::write(
-        d.join("a/part.xml"),
-        format!("<mujoco>{}</mujoco>", &REACHER_XML[start..end]),
-    )
-    .unwrap();
-    std::fs::write(
-        d.join("b/Part.xml"),
-        "<mujoco><size nuserdata=\"1\"/></mujoco>",
-    )
-    .unwrap();
-    let scene = format!(
-        "{}<include file=\"a/part.xml\"/><include file=\"b/Part.xml\"/>{}",
-        &REACHER_XML[..start],
-        &REACHER_XML[end..]
+    std::fs::write(d.join("a/part.xml"), size(1)).unwrap();
+    std::fs::write(d.join("b/Part.xml"), size(2)).unwrap();
+    let compiler = "<compiler angle=\"radian\" inertiafromgeom=\"true\"/>";
+    let scene = REACHER_XML.replacen(
+        compiler,
+        &format!("{compiler}<include file=\"a/part.xml\"/><include file=\"b/Part.xml\"/>"),
+        1,
     );
     std::fs::write(d.join("scene.xml"), scene).unwrap();
     std::fs::write(d.join("m.txt"), MACHINE).unwrap();
     std::fs::write(d.join("task.toml"), TASK).unwrap();
-    let o = reacher(
-        d,
-        &[
-            "demo",
-            "--task",
-            "task.toml",
-            "--episodes",
-            "1",
-            "--out",
-            "demo.mcap",
-        ],
-    );
+    let both = "files a/part.xml and b/Part.xml differ but share the name 'part.xml', and MuJoCo \
+                2.2 finds a file in memory by that name alone";
+    let e = smirl::env::task_file::Task::load(&d.join("task.toml")).unwrap_err();
+    assert!(e.to_string().contains(both), "{e}");
+    let demo = [
+        "demo",
+        "--task",
+        "task.toml",
+        "--episodes",
+        "1",
+        "--out",
+        "demo.mcap",
+    ];
+    let o = reacher(d, &demo);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains(both), "{}", text(&o));
+    assert!(!d.join("demo.mcap").exists());
+
+    // The same bytes under both names: one file in memory, and the log replays.
+    std::fs::write(d.join("b/Part.xml"), size(1)).unwrap();
+    let o = reacher(d, &demo);
     assert!(o.status.success(), "{}", text(&o));
     let o = reacher(d, &["replay", "--verify", "demo.mcap"]);
-    assert_ne!(o.status.code(), Some(0), "{}", text(&o));
-    assert!(
-        text(&o).contains(
-            "files a/part.xml and b/Part.xml differ but share the name 'part.xml', and MuJoCo \
-             2.2 finds a file in memory by that name alone"
-        ),
-        "{}",
-        text(&o)
+    assert!(o.status.success(), "{}", text(&o));
+
+    let path = d.join("carried.mcap");
+    log_with(
+        &path,
+        vec![
+            file(SceneFileKind::Include, "a/part.xml".into(), size(1).into()),
+            file(SceneFileKind::Include, "b/Part.xml".into(), size(2).into()),
+        ],
     );
+    let o = reacher(d, &["replay", "--verify", "carried.mcap"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains(both), "{}", text(&o));
 }
 
 #[test]
@@ -462,4 +468,130 @@ fn a_log_without_the_files_compiles_its_text_alone_as_before() {
     let o = reacher(tmp.path(), &["replay", old]);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("parts/outer.xml"), "{}", text(&o));
+}
+
+/// The text compiled from memory has a directory of its own (`smirl-log/`), and files are
+/// still found in memory by their last component: a height field and a texture named in three
+/// bytes compile. With no directory, MuJoCo 2.2.2 reads the last four bytes of each name
+/// unchecked and aborts this test process.
+#[test]
+fn names_of_three_bytes_compile_from_memory() {
+    let mut height_field = Vec::new();
+    for v in [2i32, 2] {
+        height_field.extend_from_slice(&v.to_le_bytes());
+    }
+    for h in [0.0f32, 0.1, 0.2, 0.3] {
+        height_field.extend_from_slice(&h.to_le_bytes());
+    }
+    let mut texture = Vec::new();
+    for v in [2i32, 2] {
+        texture.extend_from_slice(&v.to_le_bytes());
+    }
+    texture.extend_from_slice(&[99; 12]);
+    let xml = "<mujoco><asset><hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/>\
+               <texture name=\"t\" type=\"2d\" file=\"x.p\"/></asset>\
+               <worldbody><geom type=\"hfield\" hfield=\"h\"/></worldbody></mujoco>";
+    let model = smirl::mujoco::Model::from_xml_with_files(
+        xml,
+        &[("a.b", &height_field), ("x.p", &texture)],
+        "three bytes",
+    )
+    .unwrap();
+    assert_eq!(model.ngeom(), 1);
+}
+
+/// Attachments a log could carry but no task writes: a name with no last component
+/// (`include/`, `asset/dir/`), a NUL byte, a last component of 1000 bytes, no bytes. Each is
+/// read, and compiling the log's scene fails with a message naming it; `replay` says so and
+/// exits 1 (no panic, no abort). A name of 1000 bytes whose last component is short is found
+/// by that component, as MuJoCo finds it.
+#[test]
+fn attachments_no_task_writes_are_clear_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("odd.mcap");
+    let long = "x".repeat(1000);
+    let cases: [(SceneFile, String); 5] = [
+        (
+            file(SceneFileKind::Include, String::new(), b"<mujoco/>".into()),
+            "file name '' does not end in a name of 1 to 999 bytes".into(),
+        ),
+        (
+            file(SceneFileKind::Asset, "dir/".into(), vec![1]),
+            "file name 'dir/' does not end in a name of 1 to 999 bytes".into(),
+        ),
+        (
+            file(SceneFileKind::Asset, "m/a\0b.stl".into(), vec![1]),
+            "holds a NUL byte".into(),
+        ),
+        (
+            file(SceneFileKind::Asset, format!("m/{long}"), vec![1]),
+            format!("file name 'm/{long}' does not end in a name of 1 to 999 bytes"),
+        ),
+        (
+            file(SceneFileKind::Asset, "m/empty.stl".into(), Vec::new()),
+            "file m/empty.stl is empty".into(),
+        ),
+    ];
+    for (carried, expected) in cases {
+        log_with(&path, vec![carried.clone()]);
+        let log = read_log(&path).unwrap();
+        assert_eq!(log.scene_files, [carried]);
+        let e = log.reacher_model().unwrap_err().to_string();
+        assert!(e.contains(&expected), "{e}\nexpected: {expected}");
+        let o = reacher(tmp.path(), &["replay", "odd.mcap"]);
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+        assert!(text(&o).contains(&expected), "{}", text(&o));
+    }
+    let deep = format!("{}/m.stl", "d/".repeat(500));
+    assert!(deep.len() > 1000);
+    log_with(
+        &path,
+        vec![file(SceneFileKind::Asset, deep, TETRAHEDRON.into())],
+    );
+    read_log(&path).unwrap().reacher_model().unwrap();
+}
+
+/// A file the scene reads that its log lacks (a log no task writes: each carries every file)
+/// is not read from where the command runs: the compile fails naming it as MuJoCo looks for it,
+/// under `smirl-log/` in the working directory, the only place MuJoCo still looks.
+#[test]
+fn a_file_absent_from_the_log_is_not_read_from_the_working_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene_dir = tmp.path().join("scene");
+    let elsewhere = tmp.path().join("elsewhere");
+    std::fs::create_dir(&scene_dir).unwrap();
+    std::fs::create_dir(&elsewhere).unwrap();
+    let (task, _) = scene_of_ones_own(&scene_dir);
+    let task = smirl::env::reacher_task::ReacherTask::resolve(task.to_str().unwrap()).unwrap();
+    let log = tmp.path().join("partial.mcap");
+    for (absent, looked_for) in [
+        ("meshes/tet.obj", "smirl-log/meshes/tet.obj"),
+        ("parts/motors.xml", "smirl-log/parts/motors.xml"),
+    ] {
+        let mut header = RunHeader::of_task("task", task.task(), 0, serde_json::json!({}));
+        let files: Vec<SceneFile> = (header.scene_files.iter())
+            .filter(|f| f.name != absent)
+            .cloned()
+            .collect();
+        assert_eq!(files.len(), 3);
+        header.scene_files = Arc::from(files);
+        RolloutLogger::create(&log, header, LogOptions::default())
+            .unwrap()
+            .finish()
+            .unwrap();
+        // The scene's own copy, where the command runs.
+        let copy = elsewhere.join(absent);
+        std::fs::create_dir_all(copy.parent().unwrap()).unwrap();
+        std::fs::copy(scene_dir.join(absent), &copy).unwrap();
+        let o = reacher(&elsewhere, &["replay", log.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+        assert!(text(&o).contains(looked_for), "{}", text(&o));
+
+        let copy = elsewhere.join(looked_for);
+        std::fs::create_dir_all(copy.parent().unwrap()).unwrap();
+        std::fs::copy(scene_dir.join(absent), &copy).unwrap();
+        let o = reacher(&elsewhere, &["replay", log.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", text(&o));
+        std::fs::remove_dir_all(elsewhere.join("smirl-log")).unwrap();
+    }
 }

@@ -15,8 +15,17 @@
 //!   sets one holds for every asset. (`assetdir` is MuJoCo 2.3's; 2.2.2 does not know it.)
 //! - a texture reads its `file` unless it is `builtin`, and without a `file` its cube faces
 //!   (`fileright`, `fileleft`, `fileup`, `filedown`, `filefront`, `fileback`).
+//!
+//! A scene is an MJCF file: MuJoCo reads a document whose root is named `mujoco`, in any case,
+//! as MJCF (its schema then takes the lower case only), and so does this module. A URDF file
+//! (root `<robot>`) is refused, since MuJoCo finds the meshes it names by other rules.
+//! Names on which MuJoCo 2.2.2 aborts the process (an uncaught C++ exception) are refused:
+//! a mesh or skin file whose name, after `strippath`, has fewer than 3 bytes (the compiler
+//! takes the last 3 as its type), and a height-field or texture file whose name with its
+//! directory has fewer than 4 (the compiler reads the last 4 to tell a PNG file).
 
 use super::physics_scene::{attribute, tags, SceneCutError, Tag, TagKind, MAX_SCENE_BYTES};
+use crate::mujoco::{MjError, Model};
 use std::borrow::Cow;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -94,6 +103,14 @@ pub enum SceneFileError {
     TooManyAssets { scene: String },
     #[error("{what} {file}: the scene's mesh, skin, height-field and texture files hold more than {MAX_ASSET_BYTES} bytes together")]
     AssetBytes { what: &'static str, file: String },
+    #[error("{what} {file}: MuJoCo 2.2.2 aborts the process on this name: {rule}")]
+    AbortingName {
+        what: &'static str,
+        file: String,
+        rule: String,
+    },
+    #[error("{scene}: the root element is <{root}>; a task's scene is an MJCF file, whose root is <mujoco> (a URDF file, <robot>, is not taken: MuJoCo finds the meshes it names by rules this reader does not follow, so the expert's key and the logs would miss them)")]
+    NotMjcf { scene: String, root: String },
 }
 
 impl SceneFileError {
@@ -104,17 +121,29 @@ impl SceneFileError {
     }
 }
 
-/// Which `<compiler>` directory an asset file resolves in.
-#[derive(Clone, Copy)]
-enum AssetDir {
+/// The element that names an asset file.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum AssetKind {
     Mesh,
+    Skin,
+    HeightField,
     Texture,
+}
+
+impl AssetKind {
+    fn what(self) -> &'static str {
+        match self {
+            AssetKind::Mesh => "mesh file",
+            AssetKind::Skin => "skin file",
+            AssetKind::HeightField => "height-field file",
+            AssetKind::Texture => "texture file",
+        }
+    }
 }
 
 /// An asset file as an element names it.
 struct AssetRef {
-    dir: AssetDir,
-    what: &'static str,
+    kind: AssetKind,
     file: String,
 }
 
@@ -179,9 +208,14 @@ pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
         } else {
             &asset.file
         };
-        let sub = match asset.dir {
-            AssetDir::Mesh => &meshdir,
-            AssetDir::Texture => &texturedir,
+        // MuJoCo drops a height field's directory before it asks whether a file is named,
+        // the other elements after.
+        if asset.kind == AssetKind::HeightField && file.is_empty() {
+            continue;
+        }
+        let sub = match asset.kind {
+            AssetKind::Texture => &texturedir,
+            _ => &meshdir,
         };
         let (name, full) = if is_absolute(file) {
             (file.to_string(), file.to_string())
@@ -190,6 +224,14 @@ pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
         } else {
             (format!("{sub}{file}"), format!("{}{sub}{file}", walk.dir))
         };
+        let what = asset.kind.what();
+        if let Some(rule) = aborting_name(asset.kind, file, &name) {
+            return Err(SceneFileError::AbortingName {
+                what,
+                file: full,
+                rule,
+            });
+        }
         if files
             .iter()
             .any(|f| f.kind == SceneFileKind::Asset && f.name == name)
@@ -201,7 +243,7 @@ pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
         }
         let left = MAX_ASSET_BYTES - asset_bytes;
         let over = || SceneFileError::AssetBytes {
-            what: asset.what,
+            what,
             file: full.clone(),
         };
         let full_path = PathBuf::from(&full);
@@ -210,7 +252,7 @@ pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
         if std::fs::metadata(&full_path).is_ok_and(|m| m.len() > left) {
             return Err(over());
         }
-        let bytes = read(&full_path, asset.what, left)?;
+        let bytes = read(&full_path, what, left)?;
         asset_bytes += bytes.len() as u64;
         assets += 1;
         files.push(SceneFile {
@@ -220,6 +262,39 @@ pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
         });
     }
     Ok(SceneFiles { main, files })
+}
+
+/// Why MuJoCo 2.2.2 would abort the process on an asset file named `file` in its element
+/// (after `strippath`), `name` with its directory, if it would. The full name MuJoCo forms
+/// (the scene file's directory, then `name`) is never shorter than `name`, so a rule on
+/// `name` holds wherever the scene file is, and in the memory a log compiles it from.
+fn aborting_name(kind: AssetKind, file: &str, name: &str) -> Option<String> {
+    match kind {
+        AssetKind::Mesh | AssetKind::Skin if file.len() < 3 => Some(format!(
+            "the file name '{file}' has fewer than 3 bytes, and MuJoCo takes its last 3 as \
+             the file's type"
+        )),
+        AssetKind::HeightField | AssetKind::Texture if name.len() < 4 => Some(format!(
+            "the name '{name}' has fewer than 4 bytes, and MuJoCo reads its last 4 to tell a \
+             PNG file"
+        )),
+        _ => None,
+    }
+}
+
+/// A scene's text compiled with the files it reads held in memory, each under the name the
+/// scene gives it ([`Model::from_xml_with_files`]): how a log's scene is compiled, and how a
+/// task's scene is checked, so that the model a task is checked on is the one its logs
+/// rebuild.
+pub fn compile_in_memory(
+    text: &str,
+    files: &[SceneFile],
+    source_name: &str,
+) -> Result<Model, MjError> {
+    let files: Vec<(&str, &[u8])> = (files.iter())
+        .map(|f| (f.name.as_str(), f.bytes.as_slice()))
+        .collect();
+    Model::from_xml_with_files(text, &files, source_name)
 }
 
 /// The bytes of the file at `path`, at most `limit`; errors name it as `what`.
@@ -242,6 +317,15 @@ impl Walk {
         let base = self.open.len();
         for tag in tags(text).map_err(syntax)? {
             let dropped = included && self.open.len() == base;
+            // MuJoCo compares the root's name whatever its case, and reads the files of an
+            // MJCF document only.
+            let root = !included && self.kept.is_empty() && tag.kind != TagKind::Close;
+            if root && !tag.name.eq_ignore_ascii_case("mujoco") {
+                return Err(SceneFileError::NotMjcf {
+                    scene: self.scene.clone(),
+                    root: tag.name.to_string(),
+                });
+            }
             match tag.kind {
                 TagKind::Open => {
                     if !dropped {
@@ -321,7 +405,7 @@ impl Walk {
         }
         let kept = (self.kept.len(), self.kept.last().map(String::as_str));
         match (tag.name, kept) {
-            ("compiler", (1, Some("mujoco"))) => {
+            ("compiler", (1, Some(root))) if root.eq_ignore_ascii_case("mujoco") => {
                 if let Some(dir) = value("meshdir") {
                     self.meshdir = Some(dir.into_owned());
                 }
@@ -333,26 +417,25 @@ impl Walk {
                 }
             }
             (element, (_, Some("asset"))) => {
-                let mut name = |dir, what, key: &str| {
+                let mut name = |kind, key: &str| {
                     if let Some(file) = value(key).filter(|f| !f.is_empty()) {
                         self.assets.push(AssetRef {
-                            dir,
-                            what,
+                            kind,
                             file: file.into_owned(),
                         });
                     }
                 };
                 match element {
-                    "mesh" => name(AssetDir::Mesh, "mesh file", "file"),
-                    "skin" => name(AssetDir::Mesh, "skin file", "file"),
-                    "hfield" => name(AssetDir::Mesh, "height-field file", "file"),
+                    "mesh" => name(AssetKind::Mesh, "file"),
+                    "skin" => name(AssetKind::Skin, "file"),
+                    "hfield" => name(AssetKind::HeightField, "file"),
                     "texture" => {
                         let builtin = value("builtin").is_some_and(|b| b != "none");
                         let file = value("file").is_some_and(|f| !f.is_empty());
                         if builtin {
                             // Made by the compiler: no file is read.
                         } else if file {
-                            name(AssetDir::Texture, "texture file", "file");
+                            name(AssetKind::Texture, "file");
                         } else {
                             for face in [
                                 "fileright",
@@ -362,7 +445,7 @@ impl Walk {
                                 "filefront",
                                 "fileback",
                             ] {
-                                name(AssetDir::Texture, "texture file", face);
+                                name(AssetKind::Texture, face);
                             }
                         }
                     }

@@ -27,9 +27,9 @@
 
 pub use super::layout::{Anchor, Event, Region, Scene, TaskLayout, BUILTIN_SCENE};
 use super::placement::Placement;
-use super::scene_files::{read_scene_files, SceneFile, SceneFileKind};
+use super::scene_files::{compile_in_memory, read_scene_files, SceneFile, SceneFileKind};
 use crate::config_text::{key_line, read_text_file, toml_error_message};
-use crate::mujoco::{Data, Model, ObjectKind};
+use crate::mujoco::{Data, Model, ObjectKind, IN_MEMORY_DIR};
 use crate::rm::format::{parse_rm, RmFileError};
 use crate::rm::{LabelSet, RewardMachine};
 use serde::Deserialize;
@@ -328,12 +328,16 @@ impl Task {
         // The scene: its files readable within the limits, loadable, with the arm and its
         // fingertip. The files are read first, so that a missing or oversized one is named
         // before MuJoCo compiles anything; a text that is no XML is left to MuJoCo's message.
+        // The scene is then compiled from memory as its logs compile it, so that two files
+        // memory cannot tell apart, or a file MuJoCo reads that a log would not carry, stop
+        // the task here rather than its replay.
         let scene_problem =
             |e: &dyn std::fmt::Display| bad("scene".into(), TaskProblem::Scene(e.to_string()));
         let (scene, model, files) = match raw.scene.as_str() {
             BUILTIN_SCENE => (
                 Scene::Builtin,
-                Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME),
+                Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME)
+                    .map_err(|e| scene_problem(&e))?,
                 None,
             ),
             path => {
@@ -341,20 +345,31 @@ impl Task {
                     Origin::Dir(dir) => dir.join(path),
                     Origin::Shipped => PathBuf::from(path),
                 };
-                let files = read_scene_files(&path);
-                match &files {
-                    Err(e) if !e.is_syntax() => return Err(scene_problem(e)),
-                    _ => {}
-                }
-                let model = Model::from_xml_path(&path);
-                (Scene::File(path), model, Some(files))
+                let files = match read_scene_files(&path) {
+                    Ok(files) => files,
+                    Err(e) if e.is_syntax() => {
+                        return Err(match Model::from_xml_path(&path) {
+                            Err(mujoco) => scene_problem(&mujoco),
+                            Ok(_) => scene_problem(&e),
+                        })
+                    }
+                    Err(e) => return Err(scene_problem(&e)),
+                };
+                let source = path.display().to_string();
+                let text = String::from_utf8_lossy(&files.main);
+                let model = compile_in_memory(&text, &files.files, &source).map_err(|e| {
+                    let mut message = e.to_string();
+                    if message.contains(&format!("{IN_MEMORY_DIR}/")) {
+                        message.push_str(&format!(
+                            " (the scene is compiled from memory, as its logs compile it: \
+                             {IN_MEMORY_DIR}/<name> is the scene's file <name>)"
+                        ));
+                    }
+                    bad("scene".into(), TaskProblem::Scene(message))
+                })?;
+                (Scene::File(path), model, Some((files.main, files.files)))
             }
         };
-        let model = model.map_err(|e| scene_problem(&e))?;
-        let files = files
-            .transpose()
-            .map_err(|e| scene_problem(&e))?
-            .map(|f| (f.main, f.files));
         let scene_name = scene.to_string();
         check_arm(&model, &scene_name).map_err(|p| bad("scene".into(), p))?;
         let mut data = Data::new(Arc::new(model))

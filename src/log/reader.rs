@@ -4,7 +4,8 @@ use super::schema::{self, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHE
 use super::LogError;
 use crate::env::physics_scene::MAX_SCENE_BYTES;
 use crate::env::scene_files::{
-    SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_FILES,
+    compile_in_memory, SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES,
+    MAX_INCLUDED_FILES,
 };
 use crate::mujoco::{MjError, Model};
 use mcap::records::{op, Record};
@@ -126,10 +127,7 @@ impl RolloutLog {
         Ok(if self.scene_files.is_empty() {
             Model::from_xml_str(xml, &source)?
         } else {
-            let files: Vec<(&str, &[u8])> = (self.scene_files.iter())
-                .map(|f| (f.name.as_str(), f.bytes.as_slice()))
-                .collect();
-            Model::from_xml_with_files(xml, &files, &source)?
+            compile_in_memory(xml, &self.scene_files, &source)?
         })
     }
 }

@@ -15,7 +15,7 @@ mod data;
 mod model;
 
 pub use data::Data;
-pub use model::{Model, ObjectKind};
+pub use model::{Model, ObjectKind, IN_MEMORY_DIR};
 
 use std::cell::RefCell;
 use std::ffi::{c_char, CStr};

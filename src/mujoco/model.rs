@@ -52,6 +52,10 @@ unsafe impl Sync for Model {}
 
 const ERROR_BUF: usize = 1000;
 
+/// The directory MuJoCo takes the text of [`Model::from_xml_with_files`] to be in: its
+/// messages name a file the text reads `smirl-log/<name>`.
+pub const IN_MEMORY_DIR: &str = "smirl-log";
+
 impl Model {
     /// Loads and compiles an MJCF file.
     pub fn from_xml_path(path: &Path) -> Result<Model, MjError> {
@@ -104,9 +108,12 @@ impl Model {
     /// MuJoCo 2.2 looks a file up in its virtual file system by the last component of the
     /// name, lower-cased, before it looks on disk, for includes and assets alike: each file
     /// goes in under that key, and two different files with one key cannot both go in (an
-    /// error naming them; the same bytes twice are one file). The text goes in under a key no
-    /// file has. A file the text names and `files` lacks is read from disk relative to the
-    /// working directory, as [`Model::from_xml_str`] reads it.
+    /// error naming them; the same bytes twice are one file). The text goes in as
+    /// `smirl-log/model.xml` (`model-1.xml`, ... when a file has that key), so MuJoCo takes
+    /// `smirl-log/` for the text's directory: its messages name a file `smirl-log/<name>`, and
+    /// a file the text names with a relative name and `files` lacks is looked for on disk
+    /// under `smirl-log/` in the working directory, where none is expected (one with an
+    /// absolute name at that name).
     pub fn from_xml_with_files(
         xml: &str,
         files: &[(&str, &[u8])],
@@ -145,15 +152,26 @@ impl Model {
                 entries.len()
             )));
         }
+        // The text is named with a directory: MuJoCo 2.2.2 reads the last four bytes of a
+        // height field's or texture's name, its directory prepended, without checking that
+        // there are four (a shorter one aborts the process); a directory makes every relative
+        // name long enough. The virtual file system finds files by their last component, so
+        // the directory changes no lookup.
         let main = (0..)
             .map(|n| match n {
                 0 => "model.xml".to_string(),
                 n => format!("model-{n}.xml"),
             })
             .find(|name| entries.iter().all(|(key, _, _)| key != name))
+            .map(|name| format!("{IN_MEMORY_DIR}/{name}"))
             .unwrap_or_default();
         let c_name = |name: &str| {
-            CString::new(name).map_err(|_| refused(format!("file name '{name}' holds a NUL byte")))
+            CString::new(name).map_err(|_| {
+                refused(format!(
+                    "file name '{}' holds a NUL byte",
+                    name.escape_debug()
+                ))
+            })
         };
         check_version()?;
         let vfs = VfsBox::new();
