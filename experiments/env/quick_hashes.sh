@@ -6,6 +6,7 @@
 #
 #   nice -n 10 experiments/env/quick_hashes.sh BIN OUTDIR [REF]
 set -euo pipefail
+HERE=$(dirname "$(realpath "$0")")
 BIN=$(realpath "$1")
 OUT=$2
 REF=${3:+$(realpath "$3")}
@@ -18,10 +19,5 @@ done
 find . -name metrics.csv -o -path '*/rewards/*' -type f | sort | xargs sha256sum > hashes.txt
 cat hashes.txt
 if [ -n "$REF" ]; then
-    if grep -v '^#' "$REF" | diff hashes.txt - > /dev/null; then
-        echo "identical to $REF ($(wc -l < hashes.txt) files)"
-    else
-        echo "DIFFERENT from $REF:"
-        grep -v '^#' "$REF" | diff hashes.txt - || true
-    fi
+    "$HERE/compare_hashes.sh" hashes.txt "$REF"
 fi
