@@ -384,7 +384,7 @@ fn the_check_flags_code_and_skips_comments_and_tests() {
         ("let body = \"Blue ball\";", vec![1]),
         ("let obs_dim = 8 + 2 * 4;", vec![1]),
         ("let obs = [0.0; 17];", vec![1]),
-        ("let regions: [Region; 4] = todo!();", vec![1]),
+        ("let regions: [Region; 4] = layout.regions();", vec![1]),
         ("let l = LabelSet(0b1111);", vec![1]),
         ("let s = \"reacher_blue\";", vec![1]),
         // Not violations: other words, other letters, other counts.
