@@ -11,6 +11,7 @@ HERE=$(dirname "$(realpath "$0")")
 BIN=$(realpath "$1")
 OUT=$(realpath -m "$2")
 REF=${3:+$(realpath "$3")}
+if [ -e "$OUT" ]; then echo "$OUT exists: give a new directory" >&2; exit 2; fi
 mkdir -p "$OUT"
 /usr/bin/time -f "%e s wall, %U s user" "$BIN" --task composite --algo smirl --seeds 1 --seed 0 \
     --quiet --out "$OUT/full-smirl-composite" > "$OUT/log.txt" 2>&1
