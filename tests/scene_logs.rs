@@ -595,3 +595,82 @@ fn a_file_absent_from_the_log_is_not_read_from_the_working_directory() {
         std::fs::remove_dir_all(elsewhere.join("smirl-log")).unwrap();
     }
 }
+
+/// Logs no task writes whose scene names a file on which MuJoCo 2.2.2 aborts the process (an
+/// uncaught C++ exception, which no Rust code can catch): a mesh named in 2 bytes, in the
+/// log's text and in an included file the log carries; a height field and a texture named in
+/// 3 bytes in a log that carries no file (its text is compiled alone, with no directory); a
+/// mesh named in 2 bytes by a file such a log includes from disk. Each log reads, compiling its
+/// scene is an error naming the log and the file, and `replay` and `foxglove` exit 1 saying
+/// so, writing nothing. Without the walk before the compile, this test process aborts.
+#[test]
+fn a_log_naming_a_file_mujoco_aborts_on_is_refused_before_it_compiles() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("crafted.mcap");
+    let before_world =
+        |what: &str| REACHER_XML.replacen("<worldbody>", &format!("{what}<worldbody>"), 1);
+    let mesh = "<asset><mesh name=\"m\" file=\"ab\"/></asset>";
+    let on_disk = tmp.path().join("parts/more.xml");
+    std::fs::create_dir_all(on_disk.parent().unwrap()).unwrap();
+    std::fs::write(&on_disk, format!("<mujoco>{mesh}</mujoco>")).unwrap();
+    let cases: [(String, Vec<SceneFile>, &str); 5] = [
+        (
+            before_world(mesh),
+            vec![file(SceneFileKind::Asset, "ab".into(), TETRAHEDRON.into())],
+            "mesh file smirl-log/ab: MuJoCo 2.2.2 aborts the process on this name: the file \
+             name 'ab' has fewer than 3 bytes",
+        ),
+        (
+            before_world("<include file=\"parts/more.xml\"/>"),
+            vec![file(
+                SceneFileKind::Include,
+                "parts/more.xml".into(),
+                format!("<mujoco>{mesh}</mujoco>").into(),
+            )],
+            "mesh file smirl-log/ab: MuJoCo 2.2.2 aborts",
+        ),
+        (
+            before_world("<asset><hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/></asset>"),
+            Vec::new(),
+            "height-field file a.b: MuJoCo 2.2.2 aborts the process on this name: the name \
+             'a.b' has fewer than 4 bytes",
+        ),
+        (
+            before_world("<asset><texture name=\"t\" type=\"2d\" file=\"x.p\"/></asset>"),
+            Vec::new(),
+            "texture file x.p: MuJoCo 2.2.2 aborts",
+        ),
+        (
+            before_world(&format!("<include file=\"{}\"/>", on_disk.display())),
+            Vec::new(),
+            "mesh file ab: MuJoCo 2.2.2 aborts",
+        ),
+    ];
+    let task = smirl::env::reacher_task::ReacherTask::shipped("composite").unwrap();
+    for (xml, files, expected) in cases {
+        let mut header = RunHeader::of_task("composite", task.task(), 0, serde_json::json!({}));
+        header.model_xml = xml;
+        header.scene_files = Arc::from(files);
+        RolloutLogger::create(&path, header, LogOptions::default())
+            .unwrap()
+            .finish()
+            .unwrap();
+        let e = read_log(&path)
+            .unwrap()
+            .reacher_model()
+            .unwrap_err()
+            .to_string();
+        let named = format!("{}:model.xml: {expected}", path.display());
+        assert!(e.contains(&named), "{e}\nexpected: {named}");
+        let expected = format!("crafted.mcap:model.xml: {expected}");
+        for args in [
+            &["replay", "crafted.mcap"][..],
+            &["foxglove", "crafted.mcap", "--out", "view.mcap"],
+        ] {
+            let o = reacher(tmp.path(), args);
+            assert_eq!(o.status.code(), Some(1), "{args:?}: {}", text(&o));
+            assert!(text(&o).contains(&expected), "{args:?}: {}", text(&o));
+        }
+        assert!(!tmp.path().join("view.mcap").exists());
+    }
+}

@@ -4,10 +4,10 @@ use super::schema::{self, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHE
 use super::LogError;
 use crate::env::physics_scene::MAX_SCENE_BYTES;
 use crate::env::scene_files::{
-    compile_in_memory, SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES,
-    MAX_INCLUDED_FILES,
+    compile_alone, compile_in_memory, SceneCompileError, SceneFile, SceneFileKind, MAX_ASSET_BYTES,
+    MAX_ASSET_FILES, MAX_INCLUDED_FILES,
 };
-use crate::mujoco::{MjError, Model};
+use crate::mujoco::Model;
 use mcap::records::{op, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader as SansReader, LinearReaderOptions};
 use mcap::McapError;
@@ -120,12 +120,14 @@ impl RolloutLog {
     /// The compiled model of a ReacherDelivery log's scene, from the log alone: its
     /// [`Self::reacher_model_xml`] with the scene files it carries, each found by the name the
     /// scene gives it, whether or not the original files still exist. Without scene files the
-    /// text is compiled alone, as it always was.
+    /// text is compiled alone, as it always was. Either way the text and the files it includes
+    /// are walked first by a task's rules, so that a crafted log naming a file MuJoCo 2.2.2
+    /// aborts the process on is an error naming the log and the file.
     pub fn reacher_model(&self) -> Result<Model, LogModelError> {
         let xml = self.reacher_model_xml().map_err(LogModelError::Missing)?;
         let source = format!("{}:{}", self.path.display(), schema::ATTACHMENT_MODEL_XML);
         Ok(if self.scene_files.is_empty() {
-            Model::from_xml_str(xml, &source)?
+            compile_alone(xml, &source)?
         } else {
             compile_in_memory(xml, &self.scene_files, &source)?
         })
@@ -139,7 +141,7 @@ pub enum LogModelError {
     #[error("{0}")]
     Missing(String),
     #[error(transparent)]
-    Compile(#[from] MjError),
+    Compile(#[from] SceneCompileError),
 }
 
 /// Most bytes of included files a log may carry: [`MAX_INCLUDED_FILES`] files of at most
