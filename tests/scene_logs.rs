@@ -5,9 +5,12 @@
 //! carries none; the official MCAP reader sees the attachments.
 
 use smirl::assets::REACHER_XML;
+use smirl::env::physics_scene::MAX_SCENE_BYTES;
 use smirl::env::scene_files::{
-    SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_FILES,
+    SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_BYTES,
+    MAX_INCLUDED_FILES,
 };
+use smirl::log::reader::MAX_LOGGED_SCENE_BYTES;
 use smirl::log::{read_log, LogError, LogOptions, RolloutLogger, RunHeader};
 use smirl::pipeline::replay::replay;
 use std::path::{Path, PathBuf};
@@ -329,7 +332,16 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
     let path = tmp.path().join("big.mcap");
     let include = |k: usize| file(SceneFileKind::Include, format!("p/{k}.xml"), b"<m/>".into());
     let asset = |k: usize, n: usize| file(SceneFileKind::Asset, format!("m/{k}.stl"), vec![1; n]);
-    let cases: [(Vec<SceneFile>, String); 4] = [
+    let each = 15 << 20;
+    assert!(4 * each < MAX_INCLUDED_BYTES as usize && 5 * each > MAX_INCLUDED_BYTES as usize);
+    let part = |k: usize| {
+        file(
+            SceneFileKind::Include,
+            format!("p/{k}.xml"),
+            vec![b' '; each],
+        )
+    };
+    let cases: [(Vec<SceneFile>, String); 5] = [
         (
             (0..=MAX_INCLUDED_FILES).map(include).collect(),
             format!(
@@ -344,6 +356,13 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
                 vec![b' '; 16 << 20 | 1],
             )],
             "attachment include/huge.xml: 16777217 bytes, more than the limit of 16777216".into(),
+        ),
+        (
+            (0..5).map(part).collect(),
+            format!(
+                "attachment include/p/4.xml: the scene's included files hold more than the \
+                 limit of {MAX_INCLUDED_BYTES} bytes together"
+            ),
         ),
         (
             (0..=MAX_ASSET_FILES).map(|k| asset(k, 1)).collect(),
@@ -375,6 +394,23 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
         assert_eq!(o.status.code(), Some(1), "{}", text(&o));
         assert!(text(&o).contains(&expected), "{}", text(&o));
     }
+    // A model.xml longer than a task's scene file may be.
+    let task = smirl::env::reacher_task::ReacherTask::shipped("composite").unwrap();
+    let mut header = RunHeader::of_task("composite", task.task(), 0, serde_json::json!({}));
+    header.model_xml = " ".repeat(MAX_SCENE_BYTES as usize + 1);
+    RolloutLogger::create(&path, header, LogOptions::default())
+        .unwrap()
+        .finish()
+        .unwrap();
+    let e = read_log(&path).unwrap_err();
+    assert!(matches!(e, LogError::TooLarge { .. }), "{e}");
+    let expected = format!(
+        "attachment model.xml: {} bytes, more than the limit of {MAX_SCENE_BYTES} for a scene \
+         file",
+        MAX_SCENE_BYTES + 1
+    );
+    assert!(e.to_string().contains(&expected), "{e}");
+
     // Within the limits, the same files are read back.
     let within: Vec<SceneFile> = (0..MAX_INCLUDED_FILES)
         .map(include)
@@ -382,6 +418,48 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
         .collect();
     log_with(&path, within.clone());
     assert_eq!(read_log(&path).unwrap().scene_files, within);
+}
+
+/// A log of the largest scene a task accepts (a text of MAX_SCENE_BYTES, included files of
+/// MAX_INCLUDED_BYTES, asset files of MAX_ASSET_BYTES) is read whole, and takes less than
+/// 1 MiB more than MAX_LOGGED_SCENE_BYTES (which the reader's limit on a log's size is
+/// asserted to exceed by the room for its episodes). Fails when the reader's limits fall
+/// below a task's.
+#[test]
+fn a_log_of_the_largest_scene_a_task_accepts_is_read() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("largest.mcap");
+    let each = MAX_SCENE_BYTES as usize;
+    let per = |total: u64| total as usize / each;
+    let files: Vec<SceneFile> = (0..per(MAX_INCLUDED_BYTES))
+        .map(|k| {
+            file(
+                SceneFileKind::Include,
+                format!("p/{k}.xml"),
+                vec![b' '; each],
+            )
+        })
+        .chain(
+            (0..per(MAX_ASSET_BYTES))
+                .map(|k| file(SceneFileKind::Asset, format!("m/{k}.stl"), vec![1; each])),
+        )
+        .collect();
+    let carried: u64 = files.iter().map(|f| f.bytes.len() as u64).sum();
+    assert_eq!(carried, MAX_INCLUDED_BYTES + MAX_ASSET_BYTES);
+    let task = smirl::env::reacher_task::ReacherTask::shipped("composite").unwrap();
+    let mut header = RunHeader::of_task("composite", task.task(), 0, serde_json::json!({}));
+    header.model_xml = REACHER_XML.to_string() + &" ".repeat(each - REACHER_XML.len());
+    assert_eq!(header.model_xml.len() as u64, MAX_SCENE_BYTES);
+    header.scene_files = Arc::from(files.clone());
+    RolloutLogger::create(&path, header, LogOptions::default())
+        .unwrap()
+        .finish()
+        .unwrap();
+    let size = std::fs::metadata(&path).unwrap().len();
+    assert!(size < MAX_LOGGED_SCENE_BYTES + (1 << 20), "{size}");
+    let log = read_log(&path).unwrap();
+    assert_eq!(log.scene_files, files);
+    assert_eq!(log.model_xml.unwrap().len() as u64, MAX_SCENE_BYTES);
 }
 
 /// Two included files of one name in two directories: MuJoCo reads them from disk, but finds

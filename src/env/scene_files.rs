@@ -39,7 +39,7 @@ use std::path::{Path, PathBuf};
 pub const MAX_INCLUDED_FILES: usize = 64;
 /// Most bytes the files a scene includes may hold together: 64 MiB, so that a log, which
 /// carries them with the scene's text and its asset files, stays within what a log reader
-/// accepts.
+/// accepts (`log::reader::MAX_LOGGED_SCENE_BYTES`, asserted when the crate compiles).
 pub const MAX_INCLUDED_BYTES: u64 = 64 << 20;
 /// Most mesh, skin, height-field and texture files a scene may name.
 pub const MAX_ASSET_FILES: usize = 256;

@@ -55,7 +55,9 @@ pub const SLIDE_RANGE: f64 = 0.27;
 pub const RANDOM_LAYOUT_MAX_RADIUS: f64 = 0.19;
 /// The body whose position is the fingertip.
 pub const FINGERTIP_BODY: &str = "fingertip";
-pub use super::scene_files::{MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_FILES};
+pub use super::scene_files::{
+    MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_BYTES, MAX_INCLUDED_FILES,
+};
 
 /// The shipped tasks (`assets/tasks/<name>.toml`): the paper's four and the baselines'
 /// Markovian positive control `blue`.
