@@ -25,7 +25,7 @@
 //! [`Task::load`] checks everything against the scene and the machine before any work, and
 //! every error names the file, the line and the key.
 
-pub use super::layout::{Anchor, Event, Region, Scene, TaskLayout, BUILTIN_SCENE};
+pub use super::layout::{Anchor, Event, LoadedScene, Region, Scene, TaskLayout, BUILTIN_SCENE};
 use super::placement::Placement;
 use super::scene_files::{compile_in_memory, read_scene_files, SceneFile, SceneFileKind};
 use crate::config_text::{key_line, read_text_file, toml_error_message};
@@ -118,8 +118,8 @@ pub struct Task {
     pub content_hash: String,
     /// The task file's text (logs record it).
     pub text: String,
-    /// The scene's MJCF text (logs attach it).
-    pub scene_xml: String,
+    /// The scene's MJCF text (logs attach it; the environment compiles it).
+    pub scene_xml: Arc<str>,
     /// The files the scene reads: included files, then mesh, skin, height-field and texture
     /// files (logs attach them). Shared, as every log of the task carries them.
     pub scene_files: Arc<[SceneFile]>,
@@ -532,7 +532,7 @@ impl Task {
             machine_source,
             content_hash,
             text: text.into(),
-            scene_xml: String::from_utf8_lossy(&scene_text).into_owned(),
+            scene_xml: String::from_utf8_lossy(&scene_text).into(),
             scene_files: scene_files.into(),
         })
     }
@@ -542,12 +542,19 @@ impl Task {
         (0..self.regions.len()).fold(LabelSet::EMPTY, |s, k| s.with(k))
     }
 
-    /// The task's scene, regions and events.
+    /// The task's scene, regions and events; a file scene with the bytes this task read.
     pub fn layout(&self) -> TaskLayout {
         TaskLayout {
             scene: self.scene.clone(),
             regions: self.regions.clone(),
             events: self.events.clone(),
+            loaded: match self.scene {
+                Scene::Builtin => None,
+                Scene::File(_) => Some(LoadedScene {
+                    text: Arc::clone(&self.scene_xml),
+                    files: Arc::clone(&self.scene_files),
+                }),
+            },
         }
     }
 }

@@ -100,25 +100,6 @@ impl Model {
         Self::load_text(xml, &file_name, source_name.into())
     }
 
-    /// Compiles MJCF text as though it were the file `path`: relative `<include>` and asset
-    /// references resolve against `path`'s directory, as they do for [`Model::from_xml_path`].
-    /// The text itself is never written to disk; MuJoCo reads it from memory under a name in
-    /// `path`'s directory that no file there is expected to have.
-    pub fn from_xml_text_at(xml: &str, path: &Path) -> Result<Model, MjError> {
-        let source_name = path.display().to_string();
-        let stem = path.file_name().unwrap_or_default().to_string_lossy();
-        // MuJoCo 2.2 looks a file up in memory by its last path component before the disk,
-        // and includes are looked up the same way: a name of the scene's own could shadow an
-        // included file of that name.
-        let in_memory = path.with_file_name(format!("{stem}.smirl-in-memory.xml"));
-        let c_path =
-            CString::new(in_memory.as_os_str().as_encoded_bytes()).map_err(|_| MjError::Load {
-                source_name: source_name.clone(),
-                message: "path contains a NUL byte".into(),
-            })?;
-        Self::load_text(xml, &c_path, source_name)
-    }
-
     /// Compiles MJCF text with every file it reads given in memory, each as `(name, bytes)`
     /// under the name the text gives it: included MJCF files, and mesh, skin, height-field and
     /// texture files. Nothing is read from disk for a file given here, and nothing is written.
