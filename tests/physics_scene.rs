@@ -3,6 +3,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smirl::assets::REACHER_XML;
+use smirl::env::layout::Scene;
 use smirl::env::physics_scene::{
     scene_model, without_mocap_bodies, without_world_geoms, SceneCutError,
 };
@@ -191,7 +192,7 @@ fn episodes(env: &mut ReacherDelivery, episodes: u64) -> Vec<u64> {
 fn envs(task: &ReacherTask) -> (ReacherDelivery, ReacherDelivery) {
     let config = task.env_config(&ReacherConfig::default()).unwrap();
     let physics = ReacherDelivery::new(config.clone()).unwrap();
-    let scene = scene_model(&task.layout().scene).unwrap();
+    let scene = scene_model(&task.layout()).unwrap();
     let whole = ReacherDelivery::with_model(Arc::new(scene), config).unwrap();
     (physics, whole)
 }
@@ -340,6 +341,78 @@ fn the_worlds_geoms_stay_when_one_can_touch_or_is_named() {
         assert!(
             episodes(&mut physics, 5) == episodes(&mut whole, 5),
             "{what}"
+        );
+    }
+}
+
+/// The environment steps the scene as its task loaded it: after the task loads, an edit of
+/// the scene file (a shorter time step) and of the file it includes (weaker motors), then the
+/// removal of both, change nothing the environment does, and its model has the loaded time
+/// step and gear. The expert's key and the logs record the loaded bytes, so a run trains on
+/// the model they describe; compiling from disk again, the edits would drive the arm
+/// otherwise, and the removal would stop it.
+#[test]
+fn the_environment_steps_the_scene_its_task_loaded() {
+    let tmp = tempfile::tempdir().unwrap();
+    let task = scene_of_ones_own(tmp.path(), str::to_string);
+    let config = task.env_config(&ReacherConfig::default()).unwrap();
+    let mut before = ReacherDelivery::new(config.clone()).unwrap();
+    let expected = episodes(&mut before, 5);
+    let key = task.task().content_hash.clone();
+
+    let edit = |file: &str, from: &str, to: &str| {
+        let path = tmp.path().join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains(from), "{file}");
+        std::fs::write(&path, text.replace(from, to)).unwrap();
+    };
+    edit("scene.xml", "timestep=\"0.01\"", "timestep=\"0.005\"");
+    edit("parts/motors.xml", "gear=\"200.0\"", "gear=\"50.0\"");
+    let edited = ReacherTask::resolve(tmp.path().join("task.toml").to_str().unwrap()).unwrap();
+    assert_ne!(
+        edited.task().content_hash,
+        key,
+        "a new load reads the edits"
+    );
+    let mut reloaded = edited.make_env(&ReacherConfig::default()).unwrap();
+    assert_eq!(reloaded.model().timestep(), 0.005);
+    assert!(
+        episodes(&mut reloaded, 5) != expected,
+        "the edits change what the arm does"
+    );
+    let mut after = task.make_env(&ReacherConfig::default()).unwrap();
+    assert_eq!(after.model().timestep(), 0.01);
+    assert_eq!(after.model().actuator_gear(0), 200.0);
+    assert!(episodes(&mut after, 5) == expected);
+    let scene = scene_model(&task.layout()).unwrap();
+    let mut whole = ReacherDelivery::with_model(Arc::new(scene), config.clone()).unwrap();
+    assert_eq!(whole.model().actuator_gear(1), 200.0);
+    assert!(episodes(&mut whole, 5) == expected);
+
+    std::fs::remove_file(tmp.path().join("scene.xml")).unwrap();
+    std::fs::remove_dir_all(tmp.path().join("parts")).unwrap();
+    let mut gone = ReacherDelivery::new(config).unwrap();
+    assert!(episodes(&mut gone, 5) == expected);
+    assert_eq!(task.task().content_hash, key);
+}
+
+/// The shipped file scenes (`assets/scenes/`), whose committed experts were trained on the
+/// scene compiled from disk, step bit for bit as that scene: compiling the environment's model
+/// from the bytes the task loaded changes no result.
+#[test]
+fn the_shipped_file_scenes_step_as_compiled_from_disk() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+    let disk = Arc::new(Model::from_xml_path(&scenes.join("six_targets.xml")).unwrap());
+    for name in ["six_targets_ring", "six_targets_detour"] {
+        let file = scenes.join(format!("{name}.toml"));
+        let task = ReacherTask::resolve(file.to_str().unwrap()).unwrap();
+        assert!(matches!(task.layout().scene, Scene::File(_)), "{name}");
+        let config = task.env_config(&ReacherConfig::default()).unwrap();
+        let mut physics = ReacherDelivery::new(config.clone()).unwrap();
+        let mut whole = ReacherDelivery::with_model(Arc::clone(&disk), config).unwrap();
+        assert!(
+            episodes(&mut physics, 20) == episodes(&mut whole, 20),
+            "{name}"
         );
     }
 }

@@ -380,8 +380,8 @@ fn a_file_included_twice_is_refused_naming_it() {
 }
 
 /// Included files beyond MAX_INCLUDED_BYTES together are refused naming the file that passes
-/// the limit: five valid files of 15 MiB each (each within the limit of one file), the fifth
-/// passing 64 MiB. Fails when included files have no limit together.
+/// the limit and the limit: five valid files of 15 MiB each (each within the limit of one
+/// file), the fifth passing 64 MiB. Fails when included files have no limit together.
 #[test]
 fn included_files_beyond_their_byte_limit_are_refused_naming_the_file() {
     use smirl::env::scene_files::MAX_INCLUDED_BYTES;
@@ -398,7 +398,12 @@ fn included_files_beyond_their_byte_limit_are_refused_naming_the_file() {
     }
     std::fs::write(dir.join("parts.xml"), parts + "</mujoco>").unwrap();
     let e = Task::load(&task).unwrap_err().to_string();
-    assert!(e.contains("bytes together") && e.contains("f5.xml"), "{e}");
+    let expected = format!(
+        "included file {}: the files the scene includes hold more than {MAX_INCLUDED_BYTES} \
+         bytes together",
+        dir.join("f5.xml").display()
+    );
+    assert!(e.contains(&expected), "{e}\nexpected: {expected}");
 }
 
 /// A scene of a million nested elements is read in time linear in its tags (the elements

@@ -5,9 +5,12 @@
 //! carries none; the official MCAP reader sees the attachments.
 
 use smirl::assets::REACHER_XML;
+use smirl::env::physics_scene::MAX_SCENE_BYTES;
 use smirl::env::scene_files::{
-    SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_FILES,
+    SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_BYTES,
+    MAX_INCLUDED_FILES,
 };
+use smirl::log::reader::MAX_LOGGED_SCENE_BYTES;
 use smirl::log::{read_log, LogError, LogOptions, RolloutLogger, RunHeader};
 use smirl::pipeline::replay::replay;
 use std::path::{Path, PathBuf};
@@ -329,7 +332,16 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
     let path = tmp.path().join("big.mcap");
     let include = |k: usize| file(SceneFileKind::Include, format!("p/{k}.xml"), b"<m/>".into());
     let asset = |k: usize, n: usize| file(SceneFileKind::Asset, format!("m/{k}.stl"), vec![1; n]);
-    let cases: [(Vec<SceneFile>, String); 4] = [
+    let each = 15 << 20;
+    assert!(4 * each < MAX_INCLUDED_BYTES as usize && 5 * each > MAX_INCLUDED_BYTES as usize);
+    let part = |k: usize| {
+        file(
+            SceneFileKind::Include,
+            format!("p/{k}.xml"),
+            vec![b' '; each],
+        )
+    };
+    let cases: [(Vec<SceneFile>, String); 5] = [
         (
             (0..=MAX_INCLUDED_FILES).map(include).collect(),
             format!(
@@ -344,6 +356,13 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
                 vec![b' '; 16 << 20 | 1],
             )],
             "attachment include/huge.xml: 16777217 bytes, more than the limit of 16777216".into(),
+        ),
+        (
+            (0..5).map(part).collect(),
+            format!(
+                "attachment include/p/4.xml: the scene's included files hold more than the \
+                 limit of {MAX_INCLUDED_BYTES} bytes together"
+            ),
         ),
         (
             (0..=MAX_ASSET_FILES).map(|k| asset(k, 1)).collect(),
@@ -375,6 +394,23 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
         assert_eq!(o.status.code(), Some(1), "{}", text(&o));
         assert!(text(&o).contains(&expected), "{}", text(&o));
     }
+    // A model.xml longer than a task's scene file may be.
+    let task = smirl::env::reacher_task::ReacherTask::shipped("composite").unwrap();
+    let mut header = RunHeader::of_task("composite", task.task(), 0, serde_json::json!({}));
+    header.model_xml = " ".repeat(MAX_SCENE_BYTES as usize + 1);
+    RolloutLogger::create(&path, header, LogOptions::default())
+        .unwrap()
+        .finish()
+        .unwrap();
+    let e = read_log(&path).unwrap_err();
+    assert!(matches!(e, LogError::TooLarge { .. }), "{e}");
+    let expected = format!(
+        "attachment model.xml: {} bytes, more than the limit of {MAX_SCENE_BYTES} for a scene \
+         file",
+        MAX_SCENE_BYTES + 1
+    );
+    assert!(e.to_string().contains(&expected), "{e}");
+
     // Within the limits, the same files are read back.
     let within: Vec<SceneFile> = (0..MAX_INCLUDED_FILES)
         .map(include)
@@ -382,6 +418,48 @@ fn what_a_log_carries_is_bounded_as_a_scene_is() {
         .collect();
     log_with(&path, within.clone());
     assert_eq!(read_log(&path).unwrap().scene_files, within);
+}
+
+/// A log of the largest scene a task accepts (a text of MAX_SCENE_BYTES, included files of
+/// MAX_INCLUDED_BYTES, asset files of MAX_ASSET_BYTES) is read whole, and takes less than
+/// 1 MiB more than MAX_LOGGED_SCENE_BYTES (which the reader's limit on a log's size is
+/// asserted to exceed by the room for its episodes). Fails when the reader's limits fall
+/// below a task's.
+#[test]
+fn a_log_of_the_largest_scene_a_task_accepts_is_read() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("largest.mcap");
+    let each = MAX_SCENE_BYTES as usize;
+    let per = |total: u64| total as usize / each;
+    let files: Vec<SceneFile> = (0..per(MAX_INCLUDED_BYTES))
+        .map(|k| {
+            file(
+                SceneFileKind::Include,
+                format!("p/{k}.xml"),
+                vec![b' '; each],
+            )
+        })
+        .chain(
+            (0..per(MAX_ASSET_BYTES))
+                .map(|k| file(SceneFileKind::Asset, format!("m/{k}.stl"), vec![1; each])),
+        )
+        .collect();
+    let carried: u64 = files.iter().map(|f| f.bytes.len() as u64).sum();
+    assert_eq!(carried, MAX_INCLUDED_BYTES + MAX_ASSET_BYTES);
+    let task = smirl::env::reacher_task::ReacherTask::shipped("composite").unwrap();
+    let mut header = RunHeader::of_task("composite", task.task(), 0, serde_json::json!({}));
+    header.model_xml = REACHER_XML.to_string() + &" ".repeat(each - REACHER_XML.len());
+    assert_eq!(header.model_xml.len() as u64, MAX_SCENE_BYTES);
+    header.scene_files = Arc::from(files.clone());
+    RolloutLogger::create(&path, header, LogOptions::default())
+        .unwrap()
+        .finish()
+        .unwrap();
+    let size = std::fs::metadata(&path).unwrap().len();
+    assert!(size < MAX_LOGGED_SCENE_BYTES + (1 << 20), "{size}");
+    let log = read_log(&path).unwrap();
+    assert_eq!(log.scene_files, files);
+    assert_eq!(log.model_xml.unwrap().len() as u64, MAX_SCENE_BYTES);
 }
 
 /// Two included files of one name in two directories: MuJoCo reads them from disk, but finds
@@ -593,5 +671,84 @@ fn a_file_absent_from_the_log_is_not_read_from_the_working_directory() {
         let o = reacher(&elsewhere, &["replay", log.to_str().unwrap()]);
         assert!(o.status.success(), "{}", text(&o));
         std::fs::remove_dir_all(elsewhere.join("smirl-log")).unwrap();
+    }
+}
+
+/// Logs no task writes whose scene names a file on which MuJoCo 2.2.2 aborts the process (an
+/// uncaught C++ exception, which no Rust code can catch): a mesh named in 2 bytes, in the
+/// log's text and in an included file the log carries; a height field and a texture named in
+/// 3 bytes in a log that carries no file (its text is compiled alone, with no directory); a
+/// mesh named in 2 bytes by a file such a log includes from disk. Each log reads, compiling its
+/// scene is an error naming the log and the file, and `replay` and `foxglove` exit 1 saying
+/// so, writing nothing. Without the walk before the compile, this test process aborts.
+#[test]
+fn a_log_naming_a_file_mujoco_aborts_on_is_refused_before_it_compiles() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("crafted.mcap");
+    let before_world =
+        |what: &str| REACHER_XML.replacen("<worldbody>", &format!("{what}<worldbody>"), 1);
+    let mesh = "<asset><mesh name=\"m\" file=\"ab\"/></asset>";
+    let on_disk = tmp.path().join("parts/more.xml");
+    std::fs::create_dir_all(on_disk.parent().unwrap()).unwrap();
+    std::fs::write(&on_disk, format!("<mujoco>{mesh}</mujoco>")).unwrap();
+    let cases: [(String, Vec<SceneFile>, &str); 5] = [
+        (
+            before_world(mesh),
+            vec![file(SceneFileKind::Asset, "ab".into(), TETRAHEDRON.into())],
+            "mesh file smirl-log/ab: MuJoCo 2.2.2 aborts the process on this name: the file \
+             name 'ab' has fewer than 3 bytes",
+        ),
+        (
+            before_world("<include file=\"parts/more.xml\"/>"),
+            vec![file(
+                SceneFileKind::Include,
+                "parts/more.xml".into(),
+                format!("<mujoco>{mesh}</mujoco>").into(),
+            )],
+            "mesh file smirl-log/ab: MuJoCo 2.2.2 aborts",
+        ),
+        (
+            before_world("<asset><hfield name=\"h\" file=\"a.b\" size=\"1 1 0.1 0.1\"/></asset>"),
+            Vec::new(),
+            "height-field file a.b: MuJoCo 2.2.2 aborts the process on this name: the name \
+             'a.b' has fewer than 4 bytes",
+        ),
+        (
+            before_world("<asset><texture name=\"t\" type=\"2d\" file=\"x.p\"/></asset>"),
+            Vec::new(),
+            "texture file x.p: MuJoCo 2.2.2 aborts",
+        ),
+        (
+            before_world(&format!("<include file=\"{}\"/>", on_disk.display())),
+            Vec::new(),
+            "mesh file ab: MuJoCo 2.2.2 aborts",
+        ),
+    ];
+    let task = smirl::env::reacher_task::ReacherTask::shipped("composite").unwrap();
+    for (xml, files, expected) in cases {
+        let mut header = RunHeader::of_task("composite", task.task(), 0, serde_json::json!({}));
+        header.model_xml = xml;
+        header.scene_files = Arc::from(files);
+        RolloutLogger::create(&path, header, LogOptions::default())
+            .unwrap()
+            .finish()
+            .unwrap();
+        let e = read_log(&path)
+            .unwrap()
+            .reacher_model()
+            .unwrap_err()
+            .to_string();
+        let named = format!("{}:model.xml: {expected}", path.display());
+        assert!(e.contains(&named), "{e}\nexpected: {named}");
+        let expected = format!("crafted.mcap:model.xml: {expected}");
+        for args in [
+            &["replay", "crafted.mcap"][..],
+            &["foxglove", "crafted.mcap", "--out", "view.mcap"],
+        ] {
+            let o = reacher(tmp.path(), args);
+            assert_eq!(o.status.code(), Some(1), "{args:?}: {}", text(&o));
+            assert!(text(&o).contains(&expected), "{args:?}: {}", text(&o));
+        }
+        assert!(!tmp.path().join("view.mcap").exists());
     }
 }

@@ -12,10 +12,12 @@
 //! **Label bits**: region `k` is bit `k`, event `e` is bit `R + e`; the vocabulary lists the
 //! letters in the same order.
 
+use super::scene_files::SceneFile;
 use crate::rm::{LabelSet, Vocabulary};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// Observation columns of the arm's joint velocities.
 pub const OBS_JOINT_VEL: [usize; 2] = [4, 5];
@@ -113,6 +115,14 @@ impl fmt::Display for Scene {
     }
 }
 
+/// A file scene as its task loaded it: the scene file's text and the files it reads, the
+/// bytes the task's expert key hashes and its logs carry.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LoadedScene {
+    pub text: Arc<str>,
+    pub files: Arc<[SceneFile]>,
+}
+
 /// A task's scene, regions and events (see the module documentation for what follows from
 /// them).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -120,6 +130,12 @@ pub struct TaskLayout {
     pub scene: Scene,
     pub regions: Vec<Region>,
     pub events: Vec<Event>,
+    /// A file scene's bytes as its task loaded them, which the environment compiles its model
+    /// from (`env::physics_scene::scene_model`), so that a run steps the scene its key and
+    /// logs record, whatever happens to the files afterwards. `None` for the built-in scene
+    /// and for a layout read back from a record, which names its scene only.
+    #[serde(skip)]
+    pub loaded: Option<LoadedScene>,
 }
 
 impl TaskLayout {

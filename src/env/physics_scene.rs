@@ -21,9 +21,10 @@
 //! and otherwise cuts less or steps the scene itself: a scene it cannot cut is slower, never
 //! different.
 
-use super::layout::{Anchor, Scene, TaskLayout};
+use super::layout::{Anchor, LoadedScene, Scene, TaskLayout};
 use super::placement::Placement;
-use crate::mujoco::{MjError, Model};
+use super::scene_files::{compile_in_memory, SceneCompileError};
+use crate::mujoco::Model;
 
 /// Why a scene's text cannot be cut.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -266,14 +267,40 @@ pub fn without_world_geoms(xml: &str) -> Result<String, SceneCutError> {
 /// Largest scene file read as text (a task file's scene, or the text cut here).
 pub const MAX_SCENE_BYTES: u64 = crate::config_text::MAX_TEXT_FILE_BYTES * 16;
 
-/// The model of a task's scene, as the scene file (or the built-in scene) gives it.
-pub fn scene_model(scene: &Scene) -> Result<Model, MjError> {
-    match scene {
+/// Why the model of a task's scene cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneModelError {
+    #[error(transparent)]
+    Compile(#[from] SceneCompileError),
+    #[error("the layout of scene {scene} holds none of its bytes: an environment steps the scene as its task loaded it (a layout read back from a record names its scene only)")]
+    NotLoaded { scene: String },
+}
+
+/// The model of a task's scene: the built-in scene, or a file scene compiled from memory
+/// from the bytes its task loaded ([`TaskLayout::loaded`]), as the task was checked on it and
+/// as its logs rebuild it. The files are not read again: one edited since the task loaded
+/// would train on bytes other than those its expert key and its logs record.
+pub fn scene_model(layout: &TaskLayout) -> Result<Model, SceneModelError> {
+    Ok(match &layout.scene {
         Scene::Builtin => {
             Model::from_xml_str(crate::assets::REACHER_XML, crate::assets::REACHER_XML_NAME)
+                .map_err(SceneCompileError::from)?
         }
-        Scene::File(path) => Model::from_xml_path(path),
-    }
+        Scene::File(_) => {
+            let loaded = loaded(layout)?;
+            compile_in_memory(&loaded.text, &loaded.files, &layout.scene.to_string())?
+        }
+    })
+}
+
+/// The bytes a file scene's task loaded.
+fn loaded(layout: &TaskLayout) -> Result<&LoadedScene, SceneModelError> {
+    layout
+        .loaded
+        .as_ref()
+        .ok_or_else(|| SceneModelError::NotLoaded {
+            scene: layout.scene.to_string(),
+        })
 }
 
 /// The model an environment steps for a task, and which regions' bodies it leaves out.
@@ -286,9 +313,9 @@ pub struct PhysicsModel {
 /// The task's scene without the mocap bodies of its movable regions and without the world's
 /// own geoms, or with as much of that cut as leaves the arm's physics provably alone (see the
 /// module documentation): the scene itself when nothing can be cut.
-/// Errors are the scene's own (it does not load).
-pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, MjError> {
-    let scene = scene_model(&layout.scene)?;
+/// Errors are the scene's own (it does not load), or a file scene's layout without its bytes.
+pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, SceneModelError> {
+    let scene = scene_model(layout)?;
     let left_out: Vec<bool> = (layout.regions.iter())
         .map(|region| match (&region.anchor, region.movable) {
             (Anchor::Body(body), true) => scene
@@ -314,7 +341,7 @@ pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, MjError> {
     let cut = (attempts.iter())
         .filter(|(bodies, geoms)| !bodies.is_empty() || *geoms)
         .find_map(|(bodies, geoms)| {
-            cut_model(&layout.scene, bodies, *geoms).filter(|model| same_arm(&scene, model))
+            cut_model(layout, bodies, *geoms).filter(|model| same_arm(&scene, model))
         });
     Ok(match cut {
         Some(model) => PhysicsModel { model, left_out },
@@ -326,8 +353,9 @@ pub fn physics_model(layout: &TaskLayout) -> Result<PhysicsModel, MjError> {
 }
 
 /// The scene compiled without `bodies` (and without the world's geoms when `world_geoms`),
-/// when its text can be read and cut and the cut text compiles.
-fn cut_model(scene: &Scene, bodies: &[&str], world_geoms: bool) -> Option<Model> {
+/// when its text can be cut and the cut text compiles; a file scene's text and files are
+/// those its task loaded, as in [`scene_model`].
+fn cut_model(layout: &TaskLayout, bodies: &[&str], world_geoms: bool) -> Option<Model> {
     let cut = |text: &str| {
         let text = without_mocap_bodies(text, bodies).ok()?;
         if world_geoms {
@@ -336,14 +364,15 @@ fn cut_model(scene: &Scene, bodies: &[&str], world_geoms: bool) -> Option<Model>
             Some(text)
         }
     };
-    match scene {
+    match &layout.scene {
         Scene::Builtin => {
             let text = cut(crate::assets::REACHER_XML)?;
             Model::from_xml_str(&text, crate::assets::REACHER_XML_NAME).ok()
         }
-        Scene::File(path) => {
-            let text = crate::input_file::read_text(path, MAX_SCENE_BYTES).ok()?;
-            Model::from_xml_text_at(&cut(&text)?, path).ok()
+        Scene::File(_) => {
+            let loaded = loaded(layout).ok()?;
+            let text = cut(&loaded.text)?;
+            compile_in_memory(&text, &loaded.files, &layout.scene.to_string()).ok()
         }
     }
 }

@@ -33,7 +33,7 @@
 //! there; any other region stays where the scene puts it.
 
 use super::layout::{Anchor, Event, TaskLayout};
-use super::physics_scene::physics_model;
+use super::physics_scene::{physics_model, SceneModelError};
 use super::placement::Placement;
 use super::{check_action, ContinuousEnv, EnvError, EnvStep};
 use crate::mujoco::{Data, MjError, Model, ObjectKind};
@@ -272,6 +272,8 @@ impl ReacherConfig {
 pub enum ReacherError {
     #[error(transparent)]
     MuJoCo(#[from] MjError),
+    #[error(transparent)]
+    Scene(#[from] SceneModelError),
     #[error("invalid ReacherDelivery config: {0}")]
     Config(#[from] ConfigError),
     #[error("model {model} is not a ReacherDelivery model: {problem}")]

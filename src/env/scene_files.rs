@@ -23,9 +23,14 @@
 //! a mesh or skin file whose name, after `strippath`, has fewer than 3 bytes (the compiler
 //! takes the last 3 as its type), and a height-field or texture file whose name with its
 //! directory has fewer than 4 (the compiler reads the last 4 to tell a PNG file).
+//!
+//! A scene compiled from memory ([`compile_in_memory`], [`compile_alone`]: a log's, whose text
+//! and files may have been crafted, and a task's) is walked by the same rules first, its
+//! included files found as MuJoCo finds them (in memory by their last path component, else on
+//! disk), so that no text reaches MuJoCo with a name it aborts on.
 
 use super::physics_scene::{attribute, tags, SceneCutError, Tag, TagKind, MAX_SCENE_BYTES};
-use crate::mujoco::{MjError, Model};
+use crate::mujoco::{in_memory_text_name, vfs_key, MjError, Model, TEXT_ALONE_NAME};
 use std::borrow::Cow;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -34,7 +39,7 @@ use std::path::{Path, PathBuf};
 pub const MAX_INCLUDED_FILES: usize = 64;
 /// Most bytes the files a scene includes may hold together: 64 MiB, so that a log, which
 /// carries them with the scene's text and its asset files, stays within what a log reader
-/// accepts.
+/// accepts (`log::reader::MAX_LOGGED_SCENE_BYTES`, asserted when the crate compiles).
 pub const MAX_INCLUDED_BYTES: u64 = 64 << 20;
 /// Most mesh, skin, height-field and texture files a scene may name.
 pub const MAX_ASSET_FILES: usize = 256;
@@ -147,12 +152,31 @@ struct AssetRef {
     file: String,
 }
 
+/// An asset file as the compiler resolves it: `name` as the scene names it (with its
+/// `meshdir` or `texturedir`), `full` as MuJoCo forms it from the main file's directory.
+struct Asset {
+    kind: AssetKind,
+    name: String,
+    full: String,
+}
+
+/// What a walk of a scene finds: the files it includes, in the order MuJoCo reads them, each
+/// as the scene names it with its bytes, and its asset files (as each element names one, not
+/// yet read), none of them with a name MuJoCo 2.2.2 aborts on.
+struct Walked<'m> {
+    includes: Vec<(String, Cow<'m, [u8]>)>,
+    assets: Vec<Asset>,
+}
+
 /// The assembled document as it is walked: the elements open around the current tag, across
 /// included files, and what was found so far.
-struct Walk {
+struct Walk<'m> {
     /// The main scene file's directory as MuJoCo takes it: up to its last separator.
     dir: String,
     scene: String,
+    /// The files MuJoCo holds in memory for the compile, each under its key ([`vfs_key`]):
+    /// it looks an included file up there before it reads the disk.
+    memory: Vec<(String, &'m [u8])>,
     /// Open elements: name, and whether it is an included file's root (which MuJoCo drops,
     /// its children taking the include's place).
     open: Vec<(String, bool)>,
@@ -163,7 +187,7 @@ struct Walk {
     /// MuJoCo refuses to include one twice, comparing the names whatever their case.
     read: Vec<String>,
     included_bytes: u64,
-    includes: Vec<SceneFile>,
+    includes: Vec<(String, Cow<'m, [u8]>)>,
     meshdir: Option<String>,
     texturedir: Option<String>,
     strippath: bool,
@@ -171,67 +195,29 @@ struct Walk {
 }
 
 /// Reads the scene file at `path` and every file it reads, within [`MAX_INCLUDED_FILES`]
-/// included files of at most [`MAX_SCENE_BYTES`] each, and [`MAX_ASSET_FILES`] asset files
-/// of at most [`MAX_ASSET_BYTES`] together. Errors name the file.
+/// included files of at most [`MAX_SCENE_BYTES`] each and [`MAX_INCLUDED_BYTES`] together,
+/// and [`MAX_ASSET_FILES`] asset files of at most [`MAX_ASSET_BYTES`] together. Errors name
+/// the file.
 pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
     let scene = path.display().to_string();
     let main = read(path, "scene file", MAX_SCENE_BYTES)?;
     let path_text = path.as_os_str().to_string_lossy();
-    let mut walk = Walk {
-        dir: file_dir(&path_text).to_string(),
-        scene: scene.clone(),
-        open: Vec::new(),
-        kept: Vec::new(),
-        read: vec![path_text.to_string()],
-        included_bytes: 0,
-        includes: Vec::new(),
-        meshdir: None,
-        texturedir: None,
-        strippath: false,
-        assets: Vec::new(),
-    };
-    walk.text(&String::from_utf8_lossy(&main), &scene, false)?;
-    let mut files = std::mem::take(&mut walk.includes);
-    let separated = |dir: &Option<String>| {
-        let mut dir = dir.clone().unwrap_or_default();
-        if !dir.is_empty() && !dir.ends_with(['/', '\\']) {
-            dir.push('/');
-        }
-        dir
-    };
-    let (meshdir, texturedir) = (separated(&walk.meshdir), separated(&walk.texturedir));
+    let walked = walk(
+        &String::from_utf8_lossy(&main),
+        &path_text,
+        &scene,
+        Vec::new(),
+    )?;
+    let mut files: Vec<SceneFile> = (walked.includes.into_iter())
+        .map(|(name, bytes)| SceneFile {
+            kind: SceneFileKind::Include,
+            name,
+            bytes: bytes.into_owned(),
+        })
+        .collect();
     let mut asset_bytes = 0u64;
     let mut assets = 0;
-    for asset in &walk.assets {
-        let file = if walk.strippath {
-            last_component(&asset.file)
-        } else {
-            &asset.file
-        };
-        // MuJoCo drops a height field's directory before it asks whether a file is named,
-        // the other elements after.
-        if asset.kind == AssetKind::HeightField && file.is_empty() {
-            continue;
-        }
-        let sub = match asset.kind {
-            AssetKind::Texture => &texturedir,
-            _ => &meshdir,
-        };
-        let (name, full) = if is_absolute(file) {
-            (file.to_string(), file.to_string())
-        } else if is_absolute(sub) {
-            (format!("{sub}{file}"), format!("{sub}{file}"))
-        } else {
-            (format!("{sub}{file}"), format!("{}{sub}{file}", walk.dir))
-        };
-        let what = asset.kind.what();
-        if let Some(rule) = aborting_name(asset.kind, file, &name) {
-            return Err(SceneFileError::AbortingName {
-                what,
-                file: full,
-                rule,
-            });
-        }
+    for Asset { kind, name, full } in walked.assets {
         if files
             .iter()
             .any(|f| f.kind == SceneFileKind::Asset && f.name == name)
@@ -241,6 +227,7 @@ pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
         if assets == MAX_ASSET_FILES {
             return Err(SceneFileError::TooManyAssets { scene });
         }
+        let what = kind.what();
         let left = MAX_ASSET_BYTES - asset_bytes;
         let over = || SceneFileError::AssetBytes {
             what,
@@ -264,6 +251,82 @@ pub fn read_scene_files(path: &Path) -> Result<SceneFiles, SceneFileError> {
     Ok(SceneFiles { main, files })
 }
 
+/// Walks a scene's `text`, which MuJoCo reads under the name `main` (relative names resolve
+/// in its directory), as MuJoCo 2.2.2 assembles it: each file it includes, however deep, is
+/// looked up in `memory` by its key and otherwise read from disk at the name MuJoCo forms,
+/// within the limits on included files; its asset files are resolved, not read, and a name
+/// MuJoCo aborts the process on is refused. `scene` names the text in messages.
+fn walk<'m>(
+    text: &str,
+    main: &str,
+    scene: &str,
+    memory: Vec<(String, &'m [u8])>,
+) -> Result<Walked<'m>, SceneFileError> {
+    let mut walk = Walk {
+        dir: file_dir(main).to_string(),
+        scene: scene.to_string(),
+        memory,
+        open: Vec::new(),
+        kept: Vec::new(),
+        read: vec![main.to_string()],
+        included_bytes: 0,
+        includes: Vec::new(),
+        meshdir: None,
+        texturedir: None,
+        strippath: false,
+        assets: Vec::new(),
+    };
+    walk.text(text, scene, false)?;
+    let separated = |dir: &Option<String>| {
+        let mut dir = dir.clone().unwrap_or_default();
+        if !dir.is_empty() && !dir.ends_with(['/', '\\']) {
+            dir.push('/');
+        }
+        dir
+    };
+    let (meshdir, texturedir) = (separated(&walk.meshdir), separated(&walk.texturedir));
+    let mut assets = Vec::with_capacity(walk.assets.len());
+    for asset in &walk.assets {
+        let file = if walk.strippath {
+            last_component(&asset.file)
+        } else {
+            &asset.file
+        };
+        // MuJoCo drops a height field's directory before it asks whether a file is named,
+        // the other elements after.
+        if asset.kind == AssetKind::HeightField && file.is_empty() {
+            continue;
+        }
+        let sub = match asset.kind {
+            AssetKind::Texture => &texturedir,
+            _ => &meshdir,
+        };
+        let (name, full) = if is_absolute(file) {
+            (file.to_string(), file.to_string())
+        } else if is_absolute(sub) {
+            (format!("{sub}{file}"), format!("{sub}{file}"))
+        } else {
+            (format!("{sub}{file}"), format!("{}{sub}{file}", walk.dir))
+        };
+        if let Some(rule) = aborting_name(asset.kind, file, &name) {
+            return Err(SceneFileError::AbortingName {
+                what: asset.kind.what(),
+                file: full,
+                rule,
+            });
+        }
+        assets.push(Asset {
+            kind: asset.kind,
+            name,
+            full,
+        });
+    }
+    Ok(Walked {
+        includes: walk.includes,
+        assets,
+    })
+}
+
 /// Why MuJoCo 2.2.2 would abort the process on an asset file named `file` in its element
 /// (after `strippath`), `name` with its directory, if it would. The full name MuJoCo forms
 /// (the scene file's directory, then `name`) is never shorter than `name`, so a rule on
@@ -282,19 +345,69 @@ fn aborting_name(kind: AssetKind, file: &str, name: &str) -> Option<String> {
     }
 }
 
+/// Why a scene cannot be compiled from memory.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneCompileError {
+    /// Walked as MuJoCo reads it before MuJoCo compiles it, the scene breaks a rule of
+    /// [`read_scene_files`]: it names a file MuJoCo 2.2.2 aborts the process on, includes too
+    /// much, or cannot be read.
+    #[error("{source_name}: {error}")]
+    Scene {
+        source_name: String,
+        error: SceneFileError,
+    },
+    #[error(transparent)]
+    Compile(#[from] MjError),
+}
+
 /// A scene's text compiled with the files it reads held in memory, each under the name the
 /// scene gives it ([`Model::from_xml_with_files`]): how a log's scene is compiled, and how a
-/// task's scene is checked, so that the model a task is checked on is the one its logs
-/// rebuild.
+/// task's scene is compiled for its check and its environment, so that the model a task is
+/// checked and trained on is the one its logs rebuild. The text and the files it includes
+/// are first walked as MuJoCo reads them ([`check_names`]).
 pub fn compile_in_memory(
     text: &str,
     files: &[SceneFile],
     source_name: &str,
-) -> Result<Model, MjError> {
+) -> Result<Model, SceneCompileError> {
+    let main = in_memory_text_name(files.iter().map(|f| f.name.as_str()));
+    check_names(text, &main, files, source_name)?;
     let files: Vec<(&str, &[u8])> = (files.iter())
         .map(|f| (f.name.as_str(), f.bytes.as_slice()))
         .collect();
-    Model::from_xml_with_files(text, &files, source_name)
+    Ok(Model::from_xml_with_files(text, &files, source_name)?)
+}
+
+/// A scene's text compiled alone ([`Model::from_xml_str`]), its relative names resolving in
+/// the working directory: how a log that carries no file of its scene is compiled. The text
+/// and the files it includes are first walked as MuJoCo reads them ([`check_names`]).
+pub fn compile_alone(text: &str, source_name: &str) -> Result<Model, SceneCompileError> {
+    check_names(text, TEXT_ALONE_NAME, &[], source_name)?;
+    Ok(Model::from_xml_str(text, source_name)?)
+}
+
+/// Refuses, before MuJoCo sees it, a scene text that MuJoCo reads under the name `main` with
+/// `files` in memory and that breaks a rule of [`read_scene_files`]; above all one that names
+/// a file MuJoCo 2.2.2 aborts the process on, which no error message could report. The text
+/// and every file it includes are walked as MuJoCo reads them: an included file from memory,
+/// found by its key as MuJoCo finds it (the text is there too), or else from disk where MuJoCo
+/// looks for it.
+fn check_names(
+    text: &str,
+    main: &str,
+    files: &[SceneFile],
+    source_name: &str,
+) -> Result<(), SceneCompileError> {
+    let memory = (files.iter())
+        .map(|f| (vfs_key(&f.name), f.bytes.as_slice()))
+        .chain([(vfs_key(main), text.as_bytes())])
+        .collect();
+    walk(text, main, source_name, memory)
+        .map(|_| ())
+        .map_err(|error| SceneCompileError::Scene {
+            source_name: source_name.into(),
+            error,
+        })
 }
 
 /// The bytes of the file at `path`, at most `limit`; errors name it as `what`.
@@ -306,7 +419,7 @@ fn read(path: &Path, what: &'static str, limit: u64) -> Result<Vec<u8>, SceneFil
     })
 }
 
-impl Walk {
+impl Walk<'_> {
     /// Walks the tags of one file's text (`label` names it in messages); an included file's
     /// root element is dropped, as MuJoCo drops it.
     fn text(&mut self, text: &str, label: &str, included: bool) -> Result<(), SceneFileError> {
@@ -389,18 +502,39 @@ impl Walk {
             }
             let left = MAX_INCLUDED_BYTES - self.included_bytes;
             let over = || SceneFileError::IncludedBytes { file: full.clone() };
-            if std::fs::metadata(&full).is_ok_and(|m| m.len() > left) {
-                return Err(over());
-            }
-            let bytes = read(Path::new(&full), "included file", left.min(MAX_SCENE_BYTES))?;
+            let what = "included file";
+            let key = vfs_key(&full);
+            let bytes = match self.memory.iter().find(|(k, _)| *k == key) {
+                Some(&(_, bytes)) => {
+                    let size = bytes.len() as u64;
+                    if size > left {
+                        return Err(over());
+                    }
+                    if size > MAX_SCENE_BYTES {
+                        return Err(SceneFileError::Io {
+                            what,
+                            file: full,
+                            error: std::io::Error::new(
+                                std::io::ErrorKind::InvalidData,
+                                format!(
+                                    "the file is larger than the limit of {MAX_SCENE_BYTES} bytes"
+                                ),
+                            ),
+                        });
+                    }
+                    Cow::Borrowed(bytes)
+                }
+                None => {
+                    if std::fs::metadata(&full).is_ok_and(|m| m.len() > left) {
+                        return Err(over());
+                    }
+                    Cow::Owned(read(Path::new(&full), what, left.min(MAX_SCENE_BYTES))?)
+                }
+            };
             self.included_bytes += bytes.len() as u64;
             self.read.push(full.clone());
             let text = String::from_utf8_lossy(&bytes).into_owned();
-            self.includes.push(SceneFile {
-                kind: SceneFileKind::Include,
-                name: name.into_owned(),
-                bytes,
-            });
+            self.includes.push((name.into_owned(), bytes));
             return self.text(&text, &full, true);
         }
         let kept = (self.kept.len(), self.kept.last().map(String::as_str));

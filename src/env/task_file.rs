@@ -25,7 +25,7 @@
 //! [`Task::load`] checks everything against the scene and the machine before any work, and
 //! every error names the file, the line and the key.
 
-pub use super::layout::{Anchor, Event, Region, Scene, TaskLayout, BUILTIN_SCENE};
+pub use super::layout::{Anchor, Event, LoadedScene, Region, Scene, TaskLayout, BUILTIN_SCENE};
 use super::placement::Placement;
 use super::scene_files::{compile_in_memory, read_scene_files, SceneFile, SceneFileKind};
 use crate::config_text::{key_line, read_text_file, toml_error_message};
@@ -55,7 +55,9 @@ pub const SLIDE_RANGE: f64 = 0.27;
 pub const RANDOM_LAYOUT_MAX_RADIUS: f64 = 0.19;
 /// The body whose position is the fingertip.
 pub const FINGERTIP_BODY: &str = "fingertip";
-pub use super::scene_files::{MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_FILES};
+pub use super::scene_files::{
+    MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_BYTES, MAX_INCLUDED_FILES,
+};
 
 /// The shipped tasks (`assets/tasks/<name>.toml`): the paper's four and the baselines'
 /// Markovian positive control `blue`.
@@ -116,8 +118,8 @@ pub struct Task {
     pub content_hash: String,
     /// The task file's text (logs record it).
     pub text: String,
-    /// The scene's MJCF text (logs attach it).
-    pub scene_xml: String,
+    /// The scene's MJCF text (logs attach it; the environment compiles it).
+    pub scene_xml: Arc<str>,
     /// The files the scene reads: included files, then mesh, skin, height-field and texture
     /// files (logs attach them). Shared, as every log of the task carries them.
     pub scene_files: Arc<[SceneFile]>,
@@ -530,7 +532,7 @@ impl Task {
             machine_source,
             content_hash,
             text: text.into(),
-            scene_xml: String::from_utf8_lossy(&scene_text).into_owned(),
+            scene_xml: String::from_utf8_lossy(&scene_text).into(),
             scene_files: scene_files.into(),
         })
     }
@@ -540,12 +542,19 @@ impl Task {
         (0..self.regions.len()).fold(LabelSet::EMPTY, |s, k| s.with(k))
     }
 
-    /// The task's scene, regions and events.
+    /// The task's scene, regions and events; a file scene with the bytes this task read.
     pub fn layout(&self) -> TaskLayout {
         TaskLayout {
             scene: self.scene.clone(),
             regions: self.regions.clone(),
             events: self.events.clone(),
+            loaded: match self.scene {
+                Scene::Builtin => None,
+                Scene::File(_) => Some(LoadedScene {
+                    text: Arc::clone(&self.scene_xml),
+                    files: Arc::clone(&self.scene_files),
+                }),
+            },
         }
     }
 }

@@ -4,10 +4,10 @@ use super::schema::{self, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHE
 use super::LogError;
 use crate::env::physics_scene::MAX_SCENE_BYTES;
 use crate::env::scene_files::{
-    compile_in_memory, SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES,
-    MAX_INCLUDED_FILES,
+    compile_alone, compile_in_memory, SceneCompileError, SceneFile, SceneFileKind, MAX_ASSET_BYTES,
+    MAX_ASSET_FILES, MAX_INCLUDED_BYTES, MAX_INCLUDED_FILES,
 };
-use crate::mujoco::{MjError, Model};
+use crate::mujoco::Model;
 use mcap::records::{op, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader as SansReader, LinearReaderOptions};
 use mcap::McapError;
@@ -120,12 +120,14 @@ impl RolloutLog {
     /// The compiled model of a ReacherDelivery log's scene, from the log alone: its
     /// [`Self::reacher_model_xml`] with the scene files it carries, each found by the name the
     /// scene gives it, whether or not the original files still exist. Without scene files the
-    /// text is compiled alone, as it always was.
+    /// text is compiled alone, as it always was. Either way the text and the files it includes
+    /// are walked first by a task's rules, so that a crafted log naming a file MuJoCo 2.2.2
+    /// aborts the process on is an error naming the log and the file.
     pub fn reacher_model(&self) -> Result<Model, LogModelError> {
         let xml = self.reacher_model_xml().map_err(LogModelError::Missing)?;
         let source = format!("{}:{}", self.path.display(), schema::ATTACHMENT_MODEL_XML);
         Ok(if self.scene_files.is_empty() {
-            Model::from_xml_str(xml, &source)?
+            compile_alone(xml, &source)?
         } else {
             compile_in_memory(xml, &self.scene_files, &source)?
         })
@@ -139,15 +141,27 @@ pub enum LogModelError {
     #[error("{0}")]
     Missing(String),
     #[error(transparent)]
-    Compile(#[from] MjError),
+    Compile(#[from] SceneCompileError),
 }
-
-/// Most bytes of included files a log may carry: [`MAX_INCLUDED_FILES`] files of at most
-/// [`MAX_SCENE_BYTES`] each, what a task accepts.
-const MAX_LOGGED_INCLUDE_BYTES: u64 = MAX_INCLUDED_FILES as u64 * MAX_SCENE_BYTES;
 
 /// Largest log file read: 256 MiB (a job's log, ~40 000 steps, is ~3 MB).
 pub const MAX_LOG_FILE_BYTES: u64 = 256 << 20;
+
+/// Most bytes of a scene a log carries, and the most a task's scene holds: its text
+/// ([`MAX_SCENE_BYTES`]), its included files ([`MAX_INCLUDED_BYTES`]) and its mesh, skin,
+/// height-field and texture files ([`MAX_ASSET_BYTES`]) together, 144 MiB. The reader takes
+/// each attachment within the task's limit of its kind.
+pub const MAX_LOGGED_SCENE_BYTES: u64 = MAX_SCENE_BYTES + MAX_INCLUDED_BYTES + MAX_ASSET_BYTES;
+
+/// What a log of [`MAX_LOG_FILE_BYTES`] keeps for its records and episodes beside the largest
+/// scene a task accepts: 96 MiB, about 1.2 million steps (a job's log is ~3 MB, a `reacher
+/// demo` of 10 000 episodes of 100 steps ~80 MB).
+const MIN_LOG_ROOM_BYTES: u64 = 96 << 20;
+
+// A task's scene fits in a log the reader reads, with room for its episodes: checked when the
+// crate compiles, so that a limit raised on one side alone fails the build rather than
+// leaving a task whose logs cannot be read.
+const _: () = assert!(MAX_LOGGED_SCENE_BYTES + MIN_LOG_ROOM_BYTES <= MAX_LOG_FILE_BYTES);
 
 /// Reads a rollout log of at most [`MAX_LOG_FILE_BYTES`]. A truncated file is read up to its
 /// last complete chunk (see [`RolloutLog::recovery`]); a non-MCAP, corrupt or foreign file,
@@ -267,7 +281,21 @@ impl Reading<'_> {
             Record::Attachment { header, data, .. } => {
                 let text = || String::from_utf8_lossy(&data).into_owned();
                 match header.name.as_str() {
-                    schema::ATTACHMENT_MODEL_XML => self.model_xml = Some(text()),
+                    schema::ATTACHMENT_MODEL_XML => {
+                        // model.xml is a task's scene text, which a task reads up to this limit.
+                        if data.len() as u64 > MAX_SCENE_BYTES {
+                            return Err(LogError::TooLarge {
+                                path: self.path.into(),
+                                problem: format!(
+                                    "attachment {}: {} bytes, more than the limit of \
+                                     {MAX_SCENE_BYTES} for a scene file",
+                                    header.name,
+                                    data.len()
+                                ),
+                            });
+                        }
+                        self.model_xml = Some(text())
+                    }
                     schema::ATTACHMENT_CONFIG => self.config_json = Some(text()),
                     name => {
                         if let Some((kind, file)) = schema::scene_file_of_attachment(name) {
@@ -352,8 +380,9 @@ impl Reading<'_> {
     }
 
     /// Takes a scene file the log carries (in `attachment`), within what a task accepts: at
-    /// most [`MAX_INCLUDED_FILES`] included files of [`MAX_SCENE_BYTES`] each, and
-    /// [`MAX_ASSET_FILES`] asset files of [`MAX_ASSET_BYTES`] together.
+    /// most [`MAX_INCLUDED_FILES`] included files of [`MAX_SCENE_BYTES`] each and
+    /// [`MAX_INCLUDED_BYTES`] together, and [`MAX_ASSET_FILES`] asset files of
+    /// [`MAX_ASSET_BYTES`] together.
     fn scene_file(
         &mut self,
         attachment: &str,
@@ -365,11 +394,7 @@ impl Reading<'_> {
         let count = of_kind().count();
         let bytes: u64 = of_kind().map(|f| f.bytes.len() as u64).sum();
         let (what, count_limit, byte_limit) = match kind {
-            SceneFileKind::Include => (
-                "included files",
-                MAX_INCLUDED_FILES,
-                MAX_LOGGED_INCLUDE_BYTES,
-            ),
+            SceneFileKind::Include => ("included files", MAX_INCLUDED_FILES, MAX_INCLUDED_BYTES),
             SceneFileKind::Asset => (
                 "mesh, skin, height-field and texture files",
                 MAX_ASSET_FILES,

@@ -15,7 +15,7 @@ mod data;
 mod model;
 
 pub use data::Data;
-pub use model::{Model, ObjectKind, IN_MEMORY_DIR};
+pub use model::{in_memory_text_name, vfs_key, Model, ObjectKind, IN_MEMORY_DIR, TEXT_ALONE_NAME};
 
 use std::cell::RefCell;
 use std::ffi::{c_char, CStr};

@@ -56,6 +56,24 @@ const ERROR_BUF: usize = 1000;
 /// messages name a file the text reads `smirl-log/<name>`.
 pub const IN_MEMORY_DIR: &str = "smirl-log";
 
+/// The name MuJoCo reads the text of [`Model::from_xml_str`] under: it has no directory, so
+/// relative names in the text resolve in the working directory.
+pub const TEXT_ALONE_NAME: &str = "model.xml";
+
+/// The name [`Model::from_xml_with_files`] gives its text among files of these `names`:
+/// `smirl-log/model.xml`, or `smirl-log/model-1.xml`, ... when a file's key
+/// ([`vfs_key`]) is `model.xml`, so that no file shadows the text.
+pub fn in_memory_text_name<'a>(names: impl IntoIterator<Item = &'a str> + Clone) -> String {
+    let name = (0..)
+        .map(|n| match n {
+            0 => TEXT_ALONE_NAME.to_string(),
+            n => format!("model-{n}.xml"),
+        })
+        .find(|name| names.clone().into_iter().all(|file| vfs_key(file) != *name))
+        .unwrap_or_default();
+    format!("{IN_MEMORY_DIR}/{name}")
+}
+
 impl Model {
     /// Loads and compiles an MJCF file.
     pub fn from_xml_path(path: &Path) -> Result<Model, MjError> {
@@ -78,27 +96,8 @@ impl Model {
     /// Compiles MJCF text. `source_name` names it in error messages (e.g. the file the text
     /// came from, or "embedded XML"). Relative `file=` references are not resolvable here.
     pub fn from_xml_str(xml: &str, source_name: &str) -> Result<Model, MjError> {
-        let file_name = CString::new("model.xml").expect("literal has no NUL");
+        let file_name = CString::new(TEXT_ALONE_NAME).expect("literal has no NUL");
         Self::load_text(xml, &file_name, source_name.into())
-    }
-
-    /// Compiles MJCF text as though it were the file `path`: relative `<include>` and asset
-    /// references resolve against `path`'s directory, as they do for [`Model::from_xml_path`].
-    /// The text itself is never written to disk; MuJoCo reads it from memory under a name in
-    /// `path`'s directory that no file there is expected to have.
-    pub fn from_xml_text_at(xml: &str, path: &Path) -> Result<Model, MjError> {
-        let source_name = path.display().to_string();
-        let stem = path.file_name().unwrap_or_default().to_string_lossy();
-        // MuJoCo 2.2 looks a file up in memory by its last path component before the disk,
-        // and includes are looked up the same way: a name of the scene's own could shadow an
-        // included file of that name.
-        let in_memory = path.with_file_name(format!("{stem}.smirl-in-memory.xml"));
-        let c_path =
-            CString::new(in_memory.as_os_str().as_encoded_bytes()).map_err(|_| MjError::Load {
-                source_name: source_name.clone(),
-                message: "path contains a NUL byte".into(),
-            })?;
-        Self::load_text(xml, &c_path, source_name)
     }
 
     /// Compiles MJCF text with every file it reads given in memory, each as `(name, bytes)`
@@ -157,14 +156,7 @@ impl Model {
         // there are four (a shorter one aborts the process); a directory makes every relative
         // name long enough. The virtual file system finds files by their last component, so
         // the directory changes no lookup.
-        let main = (0..)
-            .map(|n| match n {
-                0 => "model.xml".to_string(),
-                n => format!("model-{n}.xml"),
-            })
-            .find(|name| entries.iter().all(|(key, _, _)| key != name))
-            .map(|name| format!("{IN_MEMORY_DIR}/{name}"))
-            .unwrap_or_default();
+        let main = in_memory_text_name(entries.iter().map(|(_, name, _)| *name));
         let c_name = |name: &str| {
             CString::new(name).map_err(|_| {
                 refused(format!(
@@ -477,9 +469,9 @@ impl VfsBox {
     }
 }
 
-/// The key MuJoCo 2.2 files a name under in its virtual file system (`vfs_strippath`): the
-/// name's last component, after its last `/` or `\`, lower-cased.
-fn vfs_key(name: &str) -> String {
+/// The key MuJoCo 2.2 files a name under in its virtual file system (`vfs_strippath`), and
+/// looks a name up by: the name's last component, after its last `/` or `\`, lower-cased.
+pub fn vfs_key(name: &str) -> String {
     let last = name.rfind(['/', '\\']).map_or(name, |i| &name[i + 1..]);
     last.to_ascii_lowercase()
 }
