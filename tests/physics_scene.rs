@@ -9,6 +9,7 @@ use smirl::env::physics_scene::{
 };
 use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_task::ReacherTask;
+use smirl::env::scene_xml::XmlSyntaxError;
 use smirl::env::ContinuousEnv;
 use smirl::mujoco::{Data, Model, ObjectKind};
 use std::path::Path;
@@ -82,7 +83,10 @@ fn only_the_world_bodys_own_geoms_are_cut() {
     );
     assert!(matches!(
         without_world_geoms("<mujoco><worldbody><geom></worldbody></mujoco>"),
-        Err(SceneCutError::Mismatched { at: 25, .. })
+        Err(SceneCutError::Syntax(XmlSyntaxError::Mismatched {
+            at: 25,
+            ..
+        }))
     ));
 }
 
@@ -138,26 +142,38 @@ fn bodies_that_are_part_of_the_physics_are_refused() {
 fn malformed_text_is_refused_with_its_byte_offset() {
     assert!(matches!(
         without_mocap_bodies("<mujoco><worldbody></mujoco>", &[]),
-        Err(SceneCutError::Mismatched { at: 19, .. })
+        Err(SceneCutError::Syntax(XmlSyntaxError::Mismatched {
+            at: 19,
+            ..
+        }))
     ));
     assert!(matches!(
         without_mocap_bodies("<mujoco><!-- open", &[]),
-        Err(SceneCutError::Unclosed {
+        Err(SceneCutError::Syntax(XmlSyntaxError::Unclosed {
             at: 8,
             what: "comment"
-        })
+        }))
     ));
     assert!(matches!(
         without_mocap_bodies("<mujoco><worldbody>", &[]),
-        Err(SceneCutError::Unclosed { at: 8, .. })
+        Err(SceneCutError::Syntax(XmlSyntaxError::Unclosed {
+            at: 8,
+            ..
+        }))
     ));
     assert!(matches!(
         without_mocap_bodies("</mujoco>", &[]),
-        Err(SceneCutError::Unopened { at: 0, .. })
+        Err(SceneCutError::Syntax(XmlSyntaxError::Unopened {
+            at: 0,
+            ..
+        }))
     ));
     assert!(matches!(
         without_mocap_bodies("<mujoco a=\">", &[]),
-        Err(SceneCutError::Unclosed { at: 0, what: "tag" })
+        Err(SceneCutError::Syntax(XmlSyntaxError::Unclosed {
+            at: 0,
+            what: "tag"
+        }))
     ));
 }
 

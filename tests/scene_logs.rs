@@ -5,11 +5,11 @@
 //! carries none; the official MCAP reader sees the attachments.
 
 use smirl::assets::REACHER_XML;
-use smirl::env::physics_scene::MAX_SCENE_BYTES;
 use smirl::env::scene_files::{
     SceneFile, SceneFileKind, MAX_ASSET_BYTES, MAX_ASSET_FILES, MAX_INCLUDED_BYTES,
     MAX_INCLUDED_FILES,
 };
+use smirl::env::scene_xml::MAX_SCENE_BYTES;
 use smirl::log::reader::MAX_LOGGED_SCENE_BYTES;
 use smirl::log::{read_log, LogError, LogOptions, RolloutLogger, RunHeader};
 use smirl::pipeline::replay::replay;

@@ -73,4 +73,5 @@ pub mod reacher;
 pub mod reacher_controller;
 pub mod reacher_task;
 pub mod scene_files;
+pub mod scene_xml;
 pub mod task_file;

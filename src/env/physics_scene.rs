@@ -24,128 +24,20 @@
 use super::layout::{Anchor, LoadedScene, Scene, TaskLayout};
 use super::placement::Placement;
 use super::scene_files::{compile_in_memory, SceneCompileError};
+use super::scene_xml::{attribute, tags, Tag, TagKind, XmlSyntaxError};
 use crate::mujoco::Model;
 
 /// Why a scene's text cannot be cut.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SceneCutError {
-    #[error("byte {at}: {what} is not closed")]
-    Unclosed { at: usize, what: &'static str },
-    #[error("byte {at}: closing tag </{got}> where </{expected}> was open")]
-    Mismatched {
-        at: usize,
-        got: String,
-        expected: String,
-    },
-    #[error("byte {at}: closing tag </{got}> with no element open")]
-    Unopened { at: usize, got: String },
+    #[error(transparent)]
+    Syntax(#[from] XmlSyntaxError),
     #[error("body '{0}' is not a mocap body directly under <worldbody>")]
     NotAWorldMocapBody(String),
     #[error("body '{0}' holds a body or a joint, so it is part of the physics")]
     HoldsPhysics(String),
     #[error("body '{0}' is not in the scene")]
     Missing(String),
-}
-
-/// One tag of the text: its kind, element name, attributes and byte range.
-#[derive(Debug)]
-pub(crate) struct Tag<'a> {
-    pub(crate) kind: TagKind,
-    pub(crate) name: &'a str,
-    pub(crate) attributes: &'a str,
-    pub(crate) start: usize,
-    end: usize,
-}
-
-#[derive(Debug, PartialEq, Eq)]
-pub(crate) enum TagKind {
-    Open,
-    Close,
-    SelfClosing,
-}
-
-/// The element tags of `xml` in order, skipping comments, processing instructions,
-/// declarations and CDATA sections.
-pub(crate) fn tags(xml: &str) -> Result<Vec<Tag<'_>>, SceneCutError> {
-    let bytes = xml.as_bytes();
-    let mut out = Vec::new();
-    let mut i = 0;
-    while let Some(offset) = xml[i..].find('<') {
-        let start = i + offset;
-        let rest = &xml[start..];
-        let skip = [
-            ("<!--", "-->", "comment"),
-            ("<![CDATA[", "]]>", "CDATA section"),
-            ("<?", "?>", "processing instruction"),
-            ("<!", ">", "declaration"),
-        ]
-        .into_iter()
-        .find(|(open, _, _)| rest.starts_with(open));
-        if let Some((open, close, what)) = skip {
-            let end = rest[open.len()..]
-                .find(close)
-                .ok_or(SceneCutError::Unclosed { at: start, what })?;
-            i = start + open.len() + end + close.len();
-            continue;
-        }
-        // The tag ends at the first '>' outside a quoted attribute value.
-        let mut quote = None;
-        let mut end = None;
-        for (k, &b) in bytes[start + 1..].iter().enumerate() {
-            match (quote, b) {
-                (None, b'"' | b'\'') => quote = Some(b),
-                (Some(q), _) if b == q => quote = None,
-                (None, b'>') => {
-                    end = Some(start + 1 + k + 1);
-                    break;
-                }
-                _ => {}
-            }
-        }
-        let end = end.ok_or(SceneCutError::Unclosed {
-            at: start,
-            what: "tag",
-        })?;
-        let inner = &xml[start + 1..end - 1];
-        let (kind, inner) = if let Some(name) = inner.strip_prefix('/') {
-            (TagKind::Close, name)
-        } else if let Some(open) = inner.strip_suffix('/') {
-            (TagKind::SelfClosing, open)
-        } else {
-            (TagKind::Open, inner)
-        };
-        let inner = inner.trim();
-        let name_end = inner
-            .find(|c: char| c.is_ascii_whitespace())
-            .unwrap_or(inner.len());
-        out.push(Tag {
-            kind,
-            name: &inner[..name_end],
-            attributes: &inner[name_end..],
-            start,
-            end,
-        });
-        i = end;
-    }
-    Ok(out)
-}
-
-/// The value of attribute `key` in a tag's attribute text.
-pub(crate) fn attribute<'a>(attributes: &'a str, key: &str) -> Option<&'a str> {
-    let mut rest = attributes;
-    loop {
-        rest = rest.trim_start();
-        let eq = rest.find('=')?;
-        let name = rest[..eq].trim();
-        let after = rest[eq + 1..].trim_start();
-        let quote = after.chars().next().filter(|c| *c == '"' || *c == '\'')?;
-        let close = after[1..].find(quote)?;
-        let value = &after[1..1 + close];
-        if name == key {
-            return Some(value);
-        }
-        rest = &after[close + 2..];
-    }
 }
 
 /// One element of the text: the tags that open and close it (the same tag when it closes
@@ -158,7 +50,7 @@ struct Element<'a> {
 
 /// The elements of `tags`, each with its parent, after checking that every tag is closed by
 /// the tag that matches it.
-fn elements<'a>(tags: &[Tag<'a>]) -> Result<Vec<Element<'a>>, SceneCutError> {
+fn elements<'a>(tags: &[Tag<'a>]) -> Result<Vec<Element<'a>>, XmlSyntaxError> {
     // Open elements: (name, index of the tag that opened it).
     let mut open: Vec<(&str, usize)> = Vec::new();
     let mut out = Vec::new();
@@ -173,13 +65,13 @@ fn elements<'a>(tags: &[Tag<'a>]) -> Result<Vec<Element<'a>>, SceneCutError> {
             TagKind::Open => open.push((tag.name, t)),
             TagKind::Close => {
                 let Some((name, opened)) = open.pop() else {
-                    return Err(SceneCutError::Unopened {
+                    return Err(XmlSyntaxError::Unopened {
                         at: tag.start,
                         got: tag.name.into(),
                     });
                 };
                 if name != tag.name {
-                    return Err(SceneCutError::Mismatched {
+                    return Err(XmlSyntaxError::Mismatched {
                         at: tag.start,
                         got: tag.name.into(),
                         expected: name.into(),
@@ -194,7 +86,7 @@ fn elements<'a>(tags: &[Tag<'a>]) -> Result<Vec<Element<'a>>, SceneCutError> {
         }
     }
     if let Some((name, opened)) = open.last() {
-        return Err(SceneCutError::Unclosed {
+        return Err(XmlSyntaxError::Unclosed {
             at: tags[*opened].start,
             what: if *name == "body" { "body" } else { "element" },
         });
@@ -263,9 +155,6 @@ pub fn without_world_geoms(xml: &str) -> Result<String, SceneCutError> {
         .collect();
     Ok(remove(xml, cuts))
 }
-
-/// Largest scene file read as text (a task file's scene, or the text cut here).
-pub const MAX_SCENE_BYTES: u64 = crate::config_text::MAX_TEXT_FILE_BYTES * 16;
 
 /// Why the model of a task's scene cannot be made.
 #[derive(Debug, thiserror::Error)]

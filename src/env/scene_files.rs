@@ -29,7 +29,7 @@
 //! included files found as MuJoCo finds them (in memory by their last path component, else on
 //! disk), so that no text reaches MuJoCo with a name it aborts on.
 
-use super::physics_scene::{attribute, tags, SceneCutError, Tag, TagKind, MAX_SCENE_BYTES};
+use super::scene_xml::{attribute, tags, Tag, TagKind, XmlSyntaxError, MAX_SCENE_BYTES};
 use crate::mujoco::{in_memory_text_name, vfs_key, MjError, Model, TEXT_ALONE_NAME};
 use std::borrow::Cow;
 use std::fmt;
@@ -95,7 +95,7 @@ pub enum SceneFileError {
         error: std::io::Error,
     },
     #[error("{file}: {error}")]
-    Syntax { file: String, error: SceneCutError },
+    Syntax { file: String, error: XmlSyntaxError },
     #[error("{scene} includes more than {MAX_INCLUDED_FILES} files")]
     TooManyIncludes { scene: String },
     #[error("included file {file}: the files the scene includes hold more than {MAX_INCLUDED_BYTES} bytes together")]
@@ -454,7 +454,7 @@ impl Walk<'_> {
                 }
                 TagKind::Close => {
                     if self.open.len() == base {
-                        return Err(syntax(SceneCutError::Unopened {
+                        return Err(syntax(XmlSyntaxError::Unopened {
                             at: tag.start,
                             got: tag.name.into(),
                         }));
@@ -464,7 +464,7 @@ impl Walk<'_> {
                         self.kept.pop();
                     }
                     if name != tag.name {
-                        return Err(syntax(SceneCutError::Mismatched {
+                        return Err(syntax(XmlSyntaxError::Mismatched {
                             at: tag.start,
                             got: tag.name.into(),
                             expected: name,
@@ -474,7 +474,7 @@ impl Walk<'_> {
             }
         }
         if self.open.len() != base {
-            return Err(syntax(SceneCutError::Unclosed {
+            return Err(syntax(XmlSyntaxError::Unclosed {
                 at: text.len(),
                 what: "element",
             }));

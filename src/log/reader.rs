@@ -2,11 +2,11 @@
 
 use super::schema::{self, EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHEMA_VERSION};
 use super::LogError;
-use crate::env::physics_scene::MAX_SCENE_BYTES;
 use crate::env::scene_files::{
     compile_alone, compile_in_memory, SceneCompileError, SceneFile, SceneFileKind, MAX_ASSET_BYTES,
     MAX_ASSET_FILES, MAX_INCLUDED_BYTES, MAX_INCLUDED_FILES,
 };
+use crate::env::scene_xml::MAX_SCENE_BYTES;
 use crate::mujoco::Model;
 use mcap::records::{op, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader as SansReader, LinearReaderOptions};
