@@ -88,7 +88,7 @@ impl TaskSpec {
         // The scene as its file gives it: the environment's model may leave the regions' bodies
         // out (they do not touch the arm's physics).
         let layout = task.layout();
-        let scene = scene_model(&layout.scene).map_err(error)?;
+        let scene = scene_model(&layout).map_err(error)?;
         let byte = |c: f32| (c.clamp(0.0, 1.0) * 255.0).round() as u8;
         let region_colours = (region_looks(&scene, &layout).into_iter())
             .map(|(Rgb(red, green, blue), _)| (byte(red), byte(green), byte(blue)))
