@@ -4,8 +4,8 @@
 //! - shaping: along a recorded episode, the shaped minus the unshaped reward telescopes to
 //!   γ^T Φ_T − Φ_0 (Φ_T = 0 after a terminating step), step by step it is γ Φ' − Φ, and moving
 //!   towards the ball a state's reward values raises it;
-//! - the final choice: on hand-built selection episodes whose answer is known, the rule picks
-//!   the candidate that keeps the task, and only the selection cut makes it do so;
+//! - the final choice: on hand-built selection episodes whose learned returns are known, it
+//!   takes the first candidate of highest learned return;
 //! - the event-gated normalisation: its coefficients on a hand-worked case;
 //! - no leak: perturbing the perfect machine and its rewards (the ground truth a job is judged
 //!   by) leaves the learned reward, the learned returns and the final choice bit-identical,
@@ -17,10 +17,8 @@ use smirl::env::reacher_controller::{ControllerGains, ScriptedController};
 use smirl::env::ContinuousEnv;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::{FeatureMap, LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation};
-use smirl::pipeline::reacher_irl::final_policy::{
-    choose, selection_returns_of, FinalAgent, FinalCandidate,
-};
-use smirl::pipeline::reacher_irl::smirl::{coefficients, seen_after_events, ProductReward};
+use smirl::pipeline::reacher_irl::final_policy::{choose, mean_return, FinalAgent, FinalCandidate};
+use smirl::pipeline::reacher_irl::smirl::{coefficients, ProductReward};
 use smirl::pipeline::reacher_irl::{AgentBatch, ExpertData, IrlRunConfig};
 use smirl::rl::replay::ReplayBatch;
 use smirl::rl::sac::RewardFn;
@@ -256,7 +254,7 @@ fn shaping_telescopes_along_a_recorded_episode_and_pulls_towards_the_paid_ball()
 }
 
 // ---------------------------------------------------------------------------------------------
-// The final choice and its selection cut
+// The final choice
 // ---------------------------------------------------------------------------------------------
 
 /// A learned machine of IF that merges "blue touched" with "cancelled" (`0 -(b|c)-> 1`), as
@@ -273,12 +271,10 @@ const SELECTION_WEIGHTS: [f32; 3 * K] = [
     1.0, 0.0, 0.0, 0.0, 0.0,
 ];
 
-/// Selection episodes (label traces) played by one candidate: their learned rewards, learned
-/// states and labels, concatenated, and their lengths.
+/// Selection episodes (label traces) played by one candidate: their learned rewards,
+/// concatenated, and their lengths.
 struct Recorded {
     rewards: Vec<f32>,
-    states: Vec<u32>,
-    labels: Vec<LabelSet>,
     lengths: Vec<usize>,
 }
 
@@ -292,8 +288,6 @@ fn record(m: &RewardMachine, episodes: &[Vec<LabelSet>]) -> Recorded {
     model.set_params(&SELECTION_WEIGHTS).unwrap();
     let mut rec = Recorded {
         rewards: Vec::new(),
-        states: Vec::new(),
-        labels: Vec::new(),
         lengths: Vec::new(),
     };
     for trace in episodes {
@@ -302,87 +296,45 @@ fn record(m: &RewardMachine, episodes: &[Vec<LabelSet>]) -> Recorded {
         let mut r = vec![0.0f32; trace.len()];
         model.reward_batch(&rows, &states, &mut r).unwrap();
         rec.rewards.extend(r);
-        rec.states.extend(states);
-        rec.labels.extend_from_slice(trace);
         rec.lengths.push(trace.len());
     }
     rec
 }
 
-/// The final choice on IF: two candidates play one normal and one cancelled selection episode
-/// each. Both touch blue then red without the cancel; after the cancel, A touches blue on its
-/// way to red and stays on red longer, B goes straight to red. The learned reward (a machine
-/// that merges "after blue" with "after the cancel") pays A more (4.5 against 3 after the
-/// cancel), but the perfect machine fails A's cancelled episode and B solves both. The
-/// demonstrations never touch blue after the cancel, so the cut ends A's counted return there,
-/// and the rule picks B.
+/// The final choice on IF, on hand-built selection episodes whose learned returns are worked
+/// by hand: each candidate plays one normal and one cancelled episode. Normal: blue in state 0
+/// (1.0), red entering state 2 (1.0), red in it (1.0): 3.0. Cancelled: A touches blue in state
+/// 1 (0.5) and red four times (4.0); B red three times (3.0); C red once (1.0); D is B again.
+/// Means over the two episodes: A 3.75, B 3.0, C 2.0, D 3.0. The choice reads the plain
+/// learned return, so it takes A (the highest) from every order, and of B and D, equal, the
+/// first; the ground truth (A fails the cancelled branch) does not enter.
 ///
-/// Mutations tried: the cut disabled in `selection_returns_of`
-/// (`src/pipeline/reacher_irl/final_policy.rs`: `counted = len`): fails "A's cut return"
-/// (3.75, not 1.5); `SeenAfterEvents::first_unseen` returning `None`: fails the same
-/// assertion; `choose` reading `learned_return` instead of `selection_return()`: fails "the
-/// cut chooses B".
+/// Mutations tried: `choose` taking the lowest learned return (`<` for `>`): fails "the
+/// highest learned return" (3, not 0); `choose` taking the last of equals (`>=`): fails "the
+/// first of equals" (3, not 1); `mean_return` dividing by steps instead of episodes: fails
+/// "A's learned return".
 #[test]
-fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cancel() {
+fn the_final_choice_takes_the_first_candidate_of_highest_learned_return() {
     let m = machine(IF_MERGED);
-    let perfect = smirl::rm::format::read_rm(
-        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm/reacher_if.txt"),
-    )
-    .unwrap();
     let (e, c, r, b) = (
         LabelSet::EMPTY,
         labels(&[CANCEL]),
         labels(&[RED]),
         labels(&[BLUE]),
     );
-    // The demonstrations: blue then red; the cancel, then red.
-    let demos = [vec![e, b, e, r], vec![c, e, r]];
-    let mut expert = ExpertData {
-        obs: Vec::new(),
-        lengths: Vec::new(),
-        learned_states: Vec::new(),
-    };
-    for d in &demos {
-        expert.obs.extend(d.iter().flat_map(|&l| row_of(l)));
-        expert.learned_states.extend(states_along(&m, d));
-        expert.lengths.push(d.len());
-    }
-    let mut settings = IrlRunConfig::standard();
-    settings.env = shipped_config(settings.env);
-    assert!(settings.selection_cut());
-    let seen = seen_after_events(&m, &expert, &settings).unwrap();
-    assert_eq!(
-        seen.in_state(1),
-        r,
-        "after the cancel the demonstrations touch red only"
-    );
-
     let normal = vec![e, e, b, e, r, r, e, e];
-    let a = [normal.clone(), vec![c, e, b, e, r, r, r, r]];
-    let b_ = [normal, vec![c, e, e, e, e, r, r, r]];
-    // The known answer, on the ground truth: A fails the cancelled branch, B solves both.
-    let solves = |trace: &[LabelSet]| {
-        let end = perfect.run(trace).last().unwrap().0;
-        perfect.is_terminal(end) && !perfect.is_failure(end)
-    };
-    assert!(a.iter().map(|t| solves(t)).eq([true, false]));
-    assert!(b_.iter().all(|t| solves(t)));
-
+    let plays = [
+        [normal.clone(), vec![c, e, b, e, r, r, r, r]],
+        [normal.clone(), vec![c, e, e, e, e, r, r, r]],
+        [normal.clone(), vec![c, e, e, e, e, e, e, r]],
+        [normal, vec![c, e, e, e, e, r, r, r]],
+    ];
     let candidate = |episodes: &[Vec<LabelSet>], success_rate: f64| {
         let rec = record(&m, episodes);
-        let (learned_return, cut_return) = selection_returns_of(
-            &rec.rewards,
-            &rec.states,
-            &rec.labels,
-            &rec.lengths,
-            Some(&seen),
-        )
-        .unwrap();
         FinalCandidate {
             agent: FinalAgent::CoTrained,
             env_steps: 0,
-            learned_return,
-            cut_return,
+            learned_return: mean_return(&rec.rewards, &rec.lengths).unwrap(),
             success_rate,
             branches: None,
             progress: 0.0,
@@ -390,39 +342,35 @@ fn the_final_choice_keeps_the_candidate_that_does_not_touch_blue_after_the_cance
             final_set: None,
         }
     };
-    let (ca, cb) = (candidate(&a, 0.0), candidate(&b_, 1.0));
-    // Normal episodes: blue in state 0 (1.0), red entering state 2 (1.0), red in it (1.0).
-    // Cancelled: A blue in state 1 (0.5) and red ×4 (4.0), B red ×3 (3.0). Means over 2.
-    assert_eq!(ca.learned_return, (3.0 + 4.5) / 2.0);
-    assert_eq!(cb.learned_return, (3.0 + 3.0) / 2.0);
-    assert!(
-        ca.learned_return > cb.learned_return,
-        "uncut, A looks better"
-    );
-    // Cut: A's cancelled episode counts nothing from its blue touch on (step 2: 0.0).
-    assert_eq!(ca.cut_return, Some(3.0 / 2.0), "A's cut return");
+    let [a, b_, c_, d] = [
+        candidate(&plays[0], 0.0),
+        candidate(&plays[1], 1.0),
+        candidate(&plays[2], 1.0),
+        candidate(&plays[3], 1.0),
+    ];
+    assert_eq!(a.learned_return, (3.0 + 4.5) / 2.0, "A's learned return");
+    assert_eq!(b_.learned_return, 3.0, "B's learned return");
+    assert_eq!(c_.learned_return, 2.0, "C's learned return");
+    assert_eq!(d.learned_return, b_.learned_return, "D's learned return");
     assert_eq!(
-        cb.cut_return,
-        Some(cb.learned_return),
-        "B has nothing to cut"
+        choose(&[c_.clone(), b_.clone(), d.clone(), a.clone()]),
+        3,
+        "the highest learned return"
     );
-    let chosen = choose(&[ca.clone(), cb.clone()]);
     assert_eq!(
-        chosen, 1,
-        "the cut chooses B, the candidate that solves the task"
+        choose(&[a.clone(), c_.clone(), b_.clone()]),
+        0,
+        "the highest learned return, first"
     );
-    // Without the cut the same rule would take A: the cut is what decides here.
-    let uncut = |c: &FinalCandidate| FinalCandidate {
-        cut_return: None,
-        ..c.clone()
-    };
-    assert_eq!(choose(&[uncut(&ca), uncut(&cb)]), 0);
-    // Without a cut there is no cut return, and lengths that do not add up are an error.
-    let rec = record(&m, &a);
-    let (full, none) =
-        selection_returns_of(&rec.rewards, &rec.states, &rec.labels, &rec.lengths, None).unwrap();
-    assert_eq!((full, none), (ca.learned_return, None));
-    assert!(selection_returns_of(&rec.rewards, &rec.states, &rec.labels, &[3], None).is_err());
+    assert_eq!(
+        choose(&[c_.clone(), b_.clone(), d.clone()]),
+        1,
+        "the first of equals"
+    );
+    assert_eq!(choose(&[c_]), 0, "one candidate");
+    // Lengths that do not add up to the rewards are an error.
+    let rec = record(&m, &plays[0]);
+    assert!(mean_return(&rec.rewards, &[3]).is_err());
 }
 
 // ---------------------------------------------------------------------------------------------

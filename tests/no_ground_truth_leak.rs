@@ -65,13 +65,13 @@ failure: 3
 ";
 
 /// The standard mechanisms at test size: the event-gated normalisation, shaping, CRM, the clock,
-/// a final phase with a reset agent and the selection cut (entries), a rollout log.
+/// a final phase with a reset agent, a rollout log.
 fn config() -> IrlRunConfig {
     let mut c = tiny_config();
     c.final_reset_steps = 140;
     let standard = IrlRunConfig::standard();
     assert_eq!(c.normalisation(), standard.normalisation());
-    assert!(c.selection_cut() && c.clock());
+    assert!(c.clock());
     assert!(c.smirl_shaping > 0.0 && c.counterfactual() > 0.0);
     assert!(c.log_every_nth_episode > 0);
     c
@@ -150,12 +150,7 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
     assert_eq!(fa.candidates.len(), fb.candidates.len());
     for (k, (ca, cb)) in fa.candidates.iter().zip(&fb.candidates).enumerate() {
         let scored = |c: &smirl::pipeline::reacher_irl::final_policy::FinalCandidate| {
-            (
-                c.agent,
-                c.env_steps,
-                c.learned_return.to_bits(),
-                c.cut_return.map(f64::to_bits),
-            )
+            (c.agent, c.env_steps, c.learned_return.to_bits())
         };
         assert_eq!(scored(ca), scored(cb), "candidate {k}");
     }
@@ -184,11 +179,11 @@ fn assert_same_learning_other_evaluation(a: &JobRecord, b: &JobRecord) {
 
 /// IF's job against the same job judged by [`PERTURBED_CONDITIONAL`]: bit-identical learned
 /// machine, expert data, reward file, reward trace (weights and data gradient per iteration),
-/// per-iteration learned reward and surrogate loss, candidates' learned and cut returns and
-/// choice; different success rates and task returns.
+/// per-iteration learned reward and surrogate loss, candidates' learned returns and choice;
+/// different success rates and task returns.
 ///
-/// Mutations tried (each a leak): the selection's cut return reading the candidate's
-/// ground-truth success (`cut_return + success_rate` in `final_policy::candidate`): fails at
+/// Mutations tried (each a leak): the candidates' learned return reading their ground-truth
+/// success (`learned_return + ev.success_rate` in `final_policy::candidate`): fails at
 /// "candidate 0"; the reward update's rollouts ending when the perfect machine decides
 /// (`stop_when_decided: true` in `RolloutStream::collect`): fails at "rewards/smirl_seed3.json
 /// differs".

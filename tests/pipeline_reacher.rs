@@ -216,7 +216,7 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
     let mut lines = table.lines();
     assert_eq!(
         lines.next(),
-        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent,cut_return,random,final_set_episodes,final_set_success_rate,final_set_success_normal,final_set_success_cancel")
+        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent,random,final_set_episodes,final_set_success_rate,final_set_success_normal,final_set_success_cancel")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let config = tiny_config();
@@ -591,27 +591,19 @@ fn tiny_smirl_run(
     (tmp, dir, summary)
 }
 
-/// The selection cut (smirl's, not a key): a run says in its report which balls
-/// the demonstrations touch after the cancel per learned state, and every final-policy
-/// candidate of its SMIRL job carries a cut return, the one the choice reads.
+/// A SMIRL job's final choice reads the plain learned return of each candidate: the record's
+/// choice is `choose` of its candidates, and `final_policy.csv` has one learned return per
+/// candidate and no other number the choice could read.
 #[test]
-fn selection_cut_scores_every_candidate_and_chooses_by_it() {
+fn a_smirl_job_chooses_by_the_learned_return() {
     use smirl::pipeline::reacher_irl::final_policy::choose;
     use smirl::pipeline::reacher_irl::records::JobRecord;
-    let c = IrlRunConfig::standard();
-    assert!(c.selection_cut() && !c.for_algo(Algo::SmirlPaper).unwrap().selection_cut());
     let config = tiny_config();
     let (_tmp, dir, _) = tiny_smirl_run(ReacherTask::shipped("if").unwrap(), config);
-    let report = std::fs::read_to_string(dir.join("rm/report.txt")).unwrap();
-    assert!(
-        report.contains(
-            "smirl_selection_cut: regions the demonstrations touch (touches begun) after an event"
-        ),
-        "{report}"
-    );
     let table = std::fs::read_to_string(dir.join("final_policy.csv")).unwrap();
     let header: Vec<&str> = table.lines().next().unwrap().split(',').collect();
-    let column = header.iter().position(|&c| c == "cut_return").unwrap();
+    assert!(!header.contains(&"cut_return"), "{header:?}");
+    let column = header.iter().position(|&c| c == "learned_return").unwrap();
     for row in table.lines().skip(1) {
         let cell = row.split(',').nth(column).unwrap();
         assert!(cell.parse::<f64>().unwrap().is_finite(), "{row}");
@@ -620,7 +612,7 @@ fn selection_cut_scores_every_candidate_and_chooses_by_it() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("jobs/smirl_seed3.json")).unwrap())
             .unwrap();
     let f = record.final_policy.unwrap();
-    assert!(f.candidates.iter().all(|c| c.cut_return.is_some()));
+    assert!(f.candidates.len() > 1);
     assert_eq!(f.chosen, choose(&f.candidates));
 }
 
@@ -939,7 +931,6 @@ fn final_policy_is_the_first_candidate_of_highest_learned_return() {
         agent: FinalAgent::CoTrained,
         env_steps: 0,
         learned_return,
-        cut_return: None,
         success_rate,
         branches: None,
         progress: 0.0,
@@ -955,14 +946,6 @@ fn final_policy_is_the_first_candidate_of_highest_learned_return() {
     assert_eq!(choose(&c), 1);
     assert_eq!(choose(&c[..1]), 0);
     assert_eq!(choose(&c[2..]), 0);
-    // IF 42 seed 44's pattern: the candidate of highest learned return touches blue after the
-    // cancel, its cut return falls below one that does not.
-    let cut = |learned: f64, cut: f64| FinalCandidate {
-        cut_return: Some(cut),
-        ..candidate(learned, 0.0)
-    };
-    assert_eq!(choose(&[cut(380.0, 300.0), cut(355.0, 355.0)]), 1);
-    assert_eq!(choose(&[cut(380.0, 380.0), cut(355.0, 355.0)]), 0);
 }
 
 /// The standard profile without its per-algorithm schedules: what SMIRL runs with.

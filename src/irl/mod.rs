@@ -11,8 +11,6 @@
 //! - [`knn_divergence`]: the k-nearest-neighbour KL estimate between two sample sets, f-IRL's
 //!   measure of how well an agent's state marginal matches a target density.
 //! - [`firl`]: f-IRL (fkl, rkl, js) and continuous MaxEnt IRL as per-state loss coefficients.
-//! - [`seen_after_events`]: what demonstrations do in each learned state once the cancel has
-//!   come (the selection cut of SMIRL's final-policy choice, `IrlRunConfig::selection_cut`).
 //! - [`smirl`]: SMIRL's linear reward δ_r(u, o) = w_uᵀ φ(o) on U × O and its MaxEnt gradient.
 //! - [`reward`]: the [`reward::RewardModel`] trait SAC reads rewards from, and the (64, 64)
 //!   MLP reward clamped to ±10 of the baselines.
@@ -40,7 +38,6 @@ pub mod firl;
 pub mod kde;
 pub mod knn_divergence;
 pub mod reward;
-pub mod seen_after_events;
 pub mod smirl;
 pub mod tabular;
 

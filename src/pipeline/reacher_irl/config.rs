@@ -173,8 +173,6 @@ pub struct Mechanisms {
     pub counterfactual_states: bool,
     /// MaxEnt's normalisation by event-gated visits ([`IrlRunConfig::normalisation`]).
     pub event_gated_visits: bool,
-    /// The final choice's cut after an unseen touch ([`IrlRunConfig::selection_cut`]).
-    pub selection_cut: bool,
 }
 
 impl Mechanisms {
@@ -184,14 +182,12 @@ impl Mechanisms {
         clock: true,
         counterfactual_states: true,
         event_gated_visits: true,
-        selection_cut: true,
     };
     /// `smirl-paper`'s: none.
     pub const PAPER: Mechanisms = Mechanisms {
         clock: false,
         counterfactual_states: false,
         event_gated_visits: false,
-        selection_cut: false,
     };
 }
 
@@ -691,11 +687,12 @@ pub const REMOVED_KEYS: [(&str, &str); 50] = [
     ("smirl_final_reset_steps", "[final] reset_steps"),
     (
         "smirl_selection_cut",
-        "the algorithm: the final choice of smirl and smirl-smooth always cuts (the old true)",
+        "nothing: the final choice reads the plain learned return (the selection cut did not \
+         show it pays: experiments/reacher/mechanisms/ablation.md)",
     ),
     (
         "smirl_selection_cut_entries",
-        "the algorithm: the cut counts a touch on the step it begins (the old true)",
+        "nothing: the selection cut is gone (experiments/reacher/mechanisms/ablation.md)",
     ),
     (
         "smirl_clock",
@@ -1037,17 +1034,6 @@ impl IrlRunConfig {
         } else {
             SmirlNormalisation::Trajectories
         }
-    }
-
-    /// Whether the final phase's choice reads each candidate's learned return only up to its
-    /// first ball touch (counted on the step the touch begins), after the cancel, that no
-    /// demonstration makes after a cancel in the same learned state
-    /// (`irl::seen_after_events`); SMIRL's alone (it reads the learned machine), and only
-    /// with a final phase. Why: a learned machine without a failure state lets a policy that
-    /// touches blue after the cancel earn about what one that avoids it earns (research log, "A
-    /// choice that reads what the expert does after the cancel").
-    pub fn selection_cut(&self) -> bool {
-        self.mechanisms.selection_cut
     }
 
     /// Checks value ranges (named by field).

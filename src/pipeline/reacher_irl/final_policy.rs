@@ -6,7 +6,7 @@
 //! `final_reset_steps` > 0, the checkpoints of a reset agent trained on the same reward
 //! after it. One routine (`train`) for every algorithm: they differ only in the reward they
 //! hand it (`ScoredReward`: SMIRL's δ_r(u, o) on its product, a baseline's MLP of the
-//! fingertip) and in SMIRL's selection cut below.
+//! fingertip).
 //!
 //! Why: the IRL loop's policy learns along with a moving reward; the one evaluated after the
 //! last iteration trained on the weights before the last update and can sit in a dip of the
@@ -24,14 +24,6 @@
 //! buffer, every transition of the loop and the phase that the buffer still holds — with new
 //! networks, optimisers and temperature ([`SacTrainer::with_new_agent`]), learns from that
 //! buffer alone first and then trains on. Nothing in it reads a reward machine.
-//!
-//! The cut ([`IrlRunConfig::selection_cut`], SMIRL only: it reads the learned machine's states
-//! and assumes "unless" semantics of the events): a learned machine without a failure state
-//! lets a policy that touches a ball after the cancel earn about what one that avoids it earns,
-//! so the choice can fall on it. With the cut, each selection episode counts its learned reward
-//! only up to its first ball touch, after the cancel, that no demonstration makes after a
-//! cancel in the same learned state ([`SeenAfterEvents`]) — still no ground truth, and nothing
-//! in training changes.
 
 use super::agent_phases::train_sac;
 use super::config::IrlRunConfig;
@@ -39,11 +31,8 @@ use super::episodes::{play_episode, AgentBatch, EpisodeSpec, GroundTruthTask, Jo
 use super::evaluation::{Evaluation, FinalSetScore, JobWatch};
 use super::iteration::StepError;
 use crate::env::reacher_task::BranchTally;
-use crate::irl::seen_after_events::SeenAfterEvents;
-use crate::irl::smirl::FeatureMap;
 use crate::log::RolloutLogger;
 use crate::rl::sac::{episode_seed, ActMode, RewardFn, SacAgent, SacTrainer};
-use crate::rm::LabelSet;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -82,13 +71,8 @@ pub struct FinalCandidate {
     pub agent: FinalAgent,
     pub env_steps: u64,
     /// Mean learned return (the final reward, unshaped) of the mean action over the selection
-    /// episodes, each played to the time limit: what the choice reads without the cut.
+    /// episodes, each played to the time limit: what the choice reads.
     pub learned_return: f64,
-    /// With the selection cut, the same mean with each episode's learned reward counted
-    /// only up to its first touch after the cancel that no demonstration makes there: what
-    /// the choice reads instead.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub cut_return: Option<f64>,
     /// On the ground truth, as the iterations are judged (for a conditional task the lower
     /// branch rate).
     pub success_rate: f64,
@@ -106,20 +90,13 @@ pub struct FinalCandidate {
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FinalPolicy {
     pub candidates: Vec<FinalCandidate>,
-    /// Index into `candidates`: the first of highest selection return.
+    /// Index into `candidates`: the first of highest learned return.
     pub chosen: usize,
     /// Index into `candidates`: one drawn uniformly from the job's own seed stream
     /// ([`random_pick`]), the yardstick of the choice; `None` in records written before it
     /// was drawn.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub random: Option<usize>,
-}
-
-impl FinalCandidate {
-    /// The number the choice reads: the cut return when there is one, else the learned return.
-    pub fn selection_return(&self) -> f64 {
-        self.cut_return.unwrap_or(self.learned_return)
-    }
 }
 
 impl FinalPolicy {
@@ -136,7 +113,7 @@ impl FinalPolicy {
 
 /// The length of the phase and what its choice reads.
 #[derive(Clone, Copy, Debug)]
-pub struct FinalPhase<'a> {
+pub struct FinalPhase {
     /// SAC environment steps on the fixed final reward.
     pub steps: u64,
     /// Candidates taken along them (evenly spaced, the last at the end), besides the co-trained
@@ -148,28 +125,19 @@ pub struct FinalPhase<'a> {
     /// Gradient updates, then as many SAC environment steps, of the reset agent (0: none),
     /// with `checkpoints` candidates along the steps.
     pub reset_steps: u64,
-    /// With the selection cut: what the demonstrations touch after the cancel, per learned
-    /// state, where selection episodes stop counting.
-    pub selection_cut: Option<&'a SeenAfterEvents>,
     /// Selection episodes per candidate ([`selection_episodes`]).
     pub selection_episodes: u64,
 }
 
-impl<'a> FinalPhase<'a> {
-    /// The phase of a job of `settings` with seed `seed`, the same for every algorithm
-    /// (`selection_cut`: SMIRL's, or `None`); `None` when the settings have no final phase
-    /// (`final_sac_steps` = 0, as `smirl-paper`'s).
-    pub fn of(
-        settings: &IrlRunConfig,
-        seed: u64,
-        selection_cut: Option<&'a SeenAfterEvents>,
-    ) -> Option<FinalPhase<'a>> {
+impl FinalPhase {
+    /// The phase of a job of `settings` with seed `seed`, the same for every algorithm; `None`
+    /// when the settings have no final phase (`final_sac_steps` = 0, as `smirl-paper`'s).
+    pub fn of(settings: &IrlRunConfig, seed: u64) -> Option<FinalPhase> {
         (settings.final_sac_steps > 0).then(|| FinalPhase {
             steps: settings.final_sac_steps,
             checkpoints: settings.final_checkpoints,
             seed,
             reset_steps: settings.final_reset_steps,
-            selection_cut,
             selection_episodes: selection_episodes(settings),
         })
     }
@@ -210,16 +178,13 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     sac: &mut SacTrainer,
     env: &mut E,
     reward: &mut R,
-    phase: FinalPhase<'_>,
+    phase: FinalPhase,
     iterations: usize,
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<FinalPolicy, StepError> {
     let selection_seeds = selection_seeds(phase.seed, phase.selection_episodes);
     let task = GroundTruthTask::of(watch.perfect(), watch.layout());
-    let selection = &Selection {
-        seeds: &selection_seeds,
-        cut: phase.selection_cut,
-    };
+    let selection = selection_seeds.as_slice();
     let co_trained = FinalAgent::CoTrained;
     let mut candidates = vec![candidate(
         sac, co_trained, env, reward, &task, selection, watch,
@@ -271,18 +236,17 @@ fn candidate<E: JobEnv, R: ScoredReward>(
     env: &mut E,
     reward: &mut R,
     task: &GroundTruthTask<'_>,
-    selection: &Selection<'_>,
+    selection: &[u64],
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<FinalCandidate, StepError> {
-    let (learned_return, cut_return) =
-        selection_returns(&mut sac.agent, env, reward, task, selection, watch.logger())?;
+    let learned_return =
+        learned_return(&mut sac.agent, env, reward, task, selection, watch.logger())?;
     let ev: Evaluation = watch.judge_final(&mut sac.agent, env)?;
     let final_set = watch.judge_final_set(&mut sac.agent, env)?;
     Ok(FinalCandidate {
         agent,
         env_steps: sac.env_steps(),
         learned_return,
-        cut_return,
         success_rate: ev.success_rate,
         branches: ev.branches,
         progress: ev.progress,
@@ -291,21 +255,15 @@ fn candidate<E: JobEnv, R: ScoredReward>(
     })
 }
 
-/// The first candidate of highest selection return.
+/// The first candidate of highest learned return.
 pub fn choose(candidates: &[FinalCandidate]) -> usize {
     let mut best = 0;
     for (i, c) in candidates.iter().enumerate() {
-        if c.selection_return() > candidates[best].selection_return() {
+        if c.learned_return > candidates[best].learned_return {
             best = i;
         }
     }
     best
-}
-
-/// The episodes every candidate is scored on, and where they stop counting.
-struct Selection<'a> {
-    seeds: &'a [u64],
-    cut: Option<&'a SeenAfterEvents>,
 }
 
 /// The mean learned return of `agent`'s mean action over the episodes of `reset_seeds`, every
@@ -316,31 +274,11 @@ pub(super) fn learned_return<E: JobEnv, R: ScoredReward>(
     reward: &mut R,
     task: &GroundTruthTask<'_>,
     reset_seeds: &[u64],
-    logger: Option<&mut RolloutLogger>,
-) -> Result<f64, StepError> {
-    let selection = Selection {
-        seeds: reset_seeds,
-        cut: None,
-    };
-    selection_returns(agent, env, reward, task, &selection, logger).map(|(r, _)| r)
-}
-
-/// The mean learned return of `agent`'s mean action over the selection episodes, and with a
-/// cut the mean of the same returns counted only up to each episode's first unseen touch.
-fn selection_returns<E: JobEnv, R: ScoredReward>(
-    agent: &mut SacAgent,
-    env: &mut E,
-    reward: &mut R,
-    task: &GroundTruthTask<'_>,
-    selection: &Selection<'_>,
     mut logger: Option<&mut RolloutLogger>,
-) -> Result<(f64, Option<f64>), StepError> {
+) -> Result<f64, StepError> {
     let mut rng = ChaCha8Rng::seed_from_u64(0);
-    let labelling = FeatureMap::reacher_labels(env.reacher().layout());
     let mut steps = AgentBatch::default();
-    // The labels of each step's next observation, as the demonstrations' are read for the cut.
-    let mut labels = Vec::new();
-    for &reset_seed in selection.seeds {
+    for &reset_seed in reset_seeds {
         let spec = EpisodeSpec {
             mode: ActMode::Mean,
             reset_seed,
@@ -348,7 +286,7 @@ fn selection_returns<E: JobEnv, R: ScoredReward>(
             with_branch: false,
             phase: "select",
         };
-        let start = labels.len();
+        let mut len = 0;
         play_episode(
             agent,
             env,
@@ -358,27 +296,18 @@ fn selection_returns<E: JobEnv, R: ScoredReward>(
             logger.as_deref_mut(),
             |next, u| {
                 steps.push_step(next, u);
-                labels.push(labelling.labels_of(next));
+                len += 1;
             },
         )?;
-        steps.lengths.push(labels.len() - start);
+        steps.lengths.push(len);
     }
     let r = reward.score(&steps)?;
-    selection_returns_of(&r, &steps.states, &labels, &steps.lengths, selection.cut)
+    mean_return(&r, &steps.lengths)
 }
 
-/// What the choice reads from recorded selection episodes (concatenated, `lengths` steps
-/// each): the mean over episodes of each one's learned return, and with `cut` the mean of the
-/// same returns counted only up to each episode's first step that `cut` finds unseen
-/// ([`SeenAfterEvents::first_unseen`]). Per step: `rewards`, the learned reward; `states`, the
-/// learned state its labels are read in; `labels`, the labels of its next observation.
-pub fn selection_returns_of(
-    rewards: &[f32],
-    states: &[u32],
-    labels: &[LabelSet],
-    lengths: &[usize],
-    cut: Option<&SeenAfterEvents>,
-) -> Result<(f64, Option<f64>), StepError> {
+/// The mean over recorded selection episodes (concatenated, `lengths` steps each) of each
+/// one's learned return, from `rewards`, the learned reward of every step.
+pub fn mean_return(rewards: &[f32], lengths: &[usize]) -> Result<f64, StepError> {
     let steps = lengths.iter().sum::<usize>();
     if rewards.len() != steps {
         return Err(StepError::SelectionRewards {
@@ -386,32 +315,6 @@ pub fn selection_returns_of(
             steps,
         });
     }
-    if cut.is_some() && states.len() != labels.len() {
-        return Err(StepError::CutWithoutStates);
-    }
-    if cut.is_some() && labels.len() != steps {
-        return Err(StepError::SelectionLabels {
-            labels: labels.len(),
-            steps,
-        });
-    }
     let episodes = lengths.len().max(1) as f64;
-    let full = rewards.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes;
-    let cut = cut.map(|seen| {
-        let mut start = 0;
-        let mut sum = 0.0;
-        for &len in lengths {
-            let end = start + len;
-            let counted = seen
-                .first_unseen(&states[start..end], &labels[start..end])
-                .unwrap_or(len);
-            sum += rewards[start..start + counted]
-                .iter()
-                .map(|&x| f64::from(x))
-                .sum::<f64>();
-            start = end;
-        }
-        sum / episodes
-    });
-    Ok((full, cut))
+    Ok(rewards.iter().map(|&x| f64::from(x)).sum::<f64>() / episodes)
 }

@@ -504,7 +504,7 @@ fn train_in<E: JobEnv>(
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
     // The final phase has no selection cut (it reads a learned machine, and the baselines have
     // none).
-    let final_phase = FinalPhase::of(s, job.seed, None);
+    let final_phase = FinalPhase::of(s, job.seed);
     let final_policy = irl_loop::run(&mut learner, &mut sac, env, s, job.seed, final_phase, watch)?;
     Ok(BaselineOutcome {
         reward: learner.reward,

@@ -80,7 +80,7 @@ pub(super) fn run<E: JobEnv, L: RewardLearner>(
     env: &mut E,
     settings: &IrlRunConfig,
     seed: u64,
-    final_phase: Option<FinalPhase<'_>>,
+    final_phase: Option<FinalPhase>,
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<Option<FinalPolicy>, StepError> {
     // 0. The untrained policy's evaluation.

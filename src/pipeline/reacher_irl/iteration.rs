@@ -70,10 +70,6 @@ pub enum StepError {
     },
     #[error("{rewards} learned rewards for {steps} selection steps")]
     SelectionRewards { rewards: usize, steps: usize },
-    #[error("the selection cut reads learned-machine states, and this agent has none")]
-    CutWithoutStates,
-    #[error("{labels} label sets for {steps} selection steps")]
-    SelectionLabels { labels: usize, steps: usize },
 }
 
 /// One row of the metrics table: the ground-truth evaluation after `iteration` IRL

@@ -389,9 +389,7 @@ pub(super) fn write_reports(
 /// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `random` the
 /// one drawn at random (the choice's yardstick), `agent` says
 /// whose policy it is (`co-trained`, `reset` with
-/// `final_reset_steps`), `cut_return`
-/// what the choice read instead of `learned_return` (SMIRL's selection cut; else empty),
-/// `final_set_*` the success on the final set (`evaluation::final_set_episodes`; candidate 0's
+/// `final_reset_steps`), `final_set_*` the success on the final set (`evaluation::final_set_episodes`; candidate 0's
 /// is the loop's own final policy's), beside `success_*` on the per-iteration evaluation's
 /// episodes.
 fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
@@ -408,7 +406,6 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
         "progress",
         "final_ball",
         "agent",
-        "cut_return",
         "random",
         "final_set_episodes",
         "final_set_success_rate",
@@ -440,7 +437,6 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 format!("{}", c.progress),
                 format!("{}", c.final_ball),
                 c.agent.name().to_string(),
-                c.cut_return.map_or(String::new(), |x| format!("{x:.6}")),
                 u8::from(f.random == Some(i)).to_string(),
                 final_set(&|s| s.episodes.to_string()),
                 final_set(&|s| format!("{}", s.success_rate)),

@@ -29,7 +29,7 @@ use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{
-    annotate, label_traces, learn_machine, lrm_config, one_state_machine, seen_after_events,
+    annotate, label_traces, learn_machine, lrm_config, one_state_machine,
     task_machine,
 };
 use super::Algo;
@@ -254,10 +254,6 @@ pub fn prepare(
         let (rm, facts, report) =
             learn_and_report(&settings, machine.algo(), &demos, &perfect, seed)?;
         let data = annotate(&task.layout(), &demos, Some(&rm), hold_to);
-        let report = match machine {
-            Machine::Smirl => report + &selection_cut_report(&rm, &data, &settings)?,
-            Machine::Paper => report,
-        };
         let stem = machine.stem();
         write_file(&dir.join(format!("rm/{stem}.txt")), &write_rm(&rm))?;
         write_file(&dir.join(format!("rm/{stem}.dot")), &to_dot(&rm))?;
@@ -447,29 +443,6 @@ fn learn_and_report(
         );
     }
     Ok((rm, facts, report))
-}
-
-/// The report line of the selection cut ([`IrlRunConfig::selection_cut`]; empty without it): the regions the demonstrations
-/// touch after an event in each state of `rm`.
-fn selection_cut_report(
-    rm: &RewardMachine,
-    expert_data: &ExpertData,
-    config: &IrlRunConfig,
-) -> Result<String, PipelineError> {
-    if !config.selection_cut() {
-        return Ok(String::new());
-    }
-    let seen = seen_after_events(rm, expert_data, config).map_err(PipelineError::TaskLayout)?;
-    let per_state: Vec<String> = (0..rm.n_states())
-        .map(|u| match seen.in_state(u) {
-            l if l.is_empty() => format!("{u}: -"),
-            l => format!("{u}: {}", rm.vocab().format_labels(l)),
-        })
-        .collect();
-    Ok(format!(
-        "smirl_selection_cut: regions the demonstrations touch (touches begun) after an event, per learned state: {}\n",
-        per_state.join(", ")
-    ))
 }
 
 /// Reads a directory `prepare` finished. A directory it did not finish (no `prepare.json`)

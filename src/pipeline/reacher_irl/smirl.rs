@@ -16,9 +16,7 @@
 //!       ([`coefficients`]);
 //!    4. reward step(s) on w (Adam, L2).
 //! 4. **Final policy** (`final_sac_steps` > 0): the final phase every algorithm with a
-//!    learned reward shares ([`super::final_policy`]), on δ_r held fixed; SMIRL's own part is
-//!    the selection cut ([`IrlRunConfig::selection_cut`]: each selection episode's return counted up to
-//!    its first touch after the cancel that no demonstration makes, [`seen_after_events`]).
+//!    learned reward shares ([`super::final_policy`]), on δ_r held fixed.
 //!
 //! Steps 1–2 run once per task in `reacher prepare` (every SMIRL job of a run shares the
 //! machine); `train` is one (variant, seed) job. Ground-truth evaluation, logging and progress
@@ -36,7 +34,6 @@ use crate::env::product::ProductEnv;
 use crate::env::reacher::{ConfigError, ReacherDelivery};
 use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
-use crate::irl::seen_after_events::SeenAfterEvents;
 use crate::irl::smirl::{
     maxent_coefficients, maxent_coefficients_by_shared_visits, AnnotatedTrajectories, FeatureMap,
     LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
@@ -415,32 +412,6 @@ pub(super) fn shaping_potential(
         .transpose()
 }
 
-/// Step 4's cut ([`IrlRunConfig::selection_cut`]): the region touches the demonstrations make after an
-/// event in each state of `machine` (a rule that reads the events with "unless" semantics:
-/// a touch after the event that no demonstration makes is off the task), read from their steps as [`annotate`] gives them in it
-/// (held steps included), as a candidate's selection episodes are read.
-pub fn seen_after_events(
-    machine: &RewardMachine,
-    expert: &ExpertData,
-    settings: &IrlRunConfig,
-) -> Result<SeenAfterEvents, ConfigError> {
-    let layout = task_layout(settings)?;
-    let labelling = FeatureMap::reacher_labels(layout);
-    let labels: Vec<LabelSet> = expert
-        .obs
-        .chunks_exact(layout.obs_dim())
-        .map(|o| labelling.labels_of(o))
-        .collect();
-    Ok(SeenAfterEvents::new(
-        machine.n_states(),
-        &expert.learned_states,
-        &labels,
-        &expert.lengths,
-        layout.events(),
-        layout.touches(),
-    ))
-}
-
 /// One SMIRL job.
 pub struct SmirlJob<'a> {
     pub features: Features,
@@ -485,13 +456,8 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
     // Step 4, the final policy, after the loop's last iteration: SAC goes on with the final
     // reward, now fixed (shaped by its potential), then (`final_reset_steps`) a reset agent
-    // learns it too, and the candidate of highest learned return (the selection cut: counted
-    // up to the first touch after the cancel that no demonstration makes) is the job's policy.
-    let selection_cut = s
-        .selection_cut()
-        .then(|| seen_after_events(job.machine, job.expert, s))
-        .transpose()?;
-    let final_phase = FinalPhase::of(s, job.seed, selection_cut.as_ref());
+    // learns it too, and the candidate of highest learned return is the job's policy.
+    let final_phase = FinalPhase::of(s, job.seed);
     let final_policy = irl_loop::run(
         &mut learner,
         &mut sac,
