@@ -42,9 +42,8 @@ fn read_record(dir: &Path, algo: Algo) -> JobRecord {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-/// A baseline (maxent) runs the final phase: the co-trained policy, two checkpoints of the
-/// co-trained agent and two of the reset agent; the chosen candidate has the highest learned
-/// return (no selection cut: the baselines have no learned machine), the random pick is one of
+/// A baseline (maxent) runs the final phase: the co-trained policy and two checkpoints; the
+/// chosen candidate has the highest learned return, the random pick is one of
 /// the candidates and is [`random_pick`] of the job's seed; metrics.csv shows the loop's own,
 /// the chosen and the randomly picked policy side by side on the job's last row, and the
 /// summary too.
@@ -54,15 +53,13 @@ fn read_record(dir: &Path, algo: Algo) -> JobRecord {
 /// for `>`): fails at "the chosen candidate has the highest learned return".
 #[test]
 fn a_baseline_runs_the_final_phase_and_chooses_by_its_learned_return() {
-    let mut config = tiny_config();
-    config.final_reset_steps = 140;
+    let config = tiny_config();
     let (_tmp, dir, record) = tiny_run(Algo::MaxEnt, config.clone());
     let f = record
         .final_policy
         .as_ref()
         .expect("maxent has a final phase");
-    let per_agent = config.final_checkpoints as usize;
-    assert_eq!(f.candidates.len(), 1 + 2 * per_agent);
+    assert_eq!(f.candidates.len(), 1 + config.final_checkpoints as usize);
     let best = (f.candidates.iter())
         .map(|c| c.learned_return)
         .fold(f64::NEG_INFINITY, f64::max);

@@ -152,15 +152,14 @@ fn stratified_seeds_hold_for_other_events_two_events_and_none() {
     }
 }
 
-/// A SMIRL job on IF with a reset agent, its watch with and without the final set: the same
+/// A SMIRL job on IF, its watch with and without the final set: the same
 /// metrics rows, reward, trace, candidates (but their final-set scores) and choice bit for
 /// bit; with it, the loop's final policy and every candidate are judged on
 /// 2 · `final_set_episodes` episodes, and candidate 0 (the same policy as the loop's last)
 /// scores what the loop's does. The job file of `reacher job` records the same.
 #[test]
 fn the_final_judgement_does_not_steer_the_job() {
-    let mut config = tiny_config();
-    config.final_reset_steps = 140;
+    let config = tiny_config();
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
     let request = RunRequest {
@@ -356,8 +355,7 @@ fn assert_same_but_final_set(what: &str, a: &Watched, b: &Watched) {
 /// fails at "smirl, a larger final set: candidates …" (candidate 2's learned return).
 #[test]
 fn the_final_sets_size_and_machine_reach_neither_training_nor_the_choice() {
-    let mut config = tiny_config();
-    config.final_reset_steps = 140;
+    let config = tiny_config();
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
     let request = RunRequest {

@@ -17,7 +17,7 @@ use smirl::env::reacher_controller::{ControllerGains, ScriptedController};
 use smirl::env::ContinuousEnv;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
 use smirl::irl::smirl::{FeatureMap, LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation};
-use smirl::pipeline::reacher_irl::final_policy::{choose, mean_return, FinalAgent, FinalCandidate};
+use smirl::pipeline::reacher_irl::final_policy::{choose, mean_return, FinalCandidate};
 use smirl::pipeline::reacher_irl::smirl::{coefficients, ProductReward};
 use smirl::pipeline::reacher_irl::{AgentBatch, ExpertData, IrlRunConfig};
 use smirl::rl::replay::ReplayBatch;
@@ -332,7 +332,6 @@ fn the_final_choice_takes_the_first_candidate_of_highest_learned_return() {
     let candidate = |episodes: &[Vec<LabelSet>], success_rate: f64| {
         let rec = record(&m, episodes);
         FinalCandidate {
-            agent: FinalAgent::CoTrained,
             env_steps: 0,
             learned_return: mean_return(&rec.rewards, &rec.lengths).unwrap(),
             success_rate,

@@ -216,7 +216,7 @@ fn check_final_policy(dir: &Path, algos: &[&str], seed: u64) {
     let mut lines = table.lines();
     assert_eq!(
         lines.next(),
-        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,agent,random,final_set_episodes,final_set_success_rate,final_set_success_normal,final_set_success_cancel")
+        Some("algo,seed,candidate,env_steps,learned_return,chosen,success_rate,success_normal,success_cancel,progress,final_ball,random,final_set_episodes,final_set_success_rate,final_set_success_normal,final_set_success_cancel")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let config = tiny_config();
@@ -785,8 +785,6 @@ fn expert_data_round_trips_and_checks_its_arrays() {
 #[test]
 fn final_policy_settings_are_checked() {
     let mut c = IrlRunConfig::standard();
-    // The phase's own keys first, without the standard's reset agent (which needs them).
-    c.final_reset_steps = 0;
     for (steps, checkpoints, ok) in [
         (0, 0, true),
         (20_000, 4, true),
@@ -807,46 +805,28 @@ fn final_policy_settings_are_checked() {
             }
         }
     }
-    // The reset agent needs the phase's checkpoints, at least one step per checkpoint and at
-    // most the step limit.
-    type Key = fn(&mut IrlRunConfig) -> &mut u64;
-    let keys: [(&str, Key); 1] = [("final.reset_steps", |c| &mut c.final_reset_steps)];
-    for (field, key) in keys {
-        for (extra, steps, checkpoints, ok) in [
-            (150_000, 20_000, 4, true),
-            (4, 20_000, 4, true),
-            (3, 20_000, 4, false),
-            (150_000, 0, 0, false),
-            (100_000_001, 20_000, 4, false),
-        ] {
-            let mut c = c.clone();
-            *key(&mut c) = extra;
-            c.final_sac_steps = steps;
-            c.final_checkpoints = checkpoints;
-            match c.validate("test") {
-                Ok(()) => assert!(ok, "{field} {extra} accepted"),
-                Err(e) => {
-                    assert!(!ok, "{field} {extra}: {e}");
-                    assert!(e.to_string().contains(field), "{e}");
-                }
-            }
-        }
-    }
     let standard = IrlRunConfig::standard();
-    assert_eq!(standard.final_reset_steps, 20_000);
     let text = standard.to_toml();
-    assert!(text.contains("[final]\nsac_steps = 20000\ncheckpoints = 4\nreset_steps = 20000\n"));
+    assert!(text.contains("[final]\nsac_steps = 20000\ncheckpoints = 4\n"));
     assert_config_error_names(
         &text.replace(
-            "reset_steps = 20000\n",
-            "reset_steps = 20000\nfresh_steps = 280\n",
+            "checkpoints = 4\n",
+            "checkpoints = 4\nfresh_steps = 280\n",
         ),
         "fresh_steps",
     );
     // A config without a key of the phase is refused (never read as "no final phase").
     assert_config_error_names(
-        &text.replace("reset_steps = 20000\n", ""),
-        "missing field `reset_steps`",
+        &text.replace("checkpoints = 4\n", ""),
+        "missing field `checkpoints`",
+    );
+    // A removed key is refused naming what replaced it.
+    assert_config_error_names(
+        &text.replace(
+            "checkpoints = 4\n",
+            "checkpoints = 4\nreset_steps = 20000\n",
+        ),
+        "the final phase has no reset agent",
     );
     // The old layout's keys are refused naming their new place.
     let old = format!("smirl_final_sac_steps = 20000\n{text}");
@@ -926,9 +906,8 @@ fn a_config_with_a_removed_lrm_key_is_refused_by_the_cli() {
 
 #[test]
 fn final_policy_is_the_first_candidate_of_highest_learned_return() {
-    use smirl::pipeline::reacher_irl::final_policy::{choose, FinalAgent, FinalCandidate};
+    use smirl::pipeline::reacher_irl::final_policy::{choose, FinalCandidate};
     let candidate = |learned_return: f64, success_rate: f64| FinalCandidate {
-        agent: FinalAgent::CoTrained,
         env_steps: 0,
         learned_return,
         success_rate,
@@ -1104,86 +1083,6 @@ fn bad_schedules_name_the_key_and_line() {
             "{table}: {err}"
         );
     }
-}
-
-/// An OR run (seed 3, tiny config) without and with one more agent of the final phase
-/// (`set` puts `steps` into its key): both runs' `final_policy.csv` rows. Checks what holds for
-/// every such agent: the IRL loop and the co-trained candidates are those of the run without
-/// it, the choice is the first candidate of highest learned return, the rollout log with the
-/// agent's episodes replays bit for bit, and the written config holds the key (`written`).
-fn run_with_extra_agent(
-    set: fn(&mut IrlRunConfig, u64),
-    steps: u64,
-    written: &str,
-) -> (Vec<Vec<String>>, Vec<Vec<String>>) {
-    let run = |steps: u64| {
-        let mut config = tiny_config();
-        set(&mut config, steps);
-        tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config)
-    };
-    let ((_without_tmp, without_dir, _), (_with_tmp, with_dir, _)) = (run(0), run(steps));
-    let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
-    // The loop's metrics (the columns before the final phase's chosen and random policies).
-    let loop_metrics = |dir: &PathBuf| -> Vec<String> {
-        (read(dir, "metrics.csv").lines())
-            .map(|l| l.split(',').take(16).collect::<Vec<_>>().join(","))
-            .collect()
-    };
-    assert_eq!(loop_metrics(&without_dir), loop_metrics(&with_dir));
-    let rows = |dir: &PathBuf| -> Vec<Vec<String>> {
-        read(dir, "final_policy.csv")
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').map(String::from).collect())
-            .collect()
-    };
-    let (without, with) = (rows(&without_dir), rows(&with_dir));
-    // The co-trained candidates are unchanged but for `chosen` and `random`.
-    for (a, b) in without.iter().zip(&with) {
-        assert_eq!((&a[..5], &a[6..13]), (&b[..5], &b[6..13]));
-    }
-    // The choice reads the cut return where SMIRL's selection cut applies, else the learned
-    // return.
-    let returns: Vec<f64> = (with.iter())
-        .map(|r| {
-            let cut = &r[12];
-            if cut.is_empty() { &r[4] } else { cut }.parse().unwrap()
-        })
-        .collect();
-    let best = returns.iter().cloned().fold(f64::MIN, f64::max);
-    let chosen: Vec<usize> = (0..with.len()).filter(|&i| with[i][5] == "1").collect();
-    assert_eq!(
-        chosen,
-        vec![returns.iter().position(|&x| x == best).unwrap()]
-    );
-    let log = smirl::log::read_log(&with_dir.join("logs/smirl_seed3.mcap")).unwrap();
-    let report = smirl::pipeline::replay::replay(&log).unwrap();
-    assert!(report.all_match(), "{report}");
-    let config = read(&with_dir, "config.toml");
-    assert!(config.contains(written), "{config}");
-    (without, with)
-}
-
-/// `final_reset_steps`: after the co-trained agent's final phase a reset agent (new
-/// networks on its replay buffer) learns from that buffer, then trains on, and its checkpoints
-/// join the candidates (`agent` = reset, step counts going on from the co-trained agent's),
-/// the rest as [`run_with_extra_agent`] checks.
-#[test]
-fn reset_agent_checkpoints_join_the_final_policy_candidates() {
-    let (without, with) = run_with_extra_agent(
-        |c, steps| c.final_reset_steps = steps,
-        280,
-        "\nreset_steps = 280\n",
-    );
-    assert_eq!(with.len(), without.len() + 2, "{with:?}");
-    let agents: Vec<&str> = with.iter().map(|r| r[11].as_str()).collect();
-    assert_eq!(
-        agents,
-        ["co-trained", "co-trained", "co-trained", "reset", "reset"]
-    );
-    let co_trained_end: u64 = with[2][3].parse().unwrap();
-    let reset_steps: Vec<u64> = with[3..].iter().map(|r| r[3].parse().unwrap()).collect();
-    assert_eq!(reset_steps, [co_trained_end + 140, co_trained_end + 280]);
 }
 
 /// A job runs with its algorithm's schedule: one IRL iteration for `maxent`, the run's two
@@ -1407,8 +1306,8 @@ fn the_cli_refuses_a_missing_key_and_a_removed_switch() {
     for (name, text, needles) in [
         (
             "missing.toml",
-            quick.replace("reset_steps = 2000\n", ""),
-            ["missing field `reset_steps`", "missing.toml"],
+            quick.replace("checkpoints = 2\n", ""),
+            ["missing field `checkpoints`", "missing.toml"],
         ),
         (
             "old.toml",

@@ -578,7 +578,6 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
 /// the chosen final-policy candidate's; without a final phase, the last iteration's.
 #[test]
 fn a_job_reports_its_final_policy_success() {
-    use smirl::pipeline::reacher_irl::final_policy::FinalAgent;
     use smirl::pipeline::reacher_irl::run::JobRecord;
     let row = |iteration: usize, success: f64| {
         serde_json::json!({
@@ -599,9 +598,12 @@ fn a_job_reports_its_final_policy_success() {
     });
     let with_final: JobRecord = serde_json::from_value(record.clone()).unwrap();
     assert_eq!(with_final.reported_success(), 0.65);
-    // Records from before the fresh agent name no agent: their candidates are co-trained.
-    let candidates = &with_final.final_policy.as_ref().unwrap().candidates;
-    assert!(candidates.iter().all(|c| c.agent == FinalAgent::CoTrained));
+    // Records written with a reset agent or the selection cut still read.
+    let mut old = record.clone();
+    old["final_policy"]["candidates"][1]["agent"] = "reset".into();
+    old["final_policy"]["candidates"][1]["cut_return"] = 400.0.into();
+    let old: JobRecord = serde_json::from_value(old).unwrap();
+    assert_eq!(old.reported_success(), 0.65);
     record.as_object_mut().unwrap().remove("final_policy");
     record["rows"][1]["success_rate"] = 0.8.into();
     let without: JobRecord = serde_json::from_value(record).unwrap();

@@ -301,49 +301,6 @@ fn mismatched_or_damaged_checkpoints_are_refused() {
     assert!(msg.contains("missing"), "{msg}");
 }
 
-/// `with_new_agent` keeps the data and drops the networks: the new trainer's networks are a new
-/// trainer's of its seed, its replay buffer and counters the old trainer's, so its first step
-/// acts and updates at once (no warm-up); `update_from_replay` learns from the buffer without
-/// stepping the environment, the same seed and buffer giving the same agent bit for bit.
-#[test]
-fn reset_agent_keeps_the_replay_buffer_and_counters_and_starts_new_networks() {
-    let config = small_config();
-    let mut env = PointReach::new(25);
-    let mut old = SacTrainer::new(&config, 2, 1, 42).unwrap();
-    old.train(&mut env, &mut EnvReward, 300, |_| {}).unwrap();
-    let mut reset = old.with_new_agent(7);
-    let new = SacTrainer::new(&config, 2, 1, 7).unwrap();
-    assert_eq!(bits(&all_params(&reset)), bits(&all_params(&new)));
-    assert_ne!(bits(&all_params(&reset)), bits(&all_params(&old)));
-    assert_eq!(reset.replay.len(), 300);
-    assert_eq!((reset.env_steps(), reset.episodes()), (300, 12));
-    assert_eq!((reset.seed(), reset.agent.updates()), (7, 0));
-
-    let stats = reset.update_from_replay(&mut EnvReward, 50).unwrap();
-    assert!(stats.is_some());
-    assert_eq!(reset.agent.updates(), 50);
-    assert_eq!((reset.env_steps(), reset.replay.len()), (300, 300));
-    assert_ne!(bits(&all_params(&reset)), bits(&all_params(&new)));
-    let mut again = old.with_new_agent(7);
-    again.update_from_replay(&mut EnvReward, 50).unwrap();
-    assert_eq!(bits(&all_params(&again)), bits(&all_params(&reset)));
-
-    let outcome = reset.step(&mut env, &mut EnvReward).unwrap();
-    assert!(
-        outcome.update.is_some(),
-        "the reset agent updates on its first step"
-    );
-    assert_eq!(reset.agent.updates(), 51);
-
-    // A buffer smaller than a batch gives nothing to learn from.
-    let mut short = SacTrainer::new(&config, 2, 1, 1).unwrap().with_new_agent(2);
-    assert!(short
-        .update_from_replay(&mut EnvReward, 5)
-        .unwrap()
-        .is_none());
-    assert_eq!(short.agent.updates(), 0);
-}
-
 #[test]
 fn finishing_the_episode_trains_to_the_next_boundary_exactly_as_single_steps_do() {
     let config = small_config();

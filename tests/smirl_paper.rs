@@ -60,7 +60,6 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     // No final phase, no choice among candidates.
     assert_eq!(paper.final_sac_steps, 0);
     assert_eq!(paper.final_checkpoints, 0);
-    assert_eq!(paper.final_reset_steps, 0);
     // The standard's smirl differs in each of these (else the test above proves nothing).
     assert_eq!(smirl.normalisation(), SmirlNormalisation::EventGatedVisits);
     assert!(smirl.clock() && smirl.counterfactual() > 0.0 && smirl.smirl_shaping > 0.0);
@@ -71,7 +70,6 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
         smirl_shaping: smirl.smirl_shaping,
         final_sac_steps: smirl.final_sac_steps,
         final_checkpoints: smirl.final_checkpoints,
-        final_reset_steps: smirl.final_reset_steps,
         ..paper.clone()
     };
     assert_eq!(same, smirl);

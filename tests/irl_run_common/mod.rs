@@ -25,8 +25,6 @@ pub fn tiny_config() -> IrlRunConfig {
     // SMIRL's final policy: two candidates after the co-trained one, 140 steps apart.
     c.final_sac_steps = 280;
     c.final_checkpoints = 2;
-    // No reset agent (the standard's, `final_reset_steps`): tests that want one set it.
-    c.final_reset_steps = 0;
     // 300 SAC steps are not a whole number of 70-step episodes: each iteration has to finish
     // SAC's episode in progress before the rollouts reset the environment.
     c.env.max_steps = 70;

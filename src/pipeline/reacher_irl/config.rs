@@ -109,16 +109,9 @@ pub struct IrlRunConfig {
     /// learned reward but `smirl-paper`: SAC environment steps on the final learned reward,
     /// held fixed, after the last IRL iteration; 0 = none.
     pub final_sac_steps: u64,
-    /// `[final] checkpoints`: candidates taken along each agent's final phase (evenly spaced,
-    /// the last at its end), besides the co-trained policy.
+    /// `[final] checkpoints`: candidates taken along the final phase (evenly spaced, the last
+    /// at its end), besides the co-trained policy of the last iteration.
     pub final_checkpoints: u64,
-    /// `[final] reset_steps`: gradient updates, then as many SAC environment steps, of a reset
-    /// agent after the co-trained agent's final phase: new networks, optimisers, temperature
-    /// and seed on a copy of the co-trained agent's replay buffer, which it first learns from
-    /// alone; `final_checkpoints` candidates along its steps; 0 = none. Why: a co-trained
-    /// agent can stay stuck on the final reward while a fresh agent solves it (research log,
-    /// "Composite's five misses"); a reset keeps the loop's data and drops the networks' habit.
-    pub final_reset_steps: u64,
     /// Reward optimiser steps per IRL iteration (on the same coefficients).
     pub reward_steps_per_iteration: usize,
     /// `[smirl] smooth_sigma`: width σ (m) of `smirl-smooth`'s features exp(−d²/2σ²).
@@ -275,7 +268,6 @@ pub struct FirlKeys {
 pub struct FinalKeys {
     pub sac_steps: u64,
     pub checkpoints: u64,
-    pub reset_steps: u64,
 }
 
 impl From<IrlRunConfig> for RunFile {
@@ -321,7 +313,6 @@ impl From<IrlRunConfig> for RunFile {
             final_phase: FinalKeys {
                 sac_steps: c.final_sac_steps,
                 checkpoints: c.final_checkpoints,
-                reset_steps: c.final_reset_steps,
             },
             schedule: c.schedule,
         }
@@ -345,7 +336,6 @@ impl From<RunFile> for IrlRunConfig {
             smirl_shaping: f.smirl.shaping,
             final_sac_steps: f.final_phase.sac_steps,
             final_checkpoints: f.final_phase.checkpoints,
-            final_reset_steps: f.final_phase.reset_steps,
             reward_steps_per_iteration: f.reward_steps_per_iteration,
             smooth_sigma: f.smirl.smooth_sigma,
             kde_bandwidth: f.firl.kde_bandwidth,
@@ -614,7 +604,7 @@ impl IrlConfigError {
 /// config that still sets one was written for the old layout or for a mechanism that is now
 /// the method's (or gone), and is refused rather than read as something else. Configs of runs
 /// made with these keys are read by the binary of their commit (their `run.json` names it).
-pub const REMOVED_KEYS: [(&str, &str); 50] = [
+pub const REMOVED_KEYS: [(&str, &str); 51] = [
     (
         "lrm_fallback_starts",
         "nothing: LRM has no fallback starts (they changed no development base towards the \
@@ -684,7 +674,16 @@ pub const REMOVED_KEYS: [(&str, &str); 50] = [
     ),
     ("smirl_final_sac_steps", "[final] sac_steps"),
     ("smirl_final_checkpoints", "[final] checkpoints"),
-    ("smirl_final_reset_steps", "[final] reset_steps"),
+    (
+        "smirl_final_reset_steps",
+        "nothing: the final phase has no reset agent (it did not show it pays: \
+         experiments/reacher/mechanisms/ablation.md)",
+    ),
+    (
+        "final.reset_steps",
+        "nothing: the final phase has no reset agent (it did not show it pays: \
+         experiments/reacher/mechanisms/ablation.md)",
+    ),
     (
         "smirl_selection_cut",
         "nothing: the final choice reads the plain learned return (the selection cut did not \
@@ -864,9 +863,6 @@ impl IrlRunConfig {
             // (research log, "SMIRL's final policy").
             final_sac_steps: 20_000,
             final_checkpoints: 4,
-            // Four more from a reset agent on the co-trained agent's replay buffer (24 of 24
-            // tuning jobs; research log, "A reset agent").
-            final_reset_steps: 20_000,
             reward_steps_per_iteration: 5,
             smooth_sigma: 0.05,
             kde_bandwidth: 0.02,
@@ -900,7 +896,6 @@ impl IrlRunConfig {
             log_every_nth_episode: 4,
             final_sac_steps: 2_000,
             final_checkpoints: 2,
-            final_reset_steps: 2_000,
             // One short schedule for every algorithm: a smoke run, not the baselines' 800
             // iterations.
             schedule: BTreeMap::new(),
@@ -1000,7 +995,6 @@ impl IrlRunConfig {
         self.smirl_shaping = 0.0;
         self.final_sac_steps = 0;
         self.final_checkpoints = 0;
-        self.final_reset_steps = 0;
     }
 
     /// Whether the agent sees a clock, the share of the episode still to come, after its
@@ -1181,29 +1175,6 @@ impl IrlRunConfig {
                 )
             }
             _ => {}
-        }
-        // The reset agent is one more agent of the final phase: it needs its checkpoints.
-        let extra_agents = [("final.reset_steps", self.final_reset_steps)];
-        for (field, steps) in extra_agents {
-            if steps > MAX_SAC_STEPS_PER_ITERATION {
-                return over(field, steps, MAX_SAC_STEPS_PER_ITERATION);
-            }
-            match (steps, self.final_checkpoints) {
-                (0, _) => {}
-                (_, 0) => {
-                    return bad(
-                        field,
-                        "needs the final-policy phase ([final] sac_steps and checkpoints > 0)",
-                    )
-                }
-                (steps, k) if k > steps => {
-                    return bad(
-                        field,
-                        &format!("must be at least [final] checkpoints ({k}), got {steps}"),
-                    )
-                }
-                _ => {}
-            }
         }
         if !positive(self.smooth_sigma) {
             return bad("smirl.smooth_sigma", "must be a positive number");

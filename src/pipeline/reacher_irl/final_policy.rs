@@ -2,9 +2,7 @@
 //! `smirl`, `smirl-smooth`, `maxent`, `fkl`, `rkl`, `js` — not `smirl-paper`, which reports its
 //! loop's own last policy): after the last reward update, SAC goes on training on the job's
 //! final learned reward, now held fixed, and the policy the job reports is the one of highest
-//! learned return among the co-trained policy and the checkpoints of that phase — and, with
-//! `final_reset_steps` > 0, the checkpoints of a reset agent trained on the same reward
-//! after it. One routine (`train`) for every algorithm: they differ only in the reward they
+//! learned return among the co-trained policy and the checkpoints of that phase. One routine (`train`) for every algorithm: they differ only in the reward they
 //! hand it (`ScoredReward`: SMIRL's δ_r(u, o) on its product, a baseline's MLP of the
 //! fingertip).
 //!
@@ -17,13 +15,6 @@
 //! the choice can be checked against the co-trained policy and against a candidate drawn at
 //! random ([`FinalPolicy::random`], drawn from the job's own seed stream), which tells how
 //! much the choice itself adds over having more candidates.
-//!
-//! The reset agent (`final_reset_steps`): a co-trained agent that never found the task
-//! during the loop (or lost it) carries its habit into the phase, while the reward it leaves
-//! can be right. The reset agent keeps the co-trained agent's data — a copy of its replay
-//! buffer, every transition of the loop and the phase that the buffer still holds — with new
-//! networks, optimisers and temperature ([`SacTrainer::with_new_agent`]), learns from that
-//! buffer alone first and then trains on. Nothing in it reads a reward machine.
 
 use super::agent_phases::train_sac;
 use super::config::IrlRunConfig;
@@ -42,33 +33,9 @@ pub(super) trait ScoredReward: RewardFn {
     fn score(&mut self, steps: &AgentBatch) -> Result<Vec<f32>, StepError>;
 }
 
-/// Which agent a candidate is a policy of.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum FinalAgent {
-    /// The agent of the IRL loop, trained on in the phase (every record before the reset
-    /// agent existed).
-    #[default]
-    CoTrained,
-    /// The reset agent of `final_reset_steps`: new networks on the co-trained agent's
-    /// replay buffer.
-    Reset,
-}
-
-impl FinalAgent {
-    pub fn name(self) -> &'static str {
-        match self {
-            FinalAgent::CoTrained => "co-trained",
-            FinalAgent::Reset => "reset",
-        }
-    }
-}
-
-/// One candidate for the final policy, after `env_steps` SAC steps of its agent.
+/// One candidate for the final policy, after `env_steps` SAC steps of the co-trained agent.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FinalCandidate {
-    #[serde(default)]
-    pub agent: FinalAgent,
     pub env_steps: u64,
     /// Mean learned return (the final reward, unshaped) of the mean action over the selection
     /// episodes, each played to the time limit: what the choice reads.
@@ -86,7 +53,7 @@ pub struct FinalCandidate {
 }
 
 /// The final-policy phase of a job: its candidates — the co-trained policy first, then its
-/// checkpoints, then the reset agent's — and which one the job reports.
+/// checkpoints — and which one the job reports.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FinalPolicy {
     pub candidates: Vec<FinalCandidate>,
@@ -119,12 +86,8 @@ pub struct FinalPhase {
     /// Candidates taken along them (evenly spaced, the last at the end), besides the co-trained
     /// policy.
     pub checkpoints: u64,
-    /// The job's seed (selection episodes draw their reset seeds from it, and the reset agent
-    /// its SAC seed).
+    /// The job's seed (selection episodes draw their reset seeds from it).
     pub seed: u64,
-    /// Gradient updates, then as many SAC environment steps, of the reset agent (0: none),
-    /// with `checkpoints` candidates along the steps.
-    pub reset_steps: u64,
     /// Selection episodes per candidate ([`selection_episodes`]).
     pub selection_episodes: u64,
 }
@@ -137,7 +100,6 @@ impl FinalPhase {
             steps: settings.final_sac_steps,
             checkpoints: settings.final_checkpoints,
             seed,
-            reset_steps: settings.final_reset_steps,
             selection_episodes: selection_episodes(settings),
         })
     }
@@ -158,9 +120,6 @@ pub fn selection_seeds(seed: u64, n: u64) -> Vec<u64> {
     (0..n).map(|i| episode_seed(stream, i)).collect()
 }
 
-/// The stream of the reset agent's SAC seed within the job's seed.
-const RESET_AGENT_STREAM: u64 = 0x7e5e_7a9e;
-
 /// The stream of the random pick within the job's seed.
 const RANDOM_PICK_STREAM: u64 = 0x7a4d_019c;
 
@@ -171,9 +130,7 @@ pub fn random_pick(seed: u64, n: usize) -> usize {
 }
 
 /// Runs the phase: `sac`, fresh from the IRL loop, trains on `reward` (the final reward, fixed)
-/// and is scored at each checkpoint; then, with `phase.reset_steps` > 0, a new
-/// agent on a copy of `sac`'s replay buffer first learns from that buffer alone and then does
-/// the same. `iterations` is the loop's length (for progress reports).
+/// and is scored at each checkpoint. `iterations` is the loop's length (for progress reports).
 pub(super) fn train<E: JobEnv, R: ScoredReward>(
     sac: &mut SacTrainer,
     env: &mut E,
@@ -185,39 +142,15 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     let selection_seeds = selection_seeds(phase.seed, phase.selection_episodes);
     let task = GroundTruthTask::of(watch.perfect(), watch.layout());
     let selection = selection_seeds.as_slice();
-    let co_trained = FinalAgent::CoTrained;
-    let mut candidates = vec![candidate(
-        sac, co_trained, env, reward, &task, selection, watch,
-    )?];
-    // `steps` more SAC steps of an agent in `phase.checkpoints` even segments, each ending in
-    // a scored candidate: the co-trained agent's, then the reset one's.
-    let mut checkpoints = |sac: &mut SacTrainer, reward: &mut R, agent: FinalAgent, steps: u64| {
-        let start = sac.env_steps();
-        let mut scored = Vec::new();
-        for k in 1..=phase.checkpoints {
-            let end = start + steps * k / phase.checkpoints;
-            let n = end.saturating_sub(sac.env_steps());
-            train_sac(sac, env, reward, n, iterations + 1, watch)?;
-            scored.push(candidate(sac, agent, env, reward, &task, selection, watch)?);
-        }
-        Ok::<_, StepError>(scored)
-    };
-    candidates.extend(checkpoints(sac, reward, co_trained, phase.steps)?);
-    if phase.reset_steps > 0 {
-        // The co-trained agent's data, every transition of the loop and the phase, without
-        // what its networks made of it: first updates on the buffer alone (the final reward,
-        // counterfactual states, as in every batch), so its first actions are not a new
-        // network's noise, then steps of its own.
-        let mut reset = sac.with_new_agent(episode_seed(phase.seed, RESET_AGENT_STREAM));
-        reset
-            .update_from_replay(reward, phase.reset_steps)
-            .map_err(StepError::ResetAgent)?;
-        candidates.extend(checkpoints(
-            &mut reset,
-            reward,
-            FinalAgent::Reset,
-            phase.reset_steps,
-        )?);
+    let mut candidates = vec![candidate(sac, env, reward, &task, selection, watch)?];
+    // `phase.steps` more SAC steps in `phase.checkpoints` even segments, each ending in a
+    // scored candidate.
+    let start = sac.env_steps();
+    for k in 1..=phase.checkpoints {
+        let end = start + phase.steps * k / phase.checkpoints;
+        let n = end.saturating_sub(sac.env_steps());
+        train_sac(sac, env, reward, n, iterations + 1, watch)?;
+        candidates.push(candidate(sac, env, reward, &task, selection, watch)?);
     }
     let chosen = choose(&candidates);
     let random = Some(random_pick(phase.seed, candidates.len()));
@@ -228,11 +161,10 @@ pub(super) fn train<E: JobEnv, R: ScoredReward>(
     })
 }
 
-/// Scores the current policy of `sac` (a policy of `agent`): its learned return on the
-/// selection episodes, then its ground-truth evaluation.
+/// Scores the current policy of `sac`: its learned return on the selection episodes, then its
+/// ground-truth evaluation.
 fn candidate<E: JobEnv, R: ScoredReward>(
     sac: &mut SacTrainer,
-    agent: FinalAgent,
     env: &mut E,
     reward: &mut R,
     task: &GroundTruthTask<'_>,
@@ -244,7 +176,6 @@ fn candidate<E: JobEnv, R: ScoredReward>(
     let ev: Evaluation = watch.judge_final(&mut sac.agent, env)?;
     let final_set = watch.judge_final_set(&mut sac.agent, env)?;
     Ok(FinalCandidate {
-        agent,
         env_steps: sac.env_steps(),
         learned_return,
         success_rate: ev.success_rate,

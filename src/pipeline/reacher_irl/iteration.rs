@@ -30,8 +30,6 @@ pub enum StepError {
     SacConfig(#[from] SacConfigError),
     #[error("SAC: {0}")]
     Sac(SacError),
-    #[error("the reset agent: {0}")]
-    ResetAgent(SacError),
     #[error(transparent)]
     Counterfactual(#[from] CrmError),
     #[error(transparent)]

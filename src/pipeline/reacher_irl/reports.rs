@@ -370,7 +370,6 @@ pub(super) fn write_reports(
         "smirl_machine": config.smirl_machine.name(),
         "final_sac_steps": config.final_sac_steps,
         "final_checkpoints": config.final_checkpoints,
-        "final_reset_steps": config.final_reset_steps,
         "smirl_shaping": config.smirl_shaping,
         "git_commit": crate::GIT_COMMIT,
         "prepare_git_commit": p.git_commit,
@@ -387,9 +386,7 @@ pub(super) fn write_reports(
 
 /// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
 /// co-trained policy of the last IRL iteration, `chosen` marks the reported one, `random` the
-/// one drawn at random (the choice's yardstick), `agent` says
-/// whose policy it is (`co-trained`, `reset` with
-/// `final_reset_steps`), `final_set_*` the success on the final set (`evaluation::final_set_episodes`; candidate 0's
+/// one drawn at random (the choice's yardstick), `final_set_*` the success on the final set (`evaluation::final_set_episodes`; candidate 0's
 /// is the loop's own final policy's), beside `success_*` on the per-iteration evaluation's
 /// episodes.
 fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
@@ -405,7 +402,6 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
         "success_cancel",
         "progress",
         "final_ball",
-        "agent",
         "random",
         "final_set_episodes",
         "final_set_success_rate",
@@ -436,7 +432,6 @@ fn final_policy_table(records: &[(Algo, JobRecord)]) -> CsvTable {
                 rate(Branch::Event),
                 format!("{}", c.progress),
                 format!("{}", c.final_ball),
-                c.agent.name().to_string(),
                 u8::from(f.random == Some(i)).to_string(),
                 final_set(&|s| s.episodes.to_string()),
                 final_set(&|s| format!("{}", s.success_rate)),

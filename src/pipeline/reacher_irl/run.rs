@@ -771,7 +771,6 @@ fn dispatch_order(jobs: &[(Algo, u64)], config: &IrlRunConfig) -> Vec<usize> {
             (c.irl_iterations as u64)
                 .saturating_mul(per_iteration)
                 .saturating_add(c.final_sac_steps)
-                .saturating_add(c.final_reset_steps)
         })
     };
     let mut order: Vec<usize> = (0..jobs.len()).collect();

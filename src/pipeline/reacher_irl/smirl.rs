@@ -455,8 +455,8 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     };
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
     // Step 4, the final policy, after the loop's last iteration: SAC goes on with the final
-    // reward, now fixed (shaped by its potential), then (`final_reset_steps`) a reset agent
-    // learns it too, and the candidate of highest learned return is the job's policy.
+    // reward, now fixed (shaped by its potential), and the candidate of highest learned return
+    // is the job's policy.
     let final_phase = FinalPhase::of(s, job.seed);
     let final_policy = irl_loop::run(
         &mut learner,

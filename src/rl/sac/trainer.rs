@@ -322,54 +322,6 @@ impl SacTrainer {
         self.agent.update(&self.batch, &self.rewards, &mut self.rng)
     }
 
-    /// A new agent — networks, optimisers and temperature drawn afresh from `seed`, its own
-    /// random stream — on a copy of this trainer's replay buffer and step counters, so it
-    /// neither warms up with random actions nor waits before updating: the reset of Nikishin
-    /// et al. (2022, "The primacy bias in deep reinforcement learning"), which keeps the data
-    /// and forgets what the networks made of it first. Call it between episodes.
-    pub fn with_new_agent(&self, seed: u64) -> SacTrainer {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let agent = SacAgent::new(
-            self.agent.config(),
-            self.agent.obs_dim(),
-            self.agent.act_dim(),
-            &mut rng,
-        );
-        Self {
-            agent,
-            replay: self.replay.clone(),
-            seed,
-            rng,
-            batch: self.batch.clone(),
-            rewards: self.rewards.clone(),
-            obs: self.obs.clone(),
-            next_obs: self.next_obs.clone(),
-            action: self.action.clone(),
-            in_episode: false,
-            env_steps: self.env_steps,
-            episodes: self.episodes,
-            episode_return: 0.0,
-            episode_len: 0,
-        }
-    }
-
-    /// `updates` gradient updates on batches of the replay buffer, without an environment
-    /// step (nothing when the buffer holds less than a batch). Returns the last update's
-    /// statistics.
-    pub fn update_from_replay<R: RewardFn + ?Sized>(
-        &mut self,
-        reward: &mut R,
-        updates: u64,
-    ) -> Result<Option<UpdateStats>, SacError> {
-        let mut last = None;
-        if self.replay.len() >= self.agent.config().batch_size {
-            for _ in 0..updates {
-                last = Some(self.update_once(reward)?);
-            }
-        }
-        Ok(last)
-    }
-
     /// Runs `steps` calls of [`SacTrainer::step`], reporting each outcome to `on_step`.
     pub fn train<E: ContinuousEnv + ?Sized, R: RewardFn + ?Sized>(
         &mut self,
