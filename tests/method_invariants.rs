@@ -1,9 +1,8 @@
 //! Tests that protect SMIRL's method (issue 54, item 6): each fails on a build that breaks the
 //! mechanism it names (the mutation tried is in each test's doc comment).
 //!
-//! - shaping: along a recorded episode, the shaped minus the unshaped reward telescopes to
-//!   γ^T Φ_T − Φ_0 (Φ_T = 0 after a terminating step), step by step it is γ Φ' − Φ, and moving
-//!   towards the ball a state's reward values raises it;
+//! - SAC's reward: along a recorded episode of the product it is the learned reward δ_r(u, o')
+//!   itself, nothing added;
 //! - the final choice: on hand-built selection episodes whose learned returns are known, it
 //!   takes the first candidate of highest learned return;
 //! - the event-gated normalisation: its coefficients on a hand-worked case;
@@ -16,7 +15,7 @@ use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_controller::{ControllerGains, ScriptedController};
 use smirl::env::ContinuousEnv;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
-use smirl::irl::smirl::{FeatureMap, LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation};
+use smirl::irl::smirl::{FeatureMap, LinearRmReward, SmirlNormalisation};
 use smirl::pipeline::reacher_irl::final_policy::{choose, mean_return, FinalCandidate};
 use smirl::pipeline::reacher_irl::smirl::{coefficients, ProductReward};
 use smirl::pipeline::reacher_irl::{AgentBatch, ExpertData, IrlRunConfig};
@@ -73,44 +72,28 @@ fn states_along(m: &RewardMachine, trace: &[LabelSet]) -> Vec<u32> {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Shaping
+// SAC's reward
 // ---------------------------------------------------------------------------------------------
 
 /// A learned-like machine: blue, then red; no goal, so episodes run to the time limit.
 const BLUE_THEN_RED: &str = "vocabulary: rgbyc\nstates: 3\ninitial: 0\n\
                              (0, 1, 'b', 0)\n(1, 2, 'r', 0)\n";
-/// The same with a goal after red: the product terminates there.
-const BLUE_THEN_RED_GOAL: &str = "vocabulary: rgbyc\nstates: 3\ninitial: 0\nterminal: 2\n\
-                                  (0, 1, 'b', 0)\n(1, 2, 'r', 0)\n";
 
-/// Weights of the shaping tests: state 0 pays blue (1.0; red's 0.3 is under half of it, so
-/// only blue attracts), state 1 pays red (2.0; green's 0.5 does not attract), state 2 pays
-/// yellow (0.7), so that Φ is not 0 where episodes end.
+/// Weights of the SAC-reward test: state 0 pays blue and a little red, state 1 red and green
+/// and charges yellow, state 2 pays yellow.
 #[rustfmt::skip]
-const SHAPING_WEIGHTS: [f32; 3 * K] = [
+const PRODUCT_WEIGHTS: [f32; 3 * K] = [
     0.3, 0.0, 1.0, 0.0, 0.0,
     2.0, 0.5, 0.0, -1.0, 0.0,
     0.0, 0.0, 0.0, 0.7, 0.0,
 ];
 
-/// Φ(u, o) by hand for [`SHAPING_WEIGHTS`] with strength β: −β · (state's largest ball weight)
-/// · (distance to its attracting ball).
-fn potential_by_hand(row: &[f32], beta: f64) -> f64 {
-    let u = (0..3).find(|&u| row[obs_dim() + u] == 1.0).unwrap();
-    let dist = |b: usize| f64::from(row[8 + 2 * b]).hypot(f64::from(row[9 + 2 * b]));
-    match u {
-        0 => -beta * 1.0 * dist(BLUE),
-        1 => -beta * 2.0 * dist(RED),
-        _ => -beta * f64::from(0.7f32) * dist(YELLOW),
-    }
-}
-
-/// One episode of the product (observation ⊕ one-hot state ⊕ clock, as SMIRL's SAC stores it)
-/// driven by the scripted controller to blue then red: every transition (o, o', terminated).
+/// One episode of the product (observation ⊕ one-hot state, as SMIRL's SAC stores it) driven
+/// by the scripted controller to blue then red: every transition (o, o', terminated).
 fn recorded_episode(machine_text: &str, reset_seed: u64) -> Vec<(Vec<f32>, Vec<f32>, bool)> {
     let config = ReacherConfig::default();
-    let inner = ReacherDelivery::new(shipped_config(config.clone())).unwrap();
-    let mut env = ProductEnv::new(inner, machine(machine_text)).with_clock(config.max_steps);
+    let inner = ReacherDelivery::new(shipped_config(config)).unwrap();
+    let mut env = ProductEnv::new(inner, machine(machine_text));
     let d = env.obs_dim();
     let (mut obs, mut next) = (vec![0.0f32; d], vec![0.0f32; d]);
     env.reset(reset_seed, &mut obs);
@@ -139,118 +122,41 @@ fn batch_of(steps: &[(Vec<f32>, Vec<f32>, bool)]) -> ReplayBatch {
     batch
 }
 
-/// SMIRL's SAC reward of every transition, unshaped and shaped with strength β and discount γ.
-fn product_rewards(batch: &ReplayBatch, beta: f64, gamma: f64) -> (Vec<f32>, Vec<f32>) {
-    let features = FeatureMap::reacher_labels(&layout());
-    let mut model = LinearRmReward::new(features.clone(), 3, RewardOptimConfig::adam(0.1)).unwrap();
-    model.set_params(&SHAPING_WEIGHTS).unwrap();
-    let potential =
-        LearnedSubgoalPotential::from_weights(&features, 3, &SHAPING_WEIGHTS, beta).unwrap();
-    let mut plain = vec![0.0f32; batch.len()];
-    ProductReward::new(&mut model, None, None)
-        .fill_rewards(batch, &mut plain)
-        .unwrap();
-    let mut shaped = vec![0.0f32; batch.len()];
-    ProductReward::new(&mut model, None, Some((&potential, gamma)))
-        .fill_rewards(batch, &mut shaped)
-        .unwrap();
-    (plain, shaped)
-}
-
-/// Shaping along recorded episodes of the product, as SMIRL's SAC reads its batches (standard
-/// strength β = 1 and the IRL runs' discount γ):
-/// - step by step, shaped − unshaped = γ Φ(u', o') − Φ(u, o), with Φ(u', o') = 0 on a
-///   terminating step, Φ computed here by hand from the fingertip–ball offsets;
-/// - along the episode, Σ_t γ^t (shaped_t − unshaped_t) = γ^T Φ_T − Φ_0 (truncated at the time
-///   limit) and = −Φ_0 (terminated at the goal): shaping adds only a function of the ends;
-/// - its sign: a step in a state that brings the fingertip closer to the ball the state's
-///   reward pays (d' < d/γ) is shaped up, one that moves away is shaped down, and approaching
-///   blue before touching it adds up to a positive shaping.
+/// SMIRL's SAC reads the learned reward itself: along a recorded episode of the product, the
+/// reward of every transition (o, o') is δ_r(u, o') — the weights of the state read from o's
+/// one-hot block, the features of o' — as the IRL update and the final choice read it, with
+/// nothing added.
 ///
-/// Mutation tried: `*r += (after − Φ(prev))` → `*r -= …` in `ProductReward::fill_rewards`
-/// (`src/pipeline/reacher_irl/smirl.rs`): fails the per-step identity at "step 0". Also
-/// tried: dropping the terminal case (`after` = γ Φ' on every step): fails the per-step
-/// identity on the terminated episode's last step ("step 26").
+/// Mutation tried: `fill_rewards` adding a potential-based term (γ Φ(u', o') − Φ(u, o), the
+/// removed shaping) after `reward_batch`: fails at "step 0".
 #[test]
-fn shaping_telescopes_along_a_recorded_episode_and_pulls_towards_the_paid_ball() {
-    let beta = 1.0;
-    assert_eq!(IrlRunConfig::standard().smirl_shaping, beta);
-    let gamma = f64::from(IrlRunConfig::standard().sac.gamma);
-    for (text, reset_seed, ends_at_goal) in
-        [(BLUE_THEN_RED, 11, false), (BLUE_THEN_RED_GOAL, 11, true)]
-    {
-        let steps = recorded_episode(text, reset_seed);
-        let last = steps.last().unwrap();
-        assert_eq!(last.2, ends_at_goal, "the episode ends as the machine says");
-        // The controller visits blue, then red: the episode passes through every state.
-        let state_of = |row: &[f32]| (0..3).find(|&u| row[obs_dim() + u] == 1.0).unwrap();
-        assert_eq!(
-            state_of(&last.1),
-            2,
-            "the controller reaches red after blue"
-        );
-        let batch = batch_of(&steps);
-        let (plain, shaped) = product_rewards(&batch, beta, gamma);
-
-        let mut discounted = 0.0;
-        let mut approach = 0.0;
-        let mut closer_steps = 0;
-        for (t, ((o, next, terminated), (&p, &s))) in
-            steps.iter().zip(plain.iter().zip(&shaped)).enumerate()
-        {
-            let after = if *terminated {
-                0.0
-            } else {
-                gamma * potential_by_hand(next, beta)
-            };
-            let expected = after - potential_by_hand(o, beta);
-            let f = f64::from(s) - f64::from(p);
-            assert!(
-                (f - expected).abs() < 1e-5,
-                "step {t}: shaped − unshaped = {f}, γ Φ' − Φ = {expected}"
-            );
-            discounted += gamma.powi(t as i32) * f;
-            // Sign, within a state that pulls: closer (d' < d/γ) is rewarded.
-            let (u, u_next) = (state_of(o), state_of(next));
-            if u == u_next && !*terminated {
-                let ball = [BLUE, RED, YELLOW][u];
-                let dist = |r: &[f32]| f64::from(r[8 + 2 * ball]).hypot(f64::from(r[9 + 2 * ball]));
-                let margin = dist(o) - gamma * dist(next);
-                if margin.abs() > 1e-4 {
-                    assert_eq!(
-                        f > 0.0,
-                        margin > 0.0,
-                        "step {t}: shaping {f}, d − γ d' = {margin}"
-                    );
-                    closer_steps += usize::from(margin > 0.0);
-                }
-                if u == 0 {
-                    approach += f;
-                }
-            }
-        }
-        let t_end = steps.len() as i32;
-        let phi_end = if ends_at_goal {
-            0.0
-        } else {
-            potential_by_hand(&last.1, beta)
-        };
-        let phi_0 = potential_by_hand(&steps[0].0, beta);
-        let telescoped = gamma.powi(t_end) * phi_end - phi_0;
-        assert!(
-            (discounted - telescoped).abs() < 1e-4,
-            "Σ γ^t (shaped − unshaped) = {discounted}, γ^T Φ_T − Φ_0 = {telescoped}"
-        );
-        assert!(
-            phi_0 < -0.05,
-            "the episode starts away from blue (Φ_0 = {phi_0})"
-        );
-        assert!(
-            closer_steps >= 5,
-            "only {closer_steps} steps approach a paid ball"
-        );
-        assert!(approach > 0.05, "approaching blue is shaped by {approach}");
+fn sacs_reward_is_the_learned_reward_itself() {
+    let steps = recorded_episode(BLUE_THEN_RED, 11);
+    let state_of = |row: &[f32]| (0..3).find(|&u| row[obs_dim() + u] == 1.0).unwrap();
+    assert_eq!(
+        state_of(&steps.last().unwrap().1),
+        2,
+        "the controller reaches red after blue"
+    );
+    let batch = batch_of(&steps);
+    let features = FeatureMap::reacher_labels(&layout());
+    let mut model = LinearRmReward::new(features, 3, RewardOptimConfig::adam(0.1)).unwrap();
+    model.set_params(&PRODUCT_WEIGHTS).unwrap();
+    let mut sac = vec![0.0f32; batch.len()];
+    ProductReward::new(&mut model, None)
+        .fill_rewards(&batch, &mut sac)
+        .unwrap();
+    let next_rows: Vec<f32> = steps.iter().flat_map(|s| s.1[..obs_dim()].to_vec()).collect();
+    let states: Vec<u32> = steps.iter().map(|s| state_of(&s.0) as u32).collect();
+    let mut learned = vec![0.0f32; steps.len()];
+    model.reward_batch(&next_rows, &states, &mut learned).unwrap();
+    for (t, (s, l)) in sac.iter().zip(&learned).enumerate() {
+        assert_eq!(s.to_bits(), l.to_bits(), "step {t}: SAC's {s}, learned {l}");
     }
+    assert!(
+        learned.iter().any(|&r| r != 0.0),
+        "the episode touches a paid ball"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------

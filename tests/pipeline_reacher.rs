@@ -941,7 +941,7 @@ fn uniform() -> IrlRunConfig {
 
 /// The standard profile gives the baselines f-IRL's schedule (800 × 300 SAC steps, 300
 /// trajectories, 2 reward steps, SAC lr 3e-3 with α = 1 fixed, replay 12 000) and SMIRL the
-/// run's own (30 × 5 000 with shaping).
+/// run's own (30 × 5 000).
 #[test]
 fn standard_profile_gives_each_algorithm_its_schedule() {
     let standard = IrlRunConfig::standard();
@@ -971,7 +971,7 @@ fn standard_profile_gives_each_algorithm_its_schedule() {
     for algo in [Algo::Smirl, Algo::SmirlSmooth] {
         let c = standard.for_algo(algo).unwrap();
         assert_eq!(c, without_schedules(), "{algo}");
-        assert_eq!((c.irl_iterations, c.smirl_shaping), (30, 1.0), "{algo}");
+        assert_eq!(c.irl_iterations, 30, "{algo}");
     }
     assert!(IrlRunConfig::quick().schedule.is_empty());
 }

@@ -512,7 +512,7 @@ fn retrain_judges_a_fresh_policy_on_the_final_reward() {
     assert_eq!(std::fs::read_to_string(&same_table).unwrap(), written);
     let slower = agent(
         "slower.toml",
-        "smirl_shaping = 0.0\n[sac]\nlr = 0.0003\nwarmup_steps = 100\nupdate_after = 100\n",
+        "[sac]\nlr = 0.0003\nwarmup_steps = 100\nupdate_after = 100\n",
     );
     ok(&retrain(&[
         "--steps",

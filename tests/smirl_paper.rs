@@ -53,21 +53,19 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     );
     // MaxEnt on U × O: μ_D − μ_π over trajectories, φ = L(o).
     assert_eq!(paper.normalisation(), SmirlNormalisation::Trajectories);
-    // The policy on U × O: no clock, no counterfactual states, no shaping.
+    // The policy on U × O: no clock, no counterfactual states.
     assert!(!paper.clock());
     assert_eq!(paper.counterfactual(), 0.0);
-    assert_eq!(paper.smirl_shaping, 0.0);
     // No final phase, no choice among candidates.
     assert_eq!(paper.final_sac_steps, 0);
     assert_eq!(paper.final_checkpoints, 0);
     // The standard's smirl differs in each of these (else the test above proves nothing).
     assert_eq!(smirl.normalisation(), SmirlNormalisation::EventGatedVisits);
-    assert!(smirl.clock() && smirl.counterfactual() > 0.0 && smirl.smirl_shaping > 0.0);
+    assert!(smirl.clock() && smirl.counterfactual() > 0.0);
     assert!(smirl.final_sac_steps > 0);
     // What is not a mechanism is smirl's.
     let same = IrlRunConfig {
         mechanisms: Mechanisms::SMIRL,
-        smirl_shaping: smirl.smirl_shaping,
         final_sac_steps: smirl.final_sac_steps,
         final_checkpoints: smirl.final_checkpoints,
         ..paper.clone()

@@ -161,8 +161,8 @@ struct RetrainArgs {
     /// retrain/<algo>_seed<S>_sac<K>_zero<U>[-<V>...].csv.
     #[arg(long, value_name = "U")]
     zero_state: Vec<usize>,
-    /// A TOML file of agent settings in place of the job's: a [sac] table and/or
-    /// smirl_shaping (never the reward, the machine or the environment): is the reward
+    /// A TOML file of agent settings in place of the job's: a [sac] table (never the
+    /// reward, the machine or the environment): is the reward
     /// optimised better another way? The table's name then ends in _<the file's stem>.
     #[arg(long, value_name = "FILE")]
     agent: Option<PathBuf>,

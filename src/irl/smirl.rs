@@ -406,11 +406,6 @@ fn trajectories_visiting(t: &AnnotatedTrajectories<'_>) -> Vec<usize> {
     visits
 }
 
-/// Weights are `n_states × n_features` row-major.
-fn check_weights_len(len: usize, n_states: usize, n_features: usize) -> Result<(), RewardError> {
-    check_len("weights", len, n_states * n_features)
-}
-
 fn check_state(u: u32, n_states: usize) -> Result<usize, RewardError> {
     if (u as usize) < n_states {
         Ok(u as usize)
@@ -613,96 +608,5 @@ impl RewardModel for LinearRmReward {
         let text = serde_json::to_string_pretty(&file)
             .map_err(|e| RewardError::Config(format!("serialising the reward: {e}")))?;
         save_bytes(path, text.as_bytes())
-    }
-}
-
-/// Potential-based shaping for SMIRL's inner SAC solver, read off the current learned
-/// weights: in RM state u, the balls the reward values most — every ball k with
-/// w_{u,k} > 0 and w_{u,k} ≥ ½ max_j w_{u,j} — attract the fingertip,
-///
-/// ```text
-/// Φ(u, o) = −β · max_k w_{u,k} · min_{k ∈ D_u} d_k(o)      (0 when no ball weight is positive),
-/// ```
-///
-/// and SAC optimises δ_r(u, o') + γ Φ(u', o') − Φ(u, o). Why: with the paper's label
-/// features the learned reward is flat except on a touch disc of 0.9 % of the arena, so SAC
-/// only learns that the ball after green pays once it has touched it by chance — on
-/// Sequential, two of three seeds never touched blue after green in 10⁵ steps (measured).
-/// Shaping of this form leaves the optimal policies of the learned reward unchanged (Ng,
-/// Harada & Russell 1999: it telescopes along any trajectory, for any Φ of the product
-/// state), so the IRL problem — which reward explains the demonstrations — is the same;
-/// only the solver gets a gradient towards the sub-goal the reward already pays for. It
-/// reads no ground truth: Φ depends on the learned weights alone, and is rebuilt after each
-/// reward update.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LearnedSubgoalPotential {
-    layout: ObsLayout,
-    /// Attracting balls per RM state (may be empty).
-    targets: Vec<Vec<usize>>,
-    /// β · max_k w_{u,k} per RM state.
-    scale: Vec<f64>,
-}
-
-impl LearnedSubgoalPotential {
-    /// The potential of `weights` (`n_states × features.len()` row-major, as
-    /// [`RewardModel::params`] of a [`LinearRmReward`] returns them) with strength `beta`
-    /// (per metre, relative to the state's largest weight; 0 disables shaping).
-    pub fn from_weights(
-        features: &FeatureMap,
-        n_states: usize,
-        weights: &[f32],
-        beta: f64,
-    ) -> Result<LearnedSubgoalPotential, RewardError> {
-        let k = features.len();
-        check_weights_len(weights.len(), n_states, k)?;
-        if !(beta.is_finite() && beta >= 0.0) {
-            return Err(RewardError::Config(format!(
-                "shaping strength must be a non-negative number, got {beta}"
-            )));
-        }
-        let balls = features.layout.ball_deltas.len();
-        let mut targets = Vec::with_capacity(n_states);
-        let mut scale = Vec::with_capacity(n_states);
-        for w in weights.chunks_exact(k) {
-            let ball_w = &w[..balls];
-            let best = ball_w.iter().copied().fold(0.0f32, f32::max);
-            if best > 0.0 && beta > 0.0 {
-                targets.push(
-                    (0..balls)
-                        .filter(|&b| ball_w[b] > 0.0 && ball_w[b] >= 0.5 * best)
-                        .collect(),
-                );
-                scale.push(beta * f64::from(best));
-            } else {
-                targets.push(Vec::new());
-                scale.push(0.0);
-            }
-        }
-        Ok(LearnedSubgoalPotential {
-            layout: features.layout.clone(),
-            targets,
-            scale,
-        })
-    }
-
-    /// The attracting balls of RM state `u`.
-    pub fn targets(&self, u: usize) -> &[usize] {
-        &self.targets[u]
-    }
-
-    /// Φ(u, o) for an observation row (at least `obs_dim` wide) in RM state `u`.
-    pub fn potential(&self, row: &[f32], u: usize) -> f64 {
-        let nearest = self.targets[u]
-            .iter()
-            .map(|&b| {
-                let [cx, cy] = self.layout.ball_deltas[b];
-                f64::from(row[cx]).hypot(f64::from(row[cy]))
-            })
-            .fold(f64::INFINITY, f64::min);
-        if nearest.is_finite() {
-            -self.scale[u] * nearest
-        } else {
-            0.0
-        }
     }
 }

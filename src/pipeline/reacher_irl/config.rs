@@ -101,10 +101,6 @@ pub struct IrlRunConfig {
     /// `[smirl] machine`: `"learned"` (LRM's), `"task"` (the task's own, an oracle for
     /// diagnosis) or `"one_state"` (the control without structure; see [`SmirlMachine`]).
     pub smirl_machine: SmirlMachine,
-    /// `[smirl] shaping`: strength β of SMIRL's potential-based shaping of SAC's reward (per
-    /// metre, relative to the RM state's largest ball weight; see
-    /// `irl::smirl::LearnedSubgoalPotential`); 0 = the learned reward alone.
-    pub smirl_shaping: f64,
     /// `[final] sac_steps`: the final-policy phase (`final_policy`) of every algorithm with a
     /// learned reward but `smirl-paper`: SAC environment steps on the final learned reward,
     /// held fixed, after the last IRL iteration; 0 = none.
@@ -237,7 +233,6 @@ pub struct SmirlKeys {
     pub reward_lr: f32,
     #[serde(serialize_with = "crate::short_float::f32")]
     pub reward_l2: f32,
-    pub shaping: f64,
     pub smooth_sigma: f64,
 }
 
@@ -296,7 +291,6 @@ impl From<IrlRunConfig> for RunFile {
                 machine: c.smirl_machine,
                 reward_lr: c.smirl_reward_lr,
                 reward_l2: c.smirl_reward_l2,
-                shaping: c.smirl_shaping,
                 smooth_sigma: c.smooth_sigma,
             },
             lrm: LrmKeys {
@@ -333,7 +327,6 @@ impl From<RunFile> for IrlRunConfig {
             smirl_reward_lr: f.smirl.reward_lr,
             smirl_reward_l2: f.smirl.reward_l2,
             smirl_machine: f.smirl.machine,
-            smirl_shaping: f.smirl.shaping,
             final_sac_steps: f.final_phase.sac_steps,
             final_checkpoints: f.final_phase.checkpoints,
             reward_steps_per_iteration: f.reward_steps_per_iteration,
@@ -604,7 +597,7 @@ impl IrlConfigError {
 /// config that still sets one was written for the old layout or for a mechanism that is now
 /// the method's (or gone), and is refused rather than read as something else. Configs of runs
 /// made with these keys are read by the binary of their commit (their `run.json` names it).
-pub const REMOVED_KEYS: [(&str, &str); 51] = [
+pub const REMOVED_KEYS: [(&str, &str); 52] = [
     (
         "lrm_fallback_starts",
         "nothing: LRM has no fallback starts (they changed no development base towards the \
@@ -656,7 +649,16 @@ pub const REMOVED_KEYS: [(&str, &str); 51] = [
     ("smirl_reward_lr", "[smirl] reward_lr"),
     ("smirl_reward_l2", "[smirl] reward_l2"),
     ("smirl_machine", "[smirl] machine"),
-    ("smirl_shaping", "[smirl] shaping"),
+    (
+        "smirl_shaping",
+        "nothing: SMIRL's SAC reads the learned reward unshaped (shaping did not show it pays: \
+         experiments/reacher/mechanisms/ablation.md)",
+    ),
+    (
+        "smirl.shaping",
+        "nothing: SMIRL's SAC reads the learned reward unshaped (shaping did not show it pays: \
+         experiments/reacher/mechanisms/ablation.md)",
+    ),
     ("smooth_sigma", "[smirl] smooth_sigma"),
     (
         "smirl_normalisation",
@@ -846,9 +848,7 @@ impl IrlRunConfig {
             demo_source: DemoSource::Expert,
             demo_episodes: 16,
             // SMIRL's schedule: 30 IRL iterations (two of three Sequential tuning seeds first
-            // solve the task in iterations 16-20), with potential-based shaping of its SAC
-            // (Composite's normal branch: 3 of 3 tuning seeds against 1 of 3 without);
-            // research log, "SMIRL's settings".
+            // solve the task in iterations 16-20; research log, "SMIRL's settings").
             irl_iterations: 30,
             sac_steps_per_iteration: 5_000,
             agent_trajectories: 20,
@@ -858,7 +858,6 @@ impl IrlRunConfig {
             smirl_reward_lr: 0.1,
             smirl_reward_l2: 0.05,
             smirl_machine: SmirlMachine::Learned,
-            smirl_shaping: 1.0,
             // The final policy: four candidates 5 000 SAC steps apart on the final reward
             // (research log, "SMIRL's final policy").
             final_sac_steps: 20_000,
@@ -986,13 +985,12 @@ impl IrlRunConfig {
     /// `smirl-paper`'s settings: every mechanism by which `smirl` departs from the paper
     /// (docs/method.md) at the paper's value — LRM's are not settings but the learner's
     /// (`smirl::lrm_config` of `Algo::SmirlPaper`) — MaxEnt's μ_D − μ_π averaged over
-    /// trajectories, SAC on U × O without clock, counterfactual states or shaping, and no
+    /// trajectories, SAC on U × O without clock or counterfactual states, and no
     /// final phase, so the job reports its loop's own last policy. The schedule, SAC, the
     /// reward optimiser, the demonstrations, the machine's source and LRM's size and search
     /// budget stay the run's, so that the two algorithms differ by the mechanisms alone.
     fn set_paper_mechanisms(&mut self) {
         self.mechanisms = Mechanisms::PAPER;
-        self.smirl_shaping = 0.0;
         self.final_sac_steps = 0;
         self.final_checkpoints = 0;
     }
@@ -1144,9 +1142,6 @@ impl IrlRunConfig {
         }
         if self.reward_steps_per_iteration == 0 {
             return bad("reward_steps_per_iteration", "must be at least 1");
-        }
-        if !(self.smirl_shaping.is_finite() && self.smirl_shaping >= 0.0) {
-            return bad("smirl.shaping", "must be a non-negative number");
         }
         if self.final_sac_steps > MAX_SAC_STEPS_PER_ITERATION {
             return over(

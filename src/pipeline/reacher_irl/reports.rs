@@ -370,7 +370,6 @@ pub(super) fn write_reports(
         "smirl_machine": config.smirl_machine.name(),
         "final_sac_steps": config.final_sac_steps,
         "final_checkpoints": config.final_checkpoints,
-        "smirl_shaping": config.smirl_shaping,
         "git_commit": crate::GIT_COMMIT,
         "prepare_git_commit": p.git_commit,
         "prepare_secs": p.prepare_secs,

@@ -16,12 +16,12 @@ use super::firl::{self, StateReward};
 use super::iteration::StepError;
 use super::run::{MissingMachine, PreparedRun};
 use super::smirl::{
-    counterfactual_states, product_env, shaping_potential, Features, ProductReward,
+    counterfactual_states, product_env, Features, ProductReward,
 };
 use super::Algo;
 use crate::env::reacher::ReacherDelivery;
 use crate::irl::reward::{MlpReward, RewardError};
-use crate::irl::reward::{RewardModel, RewardOptimConfig};
+use crate::irl::reward::RewardOptimConfig;
 use crate::irl::smirl::LinearRmReward;
 use crate::rl::sac::{
     ConfigError as SacConfigError, SacConfig, SacTrainer, StepOutcome, UpdateStats,
@@ -52,7 +52,7 @@ pub struct Retraining {
 }
 
 /// How a retraining's agent optimises, in place of the job's (`reacher retrain --agent FILE`):
-/// a `[sac]` table (any of its keys) and `smirl_shaping`. Nothing that defines the reward,
+/// a `[sac]` table (any of its keys). Nothing that defines the reward,
 /// the machine or the environment the agent is judged in can be changed, so the table still
 /// answers "does this reward solve the task" — with another optimiser.
 #[derive(Clone, Debug)]
@@ -68,7 +68,6 @@ pub struct AgentSettings {
 #[serde(deny_unknown_fields)]
 struct AgentKeys {
     sac: Option<toml::Table>,
-    smirl_shaping: Option<f64>,
 }
 
 /// Longest name of an agent settings file (its stem).
@@ -110,9 +109,6 @@ impl AgentSettings {
         if let Some(table) = &self.keys.sac {
             s.sac = SacConfig::from_table(table.clone(), s.sac.clone(), &self.source)
                 .map_err(RetrainError::AgentSac)?;
-        }
-        if let Some(shaping) = self.keys.smirl_shaping {
-            s.smirl_shaping = shaping;
         }
         s.validate(&self.source)
             .map_err(|e| RetrainError::Config(e.at_key_line(&self.text)))?;
@@ -384,12 +380,7 @@ pub fn retrain(
                 .ok_or(RetrainError::NoMachine)?;
             let mut env = product_env(inner, machine, &s);
             let counterfactual = counterfactual_states(&env, &s).map_err(StepError::from)?;
-            let potential =
-                shaping_potential(reward.features(), machine.n_states(), &reward.params(), &s)
-                    .map_err(StepError::from)?;
-            let gamma = f64::from(s.sac.gamma);
-            let shaping = potential.as_ref().map(|p| (p, gamma));
-            let mut sac_reward = ProductReward::new(&mut reward, counterfactual.as_ref(), shaping);
+            let mut sac_reward = ProductReward::new(&mut reward, counterfactual.as_ref());
             training.run(&mut env, &mut sac_reward, &mut on_point)
         }
         Reward::Mlp(mut reward) => {

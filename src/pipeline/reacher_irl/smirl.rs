@@ -36,7 +36,7 @@ use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::smirl::{
     maxent_coefficients, maxent_coefficients_by_shared_visits, AnnotatedTrajectories, FeatureMap,
-    LearnedSubgoalPotential, LinearRmReward, SmirlNormalisation,
+    LinearRmReward, SmirlNormalisation,
 };
 use crate::irl::Algo;
 use crate::pipeline::reacher_expert::Demo;
@@ -292,29 +292,24 @@ pub fn coefficients(
 /// SAC's reward on U × O, computed when a batch is sampled so that old transitions follow the
 /// reward being optimised now: δ_r(u_t, o_{t+1}) with u_t read from the stored observation's
 /// one-hot block. With `counterfactual`, a share of each batch is first moved to other learned
-/// states (CRM), so SAC learns every state's values from every step. With `shaping`, plus
-/// γ Φ(u_{t+1}, o_{t+1}) − Φ(u_t, o_t) (Φ = 0 after a terminating step).
+/// states (CRM), so SAC learns every state's values from every step.
 pub struct ProductReward<'a> {
     model: &'a mut LinearRmReward,
     counterfactual: Option<&'a CounterfactualRm>,
-    shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
     next_obs: Vec<f32>,
     states: Vec<u32>,
 }
 
 impl<'a> ProductReward<'a> {
     /// The reward of `model` on SAC batches of the product (observation ⊕ one-hot learned
-    /// state ⊕ clock, if any), relabelled by `counterfactual` and shaped by `shaping`
-    /// (Φ, γ) when given.
+    /// state ⊕ clock, if any), relabelled by `counterfactual` when given.
     pub fn new(
         model: &'a mut LinearRmReward,
         counterfactual: Option<&'a CounterfactualRm>,
-        shaping: Option<(&'a LearnedSubgoalPotential, f64)>,
     ) -> ProductReward<'a> {
         ProductReward {
             model,
             counterfactual,
-            shaping,
             next_obs: Vec::new(),
             states: Vec::new(),
         }
@@ -341,24 +336,6 @@ impl RewardFn for ProductReward<'_> {
             self.states.push(hot_index(&prev[block.clone()]) as u32);
         }
         self.model.reward_batch(&self.next_obs, &self.states, out)?;
-        if let Some((potential, gamma)) = self.shaping {
-            let rows = batch.next_obs.as_slice().chunks_exact(d);
-            let prev_rows = batch.obs.as_slice().chunks_exact(d);
-            for (((next, prev), &terminated), r) in rows
-                .zip(prev_rows)
-                .zip(&batch.terminated)
-                .zip(out.iter_mut())
-            {
-                let u = hot_index(&prev[block.clone()]);
-                let u_next = hot_index(&next[block.clone()]);
-                let after = if terminated > 0.5 {
-                    0.0
-                } else {
-                    gamma * potential.potential(next, u_next)
-                };
-                *r += (after - potential.potential(prev, u)) as f32;
-            }
-        }
         Ok(())
     }
 }
@@ -400,18 +377,6 @@ pub(super) fn counterfactual_states(
         .transpose()
 }
 
-/// The shaping potential of the weights `w` (`[smirl] shaping` > 0; 1 in the standard profile).
-pub(super) fn shaping_potential(
-    features: &FeatureMap,
-    n_states: usize,
-    w: &[f32],
-    s: &IrlRunConfig,
-) -> Result<Option<LearnedSubgoalPotential>, RewardError> {
-    (s.smirl_shaping > 0.0)
-        .then(|| LearnedSubgoalPotential::from_weights(features, n_states, w, s.smirl_shaping))
-        .transpose()
-}
-
 /// One SMIRL job.
 pub struct SmirlJob<'a> {
     pub features: Features,
@@ -448,14 +413,13 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     let mut learner = SmirlReward {
         reward: LinearRmReward::new(features.clone(), n_states, optim)?,
         counterfactual: counterfactual_states(&env, s)?,
-        potential: None,
         features,
         job,
         trace: Vec::with_capacity(s.irl_iterations),
     };
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
     // Step 4, the final policy, after the loop's last iteration: SAC goes on with the final
-    // reward, now fixed (shaped by its potential), and the candidate of highest learned return
+    // reward, now fixed, and the candidate of highest learned return
     // is the job's policy.
     let final_phase = FinalPhase::of(s, job.seed);
     let final_policy = irl_loop::run(
@@ -480,8 +444,6 @@ struct SmirlReward<'j> {
     features: FeatureMap,
     /// CRM's counterfactual machine states, moved into a share of every SAC batch.
     counterfactual: Option<CounterfactualRm>,
-    /// The shaping potential of the current weights (`smirl_shaping` > 0).
-    potential: Option<LearnedSubgoalPotential>,
     job: &'j SmirlJob<'j>,
     trace: Vec<RewardTraceRow>,
 }
@@ -492,16 +454,11 @@ impl irl_loop::RewardLearner for SmirlReward<'_> {
     where
         Self: 'a;
 
-    /// SAC on the product with the current δ_r (shaped by the potential of the current weights
-    /// when `smirl_shaping` > 0), counterfactual states in every batch.
+    /// SAC on the product with the current δ_r, counterfactual states in every batch.
     fn sac_reward(&mut self) -> Result<ProductReward<'_>, StepError> {
-        let s = self.job.settings;
-        let n_states = self.job.machine.n_states();
-        self.potential = shaping_potential(&self.features, n_states, &self.reward.params(), s)?;
         Ok(ProductReward::new(
             &mut self.reward,
             self.counterfactual.as_ref(),
-            self.potential.as_ref().map(|p| (p, f64::from(s.sac.gamma))),
         ))
     }
 
