@@ -5,7 +5,8 @@
 //!   itself, nothing added;
 //! - the final choice: on hand-built selection episodes whose learned returns are known, it
 //!   takes the first candidate of highest learned return;
-//! - the event-gated normalisation: its coefficients on a hand-worked case;
+//! - the normalisation: μ_D − μ_π averaged over trajectories, its coefficients on a
+//!   hand-worked case;
 //! - no leak: perturbing the perfect machine and its rewards (the ground truth a job is judged
 //!   by) leaves the learned reward, the learned returns and the final choice bit-identical,
 //!   while the evaluation changes.
@@ -15,10 +16,10 @@ use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
 use smirl::env::reacher_controller::{ControllerGains, ScriptedController};
 use smirl::env::ContinuousEnv;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
-use smirl::irl::smirl::{FeatureMap, LinearRmReward, SmirlNormalisation};
+use smirl::irl::smirl::{FeatureMap, LinearRmReward};
 use smirl::pipeline::reacher_irl::final_policy::{choose, mean_return, FinalCandidate};
 use smirl::pipeline::reacher_irl::smirl::{coefficients, ProductReward};
-use smirl::pipeline::reacher_irl::{AgentBatch, ExpertData, IrlRunConfig};
+use smirl::pipeline::reacher_irl::{AgentBatch, ExpertData};
 use smirl::rl::replay::ReplayBatch;
 use smirl::rl::sac::RewardFn;
 use smirl::rm::format::parse_rm;
@@ -279,33 +280,26 @@ fn the_final_choice_takes_the_first_candidate_of_highest_learned_return() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The event-gated normalisation
+// The normalisation: μ_D − μ_π averaged over trajectories
 // ---------------------------------------------------------------------------------------------
 
-/// A learned machine of IF with a state only the cancel enters: 0 -b-> 1, 0 -c-> 2, then red
-/// to 3 from either.
-const IF_SPLIT: &str = "vocabulary: rgbyc\nstates: 4\ninitial: 0\n\
-                        (0, 1, 'b&!c', 0)\n(0, 2, 'c', 0)\n(1, 3, 'r', 0)\n(2, 3, 'r', 0)\n";
-
-/// The standard normalisation's coefficients (`event_gated_visits`, through SMIRL's
-/// `coefficients`) on a case worked by hand. Expert: E1 visits states 0, 1, 3; E2 0, 1, 3; E3
-/// (the cancel) 0, 2, 3 — N_D = (3, 2, 1, 3). Agent: A1 and A2 visit 0 and 1 only — N_A =
-/// (2, 2, 0, 0). Agent rows get +1/N_A(u): ½ in states 0 and 1. Expert rows get −1/N_D(u)
-/// where the agent comes (state 0: −⅓, state 1: −½); where it does not, state 3 keeps its
-/// pull (the agent can reach it by its own moves: −⅓) and state 2, which only the cancel
-/// enters, gets 0. The gradient on w follows: expert yellow touches in state 3 (one per
-/// trajectory) give −1, E3's red touches in state 2 nothing, A1's green touches in state 0
-/// (two) +1.
+/// SMIRL's coefficients (`coefficients`, as every SMIRL variant's update reads them) on a case
+/// worked by hand, on a learned machine of IF with a state only the cancel enters (0 -b-> 1,
+/// 0 -c-> 2, red to 3 from either; each step's state given by hand). Expert: three trajectories, E1 in states 0, 1, 3, E2 in 0, 1, 3, E3 (the
+/// cancel) in 0, 2, 3. Agent: two, A1 and A2 in 0 and 1 only. Every agent row gets +1/N_A =
+/// +½ and every expert row −1/N_D = −⅓, whatever its state — no state is weighted by the
+/// trajectories that visit it, and an expert state the agent never reaches (2, 3) keeps its
+/// pull. The gradient on w_u is then μ_π(u) − μ_D(u): expert yellow touches in state 3 (one
+/// per trajectory) give −1, E3's two red touches in state 2 −⅔, A1's two green touches in
+/// state 0 +1, red in state 1 (E1, E2) −⅔.
 ///
-/// Mutations tried: `maxent_coefficients_by_shared_visits` ignoring `pull_unvisited` (every
-/// unvisited state dropped): fails at state 3's −⅓; `coefficients` gating with every state
-/// free (`vec![true; n]`, i.e. plain visits): fails at state 2's 0; `trajectories_visiting`
-/// counting rows instead of trajectories: fails at state 0's coefficients; the expert rows'
-/// coefficient −1/N_D(u) halved (`per(expert, -0.5)` in `maxent_coefficients_by_visits`):
+/// Mutations tried: the sign of μ_D − μ_π flipped (`(per(agent, -1.0), per(expert, 1.0))` in
+/// `maxent_coefficients`): fails at the coefficients (−½ for ½); the expert's rows divided by
+/// the agent's trajectories (`per(expert, …)` with N_A): fails at the coefficients (−½ for −⅓);
+/// normalised by the trajectories visiting each state (the removed event-gated visits' rule):
 /// fails at the coefficients.
 #[test]
-fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
-    let m = machine(IF_SPLIT);
+fn trajectory_averaged_coefficients_on_a_hand_worked_case() {
     let (e, c, r, g, y) = (
         LabelSet::EMPTY,
         labels(&[CANCEL]),
@@ -342,10 +336,7 @@ fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
         }
         agent.lengths.push(t.len());
     }
-    let features = FeatureMap::reacher_labels(&layout());
-    let normalisation = IrlRunConfig::standard().normalisation();
-    assert_eq!(normalisation, SmirlNormalisation::EventGatedVisits);
-    let got = coefficients(&features, &expert, &agent, normalisation, &m);
+    let got = coefficients(&expert, &agent);
 
     let (h, third) = (0.5, 1.0 / 3.0);
     #[rustfmt::skip]
@@ -353,36 +344,42 @@ fn event_gated_normalisation_coefficients_on_a_hand_worked_case() {
         // Agent A1 (states 0 0 0 1), A2 (0 1 1).
         h, h, h, h, h, h, h,
         // Expert E1 (0 0 1 1 3), E2 (0 1 3), E3 (0 2 2 3).
-        -third, -third, -h, -h, -third,
-        -third, -h, -third,
-        -third, 0.0, 0.0, -third,
+        -third, -third, -third, -third, -third,
+        -third, -third, -third,
+        -third, -third, -third, -third,
     ];
     assert_eq!(got.coeffs, expected);
     let states: Vec<u32> = [agent.states.as_slice(), &expert.learned_states].concat();
     assert_eq!(got.states, states);
     assert_eq!(got.obs, [agent.obs.as_slice(), &expert.obs].concat());
 
-    // The gradient of the loss on w: Σ_rows c · φ(row) per (state, feature).
+    // The gradient of the loss on w: Σ_rows c · φ(row) per (state, feature) = μ_π − μ_D.
+    let features = FeatureMap::reacher_labels(&layout());
     let mut model = LinearRmReward::new(features, 4, RewardOptimConfig::adam(0.1)).unwrap();
     model.backward(&got.obs, &got.states, &got.coeffs).unwrap();
     let grad = model.grad();
     let at = |u: usize, f: usize| grad[u * K + f];
-    assert_eq!(
-        at(3, YELLOW),
-        -1.0,
-        "three yellow touches in state 3, −⅓ each"
+    let close = |x: f32, want: f64| (f64::from(x) - want).abs() < 1e-6;
+    assert!(
+        close(at(3, YELLOW), -1.0),
+        "three yellow touches in state 3, −⅓ each: {}",
+        at(3, YELLOW)
     );
-    assert_eq!(
-        at(2, RED),
-        0.0,
-        "state 2 is entered only by the cancel and never by the agent"
+    assert!(
+        close(at(2, RED), -2.0 / 3.0),
+        "E3's two red touches in state 2, which the agent never enters: {}",
+        at(2, RED)
     );
-    assert_eq!(
-        at(0, GREEN),
-        1.0,
-        "A1's two green touches in state 0, +½ each"
+    assert!(
+        close(at(0, GREEN), 1.0),
+        "A1's two green touches in state 0, +½ each: {}",
+        at(0, GREEN)
     );
     // Blue in state 0: agents 2 × ½, experts E1, E2 −⅓ each.
-    assert!((at(0, BLUE) - (1.0 - 2.0 / 3.0) as f32).abs() < 1e-7);
-    assert_eq!(at(1, RED), -1.0, "E1 and E2 touch red in state 1, −½ each");
+    assert!(close(at(0, BLUE), 1.0 - 2.0 / 3.0), "{}", at(0, BLUE));
+    assert!(
+        close(at(1, RED), -2.0 / 3.0),
+        "E1 and E2 touch red in state 1, −⅓ each: {}",
+        at(1, RED)
+    );
 }

@@ -64,12 +64,10 @@ failure: 3
 (1, 2, 'r&!b', 3)
 ";
 
-/// The standard mechanisms at test size: the event-gated normalisation, CRM, the clock,
+/// The standard mechanisms at test size: CRM, the clock,
 /// a final phase, a rollout log.
 fn config() -> IrlRunConfig {
     let c = tiny_config();
-    let standard = IrlRunConfig::standard();
-    assert_eq!(c.normalisation(), standard.normalisation());
     assert!(c.clock());
     assert!(c.counterfactual() > 0.0);
     assert!(c.log_every_nth_episode > 0);

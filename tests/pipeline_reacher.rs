@@ -6,7 +6,7 @@ mod irl_run_common;
 use irl_run_common::tiny_config;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::irl::reward::{RewardModel, RewardOptimConfig};
-use smirl::irl::smirl::{AnnotatedTrajectories, FeatureMap, LinearRmReward, SmirlNormalisation};
+use smirl::irl::smirl::{AnnotatedTrajectories, FeatureMap, LinearRmReward};
 mod smirl_reference;
 use smirl::pipeline::reacher_irl::run::Silent;
 use smirl::pipeline::reacher_irl::{
@@ -51,16 +51,7 @@ fn smirl_update_direction_is_expert_minus_agent_feature_expectation() {
     for b in [Some(1), Some(0), None] {
         agent.obs.extend(row(b));
     }
-    let c = smirl::pipeline::reacher_irl::smirl::coefficients(
-        &FeatureMap::reacher_labels(&layout()),
-        &expert,
-        &agent,
-        SmirlNormalisation::Trajectories,
-        &smirl::rm::format::read_rm(
-            &Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rm/reacher_blue.txt"),
-        )
-        .unwrap(),
-    );
+    let c = smirl::pipeline::reacher_irl::smirl::coefficients(&expert, &agent);
     let mut model = LinearRmReward::new(
         FeatureMap::reacher_labels(&layout()),
         2,

@@ -5,7 +5,6 @@
 mod irl_run_common;
 use irl_run_common::tiny_config;
 use smirl::env::reacher_task::ReacherTask;
-use smirl::irl::smirl::SmirlNormalisation;
 use smirl::pipeline::reacher_irl::run::{open_run, JobRecord};
 use smirl::pipeline::reacher_irl::smirl::lrm_config;
 use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig, Mechanisms};
@@ -51,8 +50,6 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
         },
         paper_lrm
     );
-    // MaxEnt on U × O: μ_D − μ_π over trajectories, φ = L(o).
-    assert_eq!(paper.normalisation(), SmirlNormalisation::Trajectories);
     // The policy on U × O: no clock, no counterfactual states.
     assert!(!paper.clock());
     assert_eq!(paper.counterfactual(), 0.0);
@@ -60,7 +57,6 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
     assert_eq!(paper.final_sac_steps, 0);
     assert_eq!(paper.final_checkpoints, 0);
     // The standard's smirl differs in each of these (else the test above proves nothing).
-    assert_eq!(smirl.normalisation(), SmirlNormalisation::EventGatedVisits);
     assert!(smirl.clock() && smirl.counterfactual() > 0.0);
     assert!(smirl.final_sac_steps > 0);
     // What is not a mechanism is smirl's.

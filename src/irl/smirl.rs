@@ -275,8 +275,10 @@ pub struct AnnotatedTrajectories<'a> {
     pub lengths: &'a [usize],
 }
 
-/// Per-state coefficients of the loss −ℓ̂: (+1/N_A at every agent row, −1/N_D at every
-/// expert row).
+/// Per-row coefficients of the loss −ℓ̂: +1/N_A at every agent row, −1/N_D at every expert
+/// row (N_X: X's trajectories), so that the loss's gradient on w_u is μ_π(u) − μ_D(u) with
+/// μ_X(u) = 1/N_X Σ_τ Σ_t 1[u_t = u] φ(o_t): the plain MaxEnt gradient, averaged over
+/// trajectories.
 pub fn maxent_coefficients(
     expert: &AnnotatedTrajectories<'_>,
     agent: &AnnotatedTrajectories<'_>,
@@ -286,124 +288,6 @@ pub fn maxent_coefficients(
         vec![sign / t.lengths.len() as f64; total]
     };
     (per(agent, 1.0), per(expert, -1.0))
-}
-
-/// How SMIRL averages feature counts over trajectories in each RM state (the algorithm's:
-/// `IrlRunConfig::normalisation`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SmirlNormalisation {
-    /// μ_X(u) = 1/N_X Σ_τ Σ_t 1[u_t = u] φ(o_t): the plain MaxEnt gradient
-    /// ([`maxent_coefficients`]).
-    Trajectories,
-    /// μ_X(u) = 1/N_X(u) Σ_τ Σ_t 1[u_t = u] φ(o_t) with N_X(u) the number of trajectories of X
-    /// that visit u ([`maxent_coefficients_by_visits`]), but a state the agent's batch does
-    /// not visit *and* cannot reach without an
-    /// exogenous event gets no update ([`maxent_coefficients_by_shared_visits`] with the
-    /// learned machine's [`reachable_without`](crate::rm::RewardMachine::reachable_without)
-    /// the events as the states that keep their pull). The standard profile's. Assumes only
-    /// that the declared events are exogenous (no policy brings one about): a state every way
-    /// into which needs an event is visited when the environment sends the agent there, so
-    /// the agent cannot be asked to visit it; what the event means does not matter.
-    EventGatedVisits,
-}
-
-impl SmirlNormalisation {
-    pub fn name(self) -> &'static str {
-        match self {
-            SmirlNormalisation::Trajectories => "trajectories",
-            SmirlNormalisation::EventGatedVisits => "event_gated_visits",
-        }
-    }
-}
-
-/// Per-state loss coefficients with *per-RM-state* normalisation: a row in state u gets
-/// +1/N_A(u) (agent) or −1/N_D(u) (expert), N_X(u) the number of trajectories of X that visit
-/// u. The update direction for w_u is then the difference of the *conditional* feature
-/// expectations given that u is reached: each RM state is its own sub-task, matched on the
-/// segments spent in it. Why: when the demonstrations take several branches of the learned
-/// machine (OR: 38 % red, 62 % green) and the agent commits to one, the plain gradient counts
-/// the agent's full visit of its branch against that branch's reward (agent 90 vs expert 35
-/// blue-touching steps per trajectory in the red branch's state, measured) and pushes down
-/// exactly the reward that completes the task, until the policy collapses and swaps branch.
-/// Conditioning removes that pull; the choice between branches is still matched in the
-/// state where it is made (u0: 1/N over all trajectories, as before). For a state every
-/// trajectory visits, the coefficient equals [`maxent_coefficients`]'s.
-pub fn maxent_coefficients_by_visits(
-    expert: &AnnotatedTrajectories<'_>,
-    agent: &AnnotatedTrajectories<'_>,
-) -> (Vec<f64>, Vec<f64>) {
-    let per = |t: &AnnotatedTrajectories<'_>, sign: f64| {
-        let visits = trajectories_visiting(t);
-        t.rm_state
-            .iter()
-            .map(|&u| sign / visits[u as usize] as f64)
-            .collect::<Vec<f64>>()
-    };
-    (per(agent, 1.0), per(expert, -1.0))
-}
-
-/// [`maxent_coefficients_by_visits`] restricted to the states the agent's batch visits: an
-/// expert row in a state no agent trajectory reaches gets coefficient 0 unless
-/// `pull_unvisited[u]` (a state beyond the slice keeps no pull). Why: the visit
-/// normalisation compares conditional feature expectations, and where the agent never goes
-/// its side is missing, not zero. Taking it as zero raises the expert's features in that state
-/// on every iteration, by the expert's full conditional count however few demonstrations go
-/// there (and Adam turns a gradient of constant sign into a constant step, whatever its
-/// size). On Composite the states entered by a cancel after red, which the experts reach and
-/// agents slower to red than the cancel window do not, would end with yellow weights of 10–11
-/// against 4 in the normal branch's state (development bases 3 and 24), and a policy that
-/// cannot tell the cancel window has passed keeps waiting for a cancel after red instead of
-/// going to blue (a fresh SAC agent on base 24 seed 25's final reward: normal branch 0.00;
-/// with that state's weights set to 0: 1.00). Whether the agent
-/// should enter such a state is still learned where the choice is made: in the parent state,
-/// whose transition label is compared as before.
-///
-/// But that pull is also what draws an agent into a sub-task it has not reached yet (the
-/// expert's counts there raise the state's weights until the agent comes): with no pull at
-/// all (`shared_visits`, every `pull_unvisited` false) 9 of 12 IF and Composite jobs at base 0
-/// never solve the normal branch (*Shared visits*, experiments/archive/README-research-log.md).
-/// `event_gated_visits` keeps
-/// the pull where the agent can enter the state by its own moves and drops it only where
-/// every way in needs the exogenous event, which no policy can bring about.
-pub fn maxent_coefficients_by_shared_visits(
-    expert: &AnnotatedTrajectories<'_>,
-    agent: &AnnotatedTrajectories<'_>,
-    pull_unvisited: &[bool],
-) -> (Vec<f64>, Vec<f64>) {
-    let (agent_c, mut expert_c) = maxent_coefficients_by_visits(expert, agent);
-    let agent_visits = trajectories_visiting(agent);
-    for (c, &u) in expert_c.iter_mut().zip(expert.rm_state) {
-        let u = u as usize;
-        let visited = agent_visits.get(u).copied().unwrap_or(0) > 0;
-        if !visited && !pull_unvisited.get(u).copied().unwrap_or(false) {
-            *c = 0.0;
-        }
-    }
-    (agent_c, expert_c)
-}
-
-/// Per RM state, the number of trajectories that visit it (indexed up to the largest state
-/// seen).
-fn trajectories_visiting(t: &AnnotatedTrajectories<'_>) -> Vec<usize> {
-    let n_states = t
-        .rm_state
-        .iter()
-        .map(|&u| u as usize + 1)
-        .max()
-        .unwrap_or(0);
-    let mut visits = vec![0usize; n_states];
-    let mut seen = vec![usize::MAX; n_states];
-    let mut start = 0;
-    for (k, &len) in t.lengths.iter().enumerate() {
-        for &u in &t.rm_state[start..start + len] {
-            if seen[u as usize] != k {
-                seen[u as usize] = k;
-                visits[u as usize] += 1;
-            }
-        }
-        start += len;
-    }
-    visits
 }
 
 fn check_state(u: u32, n_states: usize) -> Result<usize, RewardError> {

@@ -11,7 +11,6 @@
 
 use super::Algo;
 use crate::env::reacher::ReacherConfig;
-use crate::irl::smirl::SmirlNormalisation;
 use crate::rl::sac::SacConfig;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -160,8 +159,6 @@ pub struct Mechanisms {
     /// Counterfactual learned-machine states in SMIRL's SAC batches
     /// ([`IrlRunConfig::counterfactual`]).
     pub counterfactual_states: bool,
-    /// MaxEnt's normalisation by event-gated visits ([`IrlRunConfig::normalisation`]).
-    pub event_gated_visits: bool,
 }
 
 impl Mechanisms {
@@ -170,13 +167,11 @@ impl Mechanisms {
     pub const SMIRL: Mechanisms = Mechanisms {
         clock: true,
         counterfactual_states: true,
-        event_gated_visits: true,
     };
     /// `smirl-paper`'s: none.
     pub const PAPER: Mechanisms = Mechanisms {
         clock: false,
         counterfactual_states: false,
-        event_gated_visits: false,
     };
 }
 
@@ -662,8 +657,8 @@ pub const REMOVED_KEYS: [(&str, &str); 52] = [
     ("smooth_sigma", "[smirl] smooth_sigma"),
     (
         "smirl_normalisation",
-        "the algorithm: smirl and smirl-smooth normalise by event-gated visits, smirl-paper \
-         over trajectories (docs/method.md)",
+        "nothing: every SMIRL variant averages mu_D - mu_pi over trajectories (event-gated \
+         visits did not show they pay: experiments/reacher/mechanisms/ablation.md)",
     ),
     (
         "smirl_label_features",
@@ -1012,19 +1007,6 @@ impl IrlRunConfig {
             1.0
         } else {
             0.0
-        }
-    }
-
-    /// How SMIRL's MaxEnt coefficients are normalised: event-gated visits (feature counts of
-    /// each learned state averaged over the trajectories that visit it, without the expert's
-    /// pull on a state the agent's batch does not visit when it needs the cancel to enter;
-    /// `irl::smirl`) for smirl and smirl-smooth, the plain average over trajectories for
-    /// smirl-paper.
-    pub fn normalisation(&self) -> SmirlNormalisation {
-        if self.mechanisms.event_gated_visits {
-            SmirlNormalisation::EventGatedVisits
-        } else {
-            SmirlNormalisation::Trajectories
         }
     }
 

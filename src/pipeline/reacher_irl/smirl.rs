@@ -35,8 +35,7 @@ use crate::env::reacher::{ConfigError, ReacherDelivery};
 use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
 use crate::irl::smirl::{
-    maxent_coefficients, maxent_coefficients_by_shared_visits, AnnotatedTrajectories, FeatureMap,
-    LinearRmReward, SmirlNormalisation,
+    maxent_coefficients, AnnotatedTrajectories, FeatureMap, LinearRmReward,
 };
 use crate::irl::Algo;
 use crate::pipeline::reacher_expert::Demo;
@@ -254,16 +253,9 @@ impl Features {
 
 /// Step 3.3: the rows, learned states and loss coefficients of one reward update — MaxEnt on
 /// U × O, whose parameter gradient is μ_π − μ_D (the negated expert-minus-agent feature
-/// expectation), normalised per trajectory or per trajectory visiting each state
-/// ([`IrlRunConfig::normalisation`]). Agent rows first, then expert rows: the observations
-/// after each step.
-pub fn coefficients(
-    features: &FeatureMap,
-    expert: &ExpertData,
-    agent: &AgentBatch,
-    normalisation: SmirlNormalisation,
-    machine: &RewardMachine,
-) -> Coefficients {
+/// expectation), each averaged over its trajectories ([`maxent_coefficients`]). Agent rows
+/// first, then expert rows: the observations after each step.
+pub fn coefficients(expert: &ExpertData, agent: &AgentBatch) -> Coefficients {
     let agent_t = AnnotatedTrajectories {
         obs: &agent.obs,
         rm_state: &agent.states,
@@ -274,13 +266,7 @@ pub fn coefficients(
         rm_state: &expert.learned_states,
         lengths: &expert.lengths,
     };
-    let (mut coeffs, expert_c) = match normalisation {
-        SmirlNormalisation::Trajectories => maxent_coefficients(&expert_t, &agent_t),
-        SmirlNormalisation::EventGatedVisits => {
-            let free = machine.reachable_without(features.event_labels());
-            maxent_coefficients_by_shared_visits(&expert_t, &agent_t, &free)
-        }
-    };
+    let (mut coeffs, expert_c) = maxent_coefficients(&expert_t, &agent_t);
     coeffs.extend(expert_c);
     Coefficients {
         obs: [agent.obs.as_slice(), &expert.obs].concat(),
@@ -411,16 +397,14 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
         l2: s.smirl_reward_l2,
     };
     let mut learner = SmirlReward {
-        reward: LinearRmReward::new(features.clone(), n_states, optim)?,
+        reward: LinearRmReward::new(features, n_states, optim)?,
         counterfactual: counterfactual_states(&env, s)?,
-        features,
         job,
         trace: Vec::with_capacity(s.irl_iterations),
     };
     let mut sac = SacTrainer::new(&s.sac, env.obs_dim(), env.act_dim(), job.seed)?;
     // Step 4, the final policy, after the loop's last iteration: SAC goes on with the final
-    // reward, now fixed, and the candidate of highest learned return
-    // is the job's policy.
+    // reward, now fixed, and the candidate of highest learned return is the job's policy.
     let final_phase = FinalPhase::of(s, job.seed);
     let final_policy = irl_loop::run(
         &mut learner,
@@ -441,7 +425,6 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
 /// SMIRL's reward in the IRL loop: δ_r(u, o) = w_uᵀ φ(o) and its MaxEnt update on U × O.
 struct SmirlReward<'j> {
     reward: LinearRmReward,
-    features: FeatureMap,
     /// CRM's counterfactual machine states, moved into a share of every SAC batch.
     counterfactual: Option<CounterfactualRm>,
     job: &'j SmirlJob<'j>,
@@ -466,13 +449,7 @@ impl irl_loop::RewardLearner for SmirlReward<'_> {
         let s = self.job.settings;
         let reward = &mut self.reward;
         // Feature expectations: coefficients of μ_π − μ_D per (u, o).
-        let c = coefficients(
-            &self.features,
-            self.job.expert,
-            &batch,
-            s.normalisation(),
-            self.job.machine,
-        );
+        let c = coefficients(self.job.expert, &batch);
 
         // Reward steps; the first step's gradient (before any step) is the traced data
         // gradient.
