@@ -1,19 +1,13 @@
-//! The final phase every algorithm with a learned reward shares, its random pick, and the
-//! clock every algorithm's agent may get (issue 54, item 4: what is not specific to reward
-//! machines goes to every algorithm).
+//! The final phase every algorithm with a learned reward shares and its random pick (issue 54,
+//! item 4: what is not specific to reward machines goes to every algorithm).
 
 mod irl_run_common;
-use irl_run_common::{job_bytes, metrics_column, tiny_config};
-use smirl::env::clock::Clock;
-use smirl::env::reacher::{ReacherConfig, ReacherDelivery};
+use irl_run_common::{metrics_column, tiny_config};
 use smirl::env::reacher_task::ReacherTask;
-use smirl::env::ContinuousEnv;
 use smirl::pipeline::reacher_irl::final_policy::random_pick;
-use smirl::pipeline::reacher_irl::firl::baseline_env;
-use smirl::pipeline::reacher_irl::lockstep::Lockstep;
 use smirl::pipeline::reacher_irl::records::JobRecord;
-use smirl::pipeline::reacher_irl::run::{open_run, prepare, Silent};
-use smirl::pipeline::reacher_irl::{run_pipeline, Algo, IrlRunConfig, Mechanisms, RunRequest};
+use smirl::pipeline::reacher_irl::run::Silent;
+use smirl::pipeline::reacher_irl::{run_pipeline, Algo, IrlRunConfig, RunRequest};
 use std::path::{Path, PathBuf};
 
 const SEED: u64 = 5;
@@ -124,92 +118,5 @@ fn the_random_pick_is_deterministic_and_among_the_candidates() {
             seen[k] = true;
         }
         assert!(seen.iter().all(|&s| s), "every index is drawn for n = {n}");
-    }
-}
-
-/// The clock reaches a baseline's policy: `baseline_env` appends it after the task
-/// observation (1 at reset, the share of the episode left after each step; absent under
-/// smirl-paper's mechanisms, the only settings without it).
-#[test]
-fn the_clock_reaches_the_baselines_policy_observation() {
-    let mut settings = tiny_config();
-    settings.env = ReacherTask::shipped("blue")
-        .unwrap()
-        .env_config(&ReacherConfig::default())
-        .unwrap();
-    let horizon = settings.env.max_steps;
-    let plain = ReacherDelivery::new(settings.env.clone()).unwrap();
-    let d = plain.obs_dim();
-    assert!(settings.clock(), "the standard's, and so the tiny one's");
-    let mut env = baseline_env(plain, &settings);
-    assert_eq!(env.obs_dim(), d + 1);
-    let mut obs = vec![0.0f32; d + 1];
-    env.reset(7, &mut obs);
-    assert_eq!(obs[d], 1.0);
-    let mut plain_obs = vec![0.0f32; d];
-    let mut twin = ReacherDelivery::new(settings.env.clone()).unwrap();
-    twin.reset(7, &mut plain_obs);
-    assert_eq!(&obs[..d], &plain_obs[..]);
-    for t in 1..=3 {
-        env.step(&[0.3, -0.2], &mut obs).unwrap();
-        twin.step(&[0.3, -0.2], &mut plain_obs).unwrap();
-        assert_eq!(obs[d], (horizon - t) as f32 / horizon as f32);
-        assert_eq!(&obs[..d], &plain_obs[..]);
-    }
-    let none = IrlRunConfig {
-        mechanisms: Mechanisms::PAPER,
-        ..settings.clone()
-    };
-    let inner = ReacherDelivery::new(settings.env.clone()).unwrap();
-    assert_eq!(baseline_env(inner, &none).obs_dim(), d);
-    assert_eq!(
-        Clock::of(true, horizon),
-        Clock::CountDown(horizon),
-        "the clock's settings"
-    );
-}
-
-/// The baselines train with the clock: a maxent job and an fkl job learn another reward and
-/// another policy when their settings turn `Mechanisms::clock` off, as when their policy sees
-/// another input.
-///
-/// Mutation tried: `firl::train` acting in `Clocked::new(inner, Clock::None)` instead of
-/// `baseline_env`: fails at "maxent: the clock changes the reward".
-#[test]
-fn the_baselines_train_with_the_clock() {
-    let tmp = tempfile::tempdir().unwrap();
-    let mut config = tiny_config();
-    config.final_sac_steps = 0;
-    config.final_checkpoints = 0;
-    let algos = [Algo::MaxEnt, Algo::Fkl];
-    let request = RunRequest {
-        task: ReacherTask::shipped("blue").unwrap(),
-        algos: algos.to_vec(),
-        seeds: 1,
-        seed: SEED,
-        config,
-        out: tmp.path().join("run.unused"),
-        force: false,
-    };
-    prepare(&request, &tmp.path().join("run"), &Silent).unwrap();
-    let run = open_run(&tmp.path().join("run")).unwrap();
-    for algo in algos {
-        let with = run.config.for_algo(algo).unwrap();
-        assert!(with.clock());
-        let without = IrlRunConfig {
-            mechanisms: Mechanisms {
-                clock: false,
-                ..with.mechanisms
-            },
-            ..with.clone()
-        };
-        assert!(!without.clock());
-        let job = |settings: &IrlRunConfig, name: &str| {
-            let dir = tmp.path().join(format!("{algo}-{name}"));
-            job_bytes(&run, algo, SEED, settings, Lockstep::single_thread(), &dir)
-        };
-        let (a, b) = (job(&with, "clock"), job(&without, "none"));
-        assert!(a.reward != b.reward, "{algo}: the clock changes the reward");
-        assert!(a.log != b.log, "{algo}: the clock changes the policy");
     }
 }

@@ -239,7 +239,7 @@ fn lockstep_play_is_one_at_a_time_play() {
 }
 
 /// In the product with a machine shaped as a learned one (no goal or failure state: the
-/// Composite task's states and guards) and the clock, as SMIRL and the product controls act:
+/// Composite task's states and guards), as SMIRL and the product controls act:
 /// every environment of a batch reads its own machine state, and each sampled observation is
 /// paired with the learned state one-at-a-time play pairs it with. The ground truth is decided
 /// by the first label of an episode, so that evaluation episodes end before the time limit
@@ -261,10 +261,7 @@ fn lockstep_play_in_the_product_is_one_at_a_time_play() {
         .perfect_rm()
         .unwrap();
     let learned = task_machine(&composite).unwrap();
-    let product = || {
-        let horizon = env().config().max_steps;
-        ProductEnv::new(env(), learned.clone()).with_clock(horizon)
-    };
+    let product = || ProductEnv::new(env(), learned.clone());
     let sampled = assert_lockstep_is_one_at_a_time(product, &task, dir.path());
     let initial = learned.initial() as u32;
     assert!(

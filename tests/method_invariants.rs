@@ -147,10 +147,15 @@ fn sacs_reward_is_the_learned_reward_itself() {
     ProductReward::new(&mut model, None)
         .fill_rewards(&batch, &mut sac)
         .unwrap();
-    let next_rows: Vec<f32> = steps.iter().flat_map(|s| s.1[..obs_dim()].to_vec()).collect();
+    let next_rows: Vec<f32> = steps
+        .iter()
+        .flat_map(|s| s.1[..obs_dim()].to_vec())
+        .collect();
     let states: Vec<u32> = steps.iter().map(|s| state_of(&s.0) as u32).collect();
     let mut learned = vec![0.0f32; steps.len()];
-    model.reward_batch(&next_rows, &states, &mut learned).unwrap();
+    model
+        .reward_batch(&next_rows, &states, &mut learned)
+        .unwrap();
     for (t, (s, l)) in sac.iter().zip(&learned).enumerate() {
         assert_eq!(s.to_bits(), l.to_bits(), "step {t}: SAC's {s}, learned {l}");
     }

@@ -64,11 +64,9 @@ failure: 3
 (1, 2, 'r&!b', 3)
 ";
 
-/// The standard mechanisms at test size: CRM, the clock,
-/// a final phase, a rollout log.
+/// The standard mechanisms at test size: CRM, a final phase, a rollout log.
 fn config() -> IrlRunConfig {
     let c = tiny_config();
-    assert!(c.clock());
     assert!(c.counterfactual() > 0.0);
     assert!(c.log_every_nth_episode > 0);
     c

@@ -800,10 +800,7 @@ fn final_policy_settings_are_checked() {
     let text = standard.to_toml();
     assert!(text.contains("[final]\nsac_steps = 20000\ncheckpoints = 4\n"));
     assert_config_error_names(
-        &text.replace(
-            "checkpoints = 4\n",
-            "checkpoints = 4\nfresh_steps = 280\n",
-        ),
+        &text.replace("checkpoints = 4\n", "checkpoints = 4\nfresh_steps = 280\n"),
         "fresh_steps",
     );
     // A config without a key of the phase is refused (never read as "no final phase").
@@ -1156,16 +1153,19 @@ fn quick_positive_control_run_completes() {
     assert!(out.join("progress.svg").is_file());
 }
 
-/// The clock: SMIRL's agent sees the share of the episode still to come (every algorithm's
-/// but smirl-paper's, not a key); a run with it trains with counterfactual states on the wider
-/// observation (the relabeller refuses a width it was not built for), replays its log and
-/// repeats itself per seed; `reacher retrain` on its reward trains in the same product.
+/// SMIRL's agent acts on observation ⊕ one-hot learned state, no clock: a run trains with
+/// counterfactual states on that observation (the relabeller refuses a width it was not built
+/// for), replays its log and repeats itself per seed; `reacher retrain` on its reward trains in
+/// the same product.
 #[test]
-fn clock_widens_smirls_observation_through_the_pipeline() {
+fn smirls_product_runs_through_the_pipeline() {
     use smirl::pipeline::commands::irl::{retrain, RetrainRequest};
     let config = tiny_config();
-    assert!(config.clock() && config.counterfactual() > 0.0);
-    assert!(!config.for_algo(Algo::SmirlPaper).unwrap().clock());
+    assert!(config.counterfactual() > 0.0);
+    assert_eq!(
+        config.for_algo(Algo::SmirlPaper).unwrap().counterfactual(),
+        0.0
+    );
     let (_with_tmp, with, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config.clone());
     let (_again_tmp, again, _) = tiny_smirl_run(ReacherTask::shipped("or").unwrap(), config);
     let read = |dir: &PathBuf, file: &str| std::fs::read_to_string(dir.join(file)).unwrap();
@@ -1303,10 +1303,7 @@ fn the_cli_refuses_a_missing_key_and_a_removed_switch() {
         (
             "old.toml",
             format!("smirl_clock = false\n{quick}"),
-            [
-                "smirl_clock",
-                "every algorithm but smirl-paper has the clock",
-            ],
+            ["smirl_clock", "no learner's observation has a clock"],
         ),
     ] {
         let cfg = tmp.path().join(name);

@@ -126,7 +126,7 @@ fn the_product_rows_follow_the_learned_machine_on_a_recorded_label_sequence() {
     );
 }
 
-/// SAC's reward rows on the product (observation ⊕ one-hot u ⊕ clock): the state before the
+/// SAC's reward rows on the product (observation ⊕ one-hot u): the state before the
 /// step, read from the previous observation's one-hot block, with the next fingertip.
 ///
 /// Mutation tried: reading the next observation's block (`next` for `prev` in
@@ -135,14 +135,13 @@ fn the_product_rows_follow_the_learned_machine_on_a_recorded_label_sequence() {
 fn sac_reads_the_state_before_the_step_with_the_next_fingertip() {
     let d = ReacherTask::shipped("blue").unwrap().layout().obs_dim();
     let m = machine();
-    let width = d + 3 + 1;
+    let width = d + 3;
     let mut batch = ReplayBatch::new(width, 2, 2);
     let mut set = |col: usize, prev_u: usize, next_u: usize, tip: [f32; 2]| {
         let mut prev = obs_at(d, 9.0, 9.0);
         let mut next = obs_at(d, tip[0], tip[1]);
         for (o, u) in [(&mut prev, prev_u), (&mut next, next_u)] {
             o.extend((0..3).map(|k| if k == u { 1.0 } else { 0.0 }));
-            o.push(0.25);
         }
         batch.obs.column_mut(col).copy_from_slice(&prev);
         batch.next_obs.column_mut(col).copy_from_slice(&next);

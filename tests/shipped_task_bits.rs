@@ -4,7 +4,7 @@
 //! from task files, give the bytes they gave before; every later change to the code that
 //! claims to leave the computation alone is checked against the same list, the other four
 //! tasks by `experiments/env/quick_hashes.sh`). Every algorithm runs — SMIRL and the paper's
-//! algorithm (LRM, MaxEnt on the product, SAC with the clock, the final phase), the baselines
+//! algorithm (LRM, MaxEnt on the product, SAC, the final phase), the baselines
 //! (f-IRL's KDE, its MLP reward) — so a change to any of their arithmetic fails here.
 //!
 //! The bits are those of an x86-64 CPU with FMA (the products' rounding: `nn::gemm_unpacked`),

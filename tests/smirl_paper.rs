@@ -7,7 +7,7 @@ use irl_run_common::tiny_config;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::pipeline::reacher_irl::run::{open_run, JobRecord};
 use smirl::pipeline::reacher_irl::smirl::lrm_config;
-use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig, Mechanisms};
+use smirl::pipeline::reacher_irl::{Algo, IrlRunConfig};
 use smirl::rm::format::parse_rm;
 use smirl::rm::lrm::{Guards, LrmConfig};
 use std::process::Command;
@@ -50,18 +50,17 @@ fn smirl_paper_resolves_every_mechanism_to_the_papers_value() {
         },
         paper_lrm
     );
-    // The policy on U × O: no clock, no counterfactual states.
-    assert!(!paper.clock());
+    // The policy on U × O: no counterfactual states.
     assert_eq!(paper.counterfactual(), 0.0);
     // No final phase, no choice among candidates.
     assert_eq!(paper.final_sac_steps, 0);
     assert_eq!(paper.final_checkpoints, 0);
     // The standard's smirl differs in each of these (else the test above proves nothing).
-    assert!(smirl.clock() && smirl.counterfactual() > 0.0);
+    assert!(smirl.counterfactual() > 0.0);
     assert!(smirl.final_sac_steps > 0);
     // What is not a mechanism is smirl's.
     let same = IrlRunConfig {
-        mechanisms: Mechanisms::SMIRL,
+        counterfactual_states: true,
         final_sac_steps: smirl.final_sac_steps,
         final_checkpoints: smirl.final_checkpoints,
         ..paper.clone()

@@ -1,7 +1,6 @@
 //! The environment SMIRL's agent learns in, for Python: ReacherDelivery × a run's *learned*
 //! machine, paying the run's learned reward. The observation is the environment's, then the
-//! learned state's one-hot, then (with the run's clock, every algorithm's but smirl-paper's) the share of the episode still
-//! to come, as in `reacher job`. Episodes never terminate early: they are truncated at the
+//! learned state's one-hot, as in `reacher job`. Episodes never terminate early: they are truncated at the
 //! episode length, whatever the task's machine says, so nothing of the task reaches the agent.
 //! The task's perfect machine is stepped beside it only to fill `info` (`success`, `failure`,
 //! `task_rm_state`, and `branch` for a conditional task) for judging the policy.
@@ -97,10 +96,7 @@ impl LearnedProductCore {
                 reward.obs_dim()
             )));
         }
-        let mut env = ProductEnv::new(inner, learned);
-        if config.clock() {
-            env = env.with_clock(config.env.max_steps);
-        }
+        let env = ProductEnv::new(inner, learned);
         let obs = vec![0.0; env.obs_dim()];
         Ok(LearnedProductCore {
             task: prepared.prepared.task.name().to_string(),

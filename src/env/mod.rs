@@ -63,7 +63,6 @@ pub fn check_action(action: &[f32], expected: usize) -> Result<(), EnvError> {
     }
 }
 
-pub mod clock;
 pub mod episode;
 pub mod layout;
 pub mod physics_scene;

@@ -2,17 +2,12 @@
 //! observation ⊕ one-hot machine state, reward from the machine, episode ends when the
 //! machine reaches a terminal (goal) state or a failure sink.
 //!
-//! Optional clock ([`ProductEnv::with_clock`], [`super::clock`] says why): one more
-//! observation entry after the one-hot block, the share of the episode's steps still to come
-//! (1 at reset, 0 on the last step).
-//!
 //! Optional potential-based shaping (Ng, Harada & Russell 1999) adds
 //! `F = γ·Φ(o', u') − Φ(o, u)` to the machine's reward, with `Φ = 0` once the machine is in a
 //! terminal or failure state. Shaping of this form leaves the optimal policies of the product
 //! MDP unchanged, so experts trained with it are experts of the task; it only gives SAC a
 //! gradient toward the current sub-goal where the task reward is a single sparse 1.
 
-use super::clock::Clock;
 use super::{ContinuousEnv, EnvError, EnvStep};
 use crate::rm::product::{one_hot, RmTracker};
 use crate::rm::RewardMachine;
@@ -50,9 +45,6 @@ pub struct ProductEnv<E, P = NoShaping> {
     inner_obs: Vec<f32>,
     last_potential: f64,
     last: Option<ProductStep>,
-    clock: Clock,
-    /// Steps since the last reset.
-    steps: usize,
 }
 
 /// No shaping: the machine's reward only.
@@ -85,33 +77,14 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
             inner_obs,
             last_potential: 0.0,
             last: None,
-            clock: Clock::None,
-            steps: 0,
         }
-    }
-
-    /// The product with a clock: one more observation entry, `(horizon − t) / horizon` after
-    /// step t (1 at reset, 0 from step `horizon` on). `horizon` should be the inner
-    /// environment's episode length.
-    ///
-    /// # Panics
-    /// If `horizon` is 0 (a programming error: an episode has at least one step).
-    pub fn with_clock(mut self, horizon: usize) -> Self {
-        assert!(horizon > 0, "a clock needs an episode of at least one step");
-        self.clock = Clock::CountDown(horizon);
-        self
-    }
-
-    /// Observation entries after the one-hot block (1 with a clock, else 0).
-    pub fn trailing_dim(&self) -> usize {
-        self.clock.dim()
     }
 
     pub fn inner(&self) -> &E {
         &self.inner
     }
 
-    /// The same product (machine, shaping, clock) around `inner`, another environment like
+    /// The same product (machine, shaping) around `inner`, another environment like
     /// this one's inner, as new: for playing episodes side by side.
     pub fn around(&self, inner: E) -> Self
     where
@@ -128,8 +101,6 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
             gamma: self.gamma,
             last_potential: 0.0,
             last: None,
-            clock: self.clock,
-            steps: 0,
         }
     }
 
@@ -168,9 +139,6 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
         let k = self.tracker.n_states();
         obs[..n].copy_from_slice(&self.inner_obs);
         one_hot(self.tracker.state(), &mut obs[n..n + k]);
-        if let Some(v) = self.clock.value(self.steps) {
-            obs[n + k] = v;
-        }
     }
 
     /// A step with the full product report.
@@ -180,7 +148,6 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
         obs: &mut [f32],
     ) -> Result<ProductStep, EnvError> {
         let inner = self.inner.step(action, &mut self.inner_obs)?;
-        self.steps += 1;
         let rm = self.tracker.step(inner.labels);
         let potential = self.shaped_potential(rm.state);
         let shaping = self.gamma * potential - self.last_potential;
@@ -207,7 +174,7 @@ impl<E: ContinuousEnv, P: Potential> ProductEnv<E, P> {
 
 impl<E: ContinuousEnv, P: Potential> ContinuousEnv for ProductEnv<E, P> {
     fn obs_dim(&self) -> usize {
-        self.inner.obs_dim() + self.tracker.n_states() + self.trailing_dim()
+        self.inner.obs_dim() + self.tracker.n_states()
     }
 
     fn act_dim(&self) -> usize {
@@ -217,7 +184,6 @@ impl<E: ContinuousEnv, P: Potential> ContinuousEnv for ProductEnv<E, P> {
     fn reset(&mut self, seed: u64, obs: &mut [f32]) {
         self.inner.reset(seed, &mut self.inner_obs);
         self.tracker.reset();
-        self.steps = 0;
         self.last_potential = self.shaped_potential(self.tracker.state());
         self.last = None;
         self.write_obs(obs);

@@ -9,7 +9,6 @@
 //! environment's own reward, and the machine tracked is the task's (the one named in the
 //! log's `/run` record), as for every other phase of a run.
 
-use crate::env::clock::Clocked;
 use crate::env::product::{Potential, ProductEnv};
 use crate::env::reacher::ReacherDelivery;
 use crate::env::{ContinuousEnv, EnvStep};
@@ -30,15 +29,6 @@ pub trait ReacherView {
 impl ReacherView for ReacherDelivery {
     fn reacher(&self) -> &ReacherDelivery {
         self
-    }
-    fn inner_step(&self, seen: &EnvStep) -> EnvStep {
-        *seen
-    }
-}
-
-impl ReacherView for Clocked<ReacherDelivery> {
-    fn reacher(&self) -> &ReacherDelivery {
-        self.inner()
     }
     fn inner_step(&self, seen: &EnvStep) -> EnvStep {
         *seen

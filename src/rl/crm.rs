@@ -38,8 +38,6 @@ pub enum CrmError {
 pub struct CounterfactualRm {
     rm: RewardMachine,
     inner_dim: usize,
-    /// Observation entries after the one-hot block (the product's clock), kept as logged.
-    trailing_dim: usize,
     fraction: f64,
     /// States a transition can start from (an episode ends on entering an absorbing state).
     starts: Vec<usize>,
@@ -65,17 +63,9 @@ impl CounterfactualRm {
         Ok(CounterfactualRm {
             rm,
             inner_dim,
-            trailing_dim: 0,
             fraction,
             starts,
         })
-    }
-
-    /// For observations with `trailing_dim` entries after the one-hot block (a product with a
-    /// clock, `ProductEnv::trailing_dim`): those entries are the step's own and stay as logged.
-    pub fn with_trailing_dim(mut self, trailing_dim: usize) -> Self {
-        self.trailing_dim = trailing_dim;
-        self
     }
 
     pub fn fraction(&self) -> f64 {
@@ -102,8 +92,8 @@ impl CounterfactualRm {
         let d = batch.obs.nrows();
         assert_eq!(
             d,
-            self.inner_dim + n + self.trailing_dim,
-            "product observation width (inner + one-hot machine state + trailing entries)"
+            self.inner_dim + n,
+            "product observation width (inner + one-hot machine state)"
         );
         let block = self.inner_dim..self.inner_dim + n;
         for i in 0..batch.len() {
@@ -237,41 +227,6 @@ mod tests {
         assert_eq!(b.obs, before.obs);
         assert_eq!(b.env_rewards, before.env_rewards);
         assert_eq!(rng, ChaCha8Rng::seed_from_u64(3), "no draw when off");
-    }
-
-    #[test]
-    fn trailing_entries_stay_as_logged() {
-        // The product's clock after the one-hot block: relabelling moves the machine state
-        // only, and a clock above 0.5 is never read as the hot state.
-        let rm = machine();
-        let crm = CounterfactualRm::new(rm.clone(), INNER, 1.0)
-            .unwrap()
-            .with_trailing_dim(1);
-        let labels = [LabelSet::EMPTY, LabelSet::EMPTY.with(2)].repeat(50);
-        let narrow = batch(&labels);
-        let mut b = ReplayBatch::new(INNER + 5, 2, labels.len());
-        for (i, &label) in labels.iter().enumerate() {
-            let (o, n) = (narrow.obs.column(i), narrow.next_obs.column(i));
-            b.obs.column_mut(i).as_mut_slice()[..INNER + 4].copy_from_slice(o.as_slice());
-            b.next_obs.column_mut(i).as_mut_slice()[..INNER + 4].copy_from_slice(n.as_slice());
-            b.obs[(INNER + 4, i)] = 0.99;
-            b.next_obs[(INNER + 4, i)] = 0.98;
-            b.labels[i] = label;
-        }
-        crm.relabel(&mut b, &mut ChaCha8Rng::seed_from_u64(5));
-        let mut moved = 0;
-        for (i, &label) in labels.iter().enumerate() {
-            let (o, n) = (b.obs.column(i), b.next_obs.column(i));
-            assert_eq!((o[INNER + 4], n[INNER + 4]), (0.99, 0.98), "transition {i}");
-            let u = hot_index(&o.as_slice()[INNER..INNER + 4]);
-            assert_eq!(o.as_slice()[INNER..INNER + 4].iter().sum::<f32>(), 1.0);
-            assert_eq!(
-                hot_index(&n.as_slice()[INNER..INNER + 4]),
-                rm.step(u, label).0
-            );
-            moved += usize::from(u != 0);
-        }
-        assert!(moved > 20, "{moved} of 100 moved to state 1");
     }
 
     #[test]

@@ -142,37 +142,10 @@ pub struct IrlRunConfig {
     /// with a table runs with those fields in place of the ones above; the others (and
     /// every field the table leaves out) use the run's. Empty: one schedule for all.
     pub schedule: BTreeMap<String, AlgoSchedule>,
-    /// The mechanisms outside LRM that are not keys (docs/method.md): `smirl`'s
-    /// ([`Mechanisms::SMIRL`]) unless [`IrlRunConfig::for_algo`] sets `smirl-paper`'s
-    /// ([`Mechanisms::PAPER`]). See [`IrlRunConfig::clock`] and its neighbours.
-    pub mechanisms: Mechanisms,
-}
-
-/// The mechanisms of `smirl` outside LRM that no key sets: the paper's algorithm has none of
-/// them. An algorithm fixes them ([`IrlRunConfig::for_algo`]); the development-range ablation
-/// (`src/bin/smirl_ablation.rs`) turns them off, one at a time and together, to measure what
-/// they add.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Mechanisms {
-    /// The agent's clock ([`IrlRunConfig::clock`]).
-    pub clock: bool,
-    /// Counterfactual learned-machine states in SMIRL's SAC batches
-    /// ([`IrlRunConfig::counterfactual`]).
+    /// Whether SMIRL's SAC batches move every sampled transition to a counterfactual
+    /// learned-machine state (CRM, [`IrlRunConfig::counterfactual`]): not a key — true for
+    /// `smirl` and `smirl-smooth`, false for `smirl-paper` ([`IrlRunConfig::for_algo`]).
     pub counterfactual_states: bool,
-}
-
-impl Mechanisms {
-    /// `smirl`'s (and every other algorithm's but `smirl-paper`: of these, a baseline reads
-    /// only the clock).
-    pub const SMIRL: Mechanisms = Mechanisms {
-        clock: true,
-        counterfactual_states: true,
-    };
-    /// `smirl-paper`'s: none.
-    pub const PAPER: Mechanisms = Mechanisms {
-        clock: false,
-        counterfactual_states: false,
-    };
 }
 
 /// The file layout of [`IrlRunConfig`]: every key required, unknown keys refused.
@@ -339,7 +312,7 @@ impl From<RunFile> for IrlRunConfig {
             },
             sac: run_sac(&f.sac),
             schedule: f.schedule,
-            mechanisms: Mechanisms::SMIRL,
+            counterfactual_states: true,
         }
     }
 }
@@ -692,11 +665,12 @@ pub const REMOVED_KEYS: [(&str, &str); 52] = [
     ),
     (
         "smirl_clock",
-        "the algorithm: every algorithm but smirl-paper has the clock (the old true)",
+        "nothing: no learner's observation has a clock (it did not show it pays: \
+         experiments/reacher/mechanisms/ablation.md)",
     ),
     (
         "smirl_clock_frozen",
-        "nothing: the frozen clock (the clock's control) is gone (the old false)",
+        "nothing: the clock and its control, the frozen clock, are gone",
     ),
     (
         "reward_lr_decay",
@@ -872,7 +846,7 @@ impl IrlRunConfig {
                 .into_iter()
                 .map(|a| (a.name().to_string(), firl_schedule(a)))
                 .collect(),
-            mechanisms: Mechanisms::SMIRL,
+            counterfactual_states: true,
         }
     }
 
@@ -979,31 +953,21 @@ impl IrlRunConfig {
 
     /// `smirl-paper`'s settings: every mechanism by which `smirl` departs from the paper
     /// (docs/method.md) at the paper's value — LRM's are not settings but the learner's
-    /// (`smirl::lrm_config` of `Algo::SmirlPaper`) — MaxEnt's μ_D − μ_π averaged over
-    /// trajectories, SAC on U × O without clock or counterfactual states, and no
-    /// final phase, so the job reports its loop's own last policy. The schedule, SAC, the
+    /// (`smirl::lrm_config` of `Algo::SmirlPaper`) — SAC on U × O without counterfactual
+    /// states, and no final phase, so the job reports its loop's own last policy. The schedule, SAC, the
     /// reward optimiser, the demonstrations, the machine's source and LRM's size and search
     /// budget stay the run's, so that the two algorithms differ by the mechanisms alone.
     fn set_paper_mechanisms(&mut self) {
-        self.mechanisms = Mechanisms::PAPER;
+        self.counterfactual_states = false;
         self.final_sac_steps = 0;
         self.final_checkpoints = 0;
-    }
-
-    /// Whether the agent sees a clock, the share of the episode still to come, after its
-    /// observation (`ProductEnv::with_clock`, `firl::baseline_env`), in the loop, the final
-    /// phase and `reacher retrain`; no reward reads it. Every algorithm but `smirl-paper`.
-    /// Why: the cancel comes only early in an episode, and an agent without a clock cannot
-    /// tell that it no longer will (research log, "A clock for the agent").
-    pub fn clock(&self) -> bool {
-        self.mechanisms.clock
     }
 
     /// Share of each SAC batch of SMIRL relabelled to a counterfactual learned-machine state
     /// (CRM, `rl::crm`): 1 (every sampled transition, from a uniformly drawn state) for smirl
     /// and smirl-smooth, 0 for smirl-paper.
     pub fn counterfactual(&self) -> f64 {
-        if self.mechanisms.counterfactual_states {
+        if self.counterfactual_states {
             1.0
         } else {
             0.0

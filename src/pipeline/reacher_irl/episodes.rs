@@ -4,7 +4,6 @@
 //! ([`AgentBatch`]). The algorithms (`super::smirl`, `super::firl`) differ in the reward they
 //! hand to SAC and in what they do with the rollouts, not in any of this.
 
-use crate::env::clock::Clocked;
 use crate::env::layout::TaskLayout;
 use crate::env::product::ProductEnv;
 use crate::env::reacher::ReacherDelivery;
@@ -27,9 +26,8 @@ pub enum EpisodeError {
     Log(#[from] LogError),
 }
 
-/// The environment an IRL job's SAC acts in: ReacherDelivery itself, with the clock of the
-/// run's settings (the baselines: observation ⊕ clock), or its product with the learned
-/// machine (SMIRL: observation ⊕ one-hot learned state ⊕ clock).
+/// The environment an IRL job's SAC acts in: ReacherDelivery itself (the baselines), or its
+/// product with the learned machine (SMIRL: observation ⊕ one-hot learned state).
 pub trait JobEnv: ContinuousEnv + ReacherView + Send {
     /// The learned machine's current state (SMIRL's product), `None` for the plain
     /// environment.
@@ -65,28 +63,6 @@ impl JobEnv for ReacherDelivery {
     fn ends_only_at_time_limit(&self) -> bool {
         // ReacherDelivery's step never sets `terminated`.
         true
-    }
-
-    fn step_with_env_reward(
-        &mut self,
-        action: &[f32],
-        obs: &mut [f32],
-    ) -> Result<(EnvStep, f64), EnvError> {
-        self.step(action, obs).map(|s| (s, s.reward))
-    }
-}
-
-impl JobEnv for Clocked<ReacherDelivery> {
-    fn learned_state(&self) -> Option<usize> {
-        None
-    }
-
-    fn fresh(&self) -> Option<Self> {
-        self.inner().fresh().map(|e| Clocked::new(e, self.clock()))
-    }
-
-    fn ends_only_at_time_limit(&self) -> bool {
-        self.inner().ends_only_at_time_limit()
     }
 
     fn step_with_env_reward(

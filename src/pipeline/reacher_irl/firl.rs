@@ -20,7 +20,7 @@
 //!
 //! The controls `maxent-product` and `fkl-product` run this loop with one change, the state
 //! map ([`StateMap::Product`]): the agent acts on the product with SMIRL's learned machine
-//! (observation ⊕ one-hot u ⊕ clock, SMIRL's own environment), and the reward and the
+//! (observation ⊕ one-hot u, SMIRL's own environment), and the reward and the
 //! densities read (one-hot u, fingertip) in place of the fingertip, u the machine's state
 //! before the step as SMIRL's δ_r(u_t, o_{t+1}) reads it.
 //!
@@ -33,7 +33,6 @@ use super::expert_data::ExpertData;
 use super::final_policy::{FinalPhase, FinalPolicy};
 use super::irl_loop;
 use super::iteration::{Coefficients, StepError};
-use crate::env::clock::{Clock, Clocked};
 use crate::env::layout::OBS_ARM;
 use crate::env::reacher::{ReacherDelivery, OBS_TIP};
 use crate::irl::firl::{self, Divergence, FirlSurrogate, MaxEntCoefficients, DEFAULT_DENSITY_EPS};
@@ -54,7 +53,7 @@ use std::path::Path;
 #[derive(Clone, Copy, Debug)]
 pub enum StateMap<'a> {
     /// The baselines: the fingertip of the task observation, the agent on the task's
-    /// observation ⊕ clock.
+    /// observation.
     Fingertip,
     /// The product controls: (one-hot u, fingertip x, y), u this machine's state before the
     /// step (the state the step's labels are read in); the agent on the product with it.
@@ -417,14 +416,6 @@ impl super::final_policy::ScoredReward for StateReward<'_> {
     }
 }
 
-/// The environment a baseline's agent learns in: ReacherDelivery with the clock of the run's
-/// settings after its observation ([`IrlRunConfig::clock`], as SMIRL's product has it); the
-/// reward reads the fingertip alone, never the clock.
-pub fn baseline_env(inner: ReacherDelivery, s: &IrlRunConfig) -> Clocked<ReacherDelivery> {
-    let clock = Clock::of(s.clock(), s.env.max_steps);
-    Clocked::new(inner, clock)
-}
-
 /// What a baseline job returns: the learned reward and the final phase's candidates, if any.
 pub struct BaselineOutcome {
     pub reward: MlpReward,
@@ -443,21 +434,19 @@ pub struct BaselineJob<'a> {
     pub map: StateMap<'a>,
 }
 
-/// f-IRL's loop (see the module docs) in the environment of `job.map`: the task's with its
-/// clock, or (a product control) SMIRL's product with the machine.
+/// f-IRL's loop (see the module docs) in the environment of `job.map`: the task's, or (a
+/// product control) SMIRL's product with the machine.
 pub fn train(
     job: &BaselineJob<'_>,
     watch: &mut JobWatch<'_, '_>,
 ) -> Result<BaselineOutcome, StepError> {
     let s = job.settings;
-    let inner = ReacherDelivery::new(s.env.clone())?;
+    let mut inner = ReacherDelivery::new(s.env.clone())?;
     match job.map {
-        StateMap::Fingertip => train_in(job, &mut baseline_env(inner, s), watch),
-        StateMap::Product(machine) => train_in(
-            job,
-            &mut super::smirl::product_env(inner, machine, s),
-            watch,
-        ),
+        StateMap::Fingertip => train_in(job, &mut inner, watch),
+        StateMap::Product(machine) => {
+            train_in(job, &mut super::smirl::product_env(inner, machine), watch)
+        }
     }
 }
 

@@ -45,7 +45,7 @@ pub mod retrain;
 pub mod run;
 pub mod smirl;
 
-pub use config::{DemoSource, IrlConfigError, IrlRunConfig, Mechanisms, SmirlMachine};
+pub use config::{DemoSource, IrlConfigError, IrlRunConfig, SmirlMachine};
 pub use episodes::AgentBatch;
 pub use expert_data::ExpertData;
 pub use iteration::{Coefficients, MetricsRow};

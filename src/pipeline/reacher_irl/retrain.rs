@@ -15,13 +15,11 @@ use super::final_policy::{learned_return, ScoredReward};
 use super::firl::{self, StateReward};
 use super::iteration::StepError;
 use super::run::{MissingMachine, PreparedRun};
-use super::smirl::{
-    counterfactual_states, product_env, Features, ProductReward,
-};
+use super::smirl::{counterfactual_states, product_env, Features, ProductReward};
 use super::Algo;
 use crate::env::reacher::ReacherDelivery;
-use crate::irl::reward::{MlpReward, RewardError};
 use crate::irl::reward::RewardOptimConfig;
+use crate::irl::reward::{MlpReward, RewardError};
 use crate::irl::smirl::LinearRmReward;
 use crate::rl::sac::{
     ConfigError as SacConfigError, SacConfig, SacTrainer, StepOutcome, UpdateStats,
@@ -378,13 +376,13 @@ pub fn retrain(
                 .map_err(RetrainError::Input)?
                 .0
                 .ok_or(RetrainError::NoMachine)?;
-            let mut env = product_env(inner, machine, &s);
+            let mut env = product_env(inner, machine);
             let counterfactual = counterfactual_states(&env, &s).map_err(StepError::from)?;
             let mut sac_reward = ProductReward::new(&mut reward, counterfactual.as_ref());
             training.run(&mut env, &mut sac_reward, &mut on_point)
         }
         Reward::Mlp(mut reward) => {
-            let mut env = firl::baseline_env(inner, &s);
+            let mut env = inner;
             let mut sac_reward = StateReward::new(&mut reward);
             training.run(&mut env, &mut sac_reward, &mut on_point)
         }

@@ -29,8 +29,7 @@ use super::lockstep::{Lockstep, LOCKSTEP_BATCH};
 use super::records::{io, write_file};
 use super::reports::{reward_trace_csv, write_reports};
 use super::smirl::{
-    annotate, label_traces, learn_machine, lrm_config, one_state_machine,
-    task_machine,
+    annotate, label_traces, learn_machine, lrm_config, one_state_machine, task_machine,
 };
 use super::Algo;
 use crate::atomic_file::write_atomic;

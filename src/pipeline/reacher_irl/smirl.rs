@@ -34,9 +34,7 @@ use crate::env::product::ProductEnv;
 use crate::env::reacher::{ConfigError, ReacherDelivery};
 use crate::env::ContinuousEnv;
 use crate::irl::reward::{RewardError, RewardModel, RewardOptimConfig};
-use crate::irl::smirl::{
-    maxent_coefficients, AnnotatedTrajectories, FeatureMap, LinearRmReward,
-};
+use crate::irl::smirl::{maxent_coefficients, AnnotatedTrajectories, FeatureMap, LinearRmReward};
 use crate::irl::Algo;
 use crate::pipeline::reacher_expert::Demo;
 use crate::rl::crm::{hot_index, CounterfactualRm, CrmError};
@@ -288,7 +286,7 @@ pub struct ProductReward<'a> {
 
 impl<'a> ProductReward<'a> {
     /// The reward of `model` on SAC batches of the product (observation ⊕ one-hot learned
-    /// state ⊕ clock, if any), relabelled by `counterfactual` when given.
+    /// state), relabelled by `counterfactual` when given.
     pub fn new(
         model: &'a mut LinearRmReward,
         counterfactual: Option<&'a CounterfactualRm>,
@@ -312,7 +310,7 @@ impl RewardFn for ProductReward<'_> {
     fn fill_rewards(&mut self, batch: &ReplayBatch, out: &mut [f32]) -> Result<(), RewardFnError> {
         let d = batch.obs.nrows();
         let width = self.model.features().obs_dim();
-        // The one-hot block; a clock ([`IrlRunConfig::clock`]) comes after it.
+        // The one-hot block, the observation's last entries.
         let block = width..width + self.model.n_states();
         self.next_obs.clear();
         self.states.clear();
@@ -334,32 +332,22 @@ impl super::final_policy::ScoredReward for ProductReward<'_> {
     }
 }
 
-/// The environment SMIRL's agent learns in: ReacherDelivery × the learned machine, with the
-/// clock of [`IrlRunConfig::clock`].
+/// The environment SMIRL's agent learns in: ReacherDelivery × the learned machine.
 pub(super) fn product_env(
     inner: ReacherDelivery,
     machine: &RewardMachine,
-    s: &IrlRunConfig,
 ) -> ProductEnv<ReacherDelivery> {
-    let env = ProductEnv::new(inner, machine.clone());
-    if s.clock() {
-        env.with_clock(s.env.max_steps)
-    } else {
-        env
-    }
+    ProductEnv::new(inner, machine.clone())
 }
 
 /// SMIRL's counterfactual relabelling of SAC batches ([`IrlRunConfig::counterfactual`] > 0), for the
-/// observations of `env` (its clock, if any, kept as logged).
+/// observations of `env`.
 pub(super) fn counterfactual_states(
     env: &ProductEnv<ReacherDelivery>,
     s: &IrlRunConfig,
 ) -> Result<Option<CounterfactualRm>, CrmError> {
     (s.counterfactual() > 0.0)
-        .then(|| {
-            CounterfactualRm::new(env.rm().clone(), env.inner().obs_dim(), s.counterfactual())
-                .map(|crm| crm.with_trailing_dim(env.trailing_dim()))
-        })
+        .then(|| CounterfactualRm::new(env.rm().clone(), env.inner().obs_dim(), s.counterfactual()))
         .transpose()
 }
 
@@ -389,7 +377,7 @@ pub fn train(job: &SmirlJob<'_>, watch: &mut JobWatch<'_, '_>) -> Result<SmirlOu
     let s = job.settings;
     let n_states = job.machine.n_states();
     let inner = ReacherDelivery::new(s.env.clone())?;
-    let mut env = product_env(inner, job.machine, s);
+    let mut env = product_env(inner, job.machine);
     let features = job.features.map(s)?;
     let optim = RewardOptimConfig {
         adam: true,
