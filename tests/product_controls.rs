@@ -203,7 +203,7 @@ fn run(dir: &Path, algos: &[Algo]) {
 /// the same seed writes the same bytes.
 ///
 /// Mutation tried: the product agent's environment without the one-hot block
-/// (`baseline_env` for the product in `firl::train`): the run fails (SAC's batch has no block
+/// (the task's own environment for the product in `firl::train`): the run fails (SAC's batch has no block
 /// to read the state from).
 #[test]
 fn each_control_runs_end_to_end_and_reproducibly() {

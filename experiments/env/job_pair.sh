@@ -43,7 +43,7 @@ job_config() {
     else
         "$1" --task composite --print-config \
             | sed -e "s/^irl_iterations = 800$/irl_iterations = $ITERS/" \
-                -e 's/^sac_steps = 20000$/sac_steps = 0/' -e 's/^reset_steps = 20000$/reset_steps = 0/' \
+                -e 's/^sac_steps = 20000$/sac_steps = 0/' \
                 -e 's/^checkpoints = 4$/checkpoints = 0/' > "$2"
     fi
 }

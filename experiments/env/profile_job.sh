@@ -24,7 +24,7 @@ mkdir -p "$WORK"
 touch "$WORK/.made_by_profile_job.sh"
 "$BIN" --task composite --print-config \
     | sed -e "s/^irl_iterations = 800$/irl_iterations = $ITERS/" \
-        -e 's/^sac_steps = 20000$/sac_steps = 0/' -e 's/^reset_steps = 20000$/reset_steps = 0/' \
+        -e 's/^sac_steps = 20000$/sac_steps = 0/' \
         -e 's/^checkpoints = 4$/checkpoints = 0/' > "$WORK/job.toml"
 rm -rf "$WORK/run"
 "$BIN" prepare --task composite --config "$WORK/job.toml" --algo "$ALGO" --quiet \

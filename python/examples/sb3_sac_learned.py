@@ -2,7 +2,7 @@
 
 The training environment is ``smirl.make_learned(RUN)``: ReacherDelivery × the run's learned
 machine, paying the run's learned reward (``rewards/smirl_seed<k>.json``), the observation
-with the learned state's one-hot (and the run's clock). Nothing of the task's perfect machine
+with the learned state's one-hot. Nothing of the task's perfect machine
 reaches the agent; it only judges the trained policy: success over evaluation episodes whose
 reset seeds no training episode used, per branch for IF and Composite (``info["branch"]``). SB3's SAC gets no shaping
 and none of SMIRL's other mechanisms, so this measures what the learned machine and reward

@@ -135,8 +135,8 @@ class LearnedProductEnv(gym.Env):
     ``rewards/<algo>_seed<seed>.json`` (δ_r(u, o) = w_uᵀ φ(o), u the learned state before the
     step, o the observation after it; no shaping).
 
-    The observation is the environment's, the learned state's one-hot, then the clock (as
-    smirl's agent sees it) — the share of the episode still to come. Episodes are only
+    The observation is the environment's, then the learned state's one-hot, as smirl's agent
+    sees it. Episodes are only
     truncated (at the task's episode length): the task's perfect machine never ends one, and
     the agent sees nothing of it. ``info`` holds ``labels``, ``rm_state`` (learned) and, for
     judging only, ``success``/``failure`` on the step the task's machine reaches its goal or a

@@ -26,8 +26,8 @@ def test_the_learned_product_is_a_checked_gymnasium_env(run_dir):
     env = smirl.make_learned(str(run_dir))
     check_env(env, skip_render_check=True)
     learned = smirl.RewardMachine.read(str(run_dir / "rm" / "learned.txt"))
-    # smirl's agent sees the clock (every algorithm's but smirl-paper's).
-    assert env.observation_space.shape == (17 + learned.n_states + 1,)
+    # smirl's agent sees the observation and the learned state's one-hot, no clock.
+    assert env.observation_space.shape == (17 + learned.n_states,)
     assert env.reward_machine.n_states == learned.n_states
 
 
