@@ -221,10 +221,9 @@ fn record(m: &RewardMachine, episodes: &[Vec<LabelSet>]) -> Recorded {
 /// learned return, so it takes A (the highest) from every order, and of B and D, equal, the
 /// first; the ground truth (A fails the cancelled branch) does not enter.
 ///
-/// Mutations tried: `choose` taking the lowest learned return (`<` for `>`): fails "the
-/// highest learned return" (3, not 0); `choose` taking the last of equals (`>=`): fails "the
-/// first of equals" (3, not 1); `mean_return` dividing by steps instead of episodes: fails
-/// "A's learned return".
+/// Mutations tried in `choose` (`src/pipeline/reacher_irl/final_policy.rs`): the lowest learned
+/// return (`<` for `>`): fails "the highest learned return" (0 for 3); the last of equals (`>=`
+/// for `>`): fails "the first of equals" (2 for 1).
 #[test]
 fn the_final_choice_takes_the_first_candidate_of_highest_learned_return() {
     let m = machine(IF_MERGED);
@@ -298,11 +297,10 @@ fn the_final_choice_takes_the_first_candidate_of_highest_learned_return() {
 /// per trajectory) give −1, E3's two red touches in state 2 −⅔, A1's two green touches in
 /// state 0 +1, red in state 1 (E1, E2) −⅔.
 ///
-/// Mutations tried: the sign of μ_D − μ_π flipped (`(per(agent, -1.0), per(expert, 1.0))` in
-/// `maxent_coefficients`): fails at the coefficients (−½ for ½); the expert's rows divided by
-/// the agent's trajectories (`per(expert, …)` with N_A): fails at the coefficients (−½ for −⅓);
-/// normalised by the trajectories visiting each state (the removed event-gated visits' rule):
-/// fails at the coefficients.
+/// Mutation tried: the sign of μ_D − μ_π flipped (`(per(agent, -1.0), per(expert, 1.0))` in
+/// `maxent_coefficients`, `src/irl/smirl.rs`): fails at the coefficients (−½ for ½). A
+/// normalisation by the trajectories visiting each state (the removed event-gated visits) would
+/// give state 1's expert rows −½ and state 2's −1, not −⅓.
 #[test]
 fn trajectory_averaged_coefficients_on_a_hand_worked_case() {
     let (e, c, r, g, y) = (
