@@ -67,8 +67,8 @@ fn a_new_task_file_runs_smirl_end_to_end() {
     assert_eq!(task.name(), "avoid_blue");
     assert!(!task.is_shipped());
 
-    let mut config = tiny_config();
-    config.env = task.env_config(&config.env).unwrap();
+    let config = tiny_config();
+    let config = config.over_task(&task).unwrap();
     // The task's layout and schedule; the tiny config's shorter episodes.
     let positions = config.env.ball_layout.as_ref().unwrap();
     assert_eq!(positions[3], [0.0975, 0.1689]);
