@@ -86,11 +86,19 @@ impl ReacherTask {
     /// environment config's `[env]`) gives in its place (an experiment on the environment,
     /// such as another event schedule or shorter episodes, over the task's machine): the
     /// event schedule and the region positions when set (`Some`; a schedule only for a task
-    /// with one event, positions only for as many regions), the episode length when it is
-    /// not the environment's default. The result sets every one of them, so resolving it
-    /// again changes nothing. A run config's `[env] episode_steps` sets the length whatever
-    /// its value (`IrlRunConfig::over_task`).
+    /// with one event, positions only for as many regions), the episode length and the
+    /// layout's randomisation when they differ from the environment's default (an expert
+    /// config's `[env]` cannot say "the task's" otherwise). The result sets the schedule and
+    /// the positions, so resolving it again keeps them. A run config's `[env] episode_steps`
+    /// sets the length whatever its value (`IrlRunConfig::over_task`).
     pub fn env_config(&self, configured: &ReacherConfig) -> Result<ReacherConfig, ConfigError> {
+        fn pick<T: PartialEq + Clone>(own: T, configured: &T, default: &T) -> T {
+            if configured == default {
+                own
+            } else {
+                configured.clone()
+            }
+        }
         let task = &self.0;
         let d = ReacherConfig::default();
         let c = configured;
@@ -100,21 +108,17 @@ impl ReacherTask {
             (_, None) => None,
         };
         let resolved = ReacherConfig {
-            max_steps: if c.max_steps == d.max_steps {
-                task.episode_steps
-            } else {
-                c.max_steps
-            },
+            max_steps: pick(task.episode_steps, &c.max_steps, &d.max_steps),
             ball_layout: Some(
                 c.ball_layout
                     .clone()
                     .unwrap_or_else(|| self.0.layout().positions()),
             ),
-            randomize_balls: if c.randomize_balls == d.randomize_balls {
-                task.randomize_layout
-            } else {
-                c.randomize_balls
-            },
+            randomize_balls: pick(
+                task.randomize_layout,
+                &c.randomize_balls,
+                &d.randomize_balls,
+            ),
             cancel,
             arm_start: c.arm_start,
             layout: Some(self.layout()),
