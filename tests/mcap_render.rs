@@ -11,12 +11,14 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn demos(path: &Path) {
-    let mut env = ReacherConfig::default();
-    env.cancel = Some(CancelConfig {
-        probability: 1.0,
-        earliest_step: 1,
-        latest_step: 8,
-    });
+    let env = ReacherConfig {
+        cancel: Some(CancelConfig {
+            probability: 1.0,
+            earliest_step: 1,
+            latest_step: 8,
+        }),
+        ..ReacherConfig::default()
+    };
     log_scripted_demos(
         path,
         &DemoSpec {

@@ -11,12 +11,14 @@ use smirl::rm::perfect;
 use std::path::Path;
 
 fn sequential_demos(path: &Path, episodes: u64, cancel_probability: f64, observations: bool) {
-    let mut env = ReacherConfig::default();
-    env.cancel = Some(CancelConfig {
-        probability: cancel_probability,
-        earliest_step: 1,
-        latest_step: 8,
-    });
+    let env = ReacherConfig {
+        cancel: Some(CancelConfig {
+            probability: cancel_probability,
+            earliest_step: 1,
+            latest_step: 8,
+        }),
+        ..ReacherConfig::default()
+    };
     log_scripted_demos(
         path,
         &DemoSpec {
