@@ -119,13 +119,15 @@ fn headline_of_a_conditional_task_is_the_lower_branch_rate() {
 #[test]
 fn default_schedule_cancels_half_the_episodes_early() {
     let config = ReacherConfig::default();
+    // No schedule of its own: the task's.
+    assert_eq!(config.cancel, None);
     assert_eq!(
-        config.cancel,
-        CancelConfig {
+        shipped_config(config.clone()).cancel,
+        Some(CancelConfig {
             probability: 0.5,
             earliest_step: 1,
             latest_step: 8
-        }
+        })
     );
     let mut env = ReacherDelivery::new(shipped_config(config.clone())).unwrap();
     let mut obs = vec![0.0f32; obs_dim()];
@@ -149,7 +151,7 @@ fn default_schedule_cancels_half_the_episodes_early() {
         latest_step: 60,
     };
     let mut late = ReacherDelivery::new(shipped_config(ReacherConfig {
-        cancel: late_window,
+        cancel: Some(late_window),
         ..ReacherConfig::default()
     }))
     .unwrap();
@@ -217,10 +219,11 @@ fn stratified_evaluation_seeds_give_each_branch_its_episodes() {
     );
     // A schedule that never cancels still gives 2 · 20 seeds.
     let mut never = ReacherDelivery::new(shipped_config(ReacherConfig {
-        cancel: CancelConfig {
+        cancel: Some(CancelConfig {
             probability: 0.0,
-            ..CancelConfig::default()
-        },
+            earliest_step: 1,
+            latest_step: 8,
+        }),
         ..ReacherConfig::default()
     }))
     .unwrap();
@@ -376,7 +379,7 @@ fn bad_cancel_windows_are_refused_with_status_2() {
     let cfg = tmp.path().join("expert.toml");
     std::fs::write(
         &cfg,
-        "[env]\nmax_steps = 50\n[env.cancel]\nlatest_step = 60\n",
+        "[env]\nmax_steps = 50\n[env.cancel]\nprobability = 0.5\nearliest_step = 1\nlatest_step = 60\n",
     )
     .unwrap();
     let o = reacher()

@@ -18,10 +18,11 @@ fn ik(x: f64, y: f64) -> [f64; 2] {
 
 fn no_cancel() -> ReacherConfig {
     ReacherConfig {
-        cancel: CancelConfig {
+        cancel: Some(CancelConfig {
             probability: 0.0,
-            ..Default::default()
-        },
+            earliest_step: 1,
+            latest_step: 8,
+        }),
         ..Default::default()
     }
 }
@@ -112,11 +113,11 @@ fn sequential_task_runs_through_the_machine() {
 #[test]
 fn if_task_fails_on_blue_after_cancel() {
     let config = ReacherConfig {
-        cancel: CancelConfig {
+        cancel: Some(CancelConfig {
             probability: 1.0,
             earliest_step: 1,
             latest_step: 1,
-        },
+        }),
         ..Default::default()
     };
     let mut env = task_env(ReacherTask::shipped("if").unwrap(), config, 0.0, 0.99).unwrap();

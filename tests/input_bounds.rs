@@ -50,12 +50,6 @@ fn oversized_irl_configs_name_the_key_its_line_and_the_limit() {
             "100000000",
         ),
         (
-            "max_steps",
-            "max_steps = 1000000000000",
-            "env.max_steps",
-            "10000",
-        ),
-        (
             "tabu_len",
             "tabu_len = 1000000000",
             "lrm.tabu_len",
@@ -84,6 +78,16 @@ fn oversized_irl_configs_name_the_key_its_line_and_the_limit() {
         for needle in ["bad.toml", &at, &format!("`{field}`"), limit] {
             assert!(e.contains(needle), "{line}: expected {needle:?} in: {e}");
         }
+    }
+    // The optional episode length (absent from the committed config) is bounded too.
+    let line = "episode_steps = 1000000000000";
+    let text = with_line("[env]", &format!("[env]\n{line}"));
+    let e = IrlRunConfig::from_toml(&text, "bad.toml")
+        .unwrap_err()
+        .to_string();
+    let at = format!("line {}", line_of(&text, line));
+    for needle in ["bad.toml", &at, "`env.episode_steps`", "10000"] {
+        assert!(e.contains(needle), "{line}: expected {needle:?} in: {e}");
     }
     // A key of a table is required like any other.
     let text = with_line("warmup_steps", "");

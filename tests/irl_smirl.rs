@@ -148,11 +148,11 @@ fn label_features_agree_with_the_environment_labelling_function() {
     // Scripted fingertip placements around every ball (inside, near and outside the touch
     // radius) with a cancel event early in the episode.
     let config = ReacherConfig {
-        cancel: CancelConfig {
+        cancel: Some(CancelConfig {
             probability: 1.0,
             earliest_step: 1,
             latest_step: 3,
-        },
+        }),
         ..ReacherConfig::default()
     };
     let mut env = ReacherDelivery::new(shipped_config(config)).unwrap();

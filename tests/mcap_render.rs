@@ -2,7 +2,7 @@
 //! log puts them, touches and cancel found); bad input is an error and leaves no file; a
 //! closed output pipe ends `replay` quietly.
 
-use smirl::env::reacher::ReacherConfig;
+use smirl::env::reacher::{CancelConfig, ReacherConfig};
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::{read_log, LogOptions, RolloutLog};
 use smirl::pipeline::render::{render_episode, write_png, RenderOptions};
@@ -11,8 +11,14 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn demos(path: &Path) {
-    let mut env = ReacherConfig::default();
-    env.cancel.probability = 1.0;
+    let env = ReacherConfig {
+        cancel: Some(CancelConfig {
+            probability: 1.0,
+            earliest_step: 1,
+            latest_step: 8,
+        }),
+        ..ReacherConfig::default()
+    };
     log_scripted_demos(
         path,
         &DemoSpec {

@@ -1,7 +1,7 @@
 //! Replay of a fresh log is bit-exact and detects tampering; `learn-rm` on logged scripted
 //! Sequential demonstrations recovers the task's machine.
 
-use smirl::env::reacher::ReacherConfig;
+use smirl::env::reacher::{CancelConfig, ReacherConfig};
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::{read_log, LogOptions};
 use smirl::pipeline::offline_rm::{compare, learn_from_files};
@@ -11,8 +11,14 @@ use smirl::rm::perfect;
 use std::path::Path;
 
 fn sequential_demos(path: &Path, episodes: u64, cancel_probability: f64, observations: bool) {
-    let mut env = ReacherConfig::default();
-    env.cancel.probability = cancel_probability;
+    let env = ReacherConfig {
+        cancel: Some(CancelConfig {
+            probability: cancel_probability,
+            earliest_step: 1,
+            latest_step: 8,
+        }),
+        ..ReacherConfig::default()
+    };
     log_scripted_demos(
         path,
         &DemoSpec {

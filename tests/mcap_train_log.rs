@@ -2,6 +2,7 @@
 //! sampled every n-th episode; replay re-tracks the task's reward machine and catches a
 //! tampered machine state or reward.
 
+use smirl::env::reacher::CancelConfig;
 use smirl::env::reacher_task::ReacherTask;
 use smirl::log::{read_log, LogOptions, RolloutLogger};
 use smirl::pipeline::reacher_expert::{train_log_header, train_task_expert, ExpertConfig};
@@ -20,7 +21,11 @@ fn tiny_expert_config() -> ExpertConfig {
     c.sac.warmup_steps = 100;
     c.sac.update_after = 100;
     c.env.max_steps = 40;
-    c.env.cancel.probability = 0.5;
+    c.env.cancel = Some(CancelConfig {
+        probability: 0.5,
+        earliest_step: 1,
+        latest_step: 8,
+    });
     c
 }
 

@@ -322,7 +322,7 @@ fn rm_file_errors_name_invisible_characters_and_stay_short() {
     assert!(e.len() < 400, "{} characters: {e}", e.len());
 
     let config = ReacherConfig {
-        ball_layout: vec![[1e300, 0.0]],
+        ball_layout: Some(vec![[1e300, 0.0]]),
         ..Default::default()
     };
     let e = config.validate().unwrap_err().to_string();

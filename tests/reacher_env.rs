@@ -97,10 +97,11 @@ fn fingertip_follows_the_arm_geometry() {
 #[test]
 fn each_ball_label_fires_exactly_within_touch_radius() {
     let mut e = env(ReacherConfig {
-        cancel: CancelConfig {
+        cancel: Some(CancelConfig {
             probability: 0.0,
-            ..Default::default()
-        },
+            earliest_step: 1,
+            latest_step: 8,
+        }),
         ..Default::default()
     });
     let mut obs = vec![0.0; obs_dim()];
@@ -169,7 +170,8 @@ fn cancel_event_is_reproducible_and_fires_once() {
         }
         assert_eq!(fired, scheduled.into_iter().collect::<Vec<_>>());
         if let Some(t) = scheduled {
-            assert!((config.cancel.earliest_step..=config.cancel.latest_step).contains(&t));
+            // The task's own window (steps 1..=8).
+            assert!((1..=8).contains(&t));
             with_cancel += 1;
         }
         e.reset(seed, &mut obs);
@@ -178,10 +180,11 @@ fn cancel_event_is_reproducible_and_fires_once() {
     // Binomial(200, 0.5): 100 ± 5σ.
     assert!((65..=135).contains(&with_cancel), "{with_cancel}");
     let mut never = env(ReacherConfig {
-        cancel: CancelConfig {
+        cancel: Some(CancelConfig {
             probability: 0.0,
-            ..Default::default()
-        },
+            earliest_step: 1,
+            latest_step: 8,
+        }),
         ..Default::default()
     });
     for seed in 0..50 {
@@ -396,10 +399,11 @@ fn unknown_names_and_wrong_models_are_errors() {
 #[test]
 fn invalid_configs_are_rejected() {
     let bad = ReacherConfig {
-        cancel: CancelConfig {
+        cancel: Some(CancelConfig {
             probability: 1.5,
-            ..Default::default()
-        },
+            earliest_step: 1,
+            latest_step: 8,
+        }),
         ..Default::default()
     };
     assert!(composite()
@@ -440,10 +444,11 @@ fn a_sweeping_arm_touches_at_most_one_ball_of_the_default_layout() {
     // A policy that spins the shoulder at a fixed elbow angle must not complete a task by
     // accident: at every elbow angle, a full turn of the shoulder touches at most one ball.
     let mut e = env(ReacherConfig {
-        cancel: CancelConfig {
+        cancel: Some(CancelConfig {
             probability: 0.0,
-            ..Default::default()
-        },
+            earliest_step: 1,
+            latest_step: 8,
+        }),
         ..Default::default()
     });
     let mut obs = vec![0.0; obs_dim()];

@@ -26,10 +26,8 @@
 //! **What it cannot see**: a count written another way (`3 + 1`, a loop bound, a length
 //! that only matches four by accident of the data), a colour or letter built at run time
 //! (`format!("r{}", …)`, `char::from(b'c')` with a byte literal outside the letters), a
-//! shipped task's schedule or radius written as numbers (such as `CancelConfig::default()` in
-//! `src/env/reacher.rs`: probability 0.5 over steps 1–8, the shipped tasks' schedule, which
-//! stands for "not set" in a run config's `[env.cancel]`; making it an `Option` waits, as the
-//! locked `experiments/reacher/config.toml` relies on it), anything behind another `cfg`
+//! shipped task's schedule or radius written as numbers (a test's `CancelConfig` of
+//! probability 0.5 over steps 1–8, the shipped tasks' schedule), anything behind another `cfg`
 //! than `cfg(test)`, and code that merely treats "the first event" or "the last label bit"
 //! specially without naming it. Lower-case `cancel` identifiers are not flagged: the run
 //! config's `[env.cancel]` and the reward files' `cancel` column are file formats (a task's

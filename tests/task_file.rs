@@ -82,10 +82,15 @@ fn shipped_tasks_describe_todays_environment() {
             .unwrap()
             .env_config(&ReacherConfig::default())
             .unwrap();
-        assert_eq!(env.ball_layout, PAPER_LAYOUT.to_vec(), "{name}");
+        assert_eq!(env.ball_layout, Some(PAPER_LAYOUT.to_vec()), "{name}");
+        let shipped_schedule = CancelConfig {
+            probability: 0.5,
+            earliest_step: 1,
+            latest_step: 8,
+        };
         assert_eq!(
             (env.max_steps, env.randomize_balls, &env.cancel),
-            (100, false, &CancelConfig::default()),
+            (100, false, &Some(shipped_schedule)),
             "{name}"
         );
         assert_eq!(task.layout().obs_dim(), 17);

@@ -67,13 +67,15 @@ fn a_new_task_file_runs_smirl_end_to_end() {
     assert_eq!(task.name(), "avoid_blue");
     assert!(!task.is_shipped());
 
-    let mut config = tiny_config();
-    config.env = task.env_config(&config.env).unwrap();
+    let config = tiny_config();
+    let config = config.over_task(&task).unwrap();
     // The task's layout and schedule; the tiny config's shorter episodes.
-    assert_eq!(config.env.ball_layout[3], [0.0975, 0.1689]);
-    assert_eq!(config.env.ball_layout[0], [0.141, -0.0513]);
-    assert_eq!(config.env.cancel.probability, 0.3);
-    assert_eq!(config.env.cancel.latest_step, 20);
+    let positions = config.env.ball_layout.as_ref().unwrap();
+    assert_eq!(positions[3], [0.0975, 0.1689]);
+    assert_eq!(positions[0], [0.141, -0.0513]);
+    let schedule = config.env.cancel.as_ref().unwrap();
+    assert_eq!(schedule.probability, 0.3);
+    assert_eq!(schedule.latest_step, 20);
     assert_eq!(config.env.max_steps, 70);
     assert_ne!(config.env, ReacherConfig::default());
 

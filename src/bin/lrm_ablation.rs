@@ -90,8 +90,7 @@ fn main() -> Result<()> {
         let task = ReacherTask::shipped(name)?;
         let perfect = task.perfect_rm()?;
         let layout = task.layout();
-        let mut config = IrlRunConfig::standard();
-        config.env = task.env_config(&config.env)?;
+        let mut config = IrlRunConfig::standard().over_task(&task)?;
         config.threads = 1;
         let mut expert = load_expert(task.clone(), None)?;
         for &base in &bases {

@@ -51,9 +51,10 @@ pub const ACT_DIM: usize = 2;
 /// MuJoCo steps per environment step (Gymnasium's frame skip).
 pub const FRAME_SKIP: usize = 2;
 
-/// The schedule of a one-event task's event, as a run config's `[env.cancel]` gives it.
+/// The schedule of a one-event task's event, as an environment config's `[env.cancel]` gives
+/// it (every key required: a schedule is the task's or given whole).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(deny_unknown_fields)]
 pub struct CancelConfig {
     /// Chance that an episode has the event at all.
     pub probability: f64,
@@ -74,18 +75,6 @@ impl CancelConfig {
     }
 }
 
-impl Default for CancelConfig {
-    /// Steps 1..=8 with probability 0.5 (the shipped tasks' schedule): a value of a run
-    /// config's `[env.cancel]` that differs from this overrides the task's.
-    fn default() -> Self {
-        CancelConfig {
-            probability: 0.5,
-            earliest_step: 1,
-            latest_step: 8,
-        }
-    }
-}
-
 /// Configuration of the environment: a run's settings (a run config's `[env]`) over the
 /// task's layout.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -93,14 +82,16 @@ impl Default for CancelConfig {
 pub struct ReacherConfig {
     /// Steps per episode before truncation.
     pub max_steps: usize,
-    /// Region centres (x, y) in label-bit order when not randomised; empty: the task's.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub ball_layout: Vec<[f64; 2]>,
+    /// Region centres (x, y) in label-bit order when not randomised; `None`: the task's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ball_layout: Option<Vec<[f64; 2]>>,
     /// Draw a new region layout at every reset.
     pub randomize_balls: bool,
-    /// The schedule of a one-event task's event (the task's own unless it differs from the
-    /// default); a task with another number of events keeps its schedules.
-    pub cancel: CancelConfig,
+    /// The schedule of a one-event task's event in place of the task's; `None`: the task's
+    /// own (every task's events keep theirs). A task with another number of events refuses
+    /// one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cancel: Option<CancelConfig>,
     /// How the arm starts an episode (absent from written configs when `random`, the
     /// default, so configs from before the option read and write unchanged).
     #[serde(skip_serializing_if = "ArmStart::is_random")]
@@ -144,9 +135,9 @@ impl Default for ReacherConfig {
     fn default() -> Self {
         ReacherConfig {
             max_steps: 100,
-            ball_layout: Vec::new(),
+            ball_layout: None,
             randomize_balls: false,
-            cancel: CancelConfig::default(),
+            cancel: None,
             arm_start: ArmStart::Random,
             layout: None,
         }
@@ -206,21 +197,23 @@ impl ReacherConfig {
         if self.max_steps > MAX_EPISODE_STEPS {
             return Err(ConfigError::TooManySteps(self.max_steps));
         }
-        let p = self.cancel.probability;
-        if !(0.0..=1.0).contains(&p) {
-            return Err(ConfigError::CancelProbability(p));
+        if let Some(cancel) = &self.cancel {
+            let p = cancel.probability;
+            if !(0.0..=1.0).contains(&p) {
+                return Err(ConfigError::CancelProbability(p));
+            }
+            let (earliest, latest) = (cancel.earliest_step, cancel.latest_step);
+            if earliest == 0 || earliest > latest {
+                return Err(ConfigError::CancelWindow { earliest, latest });
+            }
+            if latest > self.max_steps {
+                return Err(ConfigError::CancelAfterEpisode {
+                    latest,
+                    max_steps: self.max_steps,
+                });
+            }
         }
-        let (earliest, latest) = (self.cancel.earliest_step, self.cancel.latest_step);
-        if earliest == 0 || earliest > latest {
-            return Err(ConfigError::CancelWindow { earliest, latest });
-        }
-        if latest > self.max_steps {
-            return Err(ConfigError::CancelAfterEpisode {
-                latest,
-                max_steps: self.max_steps,
-            });
-        }
-        for (region, &[x, y]) in self.ball_layout.iter().enumerate() {
+        for (region, &[x, y]) in self.ball_layout.iter().flatten().enumerate() {
             if !(x.abs() <= SLIDE_RANGE && y.abs() <= SLIDE_RANGE) {
                 return Err(ConfigError::BallOutOfRange { region, x, y });
             }
@@ -238,20 +231,20 @@ impl ReacherConfig {
 
     /// Region positions and event schedules of `layout` under these settings.
     fn plan(&self, layout: &TaskLayout) -> Result<(Vec<[f64; 2]>, Vec<CancelConfig>), ConfigError> {
-        let positions = if self.ball_layout.is_empty() {
-            layout.positions()
-        } else if self.ball_layout.len() == layout.n_regions() {
-            self.ball_layout.clone()
-        } else {
-            return Err(ConfigError::LayoutCount {
-                given: self.ball_layout.len(),
-                regions: layout.n_regions(),
-            });
+        let positions = match &self.ball_layout {
+            None => layout.positions(),
+            Some(given) if given.len() == layout.n_regions() => given.clone(),
+            Some(given) => {
+                return Err(ConfigError::LayoutCount {
+                    given: given.len(),
+                    regions: layout.n_regions(),
+                })
+            }
         };
         let mut schedules: Vec<CancelConfig> = layout.events.iter().map(CancelConfig::of).collect();
-        if self.cancel != CancelConfig::default() {
+        if let Some(cancel) = &self.cancel {
             match schedules.as_mut_slice() {
-                [only] => *only = self.cancel.clone(),
+                [only] => *only = cancel.clone(),
                 _ => return Err(ConfigError::CancelWithoutOneEvent(schedules.len())),
             }
         }

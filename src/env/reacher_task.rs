@@ -82,11 +82,15 @@ impl ReacherTask {
         Arc::new(self.0.layout())
     }
 
-    /// The environment of a run of this task: the task's own, except each value of
-    /// `configured` (a run config's `[env]`) that differs from its default (an experiment on
-    /// the environment, such as another event schedule or shorter episodes, over the task's
-    /// machine). `[env.cancel]` applies to a task with one event; the region positions to a
-    /// task with as many regions as `ball_layout` has.
+    /// The environment of a run of this task: the task's own, except what `configured` (an
+    /// environment config's `[env]`) gives in its place (an experiment on the environment,
+    /// such as another event schedule or shorter episodes, over the task's machine): the
+    /// event schedule and the region positions when set (`Some`; a schedule only for a task
+    /// with one event, positions only for as many regions), the episode length and the
+    /// layout's randomisation when they differ from the environment's default (an expert
+    /// config's `[env]` cannot say "the task's" otherwise). The result sets the schedule and
+    /// the positions, so resolving it again keeps them. A run config's `[env] episode_steps`
+    /// sets the length whatever its value (`IrlRunConfig::over_task`).
     pub fn env_config(&self, configured: &ReacherConfig) -> Result<ReacherConfig, ConfigError> {
         fn pick<T: PartialEq + Clone>(own: T, configured: &T, default: &T) -> T {
             if configured == default {
@@ -98,32 +102,18 @@ impl ReacherTask {
         let task = &self.0;
         let d = ReacherConfig::default();
         let c = configured;
-        let cancel = match task.events.as_slice() {
-            [only] => {
-                let own = CancelConfig::of(only);
-                CancelConfig {
-                    probability: pick(
-                        own.probability,
-                        &c.cancel.probability,
-                        &d.cancel.probability,
-                    ),
-                    earliest_step: pick(
-                        own.earliest_step,
-                        &c.cancel.earliest_step,
-                        &d.cancel.earliest_step,
-                    ),
-                    latest_step: pick(
-                        own.latest_step,
-                        &c.cancel.latest_step,
-                        &d.cancel.latest_step,
-                    ),
-                }
-            }
-            _ => c.cancel.clone(),
+        let cancel = match (task.events.as_slice(), &c.cancel) {
+            (_, Some(given)) => Some(given.clone()),
+            ([only], None) => Some(CancelConfig::of(only)),
+            (_, None) => None,
         };
         let resolved = ReacherConfig {
             max_steps: pick(task.episode_steps, &c.max_steps, &d.max_steps),
-            ball_layout: pick(self.0.layout().positions(), &c.ball_layout, &d.ball_layout),
+            ball_layout: Some(
+                c.ball_layout
+                    .clone()
+                    .unwrap_or_else(|| self.0.layout().positions()),
+            ),
             randomize_balls: pick(
                 task.randomize_layout,
                 &c.randomize_balls,

@@ -4,7 +4,7 @@
 
 use super::{LogError, LogOptions, LogSummary, RolloutLogger, RunHeader};
 use crate::env::layout::TaskLayout;
-use crate::env::reacher::{CancelConfig, ReacherConfig, ReacherDelivery};
+use crate::env::reacher::{ReacherConfig, ReacherDelivery};
 use crate::env::reacher_controller::{ControllerGains, ScriptedController};
 use crate::env::reacher_task::ReacherTask;
 use crate::env::ContinuousEnv;
@@ -70,18 +70,16 @@ pub fn log_scripted_demos(
         }
         // A one-event task's resolved schedule is also the config's, which the environment
         // reads before the layout's.
-        if layout.events.len() == 1 {
-            env_config.cancel.probability = p;
+        if let Some(cancel) = &mut env_config.cancel {
+            cancel.probability = p;
         }
     }
     // The log records the schedule that runs: a one-event schedule the config sets (a
-    // caller's `env.cancel`) replaces the task's.
-    if let [only] = layout.events.as_mut_slice() {
-        if env_config.cancel != CancelConfig::default() {
-            only.probability = env_config.cancel.probability;
-            only.earliest_step = env_config.cancel.earliest_step;
-            only.latest_step = env_config.cancel.latest_step;
-        }
+    // caller's `env.cancel`, or the task's own once resolved) replaces the layout's.
+    if let ([only], Some(cancel)) = (layout.events.as_mut_slice(), &env_config.cancel) {
+        only.probability = cancel.probability;
+        only.earliest_step = cancel.earliest_step;
+        only.latest_step = cancel.latest_step;
     }
     env_config.layout = Some(Arc::new(layout.clone()));
     let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| usage(e.to_string()))?;

@@ -378,11 +378,11 @@ impl DrawConfig {
         let config = ReacherConfig {
             max_steps: self.horizon,
             arm_start: ArmStart::Zero,
-            cancel: CancelConfig {
+            cancel: Some(CancelConfig {
                 probability: 0.0,
                 earliest_step: 1,
                 latest_step: 1,
-            },
+            }),
             ..ReacherConfig::default()
         };
         Ok(task.env_config(&config)?)

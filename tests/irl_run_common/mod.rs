@@ -27,7 +27,7 @@ pub fn tiny_config() -> IrlRunConfig {
     c.final_checkpoints = 2;
     // 300 SAC steps are not a whole number of 70-step episodes: each iteration has to finish
     // SAC's episode in progress before the rollouts reset the environment.
-    c.env.max_steps = 70;
+    c.episode_steps = Some(70);
     c.sac.warmup_steps = 100;
     c.sac.update_after = 100;
     c

@@ -158,7 +158,7 @@ fn request(args: &IrlRequest) -> Result<Option<RunRequest>> {
         print!("{}", config.to_toml());
         return Ok(None);
     }
-    config.env = task.env_config(&config.env).map_err(usage)?;
+    config = config.over_task(&task).map_err(usage)?;
     let out = args
         .out
         .clone()

@@ -3,14 +3,18 @@
 //! refused naming what replaced it, [`REMOVED_KEYS`]). The top level holds what every algorithm
 //! shares (demonstrations, the IRL loop's sizes, evaluation, logging, threads); the tables
 //! `[env]`, `[sac]`, `[smirl]`, `[lrm]`, `[firl]` and `[final]` the rest, and optional
-//! `[schedule.<algorithm>]` tables give one algorithm its own IRL schedule ([`AlgoSchedule`]).
+//! `[schedule.baselines]` and `[schedule.<algorithm>]` tables give the baselines, or one
+//! algorithm, its own IRL schedule ([`AlgoSchedule`], [`IrlRunConfig::for_algo`]). The one
+//! optional key, `[env] episode_steps`, overrides the task's episode length
+//! ([`IrlRunConfig::over_task`]).
 //! What differs between `smirl` and the paper's `smirl-paper` is not a key: it follows from
 //! the algorithm ([`IrlRunConfig::for_algo`]). Every key: docs/configuration.md. The sections
 //! quoted as "research log" are in experiments/archive/README-research-log.md; docs/method.md
 //! indexes them by mechanism.
 
 use super::Algo;
-use crate::env::reacher::ReacherConfig;
+use crate::env::reacher::{ConfigError as EnvConfigError, ReacherConfig, MAX_EPISODE_STEPS};
+use crate::env::reacher_task::ReacherTask;
 use crate::rl::sac::SacConfig;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -76,15 +80,15 @@ pub struct IrlRunConfig {
     /// `"expert"` (the committed SAC experts built into the binary, or a task file's expert
     /// cache) or `"scripted"`.
     pub demo_source: DemoSource,
-    /// Number of demonstrations (the paper: 16). Each is held at its final state to
-    /// `env.max_steps` (the fixed horizon T that MaxEnt IRL and f-IRL assume; without it the
+    /// Number of demonstrations (the paper: 16). Each is held at its final state to the
+    /// episode's length (the fixed horizon T that MaxEnt IRL and f-IRL assume; without it the
     /// learned reward is pushed down wherever the agent stays after finishing the task).
     pub demo_episodes: usize,
     /// IRL iterations M (one reward update each).
     pub irl_iterations: usize,
     /// SAC environment steps per IRL iteration K (SAC continues across iterations).
     pub sac_steps_per_iteration: u64,
-    /// Fresh agent trajectories per iteration for the reward update (each `env.max_steps`
+    /// Fresh agent trajectories per iteration for the reward update (each an episode
     /// long for the baselines, whose f-IRL covariance needs a fixed horizon).
     pub agent_trajectories: usize,
     /// Ground-truth evaluation episodes per IRL iteration (mean action, fixed seeds).
@@ -132,15 +136,21 @@ pub struct IrlRunConfig {
     pub log_every_nth_episode: u64,
     /// Worker threads running (algorithm, seed) jobs.
     pub threads: usize,
-    /// The environment: `[env] max_steps`; the rest is the task's (its regions and its
-    /// events' schedule, assets/tasks/) and the environment's defaults.
+    /// `[env] episode_steps`, optional: the episode length of every task of the run; `None`
+    /// (the key absent) = each task's own (its file's `episode_steps`).
+    pub episode_steps: Option<usize>,
+    /// The environment: the task's (its episode length, regions and events' schedule,
+    /// assets/tasks/) with `episode_steps` over it, once [`IrlRunConfig::over_task`] resolves
+    /// it; before, the environment's defaults with no task.
     pub env: ReacherConfig,
     /// SAC of every job: `[sac]` sets lr, alpha, auto_alpha, warmup_steps (also the step of
     /// the first update) and replay_capacity; the rest is [`irl_run_sac`]'s.
     pub sac: SacConfig,
-    /// Per-algorithm schedules, keyed by algorithm name (`[schedule.fkl]`): an algorithm
-    /// with a table runs with those fields in place of the ones above; the others (and
-    /// every field the table leaves out) use the run's. Empty: one schedule for all.
+    /// Schedules keyed by algorithm name (`[schedule.fkl]`) or [`BASELINES`]
+    /// (`[schedule.baselines]`, every baseline's): an algorithm runs with its own table's
+    /// fields, then the baselines' table's (a baseline's), in place of the ones above; every
+    /// field neither sets is the run's ([`IrlRunConfig::for_algo`]). Empty: one schedule for
+    /// all.
     pub schedule: BTreeMap<String, AlgoSchedule>,
     /// Whether SMIRL's SAC batches move every sampled transition to a counterfactual
     /// learned-machine state (CRM, [`IrlRunConfig::counterfactual`]): not a key — true for
@@ -161,6 +171,7 @@ pub struct RunFile {
     pub eval_episodes: u64,
     pub log_every_nth_episode: u64,
     pub threads: usize,
+    #[serde(default, skip_serializing_if = "EnvKeys::is_empty")]
     pub env: EnvKeys,
     pub sac: SacKeys,
     pub smirl: SmirlKeys,
@@ -172,11 +183,19 @@ pub struct RunFile {
     pub schedule: BTreeMap<String, AlgoSchedule>,
 }
 
-/// `[env]`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+/// `[env]`: its one key is optional (absent, each task's own episode length), so a config
+/// without it reads the task rather than a length written for another task.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EnvKeys {
-    pub max_steps: usize,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub episode_steps: Option<usize>,
+}
+
+impl EnvKeys {
+    fn is_empty(&self) -> bool {
+        self.episode_steps.is_none()
+    }
 }
 
 /// `[sac]`: what the runs vary of SAC; the rest is [`irl_run_sac`]'s.
@@ -246,7 +265,7 @@ impl From<IrlRunConfig> for RunFile {
             log_every_nth_episode: c.log_every_nth_episode,
             threads: c.threads,
             env: EnvKeys {
-                max_steps: c.env.max_steps,
+                episode_steps: c.episode_steps,
             },
             sac: SacKeys {
                 lr: c.sac.lr,
@@ -306,10 +325,8 @@ impl From<RunFile> for IrlRunConfig {
             lrm_steps: f.lrm.steps,
             log_every_nth_episode: f.log_every_nth_episode,
             threads: f.threads,
-            env: ReacherConfig {
-                max_steps: f.env.max_steps,
-                ..ReacherConfig::default()
-            },
+            episode_steps: f.env.episode_steps,
+            env: ReacherConfig::default(),
             sac: run_sac(&f.sac),
             schedule: f.schedule,
             counterfactual_states: true,
@@ -349,6 +366,13 @@ pub fn layout_keys() -> Vec<String> {
     keys
 }
 
+/// The name of the schedule every baseline shares: `[schedule.baselines]`.
+pub const BASELINES: &str = "baselines";
+
+/// The algorithms `[schedule.baselines]` applies to, each also through its controls
+/// ([`Algo::base`]): the learned-reward baselines, which share f-IRL's schedule.
+pub const BASELINE_ALGOS: [Algo; 4] = [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js];
+
 /// The fields one algorithm may run with its own values of (`[schedule.<algorithm>]`): the
 /// IRL schedule, rollout logging, the baselines' reward net and KDE (`[schedule.<a>.firl]`)
 /// and SAC (`[schedule.<a>.sac]`, all but the shared replay size). What the algorithms must
@@ -380,7 +404,7 @@ pub struct AlgoSchedule {
     pub sac: Option<SacSchedule>,
 }
 
-/// `[schedule.<algorithm>.firl]`.
+/// `[schedule.<name>.firl]`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FirlSchedule {
@@ -402,7 +426,7 @@ pub struct FirlSchedule {
     pub expert_trajectories: Option<usize>,
 }
 
-/// `[schedule.<algorithm>.sac]`: `replay_capacity` is read only to be refused, naming why
+/// `[schedule.<name>.sac]`: `replay_capacity` is read only to be refused, naming why
 /// ([`SHARED_SAC_KEYS`]).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -427,18 +451,17 @@ pub struct SacSchedule {
     pub replay_capacity: Option<usize>,
 }
 
-/// The baselines' schedule in the standard profile: f-IRL's own ReacherDraw settings at the
-/// tasks' 100-step horizon — 800 IRL iterations of 300 SAC steps, 300 fresh trajectories (30 000
-/// states) per reward update, 2 reward steps per iteration, no weight decay on the reward, SAC
-/// lr 3e-3 with a fixed temperature of 1, 150 random steps first; every 100th episode logged.
-/// The replay size is not the schedule's: it is the run's `[sac]` one, shared by every
-/// algorithm ([`SHARED_SAC_KEYS`]). Chosen on the Markovian positive control "blue" (seeds
-/// 0–2), never on the paper's tasks: with it fkl, js and MaxEnt solve "blue" in 3 of 3 seeds, with SMIRL's earlier 20 × 5 000
-/// schedule the f-IRL variants in none (research log, "Positive controls of the baselines").
-/// rkl's also puts 300 drawn demonstrations in each covariance batch beside the 300 agent
-/// trajectories (`[firl] expert_trajectories`, f-IRL's code for demonstrations): without them
-/// rkl fails "blue" under every setting tried, with them (at T = 30) it passes in 3 of 3 seeds.
-pub fn firl_schedule(algo: Algo) -> AlgoSchedule {
+/// The baselines' schedule in the standard profile (`[schedule.baselines]`): f-IRL's own
+/// ReacherDraw settings at the tasks' 100-step horizon — 800 IRL iterations of 300 SAC steps,
+/// 300 fresh trajectories (30 000 states) per reward update, 2 reward steps per iteration, no
+/// weight decay on the reward, SAC lr 3e-3 with a fixed temperature of 1, 150 random steps
+/// first; every 100th episode logged. The replay size is not the schedule's: it is the run's
+/// `[sac]` one, shared by every algorithm ([`SHARED_SAC_KEYS`]). Chosen on the Markovian
+/// positive control "blue" (seeds 0–2), never on the paper's tasks: with it fkl, js and MaxEnt
+/// solve "blue" in 3 of 3 seeds, with SMIRL's earlier 20 × 5 000 schedule the f-IRL variants in
+/// none (research log, "Positive controls of the baselines"). rkl's own table adds to it
+/// ([`rkl_schedule`]).
+pub fn baselines_schedule() -> AlgoSchedule {
     AlgoSchedule {
         irl_iterations: Some(800),
         sac_steps_per_iteration: Some(300),
@@ -447,7 +470,6 @@ pub fn firl_schedule(algo: Algo) -> AlgoSchedule {
         log_every_nth_episode: Some(100),
         firl: Some(FirlSchedule {
             reward_l2: Some(0.0),
-            expert_trajectories: (algo == Algo::Rkl).then_some(300),
             ..FirlSchedule::default()
         }),
         sac: Some(SacSchedule {
@@ -457,6 +479,20 @@ pub fn firl_schedule(algo: Algo) -> AlgoSchedule {
             warmup_steps: Some(150),
             replay_capacity: None,
         }),
+    }
+}
+
+/// rkl's own table in the standard profile (`[schedule.rkl]`, over the baselines'): 300 drawn
+/// demonstrations in each covariance batch beside the 300 agent trajectories (`[firl]
+/// expert_trajectories`, f-IRL's code for demonstrations): without them rkl fails "blue" under
+/// every setting tried, with them (at T = 30) it passes in 3 of 3 seeds.
+pub fn rkl_schedule() -> AlgoSchedule {
+    AlgoSchedule {
+        firl: Some(FirlSchedule {
+            expert_trajectories: Some(300),
+            ..FirlSchedule::default()
+        }),
+        ..AlgoSchedule::default()
     }
 }
 
@@ -504,7 +540,7 @@ pub enum IrlConfigError {
     #[error("{source_name}: {}field `{field}` {problem}", line.map_or(String::new(), |l| format!("line {l}: ")))]
     Invalid {
         source_name: String,
-        /// Dotted key path (`sac.batch_size`, `env.max_steps`, `lrm_steps`).
+        /// Dotted key path (`sac.batch_size`, `env.episode_steps`, `lrm_steps`).
         field: String,
         problem: String,
         /// Line of the key (or of its table's header, when the key is left at its
@@ -565,7 +601,7 @@ impl IrlConfigError {
 /// config that still sets one was written for the old layout or for a mechanism that is now
 /// the method's (or gone), and is refused rather than read as something else. Configs of runs
 /// made with these keys are read by the binary of their commit (their `run.json` names it).
-pub const REMOVED_KEYS: [(&str, &str); 52] = [
+pub const REMOVED_KEYS: [(&str, &str); 53] = [
     (
         "lrm_fallback_starts",
         "nothing: LRM has no fallback starts (they changed no development base towards the \
@@ -603,8 +639,8 @@ pub const REMOVED_KEYS: [(&str, &str); 52] = [
     ),
     (
         "demo_padding",
-        "nothing: demonstrations are always held at their final state to [env] max_steps \
-         (the old \"hold\")",
+        "nothing: demonstrations are always held at their final state to the episode's \
+         length (the old \"hold\")",
     ),
     ("mlp_reward_lr", "[firl] reward_lr"),
     ("mlp_reward_l2", "[firl] reward_l2"),
@@ -679,6 +715,11 @@ pub const REMOVED_KEYS: [(&str, &str); 52] = [
     (
         "env.randomize_balls",
         "nothing: the balls are where the task file puts them (the old false)",
+    ),
+    (
+        "env.max_steps",
+        "[env] episode_steps, optional: absent, each task's own episode length (its file's \
+         episode_steps); present, the length of every task of the run",
     ),
     (
         "env.ball_layout",
@@ -796,7 +837,7 @@ pub const MAX_IRL_ITERATIONS: usize = 100_000;
 /// Most SAC environment steps per IRL iteration.
 pub const MAX_SAC_STEPS_PER_ITERATION: u64 = 100_000_000;
 /// Most environment steps kept in memory for one iteration's agent rollouts (or its
-/// evaluation episodes): trajectories × `env.max_steps`.
+/// evaluation episodes): trajectories × the episode's steps.
 pub const MAX_ROLLOUT_STEPS: usize = 10_000_000;
 /// Most reward optimiser steps per IRL iteration.
 pub const MAX_REWARD_STEPS: usize = 100_000;
@@ -840,12 +881,15 @@ impl IrlRunConfig {
             lrm_steps: 100,
             log_every_nth_episode: 10,
             threads: 2,
+            episode_steps: None,
             env: ReacherConfig::default(),
             sac: irl_run_sac(),
-            schedule: [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo::Js]
-                .into_iter()
-                .map(|a| (a.name().to_string(), firl_schedule(a)))
-                .collect(),
+            schedule: [
+                (BASELINES.to_string(), baselines_schedule()),
+                (Algo::Rkl.name().to_string(), rkl_schedule()),
+            ]
+            .into_iter()
+            .collect(),
             counterfactual_states: true,
         }
     }
@@ -893,8 +937,11 @@ impl IrlRunConfig {
         toml::to_string(self).expect("IrlRunConfig always serialises")
     }
 
-    /// The settings `algo` runs with: the run's, with `algo`'s `[schedule.<algo>]` fields
-    /// in their place (a control's: its baseline's, [`Algo::base`]). The schedules were checked by [`IrlRunConfig::validate`].
+    /// The settings `algo` runs with: the run's, with the fields of `[schedule.baselines]` in
+    /// their place when `algo` is a baseline ([`BASELINE_ALGOS`]), then those of `algo`'s own
+    /// `[schedule.<algo>]` in theirs: the algorithm's own table over the baselines' over the
+    /// run's keys, field by field (a control's: its baseline's, [`Algo::base`]). The schedules
+    /// were checked by [`IrlRunConfig::validate`].
     pub fn for_algo(&self, algo: Algo) -> Result<IrlRunConfig, IrlConfigError> {
         let mut config = IrlRunConfig {
             schedule: BTreeMap::new(),
@@ -905,9 +952,19 @@ impl IrlRunConfig {
         }
         // A control runs its baseline's schedule (no table of its own).
         let base = algo.base();
-        let Some(s) = self.schedule.get(base.name()) else {
-            return Ok(config);
-        };
+        if BASELINE_ALGOS.contains(&base) {
+            if let Some(s) = self.schedule.get(BASELINES) {
+                config.apply_schedule(BASELINES, s)?;
+            }
+        }
+        if let Some(s) = self.schedule.get(base.name()) {
+            config.apply_schedule(base.name(), s)?;
+        }
+        Ok(config)
+    }
+
+    /// Puts the fields `s` (`[schedule.<name>]`) sets in place of these.
+    fn apply_schedule(&mut self, name: &str, s: &AlgoSchedule) -> Result<(), IrlConfigError> {
         macro_rules! take {
             ($from:expr, $($f:ident => $to:expr),*) => {$(
                 if let Some(v) = $from.$f {
@@ -916,39 +973,61 @@ impl IrlRunConfig {
             )*};
         }
         take!(s,
-            irl_iterations => config.irl_iterations,
-            sac_steps_per_iteration => config.sac_steps_per_iteration,
-            agent_trajectories => config.agent_trajectories,
-            reward_steps_per_iteration => config.reward_steps_per_iteration,
-            log_every_nth_episode => config.log_every_nth_episode
+            irl_iterations => self.irl_iterations,
+            sac_steps_per_iteration => self.sac_steps_per_iteration,
+            agent_trajectories => self.agent_trajectories,
+            reward_steps_per_iteration => self.reward_steps_per_iteration,
+            log_every_nth_episode => self.log_every_nth_episode
         );
         if let Some(f) = &s.firl {
             take!(f,
-                reward_lr => config.mlp_reward_lr,
-                reward_l2 => config.mlp_reward_l2,
-                kde_bandwidth => config.kde_bandwidth,
-                expert_trajectories => config.firl_expert_trajectories
+                reward_lr => self.mlp_reward_lr,
+                reward_l2 => self.mlp_reward_l2,
+                kde_bandwidth => self.kde_bandwidth,
+                expert_trajectories => self.firl_expert_trajectories
             );
         }
         if let Some(sac) = &s.sac {
             if sac.replay_capacity.is_some() {
                 return Err(IrlConfigError::Invalid {
                     source_name: String::new(),
-                    field: format!("schedule.{base}.sac.{}", SHARED_SAC_KEYS[0]),
+                    field: format!("schedule.{name}.sac.{}", SHARED_SAC_KEYS[0]),
                     problem: "is shared by every algorithm: set it in [sac], not per schedule"
                         .into(),
                     line: None,
                 });
             }
             take!(sac,
-                lr => config.sac.lr,
-                alpha => config.sac.alpha,
-                auto_alpha => config.sac.auto_alpha,
-                warmup_steps => config.sac.warmup_steps,
-                warmup_steps => config.sac.update_after
+                lr => self.sac.lr,
+                alpha => self.sac.alpha,
+                auto_alpha => self.sac.auto_alpha,
+                warmup_steps => self.sac.warmup_steps,
+                warmup_steps => self.sac.update_after
             );
         }
-        Ok(config)
+        Ok(())
+    }
+
+    /// The run's settings over `task`, as every run of a task reads them: the environment is
+    /// the task's (its regions, its events' schedule and its episode length), with
+    /// `[env] episode_steps` as the episode length when the config gives it. Resolving a
+    /// resolved config again changes nothing.
+    pub fn over_task(&self, task: &ReacherTask) -> Result<IrlRunConfig, EnvConfigError> {
+        let mut env = task.env_config(&self.env)?;
+        if let Some(steps) = self.episode_steps {
+            env.max_steps = steps;
+            env.validate()?;
+        }
+        Ok(IrlRunConfig {
+            env,
+            ..self.clone()
+        })
+    }
+
+    /// The episode length the rollout limits are checked against: `[env] episode_steps`, else
+    /// the environment's (a task's once [`IrlRunConfig::over_task`] resolved it).
+    fn episode_len(&self) -> usize {
+        self.episode_steps.unwrap_or(self.env.max_steps)
     }
 
     /// `smirl-paper`'s settings: every mechanism by which `smirl` departs from the paper
@@ -985,6 +1064,14 @@ impl IrlRunConfig {
             })
         };
         // The environment first: the rollout limits below use its episode length.
+        if let Some(steps) = self.episode_steps {
+            if steps == 0 || steps > MAX_EPISODE_STEPS {
+                return bad(
+                    "env.episode_steps",
+                    &format!("is {steps}, it must be in 1..={MAX_EPISODE_STEPS}"),
+                );
+            }
+        }
         if let Err(e) = self.env.validate() {
             return bad(&format!("env.{}", e.field()), &e.to_string());
         }
@@ -1040,12 +1127,12 @@ impl IrlRunConfig {
             ),
             ("eval_episodes", self.eval_episodes),
         ] {
-            let steps = episodes.saturating_mul(self.env.max_steps as u64);
+            let steps = episodes.saturating_mul(self.episode_len() as u64);
             if steps > MAX_ROLLOUT_STEPS as u64 {
                 return bad(
                     field,
                     &format!(
-                        "× env.max_steps = {steps} steps per iteration, more than the limit of {MAX_ROLLOUT_STEPS}"
+                        "× the episode's steps = {steps} steps per iteration, more than the limit of {MAX_ROLLOUT_STEPS}"
                     ),
                 );
             }
@@ -1167,14 +1254,11 @@ impl IrlRunConfig {
             Err(e) => return bad("sac", &e.to_string()),
             Ok(()) => {}
         }
-        // Each schedule: a known algorithm, and the settings it resolves to pass the same
-        // checks (an error names the schedule's key).
-        for name in self.schedule.keys() {
-            let algo = match Algo::parse_in(name, &Algo::REACHER) {
-                Ok(a) => a,
-                Err(e) => return bad(&format!("schedule.{name}"), &e),
-            };
-            let resolved = self.for_algo(algo).map_err(|e| match e {
+        // Each schedule: the baselines' or a known algorithm's, and the settings it resolves
+        // to pass the same checks (an error names the schedule's key). The baselines' table is
+        // checked over the run's keys alone, each algorithm's with the baselines' beneath.
+        for (name, schedule) in &self.schedule {
+            let named = |e: IrlConfigError| match e {
                 IrlConfigError::Invalid { field, problem, .. } => IrlConfigError::Invalid {
                     source_name: source_name.to_string(),
                     field,
@@ -1182,7 +1266,26 @@ impl IrlRunConfig {
                     line: None,
                 },
                 other => other,
-            })?;
+            };
+            let resolved = if name == BASELINES {
+                let mut resolved = IrlRunConfig {
+                    schedule: BTreeMap::new(),
+                    ..self.clone()
+                };
+                resolved.apply_schedule(name, schedule).map_err(named)?;
+                resolved
+            } else {
+                let algo = match Algo::parse_in(name, &Algo::REACHER) {
+                    Ok(a) => a,
+                    Err(e) => {
+                        return bad(
+                            &format!("schedule.{name}"),
+                            &format!("{e} (or `{BASELINES}`, every baseline's)"),
+                        )
+                    }
+                };
+                self.for_algo(algo).map_err(named)?
+            };
             if let Err(IrlConfigError::Invalid { field, problem, .. }) =
                 resolved.validate(source_name)
             {

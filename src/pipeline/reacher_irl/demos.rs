@@ -87,8 +87,8 @@ pub fn load_expert(task: ReacherTask, cache_dir: Option<&Path>) -> Result<Expert
 /// The demonstrations of a run: `config.demo_episodes` episodes from `config.demo_source`,
 /// reset as [`demo_reset_seeds`] says, seeded by `seed`, each logged to `logger` when given.
 /// `expert` must be the loaded expert when the source is `expert` (load it first with
-/// [`load_expert`] to fail early). The episodes run `config.env` over the task's layout
-/// (`ReacherTask::env_config`).
+/// [`load_expert`] to fail early). The episodes run the config's environment over the task
+/// ([`IrlRunConfig::over_task`]).
 pub fn make_demos(
     task: ReacherTask,
     config: &IrlRunConfig,
@@ -96,7 +96,7 @@ pub fn make_demos(
     seed: u64,
     logger: Option<&mut RolloutLogger>,
 ) -> Result<Vec<Demo>, DemoError> {
-    let env = (task.env_config(&config.env)).map_err(DemoError::Env)?;
+    let env = config.over_task(&task).map_err(DemoError::Env)?.env;
     let resets = demo_reset_seeds(config.demo_episodes, seed);
     match (config.demo_source, expert) {
         (DemoSource::Expert, Some(policy)) => {

@@ -174,8 +174,7 @@ pub fn prepare(
     } = *request;
     let task = task.clone();
     // The run's environment is its config over the task's layout, as the CLI resolves it.
-    let mut resolved = config.clone();
-    resolved.env = (task.env_config(&config.env)).map_err(PipelineError::Env)?;
+    let resolved = config.over_task(&task).map_err(PipelineError::Env)?;
     let config = &resolved;
     let (mut expert, last_seed) = check_request(request)?;
     let perfect = task.perfect_rm().map_err(PipelineError::PerfectMachine)?;
@@ -464,9 +463,9 @@ pub fn open_run(dir: &Path) -> Result<PreparedRun, PipelineError> {
             path: marker.clone(),
             source,
         })?;
-    let mut config = IrlRunConfig::load(&dir.join("config.toml")).map_err(PipelineError::Config)?;
-    config.env = (prepared.task)
-        .env_config(&config.env)
+    let config = IrlRunConfig::load(&dir.join("config.toml"))
+        .map_err(PipelineError::Config)?
+        .over_task(&prepared.task)
         .map_err(PipelineError::RunEnv)?;
     let rm_file = |name: &str| -> Result<RewardMachine, PipelineError> {
         let path = dir.join(name);
