@@ -1297,6 +1297,21 @@ fn the_cli_refuses_a_missing_key_and_a_removed_switch() {
             ["missing field `checkpoints`", "missing.toml"],
         ),
         (
+            "missing_lrm.toml",
+            quick.replace("steps = 50\n", ""),
+            ["missing field `steps`", "missing_lrm.toml"],
+        ),
+        (
+            "missing_top.toml",
+            quick.replace("eval_episodes = 8\n", ""),
+            ["missing field `eval_episodes`", "missing_top.toml"],
+        ),
+        (
+            "old_env.toml",
+            format!("{quick}\n[env]\nmax_steps = 100\n"),
+            ["env.max_steps", "[env] episode_steps"],
+        ),
+        (
             "old.toml",
             format!("smirl_clock = false\n{quick}"),
             ["smirl_clock", "no learner's observation has a clock"],
