@@ -240,7 +240,7 @@ fn episode_steps_overrides_the_tasks_length_when_given() {
 }
 
 /// The event schedule and the region positions: `None` is the task's; a value is used as
-/// given, even one equal to what used to stand for "not set" (the shipped schedule).
+/// given, also one equal to the shipped schedule (a value never stands for "not set").
 #[test]
 fn the_event_schedule_override_is_explicit() {
     let tmp = tempfile::tempdir().unwrap();
