@@ -6,7 +6,7 @@
 
 use foxglove::schemas::{FrameTransforms, SceneUpdate};
 use foxglove::Decode;
-use smirl::env::reacher::{CancelConfig, ReacherConfig};
+use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::schema::StepMsg;
 use smirl::log::{read_log, LogOptions};
@@ -20,14 +20,6 @@ mod shipped_layout;
 fn the_scene_decodes_with_the_official_schemas_and_matches_the_log() {
     let dir = tempfile::tempdir().unwrap();
     let log_path = dir.path().join("if.mcap");
-    let env = ReacherConfig {
-        cancel: Some(CancelConfig {
-            probability: 1.0,
-            earliest_step: 1,
-            latest_step: 8,
-        }),
-        ..ReacherConfig::default()
-    };
     log_scripted_demos(
         &log_path,
         &DemoSpec {
@@ -36,8 +28,9 @@ fn the_scene_decodes_with_the_official_schemas_and_matches_the_log() {
             episodes: 3,
             seed: 11,
             stop_when_done: true,
-            env,
-            event_probability: None,
+            // The task's event schedule, with the event in every episode.
+            env: ReacherConfig::default(),
+            event_probability: Some(1.0),
             reward_machine: Some(smirl::rm::perfect::load("reacher_if").unwrap()),
         },
         LogOptions::default(),

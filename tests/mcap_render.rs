@@ -2,7 +2,7 @@
 //! log puts them, touches and cancel found); bad input is an error and leaves no file; a
 //! closed output pipe ends `replay` quietly.
 
-use smirl::env::reacher::{CancelConfig, ReacherConfig};
+use smirl::env::reacher::ReacherConfig;
 use smirl::log::demo::{log_scripted_demos, DemoSpec};
 use smirl::log::{read_log, LogOptions, RolloutLog};
 use smirl::pipeline::render::{render_episode, write_png, RenderOptions};
@@ -11,14 +11,6 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn demos(path: &Path) {
-    let env = ReacherConfig {
-        cancel: Some(CancelConfig {
-            probability: 1.0,
-            earliest_step: 1,
-            latest_step: 8,
-        }),
-        ..ReacherConfig::default()
-    };
     log_scripted_demos(
         path,
         &DemoSpec {
@@ -27,8 +19,9 @@ fn demos(path: &Path) {
             episodes: 3,
             seed: 11,
             stop_when_done: true,
-            env,
-            event_probability: None,
+            // The task's event schedule, with the event in every episode.
+            env: ReacherConfig::default(),
+            event_probability: Some(1.0),
             reward_machine: Some(perfect::reacher("sequential").unwrap()),
         },
         LogOptions::default(),
