@@ -12,13 +12,20 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="session")
 def reacher_bin():
-    """The `reacher` binary (SMIRL_REACHER_BIN, else on PATH, else the checkout's release
-    build); the test is skipped without one."""
+    """The `reacher` binary: SMIRL_REACHER_BIN, else `reacher` on PATH, else the release build
+    in CARGO_TARGET_DIR or the checkout's `target/`. Without one the test fails rather than
+    skips: a skip would let a broken build hide every test that drives the binary."""
     binary = os.environ.get("SMIRL_REACHER_BIN") or shutil.which("reacher")
-    if binary is None and (ROOT / "target" / "release" / "reacher").exists():
-        binary = str(ROOT / "target" / "release" / "reacher")
     if binary is None:
-        pytest.skip("no reacher binary (build it with cargo build --release)")
+        target = Path(os.environ.get("CARGO_TARGET_DIR") or ROOT / "target")
+        built = target / "release" / "reacher"
+        if built.exists():
+            binary = str(built)
+    if binary is None:
+        pytest.fail(
+            "no reacher binary: build it with `cargo build --release --bin reacher` "
+            "(or set SMIRL_REACHER_BIN)"
+        )
     return binary
 
 
