@@ -73,6 +73,13 @@ impl CancelConfig {
             latest_step: event.latest_step,
         }
     }
+
+    /// Give `event` this schedule (the inverse of [`CancelConfig::of`]).
+    pub fn schedule(&self, event: &mut Event) {
+        event.probability = self.probability;
+        event.earliest_step = self.earliest_step;
+        event.latest_step = self.latest_step;
+    }
 }
 
 /// Configuration of the environment: a run's settings (a run config's `[env]`) over the

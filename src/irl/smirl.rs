@@ -213,11 +213,6 @@ impl FeatureMap {
         self.layout.obs_dim
     }
 
-    /// The label bits of the regions (the agent's own touches).
-    pub fn touch_labels(&self) -> LabelSet {
-        (0..self.layout.ball_deltas.len()).fold(LabelSet::EMPTY, |s, k| s.with(k))
-    }
-
     /// The label bits of the task's exogenous events.
     pub fn event_labels(&self) -> LabelSet {
         let nb = self.layout.ball_deltas.len();

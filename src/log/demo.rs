@@ -77,9 +77,7 @@ pub fn log_scripted_demos(
     // The log records the schedule that runs: a one-event schedule the config sets (a
     // caller's `env.cancel`, or the task's own once resolved) replaces the layout's.
     if let ([only], Some(cancel)) = (layout.events.as_mut_slice(), &env_config.cancel) {
-        only.probability = cancel.probability;
-        only.earliest_step = cancel.earliest_step;
-        only.latest_step = cancel.latest_step;
+        cancel.schedule(only);
     }
     env_config.layout = Some(Arc::new(layout.clone()));
     let mut env = ReacherDelivery::new(env_config.clone()).map_err(|e| usage(e.to_string()))?;
