@@ -528,3 +528,24 @@ fn constraint_buffers_hold_every_limit_at_once() {
         }
     }
 }
+
+/// `CancelConfig::schedule` is the inverse of `CancelConfig::of`: an event given a schedule
+/// reads it back whole, and its letter stays its own (`reacher demo` records the schedule that
+/// ran this way).
+#[test]
+fn an_event_given_a_schedule_reads_it_back() {
+    let mut event = smirl::env::layout::Event {
+        letter: 's',
+        probability: 0.2,
+        earliest_step: 1,
+        latest_step: 100,
+    };
+    let given = CancelConfig {
+        probability: 0.75,
+        earliest_step: 7,
+        latest_step: 23,
+    };
+    given.schedule(&mut event);
+    assert_eq!(CancelConfig::of(&event), given);
+    assert_eq!(event.letter, 's');
+}
