@@ -25,7 +25,6 @@ names carry the config's hash), with the binary the protocol ran.
 import argparse
 import concurrent.futures
 import glob
-import hashlib
 import json
 import os
 import subprocess
@@ -40,11 +39,6 @@ SOLVED = 0.9
 CHECKED = ("rm/learned.txt", "expert_data.bin")
 
 
-def sha(path):
-    with open(path, "rb") as fh:
-        return hashlib.sha256(fh.read()).hexdigest()
-
-
 def original_dir(root, task, base):
     found = sorted(glob.glob(os.path.join(root, f"{task}-b{base}-*")))
     found = [d for d in found if os.path.isdir(d)]
@@ -54,12 +48,10 @@ def original_dir(root, task, base):
 
 
 def chosen_score(path):
+    """The reported policy's lower branch: the final phase's choice, else the loop's own."""
     with open(path) as fh:
-        fields = protocol.job_fields(json.load(fh))
-    loop = table.lower_branch(fields["loop"], path)[0]
-    if "chosen" not in fields:
-        return loop
-    return table.lower_branch(fields["candidates"][fields["chosen"]], path)[0]
+        loop, chosen, _, _ = table.policies(protocol.job_fields(json.load(fh)), path)
+    return (chosen or loop)[0]
 
 
 def prepare(binary, original, out, extra, threads):
@@ -79,7 +71,7 @@ def prepare(binary, original, out, extra, threads):
             return "prepare failed"
         diagnose.set_threads(out, threads)
     for f in CHECKED:
-        if sha(os.path.join(out, f)) != sha(os.path.join(original, f)):
+        if protocol.sha256_of(os.path.join(out, f)) != protocol.sha256_of(os.path.join(original, f)):
             return f"{f} differs from {protocol.rel(original)}'s"
     return None
 
