@@ -35,6 +35,8 @@ yes = lambda r, k: r[k] == "true"
 out = []
 bases = sorted({int(r["base"]) for r in rows})
 out.append("# LRM's mechanisms on the development range\n")
+out.append(f"Made by `nice -n 10 experiments/lrm/ablation.sh` (the table alone, from its rows: "
+           f"`python3 experiments/lrm/ablation.py {src} {dst}`).\n")
 out.append(f"Base seeds: {len(bases)} ({', '.join(map(str, bases))}); the demonstrations of "
            "`reacher prepare --task T --seed B` (standard config, 16 episodes, the failed ones dropped).\n")
 out.append("| variant | task | bases | tracks the task | over the label sets shown | failures kept | "
