@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # The size of what experiments/ tracks, against its budget (experiments/README.md, "Budget"):
-# prints the number of tracked files and their bytes, and exits 1 above 470 files or 7.2 MB
-# (6 900 000 bytes). Also reports, without failing, tracked files that experiments/.gitignore
+# prints the number of tracked files and their bytes, and exits 1 above 520 files or 7.8 MB
+# (7 800 000 bytes). Also reports, without failing, tracked files that experiments/.gitignore
 # ignores (force-added) and consolidated files older than their run directories on disk.
 # Usage: experiments/lean_check.sh      (from anywhere in the repository)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-MAX_FILES=470
-MAX_BYTES=7200000
+MAX_FILES=520
+MAX_BYTES=7800000
 files=$(git ls-files experiments | wc -l)
 # Summed per file (xargs may split a long list over several `du -c` calls, each with its own total).
 bytes=$(git ls-files -z experiments | xargs -0 -r stat --format=%s | awk '{s += $1} END {print s + 0}')

@@ -16,7 +16,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 python3 experiments/reacher/figure7_curves.py > "$tmp/figure7.csv"
 "$BIN" figure --data "$tmp/figure7.csv" --out "$OUT/figure7.svg" --force --y-range 0,1 \
-  --title "Figure 7: ReacherDelivery, success of each IRL iteration's policy (base seed 0; SMIRL 6 SAC seeds, baselines 3)"
+  --title "Figure 7: ReacherDelivery, success of each IRL iteration's policy (base seed 0; smirl and smirl-paper 6 SAC seeds, baselines 3)"
 if [ -z "${OFFICE_RUNS:-}" ]; then
   OFFICE_RUNS=$tmp/office
   for t in 0 1 2 3 4; do

@@ -1,16 +1,15 @@
 #!/usr/bin/env python3
-"""What SMIRL's final choice adds, under the current standard (config.toml): per task, the jobs
-that reach 0.9 on the ground truth (IF and Composite: on both branches) with
+"""What SMIRL's final choice adds at base seed 0 (development data), per task: the jobs that reach
+0.9 on the ground truth (IF and Composite: on both branches) with
 
   loop      the loop's own policy (candidate 0: the co-trained policy after the last iteration)
   reported  the policy the job reports (the candidate of highest learned return)
   random    a candidate drawn uniformly (expected count: the jobs' shares of solving candidates)
   oracle    the best candidate by ground truth (no method can report it: an upper bound)
 
-over the tuning jobs (base seed 0, SAC seeds 0-5: ablations/runs/clock-seeds0to5-<task>) and over
-the held-out jobs (heldout/clock-seeds<B>-<task>, the jobs standard_heldout.py counts; they are
-development data: the standard's settings were chosen after reading them). Markdown on standard
-output, from the consolidated final_policy.csv files.
+over SMIRL's figure-7 jobs (SAC seeds 0-5: ablations/runs/fold-seeds0to5-<task>). Markdown on
+standard output, from the consolidated final_policy.csv. The preregistered evaluations report
+the same columns on fresh bases (experiments/protocol/table.py).
 
 Usage: python3 experiments/reacher/choice.py
 """
@@ -55,8 +54,7 @@ def main():
     print("| set | task | jobs | loop's own policy | reported policy | random candidate (expected) | best candidate (oracle) | candidates per job |")
     print("|---|---|---|---|---|---|---|---|")
     for name, parent, pattern in [
-        ("tuning (base 0)", "ablations/runs", r"clock-seeds0to5-(\w+)"),
-        ("held out (development range)", "heldout", r"clock-seeds\d+-(\w+)"),
+        ("base 0, SAC seeds 0-5", "ablations/runs", r"fold-seeds0to5-(\w+)"),
     ]:
         per_task = jobs(parent, pattern)
         for task in TASKS:

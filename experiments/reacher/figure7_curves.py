@@ -1,8 +1,8 @@
 """Figure 7's learning curves as a curve table for `reacher figure`: one panel per task, the
 ground-truth success of each IRL iteration's policy against environment steps, mean ± std over
 SAC seeds; on IF and Composite each branch (normal solid, cancel dashed). Read from the
-committed runs figure 7's tables use (make_results.sh): SMIRL from
-ablations/runs/clock-seeds0to5-<task>, maxent, fkl and js from runs/<task>-schedules, rkl from
+committed runs figure 7's tables use (make_results.sh): smirl and smirl-paper from
+ablations/runs/fold-seeds0to5-<task>, maxent, fkl and js from runs/<task>-schedules, rkl from
 runs/<task>-rkl_expert. SMIRL's curve is its loop's own policy (the final choice is a table
 column, not a curve point).
 
@@ -21,7 +21,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 TASKS = [("or", "OR"), ("sequential", "Sequential"), ("if", "IF"), ("composite", "Composite")]
 # (run directory pattern, algorithms read from it)
 SOURCES = [
-    ("ablations/runs/clock-seeds0to5-{task}", ["smirl"]),
+    ("ablations/runs/fold-seeds0to5-{task}", ["smirl", "smirl-paper"]),
     ("runs/{task}-schedules", ["maxent", "fkl", "js"]),
     ("runs/{task}-rkl_expert", ["rkl"]),
 ]

@@ -1,23 +1,15 @@
 #!/usr/bin/env bash
-# Builds experiments/reacher/results.md — the current method's tables — from the committed run
-# data; no experiment is rerun (`reacher prepare`, well under a second per machine, tells which
-# run is the standard's job at a base). In order:
+# Builds experiments/reacher/results.md — the tables at base seed 0 — from the committed run
+# data; no experiment is rerun. In order:
 #   results_intro.md            what the tables are
-#   figure7.py                  figure 7: SMIRL at base 0 (ablations/runs/clock-*), the baselines
-#                               (runs/<task>-schedules, runs/<task>-rkl_expert) and their held-out
-#                               runs (heldout/schedules-*, heldout/rkl_expert-*)
+#   figure7.py                  figure 7: smirl and smirl-paper (ablations/runs/fold-seeds0to5-*),
+#                               the baselines (runs/<task>-schedules, runs/<task>-rkl_expert) and
+#                               their runs at other bases (heldout/schedules-*, heldout/rkl_expert-*)
 #   choice.py                   what SMIRL's final choice adds: the loop's own policy, the reported
 #                               one, a random candidate and the oracle best
-#   standard_heldout.py         SMIRL at the other bases (development data), job by job
-#   clock.py, clock_frozen.py   the last mechanism adopted (the agent's clock) against the method
-#                               without it, and its control
-# REACHER_BIN names the binary (default target/release/reacher). The earlier standards' tables
-# are frozen in experiments/archive/reacher/results-df9c858.md.
+# The tables of the method before the fold (the clock standard) are frozen in
+# experiments/archive/reacher/results-247fca5.md, the earlier standards' in results-df9c858.md.
 set -euo pipefail
-# REACHER_BIN as given from the caller's directory (before the cd below); the default is the
-# checkout's build.
-bin=${REACHER_BIN:-$(dirname "$0")/../../target/release/reacher}
-case $bin in /*) ;; */*) bin=$PWD/$bin ;; esac
 cd "$(dirname "$0")"
 # Written beside results.md and moved over it only when every script succeeded, so a failing
 # script leaves the previous results.md whole.
@@ -37,10 +29,10 @@ heldout_tables() {
 tasks="or sequential if composite"
 {
   cat results_intro.md
-  printf '\n## Figure 7: SMIRL (base seed 0, SAC seeds 0-5; smirl-smooth: Composite, seed 0)\n'
-  printf '\n`SAC_SEEDS="0 1 2 3 4 5" ALGOS=smirl experiments/reacher/smirl_sweep.sh '"'"'experiments/reacher/ablations/runs/clock-seeds0to5-{task}'"'"' 0`; table: `python3 experiments/reacher/figure7.py ablations/runs/clock-seeds0to5-<task> ablations/runs/clock-smooth-seed0-composite`\n'
-  python3 figure7.py $(for t in $tasks; do echo "ablations/runs/clock-seeds0to5-$t"; done) ablations/runs/clock-smooth-seed0-composite
-  printf '\n## Figure 7: the baselines (base seed 0, SAC seeds 0-2)\n'
+  printf '\n## Figure 7: smirl and smirl-paper (base seed 0, SAC seeds 0-5; the build of 54b1417)\n'
+  printf '\n`SAC_SEEDS="0 1 2 3 4 5" ALGOS=smirl,smirl-paper REACHER_BIN=<build of 54b1417> experiments/reacher/smirl_sweep.sh '"'"'experiments/reacher/ablations/runs/fold-seeds0to5-{task}'"'"' 0`; table: `python3 experiments/reacher/figure7.py ablations/runs/fold-seeds0to5-<task>`\n'
+  python3 figure7.py $(for t in $tasks; do echo "ablations/runs/fold-seeds0to5-$t"; done)
+  printf '\n## Figure 7: the baselines (base seed 0, SAC seeds 0-2; before the fair comparison, run layout of 2207e5a)\n'
   printf '\nmaxent, fkl, js: `CONFIG=experiments/reacher/config_unshaped.toml experiments/reacher/figure7_schedules.sh` (the baselines read none of the keys in which config_unshaped.toml differs from config.toml); rkl: `... SUFFIX=rkl_expert experiments/reacher/figure7_schedules.sh "or sequential if composite" rkl`; table: `python3 experiments/reacher/figure7.py --algos maxent,fkl,js runs/<task>-schedules` and `python3 experiments/reacher/figure7.py runs/<task>-rkl_expert`. "final end ball": the share of final evaluation episodes that touch a ball that can end the task; "best iteration": the best success of any of the 800 iterations.\n'
   python3 figure7.py --algos maxent,fkl,js $(for t in $tasks; do echo "runs/$t-schedules"; done)
   python3 figure7.py $(for t in $tasks; do echo "runs/$t-rkl_expert"; done)
@@ -49,12 +41,6 @@ tasks="or sequential if composite"
   heldout_tables rkl_expert-seed '### rkl at other bases (`CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS rkl B`)'
   printf '\n## What the final choice adds (`python3 experiments/reacher/choice.py`)\n\n'
   python3 choice.py
-  printf '\n## SMIRL at the other bases: development data (`python3 experiments/reacher/standard_heldout.py`; runs by `python3 experiments/reacher/clock.py --run`, `--run-rest`, `--run-fresh`)\n\n'
-  python3 standard_heldout.py "$bin"
-  printf '\n## Ablation: the agent'"'"'s clock against the method without it, job for job (`ablations/clock.toml`, its rule in the file; `python3 experiments/reacher/clock.py`)\n\n'
-  python3 clock.py "$bin"
-  printf '\n## Its control: the clock frozen, on the seven jobs the clock gained (`ablations/clock_frozen.toml`; `python3 experiments/reacher/clock_frozen.py`)\n\n'
-  python3 clock_frozen.py "$bin"
 } > "$out"
 chmod 644 "$out"
 mv "$out" results.md

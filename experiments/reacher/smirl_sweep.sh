@@ -24,7 +24,7 @@
 #
 #   SAC_SEEDS="3 4 5" ALGOS=smirl experiments/reacher/smirl_sweep.sh 'experiments/reacher/ablations/runs/standard-seeds3to5-{task}' 0
 #
-# MACHINE=task: CONFIG with `smirl_machine = "task"` (a copy in a temporary file): SMIRL reads
+# MACHINE=task: CONFIG with `[smirl] machine = "task"` (a copy in a temporary file): SMIRL reads
 # the task's own machine instead of LRM's — an oracle for diagnosis, not the method.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -46,7 +46,8 @@ case ${MACHINE:-learned} in
   task)
     task_config=$(mktemp)
     trap 'rm -f "$task_config"' EXIT
-    { echo 'smirl_machine = "task"'; cat "$CONFIG"; } > "$task_config"
+    sed '/^\[smirl\]$/,/^\[/ s/^machine = .*/machine = "task"/' "$CONFIG" > "$task_config"
+    grep -q '^machine = "task"$' "$task_config" || { echo "MACHINE=task: $CONFIG has no [smirl] machine key" >&2; exit 2; }
     CONFIG=$task_config ;;
   *) echo "MACHINE: '$MACHINE' is neither 'learned' nor 'task'" >&2; exit 2 ;;
 esac
