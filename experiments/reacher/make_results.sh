@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Builds experiments/reacher/results.md — the tables at base seed 0 — from the committed run
-# data; no experiment is rerun. In order:
+# Builds experiments/reacher/results.md — figure 7 at base seed 0, and the baselines at other
+# bases — from the committed run data; no experiment is rerun. In order:
 #   results_intro.md            what the tables are
 #   figure7.py                  figure 7: smirl and smirl-paper (ablations/runs/fold-seeds0to5-*),
 #                               the baselines (runs/<task>-schedules, runs/<task>-rkl_expert) and
