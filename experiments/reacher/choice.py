@@ -51,21 +51,17 @@ def counts(cands_per_job):
 
 
 def main():
-    print("| set | task | jobs | loop's own policy | reported policy | random candidate (expected) | best candidate (oracle) | candidates per job |")
-    print("|---|---|---|---|---|---|---|---|")
-    for name, parent, pattern in [
-        ("base 0, SAC seeds 0-5", "ablations/runs", r"fold-seeds0to5-(\w+)"),
-    ]:
-        per_task = jobs(parent, pattern)
-        for task in TASKS:
-            js = per_task[task]
-            if not js:
-                continue
-            loop, reported, random, oracle = counts(js)
-            sizes = sorted({len(c) for c in js})
-            print(f"| {name} | {task} | {len(js)} | {loop} | {reported} | {random:.1f} | {oracle} | "
-                  f"{', '.join(map(str, sizes))} |")
-
+    print("| task | jobs | loop's own policy | reported policy | random candidate (expected) | best candidate (oracle) | candidates per job |")
+    print("|---|---|---|---|---|---|---|")
+    per_task = jobs("ablations/runs", r"fold-seeds0to5-(\w+)")
+    for task in TASKS:
+        js = per_task[task]
+        if not js:
+            continue
+        loop, reported, random, oracle = counts(js)
+        sizes = sorted({len(c) for c in js})
+        print(f"| {task} | {len(js)} | {loop} | {reported} | {random:.1f} | {oracle} | "
+              f"{', '.join(map(str, sizes))} |")
 
 if __name__ == "__main__":
     main()

@@ -39,7 +39,7 @@ tasks="or sequential if composite"
   heldout_tables schedules-seed '### The baselines at other bases (base seed B, SAC seed B; `CONFIG=experiments/reacher/config_unshaped.toml SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS ALGOS B`; `python3 experiments/reacher/figure7.py heldout/schedules-seed<B>-<task>`)'
   heldout_tables schedules-js-seed '### js at base 3 on OR and Composite (`CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=schedules-js SEEDS=0 experiments/reacher/figure7_schedules.sh "or composite" js 3`)'
   heldout_tables rkl_expert-seed '### rkl at other bases (`CONFIG=experiments/reacher/config_unshaped.toml SUFFIX=rkl_expert SEEDS=0 experiments/reacher/figure7_schedules.sh TASKS rkl B`)'
-  printf '\n## What the final choice adds (`python3 experiments/reacher/choice.py`)\n\n'
+  printf '\n## What the final choice adds: smirl at base seed 0, SAC seeds 0-5 (`python3 experiments/reacher/choice.py`)\n\n'
   python3 choice.py
 } > "$out"
 chmod 644 "$out"
