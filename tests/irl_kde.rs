@@ -220,9 +220,9 @@ fn a_machine_one_hot_beside_the_fingertip_fits_and_matches_brute_force() {
     let dim = states + 2;
     let points = product_rows(&mut rng, 3000, states);
     let kde = Kde::fit(&points, dim, h).unwrap();
-    // The grid keys on the fingertip (about 20 occupied cells each) and one state's column.
-    assert_eq!(kde.gridded_dimensions().len(), 3);
-    assert!(kde.gridded_dimensions().ends_with(&[states, states + 1]));
+    // The one-hot splits the points by state; each state's grid keys on the fingertip.
+    assert_eq!(kde.split_columns(), (0..states).collect::<Vec<_>>());
+    assert_eq!(kde.gridded_dimensions(), [states, states + 1]);
     let mut queries: Vec<f64> = points
         .iter()
         .enumerate()
@@ -252,4 +252,69 @@ fn up_to_three_dimensions_are_all_gridded_in_order() {
         .flat_map(|p| [p[0], 0.5])
         .collect();
     assert_eq!(Kde::fit(&flat, 2, 0.02).unwrap().gridded_dimensions(), [0]);
+}
+
+#[test]
+fn split_columns_match_brute_force_at_queries_off_their_values() {
+    // Two columns of three values 0.1 apart (≥ 2h at h = 0.04) beside a 2-D cloud: split on
+    // both. Queries on the values, within h of one (r² > 0: the narrowed kernel), between
+    // two (no value within h) and beyond the ends.
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let h = 0.04;
+    let levels = [-0.1, 0.0, 0.1];
+    let mut points = Vec::new();
+    for _ in 0..2000 {
+        points.push(levels[rng.gen_range(0..3)]);
+        points.push(rng.gen_range(-0.1..0.1));
+        points.push(levels[rng.gen_range(0..3)]);
+        points.push(rng.gen_range(-0.1..0.1));
+    }
+    let kde = Kde::fit(&points, 4, h).unwrap();
+    assert_eq!(kde.split_columns(), [0, 2]);
+    assert_eq!(kde.gridded_dimensions(), [1, 3]);
+    let offsets = [0.0, 0.01, -0.025, 0.039, 0.05, 0.2];
+    let mut queries = Vec::new();
+    for _ in 0..600 {
+        let off = |rng: &mut ChaCha8Rng| offsets[rng.gen_range(0..offsets.len())];
+        queries.push(levels[rng.gen_range(0..3)] + off(&mut rng));
+        queries.push(rng.gen_range(-0.12..0.12));
+        queries.push(levels[rng.gen_range(0..3)] + off(&mut rng));
+        queries.push(rng.gen_range(-0.12..0.12));
+    }
+    let nonzero = assert_matches_brute_force(&points, 4, h, &queries);
+    assert!(nonzero > 100, "{nonzero}");
+}
+
+#[test]
+fn columns_too_close_or_too_varied_are_not_split_on() {
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let h = 0.05;
+    let rows = |rng: &mut ChaCha8Rng, gap: f64, values: usize| -> Vec<f64> {
+        (0..500)
+            .flat_map(|_| {
+                [
+                    gap * rng.gen_range(0..values) as f64,
+                    rng.gen_range(-0.2..0.2),
+                ]
+            })
+            .collect()
+    };
+    // Values more than 2h apart split; closer ones do not (a query could be within h of two).
+    assert_eq!(
+        Kde::fit(&rows(&mut rng, 2.5 * h, 5), 2, h)
+            .unwrap()
+            .split_columns(),
+        [0]
+    );
+    let close = rows(&mut rng, 1.99 * h, 5);
+    assert!(Kde::fit(&close, 2, h).unwrap().split_columns().is_empty());
+    assert_matches_brute_force(&close, 2, h, &close);
+    // More values than MAX_SPLIT_VALUES: not split on.
+    let varied = rows(&mut rng, 1.0, MAX_SPLIT_VALUES + 1);
+    assert!(Kde::fit(&varied, 2, h).unwrap().split_columns().is_empty());
+    // Every column discrete: one is kept for the grid, so none is split on.
+    assert!(Kde::fit(&[0.0, 0.0, 1.0, 1.0], 2, h)
+        .unwrap()
+        .split_columns()
+        .is_empty());
 }

@@ -1,13 +1,15 @@
 //! Benchmark of the grid KDE against the naive double loop at f-IRL's per-iteration size:
 //! fit 30 000 fingertip positions, evaluate at 30 000 queries (bandwidth 0.02).
 //!
-//! Three data sets: fingertip positions of ReacherDelivery rollouts under a uniformly random
+//! Four data sets: fingertip positions of ReacherDelivery rollouts under a uniformly random
 //! policy (1000 episodes × 30 steps — clustered, the hard case for a grid), points uniform in
-//! the reachable disc, and the same fingertips beside a one-hot of a random state of a
-//! 12-state machine (14-D: the density state of the product controls). The naive loop is timed on a subset of the queries and
-//! scaled to 30 000 (it is linear in the number of queries); every time is the median of
-//! several repetitions in this run. Results go to stdout and to `--out`
-//! (default `experiments/irl/kde_bench.txt`).
+//! the reachable disc, the same fingertips beside a one-hot of a random state of a 12-state
+//! machine (14-D: the density state of the product controls), and a policy that dwells: half
+//! of the fingertips within 5 mm of one spot, beside a one-hot of a 5-state machine (7-D: an
+//! agent resting at a ball, where a query's cells hold thousands of points). The naive loop is
+//! timed on a subset of the queries and scaled to 30 000 (it is linear in the number of
+//! queries); every time is the median of several repetitions in this run. Results go to
+//! stdout and to `--out` (default `experiments/irl/kde_bench.txt`).
 
 #![deny(unsafe_code)]
 
@@ -87,6 +89,18 @@ fn disc_points(n: usize, seed: u64) -> Vec<f64> {
         .collect()
 }
 
+/// `tips` with every other one moved to within 5 mm of `spot`.
+fn dwelling(tips: &[f64], spot: [f64; 2], seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut out = tips.to_vec();
+    for tip in out.chunks_exact_mut(2).step_by(2) {
+        let r = 0.005 * rng.gen_range(0.0f64..1.0).sqrt();
+        let a = rng.gen_range(0.0..std::f64::consts::TAU);
+        tip.copy_from_slice(&[spot[0] + r * a.cos(), spot[1] + r * a.sin()]);
+    }
+    out
+}
+
 struct Row {
     name: &'static str,
     grid_s: f64,
@@ -160,6 +174,18 @@ fn main() -> Result<()> {
     const STATES: usize = 12;
     let product_fit = with_machine_states(tip_fit, STATES, args.seed ^ 0xf17);
     let product_query = with_machine_states(tip_query, STATES, args.seed ^ 0x9e7);
+    const DWELL_STATES: usize = 5;
+    let spot = [tip_fit[0], tip_fit[1]];
+    let dwell_fit = with_machine_states(
+        &dwelling(tip_fit, spot, args.seed ^ 0xd1),
+        DWELL_STATES,
+        args.seed ^ 0xd2,
+    );
+    let dwell_query = with_machine_states(
+        &dwelling(tip_query, spot, args.seed ^ 0xd3),
+        DWELL_STATES,
+        args.seed ^ 0xd4,
+    );
     let rows = [
         bench("reacher random-policy tips", tip_fit, tip_query, 2, &args)?,
         bench("uniform in reachable disc", disc_fit, disc_query, 2, &args)?,
@@ -170,11 +196,18 @@ fn main() -> Result<()> {
             STATES + 2,
             &args,
         )?,
+        bench(
+            "dwelling tips + 5-state",
+            &dwell_fit,
+            &dwell_query,
+            DWELL_STATES + 2,
+            &args,
+        )?,
     ];
     let mut text = String::new();
     writeln!(
         text,
-        "kde_bench: Epanechnikov KDE, 2-D and 14-D, bandwidth {}, fit {n} points + evaluate {n} queries; \
+        "kde_bench: Epanechnikov KDE, 2-D, 14-D and 7-D, bandwidth {}, fit {n} points + evaluate {n} queries; \
          median of {} reps; naive loop timed on {} queries and scaled to {n}",
         args.bandwidth, args.reps, args.naive_queries
     )?;

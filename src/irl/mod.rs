@@ -30,7 +30,7 @@
 //! them). The Office loops are `pipeline::office` over [`tabular`].
 //!
 //! Costs per iteration at the paper's sizes: the KDE fit+evaluate of 30 000 × 30 000 runs in
-//! milliseconds (see `kde_bench`), the MLP backward over 30 000 states is a few tens of ms;
+//! tens of milliseconds (see `kde_bench`), the MLP backward over 30 000 states is a few tens of ms;
 //! SAC's steps and the rollouts' physics dominate.
 
 pub mod algo;
