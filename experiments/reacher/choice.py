@@ -63,5 +63,6 @@ def main():
         print(f"| {task} | {len(js)} | {loop} | {reported} | {random:.1f} | {oracle} | "
               f"{', '.join(map(str, sizes))} |")
 
+
 if __name__ == "__main__":
     main()

@@ -266,14 +266,9 @@ impl Kde {
         };
         free.clear();
         free.extend(self.free.iter().map(|&j| x[j]));
-        let grid = &self.groups[g].1;
-        let sum = if r2 == 0.0 {
-            grid.kernel_sum(free, inv_h)
-        } else {
-            let shrink = 1.0 - r2;
-            shrink * grid.kernel_sum(free, inv_h / shrink.sqrt())
-        };
-        sum * self.scale
+        // At r² = 0 (a one-hot query) the factor and the divisor are exactly 1.
+        let shrink = 1.0 - r2;
+        shrink * self.groups[g].1.kernel_sum(free, inv_h / shrink.sqrt()) * self.scale
     }
 }
 
