@@ -26,7 +26,7 @@
 //!   (nothing to compare outputs with) the raw machine and the target refine each other
 //!   along the traces (a bijection of states).
 //!
-//! The speed target (issue 3) is under 5 s per Office task at 100 000 transitions on 2 cores.
+//! The speed target is under 5 s per Office task at 100 000 transitions on 2 cores.
 
 #![deny(unsafe_code)]
 

@@ -759,7 +759,7 @@ pub struct DrawSummary {
     pub first_reverse_kl: f64,
     pub last_forward_kl: f64,
     pub last_reverse_kl: f64,
-    /// Last / first forward KL (issue 14's target: at most 0.2).
+    /// Last / first forward KL (the ReacherDraw target: at most 0.2).
     pub forward_ratio: f64,
     pub reverse_ratio: f64,
     /// The KLs the best the arm can do would measure: the same estimates against the target

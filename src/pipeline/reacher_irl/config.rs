@@ -52,7 +52,7 @@ pub enum SmirlMachine {
     /// absorbing states and its rewards zero, so that episodes run on as with a learned
     /// machine: an oracle for diagnosis, telling what the learned machine's shape costs.
     Task,
-    /// One state and no transitions: the control of issue 54 (item 4), SMIRL with every other
+    /// One state and no transitions: the one-state control (docs/method.md), SMIRL with every other
     /// mechanism kept and no structure, telling what the learned machine itself adds.
     #[serde(rename = "one_state")]
     OneState,
