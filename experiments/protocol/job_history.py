@@ -59,12 +59,12 @@ def select(rows, failed, cut):
         return rows
     last, any_cut = {}, set()
     for r in rows:
-        key = (r["dir"], r["algo"], r["seed"])
+        key = protocol.job_key(r)
         last[key] = r["outcome"]
         if r["outcome"] == "cut":
             any_cut.add(key)
     keep = {k for k, o in last.items() if o == "failed"} if failed else any_cut
-    return [r for r in rows if (r["dir"], r["algo"], r["seed"]) in keep]
+    return [r for r in rows if protocol.job_key(r) in keep]
 
 
 def main():
@@ -84,7 +84,7 @@ def main():
         cells = [os.path.basename(r["dir"]), r["algo"], r["seed"], r["start"] or "—",
                  r["attempt"] if r["attempt"] is not None else "—", r["end"] or "—", r["outcome"], r["why"]]
         print("| " + " | ".join(str(c) for c in cells) + " |")
-    print(f"\n{len(rows)} starts or outcomes of {len({(r['dir'], r['algo'], r['seed']) for r in rows})} jobs")
+    print(f"\n{len(rows)} starts or outcomes of {len({protocol.job_key(r) for r in rows})} jobs")
 
 
 if __name__ == "__main__":
