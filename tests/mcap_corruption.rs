@@ -206,3 +206,126 @@ fn a_record_damaged_into_a_footer_is_corruption_not_an_early_end() {
         ),
     }
 }
+
+/// A log whose run record carries `layout` (one episode of the IF task's shape).
+fn log_with_layout(path: &Path, layout: &smirl::env::layout::TaskLayout) {
+    use smirl::log::writer::EpisodeStartRecord;
+    use smirl::log::StepRecord;
+    use smirl::rm::LabelSet;
+    let task = smirl::env::reacher_task::ReacherTask::shipped("if").unwrap();
+    let t = task.task();
+    let header = RunHeader::reacher(
+        "if",
+        layout,
+        &t.text,
+        &t.scene_xml,
+        t.scene_files.clone(),
+        5,
+        serde_json::json!({ "env": ReacherConfig::default() }),
+    );
+    let mut log = RolloutLogger::create(path, header, LogOptions::default()).unwrap();
+    let (qpos, qvel) = (vec![0.0; 10], vec![0.0; 10]);
+    let balls = [0.1, 0.12, -0.14, 0.06, -0.06, -0.15, 0.14, -0.07];
+    log.begin_episode(&EpisodeStartRecord {
+        seed: 1,
+        phase: "eval",
+        qpos: &qpos,
+        qvel: &qvel,
+        balls: &balls,
+        event_steps: &[Some(3)],
+        labels: LabelSet::EMPTY,
+        rm_state: None,
+        obs: &[],
+    })
+    .unwrap();
+    log.step(&StepRecord {
+        action: &[0.0, 0.0],
+        reward: 0.0,
+        labels: LabelSet::EMPTY,
+        rm: None,
+        qpos: &qpos,
+        qvel: &qvel,
+        obs: &[],
+        terminated: false,
+        truncated: true,
+    })
+    .unwrap();
+    log.finish().unwrap();
+}
+
+/// Regression: the run record's task layout was used as it was read, so a log whose layout
+/// no task file could declare (a letter twice, an event's probability above 1, an empty event
+/// window) made `replay`, `render`, `foxglove` and `learn-rm` panic. Each refuses such a log,
+/// naming the file and the rule it breaks, before it builds anything from it.
+#[test]
+fn a_run_record_with_a_layout_no_task_could_declare_is_refused_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = smirl::env::reacher_task::ReacherTask::shipped("if")
+        .unwrap()
+        .task()
+        .layout();
+    type Damage = fn(&mut smirl::env::layout::TaskLayout);
+    let damages: [(&str, Damage, &str); 5] = [
+        ("letter_twice", |l| l.events[0].letter = 'r', "twice"),
+        ("bad_letter", |l| l.regions[1].letter = '&', "letter"),
+        (
+            "probability",
+            |l| l.events[0].probability = 2.0,
+            "probability",
+        ),
+        ("window", |l| l.events[0].earliest_step = 0, "step"),
+        ("radius", |l| l.regions[0].radius = f64::NAN, "radius"),
+    ];
+    for (name, damage, says) in damages {
+        let mut layout = good.clone();
+        damage(&mut layout);
+        let path = dir.path().join(format!("{name}.mcap"));
+        log_with_layout(&path, &layout);
+        let p = path.to_str().unwrap();
+        let out = |suffix: &str| {
+            let path = dir.path().join(format!("{name}_{suffix}"));
+            path.to_str().unwrap().to_string()
+        };
+        let (png, view, rm_dir) = (out("top.png"), out("view.mcap"), out("rm"));
+        for args in [
+            vec!["replay", p, "--verify"],
+            vec!["render", p, "--out", &png],
+            vec!["foxglove", p, "--out", &view],
+            vec!["learn-rm", p, "--out", &rm_dir],
+        ] {
+            let r = reacher(&args);
+            let err = String::from_utf8_lossy(&r.stderr);
+            assert!(
+                matches!(r.status.code(), Some(1 | 2)),
+                "{name} {args:?}: {:?} {err}",
+                r.status.code()
+            );
+            assert!(!err.contains("panicked"), "{name} {args:?}: {err}");
+            assert!(
+                err.contains(says) && err.contains(&format!("{name}.mcap")),
+                "{name} {args:?}: {err}"
+            );
+        }
+    }
+}
+
+/// The check a log's layout gets refuses nothing a task file declares: every committed task
+/// passes it, so a log of any of them replays.
+#[test]
+fn every_committed_tasks_layout_passes_the_check_a_logs_layout_gets() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    for dir in ["assets/tasks", "assets/tasks/new", "assets/scenes"] {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                files.push(path);
+            }
+        }
+    }
+    assert!(files.len() >= 11, "{files:?}");
+    for path in files {
+        let task = smirl::env::task_file::Task::load(&path).unwrap();
+        assert_eq!(task.layout().check(), Ok(()), "{}", path.display());
+    }
+}

@@ -19,6 +19,13 @@ use std::fmt;
 use std::path::PathBuf;
 use std::sync::Arc;
 
+/// Most labelled regions of a task.
+pub const MAX_REGIONS: usize = 8;
+/// Most exogenous events of a task.
+pub const MAX_EVENTS: usize = 4;
+/// Half the side of the arena (its walls are at ±0.3 m): every region lies inside.
+pub const ARENA_HALF_WIDTH: f64 = 0.3;
+
 /// Observation columns of the arm's joint velocities.
 pub const OBS_JOINT_VEL: [usize; 2] = [4, 5];
 /// Observation columns of the fingertip position.
@@ -205,4 +212,85 @@ impl TaskLayout {
     pub fn positions(&self) -> Vec<[f64; 2]> {
         self.regions.iter().map(|r| r.position).collect()
     }
+
+    /// The rules every layout a task file declares keeps, on their own: a layout read from
+    /// elsewhere (a log's run record) is checked with them before anything is built from it,
+    /// since the vocabulary, the environment's event draws and the drawings assume them.
+    pub fn check(&self) -> Result<(), LayoutProblem> {
+        let too_many = |what, count, limit| LayoutProblem::TooMany { what, count, limit };
+        if self.regions.len() > MAX_REGIONS {
+            return Err(too_many("regions", self.regions.len(), MAX_REGIONS));
+        }
+        if self.events.len() > MAX_EVENTS {
+            return Err(too_many("events", self.events.len(), MAX_EVENTS));
+        }
+        let letters: Vec<char> = self.letters().chars().collect();
+        for (i, &c) in letters.iter().enumerate() {
+            if !c.is_ascii_alphanumeric() {
+                return Err(LayoutProblem::BadLetter(c));
+            }
+            if letters[..i].contains(&c) {
+                return Err(LayoutProblem::LetterTwice(c));
+            }
+        }
+        for r in &self.regions {
+            if !(r.radius > 0.0 && r.radius <= ARENA_HALF_WIDTH) {
+                return Err(LayoutProblem::Radius {
+                    letter: r.letter,
+                    radius: r.radius,
+                });
+            }
+            if !r.position.iter().all(|v| v.is_finite()) {
+                return Err(LayoutProblem::Position {
+                    letter: r.letter,
+                    position: r.position,
+                });
+            }
+        }
+        for e in &self.events {
+            if !(0.0..=1.0).contains(&e.probability) {
+                return Err(LayoutProblem::Probability {
+                    letter: e.letter,
+                    probability: e.probability,
+                });
+            }
+            if e.earliest_step == 0 || e.earliest_step > e.latest_step {
+                return Err(LayoutProblem::EventWindow {
+                    letter: e.letter,
+                    earliest: e.earliest_step,
+                    latest: e.latest_step,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A rule of [`TaskLayout::check`] a layout breaks.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum LayoutProblem {
+    #[error("{count} {what}, at most {limit}")]
+    TooMany {
+        what: &'static str,
+        count: usize,
+        limit: usize,
+    },
+    #[error("letter '{}' is not one ASCII letter or digit", crate::quoted::text(&.0.to_string()))]
+    BadLetter(char),
+    #[error("letter '{0}' names two regions or events (it appears twice)")]
+    LetterTwice(char),
+    #[error("region '{letter}': radius {} must be more than 0 and at most {ARENA_HALF_WIDTH} m", crate::quoted::number(*.radius))]
+    Radius { letter: char, radius: f64 },
+    #[error("region '{letter}': position ({}, {}) is not finite", crate::quoted::number(.position[0]), crate::quoted::number(.position[1]))]
+    Position { letter: char, position: [f64; 2] },
+    #[error("event '{letter}': probability {} is not in [0, 1]", crate::quoted::number(*.probability))]
+    Probability { letter: char, probability: f64 },
+    #[error(
+        "event '{letter}': earliest_step ({earliest}) must be between 1 and latest_step ({latest})"
+    )]
+    EventWindow {
+        letter: char,
+        earliest: usize,
+        latest: usize,
+    },
 }

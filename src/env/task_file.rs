@@ -25,7 +25,10 @@
 //! [`Task::load`] checks everything against the scene and the machine before any work, and
 //! every error names the file, the line and the key.
 
-pub use super::layout::{Anchor, Event, LoadedScene, Region, Scene, TaskLayout, BUILTIN_SCENE};
+pub use super::layout::{
+    Anchor, Event, LoadedScene, Region, Scene, TaskLayout, ARENA_HALF_WIDTH, BUILTIN_SCENE,
+    MAX_EVENTS, MAX_REGIONS,
+};
 use super::placement::Placement;
 use super::scene_files::{compile_in_memory, read_scene_files, SceneFile, SceneFileKind};
 use crate::config_text::{key_line, read_text_file, toml_error_message};
@@ -39,15 +42,9 @@ use std::sync::Arc;
 
 /// Longest episode a task or run config may ask for (episodes are buffered whole).
 pub const MAX_EPISODE_STEPS: usize = 10_000;
-/// Most labelled regions of a task.
-pub const MAX_REGIONS: usize = 8;
-/// Most exogenous events of a task.
-pub const MAX_EVENTS: usize = 4;
 /// Most regions of a randomised layout (each reset draws them apart from each other in an
 /// annulus that holds about this many).
 pub const MAX_RANDOMIZED_REGIONS: usize = 6;
-/// Half the side of the arena (its walls are at ±0.3 m): every region lies inside.
-pub const ARENA_HALF_WIDTH: f64 = 0.3;
 /// A fixed layout position lies within ±this (m) in x and y: inside the walls with room for a
 /// ball, the range [`super::reacher::ReacherConfig::ball_layout`] accepts.
 pub const SLIDE_RANGE: f64 = 0.27;

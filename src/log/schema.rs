@@ -138,8 +138,12 @@ impl RunInfo {
     /// (or Composite, which has the same layout, for a task file's log).
     pub fn task_layout(&self) -> Result<crate::env::layout::TaskLayout, String> {
         if let Some(v) = self.config.get(CONFIG_TASK_LAYOUT) {
-            return serde_json::from_value(v.clone())
-                .map_err(|e| format!("the run's task layout does not parse: {e}"));
+            let layout: crate::env::layout::TaskLayout = serde_json::from_value(v.clone())
+                .map_err(|e| format!("the run's task layout does not parse: {e}"))?;
+            layout.check().map_err(|e| {
+                format!("the run's task layout is not one a task file declares: {e}")
+            })?;
+            return Ok(layout);
         }
         let shipped = crate::env::task_file::SHIPPED;
         let name = if shipped.contains(&self.task.as_str()) {
