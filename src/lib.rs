@@ -2,22 +2,19 @@
 //!
 //! Learns a reward machine (a finite automaton over labelled events) from demonstrations and
 //! runs inverse RL on the product of that machine with the environment (SMIRL), next to the
-//! baselines the paper compares against. Module layering (a lower layer never imports a
-//! higher one):
+//! baselines the paper compares against. Module layering:
 //!
 //! ```text
-//! mujoco (safe MuJoCo wrapper)     rm (reward machines: type, formats, product, LRM learning)
-//!            \                      /
-//!             env (ReacherDelivery, OfficeWorld, labelling functions, tasks)
-//!                        |
-//!  nn (MLP, Adam)  ->  rl (SAC, tabular solvers, replay buffer, counterfactual RM states)
-//!                        |
-//!                  irl (the algorithms' pieces: Algo, apprenticeship, MaxEnt, f-IRL
-//!                       losses, KDE, kNN divergence, SMIRL's linear reward)
-//!                        |
-//!   log (MCAP), report (plots, tables)  ->  pipeline (the experiments; `commands` serves the
-//!                                                 binaries)
+//! 1  mujoco (safe MuJoCo wrapper)   rm (reward machines: type, formats, product, LRM
+//!                                       learning)   nn (MLP, Adam)   report (plots, tables)
+//! 2  env (ReacherDelivery, OfficeWorld, labelling functions, tasks)
+//! 3  rl (SAC, tabular solvers, replay buffer, counterfactual RM states)   log (MCAP)
+//! 4  irl (the algorithms' pieces: Algo, apprenticeship, MaxEnt, f-IRL losses, KDE, kNN
+//!        divergence, SMIRL's linear reward)
+//! 5  pipeline (the experiments; `commands` serves the binaries)
 //! ```
+//!
+//! A module imports only modules of lower layers (`tests/module_layering.rs` checks it).
 //!
 //! Where to start reading:
 //! - **continuous SMIRL**: `pipeline/reacher_irl/smirl.rs` — learn the machine, annotate the
@@ -37,8 +34,8 @@
 //! file is read under a size limit), `config_text` (the limit of text inputs, line of a
 //! TOML key for errors), `output` (where a command may write: output directories and files
 //! are checked, never replaced unless ours),
-//! `assets` (the model, reward machines and committed experts built into the binaries) and
-//! `short_float` (serde helpers for readable configs) import nothing of the crate but each
+//! `assets` (the model, reward machines and committed experts built into the binaries),
+//! `quoted` (input quoted readably in errors) and `short_float` (serde helpers for readable configs) import nothing of the crate but each
 //! other and serve every layer.
 //!
 //! `unsafe` is denied everywhere but in four places, each allowed by name: the MuJoCo wrapper

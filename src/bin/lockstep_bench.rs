@@ -1,6 +1,6 @@
 //! Benchmark: one iteration's agent rollouts of f-IRL/MaxEnt (`--episodes` sampled episodes
 //! of 100 steps of ReacherDelivery, a (64, 64) SAC actor, the trajectories kept for the reward
-//! update) played one at a time, as before lockstep, against lockstep play at several batch
+//! update) played one at a time against lockstep play at several batch
 //! widths and thread counts, and against the environment alone (the same episodes' steps with
 //! fixed actions: the physics limit). Interleaved repetitions; medians of per-repetition
 //! ratios. Every lockstep variant is checked to give the one-at-a-time trajectories.

@@ -2,7 +2,8 @@
 //! seed, the demonstrations `reacher prepare --task T --seed B` makes (the standard config),
 //! and the machine LRM learns from them under each variant: `standard` (`smirl`'s learner),
 //! one mechanism off at a time, `paper` (`smirl-paper`'s, the paper's eq. 1) and
-//! `without_contested` (the mechanisms that fail the fold rule off together).
+//! `without_contested` (the mechanisms the fold rule of docs/method.md does not keep on the
+//! evidence, off together).
 //!
 //! `cargo run --release --bin lrm_ablation -- --tasks or,if --bases 0,3-105 --out rows.csv`
 //!
@@ -157,8 +158,8 @@ fn main() -> Result<()> {
     Ok(())
 }
 
-/// The mechanisms that moved some development base's machine away from the task's, in the
-/// ablation before the fold (experiments/lrm/ablation.md), turned off together.
+/// The mechanisms that move some development base's machine away from the task's in
+/// experiments/lrm/ablation.md, turned off together.
 fn without_contested(c: &mut LrmConfig) {
     c.commute_events = false;
     c.event_stutter = false;

@@ -100,7 +100,7 @@ pub struct ReacherConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cancel: Option<CancelConfig>,
     /// How the arm starts an episode (absent from written configs when `random`, the
-    /// default, so configs from before the option read and write unchanged).
+    /// default, so a config that does not name it reads and writes unchanged).
     #[serde(skip_serializing_if = "ArmStart::is_random")]
     pub arm_start: ArmStart,
     /// The task's scene, regions and events, set from the task

@@ -120,7 +120,7 @@ impl RolloutLog {
     /// The compiled model of a ReacherDelivery log's scene, from the log alone: its
     /// [`Self::reacher_model_xml`] with the scene files it carries, each found by the name the
     /// scene gives it, whether or not the original files still exist. Without scene files the
-    /// text is compiled alone, as it always was. Either way the text and the files it includes
+    /// text is compiled alone. Either way the text and the files it includes
     /// are walked first by a task's rules, so that a crafted log naming a file MuJoCo 2.2.2
     /// aborts the process on is an error naming the log and the file.
     pub fn reacher_model(&self) -> Result<Model, LogModelError> {

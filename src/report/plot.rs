@@ -9,14 +9,14 @@
 //! 800 iterations) is drawn through [`downsample`]: its line and each edge of its band keep,
 //! per bucket of consecutive points, the lowest and the highest point, so a plot stays a few
 //! tens of kilobytes and a one-point spike is still drawn. Shorter series are drawn point for
-//! point, as before; the data (CSV, JSON) is never reduced, only its picture.
+//! point; the data (CSV, JSON) is never reduced, only its picture.
 
 use std::fmt::Write;
 
 /// Most points one drawn curve (a series' line, or one edge of its band) is made of; longer
 /// series are reduced by [`downsample`]: 99 buckets of about 5.5 pixels of the default plot's
-/// 550-pixel-wide plotting area, each drawn by its lowest and highest point. (At 500 points a
-/// figure-7 plot of the 800-iteration baselines, three curves per algorithm, was 60–100 kB.)
+/// 550-pixel-wide plotting area, each drawn by its lowest and highest point. (A figure-7 plot
+/// of the 800-iteration baselines, three curves per algorithm, takes 60–100 kB at 500 points.)
 pub const MAX_DRAWN_POINTS: usize = 200;
 
 /// At most `max_points` of `points` for drawing a curve through them, in their order: the

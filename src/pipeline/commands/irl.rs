@@ -297,7 +297,7 @@ pub fn prepare(args: IrlRequest) -> Result<()> {
 
 /// Opens a prepared run for `job`, `aggregate` or `retrain`, refusing the `<out>.partial`
 /// working directory of a `reacher --task` run: it is renamed to `<out>` when that run ends,
-/// and a retrain started on it once recreated the `.partial` directory after the rename.
+/// and a command working in it would recreate the `.partial` directory after the rename.
 fn open_finished_run(dir: &Path) -> Result<PreparedRun> {
     if crate::output::is_work_in_progress(dir) {
         let out = dir.with_extension("");
@@ -364,8 +364,8 @@ pub fn job(args: JobRequest) -> Result<()> {
 }
 
 /// "final success X" of the policy a job reports, and the last IRL iteration's where a final
-/// policy was chosen (reading only the last iteration once printed 0.00 for a job reporting
-/// 0.65).
+/// policy was chosen (the two differ: a job can report 0.65 from a final policy whose last
+/// iteration scored 0.00).
 fn success_text(record: &JobRecord) -> String {
     let reported = record.reported_success();
     match (&record.final_policy, record.rows.last()) {

@@ -66,10 +66,6 @@ impl SmirlMachine {
             SmirlMachine::OneState => "one_state",
         }
     }
-
-    pub fn is_learned(&self) -> bool {
-        *self == SmirlMachine::Learned
-    }
 }
 
 /// Settings of a `reacher --task` run (see the module docs of [`super`] for what each
@@ -380,7 +376,7 @@ pub const BASELINE_ALGOS: [Algo; 4] = [Algo::MaxEnt, Algo::Fkl, Algo::Rkl, Algo:
 /// ground-truth evaluation, the replay size and the final phase.
 ///
 /// Why: f-IRL's own code runs many short IRL iterations (800 × 300 SAC steps, 2 reward steps,
-/// SAC with fixed α = 1) and fails even a one-ball control task under SMIRL's earlier 20 × 5 000
+/// SAC with fixed α = 1) and fails even a one-ball control task under a 20 × 5 000 schedule
 /// (research log, "Positive controls"); each algorithm gets the schedule its positive control
 /// needs.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -458,7 +454,7 @@ pub struct SacSchedule {
 /// first; every 100th episode logged. The replay size is not the schedule's: it is the run's
 /// `[sac]` one, shared by every algorithm ([`SHARED_SAC_KEYS`]). Chosen on the Markovian
 /// positive control "blue" (seeds 0–2), never on the paper's tasks: with it fkl, js and MaxEnt
-/// solve "blue" in 3 of 3 seeds, with SMIRL's earlier 20 × 5 000 schedule the f-IRL variants in
+/// solve "blue" in 3 of 3 seeds, with a 20 × 5 000 schedule the f-IRL variants in
 /// none (research log, "Positive controls of the baselines"). rkl's own table adds to it
 /// ([`rkl_schedule`]).
 pub fn baselines_schedule() -> AlgoSchedule {

@@ -316,7 +316,7 @@ fn demonstration_starts(lengths: &[usize]) -> Vec<usize> {
 
 /// f-IRL's draw of demonstrations for one reward step (its `resample_episodes`): `m` indices
 /// out of `n`, with replacement when `m > n`, else without; none when `m` is 0. Its own random
-/// stream, so a job that draws none is the job it was before the draw existed.
+/// stream, so that a job that draws none consumes nothing of the other streams.
 pub struct DemonstrationDraw {
     rng: ChaCha8Rng,
 }
