@@ -7,7 +7,6 @@ use smirl::env::reacher::{ArmStart, ReacherConfig, ReacherDelivery, OBS_TIP};
 use smirl::env::ContinuousEnv;
 use smirl::nn::mlp::Mlp;
 use smirl::pipeline::reacher_draw::{DrawConfig, DrawTarget, TARGET_STD};
-use smirl::pipeline::reacher_irl::irl_loop::{iterate, IrlPhases};
 use smirl::pipeline::reacher_irl::IrlConfigError;
 use smirl::rl::sac::{ActMode, ActWorkspace, SacAgent, SacConfig};
 use std::process::Command;
@@ -259,68 +258,4 @@ fn the_reachable_floor_of_the_reverse_kl_is_minus_log_the_reachable_mass() {
         // Half the target is out of reach: the forward KL cannot come near 0.
         assert!(forward > 1.0, "{target:?}: {forward}");
     }
-}
-
-/// The one IRL loop that ReacherDraw's and the Reacher jobs' iterations run: per iteration the
-/// four phases in order, each handing its result to the next, and nothing after the first
-/// error.
-#[test]
-fn the_irl_loop_runs_the_four_phases_in_order_and_stops_at_the_first_error() {
-    struct Phases {
-        calls: Vec<String>,
-        fails: Option<&'static str>,
-    }
-    impl Phases {
-        fn call(&mut self, call: String) -> Result<(), String> {
-            let failed = self.fails == Some(call.as_str());
-            self.calls.push(call);
-            match failed {
-                true => Err(format!("{} failed", self.calls.last().unwrap())),
-                false => Ok(()),
-            }
-        }
-    }
-    impl IrlPhases for Phases {
-        type Batch = usize;
-        type Facts = (usize, usize);
-        type Error = String;
-        fn sac_phase(&mut self, i: usize) -> Result<(), String> {
-            self.call(format!("sac {i}"))
-        }
-        fn rollouts(&mut self, i: usize) -> Result<usize, String> {
-            self.call(format!("rollouts {i}"))?;
-            Ok(10 * i)
-        }
-        fn reward_update(&mut self, i: usize, batch: usize) -> Result<(usize, usize), String> {
-            self.call(format!("update {i} of {batch}"))?;
-            Ok((batch, 100 * i))
-        }
-        fn record(&mut self, i: usize, facts: (usize, usize)) -> Result<(), String> {
-            self.call(format!("record {i} of {facts:?}"))
-        }
-    }
-    let mut phases = Phases {
-        calls: Vec::new(),
-        fails: None,
-    };
-    iterate(&mut phases, 2).unwrap();
-    assert_eq!(
-        phases.calls,
-        [
-            "sac 1",
-            "rollouts 1",
-            "update 1 of 10",
-            "record 1 of (10, 100)",
-            "sac 2",
-            "rollouts 2",
-            "update 2 of 20",
-            "record 2 of (20, 200)",
-        ]
-    );
-    let mut phases = Phases {
-        calls: Vec::new(),
-        fails: Some("rollouts 2"),
-    };
-    assert_eq!(iterate(&mut phases, 3), Err("rollouts 2 failed".into()));
-    assert_eq!(phases.calls.len(), 6, "{:?}", phases.calls);
 }

@@ -15,14 +15,13 @@
 //! forward and reverse KL between those draws and the agent's fingertip states, by the kNN
 //! estimator ([`crate::irl::knn_divergence`], k = 3), as f-IRL reports it.
 //!
-//! One IRL iteration, the one IRL loop's ([`irl_loop::iterate`]) with ReacherDraw's phases,
-//! top to bottom in `DrawPhases`' impl: SAC continues on the current reward for
+//! One IRL iteration ([`run_draw`]'s loop, each phase a method of `DrawJob`), the four phases
+//! of the Reacher jobs' loop: SAC continues on the current reward for
 //! `sac_steps_per_iteration` steps; `agent_trajectories` fresh episodes of the stochastic
 //! policy; the algorithm's per-state loss coefficients and `reward_steps_per_iteration` Adam
 //! steps of the reward; every `eval_every` iterations the two KLs.
 
 use super::reacher_irl::config::{load_toml_config, parse_toml_config};
-use super::reacher_irl::irl_loop::{self, IrlPhases};
 use super::reacher_irl::{Algo, IrlConfigError};
 use crate::env::reacher::ReacherError;
 use crate::env::reacher::{
@@ -418,8 +417,7 @@ pub struct DrawResult {
 
 /// Runs one ReacherDraw job: `algo` (maxent, fkl, rkl, js) on `config`, seeded by `seed`
 /// (SAC, rollouts and target samples have their own streams). `on_row` sees each KL
-/// estimate as it is made. The iterations are the one IRL loop's ([`irl_loop::iterate`]) with
-/// ReacherDraw's phases (`DrawPhases`).
+/// estimate as it is made.
 pub fn run_draw(
     algo: Algo,
     config: &DrawConfig,
@@ -464,7 +462,7 @@ pub fn run_draw(
         .collect::<Result<Vec<_>, _>>()
         .map_err(DrawError::Arm)?;
     let act_ws = ActWorkspace::with_batch(&trainer.agent.actor, lockstep.len());
-    let mut draw = DrawPhases {
+    let mut draw = DrawJob {
         algo,
         config,
         seed,
@@ -484,7 +482,12 @@ pub fn run_draw(
         rows: Vec::new(),
         on_row,
     };
-    irl_loop::iterate(&mut draw, config.iterations)?;
+    for iteration in 1..=config.iterations {
+        draw.sac_phase()?;
+        let agent_obs = draw.rollouts()?;
+        let facts = draw.reward_update(agent_obs)?;
+        draw.record(iteration, facts)?;
+    }
     Ok(DrawResult {
         rows: draw.rows,
         final_tips: draw.tips,
@@ -492,9 +495,9 @@ pub fn run_draw(
     })
 }
 
-/// A ReacherDraw job as [`run_draw`] sets it up: one IRL iteration is its four phases, top to
-/// bottom in the `IrlPhases` impl below.
-struct DrawPhases<'c, F> {
+/// A ReacherDraw job as [`run_draw`] sets it up; its methods are the four phases of an IRL
+/// iteration.
+struct DrawJob<'c, F> {
     algo: Algo,
     config: &'c DrawConfig,
     seed: u64,
@@ -528,14 +531,9 @@ struct DrawFacts {
     surrogate_loss: f64,
 }
 
-impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
-    /// The rollouts' observations, trajectory after trajectory, `horizon` each.
-    type Batch = Vec<f32>;
-    type Facts = DrawFacts;
-    type Error = DrawError;
-
+impl<F: FnMut(&DrawRow)> DrawJob<'_, F> {
     /// Phase 1: SAC on the current reward r(o_{t+1}) of each replayed transition.
-    fn sac_phase(&mut self, _iteration: usize) -> Result<(), DrawError> {
+    fn sac_phase(&mut self) -> Result<(), DrawError> {
         let mut reward_error = None;
         // The plain environment's observations are the reward's input rows as stored.
         let mut reward_fn = |batch: &ReplayBatch, out: &mut [f32]| {
@@ -560,8 +558,9 @@ impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
     }
 
     /// Phase 2: fresh episodes of the stochastic policy, fingertip states s_1..s_T, played
-    /// `lockstep.len()` at a time so that the actor acts on all of them in one product.
-    fn rollouts(&mut self, _iteration: usize) -> Result<Vec<f32>, DrawError> {
+    /// `lockstep.len()` at a time so that the actor acts on all of them in one product; their
+    /// observations, trajectory after trajectory, `horizon` each.
+    fn rollouts(&mut self) -> Result<Vec<f32>, DrawError> {
         let (n_traj, horizon) = (self.config.agent_trajectories, self.config.horizon);
         let (obs_dim, act_dim) = (self.env.obs_dim(), self.env.act_dim());
         let width = self.lockstep.len();
@@ -607,11 +606,7 @@ impl<F: FnMut(&DrawRow)> IrlPhases for DrawPhases<'_, F> {
 
     /// Phase 3: the algorithm's loss coefficients at the agent (and, MaxEnt, expert) states,
     /// then the reward steps on them.
-    fn reward_update(
-        &mut self,
-        _iteration: usize,
-        agent_obs: Vec<f32>,
-    ) -> Result<DrawFacts, DrawError> {
+    fn reward_update(&mut self, agent_obs: Vec<f32>) -> Result<DrawFacts, DrawError> {
         let (config, tips) = (self.config, &self.tips);
         let n_agent = tips.len() / 2;
         let (obs, coeffs) = match self.algo.divergence() {

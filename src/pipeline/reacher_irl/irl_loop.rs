@@ -1,18 +1,16 @@
-//! The IRL loop, written once ([`iterate`]): per iteration,
+//! The IRL loop of the Reacher jobs ([`run`]), written once, top to bottom: the untrained
+//! policy's evaluation, then per iteration
 //!
-//! 1. SAC on the reward being learned ([`IrlPhases::sac_phase`]),
-//! 2. fresh rollouts of the stochastic policy ([`IrlPhases::rollouts`]),
-//! 3. the algorithm's reward update from them ([`IrlPhases::reward_update`]: its loss
-//!    coefficients and reward steps),
-//! 4. what the iteration is measured by ([`IrlPhases::record`]).
+//! 1. SAC on the reward being learned,
+//! 2. fresh rollouts of the stochastic policy,
+//! 3. the algorithm's reward update from them (its loss coefficients and reward steps:
+//!    [`RewardLearner::update`]),
+//! 4. the ground-truth evaluation of the iteration's policy by the job's watch,
 //!
-//! Two kinds of job run it. The Reacher comparison's (`run`, `JobPhases`): the untrained
-//! policy is evaluated first, every iteration ends with the ground-truth evaluation of the job's
-//! watch, and the final phase ([`final_policy`]) follows on the final reward when the settings
-//! ask for one; what an algorithm brings there is its reward (`RewardLearner`): SMIRL's
-//! (`super::smirl::train`) and f-IRL's and continuous MaxEnt's (`super::firl::train`).
-//! ReacherDraw's (`crate::pipeline::reacher_draw::run_draw`): its own lockstep rollouts, the
-//! fingertip density's coefficients, and KL estimates as the record.
+//! and the final phase ([`final_policy`]) on the final reward when the settings ask for one.
+//! What an algorithm brings is its reward (`RewardLearner`): SMIRL's (`super::smirl::train`)
+//! and f-IRL's and continuous MaxEnt's (`super::firl::train`). ReacherDraw
+//! (`crate::pipeline::reacher_draw::run_draw`) runs the same four phases in a loop of its own.
 
 use super::agent_phases::{train_sac, RolloutStream};
 use super::config::IrlRunConfig;
@@ -21,39 +19,6 @@ use super::evaluation::{JobWatch, UpdateFacts};
 use super::final_policy::{self, FinalPhase, FinalPolicy, ScoredReward};
 use super::iteration::StepError;
 use crate::rl::sac::SacTrainer;
-
-/// The four phases of one IRL iteration, as a kind of job runs them.
-pub trait IrlPhases {
-    /// What the rollouts hand to the reward update.
-    type Batch;
-    /// What the reward update hands to the record.
-    type Facts;
-    type Error;
-
-    /// Phase 1: SAC on the current reward.
-    fn sac_phase(&mut self, iteration: usize) -> Result<(), Self::Error>;
-    /// Phase 2: fresh episodes of the stochastic policy.
-    fn rollouts(&mut self, iteration: usize) -> Result<Self::Batch, Self::Error>;
-    /// Phase 3: the loss coefficients at `batch` (and the expert's), then the reward steps.
-    fn reward_update(
-        &mut self,
-        iteration: usize,
-        batch: Self::Batch,
-    ) -> Result<Self::Facts, Self::Error>;
-    /// Phase 4: the iteration's measurement.
-    fn record(&mut self, iteration: usize, facts: Self::Facts) -> Result<(), Self::Error>;
-}
-
-/// Runs IRL iterations 1..=`iterations` of `phases` (see the module docs).
-pub fn iterate<P: IrlPhases>(phases: &mut P, iterations: usize) -> Result<(), P::Error> {
-    for iteration in 1..=iterations {
-        phases.sac_phase(iteration)?;
-        let batch = phases.rollouts(iteration)?;
-        let facts = phases.reward_update(iteration, batch)?;
-        phases.record(iteration, facts)?;
-    }
-    Ok(())
-}
 
 /// An IRL algorithm's learned reward, as the Reacher jobs' loop ([`run`]) uses it.
 pub(super) trait RewardLearner {
@@ -85,15 +50,26 @@ pub(super) fn run<E: JobEnv, L: RewardLearner>(
 ) -> Result<Option<FinalPolicy>, StepError> {
     // 0. The untrained policy's evaluation.
     watch.iteration_done(0, 0, &mut sac.agent, env, None)?;
-    let mut job = JobPhases {
-        learner: &mut *learner,
-        sac: &mut *sac,
-        env: &mut *env,
-        settings,
-        rollouts: RolloutStream::new(seed),
-        watch: &mut *watch,
-    };
-    iterate(&mut job, settings.irl_iterations)?;
+    let mut rollouts = RolloutStream::new(seed);
+    for iteration in 1..=settings.irl_iterations {
+        // 1. SAC on the current reward.
+        let steps = settings.sac_steps_per_iteration;
+        train_sac(
+            sac,
+            env,
+            &mut learner.sac_reward()?,
+            steps,
+            iteration,
+            watch,
+        )?;
+        // 2. Fresh episodes of the stochastic policy.
+        let batch = rollouts.collect(&mut sac.agent, env, settings.agent_trajectories, watch)?;
+        // 3. The algorithm's reward update.
+        let facts = learner.update(iteration, batch)?;
+        // 4. The ground-truth evaluation of the iteration's policy.
+        let env_steps = sac.env_steps();
+        watch.iteration_done(iteration, env_steps, &mut sac.agent, env, Some(facts))?;
+    }
     // The final phase: SAC goes on with the final reward, now fixed.
     final_phase
         .map(|phase| {
@@ -101,59 +77,4 @@ pub(super) fn run<E: JobEnv, L: RewardLearner>(
             final_policy::train(sac, env, &mut reward, phase, settings.irl_iterations, watch)
         })
         .transpose()
-}
-
-/// A Reacher job's iterations: `learner`'s reward, `sac` acting in `env`, every phase shown
-/// to the job's `watch`.
-struct JobPhases<'j, 'w, 'l, E, L> {
-    learner: &'j mut L,
-    sac: &'j mut SacTrainer,
-    env: &'j mut E,
-    settings: &'j IrlRunConfig,
-    rollouts: RolloutStream,
-    watch: &'j mut JobWatch<'w, 'l>,
-}
-
-impl<E: JobEnv, L: RewardLearner> IrlPhases for JobPhases<'_, '_, '_, E, L> {
-    type Batch = AgentBatch;
-    type Facts = UpdateFacts;
-    type Error = StepError;
-
-    fn sac_phase(&mut self, iteration: usize) -> Result<(), StepError> {
-        let steps = self.settings.sac_steps_per_iteration;
-        let mut reward = self.learner.sac_reward()?;
-        train_sac(
-            self.sac,
-            self.env,
-            &mut reward,
-            steps,
-            iteration,
-            self.watch,
-        )
-    }
-
-    fn rollouts(&mut self, _iteration: usize) -> Result<AgentBatch, StepError> {
-        let n = self.settings.agent_trajectories;
-        (self.rollouts).collect(&mut self.sac.agent, self.env, n, self.watch)
-    }
-
-    fn reward_update(
-        &mut self,
-        iteration: usize,
-        batch: AgentBatch,
-    ) -> Result<UpdateFacts, StepError> {
-        self.learner.update(iteration, batch)
-    }
-
-    /// The ground-truth evaluation of the iteration's policy.
-    fn record(&mut self, iteration: usize, facts: UpdateFacts) -> Result<(), StepError> {
-        let env_steps = self.sac.env_steps();
-        (self.watch).iteration_done(
-            iteration,
-            env_steps,
-            &mut self.sac.agent,
-            self.env,
-            Some(facts),
-        )
-    }
 }

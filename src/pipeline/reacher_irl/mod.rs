@@ -20,8 +20,9 @@
 //!    its own reward. What every loop shares is in [`episodes`] (the environment, an episode),
 //!    [`agent_phases`] (the SAC phase, the rollouts) and [`iteration`] (what an iteration
 //!    hands on); [`evaluation`] watches each job from outside (ground truth after every
-//!    iteration, logs, progress); SMIRL's jobs end with [`final_policy`], SAC on the final
-//!    reward held fixed and the policy of highest learned return reported beside the loop's.
+//!    iteration, logs, progress); every job but `smirl-paper`'s ends with [`final_policy`], SAC
+//!    on the final reward held fixed and the policy of highest learned return reported beside
+//!    the loop's.
 //! 4. **Reports** ([`reports`], from the jobs' [`records`]): metrics CSV, mean ± std plots
 //!    over seeds, a summary table; beside them ([`run`]) the learned RM (text + DOT), reward
 //!    parameters and MCAP logs. Everything is written into `<out>.partial` and renamed to
@@ -35,7 +36,7 @@ pub mod evaluation;
 pub mod expert_data;
 pub mod final_policy;
 pub mod firl;
-pub mod irl_loop;
+mod irl_loop;
 pub mod iteration;
 pub mod job;
 pub mod lockstep;
