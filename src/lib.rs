@@ -20,7 +20,8 @@
 //! - **continuous SMIRL**: `pipeline/reacher_irl/smirl.rs` — learn the machine, annotate the
 //!   demonstrations, then per iteration SAC on the product with counterfactual states,
 //!   rollouts, feature expectations, reward step; **f-IRL and continuous MaxEnt**:
-//!   `pipeline/reacher_irl/firl.rs`, the same loop shape; what both loops share is
+//!   `pipeline/reacher_irl/firl.rs`; the loop both run, top to bottom, is
+//!   `pipeline/reacher_irl/irl_loop.rs`, each with its own reward update; what it calls is
 //!   `pipeline/reacher_irl/episodes.rs` (the environment, an episode) and `agent_phases.rs`
 //!   (the SAC phase, the rollouts), and what watches them (ground truth, logs, progress) `pipeline/reacher_irl/evaluation.rs`.
 //! - **SAC**: `rl/sac/agent.rs` (one update, top to bottom) and `rl/sac/trainer.rs` (the
