@@ -3,8 +3,7 @@
 
 use smirl::irl::tabular::{MaxEntConfig, MaxEntIrl, Optimizer, StateActionFeatures, NO_FEATURE};
 use smirl::rl::tabular::{
-    expected_visitation, finite_horizon_greedy, log_sum_exp as lse, soft_backward, DetMdp,
-    FiniteSoftPolicy,
+    expected_visitation, finite_horizon_greedy, soft_backward, DetMdp, FiniteSoftPolicy,
 };
 
 const S: usize = 4;
@@ -39,7 +38,7 @@ fn soft_value_iteration(mdp: &DetMdp, r: &[f64], gamma: f64) -> Vec<f64> {
                 let q: Vec<f64> = (0..A)
                     .map(|a| r[s * A + a] + gamma * v[mdp.next(s, a)])
                     .collect();
-                lse(&q)
+                log_sum_exp(q.iter().copied())
             })
             .collect();
         let delta = next
@@ -64,7 +63,7 @@ fn soft_value_iteration_is_a_log_sum_exp_fixed_point() {
         let q: Vec<f64> = (0..A)
             .map(|a| r[s * A + a] + 0.8 * v[mdp.next(s, a)])
             .collect();
-        assert!((lse(&q) - v[s]).abs() < 1e-10);
+        assert!((log_sum_exp(q.iter().copied()) - v[s]).abs() < 1e-10);
         // The soft-optimal policy exp(Q − V) is a distribution.
         let total: f64 = q.iter().map(|q| (q - v[s]).exp()).sum();
         assert!((total - 1.0).abs() < 1e-12);

@@ -459,9 +459,8 @@ impl ReacherDelivery {
         [p[0], p[1]]
     }
 
-    /// Places the arm (joint angles and velocities) without stepping, e.g. for tests and
-    /// scripted states; recomputes positions and labels. Region layout and event schedule
-    /// stay.
+    /// Places the arm (joint angles and velocities) without stepping, for a scripted state;
+    /// recomputes positions and labels. Region layout and event schedule stay.
     pub fn set_arm(&mut self, angles: [f64; 2], velocities: [f64; 2]) -> Result<(), EnvError> {
         for k in 0..2 {
             self.data.qpos_mut()[self.places.arm_qpos[k]] = angles[k];

@@ -106,16 +106,12 @@ impl Divergence {
         }
     }
 
-    /// h_f(u) = f(u) − f′(u) u exactly:
+    /// h used in the surrogate: h_f(u) = f(u) − f′(u) u without its additive constant,
     /// - fkl: u log u − u (log u + 1)                              = −u
     /// - rkl: −log u + 1                                          = −log u + 1
-    /// - js:  u log u − (1+u) log((1+u)/2) − u log u + u log((1+u)/2) = −log(1+u) + log 2
-    pub fn h_exact(self, u: f64) -> f64 {
-        self.f(u) - self.f_prime(u) * u
-    }
-
-    /// h used in the surrogate: [`Divergence::h_exact`] without its additive constant
-    /// (−u, −log u, −log(1+u)). A constant shifts every A_i equally and cancels in the
+    /// - js:  u log u − (1+u) log((1+u)/2) − u log u + u log((1+u)/2) = −log(1+u) + log 2,
+    ///
+    /// so −u, −log u, −log(1+u). A constant shifts every A_i equally and cancels in the
     /// covariance, so the gradient is the same.
     pub fn h(self, u: f64) -> f64 {
         match self {

@@ -107,17 +107,3 @@ pub fn mean_action(head: &DMatrix<f32>, actions: &mut DMatrix<f32>) {
         }
     }
 }
-
-/// log π(a) of a given squashed action `a ∈ (−1, 1)^A` under mean and log-std (one sample),
-/// in `f64`: for evaluation and tests.
-pub fn log_prob_of_action(mean: &[f32], log_std: &[f32], action: &[f64]) -> f64 {
-    let mut sum = 0.0;
-    for i in 0..action.len() {
-        let ls = f64::from(log_std[i].clamp(LOG_STD_MIN, LOG_STD_MAX));
-        let a = action[i];
-        let u = a.atanh();
-        let z = (u - f64::from(mean[i])) / ls.exp();
-        sum += -0.5 * z * z - ls - 0.5 * (2.0 * std::f64::consts::PI).ln() - (1.0 - a * a).ln();
-    }
-    sum
-}

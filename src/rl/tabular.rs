@@ -126,16 +126,6 @@ impl DetMdp {
     }
 }
 
-/// Log-sum-exp of a short slice, stable.
-#[inline]
-pub fn log_sum_exp(xs: &[f64]) -> f64 {
-    let m = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    if m == f64::NEG_INFINITY {
-        return m;
-    }
-    m + xs.iter().map(|&x| (x - m).exp()).sum::<f64>().ln()
-}
-
 /// State values and action values of a solved MDP.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Values {

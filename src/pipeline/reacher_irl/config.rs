@@ -344,24 +344,6 @@ fn run_sac(k: &SacKeys) -> SacConfig {
     }
 }
 
-/// The distinct keys of the run config's layout (a table's keys dotted: `smirl.reward_lr`;
-/// `[schedule.<algo>]` overrides not counted): docs/configuration.md lists each.
-pub fn layout_keys() -> Vec<String> {
-    let value = toml::Value::try_from(RunFile::from(IrlRunConfig::standard()))
-        .expect("the standard profile serialises");
-    let mut keys = Vec::new();
-    for (k, v) in value.as_table().expect("a table") {
-        match v {
-            toml::Value::Table(t) if k != "schedule" => {
-                keys.extend(t.keys().map(|sub| format!("{k}.{sub}")))
-            }
-            toml::Value::Table(_) => {}
-            _ => keys.push(k.clone()),
-        }
-    }
-    keys
-}
-
 /// The name of the schedule every baseline shares: `[schedule.baselines]`.
 pub const BASELINES: &str = "baselines";
 
