@@ -174,5 +174,6 @@ fn tasks_parse_and_reject_unknown_names() {
     assert!("composit"
         .parse::<ReacherTask>()
         .unwrap_err()
+        .to_string()
         .contains("no shipped task named 'composit'"));
 }

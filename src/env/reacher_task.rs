@@ -150,9 +150,9 @@ impl fmt::Display for ReacherTask {
 }
 
 impl FromStr for ReacherTask {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        ReacherTask::resolve(s).map_err(|e| e.to_string())
+    type Err = TaskFileError;
+    fn from_str(s: &str) -> Result<Self, TaskFileError> {
+        ReacherTask::resolve(s)
     }
 }
 
