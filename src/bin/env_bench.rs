@@ -19,6 +19,9 @@ use smirl::mujoco::{self, Data, Model};
 use std::sync::Arc;
 use std::time::Instant;
 
+mod common;
+use common::median;
+
 #[derive(Parser)]
 #[command(
     about = "ReacherDelivery steps/s vs the raw mj_step loop and vs the whole and first models"
@@ -30,11 +33,6 @@ struct Args {
     /// Environment steps per repetition.
     #[arg(long, default_value_t = 20_000)]
     steps: usize,
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
 }
 
 /// Environment steps per second over `steps` steps of a fixed action, resetting at truncation.
@@ -104,7 +102,8 @@ fn main() -> anyhow::Result<()> {
             now.join(", ")
         );
     }
-    let ratio = |a: &[f64], b: &[f64]| median(a.iter().zip(b).map(|(x, y)| x / y).collect());
+    let ratio =
+        |a: &[f64], b: &[f64]| median(a.iter().zip(b).map(|(x, y)| x / y).collect::<Vec<_>>());
     let reset_cost = median(reset_costs);
     println!(
         "MuJoCo {} ({} steps x {} reps, {FRAME_SKIP} mj_step per env step, one thread)",
@@ -121,7 +120,7 @@ fn main() -> anyhow::Result<()> {
         "ReacherDelivery, first model ",
     ];
     for (name, r) in names.iter().zip(&rates) {
-        let m = median(r.clone());
+        let m = median(r);
         println!("{name}: {m:>9.0} steps/s ({:.1} us/step)", 1e6 / m);
     }
     for (name, a, b, target) in [
@@ -135,7 +134,7 @@ fn main() -> anyhow::Result<()> {
     }
     println!(
         "episode reset: {:.1} us = {reset_cost:.2} env steps (median per rep; target <= 1)",
-        reset_cost * 1e6 / median(rates[1].clone())
+        reset_cost * 1e6 / median(&rates[1])
     );
     Ok(())
 }

@@ -25,6 +25,9 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
+mod common;
+use common::median;
+
 #[derive(Parser)]
 #[command(about = "Grid Epanechnikov KDE vs the naive double loop (fit + evaluate)")]
 struct Args {
@@ -47,11 +50,6 @@ struct Args {
     /// Replace an existing --out file.
     #[arg(long)]
     force: bool,
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
 }
 
 /// Fingertip positions of random-policy episodes of 30 steps.

@@ -23,6 +23,9 @@ use smirl::pipeline::reacher_irl::lockstep::{play_lockstep, Keep, Lockstep};
 use smirl::rl::sac::{draw_noise, episode_seed, ActMode, SacAgent, SacConfig};
 use std::time::Instant;
 
+mod common;
+use common::median;
+
 #[derive(Parser)]
 #[command(about = "Lockstep rollouts vs one-at-a-time rollouts vs the environment alone")]
 struct Args {
@@ -38,11 +41,6 @@ struct Args {
     /// Also measure lockstep on this many threads (batch 32); 1 = not.
     #[arg(long, default_value_t = 2)]
     threads: usize,
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
 }
 
 fn main() -> Result<()> {
@@ -160,25 +158,25 @@ fn main() -> Result<()> {
     );
     println!(
         "env alone (fixed action)        : {:>8.0} steps/s",
-        median(env_rates.clone())
+        median(&env_rates)
     );
     println!(
-        "one at a time (before lockstep) : {:>8.0} steps/s   ({:.3} of env alone)",
-        median(one_rates.clone()),
+        "one at a time                   : {:>8.0} steps/s   ({:.3} of env alone)",
+        median(&one_rates),
         median(
             one_rates
                 .iter()
                 .zip(&env_rates)
                 .map(|(o, e)| o / e)
-                .collect()
+                .collect::<Vec<_>>()
         )
     );
     for (v, (label, _, _)) in variants.iter().enumerate() {
         println!(
             "{label}: {:>8.0} steps/s   x{:.2} one at a time, {:.3} of env alone",
-            median(rates[v].clone()),
-            median(ratios[v].clone()),
-            median(env_ratios[v].clone())
+            median(&rates[v]),
+            median(&ratios[v]),
+            median(&env_ratios[v])
         );
     }
     Ok(())

@@ -42,6 +42,9 @@ use smirl::rm::transform::restart_on_goal;
 use smirl::rm::{LabelSet, RewardMachine};
 use std::time::Instant;
 
+mod common;
+use common::median;
+
 #[derive(Parser)]
 #[command(about = "LRM learner benchmark: time, cost and equivalence per task")]
 struct Args {
@@ -89,11 +92,6 @@ fn at_least_one(text: &str) -> Result<usize, String> {
             "expected a whole number of at least 1, got {text:?}"
         )),
     }
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
 }
 
 /// Label sets read at a non-final step of some trace (those whose effect is observable).

@@ -22,6 +22,9 @@ use smirl::rl::sac::{EpisodeSummary, TrainingObserver};
 use smirl::rm::RewardMachine;
 use std::time::Instant;
 
+mod common;
+use common::median;
+
 #[derive(Parser)]
 #[command(about = "MCAP logging overhead, bytes/step and replay speed")]
 struct Args {
@@ -43,11 +46,6 @@ fn thread_cpu_secs() -> Result<f64> {
         .and_then(|t| t.parse().ok())
         .ok_or_else(|| anyhow::anyhow!("unexpected /proc/thread-self/schedstat: {text:?}"))?;
     Ok(ns * 1e-9)
-}
-
-fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(f64::total_cmp);
-    xs[xs.len() / 2]
 }
 
 /// Runs the episodes with a smooth random policy (precomputed), optionally logging through

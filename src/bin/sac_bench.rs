@@ -24,6 +24,9 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
+mod common;
+use common::median;
+
 #[derive(Parser, Debug)]
 #[command(about = "SAC steps+updates per second vs the matrix-multiply bound")]
 struct Args {
@@ -172,17 +175,6 @@ struct Measurement {
     gemm_bound_per_s: Vec<f64>,
     env_only_per_s: Vec<f64>,
     shapes: Vec<GemmShape>,
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
 }
 
 fn measure<E: ContinuousEnv>(env: &mut E, config: &SacConfig, args: &Args) -> Result<Measurement> {
