@@ -27,6 +27,10 @@
 //!   CRCs is refused, read identical, or read as cut short with a prefix. Every accepted log
 //!   goes through replay, render, the offline-RM traces and (one in eight) the Foxglove
 //!   export, whose copy must read back to the same episodes.
+//! - `mcap_fields`: the same logs as read, with well-formed but wrong values in their fields
+//!   (the run record's JSON config and task layout, its vocabulary, task, machine and sizes;
+//!   an episode's state vectors, event steps, labels and machine states), which CRCs cannot
+//!   keep out of a log written by anyone; replay, render and the offline-RM traces run on each.
 //! - `expert_data`, `policy`, `reward_net`, `reward_linear`, `job`, `prepare`: the run
 //!   directory's `expert_data.bin`, `*.policy`, `rewards/*.bin`, `rewards/*.json`,
 //!   `jobs/*.json` and `prepare.json`; `expert_data` also round-trips.
@@ -73,6 +77,7 @@ const TARGETS: &[(&str, &str, u64)] = &[
     ("office_task", "FUZZ_BIN_ITERS", 4_000),
     ("mcap", "FUZZ_MCAP_ITERS", 2_000),
     ("mcap_nocrc", "FUZZ_MCAP_ITERS", 1_000),
+    ("mcap_fields", "FUZZ_MCAP_ITERS", 1_000),
     ("expert_data", "FUZZ_BIN_ITERS", 4_000),
     ("policy", "FUZZ_BIN_ITERS", 3_000),
     ("reward_net", "FUZZ_BIN_ITERS", 500),
@@ -266,6 +271,8 @@ struct Corpus {
     episodes: Vec<Vec<smirl::log::LoggedEpisode>>,
     /// Architecture of the reward network files.
     reward_arch: Option<MlpArch>,
+    /// The logs as read, each cut to its first two episodes and its last (`mcap_fields`).
+    logs: Vec<RolloutLog>,
 }
 
 fn corpus(target: &str) -> Corpus {
@@ -273,6 +280,7 @@ fn corpus(target: &str) -> Corpus {
         files: Vec::new(),
         episodes: Vec::new(),
         reward_arch: None,
+        logs: Vec::new(),
     };
     let dir_files = |dir: &str| -> Vec<Vec<u8>> {
         // The directory's files (`assets/tasks/new/` holds more tasks, not a seed input).
@@ -331,6 +339,27 @@ fn corpus(target: &str) -> Corpus {
                 c.files.push(bytes);
             }
         }
+        "mcap_fields" => {
+            for p in [
+                "tests/fuzz_corpus/demos.mcap",
+                "tests/fuzz_corpus/fkl_seed0.mcap",
+            ] {
+                let bytes = read(p);
+                let mut log = read_log_bytes(&bytes, Path::new(p)).unwrap();
+                // The corpus predates logs that record their task's layout; a log written
+                // now carries it, and what reads it is fuzzed here.
+                let layout = ReacherTask::shipped(&log.run.task).unwrap().task().layout();
+                log.run.config[smirl::log::schema::CONFIG_TASK_LAYOUT] =
+                    serde_json::to_value(layout).unwrap();
+                if log.episodes.len() > 3 {
+                    let last = log.episodes.pop().unwrap();
+                    log.episodes.truncate(2);
+                    log.episodes.push(last);
+                }
+                c.logs.push(log);
+                c.files.push(bytes);
+            }
+        }
         "expert_data" => c.files.push(read("tests/fuzz_corpus/expert_data.bin")),
         "policy" => {
             c.files
@@ -369,6 +398,10 @@ fn input(target: &str, c: &Corpus, i: u64) -> (Vec<u8>, usize, bool) {
     let salt = TARGETS.iter().position(|t| t.0 == target).unwrap_or(99) as u64;
     let mut rng = ChaCha8Rng::seed_from_u64(i.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ salt);
     let k = rng.gen_range(0..c.files.len());
+    if target == "mcap_fields" {
+        // What was changed, for the saved finding.
+        return (field_mutation(c, i).1.into_bytes(), k, false);
+    }
     if target.starts_with("mcap") {
         let (bytes, cut) = mutate_mcap(&mut rng, &c.files[k]);
         return (bytes, k, cut);
@@ -376,6 +409,138 @@ fn input(target: &str, c: &Corpus, i: u64) -> (Vec<u8>, usize, bool) {
     let mut bytes = c.files[k].clone();
     mutate_bytes(&mut rng, &mut bytes);
     (bytes, k, false)
+}
+
+/// Values that tend to break what reads a field: signs, zero, huge and non-integral numbers.
+const FIELD_NUMBERS: &[f64] = &[0.0, -1.0, 0.5, 2.0, 1e300, -1e300, 4294967296.0, 1.8e19];
+/// Strings for text fields: empty, a letter twice, reserved characters, a path, a long one.
+const FIELD_TEXTS: &[&str] = &["", "r", "rr", "rgbyc", "&|", "builtin", "../x", "nosuch"];
+
+/// Input `i` of `mcap_fields`: a corpus log with one to three fields set to well-formed but
+/// wrong values, and what was changed.
+fn field_mutation(c: &Corpus, i: u64) -> (RolloutLog, String) {
+    let salt = TARGETS.iter().position(|t| t.0 == "mcap_fields").unwrap() as u64;
+    let mut rng = ChaCha8Rng::seed_from_u64(i.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ salt);
+    let k = rng.gen_range(0..c.files.len());
+    let mut log = c.logs[k].clone();
+    let mut what = Vec::new();
+    let number = |rng: &mut ChaCha8Rng| FIELD_NUMBERS[rng.gen_range(0..FIELD_NUMBERS.len())];
+    let text = |rng: &mut ChaCha8Rng| FIELD_TEXTS[rng.gen_range(0..FIELD_TEXTS.len())].to_string();
+    // A vector made shorter, longer, or given a non-finite or huge entry.
+    let vector = |rng: &mut ChaCha8Rng, v: &mut Vec<f64>| match rng.gen_range(0..3) {
+        0 => v.truncate(rng.gen_range(0..=v.len())),
+        1 => v.extend(std::iter::repeat(0.1).take(rng.gen_range(1..40))),
+        _ if !v.is_empty() => {
+            let at = rng.gen_range(0..v.len());
+            v[at] = [f64::NAN, f64::INFINITY, 1e300][rng.gen_range(0..3)];
+        }
+        _ => {}
+    };
+    for _ in 0..rng.gen_range(1..=3) {
+        let e = rng.gen_range(0..log.episodes.len());
+        let episode = &mut log.episodes[e];
+        match rng.gen_range(0..10) {
+            0..=2 => {
+                // A node of the run config's JSON (the task layout and env settings in it).
+                let mut paths = Vec::new();
+                json_paths(&log.run.config, String::new(), &mut paths);
+                // Half the time within the task layout, which most readers build from.
+                let layout = format!("/{}/", smirl::log::schema::CONFIG_TASK_LAYOUT);
+                if rng.gen_bool(0.5) && paths.iter().any(|p| p.starts_with(&layout)) {
+                    paths.retain(|p| p.starts_with(&layout));
+                }
+                let path = &paths[rng.gen_range(0..paths.len())];
+                let node = log.run.config.pointer_mut(path).unwrap();
+                *node = match (rng.gen_range(0..6), &*node) {
+                    (0, serde_json::Value::Array(a)) if !a.is_empty() => {
+                        let mut a = a.clone();
+                        a.push(a[0].clone());
+                        serde_json::Value::Array(a)
+                    }
+                    (1, serde_json::Value::Array(a)) if !a.is_empty() => {
+                        serde_json::Value::Array(a[1..].to_vec())
+                    }
+                    (2, _) => serde_json::json!(text(&mut rng)),
+                    (3, _) => serde_json::Value::Null,
+                    (4, _) => serde_json::json!(rng.gen::<u64>()),
+                    _ => serde_json::json!(number(&mut rng)),
+                };
+                what.push(format!("config {path} = {node}"));
+            }
+            3 => {
+                log.run.vocabulary = text(&mut rng);
+                what.push(format!("vocabulary {:?}", log.run.vocabulary));
+            }
+            4 => {
+                log.run.task = text(&mut rng);
+                let machine = (rng.gen_bool(0.5)).then(|| "vocabulary: rr\nstates: 1\n".into());
+                log.run.reward_machine = machine;
+                what.push(format!(
+                    "task {:?}, machine {:?}",
+                    log.run.task, log.run.reward_machine
+                ));
+            }
+            5 => {
+                log.run.obs_dim = rng.gen_range(0..40);
+                log.run.act_dim = rng.gen_range(0..4);
+                what.push(format!("dims {} {}", log.run.obs_dim, log.run.act_dim));
+            }
+            6 => {
+                let start = &mut episode.start;
+                match rng.gen_range(0..3) {
+                    0 => vector(&mut rng, &mut start.qpos),
+                    1 => vector(&mut rng, &mut start.qvel),
+                    _ => vector(&mut rng, &mut start.balls),
+                }
+                what.push(format!("episode {e} start state"));
+            }
+            7 => {
+                let start = &mut episode.start;
+                start.cancel_step = rng.gen();
+                start.event_steps = (0..rng.gen_range(0..6))
+                    .map(|_| rng.gen_range(0..200))
+                    .collect();
+                start.labels = rng.gen();
+                start.rm_state = rng.gen_range(-2..20);
+                what.push(format!("episode {e} events {:?}", start.event_steps));
+            }
+            _ if !episode.steps.is_empty() => {
+                let t = rng.gen_range(0..episode.steps.len());
+                let step = &mut episode.steps[t];
+                match rng.gen_range(0..4) {
+                    0 => step.action.truncate(rng.gen_range(0..2)),
+                    1 => step.labels = rng.gen(),
+                    2 => step.rm_state = rng.gen_range(-2..20),
+                    _ => vector(&mut rng, &mut step.qpos),
+                }
+                what.push(format!("episode {e} step {t}"));
+            }
+            _ => {}
+        }
+    }
+    (log, format!("corpus log {k}: {}\n", what.join("; ")))
+}
+
+/// JSON pointers of every node under `value` (`prefix` its own).
+fn json_paths(value: &serde_json::Value, prefix: String, out: &mut Vec<String>) {
+    match value {
+        serde_json::Value::Object(m) => {
+            for (k, v) in m {
+                json_paths(
+                    v,
+                    format!("{prefix}/{}", k.replace('~', "~0").replace('/', "~1")),
+                    out,
+                );
+            }
+        }
+        serde_json::Value::Array(a) => {
+            for (k, v) in a.iter().enumerate() {
+                json_paths(v, format!("{prefix}/{k}"), out);
+            }
+        }
+        _ => {}
+    }
+    out.push(prefix);
 }
 
 /// A file in the child's scratch directory holding `bytes` (for readers that take a path).
@@ -471,6 +636,14 @@ fn downstream(log: &RolloutLog, bytes: &[u8], i: u64) -> Result<(), String> {
 
 /// Runs input `i`; `Err` is an oracle's finding.
 fn run(target: &str, c: &Corpus, i: u64) -> Result<(), String> {
+    if target == "mcap_fields" {
+        // Errors are fine; a panic, an abort or a hang is the finding.
+        let log = field_mutation(c, i).0;
+        let _ = smirl::pipeline::replay::replay(&log);
+        let _ = render_episode(&log, None, &RenderOptions { size: 64, poses: 2 });
+        let _ = smirl::pipeline::offline_rm::traces_from_logs(std::slice::from_ref(&log));
+        return Ok(());
+    }
     let (bytes, k, cut_only) = input(target, c, i);
     let text = || String::from_utf8_lossy(&bytes).into_owned();
     match target {

@@ -2,7 +2,8 @@
 # Long pass of the supervised mutation fuzzers (tests/fuzz.rs): 10^6 reward-machine files,
 # 10^6 configs (each read as IRL-run, expert, SAC, Office and ReacherDraw config), 10^5 logs
 # with CRCs and 10^5 without (record-aware mutations; downstream commands on every accepted
-# log), 10^5 of each binary/JSON run file, all under a 4 GiB address-space limit so that an
+# log), 10^5 logs with well-formed wrong field values (replay, render and the offline-RM traces
+# on each), 10^5 of each binary/JSON run file, all under a 4 GiB address-space limit so that an
 # unbounded allocation aborts (and the supervisor saves the input) instead of swapping.
 # Prints inputs, throughput and findings per target; findings are saved in
 # target/fuzz-findings/. Usage: nice -n 10 experiments/fuzz/long_pass.sh > experiments/fuzz/long_pass.txt
