@@ -413,7 +413,7 @@ fn input(target: &str, c: &Corpus, i: u64) -> (Vec<u8>, usize, bool) {
 
 /// Values that tend to break what reads a field: signs, zero, huge and non-integral numbers.
 const FIELD_NUMBERS: &[f64] = &[0.0, -1.0, 0.5, 2.0, 1e300, -1e300, 4294967296.0, 1.8e19];
-/// Strings for text fields: empty, a letter twice, reserved characters, a path, a long one.
+/// Strings for text fields: empty, a letter twice, reserved characters, a path, unknown names.
 const FIELD_TEXTS: &[&str] = &["", "r", "rr", "rgbyc", "&|", "builtin", "../x", "nosuch"];
 
 /// Input `i` of `mcap_fields`: a corpus log with one to three fields set to well-formed but
