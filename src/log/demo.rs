@@ -115,7 +115,10 @@ pub fn log_scripted_demos(
             let action = ctl.act(&obs, labels, u);
             let step = env
                 .step(&action, &mut obs)
-                .map_err(|e| usage(format!("episode {i}: {e}")))?;
+                .map_err(|e| LogError::Simulation {
+                    path: path.into(),
+                    problem: format!("episode {i}: {e}"),
+                })?;
             labels = step.labels;
             let rm_step = rm.zip(u).map(|(m, state)| m.step(state, labels));
             u = rm_step.map(|(next, _)| next);

@@ -62,6 +62,9 @@ pub enum LogError {
     Corrupt { path: PathBuf, problem: String },
     #[error("{path}: {problem}")]
     Usage { path: PathBuf, problem: String },
+    /// The environment failed while the log was being written (MuJoCo's own error).
+    #[error("{path}: the simulation failed: {problem}")]
+    Simulation { path: PathBuf, problem: String },
     #[error("{path}: the log writer thread stopped: {problem}")]
     WriterStopped { path: PathBuf, problem: String },
 }
