@@ -36,7 +36,8 @@
 //! TOML key for errors), `output` (where a command may write: output directories and files
 //! are checked, never replaced unless ours),
 //! `assets` (the model, reward machines and committed experts built into the binaries),
-//! `quoted` (input quoted readably in errors) and `short_float` (serde helpers for readable configs) import nothing of the crate but each
+//! `quoted` (input quoted readably in errors) and `short_float` (serde helpers for readable
+//! configs) import nothing of the crate but each
 //! other and serve every layer.
 //!
 //! `unsafe` is denied everywhere but in four places, each allowed by name: the MuJoCo wrapper

@@ -26,6 +26,26 @@ pub const MAX_EVENTS: usize = 4;
 /// Half the side of the arena (its walls are at ±0.3 m): every region lies inside.
 pub const ARENA_HALF_WIDTH: f64 = 0.3;
 
+/// A letter a region or event may have: one ASCII letter or digit.
+pub fn is_task_letter(c: char) -> bool {
+    c.is_ascii_alphanumeric()
+}
+
+/// A region's radius: more than 0, inside the arena.
+pub fn radius_fits(radius: f64) -> bool {
+    radius > 0.0 && radius <= ARENA_HALF_WIDTH
+}
+
+/// An event's probability: in [0, 1].
+pub fn probability_ok(probability: f64) -> bool {
+    (0.0..=1.0).contains(&probability)
+}
+
+/// An event's window of 1-based steps: it starts at 1 or later and is not empty.
+pub fn window_ok(earliest: usize, latest: usize) -> bool {
+    earliest >= 1 && earliest <= latest
+}
+
 /// Observation columns of the arm's joint velocities.
 pub const OBS_JOINT_VEL: [usize; 2] = [4, 5];
 /// Observation columns of the fingertip position.
@@ -226,7 +246,7 @@ impl TaskLayout {
         }
         let letters: Vec<char> = self.letters().chars().collect();
         for (i, &c) in letters.iter().enumerate() {
-            if !c.is_ascii_alphanumeric() {
+            if !is_task_letter(c) {
                 return Err(LayoutProblem::BadLetter(c));
             }
             if letters[..i].contains(&c) {
@@ -234,7 +254,7 @@ impl TaskLayout {
             }
         }
         for r in &self.regions {
-            if !(r.radius > 0.0 && r.radius <= ARENA_HALF_WIDTH) {
+            if !radius_fits(r.radius) {
                 return Err(LayoutProblem::Radius {
                     letter: r.letter,
                     radius: r.radius,
@@ -248,13 +268,13 @@ impl TaskLayout {
             }
         }
         for e in &self.events {
-            if !(0.0..=1.0).contains(&e.probability) {
+            if !probability_ok(e.probability) {
                 return Err(LayoutProblem::Probability {
                     letter: e.letter,
                     probability: e.probability,
                 });
             }
-            if e.earliest_step == 0 || e.earliest_step > e.latest_step {
+            if !window_ok(e.earliest_step, e.latest_step) {
                 return Err(LayoutProblem::EventWindow {
                     letter: e.letter,
                     earliest: e.earliest_step,

@@ -32,7 +32,7 @@
 //! centres. A region whose anchor is a body with slide joints `<body>_x`, `<body>_y` is moved
 //! there; any other region stays where the scene puts it.
 
-use super::layout::{Anchor, Event, TaskLayout};
+use super::layout::{probability_ok, window_ok, Anchor, Event, TaskLayout};
 use super::physics_scene::{physics_model, SceneModelError};
 use super::placement::Placement;
 use super::{check_action, ContinuousEnv, EnvError, EnvStep};
@@ -206,11 +206,11 @@ impl ReacherConfig {
         }
         if let Some(cancel) = &self.cancel {
             let p = cancel.probability;
-            if !(0.0..=1.0).contains(&p) {
+            if !probability_ok(p) {
                 return Err(ConfigError::CancelProbability(p));
             }
             let (earliest, latest) = (cancel.earliest_step, cancel.latest_step);
-            if earliest == 0 || earliest > latest {
+            if !window_ok(earliest, latest) {
                 return Err(ConfigError::CancelWindow { earliest, latest });
             }
             if latest > self.max_steps {

@@ -25,6 +25,7 @@
 //! [`Task::load`] checks everything against the scene and the machine before any work, and
 //! every error names the file, the line and the key.
 
+use super::layout::{is_task_letter, probability_ok, radius_fits, window_ok};
 pub use super::layout::{
     Anchor, Event, LoadedScene, Region, Scene, TaskLayout, ARENA_HALF_WIDTH, BUILTIN_SCENE,
     MAX_EVENTS, MAX_REGIONS,
@@ -314,7 +315,7 @@ impl Task {
         for (key, letter) in all {
             let mut chars = letter.chars();
             let c = match (chars.next(), chars.next()) {
-                (Some(c), None) if c.is_ascii_alphanumeric() => c,
+                (Some(c), None) if is_task_letter(c) => c,
                 _ => return Err(bad(key, TaskProblem::BadLetter(letter.clone()))),
             };
             let line = locate(text, &key).unwrap_or(0);
@@ -408,7 +409,7 @@ impl Task {
                 Anchor::Body(b) => Placement::find(&model, b).is_some(),
                 Anchor::Site(_) => false,
             };
-            if !(r.radius > 0.0 && r.radius <= ARENA_HALF_WIDTH) {
+            if !radius_fits(r.radius) {
                 return Err(bad(key("radius"), TaskProblem::Radius(r.radius)));
             }
             if (r.position.is_some() || raw.randomize_layout) && !movable {
@@ -456,7 +457,7 @@ impl Task {
         let mut events = Vec::with_capacity(raw.event.len());
         for (i, e) in raw.event.iter().enumerate() {
             let key = |k: &str| format!("event[{i}].{k}");
-            if !(0.0..=1.0).contains(&e.probability) {
+            if !probability_ok(e.probability) {
                 return Err(bad(
                     key("probability"),
                     TaskProblem::Probability(e.probability),
@@ -467,7 +468,7 @@ impl Task {
                 latest: e.latest_step,
                 episode_steps: raw.episode_steps,
             };
-            if e.earliest_step == 0 || e.earliest_step > e.latest_step {
+            if !window_ok(e.earliest_step, e.latest_step) {
                 return Err(bad(key("earliest_step"), window));
             }
             if e.latest_step > raw.episode_steps {
