@@ -293,7 +293,13 @@ fn the_controls_are_named_not_in_all_and_never_read_the_tasks_machine() {
     );
     assert_eq!(Algo::FklProduct.base(), Algo::Fkl);
     assert_eq!(Algo::MaxEntProduct.base(), Algo::MaxEnt);
-    assert!(Algo::parse_list("maxent-product", &Algo::OFFICE).is_err());
+    let unknown = Algo::parse_list("maxent-product", &Algo::OFFICE).unwrap_err();
+    assert_eq!(unknown.name, "maxent-product");
+    assert_eq!(unknown.expected, ["smirl", "maxent", "apprenticeship"]);
+    assert_eq!(
+        unknown.to_string(),
+        "unknown algorithm 'maxent-product' (expected one of: smirl, maxent, apprenticeship, all)"
+    );
 
     let tmp = tempfile::tempdir().unwrap();
     let mut config = tiny_config();

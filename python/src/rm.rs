@@ -177,7 +177,7 @@ fn learn_rm(
     PyRewardMachine,
     std::collections::HashMap<&'static str, f64>,
 )> {
-    let vocab = Vocabulary::parse(vocabulary).map_err(PyValueError::new_err)?;
+    let vocab = Vocabulary::parse(vocabulary).map_err(|e| PyValueError::new_err(e.to_string()))?;
     if traces.len() > MAX_TRACES {
         return Err(PyValueError::new_err(format!(
             "{} traces; learn_rm takes at most {MAX_TRACES}",

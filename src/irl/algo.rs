@@ -172,39 +172,36 @@ impl Algo {
     }
 
     /// The algorithm called `name` among `domain`'s.
-    pub fn parse_in(name: &str, domain: &[Algo]) -> Result<Algo, String> {
+    pub fn parse_in(name: &str, domain: &[Algo]) -> Result<Algo, UnknownAlgorithm> {
         domain
             .iter()
             .copied()
             .find(|a| a.name() == name)
-            .ok_or_else(|| {
-                let names: Vec<&str> = domain.iter().map(|a| a.name()).collect();
-                format!(
-                    "unknown algorithm '{name}' (expected one of: {}, all)",
-                    names.join(", ")
-                )
+            .ok_or_else(|| UnknownAlgorithm {
+                name: name.to_string(),
+                expected: domain.iter().map(|a| a.name()).collect(),
             })
     }
 
     /// A ReacherDelivery algorithm by name, a control included (a command-line value parser).
-    pub fn parse_reacher(name: &str) -> Result<Algo, String> {
+    pub fn parse_reacher(name: &str) -> Result<Algo, UnknownAlgorithm> {
         Algo::parse_in(name, &Algo::REACHER_NAMED)
     }
 
     /// A comma-separated list of `domain`'s algorithms (`all` = every one of them);
     /// duplicates are dropped.
-    pub fn parse_list(s: &str, domain: &[Algo]) -> Result<Vec<Algo>, String> {
+    pub fn parse_list(s: &str, domain: &[Algo]) -> Result<Vec<Algo>, UnknownAlgorithm> {
         Algo::parse_list_of(s, domain, domain)
     }
 
     /// A comma-separated list of ReacherDelivery algorithms: any by name, `all` = the
     /// comparison ([`Algo::REACHER`]; the controls are named).
-    pub fn parse_reacher_list(s: &str) -> Result<Vec<Algo>, String> {
+    pub fn parse_reacher_list(s: &str) -> Result<Vec<Algo>, UnknownAlgorithm> {
         Algo::parse_list_of(s, &Algo::REACHER_NAMED, &Algo::REACHER)
     }
 
     /// A comma-separated list of `named`'s algorithms, `all` standing for `all`'s.
-    fn parse_list_of(s: &str, named: &[Algo], all: &[Algo]) -> Result<Vec<Algo>, String> {
+    fn parse_list_of(s: &str, named: &[Algo], all: &[Algo]) -> Result<Vec<Algo>, UnknownAlgorithm> {
         let mut out = Vec::new();
         for part in s.split(',').map(str::trim) {
             let algos: Vec<Algo> = if part == "all" {
@@ -220,6 +217,15 @@ impl Algo {
         }
         Ok(out)
     }
+}
+
+/// A name that is none of a domain's algorithms.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown algorithm '{name}' (expected one of: {}, all)", .expected.join(", "))]
+pub struct UnknownAlgorithm {
+    pub name: String,
+    /// The domain's algorithm names.
+    pub expected: Vec<&'static str>,
 }
 
 impl fmt::Display for Algo {

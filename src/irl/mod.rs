@@ -41,4 +41,4 @@ pub mod reward;
 pub mod smirl;
 pub mod tabular;
 
-pub use algo::Algo;
+pub use algo::{Algo, UnknownAlgorithm};

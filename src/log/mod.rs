@@ -26,7 +26,9 @@ pub use reader::{
     read_log, read_log_bytes, read_log_file, read_log_records, LogModelError, LoggedEpisode,
     RecordSink, Recovery, RolloutLog,
 };
-pub use schema::{EpisodeEndMsg, EpisodeStartMsg, RunInfo, StepMsg, SCHEMA_VERSION};
+pub use schema::{
+    EpisodeEndMsg, EpisodeStartMsg, RunInfo, RunLayoutError, StepMsg, SCHEMA_VERSION,
+};
 pub use writer::{LogOptions, LogSummary, RolloutLogger, RunHeader, StepRecord};
 
 use std::path::PathBuf;

@@ -136,13 +136,11 @@ impl RunInfo {
     /// The layout of the task the run was made on (`config.task_layout`); a log without the
     /// record was made on the shipped four-ball layout, read as the shipped task of its name
     /// (or Composite, which has the same layout, for a task file's log).
-    pub fn task_layout(&self) -> Result<crate::env::layout::TaskLayout, String> {
+    pub fn task_layout(&self) -> Result<crate::env::layout::TaskLayout, RunLayoutError> {
         if let Some(v) = self.config.get(CONFIG_TASK_LAYOUT) {
             let layout: crate::env::layout::TaskLayout = serde_json::from_value(v.clone())
-                .map_err(|e| format!("the run's task layout does not parse: {e}"))?;
-            layout.check().map_err(|e| {
-                format!("the run's task layout is not one a task file declares: {e}")
-            })?;
+                .map_err(|e| RunLayoutError::Parse(e.to_string()))?;
+            layout.check().map_err(RunLayoutError::Invalid)?;
             return Ok(layout);
         }
         let shipped = crate::env::task_file::SHIPPED;
@@ -153,8 +151,20 @@ impl RunInfo {
         };
         crate::env::task_file::Task::shipped(name)
             .map(|t| t.layout())
-            .map_err(|e| e.to_string())
+            .map_err(|e| RunLayoutError::Shipped(Box::new(e)))
     }
+}
+
+/// Why a run record yields no task layout.
+#[derive(Debug, thiserror::Error)]
+pub enum RunLayoutError {
+    #[error("the run's task layout does not parse: {0}")]
+    Parse(String),
+    #[error("the run's task layout is not one a task file declares: {0}")]
+    Invalid(crate::env::layout::LayoutProblem),
+    /// The shipped task a log without a recorded layout is read as (a broken build).
+    #[error("{0}")]
+    Shipped(Box<crate::env::task_file::TaskFileError>),
 }
 
 /// JSON Schema of [`RunInfo`] (draft 2020-12), stored with the `/run` channel.

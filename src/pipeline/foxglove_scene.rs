@@ -484,7 +484,10 @@ pub fn export_scene(
         LogModelError::Missing(problem) => bad_input(problem),
         LogModelError::Compile(e) => bad_input(format!("model.xml: {e}")),
     })?;
-    let layout = log.run.task_layout().map_err(&bad_input)?;
+    let layout = log
+        .run
+        .task_layout()
+        .map_err(|e| bad_input(e.to_string()))?;
     let geometry =
         Geometry::new(model, &layout).map_err(|e| bad_input(format!("model.xml: {e}")))?;
     let mut data = Data::new(geometry.model.clone()).map_err(|e| bad_input(e.to_string()))?;

@@ -3,10 +3,10 @@
 //! logged a machine), the LRM Tabu search learns a machine, and it can be compared with a
 //! reference machine (e.g. the perfect one in `assets/rm/`).
 
-use crate::log::{read_log, LogError, RolloutLog};
+use crate::log::{read_log, LogError, RolloutLog, RunLayoutError};
 use crate::rm::equiv::{counterexample, EquivError};
 use crate::rm::lrm::{learn_rm, observed_label_sets, LabelTrace, LearnedRm, LrmConfig, LrmError};
-use crate::rm::{LabelSet, RewardMachine, Vocabulary};
+use crate::rm::{LabelSet, RewardMachine, Vocabulary, VocabularyError};
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
@@ -25,7 +25,7 @@ pub enum OfflineRmError {
     BadVocabulary {
         path: PathBuf,
         vocabulary: String,
-        problem: String,
+        problem: VocabularyError,
     },
     #[error("{path}: its task declares the events \"{found}\", the first log's \"{expected}\"")]
     Events {
@@ -34,7 +34,10 @@ pub enum OfflineRmError {
         expected: String,
     },
     #[error("{path}: {problem}")]
-    TaskLayout { path: PathBuf, problem: String },
+    TaskLayout {
+        path: PathBuf,
+        problem: RunLayoutError,
+    },
     #[error("the logs contain no complete episode to learn from")]
     NoTraces,
     #[error("LRM: {0}")]

@@ -166,7 +166,7 @@ pub fn render_episode(
         })?;
         walls.push(([a[0], a[1]], [b[0], b[1]], model.geom_radius(g)));
     }
-    let layout = log.run.task_layout().map_err(&bad)?;
+    let layout = log.run.task_layout().map_err(|e| bad(e.to_string()))?;
     let (ball_colours, ball_radii): (Vec<Rgb>, Vec<f64>) =
         region_looks(&model, &layout).into_iter().unzip();
     if ep.start.balls.len() != 2 * layout.n_regions() {

@@ -214,7 +214,7 @@ pub fn replay(log: &RolloutLog) -> Result<ReplayReport, ReplayError> {
     let model = log.reacher_model().map_err(|e| cannot(e.to_string()))?;
     // The config matters for the time limit (`truncated`) and for reset(seed) (ball
     // randomisation, cancel schedule); the replayed episodes restore their logged start state.
-    let layout = log.run.task_layout().map_err(cannot)?;
+    let layout = log.run.task_layout().map_err(|e| cannot(e.to_string()))?;
     let mut config: ReacherConfig = match log.run.config.get("env") {
         Some(v) => serde_json::from_value(v.clone()).map_err(|e| {
             cannot(format!(

@@ -44,6 +44,17 @@ pub struct UnknownProposition {
     pub vocabulary: String,
 }
 
+/// Why text cannot be a vocabulary.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum VocabularyError {
+    #[error("{count} propositions, at most {MAX_PROPS}")]
+    TooMany { count: usize },
+    #[error("'{}' cannot name a proposition", crate::quoted::text(&.0.to_string()))]
+    Reserved(char),
+    #[error("proposition '{0}' appears twice")]
+    Twice(char),
+}
+
 /// The ordered set of propositions of a domain.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct Vocabulary {
@@ -63,20 +74,17 @@ impl Vocabulary {
     }
 
     /// A vocabulary from text such as `"rgbyc"`, checked.
-    pub fn parse(props: &str) -> Result<Vocabulary, String> {
+    pub fn parse(props: &str) -> Result<Vocabulary, VocabularyError> {
         let props: Vec<char> = props.chars().collect();
         if props.len() > MAX_PROPS {
-            return Err(format!("{} propositions, at most {MAX_PROPS}", props.len()));
+            return Err(VocabularyError::TooMany { count: props.len() });
         }
         for (i, &p) in props.iter().enumerate() {
             if !is_prop_char(p) {
-                return Err(format!(
-                    "'{}' cannot name a proposition",
-                    crate::quoted::text(&p.to_string())
-                ));
+                return Err(VocabularyError::Reserved(p));
             }
             if props[..i].contains(&p) {
-                return Err(format!("proposition '{p}' appears twice"));
+                return Err(VocabularyError::Twice(p));
             }
         }
         Ok(Vocabulary { props })
@@ -168,8 +176,15 @@ mod tests {
 
     #[test]
     fn bad_vocabularies_are_rejected() {
-        assert!(Vocabulary::parse("aa").is_err());
-        assert!(Vocabulary::parse("a&").is_err());
-        assert!(Vocabulary::parse("abcdefghijklm").is_err());
+        assert_eq!(Vocabulary::parse("aa"), Err(VocabularyError::Twice('a')));
+        assert_eq!(Vocabulary::parse("a&"), Err(VocabularyError::Reserved('&')));
+        assert_eq!(
+            Vocabulary::parse("abcdefghijklm"),
+            Err(VocabularyError::TooMany { count: 13 })
+        );
+        assert_eq!(
+            VocabularyError::Twice('a').to_string(),
+            "proposition 'a' appears twice"
+        );
     }
 }

@@ -14,5 +14,5 @@ pub mod product;
 pub mod transform;
 
 pub use formula::{Formula, FormulaError};
-pub use labels::{LabelSet, UnknownProposition, Vocabulary, MAX_PROPS};
+pub use labels::{LabelSet, UnknownProposition, Vocabulary, VocabularyError, MAX_PROPS};
 pub use machine::{RewardMachine, RmError, Transition};

@@ -307,7 +307,7 @@ pub fn parse_map(text: &str, source: &str) -> Result<OfficeMap, MapError> {
         return Err(file_error("the legend names no letter".into()));
     }
     let vocab: String = letters.iter().collect();
-    let vocab = Vocabulary::parse(&vocab).map_err(file_error)?;
+    let vocab = Vocabulary::parse(&vocab).map_err(|e| file_error(e.to_string()))?;
 
     // Shape: 2·rows + 1 lines of 2·columns + 1 characters.
     let Some((first_line, first)) = picture.first() else {

@@ -13,6 +13,7 @@ use super::Algo;
 use crate::atomic_file::write_atomic;
 use crate::env::reacher::ConfigError;
 use crate::env::reacher_task::{BranchTally, ReacherTask};
+use crate::irl::algo::UnknownAlgorithm;
 use crate::log::LogError;
 use crate::nn::codec::CodecError;
 use crate::output::OutputError;
@@ -108,7 +109,8 @@ pub enum PipelineError {
     #[error(transparent)]
     MachineFile(RmFileError),
     #[error(transparent)]
-    Plan(UnknownAlgo),
+    /// A plan (`prepare.json`) that names an algorithm this binary does not know.
+    Plan(UnknownAlgorithm),
     /// A run directory's annotated demonstrations.
     #[error("{}: {source}", path.display())]
     ExpertData { path: PathBuf, source: CodecError },
@@ -221,11 +223,6 @@ impl PipelineError {
     }
 }
 
-/// A plan (`prepare.json`) that names an algorithm this binary does not know.
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct UnknownAlgo(pub String);
-
 /// Facts about the learned machine.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct RmFacts {
@@ -323,13 +320,12 @@ pub struct Prepared {
 impl Prepared {
     /// The (algorithm, seed) jobs, in the order `--index` counts them: algorithms outer,
     /// seeds inner.
-    pub fn jobs(&self) -> Result<Vec<(Algo, u64)>, UnknownAlgo> {
+    pub fn jobs(&self) -> Result<Vec<(Algo, u64)>, UnknownAlgorithm> {
         let algos = self
             .algos
             .iter()
             .map(|a| Algo::parse_in(a, &Algo::REACHER_NAMED))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(UnknownAlgo)?;
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(algos
             .iter()
             .flat_map(|&a| self.seeds.iter().map(move |&s| (a, s)))
