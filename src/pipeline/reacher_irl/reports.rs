@@ -8,10 +8,11 @@ use super::iteration::RewardTraceRow;
 use super::records::{
     write_file, AlgoSummary, JobRecord, PipelineError, PreparedRun, RmFacts, RunSummary,
 };
-use super::Algo;
+use super::{Algo, MetricsRow};
 use crate::env::reacher_task::{Branch, BranchTally, EventBranch, ReacherTask};
 use crate::report::{aggregate_over_seeds, CsvTable, LinePlot, Series};
 use std::fmt::Write as _;
+use std::path::Path;
 
 fn mean_std(xs: &[f64]) -> (f64, f64) {
     let n = xs.len().max(1) as f64;
@@ -29,6 +30,76 @@ pub(super) fn write_reports(
 ) -> Result<RunSummary, PipelineError> {
     let dir = &run.dir;
     let task = run.prepared.task.clone();
+    let conditional = EventBranch::of(&run.perfect, task.layout().events()).is_some();
+
+    write_file(&dir.join("metrics.csv"), &metrics_table(records).to_csv())?;
+    if records.iter().any(|(_, r)| r.final_policy.is_some()) {
+        write_file(
+            &dir.join("final_policy.csv"),
+            &final_policy_table(records).to_csv(),
+        )?;
+    }
+
+    let mut plots = Plots::new(&task);
+    let mut summaries = Vec::new();
+    for algo in algos_in_order(records) {
+        let runs: Vec<&JobRecord> = records
+            .iter()
+            .filter(|(a, _)| *a == algo)
+            .map(|(_, r)| r)
+            .collect();
+        plots.add(algo, &runs, conditional);
+        summaries.push(algo_summary(algo, &runs, conditional)?);
+    }
+    plots.write(dir, conditional)?;
+
+    write_file(
+        &dir.join("summary.csv"),
+        &summary_table(&task, &summaries).to_csv(),
+    )?;
+    let p = &run.prepared;
+    write_file(
+        &dir.join("summary.md"),
+        &summary_markdown(task.clone(), &summaries, p.rm.as_ref(), p.rm_paper.as_ref()),
+    )?;
+    let summary = RunSummary {
+        out: dir.clone(),
+        task: task.name().into(),
+        demos_kept: p.demos_kept,
+        demos_generated: p.demos_generated,
+        demo_branches: p.demo_branches,
+        rm: p.rm.clone(),
+        rm_paper: p.rm_paper.clone(),
+        algos: summaries,
+        wall_secs: wall_secs.unwrap_or(f64::NAN),
+    };
+    write_file(
+        &dir.join("run.json"),
+        &serde_json::to_string_pretty(&run_json(run, records, &summary)).expect("JSON serialises"),
+    )?;
+    Ok(summary)
+}
+
+/// The algorithms of `records`, in the order they first appear.
+fn algos_in_order(records: &[(Algo, JobRecord)]) -> Vec<Algo> {
+    let mut seen = Vec::new();
+    for &(a, _) in records {
+        if !seen.contains(&a) {
+            seen.push(a);
+        }
+    }
+    seen
+}
+
+/// A branch without evaluation episodes counts as failed (it cannot be shown solved).
+fn branch_rate(row: &MetricsRow, b: Branch) -> f64 {
+    row.branches.and_then(|t| t.rate(b)).unwrap_or(0.0)
+}
+
+/// metrics.csv: one row per job and evaluated iteration; the final phase's chosen and randomly
+/// picked candidates beside the loop's own policy on the job's last row (success on the lower
+/// branch, then each branch's).
+fn metrics_table(records: &[(Algo, JobRecord)]) -> CsvTable {
     let mut metrics = CsvTable::new([
         "algo",
         "seed",
@@ -54,8 +125,6 @@ pub(super) fn write_reports(
         "random_success_cancel",
     ]);
     let optional = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x}"));
-    // The final phase's chosen and randomly picked candidates, beside the loop's own policy
-    // on the job's last row: success (the lower branch) and each branch's.
     let candidate_cells = |c: Option<&FinalCandidate>| -> [String; 3] {
         match c {
             Some(c) => {
@@ -113,57 +182,55 @@ pub(super) fn write_reports(
             ]);
         }
     }
-    write_file(&dir.join("metrics.csv"), &metrics.to_csv())?;
-    if records.iter().any(|(_, r)| r.final_policy.is_some()) {
-        write_file(
-            &dir.join("final_policy.csv"),
-            &final_policy_table(records).to_csv(),
-        )?;
+    metrics
+}
+
+/// The curves of every algorithm over environment steps, mean ± std over its seeds.
+struct Plots {
+    success: LinePlot,
+    task_return: LinePlot,
+    branches: LinePlot,
+    progress: LinePlot,
+}
+
+impl Plots {
+    fn new(task: &ReacherTask) -> Plots {
+        let mut success = LinePlot::new(
+            &format!("ReacherDelivery {task}: ground-truth success"),
+            "environment steps",
+            "success rate",
+        );
+        success.y_range = Some((0.0, 1.0));
+        let task_return = LinePlot::new(
+            &format!("ReacherDelivery {task}: task return"),
+            "environment steps",
+            "task return",
+        );
+        let mut branches = LinePlot::new(
+            &format!("ReacherDelivery {task}: success per branch"),
+            "environment steps",
+            "success rate",
+        );
+        branches.y_range = Some((0.0, 1.0));
+        let mut progress = LinePlot::new(
+            &format!(
+                "ReacherDelivery {task}: sub-goals completed (solid) and end ball touched (dashed)"
+            ),
+            "environment steps",
+            "fraction",
+        );
+        progress.y_range = Some((0.0, 1.0));
+        Plots {
+            success,
+            task_return,
+            branches,
+            progress,
+        }
     }
 
-    let algos: Vec<Algo> = {
-        let mut seen = Vec::new();
-        for &(a, _) in records {
-            if !seen.contains(&a) {
-                seen.push(a);
-            }
-        }
-        seen
-    };
-    let mut summaries = Vec::new();
-    let mut success_plot = LinePlot::new(
-        &format!("ReacherDelivery {task}: ground-truth success"),
-        "environment steps",
-        "success rate",
-    );
-    success_plot.y_range = Some((0.0, 1.0));
-    let mut return_plot = LinePlot::new(
-        &format!("ReacherDelivery {task}: task return"),
-        "environment steps",
-        "task return",
-    );
-    let conditional = EventBranch::of(&run.perfect, task.layout().events()).is_some();
-    let mut branch_plot = LinePlot::new(
-        &format!("ReacherDelivery {task}: success per branch"),
-        "environment steps",
-        "success rate",
-    );
-    branch_plot.y_range = Some((0.0, 1.0));
-    let mut progress_plot = LinePlot::new(
-        &format!(
-            "ReacherDelivery {task}: sub-goals completed (solid) and end ball touched (dashed)"
-        ),
-        "environment steps",
-        "fraction",
-    );
-    progress_plot.y_range = Some((0.0, 1.0));
-    for &algo in &algos {
-        let runs: Vec<&JobRecord> = records
-            .iter()
-            .filter(|(a, _)| *a == algo)
-            .map(|(_, r)| r)
-            .collect();
-        let curve = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
+    /// `algo`'s curves from its jobs `runs`.
+    fn add(&mut self, algo: Algo, runs: &[&JobRecord], conditional: bool) {
+        let curve = |f: &dyn Fn(&MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
             runs.iter()
                 .map(|r| {
                     r.rows
@@ -173,13 +240,9 @@ pub(super) fn write_reports(
                 })
                 .collect()
         };
-        // A branch without evaluation episodes counts as failed (it cannot be shown solved).
-        let branch_rate = |row: &super::MetricsRow, b: Branch| -> f64 {
-            row.branches.and_then(|t| t.rate(b)).unwrap_or(0.0)
-        };
         if conditional {
             for b in Branch::ALL {
-                branch_plot.series.push(
+                self.branches.series.push(
                     Series::new(
                         format!("{} ({b})", algo.name()),
                         aggregate_over_seeds(&curve(&|r| branch_rate(r, b))),
@@ -189,7 +252,7 @@ pub(super) fn write_reports(
                 );
             }
         }
-        success_plot.series.push(
+        self.success.series.push(
             Series::new(
                 algo.name(),
                 aggregate_over_seeds(&curve(&|r| r.success_rate)),
@@ -201,14 +264,14 @@ pub(super) fn write_reports(
             .iter()
             .all(|r| r.rows.iter().all(|row| row.progress.is_some()))
         {
-            progress_plot.series.push(
+            self.progress.series.push(
                 Series::new(
                     format!("{} sub-goals", algo.name()),
                     aggregate_over_seeds(&curve(&|r| r.progress.unwrap_or(0.0))),
                 )
                 .with_colour(algo.colour()),
             );
-            progress_plot.series.push(
+            self.progress.series.push(
                 Series::new(
                     format!("{} end ball", algo.name()),
                     aggregate_over_seeds(&curve(&|r| r.final_ball.unwrap_or(0.0))),
@@ -217,87 +280,101 @@ pub(super) fn write_reports(
                 .with_dashes(true),
             );
         }
-        return_plot.series.push(
+        self.task_return.series.push(
             Series::new(
                 algo.name(),
                 aggregate_over_seeds(&curve(&|r| r.task_return)),
             )
             .with_colour(algo.colour()),
         );
-        let last = |f: &dyn Fn(&super::MetricsRow) -> f64| -> Result<Vec<f64>, PipelineError> {
+    }
+
+    /// success.svg, task_return.svg, progress.svg (when a curve has it) and, for a
+    /// conditional task, success_branches.svg.
+    fn write(&self, dir: &Path, conditional: bool) -> Result<(), PipelineError> {
+        write_file(&dir.join("success.svg"), &self.success.to_svg())?;
+        write_file(&dir.join("task_return.svg"), &self.task_return.to_svg())?;
+        if !self.progress.series.is_empty() {
+            write_file(&dir.join("progress.svg"), &self.progress.to_svg())?;
+        }
+        if conditional {
+            write_file(&dir.join("success_branches.svg"), &self.branches.to_svg())?;
+        }
+        Ok(())
+    }
+}
+
+/// `algo`'s final figures over its jobs `runs`: the loop's own policy at the last evaluated
+/// iteration, and the final phase's chosen and randomly picked candidates when every job has
+/// them.
+fn algo_summary(
+    algo: Algo,
+    runs: &[&JobRecord],
+    conditional: bool,
+) -> Result<AlgoSummary, PipelineError> {
+    let last = |f: &dyn Fn(&MetricsRow) -> f64| -> Result<Vec<f64>, PipelineError> {
+        runs.iter()
+            .map(|r| {
+                r.rows
+                    .last()
+                    .map(f)
+                    .ok_or_else(|| PipelineError::NoMetricsRows { algo, seed: r.seed })
+            })
+            .collect()
+    };
+    let (sm, ss) = mean_std(&last(&|r| r.success_rate)?);
+    let (rm_, rs) = mean_std(&last(&|r| r.task_return)?);
+    let final_branch_success = if conditional {
+        let normal = mean_std(&last(&|r| branch_rate(r, Branch::Normal))?);
+        let cancel = mean_std(&last(&|r| branch_rate(r, Branch::Event))?);
+        Some([normal, cancel])
+    } else {
+        None
+    };
+    let pick =
+        |f: &dyn Fn(&FinalPolicy) -> Option<&FinalCandidate>| -> Option<Vec<FinalCandidate>> {
             runs.iter()
-                .map(|r| {
-                    r.rows
-                        .last()
-                        .map(f)
-                        .ok_or_else(|| PipelineError::NoMetricsRows { algo, seed: r.seed })
-                })
+                .map(|r| r.final_policy.as_ref().and_then(f).cloned())
                 .collect()
         };
-        let (sm, ss) = mean_std(&last(&|r| r.success_rate)?);
-        let (rm_, rs) = mean_std(&last(&|r| r.task_return)?);
-        let final_branch_success = if conditional {
-            let normal = mean_std(&last(&|r| branch_rate(r, Branch::Normal))?);
-            let cancel = mean_std(&last(&|r| branch_rate(r, Branch::Event))?);
-            Some([normal, cancel])
-        } else {
-            None
-        };
-        // The chosen and the randomly picked candidates of the final phase, when every seed
-        // has them.
-        let pick =
-            |f: &dyn Fn(&FinalPolicy) -> Option<&FinalCandidate>| -> Option<Vec<FinalCandidate>> {
-                runs.iter()
-                    .map(|r| r.final_policy.as_ref().and_then(f).cloned())
-                    .collect()
-            };
-        let success =
-            |c: &[FinalCandidate]| mean_std(&c.iter().map(|c| c.success_rate).collect::<Vec<_>>());
-        let branch_success = |c: &[FinalCandidate]| {
-            Branch::ALL.map(|b| {
-                let rates: Vec<f64> = c
-                    .iter()
-                    .map(|c| c.branches.and_then(|t| t.rate(b)).unwrap_or(0.0))
-                    .collect();
-                mean_std(&rates)
-            })
-        };
-        let chosen = pick(&|f| Some(f.chosen()));
-        let random = pick(&|f| f.random());
-        let final_policy_success = chosen.as_deref().map(success);
-        let final_policy_branch_success = chosen
+    let success =
+        |c: &[FinalCandidate]| mean_std(&c.iter().map(|c| c.success_rate).collect::<Vec<_>>());
+    let branch_success = |c: &[FinalCandidate]| {
+        Branch::ALL.map(|b| {
+            let rates: Vec<f64> = c
+                .iter()
+                .map(|c| c.branches.and_then(|t| t.rate(b)).unwrap_or(0.0))
+                .collect();
+            mean_std(&rates)
+        })
+    };
+    let chosen = pick(&|f| Some(f.chosen()));
+    let random = pick(&|f| f.random());
+    let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
+    Ok(AlgoSummary {
+        algo: algo.name().into(),
+        seeds: runs.len(),
+        final_success_mean: sm,
+        final_success_std: ss,
+        final_return_mean: rm_,
+        final_return_std: rs,
+        final_branch_success,
+        final_policy_success: chosen.as_deref().map(success),
+        final_policy_branch_success: chosen
             .as_deref()
             .filter(|_| conditional)
-            .map(branch_success);
-        let random_policy_success = random.as_deref().map(success);
-        let random_policy_branch_success = random
+            .map(branch_success),
+        random_policy_success: random.as_deref().map(success),
+        random_policy_branch_success: random
             .as_deref()
             .filter(|_| conditional)
-            .map(branch_success);
-        let (wm, _) = mean_std(&runs.iter().map(|r| r.wall_secs).collect::<Vec<_>>());
-        summaries.push(AlgoSummary {
-            algo: algo.name().into(),
-            seeds: runs.len(),
-            final_success_mean: sm,
-            final_success_std: ss,
-            final_return_mean: rm_,
-            final_return_std: rs,
-            final_branch_success,
-            final_policy_success,
-            final_policy_branch_success,
-            random_policy_success,
-            random_policy_branch_success,
-            job_secs_mean: wm,
-        });
-    }
-    write_file(&dir.join("success.svg"), &success_plot.to_svg())?;
-    write_file(&dir.join("task_return.svg"), &return_plot.to_svg())?;
-    if !progress_plot.series.is_empty() {
-        write_file(&dir.join("progress.svg"), &progress_plot.to_svg())?;
-    }
-    if conditional {
-        write_file(&dir.join("success_branches.svg"), &branch_plot.to_svg())?;
-    }
+            .map(branch_success),
+        job_secs_mean: wm,
+    })
+}
+
+/// summary.csv: one row per algorithm.
+fn summary_table(task: &ReacherTask, summaries: &[AlgoSummary]) -> CsvTable {
     let mut table = CsvTable::new([
         "task",
         "algo",
@@ -315,7 +392,7 @@ pub(super) fn write_reports(
         "random_success_mean",
         "random_success_std",
     ]);
-    for s in &summaries {
+    for s in summaries {
         let branch_cells = match s.final_branch_success {
             Some([(nm, ns), (cm, cs)]) => [nm, ns, cm, cs].map(|x| format!("{x:.3}")),
             None => Default::default(),
@@ -345,25 +422,17 @@ pub(super) fn write_reports(
             random_s,
         ]);
     }
-    write_file(&dir.join("summary.csv"), &table.to_csv())?;
-    let p = &run.prepared;
-    write_file(
-        &dir.join("summary.md"),
-        &summary_markdown(task.clone(), &summaries, p.rm.as_ref(), p.rm_paper.as_ref()),
-    )?;
-    let summary = RunSummary {
-        out: dir.clone(),
-        task: task.name().into(),
-        demos_kept: p.demos_kept,
-        demos_generated: p.demos_generated,
-        demo_branches: p.demo_branches,
-        rm: p.rm.clone(),
-        rm_paper: p.rm_paper.clone(),
-        algos: summaries,
-        wall_secs: wall_secs.unwrap_or(f64::NAN),
-    };
-    let config = &run.config;
-    let run_json = serde_json::json!({
+    table
+}
+
+/// run.json: the summary, the run's plan and settings, and each job's wall time.
+fn run_json(
+    run: &PreparedRun,
+    records: &[(Algo, JobRecord)],
+    summary: &RunSummary,
+) -> serde_json::Value {
+    let (p, config) = (&run.prepared, &run.config);
+    serde_json::json!({
         "summary": summary,
         "seeds": p.seeds,
         "demo_source": config.demo_source.name(),
@@ -375,12 +444,7 @@ pub(super) fn write_reports(
         "prepare_secs": p.prepare_secs,
         "jobs": records.iter().map(|(_, r)| serde_json::json!({
             "algo": r.algo, "seed": r.seed, "wall_secs": r.wall_secs})).collect::<Vec<_>>(),
-    });
-    write_file(
-        &dir.join("run.json"),
-        &serde_json::to_string_pretty(&run_json).expect("JSON serialises"),
-    )?;
-    Ok(summary)
+    })
 }
 
 /// The candidates of every job's final-policy phase, one row each: `candidate` 0 is the
