@@ -1031,16 +1031,19 @@ impl IrlRunConfig {
         }
     }
 
-    /// Checks value ranges (named by field).
+    /// Checks value ranges (named by field): sizes against their limits, then values, then
+    /// the SAC settings that are not keys, then each schedule as it resolves.
     pub fn validate(&self, source_name: &str) -> Result<(), IrlConfigError> {
-        let bad = |field: &str, problem: &str| {
-            Err(IrlConfigError::Invalid {
-                source_name: source_name.to_string(),
-                field: field.to_string(),
-                problem: problem.to_string(),
-                line: None,
-            })
-        };
+        self.validate_sizes(source_name)?;
+        self.validate_values(source_name)?;
+        self.validate_fixed_sac(source_name)?;
+        self.validate_schedules(source_name)
+    }
+
+    /// The episode length, the environment, and every size against its limit (no unbounded
+    /// allocation).
+    fn validate_sizes(&self, source_name: &str) -> Result<(), IrlConfigError> {
+        let bad = |field: &str, problem: &str| invalid(source_name, field, problem);
         // The environment first: the rollout limits below use its episode length.
         if let Some(steps) = self.episode_steps {
             if steps == 0 || steps > MAX_EPISODE_STEPS {
@@ -1115,6 +1118,18 @@ impl IrlRunConfig {
                 );
             }
         }
+        Ok(())
+    }
+
+    /// Counts that must be at least 1, rates and weights, the final phase's shape.
+    fn validate_values(&self, source_name: &str) -> Result<(), IrlConfigError> {
+        let bad = |field: &str, problem: &str| invalid(source_name, field, problem);
+        let over = |field: &str, value: u64, limit: u64| {
+            bad(
+                field,
+                &format!("is {value}, more than the limit of {limit}"),
+            )
+        };
         let positive = |x: f64| x.is_finite() && x > 0.0;
         let non_negative = |x: f64| x.is_finite() && x >= 0.0;
         if self.demo_episodes == 0 {
@@ -1197,8 +1212,13 @@ impl IrlRunConfig {
         if self.threads == 0 {
             return bad("threads", "must be at least 1");
         }
-        // The SAC settings that are not keys stay the IRL runs' (a config built in code that
-        // changes one could not be written to its run directory and read back).
+        Ok(())
+    }
+
+    /// The SAC settings that are not keys stay the IRL runs' (a config built in code that
+    /// changes one could not be written to its run directory and read back).
+    fn validate_fixed_sac(&self, source_name: &str) -> Result<(), IrlConfigError> {
+        let bad = |field: &str, problem: &str| invalid(source_name, field, problem);
         let fixed = irl_run_sac();
         for (field, same) in [
             ("hidden", self.sac.hidden == fixed.hidden),
@@ -1232,9 +1252,15 @@ impl IrlRunConfig {
             Err(e) => return bad("sac", &e.to_string()),
             Ok(()) => {}
         }
-        // Each schedule: the baselines' or a known algorithm's, and the settings it resolves
-        // to pass the same checks (an error names the schedule's key). The baselines' table is
-        // checked over the run's keys alone, each algorithm's with the baselines' beneath.
+        Ok(())
+    }
+
+    /// Each schedule: the baselines' or a known algorithm's, and the settings it resolves to
+    /// pass the same checks (an error names the schedule's key).
+    fn validate_schedules(&self, source_name: &str) -> Result<(), IrlConfigError> {
+        let bad = |field: &str, problem: &str| invalid(source_name, field, problem);
+        // The baselines' table is checked over the run's keys alone, each algorithm's with the
+        // baselines' beneath.
         for (name, schedule) in &self.schedule {
             let named = |e: IrlConfigError| match e {
                 IrlConfigError::Invalid { field, problem, .. } => IrlConfigError::Invalid {
@@ -1272,4 +1298,14 @@ impl IrlRunConfig {
         }
         Ok(())
     }
+}
+
+/// A value of `source_name` out of its range, named by its key.
+fn invalid<T>(source_name: &str, field: &str, problem: &str) -> Result<T, IrlConfigError> {
+    Err(IrlConfigError::Invalid {
+        source_name: source_name.to_string(),
+        field: field.to_string(),
+        problem: problem.to_string(),
+        line: None,
+    })
 }
