@@ -19,7 +19,7 @@ const T: usize = 3;
 /// value per trajectory), so a row says where it came from.
 fn rows(n: usize, first: f32) -> Vec<f32> {
     (0..n)
-        .flat_map(|i| std::iter::repeat(first + i as f32).take(T * obs_dim()))
+        .flat_map(|i| std::iter::repeat_n(first + i as f32, T * obs_dim()))
         .collect()
 }
 

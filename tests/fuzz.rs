@@ -429,7 +429,7 @@ fn field_mutation(c: &Corpus, i: u64) -> (RolloutLog, String) {
     // A vector made shorter, longer, or given a non-finite or huge entry.
     let vector = |rng: &mut ChaCha8Rng, v: &mut Vec<f64>| match rng.gen_range(0..3) {
         0 => v.truncate(rng.gen_range(0..=v.len())),
-        1 => v.extend(std::iter::repeat(0.1).take(rng.gen_range(1..40))),
+        1 => v.extend(std::iter::repeat_n(0.1, rng.gen_range(1..40))),
         _ if !v.is_empty() => {
             let at = rng.gen_range(0..v.len());
             v[at] = [f64::NAN, f64::INFINITY, 1e300][rng.gen_range(0..3)];
@@ -619,7 +619,7 @@ fn downstream(log: &RolloutLog, bytes: &[u8], i: u64) -> Result<(), String> {
     let options = RenderOptions { size: 64, poses: 2 };
     let _ = render_episode(log, None, &options);
     let _ = smirl::pipeline::offline_rm::traces_from_logs(std::slice::from_ref(log));
-    if i % 8 == 0 {
+    if i.is_multiple_of(8) {
         let input = scratch_file(bytes);
         let view = input.with_file_name("view.mcap");
         let _ = std::fs::remove_file(&view);

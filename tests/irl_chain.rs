@@ -106,9 +106,8 @@ fn run(algo: Algo) -> (f64, f64) {
             Algo::MaxEnt => {
                 let c = MaxEntCoefficients::new(n, 800, 1).unwrap();
                 let obs: Vec<f32> = agent.iter().chain(&expert).copied().collect();
-                let coeffs: Vec<f64> = std::iter::repeat(c.agent)
-                    .take(n)
-                    .chain(std::iter::repeat(c.expert).take(800))
+                let coeffs: Vec<f64> = std::iter::repeat_n(c.agent, n)
+                    .chain(std::iter::repeat_n(c.expert, 800))
                     .collect();
                 model.update(&obs, &[], &coeffs).unwrap();
             }

@@ -8,7 +8,7 @@ fn random_points(rng: &mut ChaCha8Rng, n: usize, dim: usize, spread: f64) -> Vec
     // Half in a tight cluster (many points per cell), half spread out.
     (0..n * dim)
         .map(|i| {
-            if (i / dim) % 2 == 0 {
+            if (i / dim).is_multiple_of(2) {
                 rng.gen_range(-0.03..0.03)
             } else {
                 rng.gen_range(-spread..spread)

@@ -140,7 +140,7 @@ fn replay_prints_label_runs_compactly() {
         r,
         LabelSet::EMPTY,
     ];
-    trace.extend(std::iter::repeat(y).take(78));
+    trace.extend(std::iter::repeat_n(y, 78));
     assert_eq!(label_runs(&v, &trace), "c@2 r@4\u{2013}6 y@8\u{2013}85");
     assert_eq!(label_runs(&v, &[]), "");
     assert_eq!(label_runs(&v, &[LabelSet(1 | 1 << 4)]), "rc@1");

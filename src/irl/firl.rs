@@ -244,7 +244,7 @@ impl FirlSurrogate {
         let scale = 1.0 / (n_traj * horizon) as f64;
         let mut coefficients = Vec::with_capacity(n_traj * horizon);
         for a in &advantages {
-            coefficients.extend(std::iter::repeat((a - mean) * scale).take(horizon));
+            coefficients.extend(std::iter::repeat_n((a - mean) * scale, horizon));
         }
         Ok(FirlSurrogate {
             n_traj,

@@ -136,7 +136,7 @@ impl SortedPoints {
 }
 
 fn check(points: &[f64], dim: usize, what: &'static str, need: usize) -> Result<(), KnnError> {
-    if points.len() % dim != 0 {
+    if !points.len().is_multiple_of(dim) {
         return Err(KnnError::Ragged {
             what,
             len: points.len(),

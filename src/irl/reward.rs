@@ -197,7 +197,7 @@ pub(crate) fn check_batch(
     rm_state_required: bool,
     other: (&'static str, usize),
 ) -> Result<usize, RewardError> {
-    if obs_dim == 0 || obs.len() % obs_dim != 0 {
+    if obs_dim == 0 || !obs.len().is_multiple_of(obs_dim) {
         return Err(RewardError::ObsShape {
             len: obs.len(),
             obs_dim,

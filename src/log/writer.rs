@@ -427,7 +427,7 @@ impl RolloutLogger {
     pub fn begin_episode(&mut self, start: &EpisodeStartRecord) -> Result<bool, LogError> {
         let id = self.next_episode;
         self.next_episode += 1;
-        if id % self.options.every_nth_episode != 0 {
+        if !id.is_multiple_of(self.options.every_nth_episode) {
             self.current = None;
             return Ok(false);
         }

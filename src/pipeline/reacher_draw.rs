@@ -634,7 +634,7 @@ impl<F: FnMut(&DrawRow)> DrawJob<'_, F> {
                 let c = MaxEntCoefficients::new(n_agent, config.expert_samples, config.horizon)
                     .map_err(DrawError::MaxEnt)?;
                 let mut coeffs = vec![c.agent; n_agent];
-                coeffs.extend(std::iter::repeat(c.expert).take(config.expert_samples));
+                coeffs.extend(std::iter::repeat_n(c.expert, config.expert_samples));
                 ([agent_obs.as_slice(), &self.expert_obs].concat(), coeffs)
             }
         };
@@ -659,7 +659,10 @@ impl<F: FnMut(&DrawRow)> DrawJob<'_, F> {
     /// on this iteration's states.
     fn record(&mut self, iteration: usize, facts: DrawFacts) -> Result<(), DrawError> {
         let config = self.config;
-        if iteration == 1 || iteration % config.eval_every == 0 || iteration == config.iterations {
+        if iteration == 1
+            || iteration.is_multiple_of(config.eval_every)
+            || iteration == config.iterations
+        {
             let (target, tips) = (&self.target_samples, &self.tips);
             let forward_kl = knn_kl(target, tips, 2, 3).map_err(DrawError::ForwardKl)?;
             let reverse_kl = knn_kl(tips, target, 2, 3).map_err(DrawError::ReverseKl)?;

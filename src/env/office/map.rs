@@ -346,7 +346,7 @@ pub fn parse_map(text: &str, source: &str) -> Result<OfficeMap, MapError> {
         }
     }
     let n_lines = picture.len();
-    if n_lines < 3 || n_lines % 2 == 0 {
+    if n_lines < 3 || n_lines.is_multiple_of(2) {
         return Err(at(
             picture[n_lines - 1].0,
             None,

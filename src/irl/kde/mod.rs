@@ -77,7 +77,11 @@ pub fn epanechnikov_constant(d: usize) -> f64 {
 
 /// Volume of the unit ball in ℝ^d, by the recursion V_d = V_{d−2} · 2π / d.
 pub fn unit_ball_volume(d: usize) -> f64 {
-    let (mut v, start) = if d % 2 == 0 { (1.0, 2) } else { (2.0, 3) };
+    let (mut v, start) = if d.is_multiple_of(2) {
+        (1.0, 2)
+    } else {
+        (2.0, 3)
+    };
     let mut k = start;
     while k <= d {
         v *= 2.0 * std::f64::consts::PI / k as f64;
@@ -136,7 +140,7 @@ impl Kde {
             for (at, &(key, i)) in keyed.iter().enumerate() {
                 let p = &points[i as usize * dim..][..dim];
                 rows.extend(free.iter().map(|&j| p[j]));
-                if keyed.get(at + 1).map_or(true, |&(next, _)| next != key) {
+                if keyed.get(at + 1).is_none_or(|&(next, _)| next != key) {
                     groups.push((key, CellGrid::fit(&rows, free.len(), bandwidth)));
                     rows.clear();
                 }
@@ -331,7 +335,7 @@ pub(crate) fn check_shape(points: &[f64], dim: usize, bandwidth: f64) -> Result<
     if points.is_empty() {
         return Err(KdeError::NoPoints);
     }
-    if points.len() % dim != 0 {
+    if !points.len().is_multiple_of(dim) {
         return Err(KdeError::RaggedPoints {
             len: points.len(),
             dim,
@@ -368,7 +372,7 @@ pub fn select_columns(
     obs_dim: usize,
     columns: &[usize],
 ) -> Result<Vec<f64>, KdeError> {
-    if obs_dim == 0 || obs.len() % obs_dim != 0 {
+    if obs_dim == 0 || !obs.len().is_multiple_of(obs_dim) {
         return Err(KdeError::RaggedPoints {
             len: obs.len(),
             dim: obs_dim,

@@ -292,7 +292,7 @@ pub fn coefficients(
             let n_expert = expert.n_states();
             let c = MaxEntCoefficients::new(n_agent, n_expert, horizon)?;
             let mut coeffs = vec![c.agent; n_agent];
-            coeffs.extend(std::iter::repeat(c.expert).take(n_expert));
+            coeffs.extend(std::iter::repeat_n(c.expert, n_expert));
             Ok(Coefficients {
                 obs: [agent.obs.as_slice(), &expert.obs].concat(),
                 states: Vec::new(),

@@ -179,10 +179,10 @@ impl Data {
             starts.push(lab.len());
             lab.extend_from_slice(c);
             rid.extend_from_slice(r);
-            mults.extend(std::iter::repeat(mult).take(c.len()));
-            w.extend(std::iter::repeat(mult).take(c.len() - 1));
+            mults.extend(std::iter::repeat_n(mult, c.len()));
+            w.extend(std::iter::repeat_n(mult, c.len() - 1));
             w.push(0);
-            trace_of.extend(std::iter::repeat(k as u32).take(c.len()));
+            trace_of.extend(std::iter::repeat_n(k as u32, c.len()));
         }
         starts.push(lab.len());
         // Each label id's class: the first id whose set is the same once the unpredicted

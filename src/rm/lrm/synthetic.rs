@@ -321,7 +321,7 @@ fn incidental_letter(
     }
     let key = prev.map_or(v.len(), |p| p) * 31 + next + 7;
     let h = (key as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 32;
-    if h % 2 == 0 {
+    if h.is_multiple_of(2) {
         None
     } else {
         Some(neutral[(h / 2) as usize % neutral.len()])
