@@ -16,9 +16,7 @@ fn main() {
 
     let include_dir =
         PathBuf::from(env::var("MUJOCO_INCLUDE_DIR").unwrap_or_else(|_| "/usr/include".into()));
-    let lib_dir = PathBuf::from(
-        env::var("MUJOCO_LIB_DIR").unwrap_or_else(|_| "/usr/lib/x86_64-linux-gnu".into()),
-    );
+    let lib_dir = PathBuf::from(env::var("MUJOCO_LIB_DIR").unwrap_or_else(|_| debian_lib_dir()));
 
     let header = include_dir.join("mujoco").join("mujoco.h");
     if !header.is_file() {
@@ -65,6 +63,13 @@ fn main() {
     bindings
         .write_to_file(out.join("bindings.rs"))
         .unwrap_or_else(|e| fail(&format!("cannot write bindings: {e}")));
+}
+
+/// Debian's library folder for the target, `/usr/lib/<arch>-linux-gnu`: its multiarch name is
+/// the target's arch on x86_64, aarch64 and riscv64 (elsewhere MUJOCO_LIB_DIR names the folder).
+fn debian_lib_dir() -> String {
+    let arch = env::var("CARGO_CFG_TARGET_ARCH").expect("cargo sets CARGO_CFG_TARGET_ARCH");
+    format!("/usr/lib/{arch}-linux-gnu")
 }
 
 fn fail(problem: &str) -> ! {
