@@ -2,9 +2,10 @@
 # Trains the SAC experts of the four ReacherDelivery tasks and of the baselines' Markovian
 # positive control "blue" (touch blue) with the default ExpertConfig
 # (see src/pipeline/expert.rs) or, when experiments/experts/config_<task>.toml exists, that
-# config (documented in results.md), evaluates each on 100 episodes (stochastic and mean action),
-# copies the actor-only policy files into experiments/experts/cache/, copies the training
-# curves (SVG + CSV) next to this script and writes results.md from the runs' summary.json.
+# config (documented in results.md), evaluates each on the config's eval_episodes (200 by default;
+# stochastic and mean action), copies the actor-only policy files into experiments/experts/cache/,
+# copies the training curves (SVG + CSV) next to this script and writes results_table.md from the
+# runs' summary.json.
 # The curve CSVs are not tracked (experiments/README.md); the SVGs are, and
 # `reacher expert-curve --task T --csv experiments/experts/curve_T.csv --out experiments/experts/curve_T.svg
 # --out-return experiments/experts/curve_return_T.svg --force` redraws them from the CSVs.

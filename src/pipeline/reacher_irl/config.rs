@@ -829,8 +829,8 @@ pub const MAX_THREADS: usize = 256;
 pub const MAX_FINAL_CHECKPOINTS: u64 = 1_000;
 
 impl IrlRunConfig {
-    /// The default profile: sized so that `reacher --task <t>` with the default algorithm set
-    /// finishes in well under 20 minutes on 2 cores (README.md, "Run it").
+    /// The default profile: `reacher --task <t>` runs it with the default algorithm set; the
+    /// paper's schedules sized for 2 cores (docs/benchmarks.md times the main command).
     pub fn standard() -> IrlRunConfig {
         IrlRunConfig {
             demo_source: DemoSource::Expert,
