@@ -6,6 +6,7 @@ use super::usage;
 use crate::env::reacher_task::ReacherTask;
 use crate::log::{LogOptions, RolloutLogger};
 use crate::output::{check_file, check_not_input, create_parent, OutputDir};
+use crate::pipeline::expert::ExpertOutcome;
 use crate::pipeline::reacher_expert::{self as rx, ExpertConfig};
 use crate::rl::sac::ActMode;
 use anyhow::{Context, Result};
@@ -46,25 +47,17 @@ fn eval_seed(seed: u64) -> u64 {
 /// ones are usage errors); prints the training log, the evaluation per branch and the files
 /// written.
 pub fn run(args: ExpertRequest) -> Result<()> {
-    let task = args.task;
-    let mut config = match (&args.config, args.quick) {
-        (Some(_), true) => return Err(usage("--quick and --config exclude each other")),
-        (Some(path), false) => ExpertConfig::load(path).map_err(usage)?,
-        (None, true) => ExpertConfig::smoke(),
-        (None, false) => ExpertConfig::default(),
-    };
-    config.env = task.env_config(&config.env).map_err(usage)?;
-    config
-        .validate()
-        .map_err(|e| usage(format!("expert config: {e}")))?;
+    let task = args.task.clone();
+    let config = resolve_config(&args)?;
     let out = args
         .out
+        .clone()
         .unwrap_or_else(|| PathBuf::from(format!("target/expert-runs/{task}")));
     let checkpoint = out.join("expert.ckpt");
     // --resume continues the run whose checkpoint is in --out, or starts one there.
     if !(args.resume && checkpoint.is_file()) {
         let output = OutputDir::check(&out, args.force).map_err(|e| {
-            usage(if out.join("expert.ckpt").exists() {
+            usage(if checkpoint.exists() {
                 format!("{e} (pass --resume to continue the run in it)")
             } else {
                 e.to_string()
@@ -73,65 +66,15 @@ pub fn run(args: ExpertRequest) -> Result<()> {
         output.create()?;
     }
 
-    let bar = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(config.total_steps)
-    };
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{prefix} [{elapsed_precise}] {wide_bar} {pos}/{len} steps ({per_sec}, eta {eta}) {msg}",
-        )
-        .expect("valid template"),
-    );
-    bar.set_prefix(format!("expert {task}"));
-    let mut train_logger = if args.train_log_every > 0 {
-        let path = free_log_path(&out, "train");
-        let header = rx::train_log_header(task.clone(), &config, args.seed)?;
-        let options = LogOptions {
-            every_nth_episode: args.train_log_every,
-            ..LogOptions::default()
-        };
-        Some(RolloutLogger::create(&path, header, options)?)
-    } else {
-        None
-    };
     let started = std::time::Instant::now();
-    let (mut policy, outcome) = rx::train_task_expert(
-        task.clone(),
-        &config,
-        args.seed,
-        &checkpoint,
-        args.resume,
-        |p| {
-            bar.set_position(p.env_steps.min(p.total_steps));
-            bar.set_message(format!(
-                "recent success {:.2}, return {:.2}{}",
-                p.recent_success,
-                p.recent_return,
-                if p.checkpointed { " [checkpoint]" } else { "" }
-            ));
-        },
-        train_logger.as_mut(),
-    )?;
-    bar.finish_and_clear();
-    if let Some(l) = train_logger {
-        let s = l.finish()?;
-        println!(
-            "training log {}: {} episodes, {} steps, {:.1} B/step",
-            s.path.display(),
-            s.episodes_logged,
-            s.steps_logged,
-            s.bytes as f64 / s.steps_logged.max(1) as f64
-        );
-    }
+    let (mut policy, outcome) = train(&args, &config, &out, &checkpoint)?;
     let train_secs = started.elapsed().as_secs_f64();
     if let Some(steps) = outcome.resumed_at {
         println!("resumed from the checkpoint at {steps} steps");
     }
 
-    let eval_seed = eval_seed(args.seed);
     let episodes = config.eval_episodes;
+    let eval_seed = eval_seed(args.seed);
     let stochastic = rx::evaluate_expert(
         &mut policy,
         &config.env,
@@ -143,23 +86,7 @@ pub fn run(args: ExpertRequest) -> Result<()> {
 
     let policy_path = out.join("expert.policy");
     policy.save(&policy_path)?;
-    // A smoke policy is no expert: the default cache would hand it to `reacher --task FILE`.
-    let cache = args.cache.clone().or_else(|| {
-        (!args.quick)
-            .then(|| rx::default_expert_cache(&task))
-            .flatten()
-    });
-    let cached = match &cache {
-        Some(cache) => {
-            std::fs::create_dir_all(cache)
-                .with_context(|| format!("cannot create {}", cache.display()))?;
-            let path = rx::expert_cache_path(cache, task.clone());
-            policy.save(&path)?;
-            Some(path)
-        }
-        None => None,
-    };
-
+    let cached = save_to_cache(&args, &policy)?;
     let curve_svg = out.join("curve.svg");
     rx::write_curve_svg(
         &curve_svg,
@@ -168,23 +95,8 @@ pub fn run(args: ExpertRequest) -> Result<()> {
         &outcome.curve,
         config.progress_window,
     )?;
-
     let demos_path = out.join("demos.mcap");
-    let header = rx::demo_log_header(&policy, &config.env, args.seed)?;
-    let options = LogOptions {
-        observations: true,
-        ..LogOptions::default()
-    };
-    let mut logger = RolloutLogger::create(&demos_path, header, options)?;
-    let demos = rx::generate_demos(
-        &mut policy,
-        task.clone(),
-        &config.env,
-        rx::PAPER_DEMOS,
-        args.seed,
-        Some(&mut logger),
-    )?;
-    logger.finish()?;
+    let demos = log_demos(&mut policy, &task, &config, args.seed, &demos_path)?;
     let demo_successes = demos.iter().filter(|d| d.success).count();
     let demo_branches = rx::branch_tally(task.clone(), &demos)?;
 
@@ -214,29 +126,7 @@ pub fn run(args: ExpertRequest) -> Result<()> {
         git_commit: crate::GIT_COMMIT.into(),
     };
     rx::write_run_summary(&out.join("summary.json"), &summary)?;
-    println!(
-        "expert {task}: {} steps in {:.0} s; success over {episodes} episodes: stochastic {:.2}, mean action {:.2}; task return {:.3} / {:.3}; {}/{} demos successful",
-        summary.env_steps,
-        train_secs,
-        stochastic.success_rate,
-        mean.success_rate,
-        stochastic.mean_task_return,
-        mean.mean_task_return,
-        demo_successes,
-        demos.len()
-    );
-    println!(
-        "episodes with an event: stochastic {}/{} successful, mean action {}/{}",
-        stochastic.cancel_successes,
-        stochastic.cancel_episodes,
-        mean.cancel_successes,
-        mean.cancel_episodes
-    );
-    if let (Some(st), Some(me), Some(de)) = (stochastic.branches, mean.branches, demo_branches) {
-        println!("branches, stochastic: {st}");
-        println!("branches, mean action: {me}");
-        println!("branches, the {} demonstrations: {de}", demos.len());
-    }
+    print_summary(&task, &summary, train_secs);
     println!(
         "wrote {} (checkpoint), {}, {}, {}, {} and {}",
         checkpoint.display(),
@@ -247,6 +137,161 @@ pub fn run(args: ExpertRequest) -> Result<()> {
         out.join("summary.json").display()
     );
     Ok(())
+}
+
+/// The run's expert config on its task (a bad one is a usage error).
+fn resolve_config(args: &ExpertRequest) -> Result<ExpertConfig> {
+    let mut config = match (&args.config, args.quick) {
+        (Some(_), true) => return Err(usage("--quick and --config exclude each other")),
+        (Some(path), false) => ExpertConfig::load(path).map_err(usage)?,
+        (None, true) => ExpertConfig::smoke(),
+        (None, false) => ExpertConfig::default(),
+    };
+    config.env = args.task.env_config(&config.env).map_err(usage)?;
+    config
+        .validate()
+        .map_err(|e| usage(format!("expert config: {e}")))?;
+    Ok(config)
+}
+
+/// Trains (or resumes) the expert with a progress bar, logging every N-th training episode to
+/// `train.mcap` when asked.
+fn train(
+    args: &ExpertRequest,
+    config: &ExpertConfig,
+    out: &Path,
+    checkpoint: &Path,
+) -> Result<(rx::ExpertPolicy, ExpertOutcome)> {
+    let task = &args.task;
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(config.total_steps)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix} [{elapsed_precise}] {wide_bar} {pos}/{len} steps ({per_sec}, eta {eta}) {msg}",
+        )
+        .expect("valid template"),
+    );
+    bar.set_prefix(format!("expert {task}"));
+    let mut train_logger = if args.train_log_every > 0 {
+        let path = free_log_path(out, "train");
+        let header = rx::train_log_header(task.clone(), config, args.seed)?;
+        let options = LogOptions {
+            every_nth_episode: args.train_log_every,
+            ..LogOptions::default()
+        };
+        Some(RolloutLogger::create(&path, header, options)?)
+    } else {
+        None
+    };
+    let trained = rx::train_task_expert(
+        task.clone(),
+        config,
+        args.seed,
+        checkpoint,
+        args.resume,
+        |p| {
+            bar.set_position(p.env_steps.min(p.total_steps));
+            bar.set_message(format!(
+                "recent success {:.2}, return {:.2}{}",
+                p.recent_success,
+                p.recent_return,
+                if p.checkpointed { " [checkpoint]" } else { "" }
+            ));
+        },
+        train_logger.as_mut(),
+    )?;
+    bar.finish_and_clear();
+    if let Some(l) = train_logger {
+        let s = l.finish()?;
+        println!(
+            "training log {}: {} episodes, {} steps, {:.1} B/step",
+            s.path.display(),
+            s.episodes_logged,
+            s.steps_logged,
+            s.bytes as f64 / s.steps_logged.max(1) as f64
+        );
+    }
+    Ok(trained)
+}
+
+/// Copies the policy to the cache `--cache` names, or to the task's default cache (none for a
+/// shipped task). A smoke policy is no expert: the default cache would hand it to
+/// `reacher --task FILE`, so `--quick` goes to a named cache only.
+fn save_to_cache(args: &ExpertRequest, policy: &rx::ExpertPolicy) -> Result<Option<PathBuf>> {
+    let cache = args.cache.clone().or_else(|| {
+        (!args.quick)
+            .then(|| rx::default_expert_cache(&args.task))
+            .flatten()
+    });
+    let Some(cache) = cache else {
+        return Ok(None);
+    };
+    std::fs::create_dir_all(&cache)
+        .with_context(|| format!("cannot create {}", cache.display()))?;
+    let path = rx::expert_cache_path(&cache, args.task.clone());
+    policy.save(&path)?;
+    Ok(Some(path))
+}
+
+/// The paper's 16 demonstrations of the expert's stochastic policy, logged to `path` with
+/// their observations.
+fn log_demos(
+    policy: &mut rx::ExpertPolicy,
+    task: &ReacherTask,
+    config: &ExpertConfig,
+    seed: u64,
+    path: &Path,
+) -> Result<Vec<rx::Demo>> {
+    let header = rx::demo_log_header(policy, &config.env, seed)?;
+    let options = LogOptions {
+        observations: true,
+        ..LogOptions::default()
+    };
+    let mut logger = RolloutLogger::create(path, header, options)?;
+    let demos = rx::generate_demos(
+        policy,
+        task.clone(),
+        &config.env,
+        rx::PAPER_DEMOS,
+        seed,
+        Some(&mut logger),
+    )?;
+    logger.finish()?;
+    Ok(demos)
+}
+
+/// The run's outcome: steps, time, success with stochastic and mean actions, demonstrations,
+/// episodes with an event, and each branch where the task has two.
+fn print_summary(task: &ReacherTask, s: &rx::ExpertRunSummary, train_secs: f64) {
+    println!(
+        "expert {task}: {} steps in {:.0} s; success over {} episodes: stochastic {:.2}, mean action {:.2}; task return {:.3} / {:.3}; {}/{} demos successful",
+        s.env_steps,
+        train_secs,
+        s.eval_episodes,
+        s.success_stochastic,
+        s.success_mean,
+        s.task_return_stochastic,
+        s.task_return_mean,
+        s.demo_successes,
+        s.demos
+    );
+    println!(
+        "episodes with an event: stochastic {}/{} successful, mean action {}/{}",
+        s.cancel_successes_stochastic,
+        s.cancel_episodes_stochastic,
+        s.cancel_successes_mean,
+        s.cancel_episodes_mean
+    );
+    if let (Some(st), Some(me), Some(de)) =
+        (s.branches_stochastic, s.branches_mean, s.demo_branches)
+    {
+        println!("branches, stochastic: {st}");
+        println!("branches, mean action: {me}");
+        println!("branches, the {} demonstrations: {de}", s.demos);
+    }
 }
 
 /// `DIR/STEM.mcap`, or `DIR/STEM.K.mcap` with the first K ≥ 1 for which neither the file nor
