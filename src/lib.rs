@@ -37,8 +37,7 @@
 //! are checked, never replaced unless ours),
 //! `assets` (the model, reward machines and committed experts built into the binaries),
 //! `quoted` (input quoted readably in errors) and `short_float` (serde helpers for readable
-//! configs) import nothing of the crate but each
-//! other and serve every layer.
+//! configs) import nothing of the crate but each other and serve every layer.
 //!
 //! `unsafe` is denied everywhere but in four places, each allowed by name: the MuJoCo wrapper
 //! (`mujoco`, the FFI), the `sgemm` call (`nn::gemm`), the AVX-512 product kernel

@@ -138,8 +138,8 @@ impl RunInfo {
     /// (or Composite, which has the same layout, for a task file's log).
     pub fn task_layout(&self) -> Result<crate::env::layout::TaskLayout, RunLayoutError> {
         if let Some(v) = self.config.get(CONFIG_TASK_LAYOUT) {
-            let layout: crate::env::layout::TaskLayout = serde_json::from_value(v.clone())
-                .map_err(|e| RunLayoutError::Parse(e.to_string()))?;
+            let layout: crate::env::layout::TaskLayout =
+                serde_json::from_value(v.clone()).map_err(RunLayoutError::Parse)?;
             layout.check().map_err(RunLayoutError::Invalid)?;
             return Ok(layout);
         }
@@ -159,7 +159,7 @@ impl RunInfo {
 #[derive(Debug, thiserror::Error)]
 pub enum RunLayoutError {
     #[error("the run's task layout does not parse: {0}")]
-    Parse(String),
+    Parse(#[source] serde_json::Error),
     #[error("the run's task layout is not one a task file declares: {0}")]
     Invalid(crate::env::layout::LayoutProblem),
     /// The shipped task a log without a recorded layout is read as (a broken build).

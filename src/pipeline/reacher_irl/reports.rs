@@ -40,7 +40,7 @@ pub(super) fn write_reports(
         )?;
     }
 
-    let mut plots = Plots::new(&task);
+    let mut plots = Plots::new(&task, conditional);
     let mut summaries = Vec::new();
     for algo in algos_in_order(records) {
         let runs: Vec<&JobRecord> = records
@@ -48,10 +48,10 @@ pub(super) fn write_reports(
             .filter(|(a, _)| *a == algo)
             .map(|(_, r)| r)
             .collect();
-        plots.add(algo, &runs, conditional);
+        plots.add(algo, &runs);
         summaries.push(algo_summary(algo, &runs, conditional)?);
     }
-    plots.write(dir, conditional)?;
+    plots.write(dir)?;
 
     write_file(
         &dir.join("summary.csv"),
@@ -191,10 +191,12 @@ struct Plots {
     task_return: LinePlot,
     branches: LinePlot,
     progress: LinePlot,
+    /// The task has two branches: the per-branch plot is drawn.
+    conditional: bool,
 }
 
 impl Plots {
-    fn new(task: &ReacherTask) -> Plots {
+    fn new(task: &ReacherTask, conditional: bool) -> Plots {
         let mut success = LinePlot::new(
             &format!("ReacherDelivery {task}: ground-truth success"),
             "environment steps",
@@ -225,11 +227,12 @@ impl Plots {
             task_return,
             branches,
             progress,
+            conditional,
         }
     }
 
     /// `algo`'s curves from its jobs `runs`.
-    fn add(&mut self, algo: Algo, runs: &[&JobRecord], conditional: bool) {
+    fn add(&mut self, algo: Algo, runs: &[&JobRecord]) {
         let curve = |f: &dyn Fn(&MetricsRow) -> f64| -> Vec<Vec<(f64, f64)>> {
             runs.iter()
                 .map(|r| {
@@ -240,7 +243,7 @@ impl Plots {
                 })
                 .collect()
         };
-        if conditional {
+        if self.conditional {
             for b in Branch::ALL {
                 self.branches.series.push(
                     Series::new(
@@ -291,13 +294,13 @@ impl Plots {
 
     /// success.svg, task_return.svg, progress.svg (when a curve has it) and, for a
     /// conditional task, success_branches.svg.
-    fn write(&self, dir: &Path, conditional: bool) -> Result<(), PipelineError> {
+    fn write(&self, dir: &Path) -> Result<(), PipelineError> {
         write_file(&dir.join("success.svg"), &self.success.to_svg())?;
         write_file(&dir.join("task_return.svg"), &self.task_return.to_svg())?;
         if !self.progress.series.is_empty() {
             write_file(&dir.join("progress.svg"), &self.progress.to_svg())?;
         }
-        if conditional {
+        if self.conditional {
             write_file(&dir.join("success_branches.svg"), &self.branches.to_svg())?;
         }
         Ok(())
