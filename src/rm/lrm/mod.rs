@@ -31,8 +31,9 @@
 //!   of the seed, they run in parallel over the threads, and the best machine is kept
 //!   (deterministic for any thread count).
 //! - *Patience* ([`LrmConfig::patience`]): a start ends after that many steps without
-//!   improving its best; the time saved pays for the other starts (measured: patience 5 gives
-//!   the same costs as 10 or 20 on Office tasks 1–4 at a third of the time).
+//!   improving its best; the time saved pays for the other starts (measured in
+//!   `experiments/lrm/patience.md`: patience 5 finds patience 20's cost on Office tasks 1, 2
+//!   and 4, 12 % above it on task 3, in a third of its time).
 //!
 //! With these, the learned machines cost less than the perfect ones on every benchmark task
 //! (the objective also rewards predicting the expert's random steps), and refine the perfect
