@@ -441,11 +441,7 @@ pub fn run(
 ) -> Result<OfficeRun, OfficeError> {
     cfg.validate()?;
     let t0 = Instant::now();
-    let world = task.world();
-    let gt = task.rm();
     let demos = demonstrations(task, &cfg.demos, seed);
-    let demos_s = t0.elapsed().as_secs_f64();
-    let horizon = cfg.eval_horizon();
     let mut run = OfficeRun {
         task: task.name().to_string(),
         algo,
@@ -457,113 +453,15 @@ pub fn run(
         converged: false,
         refines_perfect: None,
         timings: Timings {
-            demos_s,
+            demos_s: t0.elapsed().as_secs_f64(),
             ..Timings::default()
         },
     };
     match algo {
         Algo::Smirl | Algo::MaxEnt => {
-            let t_rm = Instant::now();
-            let model = match (algo, cfg.smirl.structure) {
-                (Algo::MaxEnt, _) => trivial_rm(world.vocab()),
-                (_, Structure::Perfect) => gt.clone(),
-                (_, Structure::Learned) => learn_structure(world, &demos, &cfg.lrm, seed)?,
-            };
-            run.timings.rm_learning_s = t_rm.elapsed().as_secs_f64();
-            if algo == Algo::Smirl {
-                run.refines_perfect = Some(refines_along(&model, gt, &demos));
-                progress(&format!(
-                    "{} seed {seed}: reward machine with {} states ({:.2} s), refines the perfect one: {}",
-                    algo.name(),
-                    model.n_states(),
-                    run.timings.rm_learning_s,
-                    run.refines_perfect == Some(true)
-                ));
-            }
-            let t_irl = Instant::now();
-            let product = ProductIrl::new(world, model).map_err(OfficeError::Tabular)?;
-            let annotated = product.annotate(&demos);
-            let mut irl = product
-                .maxent(&annotated, cfg.maxent)
-                .map_err(OfficeError::MaxEnt)?;
-            let mut warm = Vec::new();
-            let evaluate = |theta: &[f64], warm: &mut Vec<u8>| {
-                let reward = product.features.reward(theta);
-                let policy = match cfg.eval.policy {
-                    EvalPolicy::Discounted => {
-                        greedy_policy(&product.mdp, &reward, cfg.eval.gamma, warm)
-                    }
-                    EvalPolicy::FiniteHorizon => {
-                        let mut actions = Vec::new();
-                        finite_horizon_greedy(
-                            &product.mdp,
-                            &reward,
-                            cfg.maxent.gamma,
-                            horizon,
-                            &mut actions,
-                        )
-                        .map(|_| actions)
-                    }
-                }
-                .map_err(OfficeError::Tabular)?;
-                Ok::<_, OfficeError>(evaluate_policy(
-                    world,
-                    &product.model_rm,
-                    &policy,
-                    gt,
-                    horizon,
-                ))
-            };
-            let e0 = evaluate(&irl.theta, &mut warm)?;
-            run.steps.push(StepMetrics {
-                step: 0,
-                env_interactions: 0,
-                gt_return: e0.gt_return,
-                success: e0.success,
-                objective: f64::NAN,
-                mixture_return: f64::NAN,
-                elapsed_s: t0.elapsed().as_secs_f64(),
-            });
-            for m in 1..=cfg.maxent.max_steps {
-                irl.step().map_err(OfficeError::MaxEnt)?;
-                // Likelihood and gradient at the new parameters (cached by L-BFGS).
-                let info = irl.current_info().map_err(OfficeError::MaxEnt)?;
-                run.converged = irl.converged(&info);
-                let e = evaluate(&irl.theta, &mut warm)?;
-                run.steps.push(StepMetrics {
-                    step: m,
-                    env_interactions: 0,
-                    gt_return: e.gt_return,
-                    success: e.success,
-                    objective: info.log_likelihood,
-                    mixture_return: f64::NAN,
-                    elapsed_s: t0.elapsed().as_secs_f64(),
-                });
-                if m % 25 == 0 || run.converged {
-                    progress(&format!(
-                        "{} seed {seed} step {m}: log-lik {:.4}, |grad| {:.2e}, success {}",
-                        algo.name(),
-                        info.log_likelihood,
-                        info.grad_max,
-                        e.success
-                    ));
-                }
-                if run.converged {
-                    break;
-                }
-            }
-            run.timings.irl_s = t_irl.elapsed().as_secs_f64();
-            run.weights = product.weight_rows(&irl.theta);
-            run.weight_columns = world
-                .vocab()
-                .props()
-                .iter()
-                .map(|c| c.to_string())
-                .collect();
-            if algo == Algo::Smirl {
-                run.rm = Some(product.model_rm.clone());
-            }
+            maxent_on_product(task, &demos, cfg, t0, &mut run, progress)?;
         }
+        Algo::Apprenticeship => apprenticeship(task, &demos, cfg, t0, &mut run, progress)?,
         Algo::SmirlPaper
         | Algo::SmirlSmooth
         | Algo::Fkl
@@ -575,59 +473,191 @@ pub fn run(
                 "{algo} is not an Office algorithm (smirl, maxent, apprenticeship)"
             )));
         }
-        Algo::Apprenticeship => {
-            let t_irl = Instant::now();
-            let mut app = Apprenticeship::new(world, &demos, cfg.apprenticeship, seed)
-                .map_err(OfficeError::Apprenticeship)?;
-            let one_state = trivial_rm(world.vocab());
-            let mut interactions = 0;
-            let mut step = 0;
-            let mut weights = Vec::new();
-            let mut returns = Vec::new();
-            while !app.done() {
-                let s = app.step().map_err(OfficeError::Tabular)?;
-                interactions += s.interactions;
-                let e = evaluate_policy(world, &one_state, &s.policy, gt, horizon);
-                returns.push(e.gt_return);
-                let mixture_return: f64 = app
-                    .mixture_weights()
-                    .iter()
-                    .zip(&returns)
-                    .map(|(l, r)| l * r)
-                    .sum();
-                // Step 0 is the random initial policy π₀, as in the projection method.
-                run.steps.push(StepMetrics {
-                    step,
-                    env_interactions: interactions,
-                    gt_return: e.gt_return,
-                    success: e.success,
-                    objective: if step == 0 { f64::NAN } else { s.margin },
-                    mixture_return,
-                    elapsed_s: t0.elapsed().as_secs_f64(),
-                });
-                if step % 5 == 0 {
-                    progress(&format!(
-                        "{} seed {seed} step {step}: margin {:.4}, success {}",
-                        algo.name(),
-                        s.margin,
-                        e.success
-                    ));
-                }
-                weights = s.weights;
-                step += 1;
-            }
-            run.converged = app.margin() <= cfg.apprenticeship.epsilon;
-            run.timings.irl_s = t_irl.elapsed().as_secs_f64();
-            run.weights = vec![weights];
-            run.weight_columns = world
-                .vocab()
-                .props()
-                .iter()
-                .map(|c| c.to_string())
-                .chain(std::iter::once("none".to_string()))
-                .collect();
-        }
     }
     run.timings.total_s = t0.elapsed().as_secs_f64();
     Ok(run)
+}
+
+/// SMIRL (on the learned or the perfect machine, per `cfg.smirl.structure`) and MaxEnt (on the
+/// one-state machine): exact MaxEnt IRL on the product U × O, evaluated on the ground truth
+/// after every optimiser step. Fills `run`'s steps, machine, weights and timings.
+fn maxent_on_product(
+    task: &OfficeTask,
+    demos: &[Demonstration],
+    cfg: &OfficeConfig,
+    t0: Instant,
+    run: &mut OfficeRun,
+    progress: &mut dyn FnMut(&str),
+) -> Result<(), OfficeError> {
+    let (algo, seed) = (run.algo, run.seed);
+    let world = task.world();
+    let gt = task.rm();
+    let horizon = cfg.eval_horizon();
+    let t_rm = Instant::now();
+    let model = match (algo, cfg.smirl.structure) {
+        (Algo::MaxEnt, _) => trivial_rm(world.vocab()),
+        (_, Structure::Perfect) => gt.clone(),
+        (_, Structure::Learned) => learn_structure(world, demos, &cfg.lrm, seed)?,
+    };
+    run.timings.rm_learning_s = t_rm.elapsed().as_secs_f64();
+    if algo == Algo::Smirl {
+        run.refines_perfect = Some(refines_along(&model, gt, demos));
+        progress(&format!(
+            "{} seed {seed}: reward machine with {} states ({:.2} s), refines the perfect one: {}",
+            algo.name(),
+            model.n_states(),
+            run.timings.rm_learning_s,
+            run.refines_perfect == Some(true)
+        ));
+    }
+    let t_irl = Instant::now();
+    let product = ProductIrl::new(world, model).map_err(OfficeError::Tabular)?;
+    let annotated = product.annotate(demos);
+    let mut irl = product
+        .maxent(&annotated, cfg.maxent)
+        .map_err(OfficeError::MaxEnt)?;
+    let mut warm = Vec::new();
+    let evaluate = |theta: &[f64], warm: &mut Vec<u8>| {
+        let reward = product.features.reward(theta);
+        let policy = match cfg.eval.policy {
+            EvalPolicy::Discounted => greedy_policy(&product.mdp, &reward, cfg.eval.gamma, warm),
+            EvalPolicy::FiniteHorizon => {
+                let mut actions = Vec::new();
+                finite_horizon_greedy(
+                    &product.mdp,
+                    &reward,
+                    cfg.maxent.gamma,
+                    horizon,
+                    &mut actions,
+                )
+                .map(|_| actions)
+            }
+        }
+        .map_err(OfficeError::Tabular)?;
+        Ok::<_, OfficeError>(evaluate_policy(
+            world,
+            &product.model_rm,
+            &policy,
+            gt,
+            horizon,
+        ))
+    };
+    let e0 = evaluate(&irl.theta, &mut warm)?;
+    run.steps.push(StepMetrics {
+        step: 0,
+        env_interactions: 0,
+        gt_return: e0.gt_return,
+        success: e0.success,
+        objective: f64::NAN,
+        mixture_return: f64::NAN,
+        elapsed_s: t0.elapsed().as_secs_f64(),
+    });
+    for m in 1..=cfg.maxent.max_steps {
+        irl.step().map_err(OfficeError::MaxEnt)?;
+        // Likelihood and gradient at the new parameters (cached by L-BFGS).
+        let info = irl.current_info().map_err(OfficeError::MaxEnt)?;
+        run.converged = irl.converged(&info);
+        let e = evaluate(&irl.theta, &mut warm)?;
+        run.steps.push(StepMetrics {
+            step: m,
+            env_interactions: 0,
+            gt_return: e.gt_return,
+            success: e.success,
+            objective: info.log_likelihood,
+            mixture_return: f64::NAN,
+            elapsed_s: t0.elapsed().as_secs_f64(),
+        });
+        if m % 25 == 0 || run.converged {
+            progress(&format!(
+                "{} seed {seed} step {m}: log-lik {:.4}, |grad| {:.2e}, success {}",
+                algo.name(),
+                info.log_likelihood,
+                info.grad_max,
+                e.success
+            ));
+        }
+        if run.converged {
+            break;
+        }
+    }
+    run.timings.irl_s = t_irl.elapsed().as_secs_f64();
+    run.weights = product.weight_rows(&irl.theta);
+    run.weight_columns = world
+        .vocab()
+        .props()
+        .iter()
+        .map(|c| c.to_string())
+        .collect();
+    if algo == Algo::Smirl {
+        run.rm = Some(product.model_rm.clone());
+    }
+    Ok(())
+}
+
+/// Apprenticeship IRL (Abbeel and Ng's projection method) on the observations alone, each
+/// policy of its sequence evaluated on the ground truth. Fills `run`'s steps, weights and
+/// timings.
+fn apprenticeship(
+    task: &OfficeTask,
+    demos: &[Demonstration],
+    cfg: &OfficeConfig,
+    t0: Instant,
+    run: &mut OfficeRun,
+    progress: &mut dyn FnMut(&str),
+) -> Result<(), OfficeError> {
+    let (algo, seed) = (run.algo, run.seed);
+    let world = task.world();
+    let gt = task.rm();
+    let horizon = cfg.eval_horizon();
+    let t_irl = Instant::now();
+    let mut app = Apprenticeship::new(world, demos, cfg.apprenticeship, seed)
+        .map_err(OfficeError::Apprenticeship)?;
+    let one_state = trivial_rm(world.vocab());
+    let mut interactions = 0;
+    let mut step = 0;
+    let mut weights = Vec::new();
+    let mut returns = Vec::new();
+    while !app.done() {
+        let s = app.step().map_err(OfficeError::Tabular)?;
+        interactions += s.interactions;
+        let e = evaluate_policy(world, &one_state, &s.policy, gt, horizon);
+        returns.push(e.gt_return);
+        let mixture_return: f64 = app
+            .mixture_weights()
+            .iter()
+            .zip(&returns)
+            .map(|(l, r)| l * r)
+            .sum();
+        // Step 0 is the random initial policy π₀, as in the projection method.
+        run.steps.push(StepMetrics {
+            step,
+            env_interactions: interactions,
+            gt_return: e.gt_return,
+            success: e.success,
+            objective: if step == 0 { f64::NAN } else { s.margin },
+            mixture_return,
+            elapsed_s: t0.elapsed().as_secs_f64(),
+        });
+        if step % 5 == 0 {
+            progress(&format!(
+                "{} seed {seed} step {step}: margin {:.4}, success {}",
+                algo.name(),
+                s.margin,
+                e.success
+            ));
+        }
+        weights = s.weights;
+        step += 1;
+    }
+    run.converged = app.margin() <= cfg.apprenticeship.epsilon;
+    run.timings.irl_s = t_irl.elapsed().as_secs_f64();
+    run.weights = vec![weights];
+    run.weight_columns = world
+        .vocab()
+        .props()
+        .iter()
+        .map(|c| c.to_string())
+        .chain(std::iter::once("none".to_string()))
+        .collect();
+    Ok(())
 }
