@@ -285,6 +285,74 @@ pub fn learn_rm(
     cfg: &LrmConfig,
 ) -> Result<LearnedRm, LrmError> {
     let started = Instant::now();
+    check_config(cfg)?;
+    let data = Data::new(vocab, traces, trace_reading(cfg))?;
+    let l_n = data.n_labels().max(1);
+    check_sizes(cfg, l_n)?;
+
+    // The search, then the initial-state split and the stutter-invariant repair.
+    let searched = search_table(&data, cfg, l_n);
+    let (table, n) = (&searched.table, searched.table.n_used);
+
+    // Observed targets and mean rewards along the raw traces: the raw machine.
+    let (count, raw_cells) = observed_cells(traces, &data, table, l_n);
+    let raw = machine_from_cells(vocab, &data.labels, n, &raw_cells);
+
+    // The cells the final machine is built from: observed ones, implied stays and the event
+    // rules' fills.
+    let defined = defined_cells(&data, cfg, table, &count, &raw_cells, l_n);
+
+    // Merged (optionally) and read through guards.
+    let (exact_rm, final_cells, final_n, final_cost) = if cfg.merge {
+        let (blocks, merged) = merge_states(n, l_n, defined, cfg.fill_unobserved);
+        let (quotient_cells, q_n) = renumber_blocks(&blocks, &merged, l_n);
+        let rm = machine_from_cells(vocab, &data.labels, q_n, &quotient_cells);
+        let delta: Vec<u16> = (0..searched.rows * l_n)
+            .map(|cell| {
+                let u = cell / l_n;
+                match quotient_cells.get(cell).copied().flatten() {
+                    Some(c) if u < q_n => c.target as u16,
+                    _ => u as u16,
+                }
+            })
+            .collect();
+        let cost = searched.final_searcher.cost(&delta);
+        (rm, quotient_cells, q_n, cost)
+    } else {
+        (raw.clone(), defined, n, searched.best_cost)
+    };
+    // A tree agrees with the table on every defined cell, so the cost is the same.
+    let rm = match cfg.guards {
+        Guards::Exact => exact_rm,
+        Guards::Tree => {
+            guards::tree_machine(vocab, &data.labels, final_n, &final_cells, cfg.events.0)
+        }
+    };
+
+    let outcome = &searched.outcome;
+    Ok(LearnedRm {
+        rm,
+        raw,
+        cost: searched.best_cost,
+        stats: LrmStats {
+            raw_transitions: data.raw_len,
+            compressed_positions: data.len(),
+            distinct_traces: data.n_traces(),
+            observed_label_sets: data.labels.clone(),
+            steps: outcome.steps,
+            restarts: outcome.restarts,
+            neighbours_evaluated: outcome.neighbours_evaluated,
+            best_start: outcome.best_start,
+            start_costs: outcome.start_costs.clone(),
+            search_states: n,
+            final_cost,
+            elapsed_secs: started.elapsed().as_secs_f64(),
+        },
+    })
+}
+
+/// The configuration's limits that do not depend on the traces.
+fn check_config(cfg: &LrmConfig) -> Result<(), LrmError> {
     if cfg.max_states == 0 || cfg.max_states > u16::MAX as usize {
         return Err(LrmError::Config(format!(
             "max_states must be in 1..={}, got {}",
@@ -299,8 +367,11 @@ pub fn learn_rm(
                 .to_string(),
         ));
     }
-    let data = Data::new(vocab, traces, trace_reading(cfg))?;
-    let l_n = data.n_labels().max(1);
+    Ok(())
+}
+
+/// The limits that depend on the number of distinct label sets `l_n`, and the reward weight.
+fn check_sizes(cfg: &LrmConfig, l_n: usize) -> Result<(), LrmError> {
     // The stutter-invariant repair adds at most one state per (state, label set) cell, and
     // the tables store states as u16.
     if cfg.stutter_invariant && (cfg.max_states + 1) * (1 + l_n) > u16::MAX as usize {
@@ -318,7 +389,28 @@ pub fn learn_rm(
             cfg.reward_weight
         )));
     }
-    let searcher = search::Searcher::new(&data, cfg.max_states, cfg.reward_weight)
+    Ok(())
+}
+
+/// The searched machine as a table, with what scores it.
+struct Searched<'a> {
+    /// The search's statistics.
+    outcome: search::SearchOutcome,
+    /// The machine after the initial-state split and the stutter-invariant repair.
+    table: search::Table,
+    best_cost: f64,
+    /// A searcher with rows enough for `table`, which scores the final machines.
+    final_searcher: search::Searcher<'a>,
+    /// The rows of `final_searcher`.
+    rows: usize,
+}
+
+/// The Tabu search, then the initial-state split (see `Searcher::split_initial`) and, with
+/// `stutter_invariant`, the repair that makes the machine read raw traces as the compressed
+/// ones the search scored (see `search::stutter_invariant`; the cost on compressed traces can
+/// only drop).
+fn search_table<'a>(data: &'a Data, cfg: &LrmConfig, l_n: usize) -> Searched<'a> {
+    let searcher = search::Searcher::new(data, cfg.max_states, cfg.reward_weight)
         .with_split_moves(cfg.split_moves);
     let outcome = searcher.search(&search::SearchParams {
         tabu_len: cfg.tabu_len,
@@ -328,9 +420,9 @@ pub fn learn_rm(
         threads: cfg.threads.max(1),
         seed: cfg.seed,
     });
-    // The initial-state split (see `Searcher::split_initial`): on a searcher with one more
-    // state, which also evaluates the final machines.
-    let final_searcher = search::Searcher::new(&data, cfg.max_states + 1, cfg.reward_weight);
+    // The split runs on a searcher with one more state, which also evaluates the final
+    // machines.
+    let final_searcher = search::Searcher::new(data, cfg.max_states + 1, cfg.reward_weight);
     let split = if cfg.split_initial {
         final_searcher.split_initial(&outcome.best)
     } else {
@@ -343,30 +435,40 @@ pub fn learn_rm(
         }
         None => (final_searcher.widen(&outcome.best), outcome.best_cost),
     };
-    // With `stutter_invariant`, read on raw traces as on the compressed ones the search
-    // scored (see `search::stutter_invariant`); the cost on compressed traces can only drop.
-    // A repaired table has new states, possibly more than the final searcher's rows.
+    // A repaired table has new states, possibly more than the final searcher's rows; a grown
+    // table is scored by a searcher with enough rows.
     let rows = |t: &search::Table| t.n_used.max(cfg.max_states + 1);
     let repaired = cfg
         .stutter_invariant
         .then(|| search::stutter_invariant(&table, l_n, &data.stutter_of))
         .filter(|t| t.n_used > table.n_used);
-    // A grown table is scored by a searcher with enough rows.
-    let rescored = |t: search::Table| {
-        let wide = search::Searcher::new(&data, rows(&t), cfg.reward_weight);
-        let cost = wide.cost(&wide.widen(&t).delta);
-        (t, cost, wide)
-    };
     let (table, best_cost, final_searcher) = match repaired {
         None => (table, best_cost, final_searcher),
-        Some(t) => rescored(t),
+        Some(t) => {
+            let wide = search::Searcher::new(data, rows(&t), cfg.reward_weight);
+            let cost = wide.cost(&wide.widen(&t).delta);
+            (t, cost, wide)
+        }
     };
-    let event_bits: Vec<u32> = data.labels.iter().map(|l| l.0 & cfg.events.0).collect();
     let rows = rows(&table);
-    let table = &table;
-    let n = table.n_used;
+    Searched {
+        outcome,
+        table,
+        best_cost,
+        final_searcher,
+        rows,
+    }
+}
 
-    // Observed targets and mean rewards along the raw traces.
+/// How often each (state, label set) cell of `table` is read along the raw traces, and each
+/// cell with its target and mean observed reward (0 where none is observed).
+fn observed_cells(
+    traces: &[LabelTrace],
+    data: &Data,
+    table: &search::Table,
+    l_n: usize,
+) -> (Vec<u64>, Vec<Option<Cell>>) {
+    let n = table.n_used;
     let mut count = vec![0u64; n * l_n];
     let mut reward_sum = vec![0.0f64; n * l_n];
     for t in traces {
@@ -387,7 +489,7 @@ pub fn learn_rm(
             0.0
         }
     };
-    let raw_cells: Vec<Option<Cell>> = (0..n * l_n)
+    let raw_cells = (0..n * l_n)
         .map(|cell| {
             Some(Cell {
                 target: table.delta[cell] as usize,
@@ -396,10 +498,21 @@ pub fn learn_rm(
             })
         })
         .collect();
-    let raw = machine_from_cells(vocab, &data.labels, n, &raw_cells);
+    (count, raw_cells)
+}
 
-    // Defined cells: observed ones, and the stays implied by stutter invariance (on the
-    // label set a state was entered on, and with event stutter on that set without its event).
+/// The cells the final machine is built from: the observed ones, the stays implied by
+/// stutter invariance (on the label set a state was entered on, and with event stutter on
+/// that set without its event), and what commuted and initial events fill in.
+fn defined_cells(
+    data: &Data,
+    cfg: &LrmConfig,
+    table: &search::Table,
+    count: &[u64],
+    raw_cells: &[Option<Cell>],
+    l_n: usize,
+) -> Vec<Option<Cell>> {
+    let n = table.n_used;
     let mut defined: Vec<Option<Cell>> = (0..n * l_n)
         .map(|cell| (count[cell] > 0).then(|| raw_cells[cell].unwrap()))
         .collect();
@@ -421,6 +534,7 @@ pub fn learn_rm(
     }
 
     // Label ids whose set holds an event: the cells commuting and initial events may fill.
+    let event_bits: Vec<u32> = data.labels.iter().map(|l| l.0 & cfg.events.0).collect();
     let event_ids: Vec<usize> = (0..l_n)
         .filter(|&l| event_bits.get(l).is_some_and(|&b| b != 0))
         .collect();
@@ -441,52 +555,7 @@ pub fn learn_rm(
     if cfg.initial_events {
         merge::initial_events(n, l_n, &mut defined, &event_ids, &without_events);
     }
-
-    let (exact_rm, final_cells, final_n, final_cost) = if cfg.merge {
-        let (blocks, merged) = merge_states(n, l_n, defined, cfg.fill_unobserved);
-        let (quotient_cells, q_n) = renumber_blocks(&blocks, &merged, l_n);
-        let rm = machine_from_cells(vocab, &data.labels, q_n, &quotient_cells);
-        let delta: Vec<u16> = (0..rows * l_n)
-            .map(|cell| {
-                let u = cell / l_n;
-                match quotient_cells.get(cell).copied().flatten() {
-                    Some(c) if u < q_n => c.target as u16,
-                    _ => u as u16,
-                }
-            })
-            .collect();
-        let cost = final_searcher.cost(&delta);
-        (rm, quotient_cells, q_n, cost)
-    } else {
-        (raw.clone(), defined, n, best_cost)
-    };
-    // A tree agrees with the table on every defined cell, so the cost is the same.
-    let rm = match cfg.guards {
-        Guards::Exact => exact_rm,
-        Guards::Tree => {
-            guards::tree_machine(vocab, &data.labels, final_n, &final_cells, cfg.events.0)
-        }
-    };
-
-    Ok(LearnedRm {
-        rm,
-        raw,
-        cost: best_cost,
-        stats: LrmStats {
-            raw_transitions: data.raw_len,
-            compressed_positions: data.len(),
-            distinct_traces: data.n_traces(),
-            observed_label_sets: data.labels.clone(),
-            steps: outcome.steps,
-            restarts: outcome.restarts,
-            neighbours_evaluated: outcome.neighbours_evaluated,
-            best_start: outcome.best_start,
-            start_costs: outcome.start_costs.clone(),
-            search_states: n,
-            final_cost,
-            elapsed_secs: started.elapsed().as_secs_f64(),
-        },
-    })
+    defined
 }
 
 /// How the learner with `cfg` reads traces: the propositions whose dropping
