@@ -15,8 +15,8 @@
 
 use crate::env::reacher::{ReacherConfig, ReacherDelivery, ACT_DIM};
 use crate::env::reacher_task::{Branch, EventBranch};
-use crate::env::{ContinuousEnv, EnvError};
-use crate::log::schema::{sha256_hex, NO_RM};
+use crate::env::{ContinuousEnv, EnvError, EnvStep};
+use crate::log::schema::{sha256_hex, EpisodeEndMsg, EpisodeStartMsg, StepMsg, NO_RM};
 use crate::log::{LoggedEpisode, RolloutLog};
 use crate::rm::format::{parse_rm, write_rm, RmFileError};
 use crate::rm::{perfect, LabelSet, RewardMachine};
@@ -135,13 +135,12 @@ impl ExactFloat for f32 {
     }
 }
 
+/// What differs first at a step: what, its logged value, its replayed value.
+type Diff = (String, String, String);
+
 /// The first element where the logged and replayed values differ in their bits, as
 /// `(where, logged, replayed)`.
-fn first_diff<T: ExactFloat>(
-    what: &str,
-    logged: &[T],
-    replayed: &[T],
-) -> Option<(String, String, String)> {
+fn first_diff<T: ExactFloat>(what: &str, logged: &[T], replayed: &[T]) -> Option<Diff> {
     if logged.len() != replayed.len() {
         return Some((
             format!("{what} length"),
@@ -323,12 +322,7 @@ struct RmCheck<'a> {
 
 impl RmCheck<'_> {
     /// Advances on `labels` and compares with the logged state and reward.
-    fn step(
-        &mut self,
-        labels: LabelSet,
-        logged_state: i64,
-        logged_reward: f64,
-    ) -> Option<(String, String, String)> {
+    fn step(&mut self, labels: LabelSet, logged_state: i64, logged_reward: f64) -> Option<Diff> {
         let (next, reward) = self.rm.step(self.state, labels);
         self.state = next;
         self.success |= self.rm.is_terminal(next) && !self.rm.is_failure(next);
@@ -349,6 +343,72 @@ fn replay_episode(
     rm: Option<&RewardMachine>,
 ) -> Result<EpisodeReplay, EpisodeReplayError> {
     let start = &ep.start;
+    let (mut obs, seed_reproduces_start) = restore_start(env, start)?;
+    let mut result = EpisodeReplay {
+        episode: start.episode,
+        seed: start.seed,
+        phase: start.phase.clone(),
+        steps: ep.steps.len(),
+        complete: ep.is_complete(),
+        env_return: 0.0,
+        label_events: String::new(),
+        mismatch: None,
+        seed_reproduces_start,
+        rm_checked: false,
+        branch: None,
+    };
+    let mismatch = |step: usize, (what, logged, replayed): Diff| Mismatch {
+        step,
+        what,
+        logged,
+        replayed,
+    };
+    // Episodes logged without a machine state are not checked against one.
+    let mut rm_check = rm.filter(|_| start.rm_state != NO_RM).map(|rm| RmCheck {
+        rm,
+        state: rm.initial(),
+        success: false,
+    });
+    if let Some(d) = start_diff(env, start, &obs, rm_check.as_ref()) {
+        result.mismatch = Some(mismatch(0, d));
+        return Ok(result);
+    }
+    result.rm_checked = rm_check.is_some();
+
+    let mut replayed_labels = Vec::with_capacity(ep.steps.len());
+    for (k, s) in ep.steps.iter().enumerate() {
+        let n = k + 1;
+        let out = match step_as_logged(env, s, n, &mut obs) {
+            Ok(out) => out,
+            Err(d) => {
+                result.mismatch = Some(mismatch(n, d));
+                break;
+            }
+        };
+        result.env_return += out.reward;
+        replayed_labels.push(out.labels);
+        if let Some(d) = step_diff(env, s, &out, &obs, rm_check.as_mut()) {
+            result.mismatch = Some(mismatch(n, d));
+            break;
+        }
+    }
+
+    result.label_events = label_runs(env.vocabulary(), &replayed_labels);
+    let layout = Arc::clone(env.layout());
+    let branches = rm.and_then(|rm| EventBranch::of(rm, layout.events()).map(|b| (rm, b)));
+    result.branch = branches.map(|(rm, b)| b.of_labels(rm, replayed_labels));
+    if let (Some(c), Some(end), None) = (&rm_check, &ep.end, &result.mismatch) {
+        result.mismatch = end_diff(c, end).map(|d| mismatch(ep.steps.len(), d));
+    }
+    Ok(result)
+}
+
+/// Puts `env` in the logged start state (balls, event steps, joints) and returns its first
+/// observation, and whether the episode's seed still produces that start (informative only).
+fn restore_start(
+    env: &mut ReacherDelivery,
+    start: &EpisodeStartMsg,
+) -> Result<(Vec<f32>, bool), EpisodeReplayError> {
     let layout = Arc::clone(env.layout());
     if start.balls.len() != 2 * layout.n_regions() {
         return Err(EpisodeReplayError::Regions {
@@ -365,168 +425,125 @@ fn replay_episode(
         });
     }
     let mut obs = vec![0.0f32; layout.obs_dim()];
-
-    // Does the seed still produce this start? (Informative only.)
     env.reset(start.seed, &mut obs);
     let seed_reproduces_start = env.qpos() == start.qpos.as_slice()
         && env.qvel() == start.qvel.as_slice()
         && env.positions() == positions.as_slice()
         && env.event_steps() == event_steps.as_slice();
-
     env.restore_start(&start.qpos, &start.qvel, &positions, &event_steps, &mut obs)?;
-    let mut result = EpisodeReplay {
-        episode: start.episode,
-        seed: start.seed,
-        phase: start.phase.clone(),
-        steps: ep.steps.len(),
-        complete: ep.is_complete(),
-        env_return: 0.0,
-        label_events: String::new(),
-        mismatch: None,
-        seed_reproduces_start,
-        rm_checked: false,
-        branch: None,
-    };
-    let branches = rm.and_then(|rm| EventBranch::of(rm, layout.events()).map(|b| (rm, b)));
-    let mut replayed_labels = Vec::with_capacity(ep.steps.len());
-    let mismatch = |step: usize, (what, logged, replayed): (String, String, String)| Mismatch {
-        step,
-        what,
-        logged,
-        replayed,
-    };
+    Ok((obs, seed_reproduces_start))
+}
+
+/// The first difference of the restored start from the logged one: labels, observation,
+/// machine state.
+fn start_diff(
+    env: &ReacherDelivery,
+    start: &EpisodeStartMsg,
+    obs: &[f32],
+    rm_check: Option<&RmCheck>,
+) -> Option<Diff> {
     if env.labels().0 != start.labels {
-        result.mismatch = Some(mismatch(
-            0,
-            (
-                "labels".into(),
-                format!("{:#x}", start.labels),
-                format!("{:#x}", env.labels().0),
-            ),
+        return Some((
+            "labels".into(),
+            format!("{:#x}", start.labels),
+            format!("{:#x}", env.labels().0),
         ));
-        return Ok(result);
     }
     if let Some(d) = (!start.obs.is_empty())
-        .then(|| first_diff("obs", &start.obs, &obs))
+        .then(|| first_diff("obs", &start.obs, obs))
         .flatten()
     {
-        result.mismatch = Some(mismatch(0, d));
-        return Ok(result);
+        return Some(d);
     }
-    // Episodes logged without a machine state are not checked against one.
-    let mut rm_check = rm.filter(|_| start.rm_state != NO_RM).map(|rm| RmCheck {
-        rm,
-        state: rm.initial(),
-        success: false,
-    });
-    if let Some(c) = &rm_check {
-        if start.rm_state != c.state as i64 {
-            result.mismatch = Some(mismatch(
-                0,
-                (
-                    "rm_state".into(),
-                    start.rm_state.to_string(),
-                    c.state.to_string(),
-                ),
-            ));
-            return Ok(result);
-        }
+    rm_check
+        .filter(|c| start.rm_state != c.state as i64)
+        .map(|c| {
+            (
+                "rm_state".into(),
+                start.rm_state.to_string(),
+                c.state.to_string(),
+            )
+        })
+}
+
+/// Steps `env` with the logged action of step `n`, or says why that step cannot be taken
+/// (its index, its action's length, a simulation error).
+fn step_as_logged(
+    env: &mut ReacherDelivery,
+    s: &StepMsg,
+    n: usize,
+    obs: &mut [f32],
+) -> Result<EnvStep, Diff> {
+    if s.step as usize != n {
+        return Err(("step index".into(), s.step.to_string(), n.to_string()));
     }
-    result.rm_checked = rm_check.is_some();
-    let vocab = env.vocabulary().clone();
-    for (k, s) in ep.steps.iter().enumerate() {
-        let n = k + 1;
-        if s.step as usize != n {
-            result.mismatch = Some(mismatch(
-                n,
-                ("step index".into(), s.step.to_string(), n.to_string()),
-            ));
-            break;
-        }
-        if s.action.len() != ACT_DIM {
-            result.mismatch = Some(mismatch(
-                n,
+    if s.action.len() != ACT_DIM {
+        return Err((
+            "action length".into(),
+            s.action.len().to_string(),
+            ACT_DIM.to_string(),
+        ));
+    }
+    env.step(&s.action, obs)
+        .map_err(|e| ("simulation".into(), "a step".into(), format!("error: {e}")))
+}
+
+/// The first difference of a replayed step from the logged one: joints, labels, reward,
+/// observation, truncation, then the machine's state and reward (which `rm_check` advances).
+fn step_diff(
+    env: &ReacherDelivery,
+    s: &StepMsg,
+    out: &EnvStep,
+    obs: &[f32],
+    rm_check: Option<&mut RmCheck>,
+) -> Option<Diff> {
+    first_diff("qpos", &s.qpos, env.qpos())
+        .or_else(|| first_diff("qvel", &s.qvel, env.qvel()))
+        .or_else(|| {
+            (s.labels != out.labels.0).then(|| {
                 (
-                    "action length".into(),
-                    s.action.len().to_string(),
-                    ACT_DIM.to_string(),
-                ),
-            ));
-            break;
-        }
-        let out = match env.step(&s.action, &mut obs) {
-            Ok(out) => out,
-            Err(e) => {
-                result.mismatch = Some(mismatch(
-                    n,
-                    ("simulation".into(), "a step".into(), format!("error: {e}")),
-                ));
-                break;
-            }
-        };
-        result.env_return += out.reward;
-        replayed_labels.push(out.labels);
-        let diff = first_diff("qpos", &s.qpos, env.qpos())
-            .or_else(|| first_diff("qvel", &s.qvel, env.qvel()))
-            .or_else(|| {
-                (s.labels != out.labels.0).then(|| {
-                    (
-                        "labels".into(),
-                        format!("{:#x}", s.labels),
-                        format!("{:#x}", out.labels.0),
-                    )
-                })
+                    "labels".into(),
+                    format!("{:#x}", s.labels),
+                    format!("{:#x}", out.labels.0),
+                )
             })
-            .or_else(|| first_diff("reward", &[s.reward], &[out.reward]))
-            .or_else(|| {
-                (!s.obs.is_empty())
-                    .then(|| first_diff("obs", &s.obs, &obs))
-                    .flatten()
-            })
-            .or_else(|| {
-                (s.truncated != out.truncated).then(|| {
-                    (
-                        "truncated".into(),
-                        s.truncated.to_string(),
-                        out.truncated.to_string(),
-                    )
-                })
-            })
-            .or_else(|| {
-                rm_check
-                    .as_mut()
-                    .and_then(|c| c.step(out.labels, s.rm_state, s.rm_reward))
-            });
-        if let Some(d) = diff {
-            result.mismatch = Some(mismatch(n, d));
-            break;
-        }
-    }
-    result.label_events = label_runs(&vocab, &replayed_labels);
-    result.branch = branches.map(|(rm, b)| b.of_labels(rm, replayed_labels));
-    if let (Some(c), Some(end), None) = (&rm_check, &ep.end, &result.mismatch) {
-        let n = ep.steps.len();
-        if end.rm_state != c.state as i64 {
-            result.mismatch = Some(mismatch(
-                n,
+        })
+        .or_else(|| first_diff("reward", &[s.reward], &[out.reward]))
+        .or_else(|| {
+            (!s.obs.is_empty())
+                .then(|| first_diff("obs", &s.obs, obs))
+                .flatten()
+        })
+        .or_else(|| {
+            (s.truncated != out.truncated).then(|| {
                 (
-                    "final rm_state".into(),
-                    end.rm_state.to_string(),
-                    c.state.to_string(),
-                ),
-            ));
-        } else if end.success != c.success {
-            result.mismatch = Some(mismatch(
-                n,
-                (
-                    "success".into(),
-                    end.success.to_string(),
-                    c.success.to_string(),
-                ),
-            ));
-        }
+                    "truncated".into(),
+                    s.truncated.to_string(),
+                    out.truncated.to_string(),
+                )
+            })
+        })
+        .or_else(|| rm_check.and_then(|c| c.step(out.labels, s.rm_state, s.rm_reward)))
+}
+
+/// The first difference of the re-tracked machine at the episode's end from the logged end:
+/// its final state, then success.
+fn end_diff(c: &RmCheck, end: &EpisodeEndMsg) -> Option<Diff> {
+    if end.rm_state != c.state as i64 {
+        Some((
+            "final rm_state".into(),
+            end.rm_state.to_string(),
+            c.state.to_string(),
+        ))
+    } else if end.success != c.success {
+        Some((
+            "success".into(),
+            end.success.to_string(),
+            c.success.to_string(),
+        ))
+    } else {
+        None
     }
-    Ok(result)
 }
 
 impl fmt::Display for ReplayReport {
