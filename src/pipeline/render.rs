@@ -147,28 +147,10 @@ pub fn render_episode(
     log.reacher_model_xml().map_err(&bad)?;
     let ep = pick_episode(log, episode, &path)?;
     let model = Arc::new(log.reacher_model().map_err(|e| bad(e.to_string()))?);
-    let id = |kind, name: &str| model.id(kind, name).map_err(|e| bad(e.to_string()));
-    let elbow = id(ObjectKind::Body, "body1")?;
-    let tip = id(ObjectKind::Body, "fingertip")?;
-    let shoulder = id(ObjectKind::Body, "body0")?;
-    let link_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "link0")?));
-    let tip_colour = colour(model.geom_rgba(id(ObjectKind::Geom, "fingertip")?));
-    // The arena walls as the logged model has them (capsules of the world body), drawn in
-    // the first wall's colour.
-    let wall_colour = colour(model.geom_rgba(id(ObjectKind::Geom, WALLS[0])?));
-    let mut walls = Vec::with_capacity(WALLS.len());
-    for name in WALLS {
-        let g = id(ObjectKind::Geom, name)?;
-        let (a, b) = model.world_capsule_segment(g).ok_or_else(|| {
-            bad(format!(
-                "model.xml: wall {name} is not a capsule of the world body"
-            ))
-        })?;
-        walls.push(([a[0], a[1]], [b[0], b[1]], model.geom_radius(g)));
-    }
+    let bodies = arm_bodies(&model).map_err(&bad)?;
+    let mut looks = SceneLooks::of(&model).map_err(&bad)?;
     let layout = log.run.task_layout().map_err(|e| bad(e.to_string()))?;
-    let (ball_colours, ball_radii): (Vec<Rgb>, Vec<f64>) =
-        region_looks(&model, &layout).into_iter().unzip();
+    (looks.ball_colours, looks.ball_radii) = region_looks(&model, &layout).into_iter().unzip();
     if ep.start.balls.len() != 2 * layout.n_regions() {
         return Err(bad(format!(
             "episode {}: {} region coordinates, expected {}",
@@ -177,29 +159,123 @@ pub fn render_episode(
             2 * layout.n_regions()
         )));
     }
+    let arm = arm_positions(&model, bodies, ep).map_err(&bad)?;
 
-    // Arm positions (shoulder, elbow, fingertip) of every state by forward kinematics.
-    let mut data = Data::new(model.clone()).map_err(|e| bad(e.to_string()))?;
+    let size = options.size;
+    let px = |p: [f64; 2]| to_pixel(size, p);
+    let mut canvas = Canvas::new(size, size + STRIP, Rgb::WHITE);
+    draw_arena(&mut canvas, &looks, size);
+    let ball_pixels = draw_regions(&mut canvas, &looks, &layout, ep, size);
+    draw_poses(&mut canvas, &looks, &arm, options.poses, size);
+    let letters: Vec<char> = log.run.vocabulary.chars().collect();
+    let (touches, event_step) =
+        draw_touches(&mut canvas, &looks, &layout, ep, &arm, &letters, size);
+    draw_timeline(
+        &mut canvas,
+        &looks,
+        ep,
+        &touches,
+        event_step,
+        &letters,
+        size,
+    );
+    let branch = super::replay::run_reward_machine(log, &mut Vec::new())
+        .ok()
+        .flatten()
+        .and_then(|(rm, _)| {
+            let branches = EventBranch::of(&rm, layout.events())?;
+            Some(branches.of_labels(&rm, ep.steps.iter().map(|s| LabelSet(s.labels))))
+        });
+    Ok(EpisodePicture {
+        canvas,
+        branch,
+        episode: ep.start.episode,
+        phase: ep.start.phase.clone(),
+        steps: ep.steps.len(),
+        touches,
+        event_step,
+        ball_pixels,
+        tip_pixels: (px(arm[0][2]), px(arm[arm.len() - 1][2])),
+    })
+}
+
+/// The colours and sizes the picture takes from the logged model: the arm's links and
+/// fingertip, the arena walls (capsules of the world body, drawn in the first wall's colour)
+/// and each region's ball ([`region_looks`]).
+struct SceneLooks {
+    link: Rgb,
+    tip: Rgb,
+    wall: Rgb,
+    /// Each wall's end points and radius.
+    walls: Vec<([f64; 2], [f64; 2], f64)>,
+    ball_colours: Vec<Rgb>,
+    ball_radii: Vec<f64>,
+}
+
+impl SceneLooks {
+    /// The arm's and the walls' looks; the balls' are the task layout's, set after.
+    fn of(model: &Model) -> Result<SceneLooks, String> {
+        let id = |kind, name: &str| model.id(kind, name).map_err(|e| e.to_string());
+        let link = colour(model.geom_rgba(id(ObjectKind::Geom, "link0")?));
+        let tip = colour(model.geom_rgba(id(ObjectKind::Geom, "fingertip")?));
+        let wall = colour(model.geom_rgba(id(ObjectKind::Geom, WALLS[0])?));
+        let mut walls = Vec::with_capacity(WALLS.len());
+        for name in WALLS {
+            let g = id(ObjectKind::Geom, name)?;
+            let (a, b) = model.world_capsule_segment(g).ok_or_else(|| {
+                format!("model.xml: wall {name} is not a capsule of the world body")
+            })?;
+            walls.push(([a[0], a[1]], [b[0], b[1]], model.geom_radius(g)));
+        }
+        Ok(SceneLooks {
+            link,
+            tip,
+            wall,
+            walls,
+            ball_colours: Vec::new(),
+            ball_radii: Vec::new(),
+        })
+    }
+}
+
+/// The arm's bodies: shoulder, elbow, fingertip.
+fn arm_bodies(model: &Model) -> Result<[usize; 3], String> {
+    let id = |name: &str| model.id(ObjectKind::Body, name).map_err(|e| e.to_string());
+    let elbow = id("body1")?;
+    let tip = id("fingertip")?;
+    let shoulder = id("body0")?;
+    Ok([shoulder, elbow, tip])
+}
+
+/// The arm's positions (shoulder, elbow, fingertip) at the start and after every step, by
+/// forward kinematics of the logged joint angles.
+fn arm_positions(
+    model: &Arc<Model>,
+    [shoulder, elbow, tip]: [usize; 3],
+    ep: &LoggedEpisode,
+) -> Result<Vec<[[f64; 2]; 3]>, String> {
+    let mut data = Data::new(model.clone()).map_err(|e| e.to_string())?;
     let states = std::iter::once(&ep.start.qpos).chain(ep.steps.iter().map(|s| &s.qpos));
     let mut arm = Vec::with_capacity(ep.steps.len() + 1);
     for (k, qpos) in states.enumerate() {
         data.set_qpos(qpos)
             .and_then(|()| data.forward())
-            .map_err(|e| bad(format!("episode {} state {k}: {e}", ep.start.episode)))?;
+            .map_err(|e| format!("episode {} state {k}: {e}", ep.start.episode))?;
         let xy = |b: usize| {
             let p = data.body_xpos(b);
             [p[0], p[1]]
         };
         arm.push([xy(shoulder), xy(elbow), xy(tip)]);
     }
+    Ok(arm)
+}
 
-    let size = options.size;
+/// The arena's floor (the walls' bounding box) and its walls.
+fn draw_arena(canvas: &mut Canvas, looks: &SceneLooks, size: u32) {
     let px = |p: [f64; 2]| to_pixel(size, p);
     let scale = f64::from(size) / (2.0 * VIEW_HALF);
-    let mut canvas = Canvas::new(size, size + STRIP, Rgb::WHITE);
-    // Arena floor (the walls' bounding box) and walls.
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in walls.iter().flat_map(|(a, b, _)| [a, b]) {
+    for p in looks.walls.iter().flat_map(|(a, b, _)| [a, b]) {
         for k in 0..2 {
             lo[k] = lo[k].min(p[k]);
             hi[k] = hi[k].max(p[k]);
@@ -214,15 +290,27 @@ pub fn render_episode(
         Rgb(0.93, 0.93, 0.93),
         1.0,
     );
-    for &(a, b, radius) in &walls {
-        canvas.line(px(a), px(b), 2.0 * radius * scale, wall_colour, 1.0);
+    for &(a, b, radius) in &looks.walls {
+        canvas.line(px(a), px(b), 2.0 * radius * scale, looks.wall, 1.0);
     }
-    // Regions: the touch zone lightly, the ball itself solid.
+}
+
+/// The regions at the episode's start: the touch zone lightly, the ball itself solid. Returns
+/// each region's centre in pixels.
+fn draw_regions(
+    canvas: &mut Canvas,
+    looks: &SceneLooks,
+    layout: &TaskLayout,
+    ep: &LoggedEpisode,
+    size: u32,
+) -> Vec<(f64, f64)> {
+    let px = |p: [f64; 2]| to_pixel(size, p);
+    let scale = f64::from(size) / (2.0 * VIEW_HALF);
     let mut ball_pixels = Vec::with_capacity(layout.n_regions());
-    for (i, c) in ball_colours.iter().enumerate() {
+    for (i, c) in looks.ball_colours.iter().enumerate() {
         let centre = px([ep.start.balls[2 * i], ep.start.balls[2 * i + 1]]);
         ball_pixels.push(centre);
-        let (ball_radius, touch_radius) = (ball_radii[i], layout.regions[i].radius);
+        let (ball_radius, touch_radius) = (looks.ball_radii[i], layout.regions[i].radius);
         canvas.disc(
             centre.0,
             centre.1,
@@ -234,9 +322,21 @@ pub fn render_episode(
             canvas.disc(centre.0, centre.1, ball_radius * scale, *c, 1.0);
         }
     }
-    // Arm poses, earliest lightest.
+    ball_pixels
+}
+
+/// `poses` arm poses spread over the episode, earliest lightest, and the fingertip's path.
+fn draw_poses(
+    canvas: &mut Canvas,
+    looks: &SceneLooks,
+    arm: &[[[f64; 2]; 3]],
+    poses: usize,
+    size: u32,
+) {
+    let px = |p: [f64; 2]| to_pixel(size, p);
+    let scale = f64::from(size) / (2.0 * VIEW_HALF);
     let n = arm.len();
-    let poses = options.poses.max(1).min(n);
+    let poses = poses.max(1).min(n);
     for k in 0..poses {
         let idx = if poses == 1 {
             n - 1
@@ -246,31 +346,37 @@ pub fn render_episode(
         let fade = 0.8 * (1.0 - (k + 1) as f32 / poses as f32);
         let [s, e, t] = arm[idx];
         let w = 0.02 * scale;
-        canvas.line(px(s), px(e), w, link_colour.lighten(fade), 1.0);
-        canvas.line(px(e), px(t), w, link_colour.lighten(fade), 1.0);
-        canvas.disc(
-            px(t).0,
-            px(t).1,
-            0.01 * scale,
-            tip_colour.lighten(fade),
-            1.0,
-        );
+        canvas.line(px(s), px(e), w, looks.link.lighten(fade), 1.0);
+        canvas.line(px(e), px(t), w, looks.link.lighten(fade), 1.0);
+        canvas.disc(px(t).0, px(t).1, 0.01 * scale, looks.tip.lighten(fade), 1.0);
     }
-    // Fingertip path over the poses.
-    let path_colour = tip_colour.darken(0.55);
+    let path_colour = looks.tip.darken(0.55);
     for w in arm.windows(2) {
         canvas.line(px(w[0][2]), px(w[1][2]), 2.0, path_colour, 1.0);
     }
-    // Touches (rising edges of region labels) and the first event's step.
+}
+
+/// Each touch (a rising edge of a region's label) as a ring at the fingertip, and the first
+/// event's step as a cross. Returns the touches (step, region letter) and that step.
+fn draw_touches(
+    canvas: &mut Canvas,
+    looks: &SceneLooks,
+    layout: &TaskLayout,
+    ep: &LoggedEpisode,
+    arm: &[[[f64; 2]; 3]],
+    letters: &[char],
+    size: u32,
+) -> (Vec<(usize, char)>, Option<usize>) {
+    let px = |p: [f64; 2]| to_pixel(size, p);
+    let scale = f64::from(size) / (2.0 * VIEW_HALF);
     let mut touches = Vec::new();
     let mut event_step = None;
     let events = layout.events().0;
     let mut prev = ep.start.labels;
-    let letters: Vec<char> = log.run.vocabulary.chars().collect();
     for (k, s) in ep.steps.iter().enumerate() {
         let step = k + 1;
         let tip_px = px(arm[step][2]);
-        for (b, c) in ball_colours.iter().enumerate() {
+        for (b, c) in looks.ball_colours.iter().enumerate() {
             let bit = 1 << b;
             if s.labels & bit != 0 && prev & bit == 0 {
                 touches.push((step, letters.get(b).copied().unwrap_or('?')));
@@ -293,41 +399,36 @@ pub fn render_episode(
         }
         prev = s.labels;
     }
-    // Timeline: a grey bar over the episode's steps, ticks at touches and the event step.
+    (touches, event_step)
+}
+
+/// The timeline under the arena: a grey bar over the episode's steps, a tick in the region's
+/// colour at each touch and a black one at the event's step.
+fn draw_timeline(
+    canvas: &mut Canvas,
+    looks: &SceneLooks,
+    ep: &LoggedEpisode,
+    touches: &[(usize, char)],
+    event_step: Option<usize>,
+    letters: &[char],
+    size: u32,
+) {
     let (left, right) = (8.0, f64::from(size) - 8.0);
     let top = f64::from(size) + 6.0;
     let bottom = f64::from(size + STRIP) - 6.0;
     let mid = (top + bottom) / 2.0;
     canvas.line((left, mid), (right, mid), 4.0, Rgb(0.75, 0.75, 0.75), 1.0);
     let at = |step: usize| left + (right - left) * step as f64 / ep.steps.len().max(1) as f64;
-    for &(step, letter) in &touches {
+    for &(step, letter) in touches {
         let b = letters.iter().position(|&c| c == letter).unwrap_or(0);
         let x = at(step);
-        let c = ball_colours.get(b).copied().unwrap_or(Rgb::BLACK);
+        let c = looks.ball_colours.get(b).copied().unwrap_or(Rgb::BLACK);
         canvas.line((x, top), (x, bottom), 3.0, c, 1.0);
     }
     if let Some(step) = event_step {
         let x = at(step);
         canvas.line((x, top), (x, bottom), 2.0, Rgb::BLACK, 1.0);
     }
-    let branch = super::replay::run_reward_machine(log, &mut Vec::new())
-        .ok()
-        .flatten()
-        .and_then(|(rm, _)| {
-            let branches = EventBranch::of(&rm, layout.events())?;
-            Some(branches.of_labels(&rm, ep.steps.iter().map(|s| LabelSet(s.labels))))
-        });
-    Ok(EpisodePicture {
-        canvas,
-        branch,
-        episode: ep.start.episode,
-        phase: ep.start.phase.clone(),
-        steps: ep.steps.len(),
-        touches,
-        event_step,
-        ball_pixels,
-        tip_pixels: (px(arm[0][2]), px(arm[n - 1][2])),
-    })
 }
 
 /// The episode with id `episode` (the first one for `None`).
