@@ -225,22 +225,7 @@ impl RolloutLogger {
         header: RunHeader,
         options: LogOptions,
     ) -> Result<RolloutLogger, LogError> {
-        if options.every_nth_episode == 0 {
-            return Err(LogError::Usage {
-                path: path.into(),
-                problem: "every_nth_episode must be at least 1".into(),
-            });
-        }
-        if options.chunk_size == 0 || options.chunk_size > MAX_CHUNK_BYTES / 2 {
-            return Err(LogError::Usage {
-                path: path.into(),
-                problem: format!(
-                    "chunk_size {} must be between 1 and {} bytes",
-                    options.chunk_size,
-                    MAX_CHUNK_BYTES / 2
-                ),
-            });
-        }
+        check_options(path, &options)?;
         let part = part_path(path);
         let mcap_err = |source| LogError::Mcap {
             path: part.clone(),
@@ -250,25 +235,7 @@ impl RolloutLogger {
             path: part.clone(),
             source,
         })?;
-        let run = RunInfo {
-            schema_version: SCHEMA_VERSION,
-            env: header.env.clone(),
-            task: header.task.clone(),
-            seed: header.seed,
-            vocabulary: header.vocabulary.clone(),
-            obs_dim: header.obs_dim,
-            act_dim: header.act_dim,
-            step_duration_ns: header.step_duration_ns,
-            model_xml_name: header.model_xml_name.clone(),
-            model_xml_sha256: sha256_hex(&header.model_xml),
-            crate_version: env!("CARGO_PKG_VERSION").into(),
-            git_commit: crate::GIT_COMMIT.into(),
-            mujoco_version: crate::mujoco::version_string(),
-            config: header.config.clone(),
-            reward_machine: header.reward_machine.clone(),
-            every_nth_episode: options.every_nth_episode,
-            observations: options.observations,
-        };
+        let run = run_info(&header, &options);
         // Chunks are built in memory and written whole (disable_seeking), so the file on disk
         // always ends at a record boundary unless the process dies inside a write call.
         let mut w = WriteOptions::new()
@@ -279,99 +246,9 @@ impl RolloutLogger {
             .profile("")
             .create(file)
             .map_err(mcap_err)?;
-        let config_text = serde_json::to_string_pretty(&header.config).unwrap_or_default();
-        w.attach(&Attachment {
-            log_time: 0,
-            create_time: 0,
-            name: schema::ATTACHMENT_MODEL_XML.into(),
-            media_type: "application/xml".into(),
-            data: Cow::Borrowed(header.model_xml.as_bytes()),
-        })
-        .map_err(mcap_err)?;
-        for file in header.scene_files.iter() {
-            w.attach(&Attachment {
-                log_time: 0,
-                create_time: 0,
-                name: schema::scene_file_attachment(file),
-                media_type: match file.kind {
-                    SceneFileKind::Include => "application/xml",
-                    SceneFileKind::Asset => "application/octet-stream",
-                }
-                .into(),
-                data: Cow::Borrowed(&file.bytes),
-            })
-            .map_err(mcap_err)?;
-        }
-        w.attach(&Attachment {
-            log_time: 0,
-            create_time: 0,
-            name: schema::ATTACHMENT_CONFIG.into(),
-            media_type: "application/json".into(),
-            data: Cow::Borrowed(config_text.as_bytes()),
-        })
-        .map_err(mcap_err)?;
-        let metadata: BTreeMap<String, String> = [
-            ("schema_version", SCHEMA_VERSION.to_string()),
-            ("env", run.env.clone()),
-            ("task", run.task.clone()),
-            ("seed", run.seed.to_string()),
-            ("model_xml_sha256", run.model_xml_sha256.clone()),
-            ("crate_version", run.crate_version.clone()),
-            ("git_commit", run.git_commit.clone()),
-            ("mujoco_version", run.mujoco_version.clone()),
-        ]
-        .into_iter()
-        .map(|(k, v)| (k.to_string(), v))
-        .collect();
-        w.write_metadata(&Metadata {
-            name: schema::METADATA_RUN.into(),
-            metadata,
-        })
-        .map_err(mcap_err)?;
-
-        let version_meta: BTreeMap<String, String> = [(
-            schema::CHANNEL_VERSION_KEY.to_string(),
-            SCHEMA_VERSION.to_string(),
-        )]
-        .into();
-        let run_schema = w
-            .add_schema(
-                schema::RUN_SCHEMA_NAME,
-                "jsonschema",
-                schema::run_json_schema().as_bytes(),
-            )
-            .map_err(mcap_err)?;
-        let run_channel = w
-            .add_channel(run_schema, schema::TOPIC_RUN, "json", &version_meta)
-            .map_err(mcap_err)?;
-        let mut channels = [0u16; 3];
-        for (slot, (name, spec, topic)) in [
-            (
-                schema::EPISODE_START_SCHEMA_NAME,
-                schema::EPISODE_START_SPEC,
-                schema::TOPIC_EPISODE_START,
-            ),
-            (
-                schema::STEP_SCHEMA_NAME,
-                schema::STEP_SPEC,
-                schema::TOPIC_STEP,
-            ),
-            (
-                schema::EPISODE_END_SCHEMA_NAME,
-                schema::EPISODE_END_SPEC,
-                schema::TOPIC_EPISODE_END,
-            ),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let id = w
-                .add_schema(name, "protobuf", &schema::descriptor(spec))
-                .map_err(mcap_err)?;
-            channels[slot] = w
-                .add_channel(id, topic, "protobuf", &version_meta)
-                .map_err(mcap_err)?;
-        }
+        write_attachments(&mut w, &header).map_err(mcap_err)?;
+        write_run_metadata(&mut w, &run).map_err(mcap_err)?;
+        let (run_channel, channels) = add_channels(&mut w).map_err(mcap_err)?;
         let run_json = serde_json::to_vec(&run).map_err(|e| LogError::Usage {
             path: path.into(),
             problem: format!("cannot serialise the run record: {e}"),
@@ -659,6 +536,144 @@ impl Drop for RolloutLogger {
             }
         }
     }
+}
+
+/// The options' limits, checked before the file is created.
+fn check_options(path: &Path, options: &LogOptions) -> Result<(), LogError> {
+    if options.every_nth_episode == 0 {
+        return Err(LogError::Usage {
+            path: path.into(),
+            problem: "every_nth_episode must be at least 1".into(),
+        });
+    }
+    if options.chunk_size == 0 || options.chunk_size > MAX_CHUNK_BYTES / 2 {
+        return Err(LogError::Usage {
+            path: path.into(),
+            problem: format!(
+                "chunk_size {} must be between 1 and {} bytes",
+                options.chunk_size,
+                MAX_CHUNK_BYTES / 2
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The run record (`/run`) of a log with `header` and `options`.
+fn run_info(header: &RunHeader, options: &LogOptions) -> RunInfo {
+    RunInfo {
+        schema_version: SCHEMA_VERSION,
+        env: header.env.clone(),
+        task: header.task.clone(),
+        seed: header.seed,
+        vocabulary: header.vocabulary.clone(),
+        obs_dim: header.obs_dim,
+        act_dim: header.act_dim,
+        step_duration_ns: header.step_duration_ns,
+        model_xml_name: header.model_xml_name.clone(),
+        model_xml_sha256: sha256_hex(&header.model_xml),
+        crate_version: env!("CARGO_PKG_VERSION").into(),
+        git_commit: crate::GIT_COMMIT.into(),
+        mujoco_version: crate::mujoco::version_string(),
+        config: header.config.clone(),
+        reward_machine: header.reward_machine.clone(),
+        every_nth_episode: options.every_nth_episode,
+        observations: options.observations,
+    }
+}
+
+/// The attachments: the scene's XML, each file it reads, the config as JSON.
+fn write_attachments(w: &mut Writer<File>, header: &RunHeader) -> Result<(), mcap::McapError> {
+    let config_text = serde_json::to_string_pretty(&header.config).unwrap_or_default();
+    w.attach(&Attachment {
+        log_time: 0,
+        create_time: 0,
+        name: schema::ATTACHMENT_MODEL_XML.into(),
+        media_type: "application/xml".into(),
+        data: Cow::Borrowed(header.model_xml.as_bytes()),
+    })?;
+    for file in header.scene_files.iter() {
+        w.attach(&Attachment {
+            log_time: 0,
+            create_time: 0,
+            name: schema::scene_file_attachment(file),
+            media_type: match file.kind {
+                SceneFileKind::Include => "application/xml",
+                SceneFileKind::Asset => "application/octet-stream",
+            }
+            .into(),
+            data: Cow::Borrowed(&file.bytes),
+        })?;
+    }
+    w.attach(&Attachment {
+        log_time: 0,
+        create_time: 0,
+        name: schema::ATTACHMENT_CONFIG.into(),
+        media_type: "application/json".into(),
+        data: Cow::Borrowed(config_text.as_bytes()),
+    })
+}
+
+/// The run's metadata record, which readers show without parsing `/run`.
+fn write_run_metadata(w: &mut Writer<File>, run: &RunInfo) -> Result<(), mcap::McapError> {
+    let metadata: BTreeMap<String, String> = [
+        ("schema_version", SCHEMA_VERSION.to_string()),
+        ("env", run.env.clone()),
+        ("task", run.task.clone()),
+        ("seed", run.seed.to_string()),
+        ("model_xml_sha256", run.model_xml_sha256.clone()),
+        ("crate_version", run.crate_version.clone()),
+        ("git_commit", run.git_commit.clone()),
+        ("mujoco_version", run.mujoco_version.clone()),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    w.write_metadata(&Metadata {
+        name: schema::METADATA_RUN.into(),
+        metadata,
+    })
+}
+
+/// The schemas and channels: `/run` (JSON), then episode start, step and episode end
+/// (protobuf). Returns the run channel and the other three, in that order.
+fn add_channels(w: &mut Writer<File>) -> Result<(u16, [u16; 3]), mcap::McapError> {
+    let version_meta: BTreeMap<String, String> = [(
+        schema::CHANNEL_VERSION_KEY.to_string(),
+        SCHEMA_VERSION.to_string(),
+    )]
+    .into();
+    let run_schema = w.add_schema(
+        schema::RUN_SCHEMA_NAME,
+        "jsonschema",
+        schema::run_json_schema().as_bytes(),
+    )?;
+    let run_channel = w.add_channel(run_schema, schema::TOPIC_RUN, "json", &version_meta)?;
+    let mut channels = [0u16; 3];
+    for (slot, (name, spec, topic)) in [
+        (
+            schema::EPISODE_START_SCHEMA_NAME,
+            schema::EPISODE_START_SPEC,
+            schema::TOPIC_EPISODE_START,
+        ),
+        (
+            schema::STEP_SCHEMA_NAME,
+            schema::STEP_SPEC,
+            schema::TOPIC_STEP,
+        ),
+        (
+            schema::EPISODE_END_SCHEMA_NAME,
+            schema::EPISODE_END_SPEC,
+            schema::TOPIC_EPISODE_END,
+        ),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let id = w.add_schema(name, "protobuf", &schema::descriptor(spec))?;
+        channels[slot] = w.add_channel(id, topic, "protobuf", &version_meta)?;
+    }
+    Ok((run_channel, channels))
 }
 
 /// The background writer: MCAP framing, zstd, file writes; at the end the summary and the
