@@ -98,10 +98,24 @@ const WALLS: [&str; 4] = ["sideS", "sideE", "sideN", "sideW"];
 /// Height of the timeline strip in pixels.
 const STRIP: u32 = 28;
 
-/// World (x, y) in metres to pixel (x, y), y up in the world, down in the image.
-fn to_pixel(size: u32, [x, y]: [f64; 2]) -> (f64, f64) {
-    let scale = f64::from(size) / (2.0 * VIEW_HALF);
-    ((x + VIEW_HALF) * scale, (VIEW_HALF - y) * scale)
+/// The arena's square of `size` pixels: world metres to pixels.
+#[derive(Clone, Copy)]
+struct Pixels {
+    /// Pixels per metre.
+    scale: f64,
+}
+
+impl Pixels {
+    fn of(size: u32) -> Pixels {
+        Pixels {
+            scale: f64::from(size) / (2.0 * VIEW_HALF),
+        }
+    }
+
+    /// World (x, y) in metres to pixel (x, y), y up in the world, down in the image.
+    fn at(self, [x, y]: [f64; 2]) -> (f64, f64) {
+        ((x + VIEW_HALF) * self.scale, (VIEW_HALF - y) * self.scale)
+    }
 }
 
 fn colour(rgba: [f32; 4]) -> Rgb {
@@ -162,14 +176,14 @@ pub fn render_episode(
     let arm = arm_positions(&model, bodies, ep).map_err(&bad)?;
 
     let size = options.size;
-    let px = |p: [f64; 2]| to_pixel(size, p);
+    let pixels = Pixels::of(size);
     let mut canvas = Canvas::new(size, size + STRIP, Rgb::WHITE);
-    draw_arena(&mut canvas, &looks, size);
-    let ball_pixels = draw_regions(&mut canvas, &looks, &layout, ep, size);
-    draw_poses(&mut canvas, &looks, &arm, options.poses, size);
+    draw_arena(&mut canvas, &looks, pixels);
+    let ball_pixels = draw_regions(&mut canvas, &looks, &layout, ep, pixels);
+    draw_poses(&mut canvas, &looks, &arm, options.poses, pixels);
     let letters: Vec<char> = log.run.vocabulary.chars().collect();
     let (touches, event_step) =
-        draw_touches(&mut canvas, &looks, &layout, ep, &arm, &letters, size);
+        draw_touches(&mut canvas, &looks, &layout, ep, &arm, &letters, pixels);
     draw_timeline(
         &mut canvas,
         &looks,
@@ -195,7 +209,7 @@ pub fn render_episode(
         touches,
         event_step,
         ball_pixels,
-        tip_pixels: (px(arm[0][2]), px(arm[arm.len() - 1][2])),
+        tip_pixels: (pixels.at(arm[0][2]), pixels.at(arm[arm.len() - 1][2])),
     })
 }
 
@@ -271,9 +285,7 @@ fn arm_positions(
 }
 
 /// The arena's floor (the walls' bounding box) and its walls.
-fn draw_arena(canvas: &mut Canvas, looks: &SceneLooks, size: u32) {
-    let px = |p: [f64; 2]| to_pixel(size, p);
-    let scale = f64::from(size) / (2.0 * VIEW_HALF);
+fn draw_arena(canvas: &mut Canvas, looks: &SceneLooks, pixels: Pixels) {
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in looks.walls.iter().flat_map(|(a, b, _)| [a, b]) {
         for k in 0..2 {
@@ -281,7 +293,7 @@ fn draw_arena(canvas: &mut Canvas, looks: &SceneLooks, size: u32) {
             hi[k] = hi[k].max(p[k]);
         }
     }
-    let (a0, a1) = (px([lo[0], hi[1]]), px([hi[0], lo[1]]));
+    let (a0, a1) = (pixels.at([lo[0], hi[1]]), pixels.at([hi[0], lo[1]]));
     canvas.rect(
         a0.0 as i64,
         a0.1 as i64,
@@ -291,7 +303,13 @@ fn draw_arena(canvas: &mut Canvas, looks: &SceneLooks, size: u32) {
         1.0,
     );
     for &(a, b, radius) in &looks.walls {
-        canvas.line(px(a), px(b), 2.0 * radius * scale, looks.wall, 1.0);
+        canvas.line(
+            pixels.at(a),
+            pixels.at(b),
+            2.0 * radius * pixels.scale,
+            looks.wall,
+            1.0,
+        );
     }
 }
 
@@ -302,24 +320,22 @@ fn draw_regions(
     looks: &SceneLooks,
     layout: &TaskLayout,
     ep: &LoggedEpisode,
-    size: u32,
+    pixels: Pixels,
 ) -> Vec<(f64, f64)> {
-    let px = |p: [f64; 2]| to_pixel(size, p);
-    let scale = f64::from(size) / (2.0 * VIEW_HALF);
     let mut ball_pixels = Vec::with_capacity(layout.n_regions());
     for (i, c) in looks.ball_colours.iter().enumerate() {
-        let centre = px([ep.start.balls[2 * i], ep.start.balls[2 * i + 1]]);
+        let centre = pixels.at([ep.start.balls[2 * i], ep.start.balls[2 * i + 1]]);
         ball_pixels.push(centre);
         let (ball_radius, touch_radius) = (looks.ball_radii[i], layout.regions[i].radius);
         canvas.disc(
             centre.0,
             centre.1,
-            (ball_radius + touch_radius) * scale,
+            (ball_radius + touch_radius) * pixels.scale,
             c.lighten(0.75),
             1.0,
         );
         if ball_radius > 0.0 {
-            canvas.disc(centre.0, centre.1, ball_radius * scale, *c, 1.0);
+            canvas.disc(centre.0, centre.1, ball_radius * pixels.scale, *c, 1.0);
         }
     }
     ball_pixels
@@ -331,10 +347,8 @@ fn draw_poses(
     looks: &SceneLooks,
     arm: &[[[f64; 2]; 3]],
     poses: usize,
-    size: u32,
+    pixels: Pixels,
 ) {
-    let px = |p: [f64; 2]| to_pixel(size, p);
-    let scale = f64::from(size) / (2.0 * VIEW_HALF);
     let n = arm.len();
     let poses = poses.max(1).min(n);
     for k in 0..poses {
@@ -345,14 +359,26 @@ fn draw_poses(
         };
         let fade = 0.8 * (1.0 - (k + 1) as f32 / poses as f32);
         let [s, e, t] = arm[idx];
-        let w = 0.02 * scale;
-        canvas.line(px(s), px(e), w, looks.link.lighten(fade), 1.0);
-        canvas.line(px(e), px(t), w, looks.link.lighten(fade), 1.0);
-        canvas.disc(px(t).0, px(t).1, 0.01 * scale, looks.tip.lighten(fade), 1.0);
+        let w = 0.02 * pixels.scale;
+        canvas.line(pixels.at(s), pixels.at(e), w, looks.link.lighten(fade), 1.0);
+        canvas.line(pixels.at(e), pixels.at(t), w, looks.link.lighten(fade), 1.0);
+        canvas.disc(
+            pixels.at(t).0,
+            pixels.at(t).1,
+            0.01 * pixels.scale,
+            looks.tip.lighten(fade),
+            1.0,
+        );
     }
     let path_colour = looks.tip.darken(0.55);
     for w in arm.windows(2) {
-        canvas.line(px(w[0][2]), px(w[1][2]), 2.0, path_colour, 1.0);
+        canvas.line(
+            pixels.at(w[0][2]),
+            pixels.at(w[1][2]),
+            2.0,
+            path_colour,
+            1.0,
+        );
     }
 }
 
@@ -365,28 +391,33 @@ fn draw_touches(
     ep: &LoggedEpisode,
     arm: &[[[f64; 2]; 3]],
     letters: &[char],
-    size: u32,
+    pixels: Pixels,
 ) -> (Vec<(usize, char)>, Option<usize>) {
-    let px = |p: [f64; 2]| to_pixel(size, p);
-    let scale = f64::from(size) / (2.0 * VIEW_HALF);
     let mut touches = Vec::new();
     let mut event_step = None;
     let events = layout.events().0;
     let mut prev = ep.start.labels;
     for (k, s) in ep.steps.iter().enumerate() {
         let step = k + 1;
-        let tip_px = px(arm[step][2]);
+        let tip_px = pixels.at(arm[step][2]);
         for (b, c) in looks.ball_colours.iter().enumerate() {
             let bit = 1 << b;
             if s.labels & bit != 0 && prev & bit == 0 {
                 touches.push((step, letters.get(b).copied().unwrap_or('?')));
-                canvas.ring(tip_px.0, tip_px.1, 0.018 * scale, 3.0, Rgb::BLACK, 1.0);
-                canvas.ring(tip_px.0, tip_px.1, 0.018 * scale, 1.5, *c, 1.0);
+                canvas.ring(
+                    tip_px.0,
+                    tip_px.1,
+                    0.018 * pixels.scale,
+                    3.0,
+                    Rgb::BLACK,
+                    1.0,
+                );
+                canvas.ring(tip_px.0, tip_px.1, 0.018 * pixels.scale, 1.5, *c, 1.0);
             }
         }
         if s.labels & events != 0 && event_step.is_none() {
             event_step = Some(step);
-            let d = 0.015 * scale;
+            let d = 0.015 * pixels.scale;
             for (dx, dy) in [(d, d), (d, -d)] {
                 canvas.line(
                     (tip_px.0 - dx, tip_px.1 - dy),
