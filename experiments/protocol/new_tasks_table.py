@@ -72,8 +72,11 @@ def main():
         if (r["arm"], r["algo"]) not in units:
             units.append((r["arm"], r["algo"]))
     experts = os.path.join(protocol.ROOT, args.experts)
+    command = f"python3 experiments/protocol/new_tasks_table.py {args.name} --pool {args.pool}"
+    if args.experts != p.get_default("experts"):
+        command += f" --experts {args.experts}"
     out = [f"# {args.name}: the {args.pool} tasks branch by branch (exploratory)", "",
-           f"`python3 experiments/protocol/new_tasks_table.py {args.name} --pool {args.pool}`, from jobs.csv and the "
+           f"`{command}`, from jobs.csv and the "
            f"experts' summaries in `{args.experts}/`. Branches: normal, event (one value: a task without an event "
            "that changes its course). A failed job scores 0 on every branch. Solved: lower branch >= 0.9.", "",
            "## Experts", "", "| task | expert, stochastic | expert, mean action |", "|---|---|---|"]
