@@ -5,7 +5,9 @@
 //! come from the ledger without any run directory; a failed job scores 0 for every policy; a
 //! failed or changed prepare fails its run directory's jobs and the plan goes on; a job past its
 //! timeout is killed and failed; `--partial` counts complete bases only; `check` runs once, and
-//! `run` and table.py refuse once the protocol, its config or the scripts change after the lock;
+//! `run` and table.py refuse once the protocol, its config or the scripts change after the lock,
+//! and `run` once a file a task file names changes; `status` and table.py find a protocol's
+//! run directories after its config changes on a later commit;
 //! diagnose.py gives each missed job its first cause and reproduces lost run directories;
 //! machine_or_reward.py asks its missed jobs again with more fresh agents and the task's machine;
 //! new_tasks_table.py puts a pool's tasks branch by branch beside their experts.
@@ -210,6 +212,11 @@ fn standard_plan(base: u64) -> String {
 /// (`plan`: its toml after `commit` and `config`). (Each test has bases of its own: `check`
 /// refuses seeds found in any run directory under /tmp, such as another test's.)
 fn protocol_repo(repo: &Path, plan: &str) -> String {
+    protocol_repo_with(repo, plan, &[])
+}
+
+/// [`protocol_repo`] with `files` (path, text) committed with the method.
+fn protocol_repo_with(repo: &Path, plan: &str, files: &[(&str, &str)]) -> String {
     let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
     std::fs::create_dir_all(repo).unwrap();
     git(repo, &["init", "-q", "-b", "main"]);
@@ -231,6 +238,9 @@ fn protocol_repo(repo: &Path, plan: &str) -> String {
         &repo.join("experiments/reacher/config.toml"),
         "# a config\nthreads = 2\n",
     );
+    for (path, text) in files {
+        write(&repo.join(path), text);
+    }
     commit_all(repo, "the method");
     let frozen = git(repo, &["rev-parse", "HEAD"]);
     write(
@@ -495,6 +505,162 @@ fn run_refuses_a_protocol_or_config_changed_after_the_lock() {
     let o = s.run(&[]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(log_lines(&log).len(), 8);
+}
+
+/// A protocol's run directories are named by the config its lock holds: once the config changes
+/// on a later commit, `status` and table.py still find every job the ledger records.
+#[test]
+fn tables_find_a_protocols_jobs_after_its_config_changes() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let (repo, bin, log) = locked(tmp.path(), &standard_plan(921_000));
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let o = s.run(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(log_lines(&log).len(), 8);
+    write(
+        &repo.join("experiments/reacher/config.toml"),
+        "# the next standard\nthreads = 1\n",
+    );
+    commit_all(&repo, "a later config");
+    let o = s.script("run.py", &["status", NAME], &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("8 of 8 jobs done"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let o = s.table(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(s.state("summary.md").contains("8 of 8 jobs"));
+    // `run` still refuses the changed config.
+    let o = s.run(&[]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("changed after"), "{}", stderr(&o));
+}
+
+/// What a task file makes a job read from the checkout (its machine, scene, experts and the
+/// files beside them) is locked with it: `check` refuses an untracked file among them and
+/// `run` a change to any, committed or not, or a new file; a lock without them is refused.
+#[test]
+fn the_files_a_task_file_names_are_locked_with_it() {
+    if !python_has_tomllib() {
+        eprintln!("SKIPPED: python3 >= 3.11 (tomllib) is not available");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let repo = tmp.path().join("repo");
+    let plan = "bases = [922000]\ntimeout_secs = { smirl = 600 }\n\n[[arm]]\nname = \"a\"\n\
+                tasks = [\"tasks/t.toml\"]\nalgos = [\"smirl\"]\nn_bases = 1\nseeds = 1\n";
+    let reads = [
+        "tasks/experts/expert_t-0123456789abcdef.policy",
+        "tasks/scene/mesh.stl",
+        "tasks/scene/s.xml",
+        "tasks/t.txt",
+    ];
+    let files: Vec<(&str, &str)> = [(
+        "tasks/t.toml",
+        "scene = \"scene/s.xml\"\nmachine = \"t.txt\"\n",
+    )]
+    .into_iter()
+    .chain(reads.iter().map(|f| (*f, "the original\n")))
+    .collect();
+    let frozen = protocol_repo_with(&repo, plan, &files);
+    let (bin, log) = (tmp.path().join("reacher"), tmp.path().join("jobs.log"));
+    fake_reacher(&bin, &frozen, &log);
+    let s = Session {
+        repo: &repo,
+        bin: &bin,
+    };
+    let check = |s: &Session| {
+        s.script(
+            "run.py",
+            &["check", NAME, "--bin", bin.to_str().unwrap()],
+            &[],
+        )
+    };
+    // An expert trained on this machine and not committed: a job could read it.
+    let stray = repo.join("tasks/experts/expert_t-fedcba9876543210.policy");
+    write(&stray, "trained here\n");
+    let o = check(&s);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("expert_t-fedcba9876543210.policy"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!repo
+        .join(format!("experiments/protocol/{NAME}/lock.json"))
+        .exists());
+    std::fs::remove_file(&stray).unwrap();
+    s.check_and_lock();
+    let lock: serde_json::Value = serde_json::from_str(&s.state("lock.json")).unwrap();
+    let mut locked: Vec<&str> = lock["task_reads"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(String::as_str)
+        .collect();
+    locked.sort_unstable();
+    assert_eq!(locked, reads);
+    for (file, committed) in reads
+        .iter()
+        .map(|f| (*f, true))
+        .chain([("tasks/scene/s.xml", false)])
+    {
+        let path = repo.join(file);
+        write(&path, "changed after the lock\n");
+        if committed {
+            commit_all(&repo, "a change after the lock");
+        }
+        let o = s.run(&[]);
+        assert_eq!(o.status.code(), Some(2), "{file}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(file) && stderr(&o).contains("changed after"),
+            "{file}: {}",
+            stderr(&o)
+        );
+        write(&path, "the original\n");
+        if committed {
+            commit_all(&repo, "undone");
+        }
+    }
+    // A new file beside the task file, committed or not.
+    for committed in [false, true] {
+        write(&stray, "trained here\n");
+        if committed {
+            commit_all(&repo, "a new expert");
+        }
+        let o = s.run(&[]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("expert_t-fedcba9876543210.policy"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    git(&repo, &["rm", "-q", stray.to_str().unwrap()]);
+    commit_all(&repo, "undone");
+    assert_eq!(log_lines(&log), Vec::<String>::new(), "no job ran");
+    let o = s.run(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(log_lines(&log), ["smirl:922000"]);
+    assert_eq!(prepare_lines(&log), ["prepare:tasks/t.toml:922000"]);
+    // A lock written before task files' reads were locked is refused.
+    let lock_file = repo.join(format!("experiments/protocol/{NAME}/lock.json"));
+    let mut old = lock.clone();
+    old.as_object_mut().unwrap().remove("task_reads");
+    std::fs::write(&lock_file, serde_json::to_string(&old).unwrap()).unwrap();
+    commit_all(&repo, "an old lock");
+    let o = s.run(&[]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no `task_reads`"), "{}", stderr(&o));
 }
 
 /// Sets up a repository with `plan`, the fake binary and the lock committed.

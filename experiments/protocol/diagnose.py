@@ -95,7 +95,7 @@ def read_jobs(name):
 
 def run_dirs(name, plan):
     """{(arm, task, base, algo, seed): run.py's plan entry of the job's run directory}."""
-    runs, jobs = protocol.plan_runs(name, plan)
+    runs, jobs = protocol.plan_runs(name, plan, protocol.lock_if_any(name))
     out = {}
     for j in jobs:
         r = runs[j["run"]]

@@ -44,20 +44,27 @@ directory on this machine (`prepare.json` under /work, /tmp and the checkout's r
 version of any CSV git has ever held (columns `seed` and `sac_seed`). A protocol marked
 `development = true` (a dress rehearsal on development seeds) skips that last check and says so;
 any other protocol refuses a base below 10 000 (every seed below it is development data).
-`check` then writes the lock, `experiments/protocol/<name>/lock.json` (the blob ids of the
-protocol files, of run.py and table.py and of the configs and task files, the frozen commit, the
+The files a task file makes a job read at run time (`task_reads`: its machine, its scene, and
+every file git tracks in its directory and its scene's, such as its experts) are held to the
+same rule, and `check` refuses an untracked file among them. `check` then writes the lock,
+`experiments/protocol/<name>/lock.json` (the blob ids of the protocol files, of run.py and
+table.py, of the configs and task files and of their `task_reads`, the frozen commit, the
 binary's `--version` and sha256, `rustc --version` and the MuJoCo library the binary loads), to
 be committed before the first `run`; a second `check` is refused while a lock exists.
 
 The protocol's state lives in git, not in run directories: an evaluation runs over several
 sessions, each on a fresh checkout where runs/ is empty. `run` refuses without a committed lock,
-or when the protocol files, run.py, table.py, the configs or the task files differ from what was
-locked, or when the binary's `--version` does not name the frozen commit (without `-dirty`). It
+or when the protocol files, run.py, table.py, the configs, the task files or what they make a
+job read differ from what was locked (or a lock holds no `task_reads`), or when the binary's
+`--version` does not name the frozen commit (without `-dirty`). It
 runs the plan tier by tier (an arm's `tier`, 1 first), base by base within a tier, every job the
 ledger does not record as finished, `--parallel N` at a time (default 1); with N > 1 each job
 runs on one thread (the run directory's `threads` is set to 1: a job's results do not depend on
 its thread count, tests/lockstep.rs), otherwise with the config's. It prepares each (config,
-task, base) run directory under `runs/protocol/<name>/` when a job first needs it.
+task, base) run directory under `runs/protocol/<name>/` when a job first needs it, named
+`<task>-b<base>-<key>`, the key the first 8 hex digits of the sha256 of the config as the lock
+holds it (so that status, table.py and diagnose.py find a protocol's directories after its
+config changes on a later commit).
 
 The ledger, `experiments/protocol/<name>/ledger.jsonl`, is append-only and committed after each
 session: every session's binary (its sha256 and `--version`), every prepare and every job's start
@@ -259,17 +266,65 @@ def configs_and_tasks(plan):
     return sorted(files)
 
 
-def content_key(path):
-    """A short name for a file's contents (arms with their own config get their own run
-    directories)."""
-    with open(os.path.join(ROOT, path), "rb") as fh:
-        return hashlib.sha256(fh.read()).hexdigest()[:8]
+def task_files(plan):
+    """The plan's task files (its tasks named by path; a shipped task is built into the binary)."""
+    return sorted({t for arm in plan["arm"] for t in arm["tasks"] if t.endswith(".toml")})
 
 
-def plan_runs(name, plan):
+def task_reads(plan):
+    """What the plan's task files make a job read from the checkout at run time: each task
+    file's machine and scene, and every file git tracks in the task file's directory and in its
+    scene's (the experts in `experts/` beside the task file, the files a scene includes or names
+    as assets beside it). A file a scene reads from outside its own directory is not among them."""
+    reads, dirs = set(), set()
+    for task in task_files(plan):
+        here = os.path.dirname(task)
+        dirs.add(here)
+        try:
+            with open(os.path.join(ROOT, task), "rb") as fh:
+                named = tomllib.load(fh)
+        except (OSError, tomllib.TOMLDecodeError) as e:
+            fail(f"{task}: {e}")
+        for key in ("scene", "machine"):
+            value = named.get(key)
+            if isinstance(value, str) and not (key == "scene" and value == "builtin"):
+                path = os.path.normpath(os.path.join(here, value))
+                reads.add(path)
+                if key == "scene":
+                    dirs.add(os.path.dirname(path))
+    tracked = git("ls-files", "-z", "--", *sorted(dirs)).stdout.split("\0") if dirs else []
+    reads.update(f for f in tracked if f)
+    return sorted(reads - set(configs_and_tasks(plan)))
+
+
+def untracked_in(paths):
+    """Files git does not track in the directories of `paths` (such as an expert trained on
+    this machine, which a job would read in place of none)."""
+    dirs = sorted({os.path.dirname(p) or "." for p in paths})
+    if not dirs:
+        return []
+    out = git("ls-files", "-z", "--others", "--exclude-standard", "--", *dirs).stdout
+    return [f for f in out.split("\0") if f]
+
+
+def content_key(path, lock=None):
+    """A short name for a config's contents (arms with their own config get their own run
+    directories). With a lock it is the contents the lock holds, so that a protocol's run
+    directories keep their names when the config changes on a later commit."""
+    locked = (lock or {}).get("inputs", {}).get(path)
+    if locked:
+        data = git("cat-file", "blob", locked, text=False).stdout
+    else:
+        with open(os.path.join(ROOT, path), "rb") as fh:
+            data = fh.read()
+    return hashlib.sha256(data).hexdigest()[:8]
+
+
+def plan_runs(name, plan, lock=None):
     """Every run directory (config, task, base, algos, seeds) and job (run, algo, seed, arm,
     tier), in the order they run: tier by tier, base by base within a tier, so that a plan cut
-    by time loses the later tiers first and covers every arm of a tier on the same bases."""
+    by time loses the later tiers first and covers every arm of a tier on the same bases.
+    Directories are named by the configs the lock holds, when there is one."""
     runs = {}
     jobs = []
     for tier in TIERS:
@@ -280,7 +335,7 @@ def plan_runs(name, plan):
                 config = arm.get("config", plan["config"])
                 for task in arm["tasks"]:
                     key = (config, task, base)
-                    d = os.path.join(run_root(name), f"{task_label(task)}-b{base}-{content_key(config)}")
+                    d = os.path.join(run_root(name), f"{task_label(task)}-b{base}-{content_key(config, lock)}")
                     r = runs.setdefault(key, {"dir": d, "config": config, "task": task, "base": base, "algos": [], "seeds": 0})
                     for algo in arm["algos"]:
                         if algo not in r["algos"]:
@@ -471,7 +526,12 @@ def check(name, binary):
     frozen = plan["commit"]
     if git("merge-base", "--is-ancestor", frozen, "HEAD").returncode != 0:
         fail(f"the frozen commit {frozen} is not an ancestor of HEAD")
-    inputs = METHOD_PATHS + configs_and_tasks(plan)
+    reads = task_reads(plan)
+    untracked = untracked_in(task_files(plan) + reads)
+    if untracked:
+        fail(f"{untracked[0]} is in the directory of a task file or scene of the protocol but not "
+             "committed: a job could read it (commit it or move it away)")
+    inputs = METHOD_PATHS + configs_and_tasks(plan) + reads
     if git("diff", "--quiet", frozen, "HEAD", "--", *inputs).returncode != 0:
         fail(f"HEAD differs from the frozen commit in the method or its inputs (`git diff {frozen[:10]} HEAD -- {' '.join(inputs)}`)")
     if git("diff", "--quiet", "HEAD", "--", *inputs).returncode != 0:
@@ -500,6 +560,7 @@ def check(name, binary):
         "mujoco": mujoco_version(binary),
         "development": plan.get("development", False),
         "inputs": {f: blob(f) for f in configs_and_tasks(plan)},
+        "task_reads": {f: blob(f) for f in reads},
         "checked_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "jobs": len(jobs),
     }
@@ -741,12 +802,26 @@ def run(name, binary, until, max_jobs, parallel):
     inputs = configs_and_tasks(plan)
     if {f: blob(f) for f in inputs} != lock["inputs"] or git("diff", "--quiet", "HEAD", "--", *inputs).returncode != 0:
         fail(f"a config or task file of the protocol changed after it was locked ({' '.join(inputs)})")
+    reads = task_reads(plan)
+    if "task_reads" not in lock:
+        fail(f"{rel(lock_path(name))} holds no `task_reads`: it was written by an older run.py, "
+             "whose lock left the files task files name unchecked; run it with that run.py")
+    now = {f: blob(f) for f in reads}
+    changed = [f for f in sorted(set(now) | set(lock["task_reads"])) if now.get(f) != lock["task_reads"].get(f)]
+    changed += [f for f in git("diff", "--name-only", "HEAD", "--", *reads).stdout.split() if f not in changed] if reads else []
+    if changed:
+        fail(f"{changed[0]}, which a task file of the protocol makes a job read (its machine, scene, "
+             "experts or a file beside them), changed after the protocol was locked")
+    untracked = untracked_in(task_files(plan) + reads)
+    if untracked:
+        fail(f"{untracked[0]} is in the directory of a task file or scene of the protocol but not "
+             "committed, so it changed after the protocol was locked")
     version, built = binary_version(binary)
     if built != lock["frozen"]:
         fail(f"{binary} is built from {built}, not the frozen commit {lock['frozen']} (see run.py's docs)")
     if parallel < 1:
         fail("--parallel must be at least 1")
-    runs, jobs = plan_runs(name, plan)
+    runs, jobs = plan_runs(name, plan, lock)
     s = Session(name, plan, binary, parallel)
     ledger(name, {"event": "session", "binary_sha256": sha256_of(binary), "binary_version": version,
                   "parallel": parallel})
@@ -790,9 +865,17 @@ def run(name, binary, until, max_jobs, parallel):
         print(s.stop)
 
 
+def lock_if_any(name):
+    """The protocol's lock as the checkout holds it, or None before `check`."""
+    if not os.path.isfile(lock_path(name)):
+        return None
+    with open(lock_path(name)) as fh:
+        return json.load(fh)
+
+
 def status(name):
     _, _, plan = load(name)
-    runs, jobs = plan_runs(name, plan)
+    runs, jobs = plan_runs(name, plan, lock_if_any(name))
     finished = finished_jobs(name)
     states = [finished.get((rel(runs[j["run"]]["dir"]), j["algo"], j["seed"]), {}).get("event") for j in jobs]
     print(f"{states.count('done')} of {len(jobs)} jobs done, {states.count('failed')} failed")
