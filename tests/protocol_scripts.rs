@@ -1175,6 +1175,18 @@ fn diagnose_gives_each_missed_job_its_first_cause() {
     );
     let o = s.table(&[]);
     assert!(o.status.success(), "table: {}", stderr(&o));
+    // A config other than the lock's would prepare another directory: refused by name.
+    let config = repo.join("experiments/reacher/config.toml");
+    let locked_config = std::fs::read_to_string(&config).unwrap();
+    std::fs::write(&config, "# the next standard\nthreads = 1\n").unwrap();
+    let o = diagnose(&jobs);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("experiments/reacher/config.toml differs from the blob the lock holds"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::write(&config, locked_config).unwrap();
     let ledger = s.state("ledger.jsonl");
     let lost = std::fs::read_dir(repo.join("runs/protocol").join(NAME))
         .unwrap()

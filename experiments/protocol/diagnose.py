@@ -35,7 +35,8 @@ directories on disk, also where every job was solved: a test that is no everywhe
 tell the machine from the weights.
 
 Run directories are not committed. A missing one is prepared again with the frozen binary and
-the command `run.py` used, and must give the bytes the ledger's `prepared` entry records; a
+the command `run.py` used (so the configs, the task files and what they name must be the ones
+the lock holds; it refuses otherwise), and must give the bytes the ledger's `prepared` entry records; a
 missing job file is made again by `reacher job`, kept as `jobs/<algo>_seed<k>.diagnose.json`
 (so table.py still finds only the ledger's bytes under the job's own name), and must give the
 ledger's job fields (wall time aside). Either mismatch is reported as "not reproduced" and that
@@ -258,6 +259,13 @@ def main():
     units = {protocol.unit_of(ref, "--units", "units") for ref in refs}
     if not units:
         fail("no units: give --units ARM:ALGO,...")
+    lock = protocol.lock_if_any(name) or {}
+    locked = {**lock.get("inputs", {}), **lock.get("task_reads", {})}
+    moved = [f for f, sha in sorted(locked.items()) if protocol.worktree_blob(f) != sha]
+    if moved:
+        fail(f"{moved[0]} differs from the blob the lock holds: a run directory prepared again "
+             "here would not be the protocol's; diagnose at a commit whose configs and task files "
+             f"are the lock's, such as its head (`git worktree add DIR {lock.get('head', '')[:12]}`)")
     rows = read_jobs(name)
     dirs = run_dirs(name, plan)
     if len(rows) != len(dirs):
