@@ -545,9 +545,11 @@ fn tables_find_a_protocols_jobs_after_its_config_changes() {
     assert!(stderr(&o).contains("changed after"), "{}", stderr(&o));
 }
 
-/// What a task file makes a job read from the checkout (its machine, scene, experts and the
-/// files beside them) is locked with it: `check` refuses an untracked file among them and
-/// `run` a change to any, committed or not, or a new file; a lock without them is refused.
+/// What a task file makes a job read from the checkout (its machine and scene, here in sibling
+/// directories, the files beside them and its experts) is locked with it. `check` refuses an
+/// untracked file among them, ignored or not, a scene naming a file outside its directory, a
+/// task without a committed expert and a read that differs from the frozen commit; `run`
+/// refuses a change to any, committed or not, a deleted or new file, and a lock without them.
 #[test]
 fn the_files_a_task_file_names_are_locked_with_it() {
     if !python_has_tomllib() {
@@ -558,19 +560,19 @@ fn the_files_a_task_file_names_are_locked_with_it() {
     let repo = tmp.path().join("repo");
     let plan = "bases = [922000]\ntimeout_secs = { smirl = 600 }\n\n[[arm]]\nname = \"a\"\n\
                 tasks = [\"tasks/t.toml\"]\nalgos = [\"smirl\"]\nn_bases = 1\nseeds = 1\n";
-    let reads = [
-        "tasks/experts/expert_t-0123456789abcdef.policy",
-        "tasks/scene/mesh.stl",
-        "tasks/scene/s.xml",
-        "tasks/t.txt",
+    let expert = "tasks/experts/expert_t-0123456789abcdef.policy";
+    let scene = "<mujoco><asset><mesh file=\"mesh.stl\"/></asset></mujoco>\n";
+    let reads = ["machines/t.txt", "scenes/mesh.stl", "scenes/s.xml", expert];
+    let files = [
+        (
+            "tasks/t.toml",
+            "scene = \"../scenes/s.xml\"\nmachine = \"../machines/t.txt\"\n",
+        ),
+        ("machines/t.txt", "the original\n"),
+        ("scenes/mesh.stl", "the original\n"),
+        ("scenes/s.xml", scene),
+        (expert, "the original\n"),
     ];
-    let files: Vec<(&str, &str)> = [(
-        "tasks/t.toml",
-        "scene = \"scene/s.xml\"\nmachine = \"t.txt\"\n",
-    )]
-    .into_iter()
-    .chain(reads.iter().map(|f| (*f, "the original\n")))
-    .collect();
     let frozen = protocol_repo_with(&repo, plan, &files);
     let (bin, log) = (tmp.path().join("reacher"), tmp.path().join("jobs.log"));
     fake_reacher(&bin, &frozen, &log);
@@ -578,27 +580,46 @@ fn the_files_a_task_file_names_are_locked_with_it() {
         repo: &repo,
         bin: &bin,
     };
-    let check = |s: &Session| {
-        s.script(
+    let refused_check = |what: &str| {
+        let o = s.script(
             "run.py",
             &["check", NAME, "--bin", bin.to_str().unwrap()],
             &[],
-        )
+        );
+        assert_eq!(o.status.code(), Some(2), "{what}: {}", stderr(&o));
+        assert!(stderr(&o).contains(what), "{what}: {}", stderr(&o));
+        assert!(!repo
+            .join(format!("experiments/protocol/{NAME}/lock.json"))
+            .exists());
     };
-    // An expert trained on this machine and not committed: a job could read it.
+    // An expert trained on this machine and not committed, even one git ignores.
     let stray = repo.join("tasks/experts/expert_t-fedcba9876543210.policy");
     write(&stray, "trained here\n");
-    let o = check(&s);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("expert_t-fedcba9876543210.policy"),
-        "{}",
-        stderr(&o)
-    );
-    assert!(!repo
-        .join(format!("experiments/protocol/{NAME}/lock.json"))
-        .exists());
+    refused_check("expert_t-fedcba9876543210.policy");
+    write(&repo.join(".git/info/exclude"), "*.policy\n");
+    refused_check("expert_t-fedcba9876543210.policy");
     std::fs::remove_file(&stray).unwrap();
+    write(&repo.join(".git/info/exclude"), "");
+    // A scene that reads a file outside its directory.
+    write(
+        &repo.join("scenes/s.xml"),
+        "<mujoco><include file=\"../x.xml\"/></mujoco>\n",
+    );
+    refused_check("scenes/s.xml names file=\"../x.xml\"");
+    write(&repo.join("scenes/s.xml"), scene);
+    // No committed expert: a job would train one.
+    let aside = tmp.path().join("expert.policy");
+    std::fs::rename(repo.join(expert), &aside).unwrap();
+    commit_all(&repo, "no expert");
+    refused_check("no committed expert");
+    std::fs::rename(&aside, repo.join(expert)).unwrap();
+    commit_all(&repo, "the expert again");
+    // A read that differs from the frozen commit.
+    write(&repo.join("machines/t.txt"), "changed before the lock\n");
+    commit_all(&repo, "a change before the lock");
+    refused_check("machines/t.txt");
+    write(&repo.join("machines/t.txt"), "the original\n");
+    commit_all(&repo, "undone");
     s.check_and_lock();
     let lock: serde_json::Value = serde_json::from_str(&s.state("lock.json")).unwrap();
     let mut locked: Vec<&str> = lock["task_reads"]
@@ -609,41 +630,44 @@ fn the_files_a_task_file_names_are_locked_with_it() {
         .collect();
     locked.sort_unstable();
     assert_eq!(locked, reads);
+    let refused_run = |what: &str| {
+        let o = s.run(&[]);
+        assert_eq!(o.status.code(), Some(2), "{what}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(what) && stderr(&o).contains("changed after"),
+            "{what}: {}",
+            stderr(&o)
+        );
+    };
     for (file, committed) in reads
         .iter()
         .map(|f| (*f, true))
-        .chain([("tasks/scene/s.xml", false)])
+        .chain([("scenes/mesh.stl", false)])
     {
         let path = repo.join(file);
+        let before = std::fs::read_to_string(&path).unwrap();
         write(&path, "changed after the lock\n");
         if committed {
             commit_all(&repo, "a change after the lock");
         }
-        let o = s.run(&[]);
-        assert_eq!(o.status.code(), Some(2), "{file}: {}", stderr(&o));
-        assert!(
-            stderr(&o).contains(file) && stderr(&o).contains("changed after"),
-            "{file}: {}",
-            stderr(&o)
-        );
-        write(&path, "the original\n");
+        refused_run(file);
+        write(&path, &before);
         if committed {
             commit_all(&repo, "undone");
         }
     }
+    // A deleted file, not committed.
+    std::fs::remove_file(repo.join("machines/t.txt")).unwrap();
+    refused_run("machines/t.txt");
+    git(&repo, &["checkout", "--", "machines/t.txt"]);
     // A new file beside the task file, committed or not.
     for committed in [false, true] {
         write(&stray, "trained here\n");
         if committed {
+            git(&repo, &["add", stray.to_str().unwrap()]);
             commit_all(&repo, "a new expert");
         }
-        let o = s.run(&[]);
-        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-        assert!(
-            stderr(&o).contains("expert_t-fedcba9876543210.policy"),
-            "{}",
-            stderr(&o)
-        );
+        refused_run("expert_t-fedcba9876543210.policy");
     }
     git(&repo, &["rm", "-q", stray.to_str().unwrap()]);
     commit_all(&repo, "undone");
@@ -1182,7 +1206,7 @@ fn diagnose_gives_each_missed_job_its_first_cause() {
     let o = diagnose(&jobs);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("experiments/reacher/config.toml differs from the blob the lock holds"),
+        stderr(&o).contains("experiments/reacher/config.toml differs from what the lock holds"),
         "{}",
         stderr(&o)
     );

@@ -259,13 +259,14 @@ def main():
     units = {protocol.unit_of(ref, "--units", "units") for ref in refs}
     if not units:
         fail("no units: give --units ARM:ALGO,...")
-    lock = protocol.lock_if_any(name) or {}
-    locked = {**lock.get("inputs", {}), **lock.get("task_reads", {})}
-    moved = [f for f, sha in sorted(locked.items()) if protocol.worktree_blob(f) != sha]
-    if moved:
-        fail(f"{moved[0]} differs from the blob the lock holds: a run directory prepared again "
-             "here would not be the protocol's; diagnose at a commit whose configs and task files "
-             f"are the lock's, such as its head (`git worktree add DIR {lock.get('head', '')[:12]}`)")
+    lock = protocol.lock_if_any(name)
+    if lock is None:
+        fail(f"{protocol.rel(protocol.lock_path(name))} does not exist: no locked protocol")
+    changed = protocol.inputs_changed(plan, lock)
+    if changed:
+        fail(f"{changed} differs from what the lock holds: a run directory prepared again here "
+             "would not be the protocol's; diagnose at a commit whose configs and task files are "
+             f"the lock's, such as its head (`git worktree add DIR {lock.get('head', '')[:12]}`)")
     rows = read_jobs(name)
     dirs = run_dirs(name, plan)
     if len(rows) != len(dirs):

@@ -45,8 +45,11 @@ version of any CSV git has ever held (columns `seed` and `sac_seed`). A protocol
 `development = true` (a dress rehearsal on development seeds) skips that last check and says so;
 any other protocol refuses a base below 10 000 (every seed below it is development data).
 The files a task file makes a job read at run time (`task_reads`: its machine, its scene, and
-every file git tracks in its directory and its scene's, such as its experts) are held to the
-same rule, and `check` refuses an untracked file among them. `check` then writes the lock,
+every file git tracks in and below its directory and its scene's, such as its experts) are held
+to the same rule; `check` refuses an untracked file among them (ignored ones too), a task file at
+the checkout's root, a machine or scene outside the checkout, a scene file naming a file outside
+its own directory, a symbolic link, and a task without a committed expert when a config makes
+demonstrations with the expert. `check` then writes the lock,
 `experiments/protocol/<name>/lock.json` (the blob ids of the protocol files, of run.py and
 table.py, of the configs and task files and of their `task_reads`, the frozen commit, the
 binary's `--version` and sha256, `rustc --version` and the MuJoCo library the binary loads), to
@@ -271,14 +274,53 @@ def task_files(plan):
     return sorted({t for arm in plan["arm"] for t in arm["tasks"] if t.endswith(".toml")})
 
 
+def git_out(*args, text=True):
+    """git's output; a git error ends the script (an empty answer is not read as "no files")."""
+    o = git(*args, text=text)
+    if o.returncode != 0:
+        err = o.stderr if text else o.stderr.decode("utf-8", "replace")
+        fail(f"git {' '.join(args)}: {err.strip()}")
+    return o.stdout
+
+
+def in_repository(path):
+    """A relative, normalised path that stays inside the checkout."""
+    return not os.path.isabs(path) and path != ".." and not path.startswith("../")
+
+
+# Attributes by which an MJCF file names another file or the directory of its assets.
+SCENE_FILE_ATTRIBUTE = re.compile(
+    r"""\b(file|meshdir|texturedir|file(?:right|left|up|down|front|back))\s*=\s*(?:"([^"]*)"|'([^']*)')""")
+
+
+def scene_reads_outside(xml_path):
+    """The first file or asset directory an MJCF file names outside its own directory, if any."""
+    with open(os.path.join(ROOT, xml_path), encoding="utf-8", errors="replace") as fh:
+        text = fh.read()
+    here = os.path.dirname(xml_path)
+    for m in SCENE_FILE_ATTRIBUTE.finditer(text):
+        value = m.group(2) if m.group(2) is not None else m.group(3)
+        inside = os.path.normpath(os.path.join(here, value))
+        if os.path.isabs(value) or not (inside == here or inside.startswith(here + "/")):
+            return f'{m.group(1)}="{value}"'
+    return None
+
+
 def task_reads(plan):
     """What the plan's task files make a job read from the checkout at run time: each task
-    file's machine and scene, and every file git tracks in the task file's directory and in its
-    scene's (the experts in `experts/` beside the task file, the files a scene includes or names
-    as assets beside it). A file a scene reads from outside its own directory is not among them."""
+    file's machine and scene, and every file git tracks in and below the task file's directory
+    and its scene's (the experts in `experts/` beside the task file, the files a scene includes
+    or names as assets). Refused, so that nothing a job reads escapes the lock: a task file in
+    the checkout's root, a machine or scene outside the checkout, a scene file that names a file
+    or asset directory outside its own directory, a symbolic link among them (git would hold its
+    target's name, not its bytes), and a task without a committed expert when a config of the
+    plan makes demonstrations with the expert (a job would train one)."""
     reads, dirs = set(), set()
     for task in task_files(plan):
-        here = os.path.dirname(task)
+        here = os.path.dirname(os.path.normpath(task))
+        if not in_repository(os.path.normpath(task)) or not here:
+            fail(f"{task}: a protocol's task file lies in a directory of the checkout, not at its "
+                 "root or outside it (every file in and below its directory is locked with it)")
         dirs.add(here)
         try:
             with open(os.path.join(ROOT, task), "rb") as fh:
@@ -287,24 +329,84 @@ def task_reads(plan):
             fail(f"{task}: {e}")
         for key in ("scene", "machine"):
             value = named.get(key)
-            if isinstance(value, str) and not (key == "scene" and value == "builtin"):
-                path = os.path.normpath(os.path.join(here, value))
-                reads.add(path)
-                if key == "scene":
-                    dirs.add(os.path.dirname(path))
-    tracked = git("ls-files", "-z", "--", *sorted(dirs)).stdout.split("\0") if dirs else []
-    reads.update(f for f in tracked if f)
+            if not isinstance(value, str) or (key == "scene" and value == "builtin"):
+                continue
+            path = os.path.normpath(os.path.join(here, value))
+            if os.path.isabs(value) or not in_repository(path) or not os.path.dirname(path):
+                fail(f"{task}: `{key} = {value!r}` is outside the checkout's directories: a protocol "
+                     "locks only files in them")
+            reads.add(path)
+            if key == "scene":
+                dirs.add(os.path.dirname(path))
+        stem = task_label(task)
+        experts = git_out("ls-files", "-z", "--", os.path.join(here, "experts")).split("\0")
+        if demos_from_expert(plan) and not any(
+                re.fullmatch(rf"expert_{re.escape(stem)}-[0-9a-f]+\.policy", os.path.basename(f)) for f in experts if f):
+            fail(f"{task}: no committed expert ({here}/experts/expert_{stem}-<hash>.policy): a job "
+                 f"would train one; train it with `reacher expert --task {task}` and commit it")
+    listed = git_out("ls-files", "-s", "-z", "--", *sorted(dirs)) if dirs else ""
+    for line in listed.split("\0"):
+        if not line:
+            continue
+        mode, path = line.split(" ", 1)[0], line.split("\t", 1)[1]
+        if mode == "120000":
+            fail(f"{path} is a symbolic link beside a task file of the protocol: git would lock "
+                 "its target's name, not its bytes")
+        reads.add(path)
+    for path in sorted(reads):
+        if os.path.islink(os.path.join(ROOT, path)):
+            fail(f"{path} is a symbolic link a task file of the protocol names: git would lock "
+                 "its target's name, not its bytes")
+        if path.endswith(".xml") and os.path.isfile(os.path.join(ROOT, path)):
+            outside = scene_reads_outside(path)
+            if outside:
+                fail(f"{path} names {outside}, outside its own directory: a protocol locks only "
+                     "what a scene reads in and below its directory")
     return sorted(reads - set(configs_and_tasks(plan)))
 
 
+def demos_from_expert(plan):
+    """Whether a config of the plan makes its demonstrations with the task's expert."""
+    for config in {plan["config"], *(arm.get("config", plan["config"]) for arm in plan["arm"])}:
+        try:
+            with open(os.path.join(ROOT, config), "rb") as fh:
+                if tomllib.load(fh).get("demo_source", "expert") != "scripted":
+                    return True
+        except (OSError, tomllib.TOMLDecodeError) as e:
+            fail(f"{config}: {e}")
+    return False
+
+
 def untracked_in(paths):
-    """Files git does not track in the directories of `paths` (such as an expert trained on
-    this machine, which a job would read in place of none)."""
-    dirs = sorted({os.path.dirname(p) or "." for p in paths})
+    """Files git does not track in and below the directories of `paths`, ignored ones too (such
+    as an expert trained on this machine, which a job would read in place of none)."""
+    dirs = sorted({os.path.dirname(p) for p in paths})
     if not dirs:
         return []
-    out = git("ls-files", "-z", "--others", "--exclude-standard", "--", *dirs).stdout
+    out = git_out("ls-files", "-z", "--others", "--", *dirs)
     return [f for f in out.split("\0") if f]
+
+
+def inputs_changed(plan, lock):
+    """The first locked input (config, task file, or what a task file makes a job read) that
+    differs from the lock, committed or not, or an untracked file beside them; None when none.
+    A lock without `task_reads` (written by an older run.py) is compared on its inputs only."""
+    inputs = configs_and_tasks(plan)
+    locked = dict(lock["inputs"])
+    now = {f: blob(f) for f in inputs}
+    if "task_reads" in lock:
+        reads = task_reads(plan)
+        locked.update(lock["task_reads"])
+        now.update({f: blob(f) for f in reads})
+        inputs = inputs + reads
+        untracked = untracked_in(task_files(plan) + reads)
+        if untracked:
+            return f"{untracked[0]} (not committed)"
+    for f in sorted(set(now) | set(locked)):
+        if now.get(f) != locked.get(f):
+            return f
+    dirty = [f for f in git_out("diff", "-z", "--name-only", "HEAD", "--", *inputs).split("\0") if f] if inputs else []
+    return dirty[0] if dirty else None
 
 
 def content_key(path, lock=None):
@@ -313,7 +415,7 @@ def content_key(path, lock=None):
     directories keep their names when the config changes on a later commit."""
     locked = (lock or {}).get("inputs", {}).get(path)
     if locked:
-        data = git("cat-file", "blob", locked, text=False).stdout
+        data = git_out("cat-file", "blob", locked, text=False)
     else:
         with open(os.path.join(ROOT, path), "rb") as fh:
             data = fh.read()
@@ -359,7 +461,9 @@ def sha256_of(path):
 
 
 def blob(path):
-    return git("rev-parse", f"HEAD:{path}").stdout.strip()
+    """The blob id of the file at HEAD, or None when HEAD has no such file."""
+    o = git("rev-parse", "--verify", "--quiet", f"HEAD:{path}")
+    return o.stdout.strip() if o.returncode == 0 else None
 
 
 def worktree_blob(path):
@@ -531,9 +635,14 @@ def check(name, binary):
     if untracked:
         fail(f"{untracked[0]} is in the directory of a task file or scene of the protocol but not "
              "committed: a job could read it (commit it or move it away)")
+    missing = [f for f in configs_and_tasks(plan) + reads if blob(f) is None]
+    if missing:
+        fail(f"{missing[0]} is read by the protocol's jobs but not committed")
     inputs = METHOD_PATHS + configs_and_tasks(plan) + reads
-    if git("diff", "--quiet", frozen, "HEAD", "--", *inputs).returncode != 0:
-        fail(f"HEAD differs from the frozen commit in the method or its inputs (`git diff {frozen[:10]} HEAD -- {' '.join(inputs)}`)")
+    moved = [f for f in git_out("diff", "-z", "--name-only", frozen, "HEAD", "--", *inputs).split("\0") if f]
+    if moved:
+        fail(f"HEAD differs from the frozen commit in the method or its inputs: {moved[0]} "
+             f"(`git diff {frozen[:10]} HEAD -- {moved[0]}`)")
     if git("diff", "--quiet", "HEAD", "--", *inputs).returncode != 0:
         fail("the checkout has uncommitted changes in the method or its inputs")
     version, built = binary_version(binary)
@@ -799,23 +908,14 @@ def run(name, binary, until, max_jobs, parallel):
     changed = scripts_changed(lock)
     if changed:
         fail(f"{' and '.join(changed)} changed after the protocol was locked (the lock's blob ids)")
-    inputs = configs_and_tasks(plan)
-    if {f: blob(f) for f in inputs} != lock["inputs"] or git("diff", "--quiet", "HEAD", "--", *inputs).returncode != 0:
-        fail(f"a config or task file of the protocol changed after it was locked ({' '.join(inputs)})")
-    reads = task_reads(plan)
     if "task_reads" not in lock:
         fail(f"{rel(lock_path(name))} holds no `task_reads`: it was written by an older run.py, "
              "whose lock left the files task files name unchecked; run it with that run.py")
-    now = {f: blob(f) for f in reads}
-    changed = [f for f in sorted(set(now) | set(lock["task_reads"])) if now.get(f) != lock["task_reads"].get(f)]
-    changed += [f for f in git("diff", "--name-only", "HEAD", "--", *reads).stdout.split() if f not in changed] if reads else []
+    changed = inputs_changed(plan, lock)
     if changed:
-        fail(f"{changed[0]}, which a task file of the protocol makes a job read (its machine, scene, "
-             "experts or a file beside them), changed after the protocol was locked")
-    untracked = untracked_in(task_files(plan) + reads)
-    if untracked:
-        fail(f"{untracked[0]} is in the directory of a task file or scene of the protocol but not "
-             "committed, so it changed after the protocol was locked")
+        fail(f"{changed}, a config or task file of the protocol or a file a task file makes a job "
+             "read (its machine, scene, experts or a file beside them), changed after the "
+             "protocol was locked")
     version, built = binary_version(binary)
     if built != lock["frozen"]:
         fail(f"{binary} is built from {built}, not the frozen commit {lock['frozen']} (see run.py's docs)")
