@@ -265,8 +265,9 @@ def main():
     changed = protocol.inputs_changed(plan, lock)
     if changed:
         fail(f"{changed} differs from what the lock holds: a run directory prepared again here "
-             "would not be the protocol's; diagnose at a commit whose configs and task files are "
-             f"the lock's, such as its head (`git worktree add DIR {lock.get('head', '')[:12]}`)")
+             "would not be the protocol's; diagnose in a worktree of a commit whose configs and "
+             f"task files are the lock's, such as its head ({lock.get('head', '')[:12]}), with this "
+             "checkout's ledger.jsonl and jobs.csv copied into it")
     rows = read_jobs(name)
     dirs = run_dirs(name, plan)
     if len(rows) != len(dirs):

@@ -245,9 +245,9 @@ def main():
     changed = protocol.scripts_changed(lock)
     if changed:
         sys.exit(f"table: {' and '.join(changed)} differ from the blobs locked in {protocol.rel(lock_file)}: "
-                 "the scripts that compute the tables are frozen with the protocol: make its tables at a "
-                 f"commit whose scripts are the lock's, such as the lock's head "
-                 f"(`git worktree add DIR {lock.get('head', '<commit>')[:12]}`)")
+                 "the scripts that compute the tables are frozen with the protocol: make its tables again in "
+                 "a worktree of the commit that made them (`git worktree add DIR $(git log -1 "
+                 f"--format=%h -- {protocol.rel(os.path.join(protocol.state_dir(name), 'summary.md'))})`)")
     runs, jobs = protocol.plan_runs(name, plan, lock)
     ledger = protocol.read_ledger(name)
     finished, demos = {}, {}
