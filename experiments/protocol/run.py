@@ -132,6 +132,8 @@ RERUN_SIGNALS = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
 # A job is started at most this many times (the first run and two reruns after kills).
 MAX_STARTS = 3
 TIERS = (1, 2, 3)
+# The tasks built into the binary; any other task of a plan is the path of a task file.
+SHIPPED_TASKS = ("or", "sequential", "if", "composite", "blue")
 
 
 def fail(msg):
@@ -265,13 +267,14 @@ def configs_and_tasks(plan):
     files = {plan["config"]}
     for arm in plan["arm"]:
         files.add(arm.get("config", plan["config"]))
-        files.update(t for t in arm["tasks"] if t.endswith(".toml"))
+        files.update(t for t in arm["tasks"] if t not in SHIPPED_TASKS)
     return sorted(files)
 
 
 def task_files(plan):
-    """The plan's task files (its tasks named by path; a shipped task is built into the binary)."""
-    return sorted({t for arm in plan["arm"] for t in arm["tasks"] if t.endswith(".toml")})
+    """The plan's task files: every task but a shipped one (built into the binary), as
+    `reacher --task` reads any other name as a path."""
+    return sorted({t for arm in plan["arm"] for t in arm["tasks"] if t not in SHIPPED_TASKS})
 
 
 def git_out(*args, text=True):
