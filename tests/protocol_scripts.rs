@@ -606,7 +606,21 @@ fn the_files_a_task_file_names_are_locked_with_it() {
         "<mujoco><include file=\"../x.xml\"/></mujoco>\n",
     );
     refused_check("scenes/s.xml names file=\"../x.xml\"");
+    // Files above the limits reacher puts on them, refused before they are read whole.
+    let padding = |bytes: usize| format!("<!--{}-->", "x".repeat(bytes));
+    write(
+        &repo.join("scenes/s.xml"),
+        &format!("{scene}{}", padding(16 << 20)),
+    );
+    refused_check("scenes/s.xml: 16777279 bytes, above the limit of 16777216 bytes");
     write(&repo.join("scenes/s.xml"), scene);
+    let task = std::fs::read_to_string(repo.join("tasks/t.toml")).unwrap();
+    write(
+        &repo.join("tasks/t.toml"),
+        &format!("{task}# {}\n", "x".repeat(1 << 20)),
+    );
+    refused_check("tasks/t.toml: 1048635 bytes, above the limit of 1048576 bytes");
+    write(&repo.join("tasks/t.toml"), &task);
     // No committed expert: a job would train one.
     let aside = tmp.path().join("expert.policy");
     std::fs::rename(repo.join(expert), &aside).unwrap();

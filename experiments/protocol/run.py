@@ -194,11 +194,7 @@ def load(name):
     for f in (md, spec):
         if not os.path.isfile(os.path.join(ROOT, f)):
             fail(f"{f} does not exist")
-    try:
-        with open(os.path.join(ROOT, spec), "rb") as fh:
-            plan = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as e:
-        fail(f"{spec}: {e}")
+    plan = load_toml(spec)
     for key in ("commit", "config", "bases", "arm", "timeout_secs"):
         if key not in plan:
             fail(f"{spec}: missing key `{key}`")
@@ -296,10 +292,37 @@ SCENE_FILE_ATTRIBUTE = re.compile(
     r"""\b(file|meshdir|texturedir|file(?:right|left|up|down|front|back))\s*=\s*(?:"([^"]*)"|'([^']*)')""")
 
 
+# The limits reacher puts on the same files (config_text::MAX_TEXT_FILE_BYTES and
+# scene_xml::MAX_SCENE_BYTES): a file above them fails every job, so check refuses it first.
+MAX_TEXT_FILE_BYTES = 1 << 20
+MAX_SCENE_BYTES = 16 << 20
+
+
+def read_bounded(path, limit):
+    """The bytes of a checkout file of at most `limit` bytes; a larger one ends the script,
+    naming the file and the limit, before anything is read."""
+    full = os.path.join(ROOT, path)
+    try:
+        size = os.path.getsize(full)
+        if size > limit:
+            fail(f"{path}: {size} bytes, above the limit of {limit} bytes for this kind of file")
+        with open(full, "rb") as fh:
+            return fh.read(limit + 1)
+    except OSError as e:
+        fail(f"{path}: {e}")
+
+
+def load_toml(path):
+    """A checkout TOML file of at most MAX_TEXT_FILE_BYTES, parsed; errors name the file."""
+    try:
+        return tomllib.loads(read_bounded(path, MAX_TEXT_FILE_BYTES).decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        fail(f"{path}: {e}")
+
+
 def scene_reads_outside(xml_path):
     """The first file or asset directory an MJCF file names outside its own directory, if any."""
-    with open(os.path.join(ROOT, xml_path), encoding="utf-8", errors="replace") as fh:
-        text = fh.read()
+    text = read_bounded(xml_path, MAX_SCENE_BYTES).decode("utf-8", errors="replace")
     here = os.path.dirname(xml_path)
     for m in SCENE_FILE_ATTRIBUTE.finditer(text):
         value = m.group(2) if m.group(2) is not None else m.group(3)
@@ -325,11 +348,7 @@ def task_reads(plan):
             fail(f"{task}: a protocol's task file lies in a directory of the checkout, not at its "
                  "root or outside it (every file in and below its directory is locked with it)")
         dirs.add(here)
-        try:
-            with open(os.path.join(ROOT, task), "rb") as fh:
-                named = tomllib.load(fh)
-        except (OSError, tomllib.TOMLDecodeError) as e:
-            fail(f"{task}: {e}")
+        named = load_toml(task)
         for key in ("scene", "machine"):
             value = named.get(key)
             if not isinstance(value, str) or (key == "scene" and value == "builtin"):
@@ -371,12 +390,8 @@ def task_reads(plan):
 def demos_from_expert(plan):
     """Whether a config of the plan makes its demonstrations with the task's expert."""
     for config in {plan["config"], *(arm.get("config", plan["config"]) for arm in plan["arm"])}:
-        try:
-            with open(os.path.join(ROOT, config), "rb") as fh:
-                if tomllib.load(fh).get("demo_source", "expert") != "scripted":
-                    return True
-        except (OSError, tomllib.TOMLDecodeError) as e:
-            fail(f"{config}: {e}")
+        if load_toml(config).get("demo_source", "expert") != "scripted":
+            return True
     return False
 
 
