@@ -94,9 +94,9 @@ def read_jobs(name):
         return list(csv.DictReader(fh))
 
 
-def run_dirs(name, plan):
+def run_dirs(name, plan, lock):
     """{(arm, task, base, algo, seed): run.py's plan entry of the job's run directory}."""
-    runs, jobs = protocol.plan_runs(name, plan, protocol.lock_if_any(name))
+    runs, jobs = protocol.plan_runs(name, plan, lock)
     out = {}
     for j in jobs:
         r = runs[j["run"]]
@@ -269,7 +269,7 @@ def main():
              f"task files are the lock's, such as its head ({lock.get('head', '')[:12]}), with this "
              "checkout's ledger.jsonl and jobs.csv copied into it")
     rows = read_jobs(name)
-    dirs = run_dirs(name, plan)
+    dirs = run_dirs(name, plan, lock)
     if len(rows) != len(dirs):
         fail(f"jobs.csv has {len(rows)} rows, the plan {len(dirs)} jobs: diagnose a finished plan only")
     ledger = protocol.read_ledger(name)

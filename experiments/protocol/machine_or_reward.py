@@ -347,7 +347,7 @@ def main():
             fail(f"{protocol.rel(path)} was written with other arguments or by another script blob: "
                  "--replace replaces it")
     rows = diagnose.read_jobs(name)
-    dirs = diagnose.run_dirs(name, plan)
+    dirs = diagnose.run_dirs(name, plan, protocol.lock_if_any(name))
     if len(rows) != len(dirs):
         fail(f"jobs.csv has {len(rows)} rows, the plan {len(dirs)} jobs: ask of a finished plan only")
     ledger = protocol.read_ledger(name)

@@ -263,8 +263,7 @@ def configs_and_tasks(plan):
     files = {plan["config"]}
     for arm in plan["arm"]:
         files.add(arm.get("config", plan["config"]))
-        files.update(t for t in arm["tasks"] if t not in SHIPPED_TASKS)
-    return sorted(files)
+    return sorted(files | set(task_files(plan)))
 
 
 def task_files(plan):
@@ -342,6 +341,7 @@ def task_reads(plan):
     target's name, not its bytes), and a task without a committed expert when a config of the
     plan makes demonstrations with the expert (a job would train one)."""
     reads, dirs = set(), set()
+    needs_expert = demos_from_expert(plan)
     for task in task_files(plan):
         here = os.path.dirname(os.path.normpath(task))
         if not in_repository(os.path.normpath(task)) or not here:
@@ -362,7 +362,7 @@ def task_reads(plan):
                 dirs.add(os.path.dirname(path))
         stem = task_label(task)
         experts = git_out("ls-files", "-z", "--", os.path.join(here, "experts")).split("\0")
-        if demos_from_expert(plan) and not any(
+        if needs_expert and not any(
                 re.fullmatch(rf"expert_{re.escape(stem)}-[0-9a-f]+\.policy", os.path.basename(f)) for f in experts if f):
             fail(f"{task}: no committed expert ({here}/experts/expert_{stem}-<hash>.policy): a job "
                  f"would train one; train it with `reacher expert --task {task}` and commit it")
